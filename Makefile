@@ -1,0 +1,33 @@
+# Two commands for a fresh machine: `make demo` and `make test`.
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test bench lint docs clean
+
+$(PY):
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+
+$(STAMP): $(PY) pyproject.toml
+	$(PY) -m pip install -q -e '.[test]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/navig8-stability --plots out/stability
+
+test: $(STAMP)
+	$(VENV)/bin/ruff check navig8_fc sim_bridge tools tests
+	$(PY) -m pytest -q; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: pytest collected no tests' >&2; fi; exit $$rc
+
+bench: $(STAMP)
+	$(VENV)/bin/navig8-bench
+
+docs: $(STAMP)
+	$(VENV)/bin/navig8-params-doc --write docs/params.md
+
+clean:
+	rm -rf $(VENV) out build *.egg-info
