@@ -1,0 +1,299 @@
+"""Parameter registry: definitions from params/fc_params.yaml, typed access, validation.
+
+Pure state machine: no sockets, no files written, no clocks. The MAVLink parameter protocol,
+persistence and STATUSTEXT live in the shell; they call `validate`/`set` and report the
+`SetResult`. Names and order are fixed at load: a parameter's index is its position in the
+YAML file (MAVLink param_index).
+
+Rules checked on every set (each refusal carries a human-readable reason):
+- the name exists; the value is a finite number; INT32 values are integral;
+- min <= value <= max from the definition;
+- cross-parameter rules: INDI_K_MIN <= INDI_K_MAX; INDI_LAMBDA_MIN above the critical eigenvalue;
+- the stability floor (DESIGN §5): a K bound (or an actuator/sampling/filter parameter) that would
+  let an eigenvalue of G_hat G^-1 fall below the critical eigenvalue of H(s) (Eq. 9-13) anywhere in
+  the workspace is refused.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from importlib.resources import files
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+MAX_NAME_LEN = 16  # MAVLink param_id is char[16]
+TYPES = ("REAL32", "INT32")
+
+# Parameters the stability floor depends on: a change to any of them re-runs the check.
+STABILITY_PARAMS = frozenset(
+    {"INDI_K_MIN", "INDI_K_MAX", "INDI_LAMBDA_MIN", "ACT_WN", "ACT_ZETA", "INDI_RATE_HZ", "INDI_LPF_TAU"}
+)
+
+
+class ParamDefinitionError(ValueError):
+    """The parameter definition file is malformed (raised at startup)."""
+
+
+@dataclass(frozen=True)
+class ParamDef:
+    name: str
+    type: str
+    default: float
+    min: float
+    max: float
+    units: str
+    description: str
+    index: int
+
+    def coerce(self, value: float) -> float | int:
+        """The stored form: INT32 as int, REAL32 rounded to float32 (what MAVLink carries)."""
+        if self.type == "INT32":
+            return int(round(value))
+        return float(np.float32(value))
+
+
+@dataclass(frozen=True)
+class SetResult:
+    """Outcome of a set: the value now in force (the old one when refused) and why it was refused."""
+
+    name: str
+    accepted: bool
+    value: float | int
+    old_value: float | int
+    reason: str | None = None
+
+
+@dataclass(frozen=True)
+class StabilityFloor:
+    """Result of the stability-floor check for one candidate parameter set."""
+
+    lambda_crit: float
+    min_eigenvalue: float
+
+    @property
+    def ok(self) -> bool:
+        return self.min_eigenvalue > self.lambda_crit
+
+
+StabilityCheck = Callable[[Mapping[str, float | int]], StabilityFloor]
+
+
+class WorkspaceStabilityCheck:
+    """λ_crit of H(s) for the actuator/sampling/filter parameters vs the smallest eigenvalue of K·Ξ
+    over the arm workspace and object masses (navig8_fc.core.stability)."""
+
+    def __init__(self, vehicle_path: str | Path | None = None) -> None:
+        self._vehicle_path = vehicle_path
+        self._cfg: Any = None
+
+    def __call__(self, values: Mapping[str, float | int]) -> StabilityFloor:
+        from navig8_fc.core import stability
+        from navig8_fc.core.vehicle import VehicleConfig
+
+        if self._cfg is None:
+            self._cfg = VehicleConfig.load(self._vehicle_path)
+        lam_crit = stability.lambda_crit(
+            float(values["ACT_WN"]),
+            float(values["ACT_ZETA"]),
+            1.0 / float(values["INDI_RATE_HZ"]),
+            float(values["INDI_LPF_TAU"]),
+        )
+        min_eig = stability.min_eigenvalue_over_workspace(
+            self._cfg, float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"])
+        )
+        return StabilityFloor(lambda_crit=lam_crit, min_eigenvalue=min_eig)
+
+
+def load_definitions(text: str) -> tuple[ParamDef, ...]:
+    """Parse and check the YAML definitions (names, types, ranges, defaults)."""
+    doc = yaml.safe_load(text)
+    if not isinstance(doc, dict) or not isinstance(doc.get("params"), list):
+        raise ParamDefinitionError("parameter file must have a top-level 'params' list")
+    defs: list[ParamDef] = []
+    seen: set[str] = set()
+    for i, raw in enumerate(doc["params"]):
+        try:
+            name = str(raw["name"])
+            ptype = str(raw["type"])
+            d = ParamDef(
+                name=name,
+                type=ptype,
+                default=float(raw["default"]),
+                min=float(raw["min"]),
+                max=float(raw["max"]),
+                units=str(raw.get("units", "")),
+                description=str(raw["description"]).strip(),
+                index=i,
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ParamDefinitionError(f"parameter #{i}: {exc!r}") from exc
+        if not name or len(name) > MAX_NAME_LEN or not name.replace("_", "").isalnum() or name.upper() != name:
+            raise ParamDefinitionError(f"{name!r}: names are UPPER_SNAKE, at most {MAX_NAME_LEN} chars")
+        if "_" not in name:
+            raise ParamDefinitionError(f"{name!r}: names carry a group prefix (GROUP_NAME)")
+        if name in seen:
+            raise ParamDefinitionError(f"{name!r} defined twice")
+        if ptype not in TYPES:
+            raise ParamDefinitionError(f"{name}: type {ptype!r} not in {TYPES}")
+        if not (d.min <= d.default <= d.max):
+            raise ParamDefinitionError(f"{name}: default {d.default} outside [{d.min}, {d.max}]")
+        if ptype == "INT32" and any(v != int(v) for v in (d.default, d.min, d.max)):
+            raise ParamDefinitionError(f"{name}: INT32 default/min/max must be integers")
+        seen.add(name)
+        defs.append(d)
+    return tuple(defs)
+
+
+class ParamRegistry:
+    """The live parameter set of one flight controller."""
+
+    def __init__(
+        self,
+        definitions: Iterable[ParamDef],
+        stability_check: StabilityCheck | None = None,
+        check_stability: bool = True,
+    ) -> None:
+        self._defs = tuple(definitions)
+        self._by_name = {d.name: d for d in self._defs}
+        self._values: dict[str, float | int] = {d.name: d.coerce(d.default) for d in self._defs}
+        if stability_check is None and check_stability:
+            stability_check = WorkspaceStabilityCheck()
+        self._stability_check = stability_check
+        self._generation = 0
+
+    # --- construction -------------------------------------------------------------------------
+    @staticmethod
+    def definitions_text(path: str | Path | None = None) -> str:
+        if path is None:
+            return (files("navig8_params") / "fc_params.yaml").read_text()
+        return Path(path).read_text()
+
+    @classmethod
+    def from_defaults(
+        cls,
+        path: str | Path | None = None,
+        stability_check: StabilityCheck | None = None,
+        check_stability: bool = True,
+    ) -> ParamRegistry:
+        return cls(load_definitions(cls.definitions_text(path)), stability_check, check_stability)
+
+    # --- read access ----------------------------------------------------------------------------
+    @property
+    def definitions(self) -> tuple[ParamDef, ...]:
+        return self._defs
+
+    @property
+    def generation(self) -> int:
+        """Counts accepted changes, so consumers rebuild their typed config only when it moved."""
+        return self._generation
+
+    def __len__(self) -> int:
+        return len(self._defs)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._by_name
+
+    def definition(self, name: str) -> ParamDef:
+        try:
+            return self._by_name[name]
+        except KeyError:
+            raise KeyError(f"unknown parameter {name!r}") from None
+
+    def index_of(self, name: str) -> int:
+        return self.definition(name).index
+
+    def at_index(self, index: int) -> ParamDef:
+        if not 0 <= index < len(self._defs):
+            raise IndexError(f"parameter index {index} outside 0..{len(self._defs) - 1}")
+        return self._defs[index]
+
+    def get(self, name: str) -> float | int:
+        if name not in self._values:
+            raise KeyError(f"unknown parameter {name!r}")
+        return self._values[name]
+
+    __getitem__ = get
+
+    def as_dict(self) -> dict[str, float | int]:
+        return dict(self._values)
+
+    def require(self, names: Iterable[str]) -> None:
+        """Fail at startup when code asks for a parameter the definitions do not have."""
+        missing = sorted(set(names) - set(self._by_name))
+        if missing:
+            raise ParamDefinitionError(f"code uses undefined parameters: {', '.join(missing)}")
+
+    # --- validation -----------------------------------------------------------------------------
+    def validate(self, name: str, value: float) -> str | None:
+        """None when `value` may be set, otherwise the reason (for STATUSTEXT)."""
+        if name not in self._by_name:
+            return f"unknown parameter {name!r}"
+        d = self._by_name[name]
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            return f"{name}: value {value!r} is not a number"
+        if not math.isfinite(v):
+            return f"{name}: value must be finite, got {v}"
+        if d.type == "INT32" and v != int(v):
+            return f"{name}: INT32 needs an integer, got {v}"
+        cv = d.coerce(v)
+        # Compare the float32 form against the float32 form of the limits: a GCS sends float32.
+        lo, hi = d.coerce(d.min), d.coerce(d.max)
+        if not (lo <= cv <= hi):
+            return f"{name}: {v:g} outside [{d.min:g}, {d.max:g}] {d.units}".rstrip()
+        candidate = dict(self._values)
+        candidate[name] = cv
+        return self._cross_check(name, candidate)
+
+    def _cross_check(self, name: str, c: Mapping[str, float | int]) -> str | None:
+        if "INDI_K_MIN" in c and "INDI_K_MAX" in c and c["INDI_K_MIN"] > c["INDI_K_MAX"]:
+            return f"{name}: needs INDI_K_MIN <= INDI_K_MAX ({c['INDI_K_MIN']:g} > {c['INDI_K_MAX']:g})"
+        if name in STABILITY_PARAMS and self._stability_check is not None:
+            floor = self._stability_check(c)
+            if not floor.ok:
+                return (
+                    f"{name}: refused by the stability floor: min eig(Ghat G^-1) "
+                    f"{floor.min_eigenvalue:.3f} <= lambda_crit {floor.lambda_crit:.3f}"
+                )
+            lam_min = c.get("INDI_LAMBDA_MIN")
+            if lam_min is not None and lam_min <= floor.lambda_crit:
+                return (
+                    f"{name}: INDI_LAMBDA_MIN {lam_min:g} must exceed lambda_crit {floor.lambda_crit:.3f}"
+                )
+        return None
+
+    # --- mutation -------------------------------------------------------------------------------
+    def set(self, name: str, value: float) -> SetResult:
+        """Apply `value` if valid; a refusal changes nothing and reports the old value."""
+        if name not in self._by_name:
+            return SetResult(name, False, math.nan, math.nan, f"unknown parameter {name!r}")
+        old = self._values[name]
+        reason = self.validate(name, value)
+        if reason is not None:
+            return SetResult(name, False, old, old, reason)
+        new = self._by_name[name].coerce(float(value))
+        self._values[name] = new
+        if new != old:
+            self._generation += 1
+        return SetResult(name, True, new, old, None)
+
+    def load_values(self, values: Mapping[str, float]) -> list[SetResult]:
+        """Apply stored values one by one (persistence); unknown or invalid entries are refused."""
+        results: list[SetResult] = []
+        # K bounds first in an order that keeps K_MIN <= K_MAX valid while both move.
+        order = sorted(values, key=lambda n: (n != "INDI_K_MAX", n))
+        if "INDI_K_MAX" in values and float(values["INDI_K_MAX"]) < float(self._values["INDI_K_MIN"]):
+            order = sorted(values, key=lambda n: (n != "INDI_K_MIN", n))
+        for n in order:
+            results.append(self.set(n, values[n]))
+        return results
+
+    def reset_defaults(self) -> None:
+        self._values = {d.name: d.coerce(d.default) for d in self._defs}
+        self._generation += 1
