@@ -13,6 +13,7 @@ U = [cos a1 w1^2, sin a1 w1^2, cos a3 w3^2, sin a3 w3^2, sign(w2) w2^2] (Sec. 3)
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,6 +22,7 @@ import numpy as np
 import yaml
 
 N_LINKS = 3
+Sequence3 = Sequence[float] | np.ndarray
 
 
 @dataclass(frozen=True)
@@ -425,3 +427,129 @@ def hover_trim(cfg: VehicleConfig, q: np.ndarray, object_mass_kg: float) -> np.n
     gc = control_effectiveness_gc(cfg, mp.com_frd_m)
     target = np.array([0.0, 0.0, 0.0, 0.0, -mp.mass_kg * cfg.gravity_m_s2])
     return np.linalg.solve(gc, target)
+
+
+# --------------------------------------------------------------------------------------
+# Fast per-tick model of the UAM without object (the controller's view), plain floats
+# --------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class UamState:
+    """What the controller needs each tick from the measured arm state (UAM without object)."""
+
+    mass_kg: float
+    com_frd_m: np.ndarray  # (3,)
+    inertia_com: np.ndarray  # (3,3) about the UAM CoM
+    inertia_rate: np.ndarray  # (3,3) Eq. 22's I-dot
+    gc: np.ndarray  # (5,5) G_C,UAM about the UAM CoM (Eq. 2)
+    arm_accel_xz: tuple[float, float]  # sum_k m_k r''_k / m of the arm (+ estimated object), body x and z
+
+
+class UamModel:
+    """Precomputed propulsion geometry plus plain-float planar arm maths for the 100 Hz loop.
+
+    Equivalent to mass_properties / inertia_rate / control_effectiveness_gc (tests compare them) but
+    ~10x cheaper: the reference functions use numpy on 3-vectors, which is overhead-bound.
+    The moment rows of G_C about a point c follow from those about O: M_c = M_O - c x F (notes 2.5).
+    """
+
+    def __init__(self, cfg: VehicleConfig) -> None:
+        self.cfg = cfg
+        f, m0 = _force_moment_per_input(cfg, np.zeros(3))
+        self._f = f
+        self._m0 = m0
+        j = cfg.uav_inertia_array
+        self._jb = (float(j[0, 0]), float(j[1, 1]), float(j[2, 2]), float(j[0, 2]))
+
+    def gc_about(self, cx: float, cz: float) -> np.ndarray:
+        """G_C rows [L, M, N, Fx, Fz] about c = (cx, 0, cz): M_c = M_O - c x F."""
+        f, m0 = self._f, self._m0
+        gc = np.empty((5, 5))
+        # c x F with c_y = 0: [-cz Fy, cz Fx - cx Fz, cx Fy]
+        gc[0] = m0[0] + cz * f[1]
+        gc[1] = m0[1] - (cz * f[0] - cx * f[2])
+        gc[2] = m0[2] - cx * f[1]
+        gc[3] = f[0]
+        gc[4] = f[2]
+        return gc
+
+    def evaluate(
+        self,
+        q: Sequence3,
+        qd: Sequence3,
+        qdd: Sequence3 | None = None,
+        object_mass_kg: float = 0.0,
+    ) -> UamState:
+        """Mass properties, I-dot, G_C and the arm's CoM acceleration for the measured arm state.
+
+        object_mass_kg > 0 adds a point object at the tip for the CoM-acceleration term only
+        (the controller's G_C and G_I stay those of the UAM without object, as in the paper).
+        """
+        cfg = self.cfg
+        L, ml, ia = cfg.link_length_m, cfg.link_mass_kg, cfg.link_inertia_kgm2
+        mx, mz = cfg.mount_frd_m[0], cfg.mount_frd_m[2]
+        th = thd = thdd = 0.0
+        jx, jz, jvx, jvz, jax, jaz = mx, mz, 0.0, 0.0, 0.0, 0.0
+        s1 = s1z = 0.0  # sum m x, sum m z
+        v1x = v1z = a1x = a1z = 0.0  # sum m xdot, sum m zdot, sum m xddot, sum m zddot
+        j11 = j22 = j33 = j13 = 0.0
+        d11 = d22 = d33 = d13 = 0.0
+        qdd = (0.0, 0.0, 0.0) if qdd is None else qdd
+        for i in range(N_LINKS):
+            th += float(q[i])
+            thd += float(qd[i])
+            thdd += float(qdd[i])
+            s, c = math.sin(th), math.cos(th)
+            # e = (s, c), e' = (c, -s); d/dt e = thd e'; d2/dt2 e = thdd e' - thd^2 e
+            vx, vz = thd * c, -thd * s
+            ax, az = thdd * c - thd * thd * s, -thdd * s - thd * thd * c
+            h = 0.5 * L
+            x, z = jx + h * s, jz + h * c
+            xd, zd = jvx + h * vx, jvz + h * vz
+            xdd, zdd = jax + h * ax, jaz + h * az
+            s1 += ml * x
+            s1z += ml * z
+            v1x += ml * xd
+            v1z += ml * zd
+            a1x += ml * xdd
+            a1z += ml * zdd
+            j11 += ia * c * c + ml * z * z
+            j22 += ia + ml * (x * x + z * z)
+            j33 += ia * s * s + ml * x * x
+            j13 += -ia * s * c - ml * x * z
+            s2, c2 = 2.0 * s * c, c * c - s * s
+            d11 += -ia * s2 * thd + 2.0 * ml * z * zd
+            d22 += 2.0 * ml * (x * xd + z * zd)
+            d33 += ia * s2 * thd + 2.0 * ml * x * xd
+            d13 += -ia * c2 * thd - ml * (xd * z + x * zd)
+            jx, jz = jx + L * s, jz + L * c
+            jvx, jvz = jvx + L * vx, jvz + L * vz
+            jax, jaz = jax + L * ax, jaz + L * az
+        m = cfg.uam_mass_kg
+        cx, cz = s1 / m, s1z / m
+        cxd, czd = v1x / m, v1z / m
+        jb11, jb22, jb33, jb13 = self._jb
+        i11 = jb11 + j11 - m * cz * cz
+        i22 = jb22 + j22 - m * (cx * cx + cz * cz)
+        i33 = jb33 + j33 - m * cx * cx
+        i13 = jb13 + j13 + m * cx * cz
+        r11 = d11 - 2.0 * m * cz * czd
+        r22 = d22 - 2.0 * m * (cx * cxd + cz * czd)
+        r33 = d33 - 2.0 * m * cx * cxd
+        r13 = d13 + m * (cxd * cz + cx * czd)
+        inertia = np.array([[i11, 0.0, i13], [0.0, i22, 0.0], [i13, 0.0, i33]])
+        rate = np.array([[r11, 0.0, r13], [0.0, r22, 0.0], [r13, 0.0, r33]])
+        # Tip acceleration for a point object (estimated mass) in the CoM-acceleration term.
+        mo = max(object_mass_kg, 0.0)
+        m_tot = m + mo
+        arm_ax = (a1x + mo * jax) / m_tot
+        arm_az = (a1z + mo * jaz) / m_tot
+        return UamState(
+            mass_kg=m,
+            com_frd_m=np.array([cx, 0.0, cz]),
+            inertia_com=inertia,
+            inertia_rate=rate,
+            gc=self.gc_about(cx, cz),
+            arm_accel_xz=(arm_ax, arm_az),
+        )

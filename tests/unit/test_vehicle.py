@@ -191,3 +191,19 @@ def test_eigenvalues_from_k_and_from_estimate_agree() -> None:
     lam_k = vm.ghat_ginv_eigenvalues(pair, k)
     lam_x = vm.ghat_ginv_eigenvalues_from_estimate(pair, vm.estimated_gi(j, x))
     np.testing.assert_allclose(np.sort_complex(lam_k), np.sort_complex(lam_x), atol=1e-9)
+
+
+def test_fast_uam_model_matches_reference_functions() -> None:
+    um = vm.UamModel(CFG)
+    for _ in range(20):
+        q, qd, qdd = RNG.uniform(-1.6, 1.6, 3), RNG.uniform(-4, 4, 3), RNG.uniform(-40, 40, 3)
+        st = um.evaluate(q, qd, qdd)
+        mp = vm.mass_properties(CFG, q)
+        np.testing.assert_allclose(st.inertia_com, mp.inertia_com, atol=1e-12)
+        np.testing.assert_allclose(st.com_frd_m, mp.com_frd_m, atol=1e-12)
+        np.testing.assert_allclose(st.inertia_rate, vm.inertia_rate(CFG, q, qd), atol=1e-12)
+        np.testing.assert_allclose(st.gc, vm.control_effectiveness_gc(CFG, mp.com_frd_m), atol=1e-12)
+        kin = vm.arm_kinematics(CFG, q, qd, qdd)
+        mo = RNG.uniform(0, 2)
+        want = (CFG.link_mass_kg * kin.link_com_acc.sum(axis=0) + mo * kin.object_acc) / (CFG.uam_mass_kg + mo)
+        np.testing.assert_allclose(um.evaluate(q, qd, qdd, mo).arm_accel_xz, want[[0, 2]], atol=1e-12)
