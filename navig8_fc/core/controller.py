@@ -1,0 +1,187 @@
+"""The flight controller's core: outer loops -> INDI inner loop, with the adaptive law (paper Fig. 3).
+
+One `step(sensors, setpoint, engaged) -> (command, status)` per control tick, on the sensor bundle's
+time (lockstep: no clock of its own). Configuration is a frozen dataclass built from parameters;
+everything observable leaves through `ControllerStatus`.
+
+Signal flow per tick:
+1. Joint-state observer: the joint angles are very noisy (sigma 0.08 rad, paper §4) while the rates
+   are clean (0.01 rad/s), so q is estimated by a complementary filter (integrate q-dot, correct
+   toward q with time constant JOINT_OBS_TAU_S); q-ddot is the difference of the measured rate.
+2. UAM model without object at (q_est, q-dot): mass, CoM, inertia, I-dot (Eq. 22), G_C,UAM (Eq. 2).
+3. Adaptive law (constrained KF): G_hat_I (Eq. 4), from U0 and Acc_m = [omega-dot, f_O + c-ddot_arm].
+4. Outer loops: [Pdot, Qdot, Rdot, a_x, a_z] commands.
+5. INDI: Delta U = G_C^-1 G_hat_I Delta Acc (Eq. 5), U = U0 + Delta U (Eq. 6) -> actuators.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from navig8_fc.core.ckf import AdaptiveLaw, AdaptiveLawInputs, AdaptiveLawStatus, CkfConfig
+from navig8_fc.core.filters import BackwardDifference
+from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs, IndiStatus
+from navig8_fc.core.outer_loop import OuterLoopConfig, OuterLoopStatus, Setpoint, outer_loop_step
+from navig8_fc.core.vehicle import UamModel, VehicleConfig, actuators_to_u
+
+JOINT_OBS_TAU_S = 1.0  # complementary-filter time constant for the joint angles (docs/model.md)
+
+PARAMS_USED = (
+    "INDI_RATE_HZ", "INDI_LPF_TAU", "INDI_K_MIN", "INDI_K_MAX",
+    "OL_POS_K", "OL_VEL_K", "OL_VEL_MAX", "OL_ACC_MAX", "OL_ATT_K", "OL_RATE_K", "OL_RATE_MAX",
+    "CKF_MODE", "CKF_LPF_TAU", "CKF_START_DLY", "CKF_Q_IXX", "CKF_Q_IYY", "CKF_Q_IZZ", "CKF_Q_M",
+    "CKF_R_U1", "CKF_R_U2", "CKF_R_U3", "CKF_R_U4", "CKF_R_U5", "CKF_P0_SCALE", "CKF_PROJ_W",
+)
+
+
+@dataclass(frozen=True)
+class FcSensors:
+    """One sensor bundle as the flight controller sees it (body FRD, NED, SI)."""
+
+    t_s: float
+    gyro_frd: tuple[float, float, float]
+    accel_frd: tuple[float, float, float]  # specific force at O
+    pos_ned: tuple[float, float, float]
+    vel_ned: tuple[float, float, float]
+    quat_wxyz: tuple[float, float, float, float]
+    tilt_rad: tuple[float, float]  # measured alpha1, alpha3
+    speed_rad_s: tuple[float, float, float]  # measured w1, w2 (signed), w3
+    joint_pos_rad: tuple[float, float, float]
+    joint_rate_rad_s: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class ActuatorCommand:
+    tilt_rad: tuple[float, float]
+    speed_rad_s: tuple[float, float, float]
+
+
+MOTORS_OFF = ActuatorCommand((0.0, 0.0), (0.0, 0.0, 0.0))
+
+
+@dataclass(frozen=True)
+class ControllerConfig:
+    dt_s: float
+    k_min: float
+    k_max: float
+    indi: IndiConfig
+    outer: OuterLoopConfig
+    ckf: CkfConfig
+
+    @staticmethod
+    def from_params(values: Mapping[str, float | int], vehicle: VehicleConfig) -> ControllerConfig:
+        missing = [n for n in PARAMS_USED if n not in values]
+        if missing:
+            raise KeyError(f"controller parameters missing: {missing}")
+        dt = 1.0 / float(values["INDI_RATE_HZ"])
+        return ControllerConfig(
+            dt_s=dt,
+            k_min=float(values["INDI_K_MIN"]),
+            k_max=float(values["INDI_K_MAX"]),
+            indi=IndiConfig(dt, float(values["INDI_LPF_TAU"]), ActuatorLimits.from_vehicle(vehicle)),
+            outer=OuterLoopConfig.from_params(values, vehicle.gravity_m_s2),  # type: ignore[arg-type]
+            ckf=CkfConfig.from_params(values, dt),
+        )
+
+
+@dataclass(frozen=True)
+class ControllerStatus:
+    t_s: float
+    engaged: bool
+    q_est_rad: tuple[float, float, float]
+    qdd_est_rad_s2: tuple[float, float, float]
+    mass_uam_kg: float
+    inertia_uam_diag: tuple[float, float, float]
+    gi_hat: tuple[float, ...]  # 5x5 row-major
+    outer: OuterLoopStatus | None
+    indi: IndiStatus | None
+    adapt: AdaptiveLawStatus
+
+
+class FlightControllerCore:
+    """Outer loops + INDI + adaptive law for the Navig8-UAM."""
+
+    def __init__(self, vehicle: VehicleConfig, config: ControllerConfig) -> None:
+        self.vehicle = vehicle
+        self.config = config
+        self._model = UamModel(vehicle)
+        self._indi = IndiController(config.indi)
+        self._adapt = AdaptiveLaw(config.ckf)
+        self._gyro_diff = BackwardDifference(config.dt_s, 3)
+        self._qd_diff = BackwardDifference(config.dt_s, 3)
+        self._q_est: list[float] | None = None
+        self._obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
+
+    def reset(self) -> None:
+        """Forget filter and estimator state (e.g. on arming); the start delay counts again."""
+        self._indi.reset()
+        self._adapt.reset()
+        self._gyro_diff.reset()
+        self._qd_diff.reset()
+        self._q_est = None
+
+    def _joint_observer(self, s: FcSensors) -> tuple[list[float], list[float]]:
+        q_meas, qd = s.joint_pos_rad, s.joint_rate_rad_s
+        if self._q_est is None:
+            self._q_est = [float(v) for v in q_meas]
+        else:
+            dt, g = self.config.dt_s, self._obs_gain
+            pred = [self._q_est[i] + dt * qd[i] for i in range(3)]
+            self._q_est = [pred[i] + g * (q_meas[i] - pred[i]) for i in range(3)]
+        qdd = self._qd_diff.step(qd)
+        return self._q_est, qdd
+
+    def step(
+        self, s: FcSensors, sp: Setpoint, engaged: bool = True
+    ) -> tuple[ActuatorCommand, ControllerStatus]:
+        cfg = self.config
+        q_est, qdd = self._joint_observer(s)
+        # The arm term uses a point object of the estimated extra mass at the tip (notes §3.3 option b).
+        m_obj_est = 0.0
+        if self._adapt.kf.initialised:
+            m_obj_est = max(float(self._adapt.kf.x[3]) - self.vehicle.uam_mass_kg, 0.0)
+        uam = self._model.evaluate(q_est, s.joint_rate_rad_s, qdd, m_obj_est)
+        wdot_raw = self._gyro_diff.step(s.gyro_frd)
+        acc_m = np.array(
+            [wdot_raw[0], wdot_raw[1], wdot_raw[2],
+             s.accel_frd[0] + uam.arm_accel_xz[0], s.accel_frd[2] + uam.arm_accel_xz[1]]
+        )  # Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM
+        u_meas = actuators_to_u(s.tilt_rad[0], s.tilt_rad[1], *s.speed_rad_s)
+        gi_hat, adapt_status = self._adapt.step(
+            AdaptiveLawInputs(
+                t_s=s.t_s, u_meas=u_meas, acc_m=acc_m, gc_uam_inv=np.linalg.inv(uam.gc),
+                inertia_uam=uam.inertia_com, mass_uam_kg=uam.mass_kg, inertia_rate_uam=uam.inertia_rate,
+                k_min=cfg.k_min, k_max=cfg.k_max,
+            )
+        )
+        outer: OuterLoopStatus | None = None
+        indi_status: IndiStatus | None = None
+        if engaged:
+            outer = outer_loop_step(cfg.outer, sp, s.pos_ned, s.vel_ned, s.quat_wxyz, s.gyro_frd)
+            out, indi_status = self._indi.step(
+                IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, outer.accel_cmd, uam.gc, gi_hat)
+            )
+            cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
+        else:
+            # Keep the INDI filters warm so engaging does not start from a transient.
+            self._indi.measure(
+                IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, uam.gc, gi_hat)
+            )
+            cmd = MOTORS_OFF
+        j = uam.inertia_com
+        status = ControllerStatus(
+            t_s=s.t_s,
+            engaged=engaged,
+            q_est_rad=(q_est[0], q_est[1], q_est[2]),
+            qdd_est_rad_s2=(qdd[0], qdd[1], qdd[2]),
+            mass_uam_kg=uam.mass_kg,
+            inertia_uam_diag=(float(j[0, 0]), float(j[1, 1]), float(j[2, 2])),
+            gi_hat=tuple(gi_hat.ravel().tolist()),
+            outer=outer,
+            indi=indi_status,
+            adapt=adapt_status,
+        )
+        return cmd, status

@@ -1,0 +1,141 @@
+"""MCAP logging (DESIGN §7): one file per run, JSON channels with JSON schemas Foxglove can plot.
+
+Chunks are small (64 KiB by default) so a killed process loses little; `read_mcap` recovers a
+truncated file up to its last complete chunk. Times: log_time = sim time (ns), publish_time = the
+wall clock of the writer when given (the shell owns clocks; pass it in).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any, BinaryIO
+
+from mcap.reader import NonSeekingReader
+from mcap.writer import CompressionType, Writer
+
+CHUNK_SIZE = 64 * 1024
+
+
+def to_jsonable(obj: Any) -> Any:
+    """Dataclasses, tuples, numpy arrays and scalars -> plain JSON types; non-finite floats -> None."""
+    if dataclasses.is_dataclass(obj) and not isinstance(obj, type):
+        return {f.name: to_jsonable(getattr(obj, f.name)) for f in dataclasses.fields(obj)}
+    if isinstance(obj, Mapping):
+        return {str(k): to_jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [to_jsonable(v) for v in obj]
+    if hasattr(obj, "tolist"):
+        return to_jsonable(obj.tolist())
+    if isinstance(obj, bool) or obj is None or isinstance(obj, (int, str)):
+        return obj
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    return str(obj)
+
+
+def json_schema_for(sample: Any) -> dict[str, Any]:
+    """A JSON schema describing `sample` (already jsonable), so Foxglove knows the fields."""
+    if isinstance(sample, bool):
+        return {"type": "boolean"}
+    if isinstance(sample, int):
+        return {"type": "integer"}
+    if isinstance(sample, float) or sample is None:
+        return {"type": ["number", "null"]}
+    if isinstance(sample, str):
+        return {"type": "string"}
+    if isinstance(sample, list):
+        return {"type": "array", "items": json_schema_for(sample[0]) if sample else {}}
+    if isinstance(sample, dict):
+        return {"type": "object", "properties": {k: json_schema_for(v) for k, v in sample.items()}}
+    return {}
+
+
+class McapLogger:
+    """Writes JSON messages; a channel (and its schema, from the first message) per topic."""
+
+    def __init__(self, path: str | Path, chunk_size: int = CHUNK_SIZE, profile: str = "navig8") -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._fh: BinaryIO = open(self.path, "wb")  # noqa: SIM115 - closed in close()
+        self._w = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        self._w.start(profile=profile, library="navig8-sitl")
+        self._channels: dict[str, int] = {}
+        self._schemas: dict[str, int] = {}
+        self._closed = False
+
+    def channel(self, topic: str, sample: Any, schema_name: str | None = None, encoding: str = "json") -> int:
+        if topic in self._channels:
+            return self._channels[topic]
+        name = schema_name or topic.strip("/").replace("/", ".")
+        if name not in self._schemas:
+            if encoding == "json":
+                schema = json_schema_for(sample)
+                schema["title"] = name
+                self._schemas[name] = self._w.register_schema(name, "jsonschema", json.dumps(schema).encode())
+            else:
+                self._schemas[name] = self._w.register_schema(name, "", b"")
+        cid = self._w.register_channel(topic, encoding, self._schemas[name])
+        self._channels[topic] = cid
+        return cid
+
+    def log(self, topic: str, t_ns: int, obj: Any, publish_ns: int | None = None) -> None:
+        data = to_jsonable(obj)
+        cid = self.channel(topic, data)
+        self._w.add_message(cid, int(t_ns), json.dumps(data, separators=(",", ":")).encode(),
+                            int(t_ns if publish_ns is None else publish_ns))
+
+    def log_raw(self, topic: str, t_ns: int, payload: bytes, publish_ns: int | None = None,
+                encoding: str = "application/octet-stream") -> None:
+        cid = self.channel(topic, None, schema_name=topic.strip("/").replace("/", ".") + ".raw", encoding=encoding)
+        self._w.add_message(cid, int(t_ns), payload, int(t_ns if publish_ns is None else publish_ns))
+
+    def metadata(self, name: str, data: Mapping[str, Any]) -> None:
+        self._w.add_metadata(name, {str(k): json.dumps(to_jsonable(v)) for k, v in data.items()})
+
+    def close(self) -> None:
+        if not self._closed:
+            self._w.finish()
+            self._fh.close()
+            self._closed = True
+
+    def __enter__(self) -> McapLogger:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def read_mcap(path: str | Path, topics: list[str] | None = None) -> Iterator[tuple[str, int, Any]]:
+    """(topic, log_time_ns, decoded JSON or raw bytes) in file order; a truncated file yields what its
+    complete chunks hold and stops quietly."""
+    with open(path, "rb") as fh:
+        reader = NonSeekingReader(fh, validate_crcs=False)
+        it = reader.iter_messages(topics=topics, log_time_order=False)
+        while True:
+            try:
+                schema, channel, msg = next(it)
+            except StopIteration:
+                return
+            except Exception:  # noqa: BLE001 - truncated or corrupt tail: stop at the last good record
+                return
+            if channel.message_encoding == "json":
+                yield channel.topic, msg.log_time, json.loads(msg.data)
+            else:
+                yield channel.topic, msg.log_time, msg.data
+
+
+def read_metadata(path: str | Path) -> dict[str, dict[str, Any]]:
+    from mcap.reader import make_reader
+
+    out: dict[str, dict[str, Any]] = {}
+    with open(path, "rb") as fh:
+        try:
+            for rec in make_reader(fh).iter_metadata():
+                out[rec.name] = {k: json.loads(v) for k, v in rec.metadata.items()}
+        except Exception:  # noqa: BLE001 - truncated file: no summary, metadata unreachable this way
+            pass
+    return out
