@@ -1,0 +1,149 @@
+"""Plant parameters (params/plant.yaml) as a frozen, validated dataclass."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+
+@dataclass(frozen=True)
+class ActuatorDynamics:
+    """Second-order actuator y'' = wn^2 (u - y) - 2 zeta wn y' (paper Sec. 3.2, Eq. 10)."""
+
+    omega_n_rad_s: float
+    zeta: float
+
+    def __post_init__(self) -> None:
+        if not (self.omega_n_rad_s > 0.0 and self.zeta > 0.0):
+            raise ValueError(f"actuator dynamics need omega_n > 0 and zeta > 0, got {self}")
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """Sample rates (Hz) and white-noise standard deviations per sample."""
+
+    imu_rate_hz: float = 100.0
+    mocap_rate_hz: float = 100.0
+    actuator_rate_hz: float = 100.0
+    joint_rate_hz: float = 100.0
+    gyro_sigma_rad_s: float = 0.01
+    accel_sigma_m_s2: float = 0.5
+    prop_speed_sigma_rad_s: float = 20.0
+    duct_tilt_sigma_rad: float = 0.08
+    joint_pos_sigma_rad: float = 0.08
+    joint_rate_sigma_rad_s: float = 0.01
+    mocap_pos_sigma_m: float = 0.001
+    mocap_vel_sigma_m_s: float = 0.01
+    mocap_att_sigma_rad: float = 0.002
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if not math.isfinite(v) or v < 0.0 or (f.name.endswith("_hz") and v <= 0.0):
+                raise ValueError(f"sensor parameter {f.name} = {v} is invalid")
+
+    def sigmas(self) -> tuple[float, ...]:
+        """In the kernel's order: gyro, accel, pos, vel, attitude, duct, prop, joint pos, joint rate."""
+        return (
+            self.gyro_sigma_rad_s,
+            self.accel_sigma_m_s2,
+            self.mocap_pos_sigma_m,
+            self.mocap_vel_sigma_m_s,
+            self.mocap_att_sigma_rad,
+            self.duct_tilt_sigma_rad,
+            self.prop_speed_sigma_rad_s,
+            self.joint_pos_sigma_rad,
+            self.joint_rate_sigma_rad_s,
+        )
+
+
+@dataclass(frozen=True)
+class GroundParams:
+    """Spring-damper contact with regularised Coulomb friction at points fixed to the UAV body."""
+
+    contact_points_frd_m: tuple[tuple[float, float, float], ...]
+    stiffness_n_m: float
+    damping_n_s_m: float
+    friction_coeff: float
+    friction_reg_speed_m_s: float
+
+    def __post_init__(self) -> None:
+        if not 0 <= len(self.contact_points_frd_m) <= 8:
+            raise ValueError("at most 8 ground contact points")
+        if min(self.stiffness_n_m, self.damping_n_s_m, self.friction_coeff) < 0.0:
+            raise ValueError("ground contact constants must be >= 0")
+        if not self.friction_reg_speed_m_s > 0.0:
+            raise ValueError("friction_reg_speed_m_s must be > 0")
+
+
+@dataclass(frozen=True)
+class PlantParams:
+    physics_rate_hz: float
+    servo_rate_hz: float
+    tilt_dynamics: ActuatorDynamics
+    speed_dynamics: ActuatorDynamics
+    joint_v_max_rad_s: float
+    joint_a_max_rad_s2: float
+    sensors: SensorParams
+    ground: GroundParams
+
+    def __post_init__(self) -> None:
+        h_us = 1e6 / self.physics_rate_hz
+        if abs(h_us - round(h_us)) > 1e-9 or round(h_us) < 1:
+            raise ValueError(f"the physics step must be a whole number of microseconds, got {h_us} us")
+        ratio = self.physics_rate_hz / self.servo_rate_hz
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ValueError("physics_rate_hz must be an integer multiple of servo_rate_hz")
+        if not (self.joint_v_max_rad_s > 0.0 and self.joint_a_max_rad_s2 > 0.0):
+            raise ValueError("joint servo limits must be > 0")
+
+    @property
+    def physics_step_us(self) -> int:
+        return round(1e6 / self.physics_rate_hz)
+
+    @property
+    def servo_substeps(self) -> int:
+        return round(self.physics_rate_hz / self.servo_rate_hz)
+
+    def without_noise(self) -> PlantParams:
+        """Same parameters with every sensor sigma set to zero (for physics checks)."""
+        zero = {f.name: 0.0 for f in dataclasses.fields(SensorParams) if "sigma" in f.name}
+        return dataclasses.replace(self, sensors=dataclasses.replace(self.sensors, **zero))
+
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> PlantParams:
+        integ, act, servo, sens, gnd = d["integration"], d["actuators"], d["joint_servo"], d["sensors"], d["ground"]
+        return PlantParams(
+            physics_rate_hz=float(integ["physics_rate_hz"]),
+            servo_rate_hz=float(integ["servo_rate_hz"]),
+            tilt_dynamics=ActuatorDynamics(float(act["tilt"]["omega_n_rad_s"]), float(act["tilt"]["zeta"])),
+            speed_dynamics=ActuatorDynamics(float(act["speed"]["omega_n_rad_s"]), float(act["speed"]["zeta"])),
+            joint_v_max_rad_s=float(servo["v_max_rad_s"]),
+            joint_a_max_rad_s2=float(servo["a_max_rad_s2"]),
+            sensors=SensorParams(**{k: float(v) for k, v in sens.items()}),
+            ground=GroundParams(
+                contact_points_frd_m=tuple(
+                    (float(p[0]), float(p[1]), float(p[2])) for p in gnd["contact_points_frd_m"]
+                ),
+                stiffness_n_m=float(gnd["stiffness_n_m"]),
+                damping_n_s_m=float(gnd["damping_n_s_m"]),
+                friction_coeff=float(gnd["friction_coeff"]),
+                friction_reg_speed_m_s=float(gnd["friction_reg_speed_m_s"]),
+            ),
+        )
+
+    @staticmethod
+    def load(path: str | Path | None = None) -> PlantParams:
+        """Load params/plant.yaml (default: the packaged copy)."""
+        if path is None:
+            from importlib.resources import files
+
+            text = (files("navig8_params") / "plant.yaml").read_text()
+        else:
+            text = Path(path).read_text()
+        return PlantParams.from_dict(yaml.safe_load(text))

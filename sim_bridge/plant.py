@@ -1,0 +1,425 @@
+"""The Navig8-UAM plant: UAV + 3-joint arm + object, actuators, ground contact and sensors. No I/O.
+
+Public API (used in process by the flight-controller runner and, later, behind MAVLink by the bridge):
+
+    from navig8_fc.core.vehicle import VehicleConfig
+    from sim_bridge import ActuatorCommand, Plant, PlantParams, load_scenario
+
+    plant = Plant(VehicleConfig.load(), PlantParams.load(), load_scenario("paper"),
+                  np.random.default_rng(seed))          # base_mode="free" | "attitude_locked" | "fixed"
+    cmd = plant.trim_command()                          # hover trim for the current pose and object
+    plant.step(cmd, 0.01)                               # advance 10 ms, zero-order-hold command
+    bundle = plant.sense()                              # SensorBundle (noisy, seeded rng)
+    truth = plant.truth()                               # Truth (state, mass properties, reaction wrench)
+    plant.t_us, plant.t_s                               # plant time (the lockstep master clock)
+
+- `step(cmd, dt_s)` / `step_us(cmd, dt_us)`: dt must be a whole number of physics steps (1 ms by
+  default). The command is validated once per call: a non-finite entry holds the last valid value of
+  that channel, an out-of-range entry is clamped to the vehicle limits; both are counted
+  (`cmd_nonfinite_count`, `cmd_clamped_count`) and neither ever reaches the state. Object events of
+  the scenario (grasp, release, mass change) take effect at the first physics step at or after their
+  time. `joint_targets_rad=None` follows the scenario's arm schedule.
+- `sense()`: one sample at the current time. Each sensor group is sampled when its period (params)
+  has elapsed, otherwise it repeats its last sample; `SensorBundle.updated` says which groups are
+  fresh. Every call draws the same number of normals from the rng, so a seed fixes the run bit for bit.
+- `truth()`: the frozen ground truth (see messages.Truth).
+- `trim_command()`: vehicle.hover_trim for the current arm pose and object mass (level body).
+
+Model (notes §1-3, docs/plant.md): floating base with prescribed joint motion solved by the composite
+6x6 Newton-Euler system (notes §3.4) in `_kernels.py` (numba), RK4 at the physics rate with the exact
+actuator and joint trajectories inside each step, exact second-order actuator discretisation, a
+time-optimal rate/acceleration-limited joint servo, skid contact with the NED z = 0 ground.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.linalg
+
+from navig8_fc.core.vehicle import VehicleConfig, hover_trim, propulsion_wrench, u_to_actuators
+from sim_bridge import _kernels as K
+from sim_bridge.messages import ActuatorCommand, SensorBundle, SensorField, Truth
+from sim_bridge.params import ActuatorDynamics, PlantParams
+from sim_bridge.scenario import Scenario
+
+BASE_MODES = {"free": K.BASE_FREE, "attitude_locked": K.BASE_ATTITUDE_LOCKED, "fixed": K.BASE_FIXED}
+
+
+class PlantDivergedError(RuntimeError):
+    """The state became non-finite (the plant keeps the last finite state)."""
+
+
+def euler_to_quat(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
+    """ZYX Euler angles (rad) -> [w, x, y, z], body FRD -> NED."""
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return (
+        cr * cp * cy + sr * sp * sy,
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+    )
+
+
+def quat_to_euler(q: np.ndarray) -> tuple[float, float, float]:
+    w, x, y, z = (float(v) for v in q)
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
+    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
+def quat_to_dcm(q: np.ndarray) -> np.ndarray:
+    """R (body -> NED) from [w, x, y, z]."""
+    return np.array(K._dcm(*(float(v) for v in q))).reshape(3, 3)
+
+
+def _actuator_discretisation(dyn: ActuatorDynamics, tau_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Phi, Gamma of y'' = wn^2 (u - y) - 2 zeta wn y' over tau with u held: exp([[A, B], [0, 0]] tau)."""
+    wn, z = dyn.omega_n_rad_s, dyn.zeta
+    m = np.zeros((3, 3))
+    m[0, 1] = 1.0
+    m[1, 0] = -wn * wn
+    m[1, 1] = -2.0 * z * wn
+    m[1, 2] = wn * wn
+    e = scipy.linalg.expm(m * tau_s)
+    return e[:2, :2], e[:2, 2]
+
+
+def build_param_vector(vehicle: VehicleConfig, params: PlantParams) -> np.ndarray:
+    """The kernel's parameter vector (layout in _kernels.py)."""
+    p = np.zeros(K.N_P)
+    p[K.P_G] = vehicle.gravity_m_s2
+    p[K.P_M0] = vehicle.uav_mass_kg
+    p[K.P_J0:K.P_J0 + 9] = vehicle.uav_inertia_array.reshape(9)
+    p[K.P_ML] = vehicle.link_mass_kg
+    p[K.P_IA] = vehicle.link_inertia_kgm2
+    p[K.P_L] = vehicle.link_length_m
+    p[K.P_MOUNT:K.P_MOUNT + 3] = vehicle.mount_frd_m
+    p[K.P_OBJ_D] = vehicle.object_offset_m
+    p[K.P_OBJ_R] = vehicle.object_radius_m
+    # Per-input force and moment about O from the FC's own propulsion model (notes §2.1-2.2), so the
+    # plant and vehicle.hover_trim / G_C agree exactly; the kernel only multiplies by U.
+    f = np.zeros((3, 5))
+    mom = np.zeros((3, 5))
+    for k in range(5):
+        e = np.zeros(5)
+        e[k] = 1.0
+        f[:, k], mom[:, k] = propulsion_wrench(vehicle, e)
+    p[K.P_PF:K.P_PF + 15] = f.reshape(15)
+    p[K.P_PM:K.P_PM + 15] = mom.reshape(15)
+    h = 1.0 / params.physics_rate_hz
+    dyns = (params.tilt_dynamics, params.tilt_dynamics, params.speed_dynamics, params.speed_dynamics,
+            params.speed_dynamics)
+    for i, dyn in enumerate(dyns):
+        for tau, po, go in ((h, K.P_PHI_H, K.P_GAM_H), (0.5 * h, K.P_PHI_H2, K.P_GAM_H2)):
+            phi, gam = _actuator_discretisation(dyn, tau)
+            p[po + 4 * i:po + 4 * i + 4] = phi.reshape(4)
+            p[go + 2 * i:go + 2 * i + 2] = gam
+    lo, hi = actuator_limits(vehicle)
+    p[K.P_ACT_MIN:K.P_ACT_MIN + 5] = lo
+    p[K.P_ACT_MAX:K.P_ACT_MAX + 5] = hi
+    p[K.P_H] = h
+    p[K.P_H_US] = params.physics_step_us
+    p[K.P_SERVO_N] = params.servo_substeps
+    p[K.P_VMAX] = params.joint_v_max_rad_s
+    p[K.P_AMAX] = params.joint_a_max_rad_s2
+    p[K.P_QLIM] = vehicle.joint_limit_rad
+    g = params.ground
+    p[K.P_KN] = g.stiffness_n_m
+    p[K.P_CN] = g.damping_n_s_m
+    p[K.P_MU] = g.friction_coeff
+    p[K.P_VEPS] = g.friction_reg_speed_m_s
+    p[K.P_NC] = len(g.contact_points_frd_m)
+    for i, cp in enumerate(g.contact_points_frd_m):
+        p[K.P_CP + 3 * i:K.P_CP + 3 * i + 3] = cp
+    return p
+
+
+def actuator_limits(vehicle: VehicleConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper limits of (alpha1, alpha3, w1, w2, w3)."""
+    lo = np.array([vehicle.tilt_min_rad, vehicle.tilt_min_rad, vehicle.duct_speed_min, vehicle.tail_speed_min,
+                   vehicle.duct_speed_min])
+    hi = np.array([vehicle.tilt_max_rad, vehicle.tilt_max_rad, vehicle.duct_speed_max, vehicle.tail_speed_max,
+                   vehicle.duct_speed_max])
+    return lo, hi
+
+
+def trim_actuators(vehicle: VehicleConfig, q_rad: np.ndarray, object_mass_kg: float) -> np.ndarray:
+    """(alpha1, alpha3, w1, w2, w3) of the level hover trim (vehicle.hover_trim)."""
+    a1, a3, w1, w2, w3 = u_to_actuators(hover_trim(vehicle, np.asarray(q_rad, dtype=float), object_mass_kg))
+    return np.array([a1, a3, w1, w2, w3])
+
+
+class Plant:
+    """See the module docstring for the API."""
+
+    def __init__(
+        self,
+        vehicle: VehicleConfig,
+        params: PlantParams,
+        scenario: Scenario,
+        rng: np.random.Generator,
+        *,
+        base_mode: str = "free",
+    ) -> None:
+        if base_mode not in BASE_MODES:
+            raise ValueError(f"base_mode must be one of {sorted(BASE_MODES)}")
+        self.vehicle = vehicle
+        self.params = params
+        self.scenario = scenario
+        self._rng = rng
+        self._base_mode = BASE_MODES[base_mode]
+        self._p = build_param_vector(vehicle, params)
+        self._h_us = params.physics_step_us
+        self._sched = scenario.arm_schedule()
+        self._act_lo, self._act_hi = actuator_limits(vehicle)
+        self._qlim = vehicle.joint_limit_rad
+        self._cmd = np.zeros(K.N_C)
+        self._valid_cmd = [0.0] * 5  # last valid value per actuator channel
+        self._valid_joint = [0.0, 0.0, 0.0]
+        self._nonfinite = 0
+        self._clamped = 0
+        self._d = np.zeros(K.N_D)
+        # events on the physics grid: the first step at or after their time
+        self._events = [
+            (-(-round(ev.t_s * 1e6) // self._h_us) * self._h_us, ev) for ev in scenario.events
+        ]
+        self._ev_i = 0
+        # sensors
+        s = params.sensors
+        self._sig = np.array(s.sigmas(), dtype=np.float64)
+        self._sensor_periods_us = [
+            (int(SensorField.IMU), round(1e6 / s.imu_rate_hz)),
+            (int(SensorField.MOCAP), round(1e6 / s.mocap_rate_hz)),
+            (int(SensorField.ACTUATORS), round(1e6 / s.actuator_rate_hz)),
+            (int(SensorField.JOINTS), round(1e6 / s.joint_rate_hz)),
+        ]
+        self._sensor_due_us = [0, 0, 0, 0]
+        self._prev_meas = np.zeros(K.N_S)
+        self._t_us = 0
+        self._init_state(scenario)
+
+    # ---- initial state ----------------------------------------------------------------------
+    def _init_state(self, scn: Scenario) -> None:
+        ini = scn.initial
+        x = np.zeros(K.N_X)
+        x[K.X_POS:K.X_POS + 3] = ini.pos_ned_m
+        x[K.X_VEL:K.X_VEL + 3] = ini.vel_ned_m_s
+        quat = euler_to_quat(*ini.euler_rad)
+        x[K.X_QUAT:K.X_QUAT + 4] = quat
+        if self._base_mode == K.BASE_FREE:
+            x[K.X_RATE:K.X_RATE + 3] = ini.rate_frd_rad_s
+        q0 = np.clip(np.array(ini.joint_pos_rad), -self._qlim, self._qlim)
+        x[K.X_Q:K.X_Q + 3] = q0
+        x[K.X_QTGT:K.X_QTGT + 3] = q0
+        self._gripper_closed = scn.gripper_closed
+        x[K.X_MOBJ] = scn.object_mass_kg if scn.gripper_closed else 0.0
+        self._x = x
+        self._apply_due_events()  # events at t = 0
+        if ini.on_ground:
+            self._place_on_ground()
+        if ini.actuators == "trim":
+            act = np.clip(trim_actuators(self.vehicle, q0, x[K.X_MOBJ]), self._act_lo, self._act_hi)
+        else:
+            act = np.zeros(5)
+        x[K.X_ACT:K.X_ACT + 5] = act
+        self._cmd[K.C_ACT:K.C_ACT + 5] = act
+        self._valid_cmd = [float(v) for v in act]
+        self._valid_joint = [float(v) for v in q0]
+        K.evaluate(self._x, self._p, self._base_mode, self._d)
+
+    def _place_on_ground(self) -> None:
+        """Skids on the ground with the static sag of the springs (the lowest contact point touches)."""
+        pts = np.array(self.params.ground.contact_points_frd_m)
+        if len(pts) == 0:
+            raise ValueError("scenario starts on the ground but there are no contact points")
+        r = quat_to_dcm(self._x[K.X_QUAT:K.X_QUAT + 4])
+        lowest = float(np.max(pts @ r[2]))
+        mass = self.vehicle.uam_mass_kg + self._x[K.X_MOBJ]
+        sag = mass * self.vehicle.gravity_m_s2 / (len(pts) * self.params.ground.stiffness_n_m)
+        self._x[K.X_POS + 2] = -lowest + sag
+
+    # ---- time ---------------------------------------------------------------------------------
+    @property
+    def t_us(self) -> int:
+        return self._t_us
+
+    @property
+    def t_s(self) -> float:
+        return self._t_us * 1e-6
+
+    @property
+    def physics_step_us(self) -> int:
+        return self._h_us
+
+    @property
+    def cmd_nonfinite_count(self) -> int:
+        return self._nonfinite
+
+    @property
+    def cmd_clamped_count(self) -> int:
+        return self._clamped
+
+    # ---- commands -----------------------------------------------------------------------------
+    def _set_command(self, cmd: ActuatorCommand) -> None:
+        vals = (cmd.tilt_rad[0], cmd.tilt_rad[1], cmd.speed_rad_s[0], cmd.speed_rad_s[1], cmd.speed_rad_s[2])
+        c = self._cmd
+        lo, hi = self._act_lo, self._act_hi
+        for i in range(5):
+            v = float(vals[i])
+            if not math.isfinite(v):
+                self._nonfinite += 1
+                v = self._valid_cmd[i]
+            elif v < lo[i]:
+                self._clamped += 1
+                v = float(lo[i])
+            elif v > hi[i]:
+                self._clamped += 1
+                v = float(hi[i])
+            self._valid_cmd[i] = v
+            c[K.C_ACT + i] = v
+        jt = cmd.joint_targets_rad
+        if jt is None:
+            c[K.C_JOVR] = 0.0
+            return
+        c[K.C_JOVR] = 1.0
+        for j in range(3):
+            v = float(jt[j])
+            if not math.isfinite(v):
+                self._nonfinite += 1
+                v = self._valid_joint[j]
+            elif abs(v) > self._qlim:
+                self._clamped += 1
+                v = math.copysign(self._qlim, v)
+            self._valid_joint[j] = v
+            c[K.C_JTGT + j] = v
+
+    # ---- stepping -----------------------------------------------------------------------------
+    def step(self, cmd: ActuatorCommand, dt_s: float) -> None:
+        """Advance by dt_s (a whole number of physics steps) holding cmd."""
+        dt_us = round(dt_s * 1e6)
+        if abs(dt_us - dt_s * 1e6) > 1e-3:
+            raise ValueError(f"dt_s = {dt_s} is not a whole number of microseconds")
+        self.step_us(cmd, dt_us)
+
+    def step_us(self, cmd: ActuatorCommand, dt_us: int) -> None:
+        h_us = self._h_us
+        if dt_us < 0 or dt_us % h_us:
+            raise ValueError(f"dt = {dt_us} us is not a non-negative multiple of the physics step {h_us} us")
+        self._set_command(cmd)
+        t_end = self._t_us + dt_us
+        events = self._events
+        while self._t_us < t_end:
+            t_stop = t_end
+            if self._ev_i < len(events) and events[self._ev_i][0] < t_stop:
+                t_stop = events[self._ev_i][0]
+            n = (t_stop - self._t_us) // h_us
+            if K.advance(self._x, self._p, self._cmd, self._sched, n, self._t_us, self._base_mode, self._d):
+                raise PlantDivergedError(f"non-finite plant state in ({self._t_us}, {t_stop}] us")
+            self._t_us = t_stop
+            if self._apply_due_events():
+                K.evaluate(self._x, self._p, self._base_mode, self._d)
+
+    def _apply_due_events(self) -> bool:
+        applied = False
+        while self._ev_i < len(self._events) and self._events[self._ev_i][0] <= self._t_us:
+            ev = self._events[self._ev_i][1]
+            if ev.kind == "release":
+                self._gripper_closed = False
+                self._x[K.X_MOBJ] = 0.0
+            else:
+                # the new mass appears at the gripper moving with it: the base velocities are continuous
+                self._gripper_closed = True
+                self._x[K.X_MOBJ] = ev.mass_kg
+            self._ev_i += 1
+            applied = True
+        return applied
+
+    # ---- outputs --------------------------------------------------------------------------------
+    def sense(self) -> SensorBundle:
+        t = self._t_us
+        groups = 0
+        due = self._sensor_due_us
+        for i, (bit, period) in enumerate(self._sensor_periods_us):
+            if t >= due[i]:
+                groups |= bit
+                due[i] += period * ((t - due[i]) // period + 1)
+        noise = self._rng.standard_normal(K.N_NOISE)
+        s = np.empty(K.N_S)
+        K.sense(self._x, self._d, self._sig, noise, self._prev_meas, groups, s)
+        self._prev_meas = s
+        s.flags.writeable = False
+        return SensorBundle(
+            time_us=t,
+            gyro_frd=s[0:3],
+            accel_frd=s[3:6],
+            pos_ned=s[6:9],
+            vel_ned=s[9:12],
+            quat_wxyz=s[12:16],
+            duct_tilt_rad=s[16:18],
+            prop_speed_rad_s=s[18:21],
+            joint_pos_rad=s[21:24],
+            joint_rate_rad_s=s[24:27],
+            gripper_closed=self._gripper_closed,
+            updated=groups,
+        )
+
+    def truth(self) -> Truth:
+        x = self._x.copy()
+        d = self._d.copy()
+        x.flags.writeable = False
+        d.flags.writeable = False
+        cmd = self._cmd[K.C_ACT:K.C_ACT + 5].copy()
+        cmd.flags.writeable = False
+        euler = np.array(quat_to_euler(x[K.X_QUAT:K.X_QUAT + 4]))
+        euler.flags.writeable = False
+        return Truth(
+            time_us=self._t_us,
+            pos_ned_m=x[K.X_POS:K.X_POS + 3],
+            vel_ned_m_s=x[K.X_VEL:K.X_VEL + 3],
+            quat_wxyz=x[K.X_QUAT:K.X_QUAT + 4],
+            euler_rad=euler,
+            rate_frd_rad_s=x[K.X_RATE:K.X_RATE + 3],
+            accel_frd_m_s2=d[K.D_ACC:K.D_ACC + 3],
+            ang_accel_frd_rad_s2=d[K.D_WDOT:K.D_WDOT + 3],
+            specific_force_frd_m_s2=d[K.D_SPF:K.D_SPF + 3],
+            actuator_pos=x[K.X_ACT:K.X_ACT + 5],
+            actuator_rate=x[K.X_ACTD:K.X_ACTD + 5],
+            actuator_cmd=cmd,
+            joint_pos_rad=x[K.X_Q:K.X_Q + 3],
+            joint_rate_rad_s=x[K.X_QD:K.X_QD + 3],
+            joint_accel_rad_s2=x[K.X_QDD:K.X_QDD + 3],
+            joint_target_rad=x[K.X_QTGT:K.X_QTGT + 3],
+            object_mass_kg=float(x[K.X_MOBJ]),
+            gripper_closed=self._gripper_closed,
+            mass_kg=float(d[K.D_MASS]),
+            com_frd_m=d[K.D_COM:K.D_COM + 3],
+            inertia_com_kgm2=d[K.D_JC:K.D_JC + 9].reshape(3, 3),
+            inertia_o_kgm2=d[K.D_JO:K.D_JO + 9].reshape(3, 3),
+            reaction_force_frd_n=d[K.D_FR_G:K.D_FR_G + 3],
+            reaction_moment_mount_frd_nm=d[K.D_MR_MOUNT_G:K.D_MR_MOUNT_G + 3],
+            reaction_moment_o_frd_nm=d[K.D_MR_O_G:K.D_MR_O_G + 3],
+            reaction_force_nog_frd_n=d[K.D_FR_NOG:K.D_FR_NOG + 3],
+            reaction_moment_mount_nog_frd_nm=d[K.D_MR_MOUNT_NOG:K.D_MR_MOUNT_NOG + 3],
+            reaction_moment_o_nog_frd_nm=d[K.D_MR_O_NOG:K.D_MR_O_NOG + 3],
+            prop_force_frd_n=d[K.D_FPROP:K.D_FPROP + 3],
+            prop_moment_frd_nm=d[K.D_MPROP:K.D_MPROP + 3],
+            contact_force_frd_n=d[K.D_FCONT:K.D_FCONT + 3],
+            contact_moment_frd_nm=d[K.D_MCONT:K.D_MCONT + 3],
+            contact_points_active=int(d[K.D_NCONT]),
+            cmd_nonfinite_count=self._nonfinite,
+            cmd_clamped_count=self._clamped,
+        )
+
+    def trim_command(self) -> ActuatorCommand:
+        """Level hover trim for the current arm pose and object (vehicle.hover_trim), clamped to limits."""
+        act = np.clip(
+            trim_actuators(self.vehicle, self._x[K.X_Q:K.X_Q + 3], float(self._x[K.X_MOBJ])),
+            self._act_lo,
+            self._act_hi,
+        )
+        return ActuatorCommand((float(act[0]), float(act[1])), (float(act[2]), float(act[3]), float(act[4])))

@@ -1,0 +1,263 @@
+"""Scenarios (params/scenarios/*.yaml): initial state, object events, arm commands, setpoints.
+
+A scenario is data: the plant reads the initial state, the object events and the arm command
+schedule; the flight controller (later) reads the setpoints. Everything is stored in NED/FRD; the
+paper's ENU commands (Eq. 25) are kept beside them as printed, and the mapping is E -> y_NED,
+N -> x_NED, U -> -z_NED, yaw_NED = 90 deg - yaw_ENU (ENU yaw is measured from east, counter-clockwise;
+NED yaw from north, clockwise), pitch nose-up positive in both (docs/plant.md).
+
+    scn = load_scenario("paper")          # or a path to a YAML file
+    scn.arm_targets(3.0)                  # joint targets (rad) at t = 3 s
+    scn.object_mass(7.0)                  # kg
+    scn.setpoints(12.0)                   # Setpoint(pos_ned_m, pitch_rad, yaw_rad)
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+Vec3 = tuple[float, float, float]
+
+EVENT_KINDS = ("grasp", "release", "mass")
+SETPOINT_CHANNELS = ("x_ned_m", "y_ned_m", "z_ned_m", "pitch_deg", "yaw_deg")
+
+
+@dataclass(frozen=True)
+class ObjectEvent:
+    """grasp: the gripper closes on an object of mass_kg; release: it opens (mass 0);
+    mass: the held object's mass becomes mass_kg (the paper's 1 -> 2 kg at t = 6 s)."""
+
+    t_s: float
+    kind: str
+    mass_kg: float
+
+    def __post_init__(self) -> None:
+        if self.kind not in EVENT_KINDS:
+            raise ValueError(f"unknown object event kind {self.kind!r} (expected one of {EVENT_KINDS})")
+        if not (math.isfinite(self.t_s) and self.t_s >= 0.0 and self.mass_kg >= 0.0):
+            raise ValueError(f"invalid object event {self}")
+
+
+@dataclass(frozen=True)
+class ArmSegment:
+    """Joint target moving linearly from q_start at t0 to q_end at t1 (t1 == t0: a step to q_end)."""
+
+    t0_s: float
+    t1_s: float
+    q_start_rad: Vec3
+    q_end_rad: Vec3
+
+
+@dataclass(frozen=True)
+class Setpoint:
+    """What the scenario commands at one instant (Eq. 25 in NED/FRD)."""
+
+    pos_ned_m: Vec3
+    pitch_rad: float
+    yaw_rad: float
+
+
+@dataclass(frozen=True)
+class InitialState:
+    pos_ned_m: Vec3
+    vel_ned_m_s: Vec3
+    euler_rad: Vec3  # roll, pitch, yaw (ZYX, NED)
+    rate_frd_rad_s: Vec3
+    joint_pos_rad: Vec3
+    actuators: str  # "trim": at hover trim for the initial pose and object; "off": all zero
+    on_ground: bool  # place the skids on the ground (z from the contact geometry)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    description: str
+    duration_s: float
+    armed: bool
+    initial: InitialState
+    object_mass_kg: float  # held at t = 0
+    gripper_closed: bool  # at t = 0
+    events: tuple[ObjectEvent, ...]
+    arm_kind: str
+    arm_segments: tuple[ArmSegment, ...]
+    setpoint0: Setpoint
+    setpoint_steps: tuple[tuple[float, str, float], ...]  # (t_s, channel, value in SI units)
+    paper_text: str
+
+    # ---- arm ------------------------------------------------------------------------------------
+    def arm_targets(self, t_s: float) -> np.ndarray:
+        """Commanded joint angles (rad) at t_s; the plant's servo follows them (same lookup as the kernel)."""
+        segs = self.arm_segments
+        if t_s < segs[0].t0_s:
+            return np.array(segs[0].q_start_rad)
+        i = bisect.bisect_right([s.t0_s for s in segs], t_s) - 1
+        s = segs[i]
+        if t_s >= s.t1_s:
+            return np.array(s.q_end_rad)
+        f = (t_s - s.t0_s) / (s.t1_s - s.t0_s)
+        return np.array(s.q_start_rad) + f * (np.array(s.q_end_rad) - np.array(s.q_start_rad))
+
+    def arm_schedule(self) -> np.ndarray:
+        """Rows [t0_us, t1_us, qa(3), qb(3)] for the plant's kernel."""
+        rows = [
+            [round(s.t0_s * 1e6), round(s.t1_s * 1e6), *s.q_start_rad, *s.q_end_rad] for s in self.arm_segments
+        ]
+        return np.array(rows, dtype=np.float64)
+
+    # ---- object ---------------------------------------------------------------------------------
+    def object_mass(self, t_s: float) -> float:
+        """Mass of the held object (kg) at t_s, 0 when the gripper is open."""
+        m = self.object_mass_kg if self.gripper_closed else 0.0
+        for ev in self.events:
+            if ev.t_s <= t_s:
+                m = 0.0 if ev.kind == "release" else ev.mass_kg
+        return m
+
+    def gripper_closed_at(self, t_s: float) -> bool:
+        closed = self.gripper_closed
+        for ev in self.events:
+            if ev.t_s <= t_s:
+                closed = ev.kind != "release"
+        return closed
+
+    # ---- setpoints (consumed by the flight controller) ----------------------------------------
+    def setpoints(self, t_s: float) -> Setpoint:
+        pos = list(self.setpoint0.pos_ned_m)
+        pitch, yaw = self.setpoint0.pitch_rad, self.setpoint0.yaw_rad
+        for t, ch, v in self.setpoint_steps:
+            if t > t_s:
+                break
+            if ch == "x_ned_m":
+                pos[0] = v
+            elif ch == "y_ned_m":
+                pos[1] = v
+            elif ch == "z_ned_m":
+                pos[2] = v
+            elif ch == "pitch_deg":
+                pitch = v
+            else:
+                yaw = v
+        return Setpoint((pos[0], pos[1], pos[2]), pitch, yaw)
+
+    # ---- construction -----------------------------------------------------------------------
+    @staticmethod
+    def from_dict(d: dict[str, Any]) -> Scenario:
+        duration = float(d["duration_s"])
+        ini = d["initial"]
+        q0 = _vec3(ini.get("joint_pos_deg", [0.0, 0.0, 0.0]), deg=True)
+        actuators = str(ini.get("actuators", "trim"))
+        if actuators not in ("trim", "off"):
+            raise ValueError(f"initial.actuators must be 'trim' or 'off', got {actuators!r}")
+        initial = InitialState(
+            pos_ned_m=_vec3(ini.get("pos_ned_m", [0.0, 0.0, 0.0])),
+            vel_ned_m_s=_vec3(ini.get("vel_ned_m_s", [0.0, 0.0, 0.0])),
+            euler_rad=_vec3(ini.get("euler_deg", [0.0, 0.0, 0.0]), deg=True),
+            rate_frd_rad_s=_vec3(ini.get("rate_frd_rad_s", [0.0, 0.0, 0.0])),
+            joint_pos_rad=q0,
+            actuators=actuators,
+            on_ground=bool(ini.get("on_ground", False)),
+        )
+        obj = d.get("object", {})
+        events = tuple(
+            ObjectEvent(float(e["t_s"]), str(e["kind"]), float(e.get("mass_kg", 0.0)))
+            for e in d.get("events", [])
+        )
+        if list(events) != sorted(events, key=lambda e: e.t_s):
+            raise ValueError("scenario events must be sorted by time")
+        arm = d.get("arm", {"kind": "hold"})
+        kind = str(arm["kind"])
+        segments = _arm_segments(kind, arm, q0, duration)
+        sp = d.get("setpoints", {})
+        sp0 = sp.get("initial", {})
+        setpoint0 = Setpoint(
+            pos_ned_m=_vec3(sp0.get("pos_ned_m", list(initial.pos_ned_m))),
+            pitch_rad=math.radians(float(sp0.get("pitch_deg", 0.0))),
+            yaw_rad=math.radians(float(sp0.get("yaw_deg", math.degrees(initial.euler_rad[2])))),
+        )
+        steps: list[tuple[float, str, float]] = []
+        for st in sp.get("steps", []):
+            t = float(st["t_s"])
+            for ch in SETPOINT_CHANNELS:
+                if ch in st:
+                    v = float(st[ch])
+                    # internal units: radians; the channel keeps its YAML name for traceability
+                    steps.append((t, ch, math.radians(v) if ch.endswith("_deg") else v))
+            unknown = set(st) - set(SETPOINT_CHANNELS) - {"t_s", "note"}
+            if unknown:
+                raise ValueError(f"unknown setpoint channels {sorted(unknown)}")
+        steps.sort(key=lambda s: s[0])
+        return Scenario(
+            name=str(d["name"]),
+            description=str(d.get("description", "")),
+            duration_s=duration,
+            armed=bool(d.get("armed", True)),
+            initial=initial,
+            object_mass_kg=float(obj.get("mass_kg", 0.0)),
+            gripper_closed=bool(obj.get("gripper_closed", False)),
+            events=events,
+            arm_kind=kind,
+            arm_segments=segments,
+            setpoint0=setpoint0,
+            setpoint_steps=tuple(steps),
+            paper_text=str(d.get("paper_text", "")),
+        )
+
+
+def _vec3(v: Any, deg: bool = False) -> Vec3:
+    if len(v) != 3:
+        raise ValueError(f"expected 3 values, got {v!r}")
+    f = math.radians if deg else float
+    return (f(float(v[0])), f(float(v[1])), f(float(v[2])))
+
+
+def _arm_segments(kind: str, arm: dict[str, Any], q0: Vec3, duration_s: float) -> tuple[ArmSegment, ...]:
+    if kind == "hold":
+        q = _vec3(arm["q_deg"], deg=True) if "q_deg" in arm else q0
+        return (ArmSegment(0.0, 0.0, q, q),)
+    if kind == "steps":
+        segs = [ArmSegment(0.0, 0.0, q0, q0)]
+        for st in arm["steps"]:
+            q = _vec3(st["q_deg"], deg=True)
+            t = float(st["t_s"])
+            segs.append(ArmSegment(t, t, segs[-1].q_end_rad, q))
+        return tuple(segs)
+    if kind == "eq26":
+        # Eq. 26 as read in notes §6.2: q_cmd = A [1 + sum_k (-1)^k 2 u(t - T k)] = A (-1)^floor(t/T),
+        # a +-A square wave starting at +A (Pose 1). The paper's "gradually" from q = 0 to Pose 1 is a
+        # linear ramp of the command over [0, ramp_s] (ramp_s <= T), then Eq. 26 from there on.
+        a = math.radians(float(arm["amplitude_deg"]))
+        period = float(arm["half_period_s"])
+        ramp = float(arm.get("ramp_s", 0.0))
+        if not 0.0 <= ramp <= period:
+            raise ValueError("eq26 ramp_s must lie in [0, half_period_s]")
+        pose1 = (a, a, a)
+        segs = [ArmSegment(0.0, ramp, q0, pose1)]
+        k = 1
+        while k * period <= duration_s + 1e-9:
+            v = a if k % 2 == 0 else -a
+            segs.append(ArmSegment(k * period, k * period, segs[-1].q_end_rad, (v, v, v)))
+            k += 1
+        return tuple(segs)
+    raise ValueError(f"unknown arm command kind {kind!r} (hold, steps, eq26)")
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load a scenario by name (params/scenarios/<name>.yaml, package navig8_params.scenarios) or path."""
+    p = Path(name_or_path)
+    if p.suffix in (".yaml", ".yml") or p.exists():
+        text = p.read_text()
+    else:
+        from importlib.resources import files
+
+        res = files("navig8_params.scenarios") / f"{name_or_path}.yaml"
+        if not res.is_file():
+            raise FileNotFoundError(f"no scenario named {name_or_path!r} in params/scenarios/")
+        text = res.read_text()
+    return Scenario.from_dict(yaml.safe_load(text))
