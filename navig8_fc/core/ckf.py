@@ -642,6 +642,12 @@ class ConstrainedKalmanFilter:
         self.n_updates = 0
         self.n_projection_fallbacks = 0
 
+    def reset(self) -> None:
+        """Back to the uninitialised state (the clarabel solver is kept); initialise() starts again."""
+        self._initialised = False
+        self.n_updates = 0
+        self.n_projection_fallbacks = 0
+
     # --- the three stages -----------------------------------------------------------------------------
     def predict(self, inertia_rate_diag: Sequence[float] | np.ndarray) -> None:
         """Eq. 22: x- = x + dt [I_dot_11, I_dot_22, I_dot_33, 0];  P- = P + Q."""
@@ -795,7 +801,8 @@ class AdaptiveLaw:
         self._prev_u: list[float] | None = None
         self._prev_a: list[float] | None = None
         self._t0: float | None = None
-        self._running = False  # the KF is (re)initialised at the next start; its clarabel solver is reused
+        self._running = False
+        self._kf.reset()  # re-initialised at the next start; its clarabel solver is reused
 
     def step(self, inp: AdaptiveLawInputs) -> tuple[np.ndarray, AdaptiveLawStatus]:
         """Returns (G_hat_I 5x5, status)."""

@@ -482,6 +482,23 @@ def test_adaptive_law_increments_are_one_step_differences_of_filtered_signals(po
         prev_u, prev_a = fu, fa
 
 
+def test_adaptive_law_reset_restarts_delay_and_filter(pose: Pose) -> None:
+    law = AdaptiveLaw(CkfConfig(start_delay_s=0.1))
+    data = _excitation(pose, pose.base * 1.3, 40)
+    for k, (u, acc) in enumerate(data[:20]):
+        _, st = law.step(_law_inputs(pose, k * DT, u, acc))
+    assert st.running and law.kf.initialised and st.n_updates == 10
+    law.reset()
+    assert not law.kf.initialised
+    for k, (u, acc) in enumerate(data[20:], start=20):
+        _, st = law.step(_law_inputs(pose, k * DT, u, acc))
+        if k == 20:
+            assert st.delta_u == (0.0,) * 5  # filters re-initialise on the first sample after reset
+        if k < 30:
+            assert not st.running  # the delay counts again from t = 0.2 s
+    assert st.running and st.n_updates == 10
+
+
 def test_adaptive_law_fixed_mode_never_runs(pose: Pose) -> None:
     law = AdaptiveLaw(CkfConfig(mode=CkfMode.FIXED))
     gi_uam = veh.inertia_matrix_gi(pose.j, pose.m)
