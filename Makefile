@@ -18,6 +18,8 @@ install: $(STAMP)
 
 demo: $(STAMP)
 	$(VENV)/bin/navig8-stability --plots out/stability
+	$(VENV)/bin/navig8-sim --scenario paper --controller proposed --log out/paper_proposed.mcap \
+		--summary out/summary.json --plots out/figures
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check navig8_fc sim_bridge tools tests

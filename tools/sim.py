@@ -1,0 +1,226 @@
+"""navig8-sim: plant + sensors + flight controller in one process (no sockets), logged to MCAP.
+
+    navig8-sim --scenario paper --controller proposed|unconstrained|fixed [--seed N] [--duration S]
+               [--log run.mcap] [--summary summary.json] [--plots DIR] [--set NAME=VALUE ...]
+
+The controller runs at INDI_RATE_HZ on the sensor bundle's time; the plant integrates in between with
+the command held (zero-order hold), as in lockstep SITL.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from navig8_fc.core import stability
+from navig8_fc.core import vehicle as vm
+from navig8_fc.core.controller import ControllerConfig, ControllerStatus, FcSensors, FlightControllerCore
+from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.shell.mcap_log import McapLogger
+from navig8_tools.logdata import load_run
+from navig8_tools.summary import summarize
+from sim_bridge.params import PlantParams
+from sim_bridge.messages import ActuatorCommand as PlantCommand
+from sim_bridge.plant import Plant
+from sim_bridge.scenario import load_scenario
+
+CONTROLLERS = {"fixed": 0, "unconstrained": 1, "proposed": 2}
+
+
+@dataclass(frozen=True)
+class RunResult:
+    summary: dict[str, Any]
+    log_path: Path | None
+
+
+def _sensors_to_fc(sb: Any) -> FcSensors:
+    return FcSensors(
+        t_s=sb.time_us * 1e-6,
+        gyro_frd=tuple(sb.gyro_frd),
+        accel_frd=tuple(sb.accel_frd),
+        pos_ned=tuple(sb.pos_ned),
+        vel_ned=tuple(sb.vel_ned),
+        quat_wxyz=tuple(sb.quat_wxyz),
+        tilt_rad=tuple(sb.duct_tilt_rad),
+        speed_rad_s=tuple(sb.prop_speed_rad_s),
+        joint_pos_rad=tuple(sb.joint_pos_rad),
+        joint_rate_rad_s=tuple(sb.joint_rate_rad_s),
+    )
+
+
+def _truth_record(tr: Any) -> dict[str, Any]:
+    act = np.asarray(tr.actuator_pos, dtype=float)
+    return {
+        "pos_ned_m": tr.pos_ned_m,
+        "vel_ned_m_s": tr.vel_ned_m_s,
+        "quat_wxyz": tr.quat_wxyz,
+        "euler_rad": tr.euler_rad,
+        "rate_frd_rad_s": tr.rate_frd_rad_s,
+        "accel_frd_m_s2": tr.accel_frd_m_s2,
+        "ang_accel_frd_rad_s2": tr.ang_accel_frd_rad_s2,
+        "tilt_rad": act[:2],
+        "speed_rad_s": act[2:],
+        "joint_pos_rad": tr.joint_pos_rad,
+        "joint_rate_rad_s": tr.joint_rate_rad_s,
+        "joint_accel_rad_s2": tr.joint_accel_rad_s2,
+        "object_mass_kg": tr.object_mass_kg,
+        "mass_kg": tr.mass_kg,
+        "com_frd_m": tr.com_frd_m,
+        "inertia_diag_kgm2": np.diag(np.asarray(tr.inertia_com_kgm2)),
+        # Headline reaction wrench (Fig. 10): about the mount, gravity included.
+        "reaction_force_mount_n": tr.reaction_force_frd_n,
+        "reaction_torque_mount_nm": tr.reaction_moment_mount_frd_nm,
+        "reaction_torque_o_nm": tr.reaction_moment_o_frd_nm,
+        "reaction_force_nog_n": tr.reaction_force_nog_frd_n,
+        "reaction_torque_mount_nog_nm": tr.reaction_moment_mount_nog_frd_nm,
+        "cmd_nonfinite_count": tr.cmd_nonfinite_count,
+        "cmd_clamped_count": tr.cmd_clamped_count,
+    }
+
+
+class EigenMonitor:
+    """Eigenvalues of G_hat G^-1 with G from the plant's truth (Eq. 14), for logs and the summary."""
+
+    def __init__(self, cfg: vm.VehicleConfig, lambda_min: float, lambda_crit: float) -> None:
+        self.cfg = cfg
+        self.model = vm.UamModel(cfg)
+        self.lambda_min = lambda_min
+        self.lambda_crit = lambda_crit
+
+    def __call__(self, st: ControllerStatus, tr: Any) -> dict[str, Any]:
+        gc_uam = self.model.evaluate(st.q_est_rad, (0.0, 0.0, 0.0)).gc
+        gi_hat = np.array(st.gi_hat).reshape(5, 5)
+        com = np.asarray(tr.com_frd_m, dtype=float)
+        gc_true = self.model.gc_about(float(com[0]), float(com[2]))
+        gi_true = vm.inertia_matrix_gi(np.asarray(tr.inertia_com_kgm2, dtype=float), float(tr.mass_kg))
+        ghat = np.linalg.solve(gi_hat, gc_uam)
+        g = np.linalg.solve(gi_true, gc_true)
+        lam = np.linalg.eigvals(ghat @ np.linalg.inv(g))
+        lam = lam[np.argsort(lam.real)]
+        return {
+            "eig_real": lam.real.tolist(),
+            "eig_imag": lam.imag.tolist(),
+            "lambda_min": self.lambda_min,
+            "lambda_crit": self.lambda_crit,
+            "true_inertia_mass": [gi_true[0, 0], gi_true[1, 1], gi_true[2, 2], gi_true[3, 3]],
+        }
+
+
+def run(
+    scenario: str,
+    controller: str = "proposed",
+    seed: int = 1,
+    duration_s: float | None = None,
+    log_path: str | Path | None = None,
+    overrides: dict[str, float] | None = None,
+    progress: bool = False,
+) -> RunResult:
+    reg = ParamRegistry.from_defaults()
+    reg.set("CKF_MODE", CONTROLLERS[controller])
+    for name, value in (overrides or {}).items():
+        res = reg.set(name, value)
+        if not res.accepted:
+            raise ValueError(res.reason)
+    vehicle = vm.VehicleConfig.load()
+    sc = load_scenario(scenario)
+    duration = sc.duration_s if duration_s is None else float(duration_s)
+    rng = np.random.default_rng(seed)
+    plant = Plant(vehicle, PlantParams.load(), sc, rng)
+    cfg = ControllerConfig.from_params(reg.as_dict(), vehicle)
+    fc = FlightControllerCore(vehicle, cfg)
+    lam_crit = stability.lambda_crit(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), cfg.dt_s,
+                                     float(reg["INDI_LPF_TAU"]))
+    eigmon = EigenMonitor(vehicle, float(reg["INDI_LAMBDA_MIN"]), lam_crit)
+    logger = McapLogger(log_path) if log_path else None
+    if logger:
+        logger.metadata("run", {"scenario": sc.name, "controller": controller, "seed": seed,
+                                "duration_s": duration})
+        logger.metadata("params", reg.as_dict())
+    n_steps = int(round(duration / cfg.dt_s))
+    cmd = plant.trim_command()
+    wall0 = time.perf_counter()
+    last_print = wall0
+    try:
+        for k in range(n_steps + 1):
+            sb = plant.sense()
+            s = _sensors_to_fc(sb)
+            spc = sc.setpoints(s.t_s)
+            sp = Setpoint(tuple(spc.pos_ned_m), spc.pitch_rad, spc.yaw_rad)
+            fc_cmd, st = fc.step(s, sp, engaged=sc.armed)
+            cmd = PlantCommand(tilt_rad=fc_cmd.tilt_rad, speed_rad_s=fc_cmd.speed_rad_s)
+            if logger:
+                t_ns = int(sb.time_us) * 1000
+                tr = plant.truth()
+                logger.log("/truth", t_ns, _truth_record(tr))
+                logger.log("/fc/status", t_ns, st)
+                logger.log("/fc/setpoint", t_ns, {"pos_ned": sp.pos_ned, "pitch_rad": sp.pitch_rad,
+                                                  "yaw_rad": sp.yaw_rad})
+                logger.log("/fc/command", t_ns, fc_cmd)
+                logger.log("/analysis/eig", t_ns, eigmon(st, tr))
+            if k == n_steps:
+                break
+            plant.step(cmd, cfg.dt_s)
+            if progress and time.perf_counter() - last_print > 2.0:
+                last_print = time.perf_counter()
+                print(f"\r  t = {s.t_s:6.2f} / {duration:.1f} s", end="", file=sys.stderr, flush=True)
+    finally:
+        if logger:
+            logger.close()
+    wall = time.perf_counter() - wall0
+    if progress:
+        print(file=sys.stderr)
+    summary: dict[str, Any] = {}
+    if log_path:
+        summary = summarize(load_run(log_path), wall)
+    summary.update({"scenario": sc.name, "controller": controller, "seed": seed})
+    return RunResult(summary, Path(log_path) if log_path else None)
+
+
+def _parse_set(items: list[str]) -> dict[str, float]:
+    out = {}
+    for it in items:
+        name, _, value = it.partition("=")
+        out[name.strip()] = float(value)
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenario", default="paper")
+    ap.add_argument("--controller", choices=sorted(CONTROLLERS), default="proposed")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--duration", type=float, default=None)
+    ap.add_argument("--log", default="out/run.mcap")
+    ap.add_argument("--summary", default=None)
+    ap.add_argument("--plots", default=None, help="also write Figures 10-16 here")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a parameter")
+    args = ap.parse_args(argv)
+    res = run(args.scenario, args.controller, args.seed, args.duration, args.log, _parse_set(args.set),
+              progress=True)
+    text = json.dumps(res.summary, indent=2, allow_nan=True)
+    print(text)
+    if args.summary:
+        Path(args.summary).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.summary).write_text(text + "\n")
+    print(f"log: {res.log_path}", file=sys.stderr)
+    if args.plots:
+        from navig8_tools.plot import plot_runs
+
+        for p in plot_runs([args.log], args.plots):
+            print(f"figure: {p}", file=sys.stderr)
+    return 0 if not res.summary.get("lost_control", False) else 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
+
+__all__ = ["run", "main"]
