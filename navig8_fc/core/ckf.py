@@ -30,10 +30,15 @@ The QP is solved by clarabel: one persistent solver built once, its P values and
 every step (clarabel's data-updating API; presolve off, structural zeros kept). The problem is posed in
 scaled offset variables y = diag(sqrt(W_ii)) (x - x_hat) so the quadratic has a unit diagonal and q = 0;
 only P (10 upper-triangular values) and b (8 bounds) change. Clarabel's interior-point answer is then
-polished: the active set it identifies is fixed and the equality-constrained projection solved exactly, so
-results sit exactly on the bounds. If clarabel reports anything but Solved (or polishing fails the KKT
-check), the exact active-set solver `project_box_exact` is used and the fallback is counted. When x_hat is
-already inside the box the projection is x_hat itself and no QP is solved (exact, and the common case).
+polished: the active set it identifies is held and the equality-constrained projection solved exactly
+(a weakly active bound is settled by up to n primal-dual active-set updates), so results sit exactly on
+the bounds and pass a KKT check. If clarabel reports anything but Solved (or polishing fails), the exact
+active-set solver `project_box_exact` answers and the fallback is counted. When x_hat is already inside
+the box the projection is x_hat itself and no QP is solved (exact, and the common case).
+
+Cost per ConstrainedKalmanFilter.step on the 2-core development VM (CPython 3.11, clarabel 0.11): ~30 us
+median inside the box; ~100 us median when the projection is active, of which the clarabel solve is
+~35-40 us (about 11 interior-point iterations) and the update ~3 us.
 
 Increments (our reading of Eq. 23)
 ----------------------------------
@@ -518,7 +523,7 @@ class BoxProjector:
         self.n_calls += 1
         iterations = 0
         diag = [wl[i][i] for i in range(n)]
-        finite = all(math.isfinite(v) for v in xh) and all(math.isfinite(v) for r in wl for v in r)
+        finite = math.isfinite(sum(xh) + sum(map(sum, wl)))  # NaN/inf propagate (overflow -> exact fallback)
         if finite and all(d > 0.0 for d in diag):
             sc = [math.sqrt(d) for d in diag]
             c = [wl[i][j] / (sc[i] * sc[j]) for i, j in self._pairs]  # unit-diagonal C, CSC upper triangle

@@ -3,8 +3,7 @@
 Pure Python on purpose. The signals in this controller have 1-5 components, and for vectors that
 short plain floats in a list are about twice as fast as numpy (numpy's per-call overhead dominates):
 one 5-element low-pass step costs ~0.5 us with lists and ~1.2 us with in-place numpy arithmetic
-(CPython 3.11). Inputs may be any sequence of floats; a numpy array works too, but passing
-``arr.tolist()`` is faster than letting the filter iterate the array element by element.
+(CPython 3.11). Inputs may be any sequence of floats or a 1-D numpy array (converted with tolist()).
 
 Both filters initialise on their first sample after construction or ``reset()``:
 - the low-pass returns the first sample itself (no start-up transient from zero);
@@ -17,6 +16,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+
+import numpy as np
 
 __all__ = ["BackwardDifference", "LowPass1", "lpf_alpha"]
 
@@ -79,7 +80,9 @@ class LowPass1:
         else:
             self._y = self._checked(value)
 
-    def step(self, x: Sequence[float]) -> list[float]:
+    def step(self, x: Sequence[float] | np.ndarray) -> list[float]:
+        if isinstance(x, np.ndarray):
+            x = x.tolist()  # plain floats: faster arithmetic and a list of float out, not of np.float64
         y = self._y
         if y is None:
             y = self._checked(x)
@@ -127,8 +130,8 @@ class BackwardDifference:
         """Forget the previous sample; with ``previous``, difference the next sample against it."""
         self._prev = None if previous is None else self._checked(previous)
 
-    def step(self, x: Sequence[float]) -> list[float]:
-        cur = self._checked(x)
+    def step(self, x: Sequence[float] | np.ndarray) -> list[float]:
+        cur = self._checked(x.tolist() if isinstance(x, np.ndarray) else x)
         prev = self._prev
         self._prev = cur
         if prev is None:

@@ -85,3 +85,12 @@ def test_differentiator_reset_with_previous() -> None:
     assert d.step([1.5]) == [pytest.approx(5.0)]
     d.reset()
     assert d.step([10.0]) == [0.0]
+
+
+def test_numpy_input_gives_plain_floats() -> None:
+    f = LowPass1(0.5, 0.01, n=2)
+    d = BackwardDifference(0.01, n=2)
+    for v in (np.array([1.0, 2.0]), np.array([2.0, 3.0])):
+        y = f.step(v)
+        dy = d.step(v)
+        assert all(type(e) is float for e in y + dy)
