@@ -56,10 +56,14 @@ first differences, notes 4). The paper does not define the increment; alternativ
 measurements share noise and bias drift, breaking the white-noise assumption of the KF); (b) high-pass
 increments U[k] - U_f[k] (the INDI-style "command minus filtered"), which are larger but carry the full
 raw-sensor noise and the unfiltered disturbance. With one-step increments of tau = 0.7 s filtered signals
-the per-step signal is small (alpha = 1 - exp(-0.01/0.7) = 0.0142 of a step change), so with the paper's
-R the filter moves slowly; see the module tests and the engineering report.
+the per-step signal is small: a step change of size D arrives as increments alpha D (1 - alpha)^k with
+alpha = 1 - exp(-0.01/0.7) = 0.0142, total squared size D^2 alpha / (2 - alpha) = 0.0071 D^2.
+Caveat: H is built from the *measured* Delta Acc_m, which the KF treats as exact. Noise in it (differentiated
+gyro, accelerometer) biases the estimate towards zero (errors-in-variables attenuation), i.e. towards
+the lower bound K = 1 once constrained.
 
-Pure core: numpy and clarabel only; no I/O, no clocks. Time comes in as t_s from the caller.
+Pure core: numpy, scipy.sparse (to hand clarabel its CSC matrices) and clarabel; no I/O, no clocks.
+Time comes in as t_s from the caller.
 """
 
 from __future__ import annotations
