@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
 # ---------------------------------------------------------------------------------------------
@@ -117,6 +116,9 @@ N_C = 9
 # from qa at t0 to qb at t1 (a step is a zero-length segment's neighbour). Before the first row the
 # first qa holds, after the last row the last qb holds.
 N_SCHED_COLS = 8
+
+# Scratch for advance()/evaluate(), owned by the caller (no allocation in the hot path).
+N_WORK = 138 + N_X
 
 # Sensor output vector s (float64), the SensorBundle's fields in this order.
 S_GYRO = 0  # 0:3
@@ -634,9 +636,10 @@ def _act_at(x, p, cmd, phi, gam, out):
 
 
 @njit(cache=True)
-def advance(x, p, cmd, sched, n_steps, t0_us, base_mode, d) -> int:
+def advance(x, p, cmd, sched, n_steps, t0_us, base_mode, d, w) -> int:
     """Advance the state x in place by n_steps physics steps from time t0_us (an integer on the
-    physics grid). Returns 0, or 1 if the state became non-finite (x is then left as it was)."""
+    physics grid). w is caller-owned scratch (N_WORK) so the hot path does not allocate.
+    Returns 0, or 1 if the state became non-finite (x is then left as it was)."""
     h = p[P_H]
     h_us = int(p[P_H_US])
     servo_n = int(p[P_SERVO_N])
@@ -644,20 +647,22 @@ def advance(x, p, cmd, sched, n_steps, t0_us, base_mode, d) -> int:
     amax = p[P_AMAX]
     vmax = p[P_VMAX]
     qlim = p[P_QLIM]
-    xb = np.empty(N_BASE)
-    xs = np.empty(N_BASE)
-    k1 = np.empty(N_BASE)
-    k2 = np.empty(N_BASE)
-    k3 = np.empty(N_BASE)
-    k4 = np.empty(N_BASE)
-    q = np.empty(3)
-    qd = np.empty(3)
-    qdd = np.empty(3)
-    act0 = np.empty(N_ACT)
-    acth = np.empty(N_ACT)
-    act1 = np.empty(N_ACT)
-    sc = np.empty(36)
-    backup = x.copy()
+    xb = w[0:13]
+    xs = w[13:26]
+    k1 = w[26:39]
+    k2 = w[39:52]
+    k3 = w[52:65]
+    k4 = w[65:78]
+    q = w[78:81]
+    qd = w[81:84]
+    qdd = w[84:87]
+    act0 = w[87:92]
+    acth = w[92:97]
+    act1 = w[97:102]
+    sc = w[102:138]
+    backup = w[138:138 + N_X]
+    for i in range(N_X):
+        backup[i] = x[i]
     mobj = x[X_MOBJ]
     for n in range(n_steps):
         t_us = t0_us + n * h_us
@@ -736,20 +741,18 @@ def advance(x, p, cmd, sched, n_steps, t0_us, base_mode, d) -> int:
             x[X_ACTD + i] = yd
     for i in range(N_X):
         if not math.isfinite(x[i]):
-            x[:] = backup
+            for j in range(N_X):
+                x[j] = backup[j]
             return 1
-    evaluate(x, p, base_mode, d)
+    evaluate(x, p, base_mode, d, w)
     return 0
 
 
 @njit(cache=True)
-def evaluate(x, p, base_mode, d) -> None:
+def evaluate(x, p, base_mode, d, w) -> None:
     """Fill the derived quantities d at the current state (q'' = the current servo period's)."""
-    xb = x[0:N_BASE].copy()
-    out = np.empty(N_BASE)
-    sc = np.empty(36)
-    _dynamics(xb, x[X_Q:X_Q + 3].copy(), x[X_QD:X_QD + 3].copy(), x[X_QDD:X_QDD + 3].copy(),
-              x[X_ACT:X_ACT + N_ACT].copy(), x[X_MOBJ], p, base_mode, out, sc, d, True)
+    _dynamics(x[0:N_BASE], x[X_Q:X_Q + 3], x[X_QD:X_QD + 3], x[X_QDD:X_QDD + 3], x[X_ACT:X_ACT + N_ACT],
+              x[X_MOBJ], p, base_mode, w[13:26], w[102:138], d, True)
 
 
 @njit(cache=True)

@@ -40,7 +40,7 @@ import scipy.linalg
 
 from navig8_fc.core.vehicle import VehicleConfig, hover_trim, propulsion_wrench, u_to_actuators
 from sim_bridge import _kernels as K
-from sim_bridge.messages import ActuatorCommand, SensorBundle, SensorField, Truth
+from sim_bridge.messages import ActuatorCommand, SensorBundle, SensorField, Truth, make_frozen
 from sim_bridge.params import ActuatorDynamics, PlantParams
 from sim_bridge.scenario import Scenario
 
@@ -184,6 +184,7 @@ class Plant:
         self._nonfinite = 0
         self._clamped = 0
         self._d = np.zeros(K.N_D)
+        self._work = np.zeros(K.N_WORK)
         # events on the physics grid: the first step at or after their time
         self._events = [
             (-(-round(ev.t_s * 1e6) // self._h_us) * self._h_us, ev) for ev in scenario.events
@@ -230,7 +231,7 @@ class Plant:
         self._cmd[K.C_ACT:K.C_ACT + 5] = act
         self._valid_cmd = [float(v) for v in act]
         self._valid_joint = [float(v) for v in q0]
-        K.evaluate(self._x, self._p, self._base_mode, self._d)
+        K.evaluate(self._x, self._p, self._base_mode, self._d, self._work)
 
     def _place_on_ground(self) -> None:
         """Skids on the ground with the static sag of the springs (the lowest contact point touches)."""
@@ -318,11 +319,13 @@ class Plant:
             if self._ev_i < len(events) and events[self._ev_i][0] < t_stop:
                 t_stop = events[self._ev_i][0]
             n = (t_stop - self._t_us) // h_us
-            if K.advance(self._x, self._p, self._cmd, self._sched, n, self._t_us, self._base_mode, self._d):
+            if K.advance(
+                self._x, self._p, self._cmd, self._sched, n, self._t_us, self._base_mode, self._d, self._work
+            ):
                 raise PlantDivergedError(f"non-finite plant state in ({self._t_us}, {t_stop}] us")
             self._t_us = t_stop
             if self._apply_due_events():
-                K.evaluate(self._x, self._p, self._base_mode, self._d)
+                K.evaluate(self._x, self._p, self._base_mode, self._d, self._work)
 
     def _apply_due_events(self) -> bool:
         applied = False
@@ -353,20 +356,20 @@ class Plant:
         K.sense(self._x, self._d, self._sig, noise, self._prev_meas, groups, s)
         self._prev_meas = s
         s.flags.writeable = False
-        return SensorBundle(
-            time_us=t,
-            gyro_frd=s[0:3],
-            accel_frd=s[3:6],
-            pos_ned=s[6:9],
-            vel_ned=s[9:12],
-            quat_wxyz=s[12:16],
-            duct_tilt_rad=s[16:18],
-            prop_speed_rad_s=s[18:21],
-            joint_pos_rad=s[21:24],
-            joint_rate_rad_s=s[24:27],
-            gripper_closed=self._gripper_closed,
-            updated=groups,
-        )
+        return make_frozen(SensorBundle, {
+            "time_us": t,
+            "gyro_frd": s[0:3],
+            "accel_frd": s[3:6],
+            "pos_ned": s[6:9],
+            "vel_ned": s[9:12],
+            "quat_wxyz": s[12:16],
+            "duct_tilt_rad": s[16:18],
+            "prop_speed_rad_s": s[18:21],
+            "joint_pos_rad": s[21:24],
+            "joint_rate_rad_s": s[24:27],
+            "gripper_closed": self._gripper_closed,
+            "updated": groups,
+        })
 
     def truth(self) -> Truth:
         x = self._x.copy()
@@ -377,43 +380,43 @@ class Plant:
         cmd.flags.writeable = False
         euler = np.array(quat_to_euler(x[K.X_QUAT:K.X_QUAT + 4]))
         euler.flags.writeable = False
-        return Truth(
-            time_us=self._t_us,
-            pos_ned_m=x[K.X_POS:K.X_POS + 3],
-            vel_ned_m_s=x[K.X_VEL:K.X_VEL + 3],
-            quat_wxyz=x[K.X_QUAT:K.X_QUAT + 4],
-            euler_rad=euler,
-            rate_frd_rad_s=x[K.X_RATE:K.X_RATE + 3],
-            accel_frd_m_s2=d[K.D_ACC:K.D_ACC + 3],
-            ang_accel_frd_rad_s2=d[K.D_WDOT:K.D_WDOT + 3],
-            specific_force_frd_m_s2=d[K.D_SPF:K.D_SPF + 3],
-            actuator_pos=x[K.X_ACT:K.X_ACT + 5],
-            actuator_rate=x[K.X_ACTD:K.X_ACTD + 5],
-            actuator_cmd=cmd,
-            joint_pos_rad=x[K.X_Q:K.X_Q + 3],
-            joint_rate_rad_s=x[K.X_QD:K.X_QD + 3],
-            joint_accel_rad_s2=x[K.X_QDD:K.X_QDD + 3],
-            joint_target_rad=x[K.X_QTGT:K.X_QTGT + 3],
-            object_mass_kg=float(x[K.X_MOBJ]),
-            gripper_closed=self._gripper_closed,
-            mass_kg=float(d[K.D_MASS]),
-            com_frd_m=d[K.D_COM:K.D_COM + 3],
-            inertia_com_kgm2=d[K.D_JC:K.D_JC + 9].reshape(3, 3),
-            inertia_o_kgm2=d[K.D_JO:K.D_JO + 9].reshape(3, 3),
-            reaction_force_frd_n=d[K.D_FR_G:K.D_FR_G + 3],
-            reaction_moment_mount_frd_nm=d[K.D_MR_MOUNT_G:K.D_MR_MOUNT_G + 3],
-            reaction_moment_o_frd_nm=d[K.D_MR_O_G:K.D_MR_O_G + 3],
-            reaction_force_nog_frd_n=d[K.D_FR_NOG:K.D_FR_NOG + 3],
-            reaction_moment_mount_nog_frd_nm=d[K.D_MR_MOUNT_NOG:K.D_MR_MOUNT_NOG + 3],
-            reaction_moment_o_nog_frd_nm=d[K.D_MR_O_NOG:K.D_MR_O_NOG + 3],
-            prop_force_frd_n=d[K.D_FPROP:K.D_FPROP + 3],
-            prop_moment_frd_nm=d[K.D_MPROP:K.D_MPROP + 3],
-            contact_force_frd_n=d[K.D_FCONT:K.D_FCONT + 3],
-            contact_moment_frd_nm=d[K.D_MCONT:K.D_MCONT + 3],
-            contact_points_active=int(d[K.D_NCONT]),
-            cmd_nonfinite_count=self._nonfinite,
-            cmd_clamped_count=self._clamped,
-        )
+        return make_frozen(Truth, {
+            "time_us": self._t_us,
+            "pos_ned_m": x[K.X_POS:K.X_POS + 3],
+            "vel_ned_m_s": x[K.X_VEL:K.X_VEL + 3],
+            "quat_wxyz": x[K.X_QUAT:K.X_QUAT + 4],
+            "euler_rad": euler,
+            "rate_frd_rad_s": x[K.X_RATE:K.X_RATE + 3],
+            "accel_frd_m_s2": d[K.D_ACC:K.D_ACC + 3],
+            "ang_accel_frd_rad_s2": d[K.D_WDOT:K.D_WDOT + 3],
+            "specific_force_frd_m_s2": d[K.D_SPF:K.D_SPF + 3],
+            "actuator_pos": x[K.X_ACT:K.X_ACT + 5],
+            "actuator_rate": x[K.X_ACTD:K.X_ACTD + 5],
+            "actuator_cmd": cmd,
+            "joint_pos_rad": x[K.X_Q:K.X_Q + 3],
+            "joint_rate_rad_s": x[K.X_QD:K.X_QD + 3],
+            "joint_accel_rad_s2": x[K.X_QDD:K.X_QDD + 3],
+            "joint_target_rad": x[K.X_QTGT:K.X_QTGT + 3],
+            "object_mass_kg": float(x[K.X_MOBJ]),
+            "gripper_closed": self._gripper_closed,
+            "mass_kg": float(d[K.D_MASS]),
+            "com_frd_m": d[K.D_COM:K.D_COM + 3],
+            "inertia_com_kgm2": d[K.D_JC:K.D_JC + 9].reshape(3, 3),
+            "inertia_o_kgm2": d[K.D_JO:K.D_JO + 9].reshape(3, 3),
+            "reaction_force_frd_n": d[K.D_FR_G:K.D_FR_G + 3],
+            "reaction_moment_mount_frd_nm": d[K.D_MR_MOUNT_G:K.D_MR_MOUNT_G + 3],
+            "reaction_moment_o_frd_nm": d[K.D_MR_O_G:K.D_MR_O_G + 3],
+            "reaction_force_nog_frd_n": d[K.D_FR_NOG:K.D_FR_NOG + 3],
+            "reaction_moment_mount_nog_frd_nm": d[K.D_MR_MOUNT_NOG:K.D_MR_MOUNT_NOG + 3],
+            "reaction_moment_o_nog_frd_nm": d[K.D_MR_O_NOG:K.D_MR_O_NOG + 3],
+            "prop_force_frd_n": d[K.D_FPROP:K.D_FPROP + 3],
+            "prop_moment_frd_nm": d[K.D_MPROP:K.D_MPROP + 3],
+            "contact_force_frd_n": d[K.D_FCONT:K.D_FCONT + 3],
+            "contact_moment_frd_nm": d[K.D_MCONT:K.D_MCONT + 3],
+            "contact_points_active": int(d[K.D_NCONT]),
+            "cmd_nonfinite_count": self._nonfinite,
+            "cmd_clamped_count": self._clamped,
+        })
 
     def trim_command(self) -> ActuatorCommand:
         """Level hover trim for the current arm pose and object (vehicle.hover_trim), clamped to limits."""

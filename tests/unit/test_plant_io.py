@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from dataclasses import FrozenInstanceError
 from importlib.resources import files
 
 import numpy as np
@@ -11,7 +12,7 @@ import pytest
 import yaml
 
 from navig8_fc.core.vehicle import VehicleConfig
-from sim_bridge import ActuatorCommand, Plant, PlantParams, SensorField, load_scenario
+from sim_bridge import ActuatorCommand, Plant, PlantParams, SensorBundle, SensorField, Truth, load_scenario
 from sim_bridge.plant import trim_actuators
 
 
@@ -182,3 +183,15 @@ def test_hover_scenarios_start_at_trim(cfg, params):
         # F_y of the dihedral is not nulled by vehicle.hover_trim (G_C has no F_y row): ~5e-5 m/s^2
         assert np.all(np.abs(tr.accel_frd_m_s2) < [1e-9, 1e-4, 1e-9])
         np.testing.assert_allclose(tr.ang_accel_frd_rad_s2, 0.0, atol=1e-9)
+
+
+def test_messages_are_complete_and_frozen(cfg, params):
+    """sense() and truth() build their frozen dataclasses with make_frozen: every field set, none writable."""
+    plant = Plant(cfg, params, load_scenario("paper"), np.random.default_rng(0))
+    for msg, cls in ((plant.sense(), SensorBundle), (plant.truth(), Truth)):
+        assert set(vars(msg)) == {f.name for f in dataclasses.fields(cls)}
+        with pytest.raises(FrozenInstanceError):
+            msg.time_us = 5  # type: ignore[misc]
+        for v in vars(msg).values():
+            if isinstance(v, np.ndarray):
+                assert not v.flags.writeable
