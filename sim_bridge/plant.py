@@ -200,7 +200,7 @@ class Plant:
             (int(SensorField.JOINTS), round(1e6 / s.joint_rate_hz)),
         ]
         self._sensor_due_us = [0, 0, 0, 0]
-        self._prev_meas = np.zeros(K.N_S)
+        self._meas = np.zeros(K.N_S)  # last sample of every sensor group (kernel-owned, writable)
         self._t_us = 0
         self._init_state(scenario)
 
@@ -352,9 +352,9 @@ class Plant:
                 groups |= bit
                 due[i] += period * ((t - due[i]) // period + 1)
         noise = self._rng.standard_normal(K.N_NOISE)
-        s = np.empty(K.N_S)
-        K.sense(self._x, self._d, self._sig, noise, self._prev_meas, groups, s)
-        self._prev_meas = s
+        # in place: the groups not due keep their previous sample (sample and hold)
+        K.sense(self._x, self._d, self._sig, noise, self._meas, groups, self._meas)
+        s = self._meas.copy()
         s.flags.writeable = False
         return make_frozen(SensorBundle, {
             "time_us": t,
