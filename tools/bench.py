@@ -173,9 +173,48 @@ def _plant_accuracy_section(args: argparse.Namespace) -> SectionResult:
     return SectionResult(metrics, lines)
 
 
+def _fc_section(args: argparse.Namespace) -> SectionResult:
+    """FC tick (joint observer + model + CKF with projection + outer loops + INDI) timed inside the closed
+    loop on the paper scenario (proposed controller), no logging."""
+    from navig8_tools.sim import run
+
+    run("paper", "proposed", args.seed, 2.0)  # warm-up: imports, numba cache load
+    ticks: list[float] = []
+    run("paper", "proposed", args.seed, 30.0, tick_times_s=ticks)
+    us = np.array(ticks) * 1e6
+    med, p99 = float(np.median(us)), float(np.percentile(us, 99))
+    return SectionResult(
+        {"fc_tick_us_median": med, "fc_tick_us_p99": p99},
+        [f"fc: tick median {med:.0f} us, p99 {p99:.0f} us over {len(us)} ticks "
+         f"(targets: median <= 300 us, p99 <= 1000 us)"],
+    )
+
+
+def _inprocess_section(args: argparse.Namespace) -> SectionResult:
+    """Closed-loop real-time factor, plant + sensors + FC in one process, 30 s paper scenario:
+    without logging (the loop itself) and with the full MCAP log (as navig8-sim runs by default)."""
+    import tempfile
+    from pathlib import Path
+
+    from navig8_tools.sim import run
+
+    run("paper", "proposed", args.seed, 2.0)
+    rtfs = [run("paper", "proposed", args.seed, 30.0).summary["real_time_factor"] for _ in range(3)]
+    with tempfile.TemporaryDirectory() as tmp:
+        logged = run("paper", "proposed", args.seed, 30.0, Path(tmp) / "b.mcap").summary["real_time_factor"]
+    rtf = float(np.median(rtfs))
+    return SectionResult(
+        {"inprocess_rtf": rtf, "inprocess_rtf_logged": float(logged)},
+        [f"inprocess: closed loop {rtf:.1f}x real time (median of 3, no log; target >= 50x), "
+         f"{logged:.1f}x with the full MCAP log"],
+    )
+
+
 SECTIONS: list[Section] = [
     Section("plant", "plant alone: us per physics step with sensors, real-time factor", _plant_section),
     Section("plant-accuracy", "plant integration error vs a 10x finer step", _plant_accuracy_section),
+    Section("fc", "flight-controller tick: median and p99 us", _fc_section),
+    Section("inprocess", "closed loop in one process: real-time factor", _inprocess_section),
 ]
 
 

@@ -98,11 +98,15 @@ def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
             t_step = sp.t[i + 1]
             att_err[(t >= t_step) & (t < t_step + ATT_STEP_GRACE_S)] = 0.0
     finite = bool(np.all(np.isfinite(pos)) and np.all(np.isfinite(quat)))
-    lost = (not finite) or bool(np.nanmax(att_err) > LOST_ATT_DEG) or bool(np.nanmax(pos_err) > LOST_POS_M)
+    bad = ~np.isfinite(pos).all(axis=1) | ~np.isfinite(quat).all(axis=1) | (att_err > LOST_ATT_DEG) | (pos_err > LOST_POS_M)
+    lost = (not finite) or bool(np.any(bad))
+    lost_t = float(t[np.argmax(bad)]) if np.any(bad) else None
 
     running = st.field("adapt.running").astype(bool) if len(st.t) else np.zeros(0, bool)
     lam = eig.field("eig_real", 5)
-    eig_running = _interp_rows(st.t, running.astype(float), eig.t) > 0.5 if len(st.t) else np.zeros(0, bool)
+    # Eigenvalues count from the estimator's start delay in every mode (fixed K = 1 never "runs").
+    start_dly = float(run.metadata.get("params", {}).get("CKF_START_DLY", 0.0))
+    eig_running = eig.t >= (eig.t[0] if len(eig.t) else 0.0) + start_dly - 1e-9
     lam_run = lam[eig_running] if len(lam) else lam
     x = st.field("adapt.x_hat", 4)
     lo, hi = st.field("adapt.lower", 4), st.field("adapt.upper", 4)
@@ -134,6 +138,7 @@ def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
         "wall_time_s": float(wall_time_s),
         "real_time_factor": sim_time / wall_time_s if wall_time_s > 0 else math.inf,
         "lost_control": lost,
+        "lost_control_t_s": lost_t,
         "min_eigenvalue": fmin(lam_run),
         "max_eigenvalue": fmax(lam_run),
         "bound_violations": int(np.sum(viol)),
