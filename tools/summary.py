@@ -98,7 +98,8 @@ def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
             t_step = sp.t[i + 1]
             att_err[(t >= t_step) & (t < t_step + ATT_STEP_GRACE_S)] = 0.0
     finite = bool(np.all(np.isfinite(pos)) and np.all(np.isfinite(quat)))
-    bad = ~np.isfinite(pos).all(axis=1) | ~np.isfinite(quat).all(axis=1) | (att_err > LOST_ATT_DEG) | (pos_err > LOST_POS_M)
+    bad = ~np.isfinite(pos).all(axis=1) | ~np.isfinite(quat).all(axis=1)
+    bad |= (att_err > LOST_ATT_DEG) | (pos_err > LOST_POS_M)
     lost = (not finite) or bool(np.any(bad))
     lost_t = float(t[np.argmax(bad)]) if np.any(bad) else None
 
