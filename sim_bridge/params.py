@@ -81,6 +81,10 @@ class GroundParams:
             raise ValueError("friction_reg_speed_m_s must be > 0")
 
 
+def _dynamics(d: dict[str, Any]) -> ActuatorDynamics:
+    return ActuatorDynamics(float(d["omega_n_rad_s"]), float(d["zeta"]))
+
+
 @dataclass(frozen=True)
 class PlantParams:
     physics_rate_hz: float
@@ -117,12 +121,13 @@ class PlantParams:
 
     @staticmethod
     def from_dict(d: dict[str, Any]) -> PlantParams:
-        integ, act, servo, sens, gnd = d["integration"], d["actuators"], d["joint_servo"], d["sensors"], d["ground"]
+        integ, act, servo = d["integration"], d["actuators"], d["joint_servo"]
+        sens, gnd = d["sensors"], d["ground"]
         return PlantParams(
             physics_rate_hz=float(integ["physics_rate_hz"]),
             servo_rate_hz=float(integ["servo_rate_hz"]),
-            tilt_dynamics=ActuatorDynamics(float(act["tilt"]["omega_n_rad_s"]), float(act["tilt"]["zeta"])),
-            speed_dynamics=ActuatorDynamics(float(act["speed"]["omega_n_rad_s"]), float(act["speed"]["zeta"])),
+            tilt_dynamics=_dynamics(act["tilt"]),
+            speed_dynamics=_dynamics(act["speed"]),
             joint_v_max_rad_s=float(servo["v_max_rad_s"]),
             joint_a_max_rad_s2=float(servo["a_max_rad_s2"]),
             sensors=SensorParams(**{k: float(v) for k, v in sens.items()}),

@@ -107,7 +107,8 @@ class Scenario:
     def arm_schedule(self) -> np.ndarray:
         """Rows [t0_us, t1_us, qa(3), qb(3)] for the plant's kernel."""
         rows = [
-            [round(s.t0_s * 1e6), round(s.t1_s * 1e6), *s.q_start_rad, *s.q_end_rad] for s in self.arm_segments
+            [round(s.t0_s * 1e6), round(s.t1_s * 1e6), *s.q_start_rad, *s.q_end_rad]
+            for s in self.arm_segments
         ]
         return np.array(rows, dtype=np.float64)
 
@@ -244,14 +245,14 @@ def _arm_segments(kind: str, arm: dict[str, Any], q0: Vec3, duration_s: float) -
             v = a if k % 2 == 0 else -a
             segs.append(ArmSegment(k * period, k * period, segs[-1].q_end_rad, (v, v, v)))
             k += 1
-        return tuple(segs)
+        return tuple(segs)  # after duration_s the last target holds
     raise ValueError(f"unknown arm command kind {kind!r} (hold, steps, eq26)")
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:
     """Load a scenario by name (params/scenarios/<name>.yaml, package navig8_params.scenarios) or path."""
     p = Path(name_or_path)
-    if p.suffix in (".yaml", ".yml") or p.exists():
+    if isinstance(name_or_path, Path) or p.suffix in (".yaml", ".yml") or len(p.parts) > 1:
         text = p.read_text()
     else:
         from importlib.resources import files

@@ -146,12 +146,15 @@ def _plant_accuracy_section(args: argparse.Namespace) -> SectionResult:
     cases = [
         # (label, key, vehicle, base mode, duration): the free base under constant trim tumbles and
         # hits the ground after ~1.5 s, so the smooth comparison is without gravity for the full 30 s.
-        ("free base, no gravity, 30 s", "free_nog", dataclasses.replace(vehicle, gravity_m_s2=0.0), "free", 30.0),
+        ("free base, no gravity, 30 s", "free_nog", dataclasses.replace(vehicle, gravity_m_s2=0.0), "free",
+         30.0),
         ("attitude-locked base, gravity, 30 s", "locked", vehicle, "attitude_locked", 30.0),
         ("free base, gravity, until touchdown", "free_g", vehicle, "free", 30.0),
     ]
     metrics: dict[str, Any] = {"plant_acc_ref_rate_hz": ref_rate}
-    lines = [f"plant accuracy: {params.physics_rate_hz:.0f} Hz vs {ref_rate:.0f} Hz reference (paper scenario)"]
+    lines = [
+        f"plant accuracy: {params.physics_rate_hz:.0f} Hz vs {ref_rate:.0f} Hz reference (paper scenario)"
+    ]
     for label, key, veh, mode, dur in cases:
         ref = _accuracy_case(veh, params, scenario, mode, ref_rate, dur)
         run = _accuracy_case(veh, params, scenario, mode, params.physics_rate_hz, dur)
@@ -167,8 +170,9 @@ def _plant_accuracy_section(args: argparse.Namespace) -> SectionResult:
         for k, v in errs.items():
             metrics[f"plant_acc_{key}_{k}"] = v
         lines.append(
-            f"  {label} ({n * 0.01:.2f} s): max |dp| {errs['pos_m']:.1e} m, attitude {errs['att_rad']:.1e} rad, "
-            f"rate {errs['rate_rad_s']:.1e} rad/s, reaction {errs['force_n']:.1e} N / {errs['moment_nm']:.1e} N m"
+            f"  {label} ({n * 0.01:.2f} s): max |dp| {errs['pos_m']:.1e} m, "
+            f"attitude {errs['att_rad']:.1e} rad, rate {errs['rate_rad_s']:.1e} rad/s, "
+            f"reaction {errs['force_n']:.1e} N / {errs['moment_nm']:.1e} N m"
         )
     return SectionResult(metrics, lines)
 

@@ -36,7 +36,8 @@ def test_ground_scenario_rests_still(cfg, params):
     for _ in range(100):
         plant.step(ActuatorCommand.off(), 0.1)
         tr = plant.truth()
-        worst_speed = max(worst_speed, float(np.abs(tr.vel_ned_m_s).max()), float(np.abs(tr.rate_frd_rad_s).max()))
+        speed = max(float(np.abs(tr.vel_ned_m_s).max()), float(np.abs(tr.rate_frd_rad_s).max()))
+        worst_speed = max(worst_speed, speed)
     np.testing.assert_allclose(tr.pos_ned_m, ref.pos_ned_m, atol=1e-9)
     np.testing.assert_allclose(tr.euler_rad, ref.euler_rad, atol=1e-9)
     assert worst_speed < 1e-9
@@ -52,7 +53,10 @@ def test_drop_lands_without_bouncing(cfg, params, euler_deg):
     scn = dataclasses.replace(
         scn,
         initial=dataclasses.replace(
-            scn.initial, on_ground=False, pos_ned_m=(0.0, 0.0, -0.45), euler_rad=tuple(map(math.radians, euler_deg))
+            scn.initial,
+            on_ground=False,
+            pos_ned_m=(0.0, 0.0, -0.45),
+            euler_rad=tuple(map(math.radians, euler_deg)),
         ),
     )
     plant = Plant(cfg, params, scn, np.random.default_rng(0))

@@ -34,10 +34,14 @@ def _run(cfg, params, seed: int, n: int = 200):
         plant.step(cmd, 0.01)
         b = plant.sense()
         t = plant.truth()
-        sensors.append(np.concatenate([b.gyro_frd, b.accel_frd, b.pos_ned, b.vel_ned, b.quat_wxyz,
-                                       b.duct_tilt_rad, b.prop_speed_rad_s, b.joint_pos_rad, b.joint_rate_rad_s]))
-        truths.append(np.concatenate([t.pos_ned_m, t.vel_ned_m_s, t.quat_wxyz, t.rate_frd_rad_s, t.actuator_pos,
-                                      t.joint_pos_rad, t.reaction_force_frd_n, t.reaction_moment_o_frd_nm]))
+        sensors.append(np.concatenate([
+            b.gyro_frd, b.accel_frd, b.pos_ned, b.vel_ned, b.quat_wxyz,
+            b.duct_tilt_rad, b.prop_speed_rad_s, b.joint_pos_rad, b.joint_rate_rad_s,
+        ]))
+        truths.append(np.concatenate([
+            t.pos_ned_m, t.vel_ned_m_s, t.quat_wxyz, t.rate_frd_rad_s, t.actuator_pos,
+            t.joint_pos_rad, t.reaction_force_frd_n, t.reaction_moment_o_frd_nm,
+        ]))
     return np.array(sensors), np.array(truths)
 
 
@@ -70,7 +74,8 @@ def test_nonfinite_and_out_of_range_commands_are_clamped_and_counted(cfg, params
     plant.step(ActuatorCommand((math.nan,) * 2, (math.nan,) * 3), 0.5)
     tr = plant.truth()
     assert tr.cmd_nonfinite_count == 8
-    for v in (tr.pos_ned_m, tr.vel_ned_m_s, tr.quat_wxyz, tr.rate_frd_rad_s, tr.actuator_pos, tr.joint_pos_rad):
+    state = (tr.pos_ned_m, tr.vel_ned_m_s, tr.quat_wxyz, tr.rate_frd_rad_s, tr.actuator_pos, tr.joint_pos_rad)
+    for v in state:
         assert np.all(np.isfinite(v))
     lo = [cfg.tilt_min_rad] * 2 + [cfg.duct_speed_min, cfg.tail_speed_min, cfg.duct_speed_min]
     hi = [cfg.tilt_max_rad] * 2 + [cfg.duct_speed_max, cfg.tail_speed_max, cfg.duct_speed_max]
@@ -89,7 +94,8 @@ def test_sensor_noise_matches_paper_sigmas(cfg, params):
     paper's sigmas within 6 % (4 sigma of the estimator at n = 2000 is ~6 %)."""
     plant = Plant(cfg, params, load_scenario("hover"), np.random.default_rng(7))
     cmd = plant.trim_command()
-    err: dict[str, list[np.ndarray]] = {k: [] for k in ("gyro", "accel", "duct", "prop", "jq", "jqd", "pos", "vel")}
+    keys = ("gyro", "accel", "duct", "prop", "jq", "jqd", "pos", "vel")
+    err: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     for _ in range(2000):
         plant.step(cmd, 0.01)
         b, t = plant.sense(), plant.truth()

@@ -89,7 +89,11 @@ def test_free_fall_closed_form(cfg, params):
     the attitude stays constant (gravity acts at the CoM). Tolerance 1e-9 m, 1e-12 rad/s."""
     v0 = np.array([1.0, -0.5, -3.0])
     scn = _scenario(
-        initial={"vel_ned_m_s": v0.tolist(), "euler_deg": [10.0, -5.0, 30.0], "joint_pos_deg": [20.0, 20.0, 20.0]}
+        initial={
+            "vel_ned_m_s": v0.tolist(),
+            "euler_deg": [10.0, -5.0, 30.0],
+            "joint_pos_deg": [20.0, 20.0, 20.0],
+        }
     )
     plant = Plant(cfg, params, scn, np.random.default_rng(0))
     q0 = plant.truth().quat_wxyz.copy()
@@ -184,7 +188,8 @@ def test_joint_servo_trapezoid_hits_both_limits_and_rests(cfg, params):
         tr = plant.truth()
         qd_peak = max(qd_peak, float(np.abs(tr.joint_rate_rad_s).max()))
         qdd_peak = max(qdd_peak, float(np.abs(tr.joint_accel_rad_s2).max()))
-        if arrived_s is None and np.all(np.abs(tr.joint_pos_rad - target) < 1e-12) and not tr.joint_rate_rad_s.any():
+        at_target = np.all(np.abs(tr.joint_pos_rad - target) < 1e-12) and not tr.joint_rate_rad_s.any()
+        if arrived_s is None and at_target:
             arrived_s = tr.time_us * 1e-6 - 0.1
         if arrived_s is not None:
             assert np.all(np.abs(tr.joint_pos_rad - target) < 1e-12)
@@ -253,7 +258,8 @@ def test_reaction_wrench_balances_uav_newton_euler(cfg, params):
         plant.step(cmd, 0.01)
         tr = plant.truth()
         g_frd = quat_to_dcm(tr.quat_wxyz).T @ np.array([0.0, 0.0, cfg.gravity_m_s2])
-        force = tr.prop_force_frd_n + tr.contact_force_frd_n + cfg.uav_mass_kg * g_frd + tr.reaction_force_frd_n
+        force = (tr.prop_force_frd_n + tr.contact_force_frd_n + cfg.uav_mass_kg * g_frd
+                 + tr.reaction_force_frd_n)
         np.testing.assert_allclose(cfg.uav_mass_kg * tr.accel_frd_m_s2, force, atol=1e-9 * 100.0)
         w = tr.rate_frd_rad_s
         lhs = j0 @ tr.ang_accel_frd_rad_s2 + np.cross(w, j0 @ w)
