@@ -172,6 +172,8 @@ def fig16_eigenvalues(runs: list[RunLog], out: Path) -> Path:
     ax.axhline(lam_crit, color="r", ls="--", lw=0.8, label=f"λ_crit = {lam_crit:.3f}")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("Re λ(Ĝ G⁻¹)")
+    # An unconstrained estimate can send eigenvalues to +-1000s; keep the stability band readable.
+    ax.set_ylim(-1.0, 3.5)
     ax.set_title("Fig. 16: eigenvalues of Ĝ·G⁻¹ (G from the plant's truth)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, ncol=3)
