@@ -12,7 +12,16 @@ import pytest
 import yaml
 
 from navig8_fc.core.vehicle import VehicleConfig
-from sim_bridge import ActuatorCommand, Plant, PlantParams, SensorBundle, SensorField, Truth, load_scenario
+from sim_bridge import (
+    ActuatorCommand,
+    Plant,
+    PlantParams,
+    Scenario,
+    SensorBundle,
+    SensorField,
+    Truth,
+    load_scenario,
+)
 from sim_bridge.plant import trim_actuators
 
 
@@ -201,3 +210,27 @@ def test_messages_are_complete_and_frozen(cfg, params):
         for v in vars(msg).values():
             if isinstance(v, np.ndarray):
                 assert not v.flags.writeable
+
+
+def test_grasp_and_release_events(cfg, params):
+    """release at 0.5 s, grasp of 1.5 kg at 1.0 s (off the physics grid: applied at the next step)."""
+    scn = Scenario.from_dict({
+        "name": "events",
+        "duration_s": 2.0,
+        "initial": {"pos_ned_m": [0.0, 0.0, -5.0]},
+        "object": {"gripper_closed": True, "mass_kg": 1.0},
+        "events": [{"t_s": 0.5, "kind": "release"}, {"t_s": 1.0004, "kind": "grasp", "mass_kg": 1.5}],
+    })
+    plant = Plant(cfg, params, scn, np.random.default_rng(0), base_mode="fixed")
+    cmd = plant.trim_command()
+    seen = []
+    for _ in range(1200):
+        plant.step(cmd, 0.001)
+        tr, b = plant.truth(), plant.sense()
+        assert b.gripper_closed == tr.gripper_closed
+        seen.append((tr.time_us, tr.object_mass_kg, tr.gripper_closed, tr.mass_kg))
+    by_t = {t: (m, g, mt) for t, m, g, mt in seen}
+    assert by_t[499_000][:2] == (1.0, True) and by_t[500_000][:2] == (0.0, False)
+    assert by_t[1_000_000][:2] == (0.0, False) and by_t[1_001_000][:2] == (1.5, True)
+    assert by_t[1_001_000][2] == pytest.approx(cfg.uam_mass_kg + 1.5)
+    assert scn.object_mass(0.7) == 0.0 and scn.object_mass(1.1) == 1.5 and not scn.gripper_closed_at(0.7)
