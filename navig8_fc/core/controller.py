@@ -150,9 +150,10 @@ class FlightControllerCore:
              s.accel_frd[0] + uam.arm_accel_xz[0], s.accel_frd[2] + uam.arm_accel_xz[1]]
         )  # Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM
         u_meas = actuators_to_u(s.tilt_rad[0], s.tilt_rad[1], *s.speed_rad_s)
+        gc_inv = np.linalg.inv(uam.gc)
         gi_hat, adapt_status = self._adapt.step(
             AdaptiveLawInputs(
-                t_s=s.t_s, u_meas=u_meas, acc_m=acc_m, gc_uam_inv=np.linalg.inv(uam.gc),
+                t_s=s.t_s, u_meas=u_meas, acc_m=acc_m, gc_uam_inv=gc_inv,
                 inertia_uam=uam.inertia_com, mass_uam_kg=uam.mass_kg, inertia_rate_uam=uam.inertia_rate,
                 k_min=cfg.k_min, k_max=cfg.k_max,
             )
@@ -162,7 +163,8 @@ class FlightControllerCore:
         if engaged:
             outer = outer_loop_step(cfg.outer, sp, s.pos_ned, s.vel_ned, s.quat_wxyz, s.gyro_frd)
             out, indi_status = self._indi.step(
-                IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, outer.accel_cmd, uam.gc, gi_hat)
+                IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, outer.accel_cmd, uam.gc, gi_hat,
+                           gc_inv)
             )
             cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
         else:

@@ -57,6 +57,7 @@ class IndiInputs:
     accel_cmd: Sequence[float]  # v = [Pdot, Qdot, Rdot, a_x, a_z] commanded
     gc: np.ndarray  # G_C,UAM (5x5)
     gi_hat: np.ndarray  # G_hat_I (5x5)
+    gc_inv: np.ndarray | None = None  # G_C,UAM^-1 if the caller already has it (saves a solve per tick)
 
 
 @dataclass(frozen=True)
@@ -108,7 +109,7 @@ class IndiController:
         acc_f, u0 = self.measure(inp)
         d_acc = np.array([inp.accel_cmd[i] - acc_f[i] for i in range(5)])
         # Eq. 5: Delta U = G_C^-1 G_hat_I Delta Acc; columns of M give each axis' contribution.
-        m = np.linalg.solve(inp.gc, inp.gi_hat)
+        m = inp.gc_inv @ inp.gi_hat if inp.gc_inv is not None else np.linalg.solve(inp.gc, inp.gi_hat)
         contrib = m * d_acc  # column j = M[:, j] * d_acc[j]
         u0_arr = np.array(u0)
         scales = [1.0, 1.0, 1.0]

@@ -112,6 +112,12 @@ class McapLogger:
 def read_mcap(path: str | Path, topics: list[str] | None = None) -> Iterator[tuple[str, int, Any]]:
     """(topic, log_time_ns, decoded JSON or raw bytes) in file order; a truncated file yields what its
     complete chunks hold and stops quietly."""
+    for topic, t_ns, _pub, data in read_mcap_records(path, topics):
+        yield topic, t_ns, data
+
+
+def read_mcap_records(path: str | Path, topics: list[str] | None = None) -> Iterator[tuple[str, int, int, Any]]:
+    """Like read_mcap, with the publish time (the writer's wall clock, ns) as well."""
     with open(path, "rb") as fh:
         reader = NonSeekingReader(fh, validate_crcs=False)
         it = reader.iter_messages(topics=topics, log_time_order=False)
@@ -123,9 +129,9 @@ def read_mcap(path: str | Path, topics: list[str] | None = None) -> Iterator[tup
             except Exception:  # noqa: BLE001 - truncated or corrupt tail: stop at the last good record
                 return
             if channel.message_encoding == "json":
-                yield channel.topic, msg.log_time, json.loads(msg.data)
+                yield channel.topic, msg.log_time, msg.publish_time, json.loads(msg.data)
             else:
-                yield channel.topic, msg.log_time, msg.data
+                yield channel.topic, msg.log_time, msg.publish_time, msg.data
 
 
 def read_metadata(path: str | Path) -> dict[str, dict[str, Any]]:
