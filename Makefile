@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench lint docs clean
+.PHONY: demo test bench lint docs clean install
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -12,6 +12,8 @@ $(PY):
 
 $(STAMP): $(PY) pyproject.toml
 	$(PY) -m pip install -q -e '.[test]'
+	# MAVProxy for the SITL interoperability test, installed lean (its GUI deps are not needed).
+	$(PY) -m pip install -q --no-deps 'MAVProxy==1.8.75'
 	touch $(STAMP)
 
 install: $(STAMP)

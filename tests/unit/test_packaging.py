@@ -1,0 +1,32 @@
+"""The Docker image runs the same steps as `make` (no Docker engine here, so the steps are checked)."""
+
+from __future__ import annotations
+
+import re
+import shlex
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_dockerfile_uses_make_install_and_valid_sitl_options() -> None:
+    text = (ROOT / "Dockerfile").read_text()
+    runs = re.findall(r"^RUN (.*?)(?<!\\)$", text, flags=re.M | re.S)
+    assert any("make install" in r for r in runs), "the image must install exactly as `make install` does"
+    cmd = re.search(r'^CMD \["sh", "-c", "(.*)"\]$', text, flags=re.M).group(1).replace('\\"', '"')
+    argv = shlex.split(cmd.replace('"$NAVIG8_GCS_HOST"', "gcs.example"))
+    assert argv[0].endswith("navig8-sitl")
+    from navig8_fc.shell.sitl import build_arg_parser
+
+    args = build_arg_parser().parse_args(argv[1:])
+    assert args.speed == 1.0 and args.bind_host == "0.0.0.0" and args.gcs_host == "gcs.example"
+    for port in ("14550/udp", "14540/udp"):
+        assert port in text
+
+
+def test_makefile_targets_and_ci_entry() -> None:
+    mk = (ROOT / "Makefile").read_text()
+    for target in ("demo:", "test:", "bench:", "install:"):
+        assert target in mk
+    ci = ROOT / ".ci" / "run"
+    assert ci.stat().st_mode & 0o111 and "make test" in ci.read_text()
