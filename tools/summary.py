@@ -119,7 +119,8 @@ def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
                                 _wrap_deg(np.degrees(eul[:, 2]) - np.degrees(sp_att_t[:, 1]))])
     sp_vals = np.column_stack([sp.field("pos_ned", 3), sp_att])
     names = ["north", "east", "down", "pitch", "yaw"]
-    steps = _steps(sp.t, sp_vals, names)
+    t_last = float(t[-1]) if len(t) else 0.0
+    steps = [st_ for st_ in _steps(sp.t, sp_vals, names) if st_[0] < t_last - 1e-9]  # a step at the end has no window
     tol_cols = np.array([POS_TOL_M] * 3 + [ATT_TOL_DEG] * 2)
     settle = settle_times(t, err_cols, steps, tol_cols, float(t[-1]) if len(t) else 0.0)
 

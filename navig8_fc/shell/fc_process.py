@@ -1,0 +1,332 @@
+"""navig8-fc: the flight-controller process. The only FC code that touches sockets and clocks.
+
+Links (PX4 SITL layout, ports offset per instance N):
+- sim link: binds 127.0.0.1:4561+2N, talks to the bridge at 127.0.0.1:4560+2N (lockstep, docs/bridge.md);
+- GCS link: binds :18570+N, sends to 14550 (QGroundControl, MAVProxy) until a GCS talks, then replies to it;
+- API link: binds :14580+N, sends to 14540+N (MAVSDK, scripts).
+
+Time: control, estimator, modes and sensor timeouts run on the bundle's time_usec (sim time, lockstep);
+GCS telemetry, heartbeats and parameter pacing run on the wall clock, so a GCS sees 1 Hz heartbeats
+whatever the simulation speed (mavlink_notes §1.3).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import select
+import signal
+import sys
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from navig8_fc.core import stability
+from navig8_fc.core import vehicle as vm
+from navig8_fc.core.controller import (
+    MOTORS_OFF,
+    ActuatorCommand,
+    ControllerConfig,
+    ControllerStatus,
+    FcSensors,
+    FlightControllerCore,
+)
+from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.mavlink import dialect as dialect_mod
+from navig8_fc.mavlink import seam
+from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.shell.mavlink_link import UdpLink
+from navig8_fc.shell.mcap_log import McapLogger
+
+FC_COMPID = 1
+
+
+@dataclass(frozen=True)
+class FcOptions:
+    instance: int = 0
+    scenario: str = "ground"
+    host: str = "127.0.0.1"
+    gcs_host: str = "127.0.0.1"
+    bind_host: str = "127.0.0.1"
+    sim_port: int | None = None
+    bridge_port: int | None = None
+    gcs_bind_port: int | None = None
+    gcs_port: int = 14550
+    api_bind_port: int | None = None
+    api_port: int | None = None
+    log_path: Path | None = None
+    state_dir: Path | None = None
+    defaults: bool = False
+    sensor_timeout_wall_s: float = 5.0
+
+    @property
+    def sysid(self) -> int:
+        return self.instance + 1
+
+    def port(self, name: str) -> int:
+        n = self.instance
+        defaults = {"sim": 4561 + 2 * n, "bridge": 4560 + 2 * n, "gcs_bind": 18570 + n, "api_bind": 14580 + n,
+                    "api": 14540 + n}
+        v = getattr(self, f"{name}_port")
+        return int(v) if v is not None else defaults[name]
+
+
+def _eig_record(model: vm.UamModel, st: ControllerStatus, truth: Any, lam_min: float, lam_crit: float
+                ) -> dict[str, Any]:
+    gc_uam = model.evaluate(st.q_est_rad, (0.0, 0.0, 0.0)).gc
+    gi_hat = np.array(st.gi_hat).reshape(5, 5)
+    gc_true = model.gc_about(float(truth.com_frd[0]), float(truth.com_frd[2]))
+    i = truth.inertia
+    j = np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]], dtype=float)
+    gi_true = vm.inertia_matrix_gi(j, float(truth.mass))
+    lam = np.linalg.eigvals(np.linalg.solve(gi_hat, gc_uam) @ np.linalg.inv(np.linalg.solve(gi_true, gc_true)))
+    lam = lam[np.argsort(lam.real)]
+    return {"eig_real": lam.real.tolist(), "eig_imag": lam.imag.tolist(), "lambda_min": lam_min,
+            "lambda_crit": lam_crit, "true_inertia_mass": [j[0, 0], j[1, 1], j[2, 2], float(truth.mass)]}
+
+
+class FlightControllerProcess:
+    """Sockets + lockstep tick + GCS services around the pure controller core."""
+
+    def __init__(self, opts: FcOptions) -> None:
+        self.opts = opts
+        self.d = dialect_mod.load()
+        self.vehicle = vm.VehicleConfig.load()
+        self.registry = ParamRegistry.from_defaults()
+        self._stop = False
+        self.logger = McapLogger(opts.log_path) if opts.log_path else None
+        self._mk_links()
+        self._cfg_generation = -1
+        self.core: FlightControllerCore | None = None
+        self._reconfigure()
+        self.model = vm.UamModel(self.vehicle)
+        self._asm = seam.BundleAssembler()
+        self.sim_status: Any = None
+        self.last_sensors: FcSensors | None = None
+        self._last_step_time_us: int | None = None
+        self._last_cmd_msg: Any = None
+        self.n_ticks = 0
+        self.n_duplicates = 0
+        self._last_bundle_wall = time.monotonic()
+        self._stall_reported = False
+        self.sim_done = False
+        self.last_status: ControllerStatus | None = None
+        self.last_cmd: ActuatorCommand = MOTORS_OFF
+        if self.logger:
+            self.logger.metadata("run", {"scenario": opts.scenario, "controller": self._controller_name(),
+                                         "sysid": opts.sysid, "process": "navig8-fc"})
+            self.logger.metadata("params", self.registry.as_dict())
+
+    # --- setup -----------------------------------------------------------------------------------
+    def _mav(self) -> Any:
+        m = self.d.MAVLink(None, srcSystem=self.opts.sysid, srcComponent=FC_COMPID)
+        m.robust_parsing = True
+        return m
+
+    def _mk_links(self) -> None:
+        o = self.opts
+        self.sim = UdpLink.open("sim", self._mav(), (o.host, o.port("sim")), [(o.host, o.port("bridge"))])
+        self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
+        self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
+        for link in (self.sim, self.gcs, self.api):
+            link.on_frame = self._log_frame
+        self.links = (self.sim, self.gcs, self.api)
+
+    def _controller_name(self) -> str:
+        return {0: "fixed", 1: "unconstrained", 2: "proposed"}[int(self.registry["CKF_MODE"])]
+
+    def _reconfigure(self) -> None:
+        """Parameter changes apply at the next control step: gains and bounds swap in place; a change of
+        rate, filter or estimator settings rebuilds the core (its filters depend on them)."""
+        if self.registry.generation == self._cfg_generation:
+            return
+        cfg = ControllerConfig.from_params(self.registry.as_dict(), self.vehicle)
+        if self.core is None or cfg.indi != self.core.config.indi or cfg.ckf != self.core.config.ckf:
+            self.core = FlightControllerCore(self.vehicle, cfg)
+        else:
+            self.core.config = replace(self.core.config, outer=cfg.outer, k_min=cfg.k_min, k_max=cfg.k_max)
+        self._cfg_generation = self.registry.generation
+        self.lambda_crit = stability.lambda_crit(float(self.registry["ACT_WN"]), float(self.registry["ACT_ZETA"]),
+                                                 cfg.dt_s, float(self.registry["INDI_LPF_TAU"]))
+
+    # --- logging ---------------------------------------------------------------------------------
+    def _log_frame(self, link: str, direction: str, raw: bytes, msg: Any, peer: tuple[str, int]) -> None:
+        if not self.logger:
+            return
+        t_ns = self._sim_ns()
+        self.logger.log_raw(f"/mavlink/{link}/{direction}", t_ns, raw, publish_ns=time.time_ns())
+        if msg is not None and link != "sim":
+            self.logger.log(f"/mavlink/{link}/{direction}/{msg.get_type()}", t_ns, msg.to_dict(),
+                            publish_ns=time.time_ns())
+
+    def _sim_ns(self) -> int:
+        return seam.sim_us_from_time_usec(self._last_step_time_us) * 1000 if self._last_step_time_us else 0
+
+    # --- lockstep --------------------------------------------------------------------------------
+    def _on_sim(self, received: list[Any]) -> None:
+        for r in received:
+            m = r.msg
+            if m.get_type() == "NAVIG8_SIM_STATUS":
+                self.sim_status = seam.decode_sim_status(m)
+                if self.sim_status.state == seam.SIM_STATE_DONE:
+                    self.sim_done = True
+                continue
+            bundle = self._asm.add(m)
+            if bundle is not None:
+                self._on_step(bundle)
+
+    def _on_step(self, b: seam.StepBundle) -> None:
+        self._last_bundle_wall = time.monotonic()
+        self._stall_reported = False
+        t_us = int(b.time_usec)
+        if t_us == self._last_step_time_us and self._last_cmd_msg is not None:
+            self.n_duplicates += 1  # a re-sent bundle: answer with the same command, do not re-run control
+            self.sim.send(self._last_cmd_msg)
+            return
+        self._last_step_time_us = t_us
+        self._reconfigure()
+        sensors = b.fc_sensors()
+        armed, engaged, sp = self.flight_state(sensors)
+        assert self.core is not None
+        cmd, st = self.core.step(sensors, sp, engaged=engaged)
+        self.last_status, self.last_cmd, self.last_sensors = st, cmd, sensors
+        out = seam.encode_actuator_controls(t_us, cmd, self.vehicle, armed=armed)
+        self._last_cmd_msg = out
+        self.sim.send(out)
+        self.n_ticks += 1
+        if self.logger:
+            self._log_tick(t_us, b.truth, st, cmd, sp)
+
+    def flight_state(self, s: FcSensors) -> tuple[bool, bool, Setpoint]:
+        """(armed, controller engaged, setpoint). Replaced by the mode manager (navig8_fc.modes)."""
+        return self._flight_state_scenario(s)
+
+    def _flight_state_scenario(self, s: FcSensors) -> tuple[bool, bool, Setpoint]:
+        sc = self._scenario
+        spc = sc.setpoints(s.t_s)
+        return sc.armed, sc.armed, Setpoint(tuple(spc.pos_ned_m), spc.pitch_rad, spc.yaw_rad)
+
+    def _log_tick(self, t_us: int, tr: Any, st: ControllerStatus, cmd: ActuatorCommand, sp: Setpoint) -> None:
+        assert self.logger is not None
+        t_ns = seam.sim_us_from_time_usec(t_us) * 1000
+        w = time.time_ns()
+        if tr is not None:
+            self.logger.log("/truth", t_ns, seam.truth_record(tr), publish_ns=w)
+            self.logger.log("/analysis/eig", t_ns, _eig_record(self.model, st, tr,
+                                                               float(self.registry["INDI_LAMBDA_MIN"]),
+                                                               self.lambda_crit), publish_ns=w)
+        self.logger.log("/fc/status", t_ns, st, publish_ns=w)
+        self.logger.log("/fc/setpoint", t_ns, {"pos_ned": sp.pos_ned, "pitch_rad": sp.pitch_rad,
+                                               "yaw_rad": sp.yaw_rad}, publish_ns=w)
+        self.logger.log("/fc/command", t_ns, cmd, publish_ns=w)
+
+    # --- main loop -------------------------------------------------------------------------------
+    def request_stop(self, *_: Any) -> None:
+        self._stop = True
+
+    def run(self, until_done: bool = False) -> int:
+        from sim_bridge.scenario import load_scenario  # the FC reads the scenario's script (setpoints)
+
+        self._scenario = load_scenario(self.opts.scenario)
+        print(f"navig8-fc: sysid {self.opts.sysid}, sim link :{self.sim.local_port} -> bridge "
+              f":{self.opts.port('bridge')}, GCS :{self.gcs.local_port} -> {self.opts.gcs_port}, API "
+              f":{self.api.local_port} -> {self.opts.port('api')}, scenario {self.opts.scenario}", file=sys.stderr)
+        socks = {link.sock: link for link in self.links}
+        hb_due = 0.0
+        try:
+            while not self._stop:
+                ready, _, _ = select.select(list(socks), [], [], 0.05)
+                for sock in ready:
+                    link = socks[sock]
+                    got = link.receive()
+                    if link is self.sim:
+                        self._on_sim(got)
+                    else:
+                        self.on_gcs(link, got)
+                now = time.monotonic()
+                if now >= hb_due:
+                    hb_due = now + 1.0
+                    self.on_wall_second(now)
+                self.on_wall_tick(now)
+                if until_done and self.sim_done:
+                    break
+                if (self.n_ticks > 0 and now - self._last_bundle_wall > self.opts.sensor_timeout_wall_s
+                        and not self._stall_reported):
+                    self._stall_reported = True
+                    print(f"navig8-fc: no sensor bundle from navig8-bridge for {self.opts.sensor_timeout_wall_s:.1f}"
+                          f" s (last step t = {self._sim_ns() * 1e-9:.3f} s); waiting", file=sys.stderr)
+        finally:
+            self.close()
+        return 0
+
+    # GCS hooks, filled by the GCS services below.
+    def on_gcs(self, link: UdpLink, received: list[Any]) -> None:
+        pass
+
+    def on_wall_second(self, now: float) -> None:
+        pass
+
+    def on_wall_tick(self, now: float) -> None:
+        pass
+
+    def close(self) -> None:
+        if self.logger:
+            counters = {link.name: vars(link.counters) for link in self.links}
+            self.logger.metadata("link_counters", counters)
+            self.logger.metadata("params_final", self.registry.as_dict())
+            self.logger.close()
+            self.logger = None
+        for link in self.links:
+            link.close()
+
+
+def build_arg_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="navig8-fc", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--instance", type=int, default=0, help="sysid N+1, all ports offset by N")
+    ap.add_argument("--scenario", default="ground")
+    ap.add_argument("--host", default="127.0.0.1", help="sim-link host (bridge)")
+    ap.add_argument("--gcs-host", default="127.0.0.1", help="where to send GCS/API traffic before a peer talks")
+    ap.add_argument("--bind-host", default="127.0.0.1", help="address the GCS/API links bind (0.0.0.0 in Docker)")
+    ap.add_argument("--sim-port", type=int, default=None)
+    ap.add_argument("--bridge-port", type=int, default=None)
+    ap.add_argument("--gcs-bind-port", type=int, default=None)
+    ap.add_argument("--gcs-port", type=int, default=14550)
+    ap.add_argument("--api-bind-port", type=int, default=None)
+    ap.add_argument("--api-port", type=int, default=None)
+    ap.add_argument("--log", default=None, help="MCAP log path")
+    ap.add_argument("--state-dir", default=None, help="directory for persisted parameters")
+    ap.add_argument("--defaults", action="store_true", help="start from default parameters (ignore stored)")
+    ap.add_argument("--until-done", action="store_true", help="exit when the bridge reports the scenario done")
+    return ap
+
+
+def options_from_args(a: argparse.Namespace) -> FcOptions:
+    return FcOptions(
+        instance=a.instance, scenario=a.scenario, host=a.host, gcs_host=a.gcs_host, bind_host=a.bind_host,
+        sim_port=a.sim_port, bridge_port=a.bridge_port, gcs_bind_port=a.gcs_bind_port, gcs_port=a.gcs_port,
+        api_bind_port=a.api_bind_port, api_port=a.api_port, log_path=Path(a.log) if a.log else None,
+        state_dir=Path(a.state_dir) if a.state_dir else None, defaults=a.defaults,
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_arg_parser().parse_args(argv)
+    proc = FlightControllerProcess(options_from_args(args))
+    signal.signal(signal.SIGINT, proc.request_stop)
+    signal.signal(signal.SIGTERM, proc.request_stop)
+    rc = proc.run(until_done=args.until_done)
+    if proc.opts.log_path:
+        print(f"navig8-fc: log {proc.opts.log_path}", file=sys.stderr)
+    return rc
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
+
+__all__ = ["FcOptions", "FlightControllerProcess", "main", "math", "os"]

@@ -1,0 +1,132 @@
+"""navig8-sitl: starts navig8-bridge and navig8-fc as two processes, forwards SIGINT/SIGTERM, stops both.
+
+    navig8-sitl [--scenario NAME|FILE] [--speed X] [--until-done] [--summary FILE] [--log-dir DIR]
+                [--state-dir DIR] [--instance N] [--seed N] [--defaults]
+
+Default: the `ground` scenario (on the ground, disarmed, waiting for a GCS) in real time. With
+--until-done the scenario runs to its end, both processes exit, and the summary (the same keys as
+navig8-sim) is computed from the flight controller's MCAP log.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+STOP_TIMEOUT_S = 10.0
+
+
+def _spawn(module: str, args: list[str]) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", module, *args], stdin=subprocess.DEVNULL)
+
+
+def _stop(proc: subprocess.Popen, name: str) -> int:
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=STOP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            print(f"navig8-sitl: {name} did not stop within {STOP_TIMEOUT_S:.0f} s; killing it", file=sys.stderr)
+            proc.kill()
+            proc.wait(timeout=STOP_TIMEOUT_S)
+    return int(proc.returncode)
+
+
+def build_arg_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="navig8-sitl", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenario", default="ground")
+    ap.add_argument("--speed", type=float, default=1.0, help="1 real time, N N-times real time, 0 as fast as possible")
+    ap.add_argument("--until-done", action="store_true")
+    ap.add_argument("--summary", default=None)
+    ap.add_argument("--log-dir", default="logs")
+    ap.add_argument("--state-dir", default="state")
+    ap.add_argument("--instance", type=int, default=0)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--duration", type=float, default=None)
+    ap.add_argument("--defaults", action="store_true", help="start from default parameters")
+    ap.add_argument("--bind-host", default="127.0.0.1", help="GCS/API bind address (0.0.0.0 in a container)")
+    ap.add_argument("--gcs-host", default="127.0.0.1", help="where GCS/API traffic goes before a GCS talks")
+    ap.add_argument("--fc-arg", action="append", default=[], help="extra argument for navig8-fc (repeatable)")
+    ap.add_argument("--bridge-arg", action="append", default=[], help="extra argument for navig8-bridge")
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    a = build_arg_parser().parse_args(argv)
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    log_dir = Path(a.log_dir)
+    log_dir.mkdir(parents=True, exist_ok=True)
+    scen_name = Path(a.scenario).stem
+    log = log_dir / f"navig8_{scen_name}_i{a.instance}_{stamp}_{os.getpid()}.mcap"
+    fc_args = ["--instance", str(a.instance), "--scenario", a.scenario, "--log", str(log),
+               "--state-dir", a.state_dir, "--bind-host", a.bind_host, "--gcs-host", a.gcs_host, *a.fc_arg]
+    if a.defaults:
+        fc_args.append("--defaults")
+    if a.until_done:
+        fc_args.append("--until-done")
+    br_args = ["--instance", str(a.instance), "--scenario", a.scenario, "--speed", str(a.speed),
+               "--seed", str(a.seed), *a.bridge_arg]
+    if a.until_done:
+        br_args.append("--until-done")
+    if a.duration is not None:
+        br_args += ["--duration", str(a.duration)]
+
+    stopping = {"flag": False}
+
+    def _on_signal(signum: int, _frame: Any) -> None:
+        stopping["flag"] = True
+
+    signal.signal(signal.SIGINT, _on_signal)
+    signal.signal(signal.SIGTERM, _on_signal)
+    wall0 = time.perf_counter()
+    fc = _spawn("navig8_fc.shell.fc_process", fc_args)
+    time.sleep(0.2)  # let the FC bind its sim port before the bridge starts sending
+    bridge = _spawn("sim_bridge.bridge", br_args)
+    rc_bridge: int | None = None
+    try:
+        while not stopping["flag"]:
+            if bridge.poll() is not None:
+                rc_bridge = bridge.returncode
+                break
+            if fc.poll() is not None:
+                if not (a.until_done and fc.returncode == 0):
+                    print(f"navig8-sitl: navig8-fc exited with {fc.returncode}", file=sys.stderr)
+                break
+            time.sleep(0.05)
+    finally:
+        if a.until_done and rc_bridge == 0:
+            try:  # the FC exits by itself once the bridge reports done; give it time to flush the log
+                fc.wait(timeout=STOP_TIMEOUT_S)
+            except subprocess.TimeoutExpired:
+                pass
+        rc_fc = _stop(fc, "navig8-fc")
+        rc_b = _stop(bridge, "navig8-bridge") if rc_bridge is None else rc_bridge
+    wall = time.perf_counter() - wall0
+    print(f"navig8-sitl: log {log}", file=sys.stderr)
+    if a.until_done:
+        from navig8_tools.logdata import load_run
+        from navig8_tools.summary import summarize
+
+        summary = summarize(load_run(log), wall)
+        summary.update({"scenario": scen_name, "transport": "mavlink-udp", "speed": a.speed, "seed": a.seed,
+                        "log": str(log)})
+        text = json.dumps(summary, indent=2)
+        print(text)
+        if a.summary:
+            Path(a.summary).parent.mkdir(parents=True, exist_ok=True)
+            Path(a.summary).write_text(text + "\n")
+        return 0 if rc_b == 0 and rc_fc == 0 and not summary.get("lost_control") else 1
+    return 0 if rc_fc == 0 else rc_fc
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
