@@ -1,0 +1,521 @@
+"""Flight-mode and arming state machine of the flight controller (pure, on sim time).
+
+One `step(ModeInputs) -> ModeOutput` per control tick, on the sensor bundle's time (lockstep: the bridge is
+the time master, DESIGN §4). Commands (`arm`, `disarm`, `takeoff`, `land`, `set_mode`) arrive between steps
+from the GCS side; they answer at once with a `Verdict` (accepted, or the reason for STATUSTEXT) and change
+`armed`/the mode at once, while everything that needs a fresh state sample (where a ramp starts, where to
+hold) happens at the next step. The manager never touches sockets, clocks or pymavlink.
+
+Modes (PX4 encoding, navig8_fc.modes.px4; docs/gcs.md):
+- READY (AUTO.READY): on the ground, armed or not; controller idle (motors off in the model).
+- TAKEOFF (AUTO.TAKEOFF): the altitude setpoint ramps from where the vehicle is at `takeoff_climb_rate_m_s`
+  to home + alt; done when the ramp has arrived and the vehicle is within `takeoff_reached_tol_m` -> HOLD.
+- HOLD (AUTO.LOITER, MAVSDK "Hold"): position hold where the mode was entered (or at the takeoff target).
+  Entered on the ground it stays idle (PX4 behaves the same: Hold does not take off).
+- LAND (AUTO.LAND): descend at `land_descent_rate_m_s` where the mode was entered; on touchdown (land
+  detector) the controller goes idle and the vehicle disarms `land_disarm_delay_s` later -> READY.
+- MISSION (AUTO.MISSION): follow a scripted setpoint function (a scenario such as the paper's). A script that
+  starts armed in the air starts the manager in MISSION, armed, with the mission clock equal to sim time
+  minus `MissionScript.start_t_s`, so the SITL run commands exactly what the in-process run commands.
+
+Home is the position at arming (PX4); before the first arming it is where the vehicle stood at the first
+step, so a GCS has a home to show (MAVSDK examples wait for home before arming). For an air start, home is
+the start position projected onto `ModeConfig.air_start_home_z_ned_m` (the plant's ground is NED z = 0).
+
+Land detector (needed for pre-arm "on ground", disarm checks, touchdown and EXTENDED_SYS_STATE): the vehicle
+is a landed candidate while it is slow (|v_down| < landed_max_vz_m_s and horizontal speed below
+landed_max_vxy_m_s) and carries little thrust (thrust/weight < landed_max_thrust_ratio); when the caller does
+not know the thrust (NaN), "near home altitude" (height above home < landed_max_height_m) replaces the
+thrust cue. The candidate must hold for landed_hold_s (except at the very first sample, so a vehicle that
+boots on the ground is landed at once). Thrust is the strongest cue because on touchdown the landing
+setpoint keeps descending below the ground (bounded by land_setpoint_floor_m), so INDI drives the thrust
+down within a few steps while the ground holds the vehicle still, the same signature PX4's multicopter land
+detector looks for (low thrust + no vertical motion).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.modes.px4 import FlightMode, MavLandedState, MavModeFlag, MavState, Px4MainMode
+
+Vec3 = tuple[float, float, float]
+
+
+class Verdict(NamedTuple):
+    """Answer to a command: accepted, or refused with a reason for STATUSTEXT. Unpacks as (ok, reason)."""
+
+    ok: bool
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class ModeConfig:
+    takeoff_climb_rate_m_s: float = 1.0
+    takeoff_default_alt_m: float = 2.5  # used when NAV_TAKEOFF carries no altitude (NaN), as PX4 MIS_TAKEOFF_ALT
+    takeoff_max_alt_m: float = 20.0  # the vehicle flies in confined spaces
+    takeoff_reached_tol_m: float = 0.2
+    land_descent_rate_m_s: float = 0.5
+    land_setpoint_floor_m: float = 0.5  # the landing setpoint stops this far below home (keeps errors bounded)
+    land_disarm_delay_s: float = 1.0  # disarm this long after touchdown
+    landed_max_vz_m_s: float = 0.25
+    landed_max_vxy_m_s: float = 0.5
+    landed_max_thrust_ratio: float = 0.5  # thrust / weight below this: the ground carries the vehicle
+    landed_max_height_m: float = 0.3  # fallback cue when the thrust is unknown
+    landed_hold_s: float = 0.5
+    air_start_home_z_ned_m: float = 0.0  # ground under an air-started vehicle (the plant's ground plane)
+
+    def __post_init__(self) -> None:
+        positive = (
+            "takeoff_climb_rate_m_s",
+            "takeoff_default_alt_m",
+            "takeoff_max_alt_m",
+            "takeoff_reached_tol_m",
+            "land_descent_rate_m_s",
+            "landed_max_vz_m_s",
+            "landed_max_vxy_m_s",
+        )
+        for name in positive:
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"ModeConfig.{name} must be > 0, got {getattr(self, name)}")
+        if not self.takeoff_default_alt_m <= self.takeoff_max_alt_m:
+            raise ValueError("ModeConfig.takeoff_default_alt_m must not exceed takeoff_max_alt_m")
+
+
+@dataclass(frozen=True)
+class MissionScript:
+    """A scripted flight: `setpoint_at(mission_time_s)` gives the setpoint (NED, rad)."""
+
+    name: str
+    setpoint_at: Callable[[float], Setpoint]
+    starts_armed_in_air: bool = False
+    duration_s: float | None = None  # after this the manager holds at setpoint_at(duration_s)
+    start_t_s: float = 0.0  # sim time at which an air-started mission's clock reads 0
+
+
+@dataclass(frozen=True)
+class ModeInputs:
+    """One state sample (sim time, NED, rad) for the mode manager."""
+
+    t_s: float
+    pos_ned: Vec3
+    vel_ned: Vec3
+    yaw_rad: float
+    thrust_ratio: float = math.nan  # total thrust / weight (commanded or measured); NaN = unknown
+    sensors_ok: bool = True  # every sensor the controller needs is alive and fresh
+    estimator_ready: bool = True  # the adaptive law / estimator has a usable estimate
+
+
+@dataclass(frozen=True)
+class ModeOutput:
+    t_s: float
+    armed: bool
+    engaged: bool  # run the controller (False: motors off / idle)
+    setpoint: Setpoint
+    flight_mode: FlightMode
+    custom_mode: int  # PX4 encoding
+    base_mode: int  # MAV_MODE_FLAG: CUSTOM_MODE_ENABLED | SAFETY_ARMED when armed
+    landed_state: int  # MAV_LANDED_STATE
+    system_status: int  # MAV_STATE
+    landed: bool  # land detector
+    home_ned: Vec3 | None
+    home_yaw_rad: float
+    mission_time_s: float | None  # None outside MISSION
+    events: tuple[str, ...] = field(default_factory=tuple)  # for STATUSTEXT (INFO)
+
+
+class LandDetector:
+    """Landed / not landed from speed, thrust (or height above home) held for a while (module docstring)."""
+
+    def __init__(self, config: ModeConfig) -> None:
+        self._cfg = config
+        self._candidate_since_s: float | None = None
+        self._seen_sample = False
+        self.landed = False
+
+    def candidate(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
+        c = self._cfg
+        vx, vy, vz = inp.vel_ned
+        slow = abs(vz) < c.landed_max_vz_m_s and math.hypot(vx, vy) < c.landed_max_vxy_m_s
+        if not slow:
+            return False
+        if math.isfinite(inp.thrust_ratio):
+            return inp.thrust_ratio < c.landed_max_thrust_ratio
+        return home_z_ned_m is not None and (home_z_ned_m - inp.pos_ned[2]) < c.landed_max_height_m
+
+    def step(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
+        if self.candidate(inp, home_z_ned_m):
+            if self._candidate_since_s is None:
+                # At the very first sample there is no history: a vehicle that boots resting is landed at once.
+                self._candidate_since_s = inp.t_s if self._seen_sample else inp.t_s - self._cfg.landed_hold_s
+            self.landed = inp.t_s - self._candidate_since_s >= self._cfg.landed_hold_s
+        else:
+            self._candidate_since_s = None
+            self.landed = False
+        self._seen_sample = True
+        return self.landed
+
+
+class ModeManager:
+    """Arming, modes and setpoints (module docstring). Not thread-safe: one owner calls everything."""
+
+    def __init__(self, config: ModeConfig | None = None, script: MissionScript | None = None) -> None:
+        self._cfg = config or ModeConfig()
+        self._script = script
+        self._detector = LandDetector(self._cfg)
+        air_start = script is not None and script.starts_armed_in_air
+        self._armed = air_start
+        self._mode = FlightMode.MISSION if air_start else FlightMode.READY
+        self._entry_pending = True
+        self._last: ModeInputs | None = None
+        self._last_output: ModeOutput | None = None
+        self._home: Vec3 | None = None
+        self._home_yaw_rad = 0.0
+        self._events: list[str] = []
+        # Mode state, set on entry.
+        self._sp: Setpoint | None = None  # HOLD target; ramp modes keep x, y, pitch, yaw here
+        self._ramp_z: float = 0.0
+        self._target_z: float = 0.0
+        self._takeoff_alt_m: float = self._cfg.takeoff_default_alt_m
+        self._touchdown_t_s: float | None = None
+        self._hold_on_ground = False
+        # Mission clock: mission time = t_s - _mission_t0_s while in MISSION; _mission_elapsed_s when paused.
+        self._mission_t0_s: float | None = script.start_t_s if air_start and script else None
+        self._mission_elapsed_s = 0.0
+
+    # --- read access ---------------------------------------------------------------------------------
+    @property
+    def config(self) -> ModeConfig:
+        return self._cfg
+
+    @property
+    def script(self) -> MissionScript | None:
+        return self._script
+
+    @property
+    def armed(self) -> bool:
+        return self._armed
+
+    @property
+    def flight_mode(self) -> FlightMode:
+        return self._mode
+
+    @property
+    def custom_mode(self) -> int:
+        return self._mode.custom_mode
+
+    @property
+    def base_mode(self) -> int:
+        return int(MavModeFlag.CUSTOM_MODE_ENABLED) | (int(MavModeFlag.SAFETY_ARMED) if self._armed else 0)
+
+    @property
+    def landed(self) -> bool:
+        return self._detector.landed
+
+    @property
+    def home_ned(self) -> Vec3 | None:
+        return self._home
+
+    @property
+    def home_yaw_rad(self) -> float:
+        return self._home_yaw_rad
+
+    @property
+    def last_output(self) -> ModeOutput | None:
+        return self._last_output
+
+    def prearm_check(self) -> Verdict:
+        """Would `arm()` pass its checks now? (Also drives SYS_STATUS's PREARM_CHECK health bit.)"""
+        inp = self._last
+        if inp is None:
+            return Verdict(False, "no sensor data yet")
+        if not inp.sensors_ok:
+            return Verdict(False, "sensors not ready (missing or stale data)")
+        if not inp.estimator_ready:
+            return Verdict(False, "estimator not ready")
+        if not self._detector.landed:
+            return Verdict(False, "vehicle not detected on the ground")
+        return Verdict(True)
+
+    # --- commands ------------------------------------------------------------------------------------
+    def arm(self, force: bool = False) -> Verdict:
+        if self._armed:
+            return Verdict(True, "already armed")
+        if self._last is None:
+            return Verdict(False, "Arming denied: no sensor data yet")
+        if not force:
+            check = self.prearm_check()
+            if not check.ok:
+                return Verdict(False, f"Arming denied: {check.reason}")
+        inp = self._last
+        self._armed = True
+        self._home = inp.pos_ned
+        self._home_yaw_rad = inp.yaw_rad
+        # A forced arm in the air must not leave the controller idle: hold where the vehicle is.
+        self._switch(FlightMode.READY if self._detector.landed else FlightMode.HOLD)
+        self._events.append("Armed" + (" (forced)" if force else ""))
+        return Verdict(True)
+
+    def disarm(self, force: bool = False) -> Verdict:
+        if not self._armed:
+            return Verdict(True, "already disarmed")
+        if not force and not self._detector.landed:
+            return Verdict(False, "Disarming denied: not landed")
+        self._disarm("Disarmed" + (" (forced)" if force else ""))
+        return Verdict(True)
+
+    def takeoff(self, alt_above_home_m: float = math.nan) -> Verdict:
+        if not self._armed:
+            return Verdict(False, "Takeoff denied: not armed")
+        alt = self._cfg.takeoff_default_alt_m if math.isnan(alt_above_home_m) else float(alt_above_home_m)
+        if not (0.0 < alt <= self._cfg.takeoff_max_alt_m):
+            return Verdict(False, f"Takeoff denied: altitude {alt:g} m outside (0, {self._cfg.takeoff_max_alt_m:g}]")
+        if self._last is not None and not self._last.sensors_ok:
+            return Verdict(False, "Takeoff denied: sensors not ready")
+        self._takeoff_alt_m = alt
+        if self._mode is FlightMode.TAKEOFF and not self._entry_pending:
+            self._target_z = self._home_z() - alt  # retarget; the ramp carries on from where it is
+        else:
+            self._switch(FlightMode.TAKEOFF)
+        self._events.append(f"Takeoff to {alt:.1f} m above home")
+        return Verdict(True)
+
+    def land(self) -> Verdict:
+        if not self._armed:
+            return Verdict(False, "Land denied: not armed")
+        if self._mode is not FlightMode.LAND:
+            self._switch(FlightMode.LAND)
+            self._events.append("Landing")
+        return Verdict(True)
+
+    def set_mode(self, custom_main: int, custom_sub: int) -> Verdict:
+        """PX4 main/sub mode (DO_SET_MODE p2/p3)."""
+        mode = FlightMode.from_px4(int(custom_main), int(custom_sub))
+        if mode is None:
+            return Verdict(
+                False, f"Mode {_px4_name(custom_main, custom_sub)} not supported (Ready, Takeoff, Hold, Land, Mission)"
+            )
+        if mode is FlightMode.TAKEOFF:
+            return self.takeoff()
+        if mode is FlightMode.LAND:
+            return self.land()
+        if mode is FlightMode.READY:
+            if self._armed and not self._detector.landed:
+                return Verdict(False, "Mode Ready denied: only on the ground")
+            if self._mode is not FlightMode.READY:
+                self._switch(FlightMode.READY)
+            return Verdict(True)
+        if not self._armed:
+            return Verdict(False, f"Mode {mode.label} denied: not armed")
+        if mode is FlightMode.HOLD:
+            if self._mode is not FlightMode.HOLD:
+                self._switch(FlightMode.HOLD)
+                self._events.append("Hold")
+            return Verdict(True)
+        # MISSION
+        if self._script is None:
+            return Verdict(False, "Mode Mission denied: no mission loaded")
+        if self._mode is not FlightMode.MISSION:
+            self._switch(FlightMode.MISSION)
+        return Verdict(True)
+
+    def set_custom_mode(self, custom_mode: int) -> Verdict:
+        """Same as set_mode, from a PX4-encoded custom_mode."""
+        return self.set_mode((custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF)
+
+    # --- the step ------------------------------------------------------------------------------------
+    def step(self, inp: ModeInputs) -> ModeOutput:
+        inp = self._sanitise(inp)
+        prev = self._last
+        dt = max(inp.t_s - prev.t_s, 0.0) if prev is not None else 0.0
+        if self._home is None:
+            if self._script is not None and self._script.starts_armed_in_air:
+                self._home = (inp.pos_ned[0], inp.pos_ned[1], self._cfg.air_start_home_z_ned_m)
+            else:
+                self._home = inp.pos_ned
+            self._home_yaw_rad = inp.yaw_rad
+        self._detector.step(inp, self._home[2])
+        self._last = inp
+        if not self._armed and self._mode is not FlightMode.READY:
+            self._switch(FlightMode.READY)
+        if self._entry_pending:
+            self._enter(inp)
+        setpoint, engaged, mission_time = self._run(inp, dt)
+        out = ModeOutput(
+            t_s=inp.t_s,
+            armed=self._armed,
+            engaged=engaged,
+            setpoint=setpoint,
+            flight_mode=self._mode,
+            custom_mode=self.custom_mode,
+            base_mode=self.base_mode,
+            landed_state=int(self._landed_state()),
+            system_status=int(self._system_status(inp)),
+            landed=self._detector.landed,
+            home_ned=self._home,
+            home_yaw_rad=self._home_yaw_rad,
+            mission_time_s=mission_time,
+            events=tuple(self._events),
+        )
+        self._events.clear()
+        self._last_output = out
+        return out
+
+    # --- internals -----------------------------------------------------------------------------------
+    def _sanitise(self, inp: ModeInputs) -> ModeInputs:
+        """A sample with NaN/Inf state must not become a setpoint: reuse the last good state, flag sensors."""
+        values = (*inp.pos_ned, *inp.vel_ned, inp.yaw_rad, inp.t_s)
+        if all(math.isfinite(v) for v in values):
+            return inp
+        last = self._last
+        pos = last.pos_ned if last is not None else (0.0, 0.0, 0.0)
+        yaw = last.yaw_rad if last is not None else 0.0
+        t = inp.t_s if math.isfinite(inp.t_s) else (last.t_s if last is not None else 0.0)
+        return ModeInputs(t, pos, (0.0, 0.0, 0.0), yaw, inp.thrust_ratio, False, inp.estimator_ready)
+
+    def _home_z(self) -> float:
+        if self._home is not None:
+            return self._home[2]
+        return self._last.pos_ned[2] if self._last is not None else 0.0
+
+    def _switch(self, mode: FlightMode) -> None:
+        if self._mode is FlightMode.MISSION and mode is not FlightMode.MISSION and self._mission_t0_s is not None:
+            if self._last is not None:
+                self._mission_elapsed_s = max(self._last.t_s - self._mission_t0_s, 0.0)
+            self._mission_t0_s = None
+        self._mode = mode
+        self._entry_pending = True
+
+    def _disarm(self, event: str) -> None:
+        self._armed = False
+        self._switch(FlightMode.READY)
+        self._events.append(event)
+
+    def _current_pitch(self) -> float:
+        out = self._last_output
+        return out.setpoint.pitch_rad if out is not None and out.engaged else 0.0
+
+    def _enter(self, inp: ModeInputs) -> None:
+        """Entry actions that need a state sample (where to hold, where a ramp starts)."""
+        self._entry_pending = False
+        x, y, z = inp.pos_ned
+        mode = self._mode
+        if mode is FlightMode.HOLD:
+            self._hold_on_ground = self._detector.landed
+            self._sp = Setpoint((x, y, z), self._current_pitch(), inp.yaw_rad)
+        elif mode is FlightMode.TAKEOFF:
+            self._sp = Setpoint((x, y, z), 0.0, inp.yaw_rad)
+            self._ramp_z = z
+            self._target_z = self._home_z() - self._takeoff_alt_m
+        elif mode is FlightMode.LAND:
+            self._sp = Setpoint((x, y, z), 0.0, inp.yaw_rad)
+            self._ramp_z = z
+            self._target_z = max(self._home_z(), z) + self._cfg.land_setpoint_floor_m
+            self._touchdown_t_s = None
+        elif mode is FlightMode.MISSION:
+            assert self._script is not None
+            duration = self._script.duration_s
+            if self._mission_t0_s is None:
+                if duration is not None and self._mission_elapsed_s >= duration:
+                    self._mission_elapsed_s = 0.0  # a finished mission starts again
+                self._mission_t0_s = inp.t_s - self._mission_elapsed_s
+                verb = "resumed" if self._mission_elapsed_s > 0.0 else "started"
+                self._events.append(f"Mission {self._script.name} {verb}")
+            else:
+                self._events.append(f"Mission {self._script.name} started (armed in the air)")
+        else:
+            self._sp = None
+
+    def _run(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
+        idle = Setpoint(inp.pos_ned, 0.0, inp.yaw_rad)
+        mode = self._mode
+        if not self._armed or mode is FlightMode.READY:
+            return idle, False, None
+        if mode is FlightMode.HOLD:
+            assert self._sp is not None
+            if self._hold_on_ground:
+                return idle, False, None
+            return self._sp, True, None
+        if mode is FlightMode.TAKEOFF:
+            assert self._sp is not None
+            self._ramp_z = _approach(self._ramp_z, self._target_z, self._cfg.takeoff_climb_rate_m_s * dt)
+            sp = Setpoint((self._sp.pos_ned[0], self._sp.pos_ned[1], self._ramp_z), 0.0, self._sp.yaw_rad)
+            if (
+                self._ramp_z == self._target_z
+                and abs(inp.pos_ned[2] - self._target_z) < self._cfg.takeoff_reached_tol_m
+            ):
+                self._switch(FlightMode.HOLD)
+                self._entry_pending = False
+                self._hold_on_ground = False
+                self._sp = sp
+                self._events.append(f"Takeoff complete: holding at {self._takeoff_alt_m:.1f} m")
+            return sp, True, None
+        if mode is FlightMode.LAND:
+            assert self._sp is not None
+            if self._touchdown_t_s is None:
+                if self._detector.landed:
+                    self._touchdown_t_s = inp.t_s
+                    self._events.append("Landed")
+                    return idle, False, None
+                self._ramp_z = _approach(self._ramp_z, self._target_z, self._cfg.land_descent_rate_m_s * dt)
+                return (
+                    Setpoint((self._sp.pos_ned[0], self._sp.pos_ned[1], self._ramp_z), 0.0, self._sp.yaw_rad),
+                    True,
+                    None,
+                )
+            if inp.t_s - self._touchdown_t_s >= self._cfg.land_disarm_delay_s:
+                self._disarm("Disarmed after landing")
+                self._entry_pending = False
+            return idle, False, None
+        # MISSION
+        assert self._script is not None and self._mission_t0_s is not None
+        mission_t = inp.t_s - self._mission_t0_s
+        duration = self._script.duration_s
+        if duration is not None and mission_t >= duration:
+            final = self._script.setpoint_at(duration)
+            self._mission_elapsed_s = duration
+            self._mission_t0_s = None
+            self._mode = FlightMode.HOLD
+            self._hold_on_ground = False
+            self._sp = final
+            self._events.append(f"Mission {self._script.name} complete: holding")
+            return final, True, None
+        return self._script.setpoint_at(mission_t), True, mission_t
+
+    def _landed_state(self) -> MavLandedState:
+        mode = self._mode
+        if not self._armed or mode is FlightMode.READY:
+            return MavLandedState.ON_GROUND if self._detector.landed else MavLandedState.IN_AIR
+        if mode is FlightMode.TAKEOFF:
+            return MavLandedState.TAKEOFF
+        if mode is FlightMode.LAND:
+            return MavLandedState.LANDING if self._touchdown_t_s is None else MavLandedState.ON_GROUND
+        if mode is FlightMode.HOLD and self._hold_on_ground:
+            return MavLandedState.ON_GROUND
+        if mode is FlightMode.MISSION and self._detector.landed:
+            return MavLandedState.ON_GROUND
+        return MavLandedState.IN_AIR
+
+    def _system_status(self, inp: ModeInputs) -> MavState:
+        if not self._armed:
+            return MavState.STANDBY
+        return MavState.ACTIVE if inp.sensors_ok else MavState.CRITICAL
+
+
+def _approach(value: float, target: float, max_step: float) -> float:
+    """Move `value` toward `target` by at most `max_step`; lands exactly on the target."""
+    if abs(target - value) <= max_step:
+        return target
+    return value + math.copysign(max_step, target - value)
+
+
+def _px4_name(main: int, sub: int) -> str:
+    try:
+        main_name = Px4MainMode(int(main)).name
+    except ValueError:
+        main_name = str(int(main))
+    return f"{main_name}.{int(sub)}" if int(sub) else main_name

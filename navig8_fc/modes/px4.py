@@ -1,0 +1,109 @@
+"""Flight modes in PX4's custom_mode encoding, and the MAVLink enum values the mode manager reports.
+
+Why PX4's encoding: MAVSDK decodes and sets flight modes with PX4 semantics for every autopilot that is not
+ArduPilot, MAV_AUTOPILOT_GENERIC included (mavlink_notes §2.6), so a generic vehicle that wants MAVSDK's
+`flight_mode`, `hold()`, `land()` and `start_mission()` to work must speak it:
+
+    custom_mode = main_mode << 16 | sub_mode << 24        (uint32; the low 16 bits are unused)
+
+e.g. Hold = AUTO.LOITER = (4 << 16) | (3 << 24) = 0x03040000, Mission = AUTO.MISSION = 0x04040000.
+
+The MAVLink values are written out here (rather than imported from pymavlink) so the mode manager stays pure
+(no pymavlink import); tests/unit/test_modes.py checks them against pymavlink's common dialect.
+"""
+
+from __future__ import annotations
+
+from enum import Enum, IntEnum
+
+
+class Px4MainMode(IntEnum):
+    MANUAL = 1
+    ALTCTL = 2
+    POSCTL = 3
+    AUTO = 4
+    ACRO = 5
+    OFFBOARD = 6
+    STABILIZED = 7
+    RATTITUDE = 8
+
+
+class Px4AutoSubMode(IntEnum):
+    READY = 1
+    TAKEOFF = 2
+    LOITER = 3  # MAVSDK "Hold"
+    MISSION = 4
+    RTL = 5
+    LAND = 6
+    RTGS = 7
+    FOLLOW_TARGET = 8
+    PRECLAND = 9
+
+
+def px4_custom_mode(main: int, sub: int = 0) -> int:
+    """PX4 custom_mode: main << 16 | sub << 24 (both bytes, so the result fits a uint32)."""
+    if not (0 <= main <= 255 and 0 <= sub <= 255):
+        raise ValueError(f"PX4 main/sub modes are bytes, got main={main}, sub={sub}")
+    return (main << 16) | (sub << 24)
+
+
+def decode_px4_custom_mode(custom_mode: int) -> tuple[int, int]:
+    """(main, sub) from a PX4 custom_mode."""
+    return (custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF
+
+
+class FlightMode(Enum):
+    """The modes this flight controller implements, each with its PX4 (main, sub) pair."""
+
+    READY = (Px4MainMode.AUTO, Px4AutoSubMode.READY)  # armed or disarmed on the ground, controller idle
+    TAKEOFF = (Px4MainMode.AUTO, Px4AutoSubMode.TAKEOFF)
+    HOLD = (Px4MainMode.AUTO, Px4AutoSubMode.LOITER)  # position hold
+    LAND = (Px4MainMode.AUTO, Px4AutoSubMode.LAND)
+    MISSION = (Px4MainMode.AUTO, Px4AutoSubMode.MISSION)  # a scripted scenario (e.g. the paper's)
+
+    @property
+    def main(self) -> int:
+        return int(self.value[0])
+
+    @property
+    def sub(self) -> int:
+        return int(self.value[1])
+
+    @property
+    def custom_mode(self) -> int:
+        return px4_custom_mode(self.main, self.sub)
+
+    @property
+    def label(self) -> str:
+        return {"READY": "Ready", "TAKEOFF": "Takeoff", "HOLD": "Hold", "LAND": "Land", "MISSION": "Mission"}[self.name]
+
+    @classmethod
+    def from_px4(cls, main: int, sub: int) -> FlightMode | None:
+        for mode in cls:
+            if mode.main == main and mode.sub == sub:
+                return mode
+        return None
+
+
+# --- MAVLink enum values (common.xml / minimal.xml) the mode manager reports ---------------------------
+class MavModeFlag(IntEnum):
+    CUSTOM_MODE_ENABLED = 1
+    SAFETY_ARMED = 128
+
+
+class MavState(IntEnum):
+    UNINIT = 0
+    BOOT = 1
+    CALIBRATING = 2
+    STANDBY = 3
+    ACTIVE = 4
+    CRITICAL = 5
+    EMERGENCY = 6
+
+
+class MavLandedState(IntEnum):
+    UNDEFINED = 0
+    ON_GROUND = 1
+    IN_AIR = 2
+    TAKEOFF = 3
+    LANDING = 4
