@@ -24,6 +24,7 @@ Public API (used in process by the flight-controller runner and, later, behind M
   fresh. Every call draws the same number of normals from the rng, so a seed fixes the run bit for bit.
 - `truth()`: the frozen ground truth (see messages.Truth).
 - `trim_command()`: vehicle.hover_trim for the current arm pose and object mass (level body).
+- `command_gripper(close, object_mass_kg)`: grasp/release now (the bridge's NAVIG8_ARM_CMD gripper).
 
 Model (notes §1-3, docs/plant.md): floating base with prescribed joint motion solved by the composite
 6x6 Newton-Euler system (notes §3.4) in `_kernels.py` (numba), RK4 at the physics rate with the exact
@@ -341,6 +342,23 @@ class Plant:
             self._ev_i += 1
             applied = True
         return applied
+
+    def command_gripper(self, close: bool, object_mass_kg: float = 0.0) -> bool:
+        """Close the gripper on an object of object_mass_kg, or open it, now (between steps; for a GCS).
+
+        Acts like a scenario grasp/release event at the current time (on the physics grid, since every
+        step ends on it). Closing an already closed or opening an open gripper changes nothing. Returns
+        True when the state changed. Later scenario events still apply at their times.
+        """
+        m = float(object_mass_kg)
+        if not (math.isfinite(m) and m >= 0.0):
+            raise ValueError(f"object_mass_kg must be finite and >= 0, got {object_mass_kg}")
+        if bool(close) == self._gripper_closed:
+            return False
+        self._gripper_closed = bool(close)
+        self._x[K.X_MOBJ] = m if close else 0.0
+        K.evaluate(self._x, self._p, self._base_mode, self._d, self._work)
+        return True
 
     # ---- outputs --------------------------------------------------------------------------------
     def sense(self) -> SensorBundle:
