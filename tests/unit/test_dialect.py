@@ -1,0 +1,340 @@
+"""The navig8 MAVLink dialect (generation, cache, wire identity) and the bridge seam's pure encode/decode."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.mavlink import dialect, seam
+from sim_bridge import ActuatorCommand, Plant, PlantParams, load_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# (id, CRC_EXTRA, payload bytes) of every navig8 message. CRC_EXTRA changes with any edit of a field's
+# name, type or order, and then the bridge and an older FC no longer understand each other: a change here
+# must be deliberate (add a new message instead of editing one).
+WIRE_IDENTITY = {
+    "NAVIG8_ACTUATOR_STATE": (61000, 177, 32),
+    "NAVIG8_ARM_STATE": (61001, 224, 37),
+    "NAVIG8_TRUTH": (61002, 55, 208),
+    "NAVIG8_ARM_CMD": (61010, 111, 22),
+    "NAVIG8_SIM_STATUS": (61020, 116, 25),
+}
+
+
+@pytest.fixture(scope="module")
+def d():
+    return dialect.load()
+
+
+@pytest.fixture(scope="module")
+def vehicle() -> VehicleConfig:
+    return VehicleConfig.load()
+
+
+def _cls(d, name: str):
+    return getattr(d, f"MAVLink_{name.lower()}_message")
+
+
+def _roundtrip(msg, sysid: int = 3, compid: int = 25):
+    tx = dialect.new_mav(sysid, compid)
+    rx = dialect.new_mav(200, 1)
+    parsed = seam.parse_datagram(rx, seam.pack(tx, [msg]))
+    assert parsed.bad == 0 and len(parsed.messages) == 1
+    out = parsed.messages[0]
+    h = out.get_header()
+    assert (h.srcSystem, h.srcComponent) == (sysid, compid)
+    return out
+
+
+def _f32(v) -> np.ndarray:
+    return np.asarray(v, dtype=np.float64).astype(np.float32).astype(np.float64)
+
+
+# ---- the dialect --------------------------------------------------------------------------------------
+def test_ids_crc_extra_and_sizes_are_stable(d) -> None:
+    for name, (msg_id, crc_extra, size) in WIRE_IDENTITY.items():
+        c = _cls(d, name)
+        assert (c.id, c.crc_extra, c.unpacker.size) == (msg_id, crc_extra, size), name
+        assert 61000 <= c.id <= 61999
+        assert d.mavlink_map[c.id] is c
+        assert c.unpacker.size <= 255  # one MAVLink 2 frame: NAVIG8_TRUTH needs no split
+
+
+def test_units_are_declared_on_si_fields(d) -> None:
+    units = _cls(d, "NAVIG8_TRUTH").fieldunits_by_name
+    assert units["reaction_force"] == "N" and units["pos_ned"] == "m" and units["time_usec"] == "us"
+    assert _cls(d, "NAVIG8_ACTUATOR_STATE").fieldunits_by_name == {"time_usec": "us", "duct_tilt": "rad",
+                                                                   "prop_speed": "rad/s"}
+
+
+def test_common_is_included_and_mavlink2(d) -> None:
+    assert d.WIRE_PROTOCOL_VERSION == "2.0"
+    assert d.MAVLINK_MSG_ID_HIL_ACTUATOR_CONTROLS == 93 and d.MAVLINK_MSG_ID_ODOMETRY == 331
+    frame = seam.pack(dialect.new_mav(1, 25), [d.MAVLink_heartbeat_message(2, 8, 0, 0, 0, 3)])
+    assert frame[0] == 0xFD
+
+
+def test_arm_joints_command_alias(d) -> None:
+    # every vendor slot 31000-31014 is named in common.xml; ours is MAV_CMD_USER_1 under a second name
+    assert d.MAV_CMD_NAVIG8_ARM_JOINTS == dialect.MAV_CMD_NAVIG8_ARM_JOINTS == d.MAV_CMD_USER_1 == 31010
+    entry = d.enums["MAV_CMD"][31010]
+    assert "arm joint targets" in entry.description and "degrees" in entry.description
+    assert entry.param[4] == "apply (0/1)"
+
+
+def test_messages_roundtrip_with_float32_precision(d) -> None:
+    rng = np.random.default_rng(7)
+
+    def r(n: int) -> list[float]:
+        return (rng.standard_normal(n) * 10).tolist()
+
+    tu = 123_456_789_012
+    cases = {
+        "NAVIG8_ACTUATOR_STATE": dict(time_usec=tu, step=4_000_000_000, duct_tilt=r(2), prop_speed=r(3)),
+        "NAVIG8_ARM_STATE": dict(time_usec=tu, step=7, joint_pos=r(3), joint_rate=r(3), gripper_closed=1),
+        "NAVIG8_TRUTH": dict(time_usec=tu, step=8, pos_ned=r(3), vel_ned=r(3), quat=r(4), rate_frd=r(3),
+                             accel_frd=r(3), actuators=r(5), joint_pos=r(3), joint_rate=r(3), joint_accel=r(3),
+                             object_mass=2.0, mass=11.5, com_frd=r(3), inertia=r(6), reaction_force=r(3),
+                             reaction_moment_mount=r(3), cmd_clamped=5, cmd_nonfinite=2**32 - 1),
+        "NAVIG8_ARM_CMD": dict(time_usec=tu, joint_target=r(3), joint_target_valid=1, gripper=2),
+        "NAVIG8_SIM_STATUS": dict(time_usec=tu, step=9, state=3, speed=0.0, rtf=41.25, stall_count=3),
+    }
+    for name, fields in cases.items():
+        out = _roundtrip(_cls(d, name)(**fields))
+        for k, v in fields.items():
+            got = getattr(out, k)
+            if isinstance(v, list):
+                np.testing.assert_array_equal(got, _f32(v), err_msg=f"{name}.{k}")
+            elif isinstance(v, float):
+                assert got == float(np.float32(v)), f"{name}.{k}"
+            else:
+                assert got == v, f"{name}.{k}"
+
+
+def test_second_load_hits_the_cache(tmp_path: Path) -> None:
+    """A fresh process generates once; the next one imports the cached module and its marshalled code."""
+    code = (
+        "import json, time; t = time.perf_counter(); from navig8_fc.mavlink import dialect; d = dialect.load(); "
+        "print(json.dumps({'gen': dialect.last_generation_s, 'load': time.perf_counter() - t, "
+        "'file': d.__file__}))"
+    )
+    env = dict(os.environ, NAVIG8_CACHE_DIR=str(tmp_path / "cache"))
+
+    def run() -> dict:
+        out = subprocess.run([sys.executable, "-c", code], env=env, cwd=ROOT, capture_output=True, text=True,
+                             timeout=60, check=True)
+        return json.loads(out.stdout.strip().splitlines()[-1])
+
+    first, second = run(), run()
+    assert first["gen"] is not None and first["gen"] < 10.0
+    assert second["gen"] is None
+    assert second["load"] < 1.0
+    assert Path(first["file"]).parent == tmp_path / "cache"
+    assert Path(first["file"]).name == f"navig8_{dialect.cache_key()}.py"
+    assert len(list((tmp_path / "cache").glob("navig8_*.code"))) == 1
+    assert not list((tmp_path / "cache").glob(".gen-*"))  # the build directory is cleaned up
+
+
+def test_concurrent_first_loads_agree(tmp_path: Path) -> None:
+    """The bridge and the FC start together on a fresh machine: both generate, neither sees a partial file."""
+    code = "from navig8_fc.mavlink import dialect; d = dialect.load(); print(d.MAVLink_navig8_truth_message.crc_extra)"
+    env = dict(os.environ, NAVIG8_CACHE_DIR=str(tmp_path / "cache"))
+    procs = [subprocess.Popen([sys.executable, "-c", code], env=env, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+             for _ in range(3)]
+    outs = [p.communicate(timeout=60)[0].strip() for p in procs]
+    assert [p.returncode for p in procs] == [0, 0, 0]
+    assert outs == [str(WIRE_IDENTITY["NAVIG8_TRUTH"][1])] * 3
+
+
+def test_cache_dir_falls_back_when_not_writable(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a directory")
+    monkeypatch.setenv("NAVIG8_CACHE_DIR", str(blocker / "cache"))
+    got = dialect.cache_dir()
+    assert got != blocker / "cache"
+    assert os.access(got, os.W_OK)
+
+
+def test_generate_reports_mavgen_errors(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    bad = tmp_path / "navig8.xml"
+    bad.write_text(dialect.DIALECT_XML.read_text().replace('id="61001"', 'id="61000"'))  # duplicate id
+    monkeypatch.setattr(dialect, "DIALECT_XML", bad)
+    with pytest.raises(RuntimeError, match="mavgen failed"):
+        dialect.generate(tmp_path / "out" / "x.py")
+    assert not (tmp_path / "out" / "x.py").exists()
+
+
+# ---- seam: actuator answer ---------------------------------------------------------------------------
+def test_actuator_controls_normalisation_and_roundtrip(d, vehicle: VehicleConfig) -> None:
+    lim = seam.ActuatorLimits.from_vehicle(vehicle)
+    assert lim.tilt_max_abs_rad == max(abs(vehicle.tilt_min_rad), abs(vehicle.tilt_max_rad))
+    assert lim.duct_speed_max_rad_s == vehicle.duct_speed_max
+    assert lim.tail_speed_max_rad_s == vehicle.tail_speed_max
+    cmd = ActuatorCommand((0.3, -0.2), (600.0, -123.0, 610.0))
+    msg = seam.encode_actuator_controls(10_001, cmd, vehicle, armed=True)
+    assert msg.time_usec == 10_001 and msg.flags == 0
+    assert msg.mode == seam.MODE_FLAG_SAFETY_ARMED
+    expected = [0.3 / lim.tilt_max_abs_rad, -0.2 / lim.tilt_max_abs_rad, 600.0 / lim.duct_speed_max_rad_s,
+                -123.0 / lim.tail_speed_max_rad_s, 610.0 / lim.duct_speed_max_rad_s]
+    np.testing.assert_allclose(msg.controls[:5], expected, rtol=1e-15)
+    assert msg.controls[5:] == [0.0] * 11
+    out = seam.decode_actuator_controls(_roundtrip(msg, compid=1), lim)
+    assert out.time_usec == 10_001 and out.armed
+    np.testing.assert_allclose(out.tilt_rad, cmd.tilt_rad, rtol=1e-7)
+    np.testing.assert_allclose(out.speed_rad_s, cmd.speed_rad_s, rtol=1e-7)
+    off = seam.decode_actuator_controls(seam.encode_actuator_controls(5, cmd, lim, armed=False), lim)
+    assert not off.armed
+
+
+def test_actuator_controls_not_clipped_and_nonfinite_pass(vehicle: VehicleConfig) -> None:
+    """The plant clamps and counts; clipping in the encoder would hide a bad command from its counters."""
+    cmd = ActuatorCommand((5.0, float("nan")), (2000.0, 0.0, float("inf")))
+    out = seam.decode_actuator_controls(_roundtrip(seam.encode_actuator_controls(1, cmd, vehicle, armed=True)),
+                                        vehicle)
+    assert out.tilt_rad[0] == pytest.approx(5.0) and math.isnan(out.tilt_rad[1])
+    assert out.speed_rad_s[0] == pytest.approx(2000.0) and math.isinf(out.speed_rad_s[2])
+
+
+def test_limits_reject_nonsense() -> None:
+    with pytest.raises(ValueError):
+        seam.ActuatorLimits(0.0, 1.0, 1.0)
+    with pytest.raises(ValueError):
+        seam.ActuatorLimits(1.0, float("nan"), 1.0)
+
+
+# ---- seam: the step bundle ---------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def plant(vehicle: VehicleConfig) -> Plant:
+    p = Plant(vehicle, PlantParams.load(), load_scenario("paper"), np.random.default_rng(3))
+    p.step(p.trim_command(), 0.05)
+    return p
+
+
+def test_bundle_roundtrip_from_the_plant(plant: Plant) -> None:
+    sb, tr = plant.sense(), plant.truth()
+    data = seam.encode_bundle(dialect.new_mav(2, 25), 5, sb, tr)
+    parsed = seam.parse_datagram(dialect.new_mav(2, 1), data)
+    assert parsed.bad == 0
+    assert [m.get_type() for m in parsed.messages] == ["ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE",
+                                                         "NAVIG8_TRUTH", "HIL_SENSOR"]
+    assert len({m.get_header().seq for m in parsed.messages}) == 5  # pack() advanced the sequence
+    b = seam.decode_bundle(parsed.messages)
+    assert b is not None
+    assert b.step == 5 and b.time_usec == sb.time_us + 1 == 50_001 and b.t_us == 50_000
+    assert b.t_s == sb.time_us * 1e-6  # exactly what the in-process runner feeds the FC
+    for got, want in [(b.gyro_frd, sb.gyro_frd), (b.accel_frd, sb.accel_frd), (b.pos_ned, sb.pos_ned),
+                      (b.vel_ned, sb.vel_ned), (b.quat_wxyz, sb.quat_wxyz), (b.duct_tilt_rad, sb.duct_tilt_rad),
+                      (b.prop_speed_rad_s, sb.prop_speed_rad_s), (b.joint_pos_rad, sb.joint_pos_rad),
+                      (b.joint_rate_rad_s, sb.joint_rate_rad_s)]:
+        np.testing.assert_array_equal(got, _f32(want))
+    assert b.gripper_closed is True and b.imu_fresh
+    odom = parsed.messages[0]
+    assert odom.frame_id == odom.child_frame_id == 1  # MAV_FRAME_LOCAL_NED: velocity in NED
+    assert math.isnan(odom.pose_covariance[0]) and math.isnan(odom.velocity_covariance[0])
+    np.testing.assert_array_equal([odom.rollspeed, odom.pitchspeed, odom.yawspeed], _f32(sb.gyro_frd))
+    hil = parsed.messages[-1]
+    assert hil.fields_updated == 0b111111 and hil.id == 0
+    t = b.truth
+    np.testing.assert_array_equal(t.reaction_force, _f32(tr.reaction_force_frd_n))
+    np.testing.assert_array_equal(t.actuators, _f32(tr.actuator_pos))
+    j = tr.inertia_com_kgm2
+    np.testing.assert_array_equal(t.inertia, _f32([j[0, 0], j[1, 1], j[2, 2], j[0, 1], j[0, 2], j[1, 2]]))
+    assert t.mass == pytest.approx(tr.mass_kg, rel=1e-7) and t.object_mass == 1.0
+
+
+def test_fc_sensors_and_truth_record(plant: Plant) -> None:
+    sb, tr = plant.sense(), plant.truth()
+    msgs = seam.bundle_messages(9, sb, tr)
+    rx = dialect.new_mav(1, 1)
+    decoded = seam.parse_datagram(rx, seam.pack(dialect.new_mav(1, 25), msgs)).messages
+    # a name -> message dict in any order (the FC's collector) works as well as the datagram's list
+    by_name = {m.get_type(): m for m in reversed(decoded)}
+    s = seam.decode_sensors(by_name)
+    assert s.t_s == sb.time_us * 1e-6
+    np.testing.assert_array_equal(s.pos_ned, _f32(sb.pos_ned))
+    np.testing.assert_array_equal(s.tilt_rad, _f32(sb.duct_tilt_rad))
+    rec = seam.truth_record(by_name["NAVIG8_TRUTH"])
+    for key in ("pos_ned_m", "quat_wxyz", "euler_rad", "reaction_force_mount_n", "reaction_torque_mount_nm",
+                "joint_rate_rad_s", "joint_accel_rad_s2", "tilt_rad", "speed_rad_s", "inertia_diag_kgm2"):
+        assert key in rec
+    np.testing.assert_allclose(rec["euler_rad"], tr.euler_rad, atol=1e-6)
+    del by_name["NAVIG8_ARM_STATE"]
+    with pytest.raises(ValueError, match="incomplete"):
+        seam.decode_sensors(by_name)
+
+
+def test_assembler_never_mixes_steps(plant: Plant) -> None:
+    sb, tr = plant.sense(), plant.truth()
+    msgs = seam.bundle_messages(1, sb, tr)
+    asm = seam.BundleAssembler()
+    for m in msgs[:-1]:
+        assert asm.add(m) is None
+    hil_other = seam.bundle_messages(1, dataclasses.replace(sb, time_us=sb.time_us + 10_000), None)[-1]
+    assert asm.add(hil_other) is None and asm.incomplete == 1
+    for m in msgs:
+        out = asm.add(m)
+    assert out is not None and out.time_usec == sb.time_us + 1
+    assert seam.decode_bundle(msgs[1:]) is None  # ODOMETRY missing
+    no_truth = seam.decode_bundle([m for m in msgs if m.get_type() != "NAVIG8_TRUTH"])
+    assert no_truth is not None and no_truth.truth is None
+
+
+def test_parse_datagram_counts_bad_input_and_never_raises(plant: Plant, d) -> None:
+    tx, rx = dialect.new_mav(1, 25), dialect.new_mav(1, 1)
+    good = seam.pack(tx, [seam.encode_sim_status(seam.SimStatus(1, 0, 0, 1.0, 0.0, 0))])
+    assert seam.parse_datagram(rx, good).bad == 0
+    assert seam.parse_datagram(rx, b"\x00\x01garbage" + good).bad == 1
+    assert len(seam.parse_datagram(rx, b"\x00\x01garbage" + good).messages) == 1
+    corrupt = bytearray(good)
+    corrupt[12] ^= 0xFF  # payload byte: bad CRC
+    assert seam.parse_datagram(rx, bytes(corrupt)) == seam.ParsedDatagram([], 1)
+    # a truncated frame at the end of one datagram must not swallow the next datagram
+    assert seam.parse_datagram(rx, good[:-5]).bad == 1
+    assert len(seam.parse_datagram(rx, good).messages) == 1
+    unknown = bytearray(good)
+    unknown[7:10] = (60999).to_bytes(3, "little")
+    assert seam.parse_datagram(rx, bytes(unknown)).bad == 1
+    rng = np.random.default_rng(0)
+    for _ in range(300):
+        seam.parse_datagram(rx, rng.integers(0, 256, int(rng.integers(0, 600)), dtype=np.uint8).tobytes())
+    assert len(seam.parse_datagram(rx, good).messages) == 1
+
+
+# ---- seam: arm command and status ---------------------------------------------------------------------
+def test_arm_command_roundtrip_and_gcs_degrees() -> None:
+    cmd = seam.ArmCommand(77, (0.1, -0.2, 0.3), seam.GRIPPER_GRAB)
+    out = seam.decode_arm_cmd(_roundtrip(seam.encode_arm_cmd(cmd), compid=1))
+    assert out.time_usec == 77 and out.gripper == seam.GRIPPER_GRAB
+    np.testing.assert_allclose(out.joint_target_rad, cmd.joint_target_rad, rtol=1e-7)
+    grip_only = seam.decode_arm_cmd(_roundtrip(seam.encode_arm_cmd(seam.ArmCommand(5, None, seam.GRIPPER_RELEASE))))
+    assert grip_only.joint_target_rad is None and grip_only.gripper == seam.GRIPPER_RELEASE
+    with pytest.raises(ValueError):
+        seam.ArmCommand(1, None, 3)
+    g = seam.arm_command_from_mav_cmd(9, [20.0, -20.0, 90.0, 1.0, 0.0, 0.0, 0.0])
+    assert g is not None and g.gripper == seam.GRIPPER_NONE
+    np.testing.assert_allclose(g.joint_target_rad, np.radians([20.0, -20.0, 90.0]))
+    assert seam.arm_command_from_mav_cmd(9, [20.0, 0.0, 0.0, 0.0]) is None
+    with pytest.raises(ValueError):
+        seam.arm_command_from_mav_cmd(9, [float("nan"), 0.0, 0.0, 1.0])
+    with pytest.raises(ValueError):
+        seam.arm_command_from_mav_cmd(9, [0.0, 0.0, 0.0, 2.0])
+
+
+def test_sim_status_roundtrip() -> None:
+    st = seam.SimStatus(1_000_001, 100, seam.SIM_STATE_DONE, 0.0, 37.5, 2)
+    assert seam.decode_sim_status(_roundtrip(seam.encode_sim_status(st))) == st
+
+
+def test_time_stamps_are_never_zero() -> None:
+    assert seam.time_usec_from_sim_us(0) == 1
+    assert seam.sim_us_from_time_usec(seam.time_usec_from_sim_us(123_450_000)) == 123_450_000
