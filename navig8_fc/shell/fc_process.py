@@ -36,8 +36,10 @@ from navig8_fc.core.controller import (
     FlightControllerCore,
 )
 from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mavlink import seam
+from navig8_fc.modes import MissionScript, ModeConfig, ModeInputs, ModeManager, ModeOutput
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.shell.mavlink_link import UdpLink
 from navig8_fc.shell.mcap_log import McapLogger
@@ -107,6 +109,7 @@ class FlightControllerProcess:
         self._asm = seam.BundleAssembler()
         self.sim_status: Any = None
         self.last_sensors: FcSensors | None = None
+        self.mode_out: ModeOutput | None = None
         self._last_step_time_us: int | None = None
         self._last_cmd_msg: Any = None
         self.n_ticks = 0
@@ -201,14 +204,39 @@ class FlightControllerProcess:
         if self.logger:
             self._log_tick(t_us, b.truth, st, cmd, sp)
 
-    def flight_state(self, s: FcSensors) -> tuple[bool, bool, Setpoint]:
-        """(armed, controller engaged, setpoint). Replaced by the mode manager (navig8_fc.modes)."""
-        return self._flight_state_scenario(s)
-
-    def _flight_state_scenario(self, s: FcSensors) -> tuple[bool, bool, Setpoint]:
+    def _mode_manager(self) -> ModeManager:
         sc = self._scenario
-        spc = sc.setpoints(s.t_s)
-        return sc.armed, sc.armed, Setpoint(tuple(spc.pos_ned_m), spc.pitch_rad, spc.yaw_rad)
+        script = None
+        if sc.setpoint_steps or sc.armed:  # a scripted scenario (the paper's) runs as AUTO.MISSION
+
+            def setpoint_at(t_s: float) -> Setpoint:
+                spc = sc.setpoints(t_s)
+                return Setpoint(tuple(spc.pos_ned_m), spc.pitch_rad, spc.yaw_rad)
+
+            script = MissionScript(sc.name, setpoint_at, starts_armed_in_air=sc.armed, duration_s=sc.duration_s)
+        return ModeManager(ModeConfig(), script)
+
+    def flight_state(self, s: FcSensors) -> tuple[bool, bool, Setpoint]:
+        """(armed, controller engaged, setpoint) from the mode manager, on sim time."""
+        _, _, yaw = quat_to_euler(s.quat_wxyz)
+        w1, w2, w3 = s.speed_rad_s
+        thrust_n = self.vehicle.k_thrust_duct * (w1 * w1 + w3 * w3) + self.vehicle.k_thrust_tail * w2 * abs(w2)
+        weight_n = self.vehicle.uam_mass_kg * self.vehicle.gravity_m_s2
+        was_armed = self.modes.armed
+        out = self.modes.step(ModeInputs(t_s=s.t_s, pos_ned=s.pos_ned, vel_ned=s.vel_ned, yaw_rad=yaw,
+                                         thrust_ratio=thrust_n / weight_n, sensors_ok=True,
+                                         estimator_ready=True))
+        if out.armed and not was_armed and self.core is not None:
+            self.core.reset()  # the estimator's start delay counts from arming
+        self.mode_out = out
+        for ev in out.events:
+            self.statustext(ev, severity=6)
+        return out.armed, out.engaged, out.setpoint
+
+    def statustext(self, text: str, severity: int = 6) -> None:
+        """Hook: the GCS service sends it (and the log keeps it)."""
+        if self.logger:
+            self.logger.log("/fc/statustext", self._sim_ns(), {"severity": severity, "text": text})
 
     def _log_tick(self, t_us: int, tr: Any, st: ControllerStatus, cmd: ActuatorCommand, sp: Setpoint) -> None:
         assert self.logger is not None
@@ -232,6 +260,7 @@ class FlightControllerProcess:
         from sim_bridge.scenario import load_scenario  # the FC reads the scenario's script (setpoints)
 
         self._scenario = load_scenario(self.opts.scenario)
+        self.modes = self._mode_manager()
         print(f"navig8-fc: sysid {self.opts.sysid}, sim link :{self.sim.local_port} -> bridge "
               f":{self.opts.port('bridge')}, GCS :{self.gcs.local_port} -> {self.opts.gcs_port}, API "
               f":{self.api.local_port} -> {self.opts.port('api')}, scenario {self.opts.scenario}", file=sys.stderr)
