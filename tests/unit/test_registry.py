@@ -137,3 +137,17 @@ def test_load_values_and_reset(reg: ParamRegistry) -> None:
 def test_bad_definitions_fail_at_start(text: str, match: str) -> None:
     with pytest.raises(ParamDefinitionError, match=match):
         load_definitions(text)
+
+
+def test_real_stability_floor_refuses_k_min_that_reaches_lambda_crit() -> None:
+    # With the paper's actuator/sampling/filter constants lambda_crit ~ 0.097 (Sec. 3.1); the smallest
+    # eigenvalue of K Xi over the workspace scales with K_MIN (~0.98 K_MIN), so 0.1 must be refused.
+    reg = ParamRegistry.from_defaults()
+    res = reg.set("INDI_K_MIN", 0.1)
+    assert not res.accepted and "stability floor" in res.reason and reg["INDI_K_MIN"] == 0.5
+    assert reg.set("INDI_K_MIN", 0.4).accepted
+    # A shorter feedback filter raises lambda_crit (0.29 at tau_L = 0.01 s): the same K_MIN becomes unsafe.
+    reg2 = ParamRegistry.from_defaults()
+    assert reg2.set("INDI_K_MIN", 0.2).accepted
+    res = reg2.set("INDI_LPF_TAU", 0.01)
+    assert not res.accepted and "stability floor" in res.reason and reg2["INDI_LPF_TAU"] == pytest.approx(0.1), res
