@@ -1,0 +1,449 @@
+"""navig8-bridge: the plant behind MAVLink, in lockstep with navig8-fc (docs/bridge.md is the contract).
+
+    navig8-bridge [--scenario NAME|FILE] [--seed N] [--speed X] [--instance N] [--until-done] [--duration S]
+                  [--bridge-port P] [--fc-port P] [--host H] [--dt S] [--step-timeout S] [--stall-abort S]
+
+The bridge is the time master (DESIGN §4). Each step k it sends ONE datagram with the sensor bundle
+stamped time_usec = round(k * dt * 1e6) + 1 (ODOMETRY, NAVIG8_ACTUATOR_STATE, NAVIG8_ARM_STATE, NAVIG8_TRUTH,
+HIL_SENSOR last) and waits for the FC's single HIL_ACTUATOR_CONTROLS echoing that stamp; it then holds that
+command for dt (zero-order hold), steps the plant and sends step k + 1. A thin I/O loop: no controller code.
+
+Exit codes: 0 done (--until-done) or stopped by SIGINT/SIGTERM; 1 cannot start (e.g. port in use);
+2 bad arguments; 3 navig8-fc stalled longer than --stall-abort; 4 the plant diverged.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import signal
+import socket
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.mavlink import dialect, seam
+from sim_bridge.messages import ActuatorCommand
+from sim_bridge.params import PlantParams
+from sim_bridge.plant import Plant, PlantDivergedError
+from sim_bridge.scenario import Scenario, load_scenario
+
+BASE_BRIDGE_PORT = 4560  # + 2 N: the bridge binds here (PX4's simulator port)
+BASE_FC_PORT = 4561  # + 2 N: the FC's sim link
+STARTUP_RESEND_S = 0.1  # re-send step 0 this often until the FC answers
+STATUS_PERIOD_S = 1.0  # NAVIG8_SIM_STATUS period (wall)
+REANCHOR_LAG_S = 0.5  # paced runs that fall this far behind (a stall) restart pacing instead of bursting
+MAX_DATAGRAM = 65535
+MAX_ACCEPTED_DATAGRAM = 4096  # the FC sends ~70-byte frames; anything this big is not it (parse nothing)
+
+EXIT_OK, EXIT_START, EXIT_USAGE, EXIT_STALL, EXIT_DIVERGED = 0, 1, 2, 3, 4
+
+
+class _Shutdown(BaseException):
+    """SIGINT/SIGTERM: leave the loop, close the socket, exit 0.
+
+    A BaseException (like KeyboardInterrupt) so that no `except Exception` on the way (the datagram
+    parser guards against pymavlink bugs with one) can swallow it.
+    """
+
+
+class _Stalled(Exception):
+    pass
+
+
+@dataclass(frozen=True)
+class BridgeOptions:
+    scenario: str = "ground"
+    seed: int = 1
+    speed: float = 1.0  # 1 real time, N x real time, 0 as fast as possible
+    instance: int = 0
+    bridge_port: int | None = None
+    fc_port: int | None = None
+    host: str = "127.0.0.1"
+    until_done: bool = False
+    duration_s: float | None = None
+    dt_s: float = 0.01  # must equal 1 / INDI_RATE_HZ of the FC
+    step_timeout_s: float = 2.0
+    stall_abort_s: float = 20.0
+    startup_timeout_s: float = 0.0  # 0: wait for the FC forever (reminding every 10 s)
+    grab_mass_kg: float | None = None  # object mass a GRAB picks up (default: from the scenario)
+
+    @property
+    def sysid(self) -> int:
+        return self.instance + 1
+
+    @property
+    def bridge_port_resolved(self) -> int:
+        return self.bridge_port if self.bridge_port is not None else BASE_BRIDGE_PORT + 2 * self.instance
+
+    @property
+    def fc_port_resolved(self) -> int:
+        return self.fc_port if self.fc_port is not None else BASE_FC_PORT + 2 * self.instance
+
+
+@dataclass
+class BridgeCounters:
+    steps: int = 0  # plant steps taken
+    bundles_sent: int = 0  # including re-sends
+    resends: int = 0  # bundles sent again (startup and stalls)
+    stalls: int = 0  # step timeouts
+    answers: int = 0  # HIL_ACTUATOR_CONTROLS accepted
+    stale_answers: int = 0  # HIL_ACTUATOR_CONTROLS for another step (duplicates, late answers)
+    arm_cmds: int = 0
+    bad_frames: int = 0  # malformed, bad CRC, unknown ids, truncated
+    foreign_frames: int = 0  # from another system or component
+    other_frames: int = 0  # valid FC frames the bridge does not use (HEARTBEAT, ...)
+    datagrams_in: int = 0
+    oversize: int = 0
+
+    def line(self) -> str:
+        return ", ".join(f"{k} {v}" for k, v in vars(self).items())
+
+
+def default_grab_mass(sc: Scenario) -> float:
+    """The object a GRAB picks up: the scenario's held object, else its first grasp event's, else nothing."""
+    if sc.object_mass_kg > 0.0:
+        return sc.object_mass_kg
+    for ev in sc.events:
+        if ev.kind in ("grasp", "mass") and ev.mass_kg > 0.0:
+            return ev.mass_kg
+    return 0.0
+
+
+@dataclass
+class _ArmState:
+    joint_targets_rad: tuple[float, float, float] | None = None  # persistent override once commanded
+    pending_gripper: list[int] = field(default_factory=list)
+
+
+class Bridge:
+    """The lockstep I/O loop around one Plant."""
+
+    def __init__(self, opts: BridgeOptions) -> None:
+        if opts.speed < 0 or not math.isfinite(opts.speed):
+            raise ValueError("--speed must be >= 0 (0: as fast as possible)")
+        if not (opts.step_timeout_s > 0 and opts.stall_abort_s > 0):
+            raise ValueError("--step-timeout and --stall-abort must be > 0")
+        self.opts = opts
+        self.scenario = load_scenario(opts.scenario)
+        self.vehicle = VehicleConfig.load()
+        self.plant = Plant(self.vehicle, PlantParams.load(), self.scenario, np.random.default_rng(opts.seed))
+        self.dt_us = round(opts.dt_s * 1e6)
+        if self.dt_us <= 0 or abs(self.dt_us - opts.dt_s * 1e6) > 1e-3 or self.dt_us % self.plant.physics_step_us:
+            raise ValueError(f"--dt {opts.dt_s} s must be a positive multiple of the physics step "
+                             f"{self.plant.physics_step_us} us")
+        duration = self.scenario.duration_s if opts.duration_s is None else float(opts.duration_s)
+        self.n_steps = int(round(duration * 1e6 / self.dt_us))
+        self.limits = seam.ActuatorLimits.from_vehicle(self.vehicle)
+        self.grab_mass_kg = default_grab_mass(self.scenario) if opts.grab_mass_kg is None else opts.grab_mass_kg
+        self.d = dialect.load()
+        self.mav = dialect.new_mav(opts.sysid, dialect.COMPID_BRIDGE)
+        self.rx = dialect.new_mav(opts.sysid, dialect.COMPID_BRIDGE)
+        self.counters = BridgeCounters()
+        self.arm = _ArmState()
+        self.fc_addr = (opts.host, opts.fc_port_resolved)
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        self.sock.bind((opts.host, opts.bridge_port_resolved))
+        self.step = 0
+        self._wall_start: float | None = None  # when stepping began (answer to step 0)
+        self._pace_anchor: tuple[float, int] = (0.0, 0)  # (wall, step) pacing is measured from
+        self._status_due = 0.0
+        self.state = seam.SIM_STATE_WAITING_FOR_FC
+
+    # ---- wire ---------------------------------------------------------------------------------------
+    @property
+    def time_usec(self) -> int:
+        return seam.time_usec_from_sim_us(self.plant.t_us)
+
+    def _send(self, data: bytes) -> None:
+        try:
+            self.sock.sendto(data, self.fc_addr)
+        except OSError:
+            pass  # nobody listening yet (ICMP port unreachable surfaces here on Linux): the re-send covers it
+
+    def _bundle(self) -> bytes:
+        return seam.encode_bundle(self.mav, self.step, self.plant.sense(), self.plant.truth())
+
+    def rtf(self, now: float) -> float:
+        if self._wall_start is None or now <= self._wall_start:
+            return 0.0
+        return (self.plant.t_us * 1e-6) / (now - self._wall_start)
+
+    def _send_status(self, now: float, state: int | None = None) -> None:
+        st = seam.SimStatus(self.time_usec, self.step, self.state if state is None else state,
+                            self.opts.speed, self.rtf(now), self.counters.stalls)
+        self._send(seam.pack(self.mav, [seam.encode_sim_status(st)]))
+        self._status_due = now + STATUS_PERIOD_S
+
+    def _receive(self, timeout_s: float) -> seam.ActuatorControls | None:
+        """Wait up to timeout_s for datagrams; handle them; return the answer to the current step if it came."""
+        self.sock.settimeout(max(timeout_s, 0.0))
+        try:
+            data, _addr = self.sock.recvfrom(MAX_DATAGRAM)
+        except (TimeoutError, BlockingIOError, ConnectionRefusedError):
+            # ConnectionRefused: an ICMP port-unreachable from an earlier send (FC not up yet)
+            return None
+        answer = self._handle(data)
+        # drain whatever else is already queued without waiting (keeps stale answers from piling up)
+        self.sock.settimeout(0.0)
+        while answer is None:
+            try:
+                data, _addr = self.sock.recvfrom(MAX_DATAGRAM)
+            except (BlockingIOError, TimeoutError, ConnectionRefusedError):
+                break
+            answer = self._handle(data)
+        return answer
+
+    def _handle(self, data: bytes) -> seam.ActuatorControls | None:
+        c = self.counters
+        c.datagrams_in += 1
+        if len(data) > MAX_ACCEPTED_DATAGRAM:
+            c.oversize += 1
+            return None
+        parsed = seam.parse_datagram(self.rx, data)
+        c.bad_frames += parsed.bad
+        answer = None
+        want = self.time_usec
+        sysid = self.opts.sysid
+        for m in parsed.messages:
+            h = m.get_header()
+            if h.srcSystem != sysid or h.srcComponent != dialect.COMPID_FC:
+                c.foreign_frames += 1
+                continue
+            t = m.get_type()
+            if t == "HIL_ACTUATOR_CONTROLS":
+                if m.time_usec == want and answer is None:
+                    answer = seam.decode_actuator_controls(m, self.limits)
+                    c.answers += 1
+                else:
+                    c.stale_answers += 1
+            elif t == "NAVIG8_ARM_CMD":
+                self._on_arm_cmd(m)
+            else:
+                c.other_frames += 1
+        return answer
+
+    def _on_arm_cmd(self, m: Any) -> None:
+        try:
+            cmd = seam.decode_arm_cmd(m)
+        except ValueError:
+            self.counters.bad_frames += 1
+            return
+        self.counters.arm_cmds += 1
+        if cmd.joint_target_rad is not None:
+            # the plant clamps to the joint limits and holds the last valid value of a non-finite entry
+            self.arm.joint_targets_rad = cmd.joint_target_rad
+        if cmd.gripper != seam.GRIPPER_NONE:
+            self.arm.pending_gripper.append(cmd.gripper)
+
+    def _apply_arm(self) -> None:
+        """Gripper actions take effect at the start of the step being taken (deterministic: see docs)."""
+        for g in self.arm.pending_gripper:
+            self.plant.command_gripper(g == seam.GRIPPER_GRAB, self.grab_mass_kg)
+        self.arm.pending_gripper.clear()
+
+    # ---- loop ---------------------------------------------------------------------------------------
+    def _wait_answer(self, data: bytes, first_sent: float, resend_every_s: float, startup: bool
+                     ) -> seam.ActuatorControls:
+        """Re-send `data` every resend_every_s until the matching answer arrives; raise _Stalled past the limit."""
+        o = self.opts
+        next_resend = first_sent + resend_every_s
+        next_reminder = first_sent + 10.0
+        while True:
+            now = time.perf_counter()
+            if now >= self._status_due:
+                self._send_status(now)
+            timeout = min(next_resend, self._status_due) - now
+            ans = self._receive(timeout)
+            if ans is not None:
+                return ans
+            now = time.perf_counter()
+            if now >= next_resend:
+                waited = now - first_sent
+                if startup:
+                    if o.startup_timeout_s > 0 and waited >= o.startup_timeout_s:
+                        raise _Stalled(f"navig8-bridge: no answer from navig8-fc at {self.fc_addr[0]}:"
+                                       f"{self.fc_addr[1]} within --startup-timeout {o.startup_timeout_s:g} s; "
+                                       "is navig8-fc running with the same --instance/ports?")
+                    if now >= next_reminder:
+                        next_reminder = now + 10.0
+                        print(f"navig8-bridge: still waiting for navig8-fc at {self.fc_addr[0]}:{self.fc_addr[1]} "
+                              f"({waited:.0f} s)", file=sys.stderr, flush=True)
+                else:
+                    self.counters.stalls += 1
+                    if waited >= o.stall_abort_s:
+                        raise _Stalled(f"navig8-bridge: navig8-fc stalled: no actuator answer for step {self.step} "
+                                       f"(t={self.plant.t_s:.3f} s) for {waited:.1f} s (--stall-abort "
+                                       f"{o.stall_abort_s:g} s); stopping")
+                    print(f"navig8-bridge: no actuator answer from navig8-fc for step {self.step} "
+                          f"(t={self.plant.t_s:.3f} s) after {waited:.1f} s; re-sending", file=sys.stderr, flush=True)
+                    self.state = seam.SIM_STATE_STALLED
+                    self._send_status(now)
+                self._send(data)
+                self.counters.bundles_sent += 1
+                self.counters.resends += 1
+                next_resend = now + resend_every_s
+                if not startup:
+                    # the next timeout never reaches past the abort deadline by more than one step timeout
+                    next_resend = min(next_resend, max(first_sent + o.stall_abort_s, now + 1e-3))
+
+    def _pace(self) -> None:
+        """At --speed N > 0, step k is not released before anchor + (t_k - t_anchor) / N."""
+        if self.opts.speed <= 0:
+            return
+        w0, k0 = self._pace_anchor
+        release = w0 + (self.step - k0) * self.dt_us * 1e-6 / self.opts.speed
+        now = time.perf_counter()
+        if now < release:
+            time.sleep(release - now)
+        elif now - release > REANCHOR_LAG_S:
+            # after a stall, do not burst to catch up with wall time: continue at speed N from here
+            self._pace_anchor = (now, self.step)
+
+    def run(self) -> int:
+        o = self.opts
+        c = self.counters
+        print(f"navig8-bridge: scenario {self.scenario.name} (seed {o.seed}), sysid {o.sysid}, dt {o.dt_s:g} s, "
+              f"speed {o.speed:g}{' (as fast as possible)' if o.speed == 0 else 'x'}, "
+              f"bound {o.host}:{o.bridge_port_resolved}, FC at {self.fc_addr[0]}:{self.fc_addr[1]}"
+              + (f", until done at t={self.n_steps * self.dt_us * 1e-6:g} s" if o.until_done else ""),
+              file=sys.stderr, flush=True)
+        # startup: re-send step 0 until the FC answers it (the plant waits at t = 0)
+        data = self._bundle()
+        now = time.perf_counter()
+        self._send_status(now)
+        self._send(data)
+        c.bundles_sent += 1
+        ans = self._wait_answer(data, now, STARTUP_RESEND_S, startup=True)
+        now = time.perf_counter()
+        self._wall_start = now
+        self._pace_anchor = (now, 0)
+        self.state = seam.SIM_STATE_RUNNING
+        self._send_status(now)
+        dt_us = self.dt_us
+        while True:
+            if o.until_done and self.step >= self.n_steps:
+                break
+            # zero-order hold of the answer for one control period
+            cmd = ActuatorCommand(ans.tilt_rad, ans.speed_rad_s, self.arm.joint_targets_rad)
+            self._apply_arm()
+            self.plant.step_us(cmd, dt_us)
+            self.step += 1
+            c.steps += 1
+            data = self._bundle()
+            self._pace()
+            now = time.perf_counter()
+            self._send(data)
+            c.bundles_sent += 1
+            if now >= self._status_due:
+                self._send_status(now)
+            ans = self._receive(min(o.step_timeout_s, self._status_due - now))
+            if ans is None:  # slow answer or status due: the careful path (status, re-sends, stall abort)
+                ans = self._wait_answer(data, now, o.step_timeout_s, startup=False)
+                self.state = seam.SIM_STATE_RUNNING
+        now = time.perf_counter()
+        self.state = seam.SIM_STATE_DONE
+        for _ in range(3):  # the FC's --until-done exits on it: do not let one lost datagram hang it
+            self._send_status(now)
+        return EXIT_OK
+
+    def summary_line(self) -> str:
+        now = time.perf_counter()
+        wall = now - self._wall_start if self._wall_start is not None else 0.0
+        return (f"navig8-bridge: {self.counters.steps} steps, t = {self.plant.t_s:.3f} s, wall {wall:.2f} s, "
+                f"RTF {self.rtf(now):.1f}; {self.counters.line()}")
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def build_arg_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="navig8-bridge", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenario", default="ground", help="scenario name (params/scenarios) or YAML file")
+    ap.add_argument("--seed", type=int, default=1, help="sensor-noise seed")
+    ap.add_argument("--speed", type=float, default=1.0, help="1 real time, N N x real time, 0 as fast as possible")
+    ap.add_argument("--instance", type=int, default=0, help="vehicle N: sysid N+1, ports 4560+2N / 4561+2N")
+    ap.add_argument("--bridge-port", type=int, default=None, help="UDP port the bridge binds (default 4560+2N)")
+    ap.add_argument("--fc-port", type=int, default=None, help="UDP port navig8-fc listens on (default 4561+2N)")
+    ap.add_argument("--host", default="127.0.0.1", help="address to bind and of the FC")
+    ap.add_argument("--until-done", action="store_true",
+                    help="stop at the scenario's duration, send NAVIG8_SIM_STATUS done and exit 0")
+    ap.add_argument("--duration", type=float, default=None, help="override the scenario's duration (s)")
+    ap.add_argument("--dt", type=float, default=0.01, help="control period (s); must equal 1/INDI_RATE_HZ of the FC")
+    ap.add_argument("--step-timeout", type=float, default=2.0, help="wall s to wait for an answer before re-sending")
+    ap.add_argument("--stall-abort", type=float, default=20.0,
+                    help="wall s without an answer for one step before exiting with code 3")
+    ap.add_argument("--startup-timeout", type=float, default=0.0,
+                    help="wall s to wait for the FC's first answer (0: forever)")
+    ap.add_argument("--grab-mass", type=float, default=None,
+                    help="mass (kg) of the object a gripper GRAB picks up (default: the scenario's object)")
+    return ap
+
+
+def options_from_args(a: argparse.Namespace) -> BridgeOptions:
+    return BridgeOptions(
+        scenario=a.scenario, seed=a.seed, speed=a.speed, instance=a.instance, bridge_port=a.bridge_port,
+        fc_port=a.fc_port, host=a.host, until_done=a.until_done, duration_s=a.duration, dt_s=a.dt,
+        step_timeout_s=a.step_timeout, stall_abort_s=a.stall_abort, startup_timeout_s=a.startup_timeout,
+        grab_mass_kg=a.grab_mass,
+    )
+
+
+def _raise_shutdown(signum: int, _frame: Any) -> None:
+    raise _Shutdown(signal.Signals(signum).name)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = build_arg_parser()
+    args = ap.parse_args(argv)
+    if args.scenario.endswith((".yaml", ".yml")) and not Path(args.scenario).is_file():
+        ap.error(f"no scenario file {args.scenario}")
+    signal.signal(signal.SIGINT, _raise_shutdown)
+    signal.signal(signal.SIGTERM, _raise_shutdown)
+    bridge: Bridge | None = None
+    try:
+        try:
+            bridge = Bridge(options_from_args(args))
+        except (ValueError, FileNotFoundError) as e:
+            print(f"navig8-bridge: {e}", file=sys.stderr)
+            return EXIT_USAGE
+        except OSError as e:
+            print(f"navig8-bridge: cannot bind {args.host}:{args.bridge_port or BASE_BRIDGE_PORT + 2 * args.instance}"
+                  f": {e}", file=sys.stderr)
+            return EXIT_START
+        rc = bridge.run()
+        print(bridge.summary_line(), file=sys.stderr)
+        return rc
+    except _Shutdown as e:
+        if bridge is not None:
+            print(f"navig8-bridge: {e}, stopping; " + bridge.summary_line().removeprefix("navig8-bridge: "),
+                  file=sys.stderr)
+        return EXIT_OK
+    except _Stalled as e:
+        print(str(e), file=sys.stderr)
+        if bridge is not None:
+            print(bridge.summary_line(), file=sys.stderr)
+        return EXIT_STALL
+    except PlantDivergedError as e:
+        print(f"navig8-bridge: plant diverged: {e}", file=sys.stderr)
+        return EXIT_DIVERGED
+    finally:
+        if bridge is not None:
+            bridge.close()
+        # a second signal during shutdown must not print a traceback
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
+
+__all__ = ["Bridge", "BridgeCounters", "BridgeOptions", "build_arg_parser", "default_grab_mass", "main"]

@@ -1,0 +1,284 @@
+"""navig8-bridge as a real process on loopback UDP, driven by a minimal fake FC written with the dialect.
+
+The fake FC answers each bundle with the hover trim (what the plant would hold at rest), so these tests
+check the bridge's lockstep mechanics, not a controller: stamps and step counters, duplicates ignored,
+stall reporting and abort, SIGTERM. Every wait is bounded; the process is always killed in a finally.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.mavlink import dialect, seam
+from sim_bridge import Plant, PlantParams, load_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+SYSID = 1
+DT_US = 10_000
+
+
+def _free_udp_ports(n: int) -> list[int]:
+    socks = []
+    try:
+        for _ in range(n):
+            s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            s.bind(("127.0.0.1", 0))
+            socks.append(s)
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()
+
+
+class FakeFc:
+    """Binds the FC's port, parses bundles with the seam, answers with HIL_ACTUATOR_CONTROLS."""
+
+    def __init__(self, port: int, bridge_port: int) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", port))
+        self.bridge = ("127.0.0.1", bridge_port)
+        self.mav = dialect.new_mav(SYSID, dialect.COMPID_FC)
+        self.rx = dialect.new_mav(SYSID, dialect.COMPID_FC)
+        self.vehicle = VehicleConfig.load()
+        self.statuses: list[seam.SimStatus] = []
+
+    def recv_bundle(self, timeout_s: float) -> seam.StepBundle | None:
+        """The next complete bundle within timeout_s (status messages are collected on the way)."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return None
+            self.sock.settimeout(left)
+            try:
+                data, _ = self.sock.recvfrom(65535)
+            except TimeoutError:
+                return None
+            parsed = seam.parse_datagram(self.rx, data)
+            for m in parsed.messages:
+                if m.get_type() == "NAVIG8_SIM_STATUS":
+                    self.statuses.append(seam.decode_sim_status(m))
+            b = seam.decode_bundle(parsed.messages)
+            if b is not None:
+                return b
+
+    def answer(self, b: seam.StepBundle, cmd, *, time_usec: int | None = None) -> None:
+        msg = seam.encode_actuator_controls(b.time_usec if time_usec is None else time_usec, cmd, self.vehicle,
+                                            armed=True)
+        self.sock.sendto(seam.pack(self.mav, [msg]), self.bridge)
+
+    def send_raw(self, data: bytes) -> None:
+        self.sock.sendto(data, self.bridge)
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+@contextmanager
+def bridge_process(*args: str) -> Iterator[tuple[subprocess.Popen, FakeFc]]:
+    bridge_port, fc_port = _free_udp_ports(2)
+    fc = FakeFc(fc_port, bridge_port)
+    env = dict(os.environ)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sim_bridge.bridge", "--bridge-port", str(bridge_port), "--fc-port", str(fc_port),
+         *args],
+        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    try:
+        yield proc, fc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        proc.wait(timeout=10)
+        fc.close()
+
+
+def _trim(scenario: str):
+    return Plant(VehicleConfig.load(), PlantParams.load(), load_scenario(scenario),
+                 np.random.default_rng(0)).trim_command()
+
+
+def test_lockstep_hover_with_fake_fc() -> None:
+    trim = _trim("hover")
+    n = 200
+    with bridge_process("--scenario", "hover", "--speed", "0", "--until-done", "--duration", str(n * 0.01)) as (
+        proc,
+        fc,
+    ):
+        b0 = fc.recv_bundle(30.0)  # first start may generate the dialect and compile numba kernels
+        assert b0 is not None, proc.stderr.read() if proc.poll() is not None else "no bundle"
+        assert b0.step == 0 and b0.time_usec == 1 and b0.t_us == 0
+        # startup: without an answer the bridge re-sends step 0 (same stamp) every 0.1 s
+        again = fc.recv_bundle(2.0)
+        assert again is not None and again.step == 0 and again.time_usec == 1
+        stamps = [b0.time_usec]
+        steps = [b0.step]
+        b = again
+        t0 = time.perf_counter()
+        while True:
+            fc.answer(b, trim)
+            if b.step == 5:
+                fc.answer(b, trim)  # a duplicate answer: must be dropped, not taken for step 6
+            nxt = fc.recv_bundle(5.0)
+            if nxt is None:
+                break
+            if nxt.time_usec == b.time_usec:
+                continue  # a re-sent bundle 0 from the startup phase
+            b = nxt
+            stamps.append(b.time_usec)
+            steps.append(b.step)
+            if b.step == n:
+                fc.answer(b, trim)
+                break
+        wall = time.perf_counter() - t0
+        assert proc.wait(timeout=10) == 0
+        err = proc.stderr.read()
+        assert fc.recv_bundle(0.3) is None  # nothing after the last step; the final statuses are collected
+    assert steps == list(range(n + 1))
+    assert np.all(np.diff(stamps) == DT_US)
+    assert b.truth is not None
+    pos = np.array(b.truth.pos_ned)
+    assert np.linalg.norm(pos - np.array([0.0, 0.0, -2.0])) < 0.1, pos
+    assert abs(b.pos_ned[2] + 2.0) < 0.1
+    assert "stale_answers" in err and "stale_answers 0" not in err  # the duplicate was counted
+    assert "answers 201" in err
+    assert fc.statuses[-1].state == seam.SIM_STATE_DONE and fc.statuses[-1].step == n
+    print(f"bridge + fake FC: {n / wall:.0f} steps/s")
+
+
+def test_bad_datagrams_are_counted_and_dropped() -> None:
+    trim = _trim("hover")
+    with bridge_process("--scenario", "hover", "--speed", "0") as (proc, fc):
+        b = fc.recv_bundle(30.0)
+        assert b is not None
+        fc.send_raw(b"\x00garbage\xfd\x09")  # garbage and a truncated frame
+        fc.send_raw(os.urandom(300))
+        fc.send_raw(b"\xfd" * 5000)  # oversize: dropped unparsed
+        other = dialect.new_mav(SYSID + 7, dialect.COMPID_FC)  # another vehicle's answer
+        fc.send_raw(seam.pack(other, [seam.encode_actuator_controls(b.time_usec, trim, fc.vehicle, armed=True)]))
+        fc.answer(b, trim, time_usec=b.time_usec + 12345)  # an answer for no bundle
+        for _ in range(20):
+            fc.answer(b, trim)
+            b2 = fc.recv_bundle(5.0)
+            assert b2 is not None
+            while b2.time_usec == b.time_usec:  # startup re-sends of step 0
+                b2 = fc.recv_bundle(5.0)
+                assert b2 is not None
+            assert b2.time_usec == b.time_usec + DT_US
+            b = b2
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=10) == 0
+        err = proc.stderr.read()
+    assert "SIGTERM" in err
+    assert "foreign_frames 1" in err
+    assert "oversize 1" in err
+    assert "bad_frames 0" not in err
+
+
+def test_stall_is_reported_and_aborts() -> None:
+    trim = _trim("hover")
+    with bridge_process("--scenario", "hover", "--speed", "0", "--step-timeout", "0.3", "--stall-abort", "1.2") as (
+        proc,
+        fc,
+    ):
+        b = fc.recv_bundle(30.0)
+        assert b is not None
+        for _ in range(3):
+            fc.answer(b, trim)
+            b2 = fc.recv_bundle(5.0)
+            while b2 is not None and b2.time_usec == b.time_usec:
+                b2 = fc.recv_bundle(5.0)
+            assert b2 is not None
+            b = b2
+        # stop answering: re-sends of the same step, a stall line per timeout, exit 3 after --stall-abort
+        t0 = time.monotonic()
+        resent = fc.recv_bundle(2.0)
+        assert resent is not None and resent.time_usec == b.time_usec
+        rc = proc.wait(timeout=10)
+        elapsed = time.monotonic() - t0
+        err = proc.stderr.read()
+    assert rc == 3
+    assert 0.8 < elapsed < 5.0
+    assert f"no actuator answer from navig8-fc for step {b.step}" in err
+    assert "re-sending" in err
+    assert "navig8-fc stalled" in err
+    assert any(s.state == seam.SIM_STATE_STALLED for s in fc.statuses)
+
+
+def test_sigterm_while_waiting_for_fc() -> None:
+    with bridge_process("--scenario", "ground") as (proc, fc):
+        b = fc.recv_bundle(30.0)
+        assert b is not None and b.step == 0
+        assert fc.statuses and fc.statuses[0].state == seam.SIM_STATE_WAITING_FOR_FC
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=10) == 0
+        err = proc.stderr.read()
+    assert "navig8-bridge: scenario ground" in err
+
+
+@pytest.mark.parametrize("speed", ["1"])
+def test_real_time_pacing(speed: str) -> None:
+    trim = _trim("hover")
+    with bridge_process("--scenario", "hover", "--speed", speed) as (proc, fc):
+        b = fc.recv_bundle(30.0)
+        assert b is not None
+        fc.answer(b, trim)
+        t0 = time.perf_counter()
+        k0 = None
+        while True:
+            nb = fc.recv_bundle(5.0)
+            assert nb is not None
+            if nb.time_usec == b.time_usec:
+                continue
+            b = nb
+            if k0 is None:
+                k0, t0 = b.step, time.perf_counter()
+            fc.answer(b, trim)
+            if b.step - k0 >= 30:
+                break
+        wall = time.perf_counter() - t0
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=10) == 0
+    assert 0.27 < wall < 0.6  # 30 steps of 10 ms at real time
+
+
+def test_arm_command_moves_joints_and_releases_the_object() -> None:
+    """NAVIG8_ARM_CMD sent before the step's answer takes effect on that step (deterministic)."""
+    trim = _trim("hover")
+    target = (0.3, -0.2, 0.1)
+    with bridge_process("--scenario", "hover", "--speed", "0") as (proc, fc):
+        b = fc.recv_bundle(30.0)
+        assert b is not None and b.gripper_closed and b.truth.object_mass == 1.0
+        mav = fc.mav
+        arm = seam.encode_arm_cmd(seam.ArmCommand(b.time_usec, target, seam.GRIPPER_RELEASE))
+        fc.send_raw(seam.pack(mav, [arm]))
+        fc.answer(b, trim)
+        seen_release_at = None
+        for _ in range(150):
+            nb = fc.recv_bundle(5.0)
+            assert nb is not None
+            if nb.time_usec == b.time_usec:
+                continue
+            b = nb
+            if seen_release_at is None and not b.gripper_closed:
+                seen_release_at = b.step
+            fc.answer(b, trim)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=10) == 0
+        err = proc.stderr.read()
+    assert seen_release_at == 1  # applied on the step answered right after the command
+    assert b.truth.object_mass == 0.0
+    np.testing.assert_allclose(b.truth.joint_pos, target, atol=0.02)  # the servo got there within 1.5 s
+    assert "arm_cmds 1" in err
