@@ -214,11 +214,42 @@ def _inprocess_section(args: argparse.Namespace) -> SectionResult:
     )
 
 
+def _lockstep_section(args: argparse.Namespace) -> SectionResult:
+    """The paper scenario through navig8-sitl (two processes, MAVLink over loopback UDP, --speed 0, MCAP on).
+    The RTF is the bridge's own (sim time over wall time from the first answer to the end), read from the
+    last NAVIG8_SIM_STATUS the FC logged; process start-up is excluded."""
+    import subprocess
+    import tempfile
+    from pathlib import Path
+
+    from navig8_tools.sim import run
+
+    from navig8_fc.shell.mcap_log import read_metadata
+
+    inproc = run("paper", "proposed", args.seed, 30.0).summary["real_time_factor"]
+    rtfs = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(2):
+            logs = Path(tmp) / f"l{i}"
+            subprocess.run([sys.executable, "-m", "navig8_fc.shell.sitl", "--scenario", "paper", "--speed", "0",
+                            "--until-done", "--instance", "9", "--log-dir", str(logs), "--state-dir",
+                            str(Path(tmp) / "state"), "--defaults"], check=True, capture_output=True, timeout=600)
+            meta = read_metadata(next(logs.glob("*.mcap")))
+            rtfs.append(float(meta.get("bridge_status", {}).get("rtf", float("nan"))))
+    rtf = float(np.median(rtfs))
+    return SectionResult(
+        {"lockstep_rtf": rtf, "lockstep_over_inprocess": rtf / inproc if inproc else float("nan")},
+        [f"lockstep: {rtf:.1f}x real time over MAVLink (median of {len(rtfs)}, MCAP on; target >= 20x), "
+         f"{rtf / inproc:.2f} of the in-process closed loop ({inproc:.1f}x, no log)"],
+    )
+
+
 SECTIONS: list[Section] = [
     Section("plant", "plant alone: us per physics step with sensors, real-time factor", _plant_section),
     Section("plant-accuracy", "plant integration error vs a 10x finer step", _plant_accuracy_section),
     Section("fc", "flight-controller tick: median and p99 us", _fc_section),
     Section("inprocess", "closed loop in one process: real-time factor", _inprocess_section),
+    Section("lockstep", "two processes over MAVLink at --speed 0: real-time factor", _lockstep_section),
 ]
 
 

@@ -306,6 +306,10 @@ class FlightControllerProcess:
         if self.logger:
             counters = {link.name: vars(link.counters) for link in self.links}
             self.logger.metadata("link_counters", counters)
+            if self.sim_status is not None:
+                self.logger.metadata("bridge_status", self.sim_status)
+            self.logger.metadata("fc_stats", {"ticks": self.n_ticks, "duplicates": self.n_duplicates,
+                                              "incomplete_bundles": self._asm.incomplete})
             self.logger.metadata("params_final", self.registry.as_dict())
             self.logger.close()
             self.logger = None

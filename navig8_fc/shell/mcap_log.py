@@ -113,8 +113,10 @@ class McapLogger:
         cid = self.channel(topic, None, schema_name=topic.strip("/").replace("/", ".") + ".raw", encoding=encoding)
         self._w.add_message(cid, int(t_ns), payload, int(t_ns if publish_ns is None else publish_ns))
 
-    def metadata(self, name: str, data: Mapping[str, Any]) -> None:
-        self._w.add_metadata(name, {str(k): json.dumps(to_jsonable(v)) for k, v in data.items()})
+    def metadata(self, name: str, data: Any) -> None:
+        """A metadata record; `data` is a mapping or a dataclass (values stored as JSON strings)."""
+        d = to_jsonable(data)
+        self._w.add_metadata(name, {str(k): json.dumps(v) for k, v in d.items()})
 
     def close(self) -> None:
         if not self._closed:
