@@ -1,0 +1,341 @@
+"""MAVLink command protocol (COMMAND_LONG, COMMAND_INT): exactly one final COMMAND_ACK per command.
+
+`CommandHandler.handle(msg, now_s)` decodes a command addressed to us (target_system 0 or ours,
+target_component 0 or ours), runs it against the vehicle (the shell implements `VehicleCommands`) and
+returns [COMMAND_ACK, then any STATUSTEXT reason, then any requested messages]. The ACK goes back to the
+sender (ACK.target_system/component = the sender's ids). Results:
+- ACCEPTED: done (or, for takeoff/land/mode changes, started: the mode manager carries them out);
+- DENIED + STATUSTEXT(WARNING) with the reason when a check refuses it (pre-arm, not landed, bad params);
+- UNSUPPORTED for command ids we do not implement (no STATUSTEXT: QGC probes several on connect);
+- TEMPORARILY_REJECTED when a requested message cannot be produced yet (HOME_POSITION before a home);
+- FAILED + STATUSTEXT when the vehicle raised (never a crash: the link keeps working).
+
+Duplicates: a COMMAND_LONG with confirmation > 0 that repeats the same command with the same parameters from
+the same sender within `duplicate_window_s` (default 2 s, on the caller's clock: wall time) is the client
+retrying because it missed our ACK (MAVSDK retries 3x at 0.5 s, QGC 3x): it gets the same result again
+without executing twice. Read-only commands (REQUEST_MESSAGE, GET_MESSAGE_INTERVAL, the legacy requests) are
+executed again instead, since the client most likely missed the message, not the ACK. COMMAND_INT has no
+confirmation field, so every COMMAND_INT executes; all commands here are idempotent anyway.
+
+Parameters (docs/gcs.md has the table): COMPONENT_ARM_DISARM p1 1/0, p2 21196 = force; NAV_TAKEOFF altitude
+above home from p7 (COMMAND_LONG) or z (COMMAND_INT, frame GLOBAL_RELATIVE_ALT[_INT]), NaN = default;
+NAV_LAND here; DO_SET_MODE p1 base_mode with CUSTOM_MODE_ENABLED, p2 PX4 main mode, p3 sub mode;
+REQUEST_MESSAGE p1 message id; SET/GET_MESSAGE_INTERVAL; DO_GRIPPER p1 instance (0 or 1), p2 0 release /
+1 grab; MAV_CMD_USER_1 (31010, MAV_CMD_NAVIG8_ARM_JOINTS in navig8.xml) p1..p3 joint targets in degrees, p4
+must be 1; PREFLIGHT_STORAGE p1 0 read / 1 write / 2 reset.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal, Protocol
+
+from pymavlink.dialects.v20 import common as mavlink2
+
+from navig8_fc.gcs.params import is_for_us
+from navig8_fc.gcs.statustext import StatusTextEncoder
+from navig8_fc.modes.px4 import px4_custom_mode
+
+GripperAction = Literal["grab", "release"]
+
+MAV_CMD_NAVIG8_ARM_JOINTS = 31010  # = MAV_CMD_USER_1 in common.xml; named in navig8.xml
+ARM_FORCE_MAGIC = 21196  # COMPONENT_ARM_DISARM p2: arm despite checks / disarm in flight
+MSG_ID_AUTOPILOT_VERSION = 148
+MSG_ID_HOME_POSITION = 242
+MSG_ID_MESSAGE_INTERVAL = 244
+MSG_ID_PROTOCOL_VERSION = 300
+
+CMD = mavlink2  # MAV_CMD_* / MAV_RESULT_* values are the same in every dialect that includes common.xml
+_READ_ONLY = frozenset({
+    CMD.MAV_CMD_REQUEST_MESSAGE, CMD.MAV_CMD_GET_MESSAGE_INTERVAL, CMD.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES,
+    CMD.MAV_CMD_GET_HOME_POSITION, CMD.MAV_CMD_REQUEST_PROTOCOL_VERSION,
+})  # fmt: skip
+_RELATIVE_ALT_FRAMES = frozenset({CMD.MAV_FRAME_GLOBAL_RELATIVE_ALT, CMD.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
+
+
+class VehicleCommands(Protocol):
+    """What the command handler needs from the vehicle; the FC shell implements it.
+
+    Verdict-style methods return (ok, reason): reason is shown as STATUSTEXT when ok is False.
+    """
+
+    def arm(self, force: bool) -> tuple[bool, str]: ...
+
+    def disarm(self, force: bool) -> tuple[bool, str]: ...
+
+    def takeoff(self, alt_m: float) -> tuple[bool, str]:
+        """Climb to alt_m above home (NaN: the default takeoff altitude)."""
+        ...
+
+    def land(self) -> tuple[bool, str]: ...
+
+    def set_mode(self, base_mode: int, custom_mode: int) -> tuple[bool, str]:
+        """custom_mode in PX4 encoding (main << 16 | sub << 24)."""
+        ...
+
+    def gripper(self, action: GripperAction) -> tuple[bool, str]: ...
+
+    def arm_joints(self, q_rad: tuple[float, float, float]) -> tuple[bool, str]: ...
+
+    def request_message(self, msg_id: int, params: tuple[float, ...]) -> list[Any] | None:
+        """The requested message(s); None when msg_id is not supported, [] when not available yet.
+
+        params = (p2, ..., p7) of MAV_CMD_REQUEST_MESSAGE (message-specific).
+        """
+        ...
+
+    def set_message_interval(self, msg_id: int, interval_us: int) -> bool:
+        """-1 disable, 0 default rate, > 0 interval; False when msg_id cannot be streamed."""
+        ...
+
+    def message_interval_us(self, msg_id: int) -> int:
+        """Current interval (MESSAGE_INTERVAL semantics: -1 disabled, 0 not available)."""
+        ...
+
+    def storage(self, action: int) -> tuple[int, list[Any]]:
+        """MAV_CMD_PREFLIGHT_STORAGE param1 -> (MAV_RESULT, messages); see ParamProtocol.storage_command."""
+        ...
+
+
+@dataclass(frozen=True)
+class CommandRequest:
+    """A COMMAND_LONG or COMMAND_INT in one shape: p5/p6 are x/y (int) and p7 is z for COMMAND_INT."""
+
+    command: int
+    params: tuple[float, float, float, float, float, float, float]
+    is_int: bool
+    frame: int  # COMMAND_INT frame (0 for COMMAND_LONG)
+    confirmation: int  # COMMAND_LONG only
+    src_system: int
+    src_component: int
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    result: int
+    reason: str | None = None  # STATUSTEXT(WARNING) when set
+    extra: list[Any] = field(default_factory=list)  # messages after the ACK
+
+
+class _BadParam(ValueError):
+    pass
+
+
+def _int_param(p: float, name: str, lo: int = -(2**31), hi: int = 2**31 - 1) -> int:
+    """An integer parameter sent as float; refused when not a number or outside [lo, hi]."""
+    if not math.isfinite(p):
+        raise _BadParam(f"{name} must be a number, got {p}")
+    v = int(round(p))
+    if not lo <= v <= hi:
+        raise _BadParam(f"{name} = {p:g} outside [{lo}, {hi}]")
+    return v
+
+
+def _msg_id_param(p: float, name: str) -> int:
+    # MAVLink 2 message ids are 24-bit; MESSAGE_INTERVAL.message_id is uint16, so intervals stop at 65535.
+    return _int_param(p, name, 0, 65535)
+
+
+class CommandHandler:
+    """Command microservice of one component (module docstring)."""
+
+    def __init__(
+        self,
+        mav: Any,
+        sysid: int,
+        compid: int,
+        vehicle: VehicleCommands,
+        *,
+        statustext: StatusTextEncoder | None = None,
+        duplicate_window_s: float = 2.0,
+    ) -> None:
+        self._mav = mav
+        self._sysid = int(sysid)
+        self._compid = int(compid)
+        self._vehicle = vehicle
+        self._text = statustext or StatusTextEncoder(mav)
+        self._window_s = float(duplicate_window_s)
+        # (src_system, src_component, command) -> (params key, time, result) of the last execution.
+        self._recent: dict[tuple[int, int, int], tuple[tuple[float | None, ...], float, int]] = {}
+        self._handlers = {
+            CMD.MAV_CMD_COMPONENT_ARM_DISARM: self._arm_disarm,
+            CMD.MAV_CMD_NAV_TAKEOFF: self._takeoff,
+            CMD.MAV_CMD_NAV_LAND: lambda r: self._verdict(self._vehicle.land()),
+            CMD.MAV_CMD_DO_SET_MODE: self._set_mode,
+            CMD.MAV_CMD_REQUEST_MESSAGE: self._request_message,
+            CMD.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: lambda r: self._produce(MSG_ID_AUTOPILOT_VERSION, ()),
+            CMD.MAV_CMD_GET_HOME_POSITION: lambda r: self._produce(MSG_ID_HOME_POSITION, ()),
+            CMD.MAV_CMD_REQUEST_PROTOCOL_VERSION: self._protocol_version,
+            CMD.MAV_CMD_SET_MESSAGE_INTERVAL: self._set_interval,
+            CMD.MAV_CMD_GET_MESSAGE_INTERVAL: self._get_interval,
+            CMD.MAV_CMD_DO_GRIPPER: self._gripper,
+            MAV_CMD_NAVIG8_ARM_JOINTS: self._arm_joints,
+            CMD.MAV_CMD_PREFLIGHT_STORAGE: self._storage,
+        }
+
+    @property
+    def supported_commands(self) -> frozenset[int]:
+        return frozenset(self._handlers)
+
+    def handle(self, msg: Any, now_s: float) -> list[Any]:
+        req = self.decode(msg)
+        if req is None:
+            return []
+        key = (req.src_system, req.src_component, req.command)
+        pkey = tuple(None if math.isnan(p) else p for p in req.params) + (req.frame,)
+        if req.confirmation > 0 and req.command not in _READ_ONLY:
+            seen = self._recent.get(key)
+            if seen is not None and seen[0] == pkey and now_s - seen[1] <= self._window_s:
+                return [self._ack(req, seen[2])]
+        outcome = self._execute(req)
+        if req.command not in _READ_ONLY:
+            self._remember(key, pkey, now_s, outcome.result)
+        out = [self._ack(req, outcome.result)]
+        if outcome.reason:
+            out += self._text.warning(outcome.reason)
+        return out + outcome.extra
+
+    def decode(self, msg: Any) -> CommandRequest | None:
+        """The command in `msg` if it is a COMMAND_LONG/COMMAND_INT addressed to us, else None."""
+        kind = msg.get_type()
+        if kind not in ("COMMAND_LONG", "COMMAND_INT") or not is_for_us(msg, self._sysid, self._compid):
+            return None
+        src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
+        if kind == "COMMAND_LONG":
+            p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
+            return CommandRequest(
+                int(msg.command),
+                tuple(float(v) for v in p),
+                False,
+                0,  # type: ignore[arg-type]
+                int(msg.confirmation),
+                *src,
+            )
+        p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
+        return CommandRequest(
+            int(msg.command),
+            tuple(float(v) for v in p),
+            True,
+            int(msg.frame),  # type: ignore[arg-type]
+            0,
+            *src,
+        )
+
+    # --- execution -----------------------------------------------------------------------------------
+    def _execute(self, req: CommandRequest) -> _Outcome:
+        handler = self._handlers.get(req.command)
+        if handler is None:
+            return _Outcome(CMD.MAV_RESULT_UNSUPPORTED)
+        try:
+            return handler(req)
+        except _BadParam as exc:
+            return _Outcome(CMD.MAV_RESULT_DENIED, f"{_cmd_name(req.command)}: {exc}")
+        except Exception as exc:  # noqa: BLE001 - a vehicle bug must not take the GCS link down
+            return _Outcome(CMD.MAV_RESULT_FAILED, f"{_cmd_name(req.command)} failed: {type(exc).__name__}: {exc}")
+
+    def _ack(self, req: CommandRequest, result: int) -> Any:
+        return self._mav.command_ack_encode(req.command, int(result), 0, 0, req.src_system, req.src_component)
+
+    def _remember(self, key: tuple[int, int, int], pkey: tuple[float | None, ...], now_s: float, result: int) -> None:
+        if len(self._recent) >= 256:  # a flood of distinct senders must not grow this without bound
+            self._recent = {k: v for k, v in self._recent.items() if now_s - v[1] <= self._window_s}
+            if len(self._recent) >= 256:
+                self._recent.clear()
+        self._recent[key] = (pkey, now_s, int(result))
+
+    @staticmethod
+    def _verdict(v: tuple[bool, str]) -> _Outcome:
+        ok, reason = v
+        return _Outcome(CMD.MAV_RESULT_ACCEPTED) if ok else _Outcome(CMD.MAV_RESULT_DENIED, reason or "denied")
+
+    def _arm_disarm(self, req: CommandRequest) -> _Outcome:
+        p1, p2 = req.params[0], req.params[1]
+        force = math.isfinite(p2) and int(round(p2)) == ARM_FORCE_MAGIC
+        arm = _int_param(p1, "param1")
+        if arm == 1:
+            return self._verdict(self._vehicle.arm(force))
+        if arm == 0:
+            return self._verdict(self._vehicle.disarm(force))
+        raise _BadParam(f"param1 must be 1 (arm) or 0 (disarm), got {p1:g}")
+
+    def _takeoff(self, req: CommandRequest) -> _Outcome:
+        if req.is_int and req.frame not in _RELATIVE_ALT_FRAMES:
+            raise _BadParam(f"frame {req.frame} unsupported; use GLOBAL_RELATIVE_ALT(_INT), z = altitude above home")
+        return self._verdict(self._vehicle.takeoff(req.params[6]))
+
+    def _set_mode(self, req: CommandRequest) -> _Outcome:
+        base = _int_param(req.params[0], "param1 (base_mode)")
+        if not base & CMD.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
+            raise _BadParam("base_mode must include CUSTOM_MODE_ENABLED (PX4 custom modes in p2/p3)")
+        main = _int_param(req.params[1], "param2 (main mode)")
+        sub = 0 if math.isnan(req.params[2]) else _int_param(req.params[2], "param3 (sub mode)")
+        try:
+            custom = px4_custom_mode(main, sub)
+        except ValueError as exc:
+            raise _BadParam(str(exc)) from None
+        return self._verdict(self._vehicle.set_mode(base, custom))
+
+    def _produce(self, msg_id: int, params: tuple[float, ...], unknown_result: int = CMD.MAV_RESULT_DENIED) -> _Outcome:
+        msgs = self._vehicle.request_message(msg_id, params)
+        if msgs is None:
+            # PX4 answers DENIED for message ids it cannot send; no STATUSTEXT (QGC asks for several on connect).
+            return _Outcome(unknown_result)
+        if not msgs:
+            return _Outcome(CMD.MAV_RESULT_TEMPORARILY_REJECTED)
+        return _Outcome(CMD.MAV_RESULT_ACCEPTED, extra=list(msgs))
+
+    def _request_message(self, req: CommandRequest) -> _Outcome:
+        msg_id = _int_param(req.params[0], "param1 (message id)", 0, 2**24 - 1)
+        if msg_id == MSG_ID_MESSAGE_INTERVAL:
+            return self._interval_reply(_msg_id_param(req.params[1], "param2 (message id)"))
+        return self._produce(msg_id, req.params[1:])
+
+    def _protocol_version(self, req: CommandRequest) -> _Outcome:
+        return self._produce(MSG_ID_PROTOCOL_VERSION, (), unknown_result=CMD.MAV_RESULT_UNSUPPORTED)
+
+    def _interval_reply(self, msg_id: int) -> _Outcome:
+        interval = max(-1, min(int(self._vehicle.message_interval_us(msg_id)), 2**31 - 1))  # int32 field
+        return _Outcome(CMD.MAV_RESULT_ACCEPTED, extra=[self._mav.message_interval_encode(msg_id, interval)])
+
+    def _get_interval(self, req: CommandRequest) -> _Outcome:
+        return self._interval_reply(_msg_id_param(req.params[0], "param1 (message id)"))
+
+    def _set_interval(self, req: CommandRequest) -> _Outcome:
+        msg_id = _msg_id_param(req.params[0], "param1 (message id)")
+        interval = _int_param(req.params[1], "param2 (interval us, -1 disable, 0 default)", -1)
+        if not self._vehicle.set_message_interval(msg_id, interval):
+            return _Outcome(CMD.MAV_RESULT_DENIED, f"SET_MESSAGE_INTERVAL: message {msg_id} cannot be streamed")
+        return _Outcome(CMD.MAV_RESULT_ACCEPTED)
+
+    def _gripper(self, req: CommandRequest) -> _Outcome:
+        instance = _int_param(req.params[0], "param1 (gripper instance)")
+        if instance not in (0, 1):
+            raise _BadParam(f"no gripper {instance} (0 = all, 1 = the arm's gripper)")
+        action = _int_param(req.params[1], "param2 (action)")
+        if action == CMD.GRIPPER_ACTION_GRAB:
+            return self._verdict(self._vehicle.gripper("grab"))
+        if action == CMD.GRIPPER_ACTION_RELEASE:
+            return self._verdict(self._vehicle.gripper("release"))
+        raise _BadParam(f"action {action} unsupported (0 release, 1 grab)")
+
+    def _arm_joints(self, req: CommandRequest) -> _Outcome:
+        if not (math.isfinite(req.params[3]) and int(round(req.params[3])) == 1):
+            raise _BadParam("param4 must be 1 to apply the joint targets")
+        q_deg = req.params[:3]
+        if not all(math.isfinite(v) for v in q_deg):
+            raise _BadParam("joint targets p1..p3 must be numbers (degrees)")
+        q_rad = (math.radians(q_deg[0]), math.radians(q_deg[1]), math.radians(q_deg[2]))
+        return self._verdict(self._vehicle.arm_joints(q_rad))
+
+    def _storage(self, req: CommandRequest) -> _Outcome:
+        action = _int_param(req.params[0], "param1 (storage action)")
+        result, msgs = self._vehicle.storage(action)
+        return _Outcome(int(result), extra=list(msgs))
+
+
+def _cmd_name(command: int) -> str:
+    if command == MAV_CMD_NAVIG8_ARM_JOINTS:
+        return "ARM_JOINTS"
+    entry = mavlink2.enums["MAV_CMD"].get(command)
+    return entry.name.removeprefix("MAV_CMD_") if entry is not None else f"command {command}"
