@@ -41,6 +41,7 @@ from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mavlink import seam
 from navig8_fc.modes import MissionScript, ModeConfig, ModeInputs, ModeManager, ModeOutput
 from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.shell.gcs_service import GcsService
 from navig8_fc.shell.mavlink_link import UdpLink
 from navig8_fc.shell.mcap_log import McapLogger
 
@@ -119,6 +120,8 @@ class FlightControllerProcess:
         self.sim_done = False
         self.last_status: ControllerStatus | None = None
         self.last_cmd: ActuatorCommand = MOTORS_OFF
+        self.gcs_service = GcsService(self)  # loads persisted parameters (unless --defaults)
+        self._reconfigure()
         if self.logger:
             self.logger.metadata("run", {"scenario": opts.scenario, "controller": self._controller_name(),
                                          "sysid": opts.sysid, "process": "navig8-fc"})
@@ -199,6 +202,10 @@ class FlightControllerProcess:
         self.last_status, self.last_cmd, self.last_sensors = st, cmd, sensors
         out = seam.encode_actuator_controls(t_us, cmd, self.vehicle, armed=armed)
         self._last_cmd_msg = out
+        arm_cmd = self.gcs_service.pending_arm_cmd
+        if arm_cmd is not None:  # before the step's answer, so the bridge applies it on this step
+            self.gcs_service.pending_arm_cmd = None
+            self.sim.send(seam.encode_arm_cmd(replace(arm_cmd, time_usec=t_us)))
         self.sim.send(out)
         self.n_ticks += 1
         if self.logger:
@@ -234,7 +241,8 @@ class FlightControllerProcess:
         return out.armed, out.engaged, out.setpoint
 
     def statustext(self, text: str, severity: int = 6) -> None:
-        """Hook: the GCS service sends it (and the log keeps it)."""
+        """STATUSTEXT to every GCS (and the log keeps it)."""
+        self.gcs_service.statustext(text, severity)
         if self.logger:
             self.logger.log("/fc/statustext", self._sim_ns(), {"severity": severity, "text": text})
 
@@ -292,15 +300,32 @@ class FlightControllerProcess:
             self.close()
         return 0
 
-    # GCS hooks, filled by the GCS services below.
+    # --- GCS side --------------------------------------------------------------------------------
     def on_gcs(self, link: UdpLink, received: list[Any]) -> None:
-        pass
+        mine = []
+        for r in received:
+            m = r.msg
+            # Our own echo or another vehicle's traffic is not for us (counted, never acted on).
+            if m.get_srcSystem() == self.opts.sysid and m.get_srcComponent() == FC_COMPID:
+                link.counters.foreign += 1
+                continue
+            mine.append(m)
+        self.gcs_service.handle(mine, time.monotonic())
 
     def on_wall_second(self, now: float) -> None:
         pass
 
     def on_wall_tick(self, now: float) -> None:
-        pass
+        self.gcs_service.poll(now)
+
+    def log_event(self, text: str) -> None:
+        print(f"navig8-fc: {text}", file=sys.stderr)
+        if self.logger:
+            self.logger.log("/fc/event", self._sim_ns(), {"text": text}, publish_ns=time.time_ns())
+
+    def log_param_change(self, change: Any) -> None:
+        if self.logger:
+            self.logger.log("/fc/param_change", self._sim_ns(), change, publish_ns=time.time_ns())
 
     def close(self) -> None:
         if self.logger:
