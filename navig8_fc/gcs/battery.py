@@ -1,0 +1,87 @@
+"""A simple simulated battery for SYS_STATUS/BATTERY_STATUS (pure: state in, state out).
+
+Model: a LiPo pack of `cells` in series, open-circuit voltage from state of charge through a typical LiPo
+discharge curve (piecewise linear, per cell), a series internal resistance, and coulomb counting. The load
+is given as electrical power (the shell estimates it from the propeller speeds); the current follows from
+P = V_terminal I with V_terminal = V_oc - I R:
+
+    I = (V_oc - sqrt(V_oc^2 - 4 R P)) / (2 R)
+
+(past the maximum-power point, V_oc^2 < 4 R P, the pack delivers its maximum, I = V_oc / 2R). Default: 6S,
+10 Ah, 20 mOhm, i.e. ~222 Wh; at the ~1.5 kW an 8.5 kg vehicle of this kind needs to hover that is about
+8-9 minutes. Enough for GCS battery indicators and failsafe tests; it is not a thermal or ageing model.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from dataclasses import dataclass
+
+# Typical LiPo open-circuit voltage per cell (V) against state of charge (0..1).
+_SOC_POINTS = (0.0, 0.05, 0.10, 0.20, 0.30, 0.40, 0.50, 0.60, 0.70, 0.80, 0.90, 1.00)
+_CELL_OCV_V = (3.27, 3.61, 3.69, 3.73, 3.77, 3.79, 3.82, 3.87, 3.92, 3.98, 4.06, 4.20)
+
+
+@dataclass(frozen=True)
+class BatteryConfig:
+    cells: int = 6
+    capacity_ah: float = 10.0
+    internal_resistance_ohm: float = 0.020  # whole pack
+    low_remaining_pct: float = 20.0  # MAV_BATTERY_CHARGE_STATE_LOW below this
+    critical_remaining_pct: float = 10.0  # ..._CRITICAL below this
+
+    def __post_init__(self) -> None:
+        if self.cells < 1 or not self.capacity_ah > 0.0 or not self.internal_resistance_ohm > 0.0:
+            raise ValueError("BatteryConfig needs cells >= 1, capacity_ah > 0, internal_resistance_ohm > 0")
+
+
+@dataclass(frozen=True)
+class BatteryState:
+    soc: float  # state of charge 0..1
+    voltage_v: float  # terminal voltage under the last load
+    current_a: float  # discharge current (>= 0)
+    consumed_mah: float  # since start
+    energy_j: float  # delivered since start
+
+    @property
+    def remaining_pct(self) -> int:
+        return int(round(100.0 * min(max(self.soc, 0.0), 1.0)))
+
+
+def open_circuit_voltage(soc: float, config: BatteryConfig) -> float:
+    """Pack open-circuit voltage (V) at state of charge `soc` (clamped to 0..1)."""
+    s = min(max(soc, 0.0), 1.0)
+    i = min(bisect.bisect_right(_SOC_POINTS, s), len(_SOC_POINTS) - 1)
+    s0, s1 = _SOC_POINTS[i - 1], _SOC_POINTS[i]
+    v0, v1 = _CELL_OCV_V[i - 1], _CELL_OCV_V[i]
+    return config.cells * (v0 + (v1 - v0) * (s - s0) / (s1 - s0))
+
+
+def battery_initial(config: BatteryConfig | None = None, soc: float = 1.0) -> BatteryState:
+    cfg = config or BatteryConfig()
+    return BatteryState(soc=soc, voltage_v=open_circuit_voltage(soc, cfg), current_a=0.0, consumed_mah=0.0,
+                        energy_j=0.0)  # fmt: skip
+
+
+def battery_step(state: BatteryState, power_w: float, dt_s: float, config: BatteryConfig | None = None) -> BatteryState:
+    """Discharge at `power_w` (electrical, >= 0; NaN/negative count as 0) for `dt_s` seconds."""
+    cfg = config or BatteryConfig()
+    p = power_w if math.isfinite(power_w) and power_w > 0.0 else 0.0
+    dt = dt_s if math.isfinite(dt_s) and dt_s > 0.0 else 0.0
+    v_oc = open_circuit_voltage(state.soc, cfg)
+    r = cfg.internal_resistance_ohm
+    disc = v_oc * v_oc - 4.0 * r * p
+    current = v_oc / (2.0 * r) if disc < 0.0 else (v_oc - math.sqrt(disc)) / (2.0 * r)
+    if state.soc <= 0.0:
+        current = 0.0  # reported empty; the plant is not limited by this model
+    v_term = v_oc - current * r
+    charge_as = current * dt
+    soc = max(state.soc - charge_as / (cfg.capacity_ah * 3600.0), 0.0)
+    return BatteryState(
+        soc=soc,
+        voltage_v=v_term,
+        current_a=current,
+        consumed_mah=state.consumed_mah + charge_as / 3.6,
+        energy_j=state.energy_j + v_term * current * dt,
+    )

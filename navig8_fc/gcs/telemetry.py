@@ -1,0 +1,508 @@
+"""Telemetry a GCS expects: a stream scheduler (wall time) and builders from a vehicle snapshot.
+
+Streams (mavlink_notes §2.7; QGC does not request streams from a generic vehicle, so they run by default):
+
+| message (id)                  | default | notes |
+|-------------------------------|---------|-------|
+| HEARTBEAT (0)                 | 1 Hz    | cannot be disabled (clients drop the vehicle after ~3 s without it) |
+| SYS_STATUS (1)                | 1 Hz    | sensor bits incl. PREARM_CHECK, battery |
+| SYSTEM_TIME (2)               | 1 Hz    | unix time from the shell, boot ms |
+| ATTITUDE (30)                 | 20 Hz   | |
+| ATTITUDE_QUATERNION (31)      | 10 Hz   | |
+| LOCAL_POSITION_NED (32)       | 10 Hz   | |
+| GLOBAL_POSITION_INT (33)      | 10 Hz   | flat earth from the configured origin |
+| VFR_HUD (74)                  | 4 Hz    | |
+| BATTERY_STATUS (147)          | 1 Hz    | simulated pack (navig8_fc.gcs.battery) |
+| AUTOPILOT_VERSION (148)       | off     | on request; may be streamed |
+| NAMED_VALUE_FLOAT (251)       | 5 Hz    | stability telemetry: one message per name per tick |
+| HOME_POSITION (242)           | 0.5 Hz  | also on request; nothing before a home exists |
+| EXTENDED_SYS_STATE (245)      | 2 Hz    | landed state |
+| ACTUATOR_OUTPUT_STATUS (375)  | 5 Hz    | tilts (rad), propeller speeds (rad/s), joints (rad), gripper |
+
+SET_MESSAGE_INTERVAL semantics (`TelemetryScheduler.set_interval`): -1 disables, 0 restores the default, > 0
+is the interval in us (clamped to at least `min_interval_us`, 2 ms = 500 Hz); ids not in the table are
+refused (False -> the command handler answers DENIED). `interval_us` reads back in MESSAGE_INTERVAL terms:
+the interval, -1 when disabled, 0 when the id is not available here.
+
+Stability telemetry (NAMED_VALUE_FLOAT, names <= 10 chars, graphable in QGC's MAVLink Inspector and MAVProxy):
+IXX_HAT, IYY_HAT, IZZ_HAT (kg m^2), M_HAT (kg): the constrained KF's estimate x_hat (G_hat_I, Eq. 4/21);
+K1..K4: the implied weighting factors (Eq. 4); EIG_MARGIN: the *bound-based* margin the FC can compute
+without ground truth, lambda_lb(q) - lambda_crit, where lambda_lb(q) is the smallest real part of
+eig(K Xi(q, m)) at the current estimated arm pose q over every K in [INDI_K_MIN, INDI_K_MAX]^4 (the box the
+constrained estimate is kept in, Eq. 21) and object masses 0..2 kg, and lambda_crit is the critical
+eigenvalue of H(s) for the current actuator/sampling/filter parameters (Eq. 9-13). Positive = the
+stability guarantee holds at this pose whatever the object; `eig_margin_lower_bound` computes it (~1.4 ms).
+Because the empty gripper (Xi = I, eigenvalues = K) is always a candidate, the bound is at most
+K_MIN - lambda_crit and moves mostly with the parameters, a little with the pose: it is the guarantee, not a
+measurement. The actual min eigenvalue of G_hat G^-1 needs the true G, which only the bridge's truth has (it
+is in the logs); an "as estimated" variant (G from the estimated object) was not chosen because it would
+report the estimator's own belief back as a margin.
+
+Frames and units: GLOBAL_POSITION_INT converts NED to WGS-84 with PX4's flat-earth (equirectangular)
+projection around `GeoOrigin`, Earth radius 6 371 000 m: lat = lat0 + n/R, lon = lon0 + e/(R cos lat0),
+alt_msl = alt0 - d. Over the few metres this vehicle flies the error is far below a millimetre. Headings are
+centi-degrees 0..35999 (65535 unknown). VFR_HUD airspeed = groundspeed (no wind in the simulation).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from pymavlink.dialects.v20 import common as mavlink2
+
+from navig8_fc.gcs.battery import BatteryState, battery_initial
+from navig8_fc.gcs.params import PARAM_ENCODING_CAPABILITY
+
+M = mavlink2
+Vec3 = tuple[float, float, float]
+Vec4 = tuple[float, float, float, float]
+
+EARTH_RADIUS_M = 6_371_000.0  # PX4 CONSTANTS_RADIUS_OF_EARTH
+UINT16_MAX = 65535
+INT16_MAX = 32767
+
+MSG_HEARTBEAT = M.MAVLINK_MSG_ID_HEARTBEAT
+MSG_SYS_STATUS = M.MAVLINK_MSG_ID_SYS_STATUS
+MSG_SYSTEM_TIME = M.MAVLINK_MSG_ID_SYSTEM_TIME
+MSG_ATTITUDE = M.MAVLINK_MSG_ID_ATTITUDE
+MSG_ATTITUDE_QUATERNION = M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION
+MSG_LOCAL_POSITION_NED = M.MAVLINK_MSG_ID_LOCAL_POSITION_NED
+MSG_GLOBAL_POSITION_INT = M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT
+MSG_VFR_HUD = M.MAVLINK_MSG_ID_VFR_HUD
+MSG_BATTERY_STATUS = M.MAVLINK_MSG_ID_BATTERY_STATUS
+MSG_AUTOPILOT_VERSION = M.MAVLINK_MSG_ID_AUTOPILOT_VERSION
+MSG_HOME_POSITION = M.MAVLINK_MSG_ID_HOME_POSITION
+MSG_EXTENDED_SYS_STATE = M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE
+MSG_NAMED_VALUE_FLOAT = M.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT
+MSG_ACTUATOR_OUTPUT_STATUS = M.MAVLINK_MSG_ID_ACTUATOR_OUTPUT_STATUS
+MSG_PROTOCOL_VERSION = 300  # not in every common.xml; built only when the dialect has it
+
+DEFAULT_RATES_HZ: dict[int, float] = {
+    MSG_HEARTBEAT: 1.0,
+    MSG_SYS_STATUS: 1.0,
+    MSG_SYSTEM_TIME: 1.0,
+    MSG_ATTITUDE: 20.0,
+    MSG_ATTITUDE_QUATERNION: 10.0,
+    MSG_LOCAL_POSITION_NED: 10.0,
+    MSG_GLOBAL_POSITION_INT: 10.0,
+    MSG_VFR_HUD: 4.0,
+    MSG_BATTERY_STATUS: 1.0,
+    MSG_AUTOPILOT_VERSION: 0.0,
+    MSG_NAMED_VALUE_FLOAT: 5.0,
+    MSG_HOME_POSITION: 0.5,
+    MSG_EXTENDED_SYS_STATE: 2.0,
+    MSG_ACTUATOR_OUTPUT_STATUS: 5.0,
+}
+
+# Capabilities this flight controller really has (AUTOPILOT_VERSION). MISSION_INT: the mission protocol is
+# answered with the *_INT messages (and MAVSDK refuses mission upload without it); COMMAND_INT: handled;
+# MAVLINK2: always; PARAM_ENCODE_BYTEWISE: how INT32 parameters are encoded (navig8_fc.gcs.params).
+# Not set: FTP (answered with NAK only), MISSION_FENCE/RALLY, offboard setpoints, GRIPPER (WIP bit).
+CAPABILITIES = (
+    M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
+    | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
+    | PARAM_ENCODING_CAPABILITY
+)
+
+# SYS_STATUS sensor bits and what they stand for on this vehicle (docs/gcs.md).
+SENSOR_GYRO = M.MAV_SYS_STATUS_SENSOR_3D_GYRO
+SENSOR_ACCEL = M.MAV_SYS_STATUS_SENSOR_3D_ACCEL
+SENSOR_HEADING = M.MAV_SYS_STATUS_SENSOR_3D_MAG  # heading reference: motion capture attitude
+SENSOR_POSITION = M.MAV_SYS_STATUS_SENSOR_GPS  # global position source: motion capture + configured origin
+SENSOR_MOTORS = M.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+SENSOR_AHRS = M.MAV_SYS_STATUS_AHRS  # attitude/position estimate usable
+SENSOR_BATTERY = M.MAV_SYS_STATUS_SENSOR_BATTERY
+SENSOR_PREARM = M.MAV_SYS_STATUS_PREARM_CHECK  # health bit = pre-arm checks pass (MAVSDK is_armable)
+
+
+@dataclass(frozen=True)
+class SensorBits:
+    present: int
+    enabled: int
+    health: int
+
+
+def sensor_bits(
+    *, imu_ok: bool, pose_ok: bool, actuators_ok: bool, estimator_ok: bool, battery_ok: bool, prearm_ok: bool
+) -> SensorBits:
+    """SYS_STATUS present/enabled/health from the FC's health flags (every sensor is always present+enabled)."""
+    pairs = (
+        (SENSOR_GYRO | SENSOR_ACCEL, imu_ok),
+        (SENSOR_HEADING | SENSOR_POSITION, pose_ok),
+        (SENSOR_MOTORS, actuators_ok),
+        (SENSOR_AHRS, estimator_ok),
+        (SENSOR_BATTERY, battery_ok),
+        (SENSOR_PREARM, prearm_ok),
+    )
+    present = 0
+    health = 0
+    for bits, ok in pairs:
+        present |= bits
+        if ok:
+            health |= bits
+    return SensorBits(present, present, health)
+
+
+@dataclass(frozen=True)
+class GeoOrigin:
+    """WGS-84 position of the NED origin (default: Calgary, 1100 m AMSL)."""
+
+    lat_deg: float = 51.0789
+    lon_deg: float = -114.1339
+    alt_amsl_m: float = 1100.0
+
+    def to_global(self, pos_ned: Sequence[float]) -> tuple[float, float, float]:
+        """(lat deg, lon deg, alt AMSL m) of a NED point, flat earth (module docstring)."""
+        n, e, d = pos_ned
+        lat = self.lat_deg + math.degrees(n / EARTH_RADIUS_M)
+        lon = self.lon_deg + math.degrees(e / (EARTH_RADIUS_M * math.cos(math.radians(self.lat_deg))))
+        return lat, lon, self.alt_amsl_m - d
+
+
+_NAN4: Vec4 = (math.nan, math.nan, math.nan, math.nan)
+
+
+@dataclass(frozen=True)
+class VehicleSnapshot:
+    """Everything the telemetry builders need at one instant (NED, FRD, SI, rad)."""
+
+    armed: bool
+    base_mode: int
+    custom_mode: int
+    system_status: int  # MAV_STATE
+    landed_state: int  # MAV_LANDED_STATE
+    pos_ned: Vec3
+    vel_ned: Vec3
+    quat_wxyz: Vec4
+    rates_frd: Vec3
+    home_ned: Vec3 | None = None
+    home_yaw_rad: float = 0.0
+    origin: GeoOrigin = field(default_factory=GeoOrigin)
+    battery: BatteryState = field(default_factory=battery_initial)
+    battery_cells: int = 6
+    battery_low_pct: float = 20.0
+    battery_critical_pct: float = 10.0
+    tilt_rad: tuple[float, float] = (0.0, 0.0)  # measured duct angles alpha1, alpha3
+    speed_rad_s: Vec3 = (0.0, 0.0, 0.0)  # measured propeller speeds w1, w2 (tail, signed), w3
+    joint_pos_rad: Vec3 = (0.0, 0.0, 0.0)
+    gripper_closed: bool = False
+    sensors: SensorBits = SensorBits(0, 0, 0)
+    load_permille: int = 0  # FC loop load 0..1000
+    ckf_x_hat: Vec4 = _NAN4  # [I_xx, I_yy, I_zz, m] estimate (kg m^2, kg)
+    ckf_k: Vec4 = _NAN4  # implied [K1..K4]
+    eig_margin: float = math.nan  # see module docstring
+    time_unix_usec: int = 0  # given by the shell (0 = unknown)
+    throttle_pct: float = 0.0
+
+
+# --- scheduler ---------------------------------------------------------------------------------------------
+class TelemetryScheduler:
+    """Which streams are due, on the caller's (wall) clock; rates changeable per message id."""
+
+    def __init__(self, defaults_hz: Mapping[int, float] | None = None, min_interval_us: int = 2000) -> None:
+        defaults = dict(DEFAULT_RATES_HZ if defaults_hz is None else defaults_hz)
+        if any(not (hz >= 0.0 and math.isfinite(hz)) for hz in defaults.values()):
+            raise ValueError("default rates must be finite and >= 0 Hz")
+        self._min_interval_us = int(min_interval_us)
+        self._default_us = {i: (max(int(round(1e6 / hz)), self._min_interval_us) if hz > 0 else -1)
+                            for i, hz in defaults.items()}  # fmt: skip
+        self._interval_us = dict(self._default_us)
+        self._next_s: dict[int, float | None] = dict.fromkeys(defaults)
+
+    @property
+    def supported_ids(self) -> frozenset[int]:
+        return frozenset(self._default_us)
+
+    def set_interval(self, msg_id: int, interval_us: int) -> bool:
+        if msg_id not in self._default_us or interval_us < -1:
+            return False
+        if interval_us == -1 and msg_id == MSG_HEARTBEAT:
+            return False  # a vehicle without heartbeats is a lost vehicle for every client
+        if interval_us == 0:
+            new = self._default_us[msg_id]
+        elif interval_us == -1:
+            new = -1
+        else:
+            new = max(int(interval_us), self._min_interval_us)
+        self._interval_us[msg_id] = new
+        self._next_s[msg_id] = None  # due at the next call, then every interval from there
+        return True
+
+    def interval_us(self, msg_id: int) -> int:
+        """MESSAGE_INTERVAL semantics: the interval in us, -1 disabled, 0 not available."""
+        return self._interval_us.get(msg_id, 0)
+
+    def due(self, now_s: float) -> list[int]:
+        out: list[int] = []
+        for msg_id, interval_us in self._interval_us.items():
+            if interval_us <= 0:
+                continue
+            period_s = interval_us * 1e-6
+            nxt = self._next_s[msg_id]
+            if nxt is None or now_s >= nxt:
+                out.append(msg_id)
+                # Keep the phase when on time; after a stall start over instead of sending a burst.
+                nxt = now_s + period_s if nxt is None or now_s - nxt >= period_s else nxt + period_s
+                self._next_s[msg_id] = nxt
+        return out
+
+
+# --- builders ---------------------------------------------------------------------------------------------
+def _i(x: float, lo: int, hi: int, default: int) -> int:
+    """Round and clamp into an integer field; non-finite -> default (a message must always pack)."""
+    if not math.isfinite(x):
+        return default
+    return max(lo, min(hi, int(round(x))))
+
+
+def euler_from_quat(q: Sequence[float]) -> Vec3:
+    """(roll, pitch, yaw) ZYX from [w, x, y, z]."""
+    w, x, y, z = q
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return roll, pitch, yaw
+
+
+def heading_cdeg(yaw_rad: float) -> int:
+    """0..35999 centi-degrees, 65535 when unknown."""
+    if not math.isfinite(yaw_rad):
+        return UINT16_MAX
+    return int(round(math.degrees(yaw_rad) % 360.0 * 100.0)) % 36000
+
+
+class TelemetryBuilder:
+    """Builds the telemetry messages (not packed; the shell's MAVLink instance sets the header)."""
+
+    def __init__(
+        self,
+        mav: Any,
+        sysid: int,
+        compid: int,
+        *,
+        sw_version: tuple[int, int, int] = (0, 1, 0),
+        sw_version_type: int = M.FIRMWARE_VERSION_TYPE_DEV,
+        custom_version: bytes = b"",
+        approach_height_m: float = 2.5,
+    ) -> None:
+        self._mav = mav
+        self._sysid = int(sysid)
+        self._compid = int(compid)
+        major, minor, patch = sw_version
+        self.flight_sw_version = (major << 24) | (minor << 16) | (patch << 8) | int(sw_version_type)
+        self._custom_version = list(custom_version[:8].ljust(8, b"\0"))
+        self._approach_height_m = float(approach_height_m)
+        # "N8" + sysid + compid: unique per instance (QGC keys its caches by uid).
+        self.uid = (0x4E38 << 48) | (self._sysid << 8) | self._compid
+        self._builders = {
+            MSG_HEARTBEAT: self.heartbeat,
+            MSG_SYS_STATUS: self.sys_status,
+            MSG_SYSTEM_TIME: self.system_time,
+            MSG_ATTITUDE: self.attitude,
+            MSG_ATTITUDE_QUATERNION: self.attitude_quaternion,
+            MSG_LOCAL_POSITION_NED: self.local_position_ned,
+            MSG_GLOBAL_POSITION_INT: self.global_position_int,
+            MSG_VFR_HUD: self.vfr_hud,
+            MSG_BATTERY_STATUS: self.battery_status,
+            MSG_AUTOPILOT_VERSION: lambda snap, now_boot_ms: self.autopilot_version(),
+            MSG_HOME_POSITION: self.home_position,
+            MSG_EXTENDED_SYS_STATE: self.extended_sys_state,
+            MSG_NAMED_VALUE_FLOAT: self.stability_values,
+            MSG_ACTUATOR_OUTPUT_STATUS: self.actuator_output_status,
+        }
+        if hasattr(mav, "protocol_version_encode"):
+            self._builders[MSG_PROTOCOL_VERSION] = lambda snap, now_boot_ms: self.protocol_version()
+
+    @property
+    def capabilities(self) -> int:
+        return CAPABILITIES
+
+    @property
+    def supported_ids(self) -> frozenset[int]:
+        return frozenset(self._builders)
+
+    def build(self, msg_id: int, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        """Messages for `msg_id` ([] when unsupported or not available, e.g. HOME_POSITION without a home)."""
+        builder = self._builders.get(msg_id)
+        if builder is None:
+            return []
+        return builder(snap, int(now_boot_ms) & 0xFFFFFFFF)
+
+    def build_many(self, msg_ids: Iterable[int], snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        return [m for i in msg_ids for m in self.build(i, snap, now_boot_ms)]
+
+    # --- identity ---------------------------------------------------------------------------------------
+    def heartbeat(self, snap: VehicleSnapshot, now_boot_ms: int = 0) -> list[Any]:
+        # base_mode: CUSTOM_MODE_ENABLED always (custom_mode is PX4-encoded), SAFETY_ARMED exactly when armed.
+        # HIL_ENABLED stays clear: this FC runs its real control code, only the sensors are simulated (PX4 SITL
+        # does the same); a GCS would otherwise show "HIL" and some refuse commands.
+        armed_bit = M.MAV_MODE_FLAG_SAFETY_ARMED if snap.armed else 0
+        base = (snap.base_mode & ~M.MAV_MODE_FLAG_SAFETY_ARMED & 0xFF) | M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | armed_bit
+        return [
+            self._mav.heartbeat_encode(
+                M.MAV_TYPE_TRICOPTER, M.MAV_AUTOPILOT_GENERIC, base, snap.custom_mode & 0xFFFFFFFF,
+                snap.system_status, 3,
+            )
+        ]  # fmt: skip
+
+    def autopilot_version(self) -> list[Any]:
+        zeros8 = [0] * 8
+        return [
+            self._mav.autopilot_version_encode(
+                CAPABILITIES, self.flight_sw_version, 0, 0, 0, self._custom_version, zeros8, zeros8, 0, 0, self.uid,
+                [0] * 18,
+            )
+        ]  # fmt: skip
+
+    def protocol_version(self) -> list[Any]:
+        return [self._mav.protocol_version_encode(200, 100, 200, [0] * 8, [0] * 8)]
+
+    # --- state ------------------------------------------------------------------------------------------
+    def sys_status(self, snap: VehicleSnapshot, now_boot_ms: int = 0) -> list[Any]:
+        b = snap.battery
+        s = snap.sensors
+        return [
+            self._mav.sys_status_encode(
+                s.present, s.enabled, s.health, _i(snap.load_permille, 0, 1000, 0),
+                _i(b.voltage_v * 1000.0, 0, UINT16_MAX - 1, UINT16_MAX), _i(b.current_a * 100.0, -1, INT16_MAX, -1),
+                _i(b.remaining_pct, -1, 100, -1), 0, 0, 0, 0, 0, 0,
+            )
+        ]  # fmt: skip
+
+    def system_time(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        return [self._mav.system_time_encode(max(int(snap.time_unix_usec), 0), now_boot_ms)]
+
+    def extended_sys_state(self, snap: VehicleSnapshot, now_boot_ms: int = 0) -> list[Any]:
+        return [self._mav.extended_sys_state_encode(M.MAV_VTOL_STATE_UNDEFINED, snap.landed_state)]
+
+    def attitude(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        roll, pitch, yaw = euler_from_quat(snap.quat_wxyz)
+        p, q, r = snap.rates_frd
+        return [self._mav.attitude_encode(now_boot_ms, roll, pitch, yaw, p, q, r)]
+
+    def attitude_quaternion(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        w, x, y, z = snap.quat_wxyz
+        p, q, r = snap.rates_frd
+        return [self._mav.attitude_quaternion_encode(now_boot_ms, w, x, y, z, p, q, r, [1.0, 0.0, 0.0, 0.0])]
+
+    def local_position_ned(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        return [self._mav.local_position_ned_encode(now_boot_ms, *snap.pos_ned, *snap.vel_ned)]
+
+    def global_position_int(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        lat, lon, alt = snap.origin.to_global(snap.pos_ned)
+        home_d = snap.home_ned[2] if snap.home_ned is not None else 0.0
+        rel_alt = home_d - snap.pos_ned[2]
+        vn, ve, vd = snap.vel_ned
+        yaw = euler_from_quat(snap.quat_wxyz)[2]
+        i32 = (-(2**31), 2**31 - 1)
+        return [
+            self._mav.global_position_int_encode(
+                now_boot_ms, _i(lat * 1e7, *i32, 0), _i(lon * 1e7, *i32, 0), _i(alt * 1000.0, *i32, 0),
+                _i(rel_alt * 1000.0, *i32, 0), _i(vn * 100.0, -INT16_MAX, INT16_MAX, 0),
+                _i(ve * 100.0, -INT16_MAX, INT16_MAX, 0), _i(vd * 100.0, -INT16_MAX, INT16_MAX, 0), heading_cdeg(yaw),
+            )
+        ]  # fmt: skip
+
+    def vfr_hud(self, snap: VehicleSnapshot, now_boot_ms: int = 0) -> list[Any]:
+        vn, ve, vd = snap.vel_ned
+        ground = math.hypot(vn, ve)
+        yaw = euler_from_quat(snap.quat_wxyz)[2]
+        heading_deg = _i(math.degrees(yaw) % 360.0, 0, 359, 0) if math.isfinite(yaw) else 0
+        alt_msl = snap.origin.alt_amsl_m - snap.pos_ned[2]
+        throttle = _i(snap.throttle_pct, 0, 100, 0)
+        return [self._mav.vfr_hud_encode(ground, ground, heading_deg, throttle, alt_msl, -vd)]
+
+    def home_position(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        if snap.home_ned is None:
+            return []
+        hn, he, hd = snap.home_ned
+        lat, lon, alt = snap.origin.to_global(snap.home_ned)
+        half = 0.5 * snap.home_yaw_rad
+        q = [math.cos(half), 0.0, 0.0, math.sin(half)]  # world-to-surface: flat ground, home heading
+        # Approach vector end: the vertical path a multicopter climbs and descends on, in local NED.
+        approach = (hn, he, hd - self._approach_height_m)
+        i32 = (-(2**31), 2**31 - 1)
+        return [
+            self._mav.home_position_encode(
+                _i(lat * 1e7, *i32, 0), _i(lon * 1e7, *i32, 0), _i(alt * 1000.0, *i32, 0), hn, he, hd, q, *approach,
+                int(now_boot_ms) * 1000,
+            )
+        ]  # fmt: skip
+
+    def battery_status(self, snap: VehicleSnapshot, now_boot_ms: int = 0) -> list[Any]:
+        b = snap.battery
+        cells = max(int(snap.battery_cells), 1)
+        voltages = [UINT16_MAX] * 10
+        if cells <= 10:
+            cell_mv = _i(b.voltage_v * 1000.0 / cells, 0, UINT16_MAX - 1, UINT16_MAX)
+            voltages[:cells] = [cell_mv] * cells
+        else:  # spec: total in cell 0 when cells are not reported individually
+            voltages[0] = _i(b.voltage_v * 1000.0, 0, UINT16_MAX - 1, UINT16_MAX)
+        remaining = b.remaining_pct
+        if remaining < snap.battery_critical_pct:
+            charge_state = M.MAV_BATTERY_CHARGE_STATE_CRITICAL
+        elif remaining < snap.battery_low_pct:
+            charge_state = M.MAV_BATTERY_CHARGE_STATE_LOW
+        else:
+            charge_state = M.MAV_BATTERY_CHARGE_STATE_OK
+        i32 = (-(2**31), 2**31 - 1)
+        return [
+            self._mav.battery_status_encode(
+                0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO, INT16_MAX, voltages,
+                _i(b.current_a * 100.0, -1, INT16_MAX, -1), _i(b.consumed_mah, *i32, -1),
+                _i(b.energy_j / 100.0, *i32, -1), _i(remaining, -1, 100, -1), 0, charge_state, [0, 0, 0, 0], 0, 0,
+            )
+        ]  # fmt: skip
+
+    def actuator_output_status(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        # Channels: 0-1 duct tilts alpha1, alpha3 (rad); 2-4 propeller speeds w1, w2 (tail), w3 (rad/s);
+        # 5-7 arm joints q1..q3 (rad); 8 gripper (1 closed, 0 open).
+        values = [*snap.tilt_rad, *snap.speed_rad_s, *snap.joint_pos_rad, 1.0 if snap.gripper_closed else 0.0]
+        active = (1 << len(values)) - 1
+        padded = values + [0.0] * (32 - len(values))
+        return [self._mav.actuator_output_status_encode(int(now_boot_ms) * 1000, active, padded)]
+
+    def stability_values(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        names_values = (
+            ("IXX_HAT", snap.ckf_x_hat[0]), ("IYY_HAT", snap.ckf_x_hat[1]), ("IZZ_HAT", snap.ckf_x_hat[2]),
+            ("M_HAT", snap.ckf_x_hat[3]), ("K1", snap.ckf_k[0]), ("K2", snap.ckf_k[1]), ("K3", snap.ckf_k[2]),
+            ("K4", snap.ckf_k[3]), ("EIG_MARGIN", snap.eig_margin),
+        )  # fmt: skip
+        return [self._mav.named_value_float_encode(now_boot_ms, n.encode("ascii"), float(v)) for n, v in names_values]
+
+
+STABILITY_VALUE_NAMES = ("IXX_HAT", "IYY_HAT", "IZZ_HAT", "M_HAT", "K1", "K2", "K3", "K4", "EIG_MARGIN")
+
+
+# --- the bound-based eigenvalue margin ----------------------------------------------------------------------
+def eig_margin_lower_bound(
+    vehicle: Any,
+    q_rad: Sequence[float],
+    k_min: float,
+    k_max: float,
+    lambda_crit: float,
+    object_masses_kg: Sequence[float] = (0.0, 1.0, 2.0),
+) -> float:
+    """min Re eig(K Xi(q, m)) over K in [k_min, k_max]^4 and the object masses, minus lambda_crit.
+
+    `vehicle` is a navig8_fc.core.vehicle.VehicleConfig. K is sampled at the 16 corners of the box plus a
+    3 x 3 (K1, K3) grid at K2 = K4 = k_min (where core.stability shows the longitudinal minimum lies).
+    Cost: ~1.4 ms per call, so the shell computes it at the telemetry rate, not every control step.
+    """
+    from navig8_fc.core import stability
+
+    xi = stability.xi_batch(vehicle, np.asarray([q_rad], dtype=float), np.asarray(object_masses_kg, dtype=float))
+    c = np.array([k_min, k_max])
+    corners = np.stack(np.meshgrid(c, c, c, c, indexing="ij"), axis=-1).reshape(-1, 4)
+    g = np.linspace(k_min, k_max, 3)
+    k1, k3 = np.meshgrid(g, g, indexing="ij")
+    grid = np.column_stack([k1.ravel(), np.full(9, k_min), k3.ravel(), np.full(9, k_min)])
+    ks = np.vstack([corners, grid])
+    k_diag = stability.k_diagonals(ks[:, 0], ks[:, 1], ks[:, 2], ks[:, 3])
+    lam = stability.k_xi_eigenvalues(xi[:, :, None, :, :], k_diag[None, None, :, :])
+    return float(lam.real.min()) - float(lambda_crit)
