@@ -1,0 +1,556 @@
+"""Stability analysis of the adaptive INDI loop (paper Sec. 3.1-3.2, Eq. 7-20, Figs. 5-7).
+
+Pure math (numpy/scipy only): no I/O, no clocks, no prints.
+
+Part 1, the decoupled loop H_i(s) (Eq. 9-13). With A(s) = wn^2/(s^2 + 2 zeta wn s + wn^2) (Eq. 10),
+L(s) = 1/(tau_L s + 1) (Eq. 11) and the first-order Pade delay P(s) = (2 - tau_s s)/(2 + tau_s s) (Eq. 12),
+
+    H(s) = A / (lam + (1 - lam) A L P)                                                   (Eq. 9)
+         = wn^2 (tau_s s + 2)(tau_L s + 1)
+           / [lam D_A (tau_L s + 1)(tau_s s + 2) + (1 - lam) wn^2 (2 - tau_s s)]
+
+with D_A = s^2 + 2 zeta wn s + wn^2. Expanding gives Eq. 13 (docs/stability.md: the flattened paper text
+lost the minus sign of the "- wn^2 tau_s" term of the s^1 coefficient; otherwise it matches).
+H maps the decoupled virtual input upsilon_i to s chi_i (an acceleration command to an acceleration),
+so its step response (Fig. 6) tends to H(0) = 1 for every lam (the s^0 coefficients are both 2 wn^2).
+
+Part 2, the bounds on K (Eq. 14-20, Fig. 7): eigenvalues of G_hat G^-1 = K Xi over arm poses, object
+masses and K in [k_min, k_max]^4. Xi comes from navig8_fc.core.vehicle (Eq. 14).
+
+lam may be complex in part 1: K Xi can have complex eigenvalue pairs (notes 6.1 item 4), and Eq. 9 still
+defines H with complex coefficients; its poles are then not conjugate-symmetric but stability is still
+"all poles in the open left half plane".
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize, signal
+
+from navig8_fc.core.vehicle import (
+    EffectivenessPair,
+    VehicleConfig,
+    control_effectiveness_gc,
+    inertia_matrix_gi,
+    mass_properties,
+)
+
+# Paper Fig. 7 poses (deg): arm stretched forward and curled, both holding a 2 kg object.
+POSE_STRETCHED_DEG: tuple[float, float, float] = (80.0, 10.0, 10.0)
+POSE_CURLED_DEG: tuple[float, float, float] = (60.0, 60.0, 60.0)
+FIG7_OBJECT_MASS_KG = 2.0
+
+# Index sets of the 5 rows/columns [L, M, N, Fx, Fz] (= [P_dot, Q_dot, R_dot, a_x, a_z]).
+LATERAL_IDX = (0, 2)  # roll and yaw: K1, K3 act here (lam_4, lam_5 of Eq. 18)
+LONGITUDINAL_IDX = (1, 3, 4)  # pitch, Fx, Fz: K2, K4, K4 (lam_1..lam_3 of Eq. 17)
+
+SETTLING_BAND = 0.02  # 2 % band around the final value for the settling time
+_IMAG_TOL = 1e-9  # |Im| below this counts as a real eigenvalue (round-off of the 5x5 eig)
+
+
+# ======================================================================================
+# Part 1: H_i(s) of Eq. 13
+# ======================================================================================
+
+
+def _check_loop_params(wn: float, zeta: float, ts: float, tl: float) -> None:
+    if not (wn > 0.0 and math.isfinite(wn)):
+        raise ValueError(f"actuator natural frequency wn must be > 0 rad/s, got {wn}")
+    if not (zeta > 0.0 and math.isfinite(zeta)):
+        raise ValueError(f"actuator damping ratio zeta must be > 0, got {zeta}")
+    if not (ts >= 0.0 and math.isfinite(ts)):
+        raise ValueError(f"sampling time ts must be >= 0 s, got {ts}")
+    if not (tl >= 0.0 and math.isfinite(tl)):
+        raise ValueError(f"low-pass time constant tl must be >= 0 s, got {tl}")
+
+
+def h_coefficients(
+    lam: complex, wn: float, zeta: float, ts: float, tl: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(num, den) of H_i(s) (Eq. 13), highest power first (numpy.polyval / scipy.signal order).
+
+    wn in rad/s, zeta dimensionless, ts = tau_s (sampling time, s), tl = tau_L (low-pass time constant, s).
+    num has degree 2 and den degree 4 (lower when ts or tl is 0). Complex lam gives complex den.
+    """
+    _check_loop_params(wn, zeta, ts, tl)
+    # Eq. 13 numerator: wn^2 (2 + tau_s s)(tau_L s + 1) -- the zeros at -2/tau_s (Pade) and -1/tau_L (LPF).
+    num = wn**2 * np.array([ts * tl, 2.0 * tl + ts, 2.0])
+    # Eq. 13 denominator, coefficient by coefficient (derived from Eq. 9-12 above).
+    lam_c = complex(lam)
+    den = np.array(
+        [
+            lam_c * ts * tl,  # s^4
+            lam_c * (2.0 * ts * tl * zeta * wn + 2.0 * tl + ts),  # s^3
+            lam_c * (ts * tl * wn**2 + 2.0 * zeta * wn * (2.0 * tl + ts) + 2.0),  # s^2
+            # s^1: the printed Eq. 13 shows "+ wn^2 tau_s" here; the derivation gives "- wn^2 tau_s".
+            2.0 * lam_c * wn**2 * tl + 2.0 * lam_c * wn**2 * ts + 4.0 * lam_c * zeta * wn - wn**2 * ts,
+            2.0 * wn**2,  # s^0: lam 2 wn^2 + (1 - lam) 2 wn^2
+        ]
+    )
+    if lam_c.imag == 0.0:
+        den = den.real
+    return num, den
+
+
+def poles(lam: complex, wn: float, zeta: float, ts: float, tl: float) -> np.ndarray:
+    """Roots of the Eq. 13 denominator, sorted by descending real part (the dominant pole first).
+
+    No pole-zero cancellation is done: at lam = 1 the denominator contains the numerator's factors
+    (H reduces to A(s)) and -1/tau_L, -2/tau_s appear both as poles and as zeros.
+    """
+    _, den = h_coefficients(lam, wn, zeta, ts, tl)
+    p = np.roots(den)  # np.roots drops leading zeros (lam = 0, ts = 0 or tl = 0)
+    return p[np.argsort(-p.real, kind="stable")]
+
+
+def zeros(wn: float, zeta: float, ts: float, tl: float) -> np.ndarray:
+    """Zeros of H_i(s) (Eq. 13), independent of lam: -1/tau_L (LPF) and -2/tau_s (Pade), sorted descending.
+
+    A zero time constant removes the corresponding zero (its factor becomes a constant).
+    """
+    _check_loop_params(wn, zeta, ts, tl)
+    z = [-1.0 / tc * k for tc, k in ((tl, 1.0), (ts, 2.0)) if tc > 0.0]
+    return np.array(sorted(z, reverse=True), dtype=float)
+
+
+def max_real_pole(lam: complex, wn: float, zeta: float, ts: float, tl: float) -> float:
+    """Largest real part of the poles of H_i(s) (1/s); < 0 means H is stable at this lam."""
+    return float(poles(lam, wn, zeta, ts, tl)[0].real)
+
+
+def dominant_poles(lam: float, wn: float, zeta: float, ts: float, tl: float) -> np.ndarray:
+    """The dominant pole (largest real part) and, if complex, its conjugate partner (Fig. 5)."""
+    p = poles(lam, wn, zeta, ts, tl)
+    if abs(p[0].imag) <= _IMAG_TOL * max(1.0, abs(p[0])):
+        return p[:1]
+    return p[:2]
+
+
+def _check_nominal_stable(wn: float, zeta: float, ts: float, tl: float) -> None:
+    # At lam = 1 (G_hat = G) Eq. 9 reduces to H = A(s): the denominator is D_A (tau_L s + 1)(tau_s s + 2),
+    # stable for wn, zeta > 0. Every stability interval below is the one that contains lam = 1.
+    p1 = max_real_pole(1.0, wn, zeta, ts, tl)
+    if p1 >= 0.0:
+        raise ValueError(f"H(s) is not stable at lam = 1 (max Re(pole) = {p1:.4g}); check the parameters")
+
+
+def _bracket_scan(f, grid: np.ndarray) -> tuple[float, float] | None:
+    """First adjacent pair of grid points where the sign of f changes from the sign at grid[0]."""
+    unstable = np.array([f(lam) >= 0.0 for lam in grid])
+    change = np.nonzero(unstable != unstable[0])[0]
+    if change.size == 0:
+        return None
+    i = int(change[0])
+    return float(grid[i - 1]), float(grid[i])
+
+
+def lambda_crit(
+    wn: float,
+    zeta: float,
+    ts: float,
+    tl: float,
+    lam_lo: float = 1e-6,
+    n_scan: int = 120,
+) -> float:
+    """Critical eigenvalue (Sec. 3.1, Fig. 5): H_i(s) is stable for every lam in (lambda_crit, 1].
+
+    The lower end of the stability interval of lam that contains the nominal lam = 1 (H = A there):
+    the lam where the dominant pair crosses the imaginary axis. Found by scanning max_real_pole on a
+    log grid from 1 down to lam_lo, then brentq (xtol 1e-12) on the first sign change.
+
+    Returns 0.0 when H is stable on the whole scan [lam_lo, 1] (no crossing in the bracket). For ts > 0 a
+    crossing always exists: as lam -> 0+ one pole tends to +2/tau_s.
+    Raises ValueError if H is not stable at lam = 1 (impossible for wn, zeta > 0).
+    Above 1 the loop may lose stability again for lightly damped, delayed actuators: see lambda_upper.
+    """
+    _check_loop_params(wn, zeta, ts, tl)
+    if not 0.0 < lam_lo < 1.0:
+        raise ValueError(f"need 0 < lam_lo < 1, got {lam_lo}")
+    _check_nominal_stable(wn, zeta, ts, tl)
+    f = lambda lam: max_real_pole(lam, wn, zeta, ts, tl)
+    bracket = _bracket_scan(f, np.geomspace(1.0, lam_lo, n_scan))
+    if bracket is None:
+        return 0.0
+    stable_lam, unstable_lam = bracket
+    return float(optimize.brentq(f, unstable_lam, stable_lam, xtol=1e-12, rtol=1e-12))
+
+
+def lambda_upper(
+    wn: float,
+    zeta: float,
+    ts: float,
+    tl: float,
+    lam_hi: float = 100.0,
+    n_scan: int = 120,
+) -> float:
+    """Upper end of the stability interval containing lam = 1: H_i(s) is stable for lam in [1, lambda_upper).
+
+    math.inf if H is stable on the whole scan [1, lam_hi] (the usual case: as lam grows the dominant pole
+    only creeps towards the origin, Fig. 5). A finite value appears for lightly damped actuators with
+    long delays (e.g. wn = 500, zeta = 0.1, ts = 0.05, tl = 0.005: unstable again above lam ~ 3.19).
+    """
+    _check_loop_params(wn, zeta, ts, tl)
+    if not lam_hi > 1.0:
+        raise ValueError(f"need lam_hi > 1, got {lam_hi}")
+    _check_nominal_stable(wn, zeta, ts, tl)
+    f = lambda lam: max_real_pole(lam, wn, zeta, ts, tl)
+    bracket = _bracket_scan(f, np.geomspace(1.0, lam_hi, n_scan))
+    if bracket is None:
+        return math.inf
+    stable_lam, unstable_lam = bracket
+    return float(optimize.brentq(f, stable_lam, unstable_lam, xtol=1e-12, rtol=1e-12))
+
+
+@dataclass(frozen=True)
+class StepMetrics:
+    """Step response of H_i(s) (Fig. 6): the acceleration response to a unit acceleration command."""
+
+    lam: float
+    stable: bool
+    final_value: float  # H(0); 1 for every lam (Eq. 13 s^0 coefficients)
+    overshoot_pct: float  # (peak - final)/final * 100, >= 0; inf if unstable
+    peak_time_s: float  # time of the maximum; nan without overshoot
+    settling_s: float  # last exit from the +-SETTLING_BAND (2 %) band around the final value; inf if unstable
+    rise_time_s: float  # 10 % -> 90 % of the final value
+    band_pct: float  # the settling band in percent (2.0)
+
+
+def _step_grid(p: np.ndarray, max_samples: int) -> tuple[float, int]:
+    """(t_end_s, n_samples) for the step response given the poles p of a stable H.
+
+    Horizon: 12 time constants of the slowest pole (envelope e^-12 ~ 6e-6, far inside the 2 % band even
+    with the residue amplification by the zero at -1/tau_L). Step: 1/20 of the fastest pole's time
+    constant so the oscillation peaks are resolved, capped at max_samples.
+    """
+    mag = np.abs(p)
+    t_end = 12.0 / float(np.min(np.abs(p.real)))
+    dt = 1.0 / (20.0 * float(np.max(mag)))
+    n = int(min(max_samples, max(2001, math.ceil(t_end / dt) + 1)))
+    return t_end, n
+
+
+def _zoh_step(num: np.ndarray, den: np.ndarray, dt_s: float, n: int) -> np.ndarray:
+    """Unit-step response of num/den at t_k = k dt, k = 0..n-1, exact up to round-off.
+
+    With a step input the zero-order-hold discretisation is exact: x_{k+1} = Ad x_k + bd, so
+    x_k = sum_{j<k} Ad^j bd. The terms Ad^j bd are built by repeated squaring of Ad (log2(n) batched
+    matrix products instead of an n-step Python loop, and no eigen-decomposition, which would fail
+    for the double pole at lam = 1).
+    """
+    a, b, c, d = signal.tf2ss(num, den)
+    ad, bd, cd, dd, _ = signal.cont2discrete((a, b, c, d), dt_s, method="zoh")
+    v = np.empty((n, a.shape[0]))
+    v[0] = bd[:, 0]
+    power = ad  # Ad^m
+    m = 1
+    while m < n:
+        k = min(m, n - m)
+        v[m : m + k] = v[:k] @ power.T
+        power = power @ power
+        m += k
+    x = np.zeros_like(v)
+    np.cumsum(v[:-1], axis=0, out=x[1:])
+    return x @ cd[0] + dd[0, 0]
+
+
+def step_response(
+    lam: float,
+    wn: float,
+    zeta: float,
+    ts: float,
+    tl: float,
+    t_end_s: float | None = None,
+    n_samples: int | None = None,
+    max_samples: int = 400_001,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(t_s, y) of the unit-step response of H_i(s) (Fig. 6).
+
+    Default grid: horizon 12 / |slowest pole|, step 1/(20 |fastest pole|), at most max_samples points.
+    Unstable lam needs an explicit t_end_s.
+    """
+    if isinstance(lam, complex) or np.iscomplexobj(lam):
+        raise ValueError("the step response is defined for real lam only")
+    num, den = h_coefficients(lam, wn, zeta, ts, tl)
+    p = poles(lam, wn, zeta, ts, tl)
+    if t_end_s is None:
+        if p[0].real >= 0.0:
+            raise ValueError(f"H is unstable at lam={lam}; give t_end_s explicitly")
+        t_end_s, n_auto = _step_grid(p, max_samples)
+    else:
+        n_auto = int(min(max_samples, max(2001, math.ceil(t_end_s * 20.0 * float(np.max(np.abs(p)))) + 1)))
+    n = n_auto if n_samples is None else int(n_samples)
+    t = np.linspace(0.0, t_end_s, n)
+    return t, _zoh_step(num, den, float(t[1] - t[0]), n)
+
+
+def step_metrics(lam: float, wn: float, zeta: float, ts: float, tl: float) -> StepMetrics:
+    """Overshoot and 2 % settling time of the step response of H_i(s) (Fig. 6; lam_min of Sec. 3.2)."""
+    num, den = h_coefficients(lam, wn, zeta, ts, tl)
+    final = float(num[-1] / den[-1])  # H(0)
+    p = poles(lam, wn, zeta, ts, tl)
+    if p[0].real >= 0.0:
+        inf = math.inf
+        return StepMetrics(float(lam), False, final, inf, inf, inf, inf, 100.0 * SETTLING_BAND)
+    t, y = step_response(lam, wn, zeta, ts, tl)
+    k_peak = int(np.argmax(y))
+    overshoot = (float(y[k_peak]) - final) / final * 100.0
+    # Below 1e-6 % the "peak" is round-off on a monotone response: no overshoot, no peak time.
+    peak_time = float(t[k_peak]) if overshoot > 1e-6 else math.nan
+    overshoot = overshoot if overshoot > 1e-6 else 0.0
+    outside = np.nonzero(np.abs(y - final) > SETTLING_BAND * abs(final))[0]
+    if outside.size == 0:
+        settling = 0.0
+    else:
+        k = int(outside[-1])
+        settling = float(t[min(k + 1, t.size - 1)])
+    above10 = np.nonzero(y >= 0.1 * final)[0]
+    above90 = np.nonzero(y >= 0.9 * final)[0]
+    rise = float(t[above90[0]] - t[above10[0]]) if above90.size and above10.size else math.inf
+    return StepMetrics(
+        lam=float(lam),
+        stable=True,
+        final_value=final,
+        overshoot_pct=overshoot,
+        peak_time_s=peak_time,
+        settling_s=settling,
+        rise_time_s=rise,
+        band_pct=100.0 * SETTLING_BAND,
+    )
+
+
+# ======================================================================================
+# Part 2: eigenvalues of G_hat G^-1 = K Xi (Eq. 14-20, Fig. 7)
+# ======================================================================================
+
+
+def xi_batch(cfg: VehicleConfig, poses_rad: np.ndarray, object_masses_kg: np.ndarray) -> np.ndarray:
+    """Xi (Eq. 14) for every (pose, mass): array (n_poses, n_masses, 5, 5).
+
+    Same construction as vehicle.effectiveness_pair, with the object-free (controller) side computed once
+    per pose instead of once per (pose, mass).
+    """
+    poses = np.atleast_2d(np.asarray(poses_rad, dtype=float))
+    masses = np.atleast_1d(np.asarray(object_masses_kg, dtype=float))
+    out = np.empty((poses.shape[0], masses.size, 5, 5))
+    for i, q in enumerate(poses):
+        uam = mass_properties(cfg, q, 0.0)
+        gc_uam = control_effectiveness_gc(cfg, uam.com_frd_m)
+        gi_uam = inertia_matrix_gi(uam.inertia_com, uam.mass_kg)
+        for j, m_o in enumerate(masses):
+            true = mass_properties(cfg, q, float(m_o))
+            pair = EffectivenessPair(
+                gc_uam=gc_uam,
+                gi_uam=gi_uam,
+                gc_true=control_effectiveness_gc(cfg, true.com_frd_m),
+                gi_true=inertia_matrix_gi(true.inertia_com, true.mass_kg),
+            )
+            out[i, j] = pair.xi
+    return out
+
+
+def k_diagonals(k1: np.ndarray, k2: np.ndarray, k3: np.ndarray, k4: np.ndarray) -> np.ndarray:
+    """Rows diag(K) = [K1, K2, K3, K4, K4] (Eq. 3) for broadcastable K arrays: shape (..., 5)."""
+    k1, k2, k3, k4 = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (k1, k2, k3, k4)))
+    return np.stack([k1, k2, k3, k4, k4], axis=-1)
+
+
+def k_xi_eigenvalues(xi: np.ndarray, k_diag: np.ndarray) -> np.ndarray:
+    """All 5 eigenvalues of K Xi (Eq. 14), batched: xi (..., 5, 5) and k_diag (..., 5) broadcast together.
+
+    K Xi = diag(k) Xi scales the rows of Xi. Returned sorted by ascending real part along the last axis.
+    """
+    kxi = np.asarray(k_diag)[..., :, None] * np.asarray(xi)
+    lam = np.linalg.eigvals(kxi)
+    order = np.argsort(lam.real, axis=-1, kind="stable")
+    return np.take_along_axis(lam, order, axis=-1)
+
+
+def xi_block_coupling(xi: np.ndarray) -> float:
+    """max |Xi[longitudinal rows, lateral columns]|.
+
+    Zero means Xi (and K Xi, since K is diagonal) is block triangular in the order (lateral, longitudinal),
+    so the eigenvalues split into the lateral pair (K1, K3: lam_4, lam_5, Eq. 18) and the longitudinal
+    block (K2, K4: lam_1..lam_3, Eq. 17, upper triangular in our model).
+    """
+    x = np.asarray(xi)
+    return float(np.max(np.abs(x[..., LONGITUDINAL_IDX, :][..., :, LATERAL_IDX])))
+
+
+def pose_grid_rad(n_per_joint: int, q_max_rad: float = math.pi / 2) -> np.ndarray:
+    """Full factorial grid of the 3 joint angles over [-q_max, q_max]: shape (n^3, 3)."""
+    g = np.linspace(-q_max_rad, q_max_rad, n_per_joint)
+    return np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+
+
+def paper_poses_rad() -> np.ndarray:
+    """The two poses of Fig. 7 (stretched 80/10/10 deg, curled 60/60/60 deg): shape (2, 3)."""
+    return np.radians(np.array([POSE_STRETCHED_DEG, POSE_CURLED_DEG]))
+
+
+@dataclass(frozen=True)
+class KBoundsResult:
+    """Worst case of the eigenvalues of K Xi (Sec. 3.2, Fig. 7) over the evaluated (pose, mass, K) set."""
+
+    k_min: float
+    k_max: float
+    min_eigenvalue: float  # min over everything of Re(eig(K Xi))
+    pose_rad: tuple[float, float, float]  # where the minimum occurs
+    object_mass_kg: float
+    k: tuple[float, float, float, float]  # (K1, K2, K3, K4)
+    eigenvalues_at_min: tuple[complex, ...]  # all 5 eigenvalues at the minimum, ascending real part
+    max_eigenvalue: float  # max of Re(eig(K Xi)): the slow side (Sec. 3.2, Eq. 19-20 upper bound on K)
+    max_abs_imag: float  # largest |Im| of any eigenvalue (0 if K Xi always has real eigenvalues)
+    max_imag_pose_rad: tuple[float, float, float]
+    max_imag_object_mass_kg: float
+    max_imag_k: tuple[float, float, float, float]
+    max_imag_eigenvalue: complex  # the eigenvalue with the largest |Im| (upper half plane)
+    complex_fraction: float  # share of evaluated (pose, mass, K) cases with a complex pair
+    max_xi_block_coupling: float  # xi_block_coupling over all (pose, mass); ~0 => lateral/longitudinal split
+    n_poses: int
+    n_masses: int
+    n_k: int  # K matrices evaluated per (pose, mass)
+    n_cases: int  # total 5x5 eigenproblems
+
+
+def _k_set(k_min: float, k_max: float, n_k: int) -> np.ndarray:
+    """diag(K) rows: an n_k x n_k (K1, K3) grid at K2 = K4 = k_min, plus the 16 corners of [k_min, k_max]^4.
+
+    K2 and K4 only enter the longitudinal eigenvalues, which are K2 Xi_11 and K4 Xi_33 = K4 Xi_44 (Eq. 17),
+    so their minimum over the box is at K2 = K4 = k_min; the corners confirm that with full 5x5 eigenvalues
+    instead of assuming the block structure.
+    """
+    g = np.linspace(k_min, k_max, n_k)
+    k1, k3 = np.meshgrid(g, g, indexing="ij")
+    grid = k_diagonals(k1.ravel(), k_min, k3.ravel(), k_min)
+    c = np.array([k_min, k_max])
+    corners = np.stack(np.meshgrid(c, c, c, c, indexing="ij"), axis=-1).reshape(-1, 4)
+    # Corners with K2 = K4 = k_min are already on the grid.
+    corners = corners[(corners[:, 1] != k_min) | (corners[:, 3] != k_min)]
+    corner_rows = k_diagonals(corners[:, 0], corners[:, 1], corners[:, 2], corners[:, 3])
+    return np.vstack([grid, corner_rows])
+
+
+def _check_k_range(k_min: float, k_max: float) -> None:
+    if not (0.0 < k_min <= k_max and math.isfinite(k_max)):
+        raise ValueError(f"need 0 < k_min <= k_max, got k_min={k_min}, k_max={k_max}")
+
+
+def _worst_case(
+    xi: np.ndarray, k_rows: np.ndarray, poses: np.ndarray, masses: np.ndarray, k_min: float, k_max: float
+) -> KBoundsResult:
+    n_p, n_m = xi.shape[:2]
+    # (n_p, n_m, n_k, 5): full 5x5 eigenvalues for every combination.
+    lam = k_xi_eigenvalues(xi[:, :, None, :, :], k_rows[None, None, :, :])
+    re = lam.real
+    i_min = np.unravel_index(int(np.argmin(re[..., 0])), re.shape[:3])
+    im = np.abs(lam.imag)
+    i_im = np.unravel_index(int(np.argmax(im.max(axis=-1))), im.shape[:3])
+    lam_im = lam[i_im]
+    e_im = complex(lam_im[int(np.argmax(np.abs(lam_im.imag)))])
+    e_im = complex(e_im.real, abs(e_im.imag))
+    k_of = lambda row: (float(row[0]), float(row[1]), float(row[2]), float(row[3]))
+    pose_of = lambda p: (float(p[0]), float(p[1]), float(p[2]))
+    return KBoundsResult(
+        k_min=float(k_min),
+        k_max=float(k_max),
+        min_eigenvalue=float(re[i_min][0]),
+        pose_rad=pose_of(poses[i_min[0]]),
+        object_mass_kg=float(masses[i_min[1]]),
+        k=k_of(k_rows[i_min[2]]),
+        eigenvalues_at_min=tuple(complex(v) for v in lam[i_min]),
+        max_eigenvalue=float(re.max()),
+        max_abs_imag=float(im[i_im].max()),
+        max_imag_pose_rad=pose_of(poses[i_im[0]]),
+        max_imag_object_mass_kg=float(masses[i_im[1]]),
+        max_imag_k=k_of(k_rows[i_im[2]]),
+        max_imag_eigenvalue=e_im,
+        complex_fraction=float(np.mean(im.max(axis=-1) > _IMAG_TOL)),
+        max_xi_block_coupling=xi_block_coupling(xi),
+        n_poses=int(n_p),
+        n_masses=int(n_m),
+        n_k=int(k_rows.shape[0]),
+        n_cases=int(re.shape[0] * re.shape[1] * re.shape[2]),
+    )
+
+
+def k_bounds_analysis(
+    cfg: VehicleConfig,
+    k_min: float,
+    k_max: float,
+    poses_rad: np.ndarray | None = None,
+    object_masses_kg: Sequence[float] | np.ndarray | None = None,
+    n_k: int = 9,
+) -> KBoundsResult:
+    """Fig. 7 / Sec. 3.2 worst case: min Re(eig(K Xi)) over poses, object masses and K in [k_min, k_max]^4.
+
+    Defaults: every joint on a 7-point grid over +-90 deg (30 deg steps, 343 poses) plus the two Fig. 7
+    poses; object masses 0, 0.5, 1, 1.5, 2 kg; (K1, K3) on an n_k x n_k grid at K2 = K4 = k_min plus the 16
+    corners of the 4-D box. Every case is a full 5x5 eigenproblem (batched numpy.linalg.eigvals).
+    """
+    _check_k_range(k_min, k_max)
+    if n_k < 2:
+        raise ValueError(f"n_k must be >= 2 (the grid includes both ends), got {n_k}")
+    poses = (
+        np.vstack([pose_grid_rad(7), paper_poses_rad()])
+        if poses_rad is None
+        else np.atleast_2d(np.asarray(poses_rad, dtype=float))
+    )
+    if object_masses_kg is None:
+        masses = np.linspace(0.0, 2.0, 5)
+    else:
+        masses = np.atleast_1d(np.asarray(object_masses_kg, dtype=float))
+    xi = xi_batch(cfg, poses, masses)
+    return _worst_case(xi, _k_set(k_min, k_max, n_k), poses, masses, k_min, k_max)
+
+
+def min_eigenvalue_over_workspace(cfg: VehicleConfig, k_min: float, k_max: float) -> float:
+    """Cheap worst case of Re(eig(K Xi)) for the parameter registry's stability floor (well under 1 s).
+
+    Coarse version of k_bounds_analysis: joints on {-90, -45, 0, 45, 90} deg (125 poses) plus the Fig. 7
+    poses, object masses {0, 1, 2} kg, (K1, K3) on a 3 x 3 grid plus the K corners.
+    At object mass 0, Xi = I and the result is exactly k_min, so the answer is never above k_min.
+    """
+    _check_k_range(k_min, k_max)
+    poses = np.vstack([pose_grid_rad(5), paper_poses_rad()])
+    masses = np.array([0.0, 1.0, 2.0])
+    xi = xi_batch(cfg, poses, masses)
+    lam = k_xi_eigenvalues(xi[:, :, None, :, :], _k_set(k_min, k_max, 3)[None, None, :, :])
+    return float(lam.real.min())
+
+
+@dataclass(frozen=True)
+class LateralSurfaces:
+    """lam_4 and lam_5 of G_hat G^-1 over the (K1, K3) plane at one pose and object mass (Fig. 7)."""
+
+    k1: np.ndarray  # (n3, n1) meshgrid, K1 varies along axis 1
+    k3: np.ndarray  # (n3, n1)
+    lam4: np.ndarray  # (n3, n1) complex: the lateral eigenvalue with the smaller real part
+    lam5: np.ndarray  # (n3, n1) complex: the other one (conjugate of lam4 when the pair is complex)
+    xi_block_coupling: float  # ~0 justifies reading the pair off the lateral 2x2 block
+
+
+def lateral_eigenvalue_surfaces(
+    cfg: VehicleConfig,
+    q_rad: np.ndarray,
+    object_mass_kg: float,
+    k1: np.ndarray,
+    k3: np.ndarray,
+) -> LateralSurfaces:
+    """lam_4, lam_5 (Eq. 18) over the (K1, K3) grid for Fig. 7.
+
+    Xi is block triangular (xi_block_coupling ~ 0, checked by the caller or the tests), so the two
+    eigenvalues that depend on K1 and K3 are exactly the eigenvalues of the lateral 2x2 block
+    diag(K1, K3) Xi[(0, 2), (0, 2)]; they do not depend on K2 or K4.
+    """
+    xi = xi_batch(cfg, np.asarray(q_rad, dtype=float)[None, :], np.array([object_mass_kg]))[0, 0]
+    k1g, k3g = np.meshgrid(np.asarray(k1, dtype=float), np.asarray(k3, dtype=float))
+    lat = xi[np.ix_(LATERAL_IDX, LATERAL_IDX)]
+    kdiag = np.stack([k1g, k3g], axis=-1)
+    lam = np.linalg.eigvals(kdiag[..., :, None] * lat)
+    order = np.argsort(lam.real, axis=-1, kind="stable")
+    lam = np.take_along_axis(lam, order, axis=-1)
+    return LateralSurfaces(k1g, k3g, lam[..., 0], lam[..., 1], xi_block_coupling(xi))
