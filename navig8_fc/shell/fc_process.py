@@ -115,7 +115,7 @@ class FlightControllerProcess:
         self._last_cmd_msg: Any = None
         self.n_ticks = 0
         self.n_duplicates = 0
-        self._last_bundle_wall = time.monotonic()
+        self.last_bundle_wall = time.monotonic()
         self._stall_reported = False
         self.sim_done = False
         self.last_status: ControllerStatus | None = None
@@ -186,7 +186,7 @@ class FlightControllerProcess:
                 self._on_step(bundle)
 
     def _on_step(self, b: seam.StepBundle) -> None:
-        self._last_bundle_wall = time.monotonic()
+        self.last_bundle_wall = time.monotonic()
         self._stall_reported = False
         t_us = int(b.time_usec)
         if t_us == self._last_step_time_us and self._last_cmd_msg is not None:
@@ -200,6 +200,7 @@ class FlightControllerProcess:
         assert self.core is not None
         cmd, st = self.core.step(sensors, sp, engaged=engaged)
         self.last_status, self.last_cmd, self.last_sensors = st, cmd, sensors
+        self.gcs_service.telemetry.on_tick(sensors.t_s, sensors.speed_rad_s)
         out = seam.encode_actuator_controls(t_us, cmd, self.vehicle, armed=armed)
         self._last_cmd_msg = out
         arm_cmd = self.gcs_service.pending_arm_cmd
@@ -291,7 +292,7 @@ class FlightControllerProcess:
                 self.on_wall_tick(now)
                 if until_done and self.sim_done:
                     break
-                if (self.n_ticks > 0 and now - self._last_bundle_wall > self.opts.sensor_timeout_wall_s
+                if (self.n_ticks > 0 and now - self.last_bundle_wall > self.opts.sensor_timeout_wall_s
                         and not self._stall_reported):
                     self._stall_reported = True
                     print(f"navig8-fc: no sensor bundle from navig8-bridge for {self.opts.sensor_timeout_wall_s:.1f}"

@@ -11,10 +11,18 @@ import math
 import time
 from typing import TYPE_CHECKING, Any
 
+from navig8_fc.gcs.battery import battery_initial, battery_step
 from navig8_fc.gcs.commands import CommandHandler, GripperAction
 from navig8_fc.gcs.misc import MiscProtocols
 from navig8_fc.gcs.params import ParamProtocol
 from navig8_fc.gcs.statustext import StatusTextEncoder
+from navig8_fc.gcs.telemetry import (
+    TelemetryBuilder,
+    TelemetryScheduler,
+    VehicleSnapshot,
+    eig_margin_lower_bound,
+    sensor_bits,
+)
 from navig8_fc.mavlink import seam
 from navig8_fc.params.store import ParamStore, default_state_path
 
@@ -34,7 +42,7 @@ class GcsService:
         self.misc = MiscProtocols(self.mav, statustext=self.text)
         self.n_gcs_msgs = 0
         self.pending_arm_cmd: seam.ArmCommand | None = None
-        self.telemetry: Any = None  # set by attach_telemetry when the telemetry pieces exist
+        self.telemetry = Telemetry(fc, self.mav)
         if store is not None and not o.defaults:
             loaded = self.params.load_stored()
             if loaded.ok:
@@ -58,8 +66,7 @@ class GcsService:
 
     def poll(self, now_wall: float) -> None:
         self.broadcast(self.params.poll(now_wall))
-        if self.telemetry is not None:
-            self.broadcast(self.telemetry.due_messages(now_wall))
+        self.broadcast(self.telemetry.due_messages(now_wall))
 
     def broadcast(self, msgs: list[Any]) -> None:
         if not msgs:
@@ -114,15 +121,94 @@ class GcsService:
         self.pending_arm_cmd = cmd
 
     def request_message(self, msg_id: int, params: tuple[float, ...]) -> list[Any] | None:
-        if self.telemetry is None:
-            return None
         return self.telemetry.build_now(msg_id, time.monotonic())
 
     def set_message_interval(self, msg_id: int, interval_us: int) -> bool:
-        return self.telemetry is not None and self.telemetry.scheduler.set_interval(msg_id, interval_us)
+        return self.telemetry.scheduler.set_interval(msg_id, interval_us)
 
     def message_interval_us(self, msg_id: int) -> int:
-        return self.telemetry.scheduler.interval_us(msg_id) if self.telemetry is not None else -1
+        return self.telemetry.scheduler.interval_us(msg_id)
 
     def storage(self, action: int) -> tuple[int, list[Any]]:
         return self.params.storage_command(action, armed=self.fc.modes.armed)
+
+
+class Telemetry:
+    """Streams on the wall clock from a snapshot of the FC's latest state (built only when something is due)."""
+
+    EIG_MARGIN_PERIOD_S = 0.5  # the bound-based margin costs ~1.4 ms: refresh it at 2 Hz
+
+    def __init__(self, fc: FlightControllerProcess, mav: Any) -> None:
+        self.fc = fc
+        self.scheduler = TelemetryScheduler()
+        self.builder = TelemetryBuilder(mav, fc.opts.sysid, 1)
+        self.boot_wall = time.monotonic()
+        self.battery = battery_initial()
+        self._last_batt_t: float | None = None
+        self._eig_margin = math.nan
+        self._eig_t = -1e9
+
+    def on_tick(self, t_s: float, speed_rad_s: tuple[float, float, float]) -> None:
+        """Battery discharge on sim time from the propeller speeds (hover ~ 0.6 kW at 8 kg, docs/gcs.md)."""
+        if self._last_batt_t is not None and t_s > self._last_batt_t:
+            v = self.fc.vehicle
+            w1, w2, w3 = speed_rad_s
+            # Ideal induced power P = T^1.5 / sqrt(2 rho A) per rotor with a figure of merit: a simple model.
+            thrusts = (v.k_thrust_duct * w1 * w1, v.k_thrust_tail * w2 * w2, v.k_thrust_duct * w3 * w3)
+            power = sum(max(t, 0.0) ** 1.5 for t in thrusts) / (math.sqrt(2 * 1.225 * 0.07) * 0.6)
+            self.battery = battery_step(self.battery, power, t_s - self._last_batt_t)
+        self._last_batt_t = t_s
+
+    def snapshot(self, now_wall: float) -> VehicleSnapshot:
+        fc = self.fc
+        mo = fc.mode_out
+        s = fc.last_sensors
+        st = fc.last_status
+        modes = getattr(fc, "modes", None)
+        armed = bool(modes.armed) if modes is not None else False
+        sensors_ok = s is not None and now_wall - fc.last_bundle_wall < fc.opts.sensor_timeout_wall_s
+        prearm_ok = bool(modes.prearm_check().ok) if modes is not None else False
+        if st is not None and now_wall - self._eig_t > self.EIG_MARGIN_PERIOD_S:
+            self._eig_t = now_wall
+            self._eig_margin = eig_margin_lower_bound(fc.vehicle, st.q_est_rad, float(fc.registry["INDI_K_MIN"]),
+                                                      float(fc.registry["INDI_K_MAX"]), fc.lambda_crit)
+        zero3 = (0.0, 0.0, 0.0)
+        return VehicleSnapshot(
+            armed=armed,
+            base_mode=mo.base_mode if mo else (modes.base_mode if modes else 1),
+            custom_mode=mo.custom_mode if mo else (modes.custom_mode if modes else 0),
+            system_status=mo.system_status if mo else 3,
+            landed_state=mo.landed_state if mo else 0,
+            pos_ned=s.pos_ned if s else zero3,
+            vel_ned=s.vel_ned if s else zero3,
+            quat_wxyz=s.quat_wxyz if s else (1.0, 0.0, 0.0, 0.0),
+            rates_frd=s.gyro_frd if s else zero3,
+            home_ned=mo.home_ned if mo else None,
+            home_yaw_rad=mo.home_yaw_rad if mo else 0.0,
+            battery=self.battery,
+            tilt_rad=s.tilt_rad if s else (0.0, 0.0),
+            speed_rad_s=s.speed_rad_s if s else zero3,
+            joint_pos_rad=s.joint_pos_rad if s else zero3,
+            sensors=sensor_bits(imu_ok=sensors_ok, pose_ok=sensors_ok, actuators_ok=sensors_ok,
+                                estimator_ok=st is not None, battery_ok=self.battery.remaining_pct > 10,
+                                prearm_ok=prearm_ok),
+            ckf_x_hat=st.adapt.x_hat if st else (math.nan,) * 4,  # type: ignore[arg-type]
+            ckf_k=st.adapt.k if st else (math.nan,) * 4,  # type: ignore[arg-type]
+            eig_margin=self._eig_margin,
+            time_unix_usec=time.time_ns() // 1000,
+            throttle_pct=0.0,
+        )
+
+    def _boot_ms(self, now_wall: float) -> int:
+        return int((now_wall - self.boot_wall) * 1000)
+
+    def due_messages(self, now_wall: float) -> list[Any]:
+        due = self.scheduler.due(now_wall)
+        if not due:
+            return []
+        return self.builder.build_many(due, self.snapshot(now_wall), self._boot_ms(now_wall))
+
+    def build_now(self, msg_id: int, now_wall: float) -> list[Any] | None:
+        if msg_id not in self.builder.supported_ids:
+            return None
+        return self.builder.build(msg_id, self.snapshot(now_wall), self._boot_ms(now_wall))

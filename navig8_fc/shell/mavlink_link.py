@@ -29,6 +29,7 @@ class LinkCounters:
     truncated: int = 0
     bad_crc: int = 0  # includes unknown message ids (no CRC_EXTRA to check against)
     oversize: int = 0
+    unknown_id: int = 0  # CRC could not be checked: a message id outside our dialect
     foreign: int = 0  # frames for another system id
     send_errors: int = 0
 
@@ -122,6 +123,11 @@ class UdpLink:
                     msg = self.mav.decode(bytearray(fr))
                 except Exception:  # noqa: BLE001 - any decode failure is bad input: count, drop
                     c.bad_crc += 1
+                    if self.on_frame:
+                        self.on_frame(self.name, "in_bad", fr, None, addr)
+                    continue
+                if msg.get_type().startswith(("UNKNOWN_", "BAD_DATA")):
+                    c.unknown_id += 1  # pymavlink hands these back undecoded: not a peer, not an input
                     if self.on_frame:
                         self.on_frame(self.name, "in_bad", fr, None, addr)
                     continue

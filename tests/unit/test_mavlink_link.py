@@ -37,7 +37,8 @@ def test_link_counts_and_drops_bad_datagrams() -> None:
         bad_crc = bytearray(good)
         bad_crc[-1] ^= 0xFF
         addr = ("127.0.0.1", link.local_port)
-        for payload in (good, bytes(bad_crc), b"\x00" * 50, good[:7], b"\xfd" * 3000, good + good):
+        unknown = bytes([0xFD, 4, 0, 0, 0, 255, 190, 0xAA, 0xBB, 0xCC]) + bytes(6)  # an id outside the dialect
+        for payload in (good, bytes(bad_crc), b"\x00" * 50, good[:7], b"\xfd" * 3000, good + good, unknown):
             tx.sendto(payload, addr)
         got = []
         deadline = time.monotonic() + 2.0
@@ -47,6 +48,11 @@ def test_link_counts_and_drops_bad_datagrams() -> None:
         c = link.counters
         assert [r.msg.get_type() for r in got] == ["HEARTBEAT"] * 3
         assert c.bad_crc == 1 and c.garbage_bytes == 50 and c.truncated == 1 and c.oversize == 1
+        deadline = time.monotonic() + 1.0
+        while c.unknown_id == 0 and time.monotonic() < deadline:
+            link.receive()
+            time.sleep(0.01)
+        assert c.unknown_id == 1
         assert link.peers == [("127.0.0.1", tx.getsockname()[1])]
     finally:
         tx.close()

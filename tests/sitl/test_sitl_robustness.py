@@ -1,0 +1,72 @@
+"""Bad input over real UDP never crashes the FC nor moves the vehicle; a killed FC leaves a readable log."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import time
+from pathlib import Path
+
+import numpy as np
+from sitl_helpers import gcs_client, sitl, wait_heartbeat
+
+from navig8_fc.shell.mcap_log import read_mcap, read_metadata
+from navig8_tools.logdata import load_run
+
+N_GARBAGE = 10_000
+
+
+def _garbage(rng: np.random.Generator, i: int) -> bytes:
+    kind = i % 5
+    if kind == 0:
+        return rng.bytes(int(rng.integers(1, 300)))  # random bytes
+    if kind == 1:
+        return b"\xfd" + rng.bytes(int(rng.integers(1, 40)))  # truncated MAVLink 2 frame
+    if kind == 2:  # a well-formed header with a bad CRC
+        return bytes([0xFD, 9, 0, 0, i & 0xFF, 255, 190, 0, 0, 0]) + bytes(9) + b"\x00\x00"
+    if kind == 3:
+        return bytes([0xFD, 4, 0, 0, 0, 255, 190, 0xAA, 0xBB, 0xCC]) + bytes(6)  # unknown message id
+    return rng.bytes(3000)  # oversize datagram
+
+
+def test_ten_thousand_malformed_datagrams_leave_the_vehicle_holding(tmp_path: Path) -> None:
+    rng = np.random.default_rng(5)
+    with sitl(tmp_path, scenario="hover", speed=1.0, bridge_args=["--duration", "6"]) as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            wait_heartbeat(gcs, 15.0)
+            tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            t0 = time.monotonic()
+            for i in range(N_GARBAGE):
+                tx.sendto(_garbage(rng, i), ("127.0.0.1", run.gcs_bind_port))
+                if i % 500 == 0:
+                    time.sleep(0.01)  # a flood, paced so the kernel's receive buffer does not just drop it
+            tx.close()
+            assert time.monotonic() - t0 < 20.0
+            # The FC still answers: a heartbeat after the flood.
+            assert wait_heartbeat(gcs, 5.0) is not None
+            assert run.fc.poll() is None, "navig8-fc died"
+            time.sleep(1.0)
+        finally:
+            gcs.close()
+    r = load_run(run.log)
+    pos = r["/truth"].field("pos_ned_m", 3)
+    assert len(pos) > 100
+    assert np.max(np.linalg.norm(pos - [0.0, 0.0, -2.0], axis=1)) < 0.2, "the vehicle drifted during the flood"
+    c = read_metadata(run.log)["link_counters"]["gcs"]
+    dropped = c["bad_crc"] + c["unknown_id"] + c["oversize"] + c["truncated"] + (c["garbage_bytes"] > 0)
+    assert c["datagrams_in"] >= 0.9 * N_GARBAGE and dropped > 0.5 * N_GARBAGE, c
+
+
+def test_killed_fc_leaves_a_readable_log(tmp_path: Path) -> None:
+    with sitl(tmp_path, scenario="paper", speed=0.0) as run:
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline and (not run.log.exists() or run.log.stat().st_size < 3_000_000):
+            time.sleep(0.1)
+        os.kill(run.fc.pid, signal.SIGKILL)
+        run.fc.wait(timeout=10)
+    msgs = [m for m in read_mcap(run.log, ["/truth"])]
+    assert len(msgs) > 100, "nothing recovered from the truncated log"
+    times = [t for _, t, _ in msgs]
+    assert times == sorted(times)
