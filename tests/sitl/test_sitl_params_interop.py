@@ -1,0 +1,134 @@
+"""Parameters persist across a restart; MAVProxy (a real client) downloads and sets them; logs export to .tlog."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from navig8_tools.mcap_to_tlog import export
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import common as mavlink2
+from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
+
+from navig8_fc.params.registry import ParamRegistry
+
+M = mavlink2
+
+
+def _set(gcs, name: str, value: float):
+    gcs.mav.param_set_send(gcs.target_system, 1, name.encode(), value, M.MAV_PARAM_TYPE_REAL32)
+    return wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == name)
+
+
+def _read(gcs, name: str):
+    gcs.mav.param_request_read_send(gcs.target_system, 1, name.encode(), -1)
+    return wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == name)
+
+
+def test_parameters_persist_across_restart_and_defaults_flag(tmp_path: Path) -> None:
+    state = tmp_path / "state"
+    with sitl(tmp_path, state_dir=state, log_name="a.mcap") as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            wait_heartbeat(gcs, 15.0)
+            assert abs(_set(gcs, "OL_VEL_K", 2.5).param_value - 2.5) < 1e-6
+            assert abs(_set(gcs, "INDI_K_MAX", 0.9).param_value - 0.9) < 1e-6
+        finally:
+            gcs.close()
+    with sitl(tmp_path, state_dir=state, log_name="b.mcap") as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            wait_heartbeat(gcs, 15.0)
+            assert abs(_read(gcs, "OL_VEL_K").param_value - 2.5) < 1e-6
+            assert abs(_read(gcs, "INDI_K_MAX").param_value - 0.9) < 1e-6
+        finally:
+            gcs.close()
+    with sitl(tmp_path, state_dir=state, log_name="c.mcap", fc_args=["--defaults"]) as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            wait_heartbeat(gcs, 15.0)
+            assert abs(_read(gcs, "OL_VEL_K").param_value - 3.0) < 1e-6
+        finally:
+            gcs.close()
+
+
+def test_tlog_export_opens_in_pymavlink(tmp_path: Path) -> None:
+    with sitl(tmp_path, scenario="hover", speed=4.0) as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            wait_heartbeat(gcs, 15.0)
+            assert _read(gcs, "OL_POS_K") is not None
+            time.sleep(1.0)
+        finally:
+            gcs.close()
+    tlog = tmp_path / "run.tlog"
+    n = export(run.log, tlog, link="gcs")
+    assert n > 10
+    conn = mavutil.mavlink_connection(str(tlog), dialect="common")
+    types = set()
+    while (m := conn.recv_match(blocking=False)) is not None:
+        types.add(m.get_type())
+    assert {"HEARTBEAT", "PARAM_VALUE", "PARAM_REQUEST_READ"} <= types
+
+
+@pytest.mark.skipif(shutil.which("mavproxy.py", path=str(Path(sys.executable).parent)) is None,
+                    reason="MAVProxy is installed by `make test` (pip --no-deps MAVProxy)")
+def test_mavproxy_downloads_all_parameters_and_sets_one(tmp_path: Path) -> None:
+    n_params = len(ParamRegistry.from_defaults(check_stability=False))
+    mavproxy = str(Path(sys.executable).parent / "mavproxy.py")
+    with sitl(tmp_path, scenario="ground") as run:
+        cmd = [sys.executable, mavproxy, f"--master=udpin:127.0.0.1:{run.gcs_port}", "--nowait",
+               "--default-modules=param", f"--state-basedir={tmp_path}"]
+        p = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                             cwd=tmp_path, text=True)
+        out = _Reader(p)
+        try:
+            assert out.wait_for(f"Received {n_params} parameters", 60.0), out.text[-3000:]
+            p.stdin.write("param set OL_ATT_K 4.5\n")
+            p.stdin.flush()
+            gcs = gcs_client(run.gcs_port)  # a second GCS on the same vehicle reads the value back
+            try:
+                wait_heartbeat(gcs, 10.0)
+                deadline = time.monotonic() + 10.0
+                value = None
+                while time.monotonic() < deadline:
+                    value = _read(gcs, "OL_ATT_K").param_value
+                    if abs(value - 4.5) < 1e-6:
+                        break
+                    time.sleep(0.2)
+                assert value is not None and abs(value - 4.5) < 1e-6, out.text[-3000:]
+            finally:
+                gcs.close()
+        finally:
+            p.kill()
+            p.wait(timeout=10)
+
+
+class _Reader:
+    """Collects a child's stdout without blocking (a thread), so every wait is bounded."""
+
+    def __init__(self, p: subprocess.Popen) -> None:
+        import threading
+
+        self.text = ""
+        self._lock = threading.Lock()
+        self._t = threading.Thread(target=self._run, args=(p,), daemon=True)
+        self._t.start()
+
+    def _run(self, p: subprocess.Popen) -> None:
+        for line in p.stdout:
+            with self._lock:
+                self.text += line
+
+    def wait_for(self, needle: str, timeout_s: float) -> bool:
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            with self._lock:
+                if needle in self.text:
+                    return True
+            time.sleep(0.1)
+        return False
