@@ -98,7 +98,12 @@ def main(argv: list[str] | None = None) -> int:
                 rc_bridge = bridge.returncode
                 break
             if fc.poll() is not None:
-                if not (a.until_done and fc.returncode == 0):
+                if a.until_done and fc.returncode == 0:  # done: the bridge is finishing too, let it
+                    try:
+                        rc_bridge = bridge.wait(timeout=STOP_TIMEOUT_S)
+                    except subprocess.TimeoutExpired:
+                        pass
+                else:
                     print(f"navig8-sitl: navig8-fc exited with {fc.returncode}", file=sys.stderr)
                 break
             time.sleep(0.05)
@@ -111,6 +116,8 @@ def main(argv: list[str] | None = None) -> int:
         rc_fc = _stop(fc, "navig8-fc")
         rc_b = _stop(bridge, "navig8-bridge") if rc_bridge is None else rc_bridge
     wall = time.perf_counter() - wall0
+    if rc_fc != 0 or rc_b != 0:
+        print(f"navig8-sitl: navig8-fc exited with {rc_fc}, navig8-bridge with {rc_b}", file=sys.stderr)
     print(f"navig8-sitl: log {log}", file=sys.stderr)
     if a.until_done:
         from navig8_tools.logdata import load_run
