@@ -43,7 +43,7 @@ from navig8_fc.modes import MissionScript, ModeConfig, ModeInputs, ModeManager, 
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.shell.gcs_service import GcsService
 from navig8_fc.shell.mavlink_link import UdpLink
-from navig8_fc.shell.mcap_log import McapLogger
+from navig8_fc.shell.mcap_log import McapLogger, mavlink_json_schema
 
 FC_COMPID = 1
 
@@ -167,7 +167,7 @@ class FlightControllerProcess:
         self.logger.log_raw(f"/mavlink/{link}/{direction}", t_ns, raw, publish_ns=time.time_ns())
         if msg is not None and link != "sim":
             self.logger.log(f"/mavlink/{link}/{direction}/{msg.get_type()}", t_ns, msg.to_dict(),
-                            publish_ns=time.time_ns())
+                            publish_ns=time.time_ns(), schema=mavlink_json_schema(type(msg)))
 
     def _sim_ns(self) -> int:
         return seam.sim_us_from_time_usec(self._last_step_time_us) * 1000 if self._last_step_time_us else 0

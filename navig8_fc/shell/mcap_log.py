@@ -74,6 +74,29 @@ def json_schema_for(sample: Any) -> dict[str, Any]:
     return {}
 
 
+@functools.lru_cache(maxsize=512)
+def mavlink_json_schema(msg_cls: Any) -> dict[str, Any]:
+    """JSON schema of a pymavlink message class, from its definition (field names, C types, array
+    lengths, units, enums), so Foxglove knows every field of the decoded /mavlink/... channels."""
+    props: dict[str, Any] = {"mavpackettype": {"type": "string"}}
+    units = getattr(msg_cls, "fieldunits_by_name", {}) or {}
+    enums = getattr(msg_cls, "fieldenums_by_name", {}) or {}
+    for name, ctype, n in zip(msg_cls.fieldnames, msg_cls.fieldtypes, msg_cls.array_lengths, strict=True):
+        if ctype == "char":
+            item: dict[str, Any] = {"type": "string"}
+        elif ctype.startswith(("float", "double")):
+            item = {"type": ["number", "null"]}
+        else:
+            item = {"type": "integer"}
+        if name in units:
+            item["description"] = f"[{units[name]}]"
+        if name in enums:
+            item["description"] = (item.get("description", "") + f" enum {enums[name]}").strip()
+        props[name] = item if (n == 0 or ctype == "char") else {"type": "array", "items": item, "maxItems": n}
+    return {"type": "object", "title": msg_cls.msgname if hasattr(msg_cls, "msgname") else msg_cls.__name__,
+            "properties": props}
+
+
 class McapLogger:
     """Writes JSON messages; a channel (and its schema, from the first message) per topic."""
 
@@ -87,13 +110,14 @@ class McapLogger:
         self._schemas: dict[str, int] = {}
         self._closed = False
 
-    def channel(self, topic: str, sample: Any, schema_name: str | None = None, encoding: str = "json") -> int:
+    def channel(self, topic: str, sample: Any, schema_name: str | None = None, encoding: str = "json",
+                schema: dict[str, Any] | None = None) -> int:
         if topic in self._channels:
             return self._channels[topic]
         name = schema_name or topic.strip("/").replace("/", ".")
         if name not in self._schemas:
             if encoding == "json":
-                schema = json_schema_for(sample)
+                schema = dict(schema) if schema is not None else json_schema_for(sample)
                 schema["title"] = name
                 self._schemas[name] = self._w.register_schema(name, "jsonschema", json.dumps(schema).encode())
             else:
@@ -102,9 +126,12 @@ class McapLogger:
         self._channels[topic] = cid
         return cid
 
-    def log(self, topic: str, t_ns: int, obj: Any, publish_ns: int | None = None) -> None:
+    def log(self, topic: str, t_ns: int, obj: Any, publish_ns: int | None = None,
+            schema: dict[str, Any] | None = None) -> None:
         data = to_jsonable(obj)
-        cid = self.channel(topic, data)
+        cid = self._channels.get(topic)
+        if cid is None:
+            cid = self.channel(topic, data, schema=schema)
         self._w.add_message(cid, int(t_ns), json.dumps(data, separators=(",", ":")).encode(),
                             int(t_ns if publish_ns is None else publish_ns))
 

@@ -54,3 +54,17 @@ def test_schema_describes_fields() -> None:
     assert s["properties"]["b"]["type"] == "array"
     assert s["properties"]["c"]["properties"]["d"]["type"] == "boolean"
     json.dumps(s)
+
+
+def test_mavlink_schema_from_the_message_definition() -> None:
+    from pymavlink.dialects.v20 import common as m
+
+    from navig8_fc.shell.mcap_log import mavlink_json_schema
+
+    s = mavlink_json_schema(m.MAVLink_attitude_quaternion_message)
+    props = s["properties"]
+    assert props["q1"]["type"] == ["number", "null"] and "rad" not in props["q1"].get("description", "")
+    assert props["rollspeed"]["description"].startswith("[rad/s]")
+    assert props["repr_offset_q"]["type"] == "array" and props["repr_offset_q"]["maxItems"] == 4
+    hb = mavlink_json_schema(m.MAVLink_heartbeat_message)["properties"]
+    assert hb["custom_mode"]["type"] == "integer" and "MAV_TYPE" in hb["type"]["description"]
