@@ -20,8 +20,9 @@ install: $(STAMP)
 
 demo: $(STAMP)
 	$(VENV)/bin/navig8-stability --plots out/stability
-	$(VENV)/bin/navig8-sim --scenario paper --controller proposed --log out/paper_proposed.mcap \
-		--summary out/summary.json --plots out/figures
+	$(VENV)/bin/navig8-sitl --scenario paper --speed 0 --until-done --defaults --log-dir out/logs \
+		--state-dir out/state --summary out/summary.json
+	$(VENV)/bin/navig8-plot $$(ls -t out/logs/*.mcap | head -1) --out out/figures
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check navig8_fc sim_bridge tools tests
