@@ -222,9 +222,8 @@ def _lockstep_section(args: argparse.Namespace) -> SectionResult:
     import tempfile
     from pathlib import Path
 
-    from navig8_tools.sim import run
-
     from navig8_fc.shell.mcap_log import read_metadata
+    from navig8_tools.sim import run
 
     inproc = run("paper", "proposed", args.seed, 30.0).summary["real_time_factor"]
     rtfs = []

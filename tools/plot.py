@@ -13,6 +13,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+
 from navig8_tools.logdata import RunLog, load_run  # noqa: E402
 
 STYLES = ["-", ":", "--", "-."]

@@ -18,8 +18,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from navig8_tools.logdata import load_run
-from navig8_tools.summary import summarize
 
 from navig8_fc.core import stability
 from navig8_fc.core import vehicle as vm
@@ -27,6 +25,8 @@ from navig8_fc.core.controller import ControllerConfig, ControllerStatus, FcSens
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.shell.mcap_log import McapLogger
+from navig8_tools.logdata import load_run
+from navig8_tools.summary import summarize
 from sim_bridge.messages import ActuatorCommand as PlantCommand
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant

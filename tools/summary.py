@@ -22,6 +22,7 @@ import math
 from typing import Any
 
 import numpy as np
+
 from navig8_tools.logdata import RunLog
 
 POS_TOL_M = 0.2

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 import pytest
+
 from navig8_tools.logdata import load_run
 from navig8_tools.plot import plot_runs
 from navig8_tools.sim import main as sim_main

@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from navig8_tools.sim import run
 
 

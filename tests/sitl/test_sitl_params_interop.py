@@ -9,12 +9,12 @@ import time
 from pathlib import Path
 
 import pytest
-from navig8_tools.mcap_to_tlog import export
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
 from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.params.registry import ParamRegistry
+from navig8_tools.mcap_to_tlog import export
 
 M = mavlink2
 

@@ -9,10 +9,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from navig8_tools.logdata import load_run
 from sitl_helpers import gcs_client, sitl, wait_heartbeat
 
 from navig8_fc.shell.mcap_log import read_mcap, read_metadata
+from navig8_tools.logdata import load_run
 
 N_GARBAGE = 10_000
 
