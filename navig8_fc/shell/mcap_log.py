@@ -14,6 +14,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any, BinaryIO
 
+import orjson
 from mcap.reader import NonSeekingReader
 from mcap.writer import CompressionType, Writer
 
@@ -55,6 +56,18 @@ def to_jsonable(obj: Any) -> Any:
     if isinstance(obj, int):
         return int(obj)
     return str(obj)
+
+
+_ORJSON_OPTS = orjson.OPT_SERIALIZE_NUMPY | orjson.OPT_NON_STR_KEYS
+
+
+def dumps_json(obj: Any) -> bytes:
+    """Compact JSON bytes of a record: orjson serialises dataclasses, tuples and numpy natively and writes
+    non-finite floats as null (as to_jsonable does); anything it cannot handle goes through to_jsonable."""
+    try:
+        return orjson.dumps(obj, option=_ORJSON_OPTS, default=to_jsonable)
+    except (TypeError, orjson.JSONEncodeError):
+        return orjson.dumps(to_jsonable(obj))
 
 
 def json_schema_for(sample: Any) -> dict[str, Any]:
@@ -128,12 +141,10 @@ class McapLogger:
 
     def log(self, topic: str, t_ns: int, obj: Any, publish_ns: int | None = None,
             schema: dict[str, Any] | None = None) -> None:
-        data = to_jsonable(obj)
         cid = self._channels.get(topic)
         if cid is None:
-            cid = self.channel(topic, data, schema=schema)
-        self._w.add_message(cid, int(t_ns), json.dumps(data, separators=(",", ":")).encode(),
-                            int(t_ns if publish_ns is None else publish_ns))
+            cid = self.channel(topic, to_jsonable(obj), schema=schema)
+        self._w.add_message(cid, int(t_ns), dumps_json(obj), int(t_ns if publish_ns is None else publish_ns))
 
     def log_raw(self, topic: str, t_ns: int, payload: bytes, publish_ns: int | None = None,
                 encoding: str = "application/octet-stream") -> None:
