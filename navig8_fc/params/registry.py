@@ -70,14 +70,20 @@ class SetResult:
 
 @dataclass(frozen=True)
 class StabilityFloor:
-    """Result of the stability-floor check for one candidate parameter set."""
+    """Result of the stability-floor check for one candidate parameter set.
+
+    H(s) is stable for eigenvalues in (lambda_crit, lambda_upper); lambda_upper is infinite for the usual
+    actuator/filter settings, finite only for lightly damped actuators with long delays (docs/stability.md).
+    """
 
     lambda_crit: float
     min_eigenvalue: float
+    lambda_upper: float = math.inf
+    max_eigenvalue: float = -math.inf  # only evaluated when lambda_upper is finite
 
     @property
     def ok(self) -> bool:
-        return self.min_eigenvalue > self.lambda_crit
+        return self.min_eigenvalue > self.lambda_crit and self.max_eigenvalue < self.lambda_upper
 
 
 StabilityCheck = Callable[[Mapping[str, float | int]], StabilityFloor]
@@ -103,10 +109,16 @@ class WorkspaceStabilityCheck:
             1.0 / float(values["INDI_RATE_HZ"]),
             float(values["INDI_LPF_TAU"]),
         )
-        min_eig = stability.min_eigenvalue_over_workspace(
-            self._cfg, float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"])
+        k_min, k_max = float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"])
+        min_eig = stability.min_eigenvalue_over_workspace(self._cfg, k_min, k_max)
+        lam_up = stability.lambda_upper(
+            float(values["ACT_WN"]), float(values["ACT_ZETA"]), 1.0 / float(values["INDI_RATE_HZ"]),
+            float(values["INDI_LPF_TAU"]),
         )
-        return StabilityFloor(lambda_crit=lam_crit, min_eigenvalue=min_eig)
+        max_eig = -math.inf
+        if math.isfinite(lam_up):  # rare (lightly damped, long delay): the slow side needs the full sweep
+            max_eig = stability.k_bounds_analysis(self._cfg, k_min, k_max).max_eigenvalue
+        return StabilityFloor(lam_crit, min_eig, lam_up, max_eig)
 
 
 def load_definitions(text: str) -> tuple[ParamDef, ...]:
@@ -256,10 +268,15 @@ class ParamRegistry:
             return f"{name}: needs INDI_K_MIN <= INDI_K_MAX ({c['INDI_K_MIN']:g} > {c['INDI_K_MAX']:g})"
         if name in STABILITY_PARAMS and self._stability_check is not None:
             floor = self._stability_check(c)
-            if not floor.ok:
+            if not floor.min_eigenvalue > floor.lambda_crit:
                 return (
                     f"{name}: refused by the stability floor: min eig(Ghat G^-1) "
                     f"{floor.min_eigenvalue:.3f} <= lambda_crit {floor.lambda_crit:.3f}"
+                )
+            if not floor.ok:
+                return (
+                    f"{name}: refused: max eig(Ghat G^-1) {floor.max_eigenvalue:.2f} >= lambda_upper "
+                    f"{floor.lambda_upper:.2f}, where H(s) is unstable again"
                 )
             lam_min = c.get("INDI_LAMBDA_MIN")
             if lam_min is not None and lam_min <= floor.lambda_crit:

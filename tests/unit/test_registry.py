@@ -151,3 +151,13 @@ def test_real_stability_floor_refuses_k_min_that_reaches_lambda_crit() -> None:
     assert reg2.set("INDI_K_MIN", 0.2).accepted
     res = reg2.set("INDI_LPF_TAU", 0.01)
     assert not res.accepted and "stability floor" in res.reason and reg2["INDI_LPF_TAU"] == pytest.approx(0.1), res
+
+
+def test_upper_stability_limit_refuses_a_lightly_damped_slow_loop() -> None:
+    # docs/stability.md: wn 500, zeta 0.1, ts 0.05, tl 0.005 is stable only for lambda in (0.474, 3.19);
+    # K Xi reaches ~3.9 with a 2 kg object, so the last step into that corner is refused with the reason.
+    reg = ParamRegistry.from_defaults()
+    assert reg.set("ACT_WN", 500.0).accepted and reg.set("ACT_ZETA", 0.1).accepted
+    assert reg.set("INDI_RATE_HZ", 20).accepted and reg.set("INDI_K_MIN", 1.0).accepted
+    res = reg.set("INDI_LPF_TAU", 0.005)
+    assert not res.accepted and "lambda_upper" in res.reason, res
