@@ -39,6 +39,7 @@ import math
 import numpy as np
 import scipy.linalg
 
+from navig8_fc.core.rotation import euler_to_quat, quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig, hover_trim, propulsion_wrench, u_to_actuators
 from sim_bridge import _kernels as K
 from sim_bridge.messages import ActuatorCommand, SensorBundle, SensorField, Truth, make_frozen
@@ -50,27 +51,6 @@ BASE_MODES = {"free": K.BASE_FREE, "attitude_locked": K.BASE_ATTITUDE_LOCKED, "f
 
 class PlantDivergedError(RuntimeError):
     """The state became non-finite (the plant keeps the last finite state)."""
-
-
-def euler_to_quat(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
-    """ZYX Euler angles (rad) -> [w, x, y, z], body FRD -> NED."""
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return (
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    )
-
-
-def quat_to_euler(q: np.ndarray) -> tuple[float, float, float]:
-    w, x, y, z = (float(v) for v in q)
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return roll, pitch, yaw
 
 
 def quat_to_dcm(q: np.ndarray) -> np.ndarray:

@@ -28,6 +28,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.mavlink import dialect
 
 # HIL_SENSOR.fields_updated bits for accel (0x7) and gyro (0x38), PX4's grouping.
@@ -341,10 +342,7 @@ def truth_record(msg: Any) -> dict[str, Any]:
     Not on the wire, so absent here: ang_accel, the reaction moment about O and the no-gravity variants.
     """
     q = [float(v) for v in msg.quat]
-    w, x, y, z = q
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2 * (w * y - z * x))))
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+    roll, pitch, yaw = quat_to_euler(q)
     act = [float(v) for v in msg.actuators]
     return {
         "pos_ned_m": list(msg.pos_ned),

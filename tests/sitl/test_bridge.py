@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sitl_helpers import free_udp_ports
 
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.mavlink import dialect, seam
@@ -27,19 +28,6 @@ from sim_bridge import Plant, PlantParams, load_scenario
 ROOT = Path(__file__).resolve().parents[2]
 SYSID = 1
 DT_US = 10_000
-
-
-def _free_udp_ports(n: int) -> list[int]:
-    socks = []
-    try:
-        for _ in range(n):
-            s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-            s.bind(("127.0.0.1", 0))
-            socks.append(s)
-        return [s.getsockname()[1] for s in socks]
-    finally:
-        for s in socks:
-            s.close()
 
 
 class FakeFc:
@@ -88,7 +76,7 @@ class FakeFc:
 
 @contextmanager
 def bridge_process(*args: str) -> Iterator[tuple[subprocess.Popen, FakeFc]]:
-    bridge_port, fc_port = _free_udp_ports(2)
+    bridge_port, fc_port = free_udp_ports(2)
     fc = FakeFc(fc_port, bridge_port)
     env = dict(os.environ)
     proc = subprocess.Popen(
