@@ -38,6 +38,7 @@ BASE_FC_PORT = 4561  # + 2 N: the FC's sim link
 STARTUP_RESEND_S = 0.1  # re-send step 0 this often until the FC answers
 STATUS_PERIOD_S = 1.0  # NAVIG8_SIM_STATUS period (wall)
 REANCHOR_LAG_S = 0.5  # paced runs that fall this far behind (a stall) restart pacing instead of bursting
+SPIN_S = 0.002  # busy-poll window at --speed 0 (see _receive)
 MAX_DATAGRAM = 65535
 MAX_ACCEPTED_DATAGRAM = 4096  # the FC sends ~70-byte frames; anything this big is not it (parse nothing)
 
@@ -182,13 +183,26 @@ class Bridge:
         self._status_due = now + STATUS_PERIOD_S
 
     def _receive(self, timeout_s: float) -> seam.ActuatorControls | None:
-        """Wait up to timeout_s for datagrams; handle them; return the answer to the current step if it came."""
-        self.sock.settimeout(max(timeout_s, 0.0))
-        try:
-            data, _addr = self.sock.recvfrom(MAX_DATAGRAM)
-        except (TimeoutError, BlockingIOError, ConnectionRefusedError):
-            # ConnectionRefused: an ICMP port-unreachable from an earlier send (FC not up yet)
-            return None
+        """Wait up to timeout_s for datagrams; handle them; return the answer to the current step if it came.
+
+        At --speed 0 the first SPIN_S are polled without blocking: waking a blocked process costs ~0.2 ms on
+        these VMs, more than the FC's whole tick, and each of the two processes has a core of its own."""
+        data = None
+        if self.opts.speed == 0.0 and timeout_s > 0.0:
+            self.sock.settimeout(0.0)
+            spin_end = time.perf_counter() + min(SPIN_S, timeout_s)
+            while data is None and time.perf_counter() < spin_end:
+                try:
+                    data, _addr = self.sock.recvfrom(MAX_DATAGRAM)
+                except (BlockingIOError, TimeoutError, ConnectionRefusedError):
+                    data = None
+        if data is None:
+            self.sock.settimeout(max(timeout_s, 0.0))
+            try:
+                data, _addr = self.sock.recvfrom(MAX_DATAGRAM)
+            except (TimeoutError, BlockingIOError, ConnectionRefusedError):
+                # ConnectionRefused: an ICMP port-unreachable from an earlier send (FC not up yet)
+                return None
         answer = self._handle(data)
         # drain whatever else is already queued without waiting (keeps stale answers from piling up)
         self.sock.settimeout(0.0)

@@ -46,6 +46,7 @@ from navig8_fc.shell.mavlink_link import UdpLink
 from navig8_fc.shell.mcap_log import McapLogger, mavlink_json_schema
 
 FC_COMPID = 1
+SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
 
 
 @dataclass(frozen=True)
@@ -102,6 +103,9 @@ class FlightControllerProcess:
         self.registry = ParamRegistry.from_defaults()
         self._stop = False
         self.logger = McapLogger(opts.log_path) if opts.log_path else None
+        self._frame_queue: list[tuple[str, str, bytes, Any, int, int]] = []
+        self._pending_tick: tuple[Any, ...] | None = None
+        self._spin_until = 0.0
         self._mk_links()
         self._cfg_generation = -1
         self.core: FlightControllerCore | None = None
@@ -161,13 +165,20 @@ class FlightControllerProcess:
 
     # --- logging ---------------------------------------------------------------------------------
     def _log_frame(self, link: str, direction: str, raw: bytes, msg: Any, peer: tuple[str, int]) -> None:
+        """Queue a frame for the log; `_flush_frames` writes the queue after the step's answer has gone out,
+        so logging overlaps with the bridge's physics step instead of delaying the lockstep round trip."""
+        if self.logger:
+            self._frame_queue.append((link, direction, raw, msg, self._sim_ns(), time.time_ns()))
+
+    def _flush_frames(self) -> None:
+        q, self._frame_queue = self._frame_queue, []
         if not self.logger:
             return
-        t_ns = self._sim_ns()
-        self.logger.log_raw(f"/mavlink/{link}/{direction}", t_ns, raw, publish_ns=time.time_ns())
-        if msg is not None and link != "sim":
-            self.logger.log(f"/mavlink/{link}/{direction}/{msg.get_type()}", t_ns, msg.to_dict(),
-                            publish_ns=time.time_ns(), schema=mavlink_json_schema(type(msg)))
+        for link, direction, raw, msg, t_ns, wall_ns in q:
+            self.logger.log_raw(f"/mavlink/{link}/{direction}", t_ns, raw, publish_ns=wall_ns)
+            if msg is not None and link != "sim":
+                self.logger.log(f"/mavlink/{link}/{direction}/{msg.get_type()}", t_ns, msg.to_dict(),
+                                publish_ns=wall_ns, schema=mavlink_json_schema(type(msg)))
 
     def _sim_ns(self) -> int:
         return seam.sim_us_from_time_usec(self._last_step_time_us) * 1000 if self._last_step_time_us else 0
@@ -210,7 +221,7 @@ class FlightControllerProcess:
         self.sim.send(out)
         self.n_ticks += 1
         if self.logger:
-            self._log_tick(t_us, b.truth, st, cmd, sp)
+            self._pending_tick = (t_us, b.truth, st, cmd, sp)
 
     def _mode_manager(self) -> ModeManager:
         sc = self._scenario
@@ -261,6 +272,19 @@ class FlightControllerProcess:
                                                "yaw_rad": sp.yaw_rad}, publish_ns=w)
         self.logger.log("/fc/command", t_ns, cmd, publish_ns=w)
 
+    def _spin_for_sim(self) -> list[Any]:
+        """Busy-poll the sim socket until the next bundle arrives or the spin window closes.
+
+        Waking a process blocked in select() costs ~0.2 ms on these VMs, more than a control tick; in
+        lockstep at --speed 0 the next bundle follows within a few hundred microseconds, and the FC and
+        the bridge each have a core. Paced runs (--speed > 0) never spin."""
+        sock = self.sim.sock
+        while time.perf_counter() < self._spin_until:
+            r, _, _ = select.select([sock], [], [], 0.0)
+            if r:
+                return r
+        return []
+
     # --- main loop -------------------------------------------------------------------------------
     def request_stop(self, *_: Any) -> None:
         self._stop = True
@@ -275,9 +299,12 @@ class FlightControllerProcess:
               f":{self.api.local_port} -> {self.opts.port('api')}, scenario {self.opts.scenario}", file=sys.stderr)
         socks = {link.sock: link for link in self.links}
         hb_due = 0.0
+        sock_list = list(socks)
         try:
             while not self._stop:
-                ready, _, _ = select.select(list(socks), [], [], 0.05)
+                ready = self._spin_for_sim() if self._spin_until > time.perf_counter() else []
+                if not ready:
+                    ready, _, _ = select.select(sock_list, [], [], 0.05)
                 for sock in ready:
                     link = socks[sock]
                     got = link.receive()
@@ -285,6 +312,13 @@ class FlightControllerProcess:
                         self._on_sim(got)
                     else:
                         self.on_gcs(link, got)
+                # The step's answer is out: now log (this overlaps with the bridge's physics step).
+                if self._pending_tick is not None:
+                    tick, self._pending_tick = self._pending_tick, None
+                    self._log_tick(*tick)
+                    if self.sim_status is None or self.sim_status.speed == 0.0:
+                        self._spin_until = time.perf_counter() + SPIN_S  # the next bundle is due very soon
+                self._flush_frames()
                 now = time.monotonic()
                 if now >= hb_due:
                     hb_due = now + 1.0
@@ -329,6 +363,10 @@ class FlightControllerProcess:
             self.logger.log("/fc/param_change", self._sim_ns(), change, publish_ns=time.time_ns())
 
     def close(self) -> None:
+        if self._pending_tick is not None and self.logger:
+            tick, self._pending_tick = self._pending_tick, None
+            self._log_tick(*tick)
+        self._flush_frames()
         if self.logger:
             counters = {link.name: vars(link.counters) for link in self.links}
             self.logger.metadata("link_counters", counters)
