@@ -107,16 +107,17 @@ class IndiController:
 
     def step(self, inp: IndiInputs) -> tuple[IndiOutput, IndiStatus]:
         acc_f, u0 = self.measure(inp)
-        d_acc = np.array([inp.accel_cmd[i] - acc_f[i] for i in range(5)])
-        # Eq. 5: Delta U = G_C^-1 G_hat_I Delta Acc; columns of M give each axis' contribution.
+        d_acc_l = [inp.accel_cmd[i] - acc_f[i] for i in range(5)]
+        d_acc = np.array(d_acc_l)
+        # Eq. 5: Delta U = G_C^-1 G_hat_I Delta Acc
         m = inp.gc_inv @ inp.gi_hat if inp.gc_inv is not None else np.linalg.solve(inp.gc, inp.gi_hat)
-        contrib = m * d_acc  # column j = M[:, j] * d_acc[j]
         u0_arr = np.array(u0)
         scales = [1.0, 1.0, 1.0]
         fallback = False
-        du = contrib.sum(axis=1)
-        if not self._feasible(u0_arr + du):
+        du = m @ d_acc
+        if not self._feasible((u0_arr + du).tolist()):
             # Keep the high-priority groups; scale the low ones back first, to the largest feasible s.
+            contrib = m * d_acc  # column j = M[:, j] * d_acc[j]: each axis' contribution
             rest = du.copy()
             for g, cols in enumerate(SATURATION_ORDER):
                 part = contrib[:, list(cols)].sum(axis=1)
@@ -139,20 +140,20 @@ class IndiController:
         w1 = min(w1, lim.duct_speed_max)
         w3 = min(w3, lim.duct_speed_max)
         w2 = min(max(w2, -lim.tail_speed_max), lim.tail_speed_max)
-        out = IndiOutput((a1, a3), (w1, w2, w3), tuple(float(v) for v in u))
+        out = IndiOutput((a1, a3), (w1, w2, w3), tuple(u.tolist()))
         status = IndiStatus(
             acc_filtered=tuple(acc_f),
             u0_filtered=tuple(u0),
-            delta_acc=tuple(float(v) for v in d_acc),
-            delta_u=tuple(float(v) for v in du),
+            delta_acc=tuple(d_acc_l),
+            delta_u=tuple(du.tolist()),
             saturation_scale=(scales[0], scales[1], scales[2]),
             saturated=any(s < 1.0 for s in scales),
             fallback_to_u0=fallback,
         )
         return out, status
 
-    def _feasible(self, u: np.ndarray) -> bool:
-        u1, u2, u3, u4, u5 = (float(v) for v in u)
+    def _feasible(self, u: np.ndarray | list[float]) -> bool:
+        u1, u2, u3, u4, u5 = u.tolist() if isinstance(u, np.ndarray) else u
         if not all(math.isfinite(v) for v in (u1, u2, u3, u4, u5)):
             return False
         if u1 * u1 + u2 * u2 > self._w_duct_sq_max**2 or u3 * u3 + u4 * u4 > self._w_duct_sq_max**2:
