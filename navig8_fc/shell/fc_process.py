@@ -47,6 +47,7 @@ from navig8_fc.shell.mcap_log import McapLogger, mavlink_json_schema
 
 FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
+ESTIMATOR_WARMUP_S = 0.5  # 5 time constants of the INDI feedback filter before arming is allowed
 
 
 @dataclass(frozen=True)
@@ -207,7 +208,7 @@ class FlightControllerProcess:
         self._last_step_time_us = t_us
         self._reconfigure()
         sensors = b.fc_sensors()
-        armed, engaged, sp = self.flight_state(sensors)
+        armed, engaged, sp = self.flight_state(sensors, imu_fresh=b.imu_fresh)
         assert self.core is not None
         cmd, st = self.core.step(sensors, sp, engaged=engaged)
         self.last_status, self.last_cmd, self.last_sensors = st, cmd, sensors
@@ -235,16 +236,20 @@ class FlightControllerProcess:
             script = MissionScript(sc.name, setpoint_at, starts_armed_in_air=sc.armed, duration_s=sc.duration_s)
         return ModeManager(ModeConfig(), script)
 
-    def flight_state(self, s: FcSensors) -> tuple[bool, bool, Setpoint]:
-        """(armed, controller engaged, setpoint) from the mode manager, on sim time."""
+    def flight_state(self, s: FcSensors, imu_fresh: bool = True) -> tuple[bool, bool, Setpoint]:
+        """(armed, controller engaged, setpoint) from the mode manager, on sim time.
+
+        Pre-arm inputs: sensors are ok when this step's IMU sample is fresh (the bundle is complete by
+        construction); the estimator is ready once its filters have run ESTIMATOR_WARMUP_S of sim time."""
         _, _, yaw = quat_to_euler(s.quat_wxyz)
         w1, w2, w3 = s.speed_rad_s
         thrust_n = self.vehicle.k_thrust_duct * (w1 * w1 + w3 * w3) + self.vehicle.k_thrust_tail * w2 * abs(w2)
         weight_n = self.vehicle.uam_mass_kg * self.vehicle.gravity_m_s2
         was_armed = self.modes.armed
         out = self.modes.step(ModeInputs(t_s=s.t_s, pos_ned=s.pos_ned, vel_ned=s.vel_ned, yaw_rad=yaw,
-                                         thrust_ratio=thrust_n / weight_n, sensors_ok=True,
-                                         estimator_ready=True))
+                                         thrust_ratio=thrust_n / weight_n, sensors_ok=imu_fresh,
+                                         estimator_ready=self.n_ticks * self.core.config.dt_s
+                                         >= ESTIMATOR_WARMUP_S))
         if out.armed and not was_armed and self.core is not None:
             self.core.reset()  # the estimator's start delay counts from arming
         self.mode_out = out
