@@ -66,7 +66,6 @@ class FcOptions:
     log_path: Path | None = None
     state_dir: Path | None = None
     defaults: bool = False
-    sensor_timeout_wall_s: float = 5.0
 
     @property
     def sysid(self) -> int:
@@ -331,14 +330,35 @@ class FlightControllerProcess:
                 self.on_wall_tick(now)
                 if until_done and self.sim_done:
                     break
-                if (self.n_ticks > 0 and now - self.last_bundle_wall > self.opts.sensor_timeout_wall_s
-                        and not self._stall_reported):
-                    self._stall_reported = True
-                    print(f"navig8-fc: no sensor bundle from navig8-bridge for {self.opts.sensor_timeout_wall_s:.1f}"
-                          f" s (last step t = {self._sim_ns() * 1e-9:.3f} s); waiting", file=sys.stderr)
+                self._check_timeouts(now)
         finally:
             self.close()
         return 0
+
+    @property
+    def sensor_timeout_s(self) -> float:
+        return float(self.registry["FS_SENS_TOUT"])
+
+    def _check_timeouts(self, now: float) -> None:
+        """Wall-clock watchdogs (lockstep has no sim time without bundles):
+        - FS_SENS_TOUT: the bridge went silent -> reported by name once (the vehicle cannot be commanded
+          without bundles; in lockstep the plant waits too);
+        - FS_GCS_TOUT: a GCS that sent heartbeats stops while the vehicle is armed in a GCS-commanded mode
+          (not a scripted mission) -> land, as PX4's data-link-loss failsafe can."""
+        if self.n_ticks > 0 and now - self.last_bundle_wall > self.sensor_timeout_s and not self._stall_reported:
+            self._stall_reported = True
+            self.log_event(f"no sensor bundle from navig8-bridge for {self.sensor_timeout_s:.1f} s "
+                           f"(last step t = {self._sim_ns() * 1e-9:.3f} s); waiting")
+        g = self.gcs_service
+        if (g.last_gcs_heartbeat is not None and now - g.last_gcs_heartbeat > float(self.registry["FS_GCS_TOUT"])
+                and not g.gcs_lost):
+            g.gcs_lost = True
+            modes = getattr(self, "modes", None)
+            if modes is not None and modes.armed and modes.flight_mode.name != "MISSION" and not modes.landed:
+                modes.land()
+                self.statustext("GCS link lost: landing", severity=4)
+            else:
+                self.log_event("GCS link lost")
 
     # --- GCS side --------------------------------------------------------------------------------
     def on_gcs(self, link: UdpLink, received: list[Any]) -> None:

@@ -26,6 +26,8 @@ from navig8_fc.gcs.telemetry import (
 from navig8_fc.mavlink import seam
 from navig8_fc.params.store import ParamStore, default_state_path
 
+MAV_TYPE_GCS = 6
+
 if TYPE_CHECKING:
     from navig8_fc.shell.fc_process import FlightControllerProcess
 
@@ -41,6 +43,8 @@ class GcsService:
         self.commands = CommandHandler(self.mav, o.sysid, 1, self, statustext=self.text)
         self.misc = MiscProtocols(self.mav, statustext=self.text)
         self.n_gcs_msgs = 0
+        self.last_gcs_heartbeat: float | None = None  # wall time of the last HEARTBEAT from a ground station
+        self.gcs_lost = False
         self.pending_arm_cmd: seam.ArmCommand | None = None
         self.telemetry = Telemetry(fc, self.mav)
         if store is not None and not o.defaults:
@@ -57,6 +61,11 @@ class GcsService:
         out: list[Any] = []
         for m in msgs:
             self.n_gcs_msgs += 1
+            if m.get_type() == "HEARTBEAT" and m.type == MAV_TYPE_GCS:
+                self.last_gcs_heartbeat = now_wall
+                if self.gcs_lost:
+                    self.gcs_lost = False
+                    self.fc.log_event("GCS link regained")
             out += self.params.handle(m, now_wall)
             out += self.commands.handle(m, now_wall)
             out += self.misc.handle(m, now_wall)
@@ -166,7 +175,7 @@ class Telemetry:
         st = fc.last_status
         modes = getattr(fc, "modes", None)
         armed = bool(modes.armed) if modes is not None else False
-        sensors_ok = s is not None and now_wall - fc.last_bundle_wall < fc.opts.sensor_timeout_wall_s
+        sensors_ok = s is not None and now_wall - fc.last_bundle_wall < fc.sensor_timeout_s
         prearm_ok = bool(modes.prearm_check().ok) if modes is not None else False
         if st is not None and now_wall - self._eig_t > self.EIG_MARGIN_PERIOD_S:
             self._eig_t = now_wall
