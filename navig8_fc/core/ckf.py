@@ -80,7 +80,6 @@ import numpy as np
 from scipy import sparse
 
 from navig8_fc.core.filters import LowPass1
-from navig8_fc.core.vehicle import estimate_bounds, estimated_gi, k_from_estimate
 
 __all__ = [
     "CKF_PARAM_NAMES",
@@ -530,6 +529,19 @@ class BoxProjector:
             raise ValueError(f"empty box (or NaN bound): lower {lo}, upper {hi}")
         if skip_inside and all(a <= x <= b for a, x, b in zip(lo, xh, hi, strict=True)):
             return ProjectionResult(np.array(xh), False, False, 0)
+        pl = None if w_inv is None else np.asarray(w_inv, dtype=float).tolist()
+        x, used_fallback, iterations = self.solve_lists(xh, wl, lo, hi, pl)
+        return ProjectionResult(np.array(x), True, used_fallback, iterations)
+
+    def solve_lists(
+        self, xh: list[float], wl: list[list[float]], lo: list[float], hi: list[float],
+        pl: list[list[float]] | None = None,
+    ) -> tuple[list[float], bool, int]:
+        """The QP on plain lists, inputs already checked (sizes, lower <= upper): (x, used_fallback, iterations).
+
+        project() without its conversions and checks; the KF calls it directly. pl is W^-1 or None.
+        """
+        n = self.n
         self.n_calls += 1
         iterations = 0
         diag = [wl[i][i] for i in range(n)]
@@ -543,14 +555,13 @@ class BoxProjector:
             iterations = int(sol.iterations)
             self.last_status = str(sol.status)
             if sol.status == self._solved:
-                pl = None if w_inv is None else np.asarray(w_inv, dtype=float).tolist()
                 x = self._polish(xh, wl, lo, hi, sol.z, sol.s, pl)
                 if x is not None:
-                    return ProjectionResult(np.array(x), True, False, iterations)
+                    return x, False, iterations
         else:
             self.last_status = "bad_input"
         self.n_fallbacks += 1
-        return ProjectionResult(project_box_exact(xh, np.array(wl), lo, hi), True, True, iterations)
+        return project_box_exact(xh, np.array(wl), lo, hi).tolist(), True, iterations
 
     def _polish(
         self, xh: list[float], wl: list[list[float]], lo: list[float], hi: list[float],
@@ -626,7 +637,9 @@ class ConstrainedKalmanFilter:
         self._q_mat = np.diag(self._q)
         self._eye = np.eye(N_STATE)
         self._identity_weight = config.projection_weight == "identity"
+        self._eye_list = self._eye.tolist()
         self._projector = BoxProjector(N_STATE)
+        self._v = np.zeros((N_MEAS, N_STATE))  # scratch for H's sparse factor (measurement_matrix's v)
         self._x = np.zeros(N_STATE)
         self._p = np.diag(config.p0_scale * self._q)
         self._initialised = False
@@ -681,7 +694,23 @@ class ConstrainedKalmanFilter:
         rho_z: float,
     ) -> np.ndarray:
         """Measurement update with z = Delta U, H(Delta Acc_m) of Eq. 24 (Joseph form). Returns the innovation."""
-        h = measurement_matrix(gc_uam_inv, delta_acc, rho_x, rho_z)
+        a1, a2, a3, a4, a5 = (float(v) for v in delta_acc)
+        return self._correct(delta_u, a1, a2, a3, a4, a5, gc_uam_inv, rho_x, rho_z)
+
+    def _correct(
+        self, delta_u: Sequence[float] | np.ndarray, a1: float, a2: float, a3: float, a4: float, a5: float,
+        gc_uam_inv: np.ndarray, rho_x: float, rho_z: float,
+    ) -> np.ndarray:
+        # H = measurement_matrix(...), filling a persistent v (its zeros never change): same product, no alloc.
+        v = self._v
+        v[0, 0] = a1
+        v[2, 0] = rho_x * a1
+        v[1, 1] = a2
+        v[0, 2] = rho_z * a3
+        v[2, 2] = a3
+        v[3, 3] = a4
+        v[4, 3] = a5
+        h = gc_uam_inv @ v
         p = self._p
         pht = p @ h.T  # 4x5
         s = h @ pht
@@ -694,6 +723,27 @@ class ConstrainedKalmanFilter:
         self._p = 0.5 * (p + p.T)
         self.n_updates += 1
         return innovation
+
+    def _project_lists(self, lo: list[float], hi: list[float]) -> tuple[list[float], bool, bool]:
+        """project() on plain lists: (x after the step, projected, used_fallback); x <- x_tilde."""
+        xl = self._x.tolist()
+        if all(a <= x <= b for a, x, b in zip(lo, xl, hi, strict=True)):
+            return xl, False, False  # inside: x_tilde = x_hat, W not needed
+        if not all(a <= b for a, b in zip(lo, hi, strict=True)):
+            raise ValueError(f"empty box (or NaN bound): lower {lo}, upper {hi}")
+        if self._identity_weight:
+            wl = pl = self._eye_list
+        else:
+            w = self._weight_inv_p()
+            if w is self._eye:
+                wl, pl = self._eye_list, None
+            else:
+                wl, pl = w.tolist(), self._p.tolist()
+        x, used_fallback, _ = self._projector.solve_lists(xl, wl, lo, hi, pl)
+        if used_fallback:
+            self.n_projection_fallbacks += 1
+        self._x = np.array(x)
+        return x, True, used_fallback
 
     def project(self, lower: np.ndarray, upper: np.ndarray) -> ProjectionResult:
         """Eq. 21 by estimate projection; x <- x_tilde, P unchanged (see module docstring)."""
@@ -729,8 +779,9 @@ class ConstrainedKalmanFilter:
         x_unc = self._x.copy()
         projected = used_fallback = False
         if self.config.constrained:
-            res = self.project(inputs.lower, inputs.upper)
-            projected, used_fallback = res.projected, res.used_fallback
+            lo = np.asarray(inputs.lower, dtype=float).tolist()
+            hi = np.asarray(inputs.upper, dtype=float).tolist()
+            _, projected, used_fallback = self._project_lists(lo, hi)
         return CkfStepResult(
             x_hat=self._x.copy(),
             x_unconstrained=x_unc,
@@ -739,6 +790,27 @@ class ConstrainedKalmanFilter:
             projected=projected,
             used_fallback=used_fallback,
         )
+
+    def _step_lists(
+        self, du: list[float], da: list[float], gc_uam_inv: np.ndarray, rho_x: float, rho_z: float,
+        idot: tuple[float, float, float] | None, lo: list[float], hi: list[float],
+    ) -> tuple[list[float], list[float], np.ndarray]:
+        """step() for the adaptive law: plain lists in, (x_hat, x_unconstrained, innovation) out; idot None
+        skips the predict. Same arithmetic as predict/correct/project, without their conversions and checks."""
+        if idot is not None:
+            x, dt = self._x, self.config.dt_s
+            x[0] += dt * idot[0]  # element-wise, as predict's x[:3] += dt * d
+            x[1] += dt * idot[1]
+            x[2] += dt * idot[2]
+            self._p += self._q_mat
+        a1, a2, a3, a4, a5 = da
+        innovation = self._correct(np.array(du), a1, a2, a3, a4, a5, gc_uam_inv, rho_x, rho_z)
+        if self.config.constrained:
+            x_unc = self._x.tolist()
+            x_hat = self._project_lists(lo, hi)[0]
+        else:
+            x_unc = x_hat = self._x.tolist()
+        return x_hat, x_unc, innovation
 
 
 # --------------------------------------------------------------------------------------------------
@@ -759,10 +831,6 @@ class AdaptiveLawInputs:
     inertia_rate_uam: np.ndarray  # (3, 3) d/dt of inertia_uam (Eq. 22)
     k_min: float  # Eq. 20
     k_max: float
-
-
-def _tuple(a: np.ndarray) -> tuple[float, ...]:
-    return tuple(a.tolist())
 
 
 @dataclass(frozen=True)
@@ -819,11 +887,21 @@ class AdaptiveLaw:
         self._running = False
         self._kf.reset()  # re-initialised at the next start; its clarabel solver is reused
 
+    @property
+    def mass_estimate_kg(self) -> float | None:
+        """x_hat[3] (the estimated mass) while the KF runs, else None; cheaper than kf.x[3] (no copy)."""
+        return float(self._kf._x[3]) if self._kf.initialised else None
+
     def step(self, inp: AdaptiveLawInputs) -> tuple[np.ndarray, AdaptiveLawStatus]:
-        """Returns (G_hat_I 5x5, status)."""
+        """Returns (G_hat_I 5x5, status).
+
+        Per-tick bookkeeping on plain floats (the vectors have 4-5 components: numpy's per-call overhead
+        would dominate); the values equal those of vehicle.estimate_bounds / estimated_gi / k_from_estimate
+        and inertia_ratios exactly (same IEEE operations, tests compare them bit for bit).
+        """
         cfg = self.config
-        uf = self._lpf_u.step(np.asarray(inp.u_meas, dtype=float).tolist())
-        af = self._lpf_a.step(np.asarray(inp.acc_m, dtype=float).tolist())
+        uf = self._lpf_u.step(inp.u_meas)  # the filters take lists or 1-D arrays (-> Python floats)
+        af = self._lpf_a.step(inp.acc_m)
         pu, pa = self._prev_u, self._prev_a
         if pu is None or pa is None:
             du, da = list(_ZERO5), list(_ZERO5)
@@ -832,18 +910,21 @@ class AdaptiveLaw:
             da = [c - p for c, p in zip(af, pa, strict=True)]
         self._prev_u, self._prev_a = uf, af
 
-        j = np.asarray(inp.inertia_uam, dtype=float)
+        (j11, _, j13), (_, j22, _), (_, _, j33) = np.asarray(inp.inertia_uam, dtype=float).tolist()
         m = float(inp.mass_uam_kg)
-        lower, upper = estimate_bounds(j, m, inp.k_min, inp.k_max)  # Eq. 21
+        base = (j11, j22, j33, m)
+        k_min, k_max = inp.k_min, inp.k_max
+        lower = [b / k_max for b in base]  # Eq. 21 (estimate_bounds)
+        upper = [b / k_min for b in base]
+        t_s = float(inp.t_s)
         if self._t0 is None:
-            self._t0 = float(inp.t_s)
+            self._t0 = t_s
         # 1e-9 s guards the comparison against time accumulated in floating point.
-        started = cfg.adaptive and (float(inp.t_s) - self._t0) >= cfg.start_delay_s - 1e-9
+        started = cfg.adaptive and (t_s - self._t0) >= cfg.start_delay_s - 1e-9
         if not started:
-            base = np.array([j[0, 0], j[1, 1], j[2, 2], m])
-            return estimated_gi(j, base), AdaptiveLawStatus(
-                running=False, x_hat=_tuple(base), x_unconstrained=_tuple(base), k=_ONES4,
-                lower=_tuple(lower), upper=_tuple(upper), active_lower=_FALSE4, active_upper=_FALSE4,
+            return _gi_hat(j11, j13, j33, base), AdaptiveLawStatus(
+                running=False, x_hat=base, x_unconstrained=base, k=_ONES4,
+                lower=tuple(lower), upper=tuple(upper), active_lower=_FALSE4, active_upper=_FALSE4,
                 innovation=_ZERO5, p_diag=_ZERO4, n_updates=0, n_projection_fallbacks=0,
                 delta_u=tuple(du), delta_acc=tuple(da),
             )
@@ -851,32 +932,39 @@ class AdaptiveLaw:
         kf = self._kf
         first = not self._running
         if first:
-            kf.initialise([j[0, 0], j[1, 1], j[2, 2], m])  # K = 1 at the start (Sec. 4)
+            kf.initialise(base)  # K = 1 at the start (Sec. 4)
             self._running = True
-        rho_x, rho_z = inertia_ratios(j)
         idot = np.asarray(inp.inertia_rate_uam, dtype=float)
-        res = kf.step(
-            CkfStepInputs(
-                delta_u=np.array(du), delta_acc=np.array(da), gc_uam_inv=np.asarray(inp.gc_uam_inv, dtype=float),
-                rho_x=rho_x, rho_z=rho_z, inertia_rate_diag=np.array([idot[0, 0], idot[1, 1], idot[2, 2]]),
-                lower=lower, upper=upper,
-            ),
-            predict=not first,  # x0 already describes the current pose
+        x, x_unc, innovation = kf._step_lists(
+            du, da, np.asarray(inp.gc_uam_inv, dtype=float), j13 / j11, j13 / j33,  # inertia_ratios
+            None if first else (idot[0, 0], idot[1, 1], idot[2, 2]),  # x0 already describes the current pose
+            lower, upper,
         )
-        x = res.x_hat
-        return estimated_gi(j, x), AdaptiveLawStatus(
+        return _gi_hat(j11, j13, j33, x), AdaptiveLawStatus(
             running=True,
-            x_hat=_tuple(x),
-            x_unconstrained=_tuple(res.x_unconstrained),
-            k=_tuple(k_from_estimate(j, m, x)),
-            lower=_tuple(lower),
-            upper=_tuple(upper),
-            active_lower=tuple((x <= lower).tolist()),
-            active_upper=tuple((x >= upper).tolist()),
-            innovation=_tuple(res.innovation),
-            p_diag=_tuple(res.p_diag),
+            x_hat=tuple(x),
+            x_unconstrained=tuple(x_unc),
+            k=tuple([b / xi for b, xi in zip(base, x, strict=True)]),  # k_from_estimate
+            lower=tuple(lower),
+            upper=tuple(upper),
+            active_lower=tuple([xi <= b for xi, b in zip(x, lower, strict=True)]),
+            active_upper=tuple([xi >= b for xi, b in zip(x, upper, strict=True)]),
+            innovation=tuple(innovation.tolist()),
+            p_diag=tuple(kf._p.diagonal().tolist()),
             n_updates=kf.n_updates,
             n_projection_fallbacks=kf.n_projection_fallbacks,
             delta_u=tuple(du),
             delta_acc=tuple(da),
         )
+
+
+def _gi_hat(j11: float, j13: float, j33: float, x: Sequence[float]) -> np.ndarray:
+    """vehicle.estimated_gi(J, x) from J's three entries it uses (same operations, same values)."""
+    ixx, iyy, izz, m = x
+    return np.array([
+        [ixx, 0.0, izz * j13 / j33, 0.0, 0.0],
+        [0.0, iyy, 0.0, 0.0, 0.0],
+        [ixx * j13 / j11, 0.0, izz, 0.0, 0.0],
+        [0.0, 0.0, 0.0, m, 0.0],
+        [0.0, 0.0, 0.0, 0.0, m],
+    ])
