@@ -78,6 +78,7 @@ from typing import Literal
 import clarabel
 import numpy as np
 from scipy import sparse
+from scipy.linalg.lapack import dgesv as _dgesv
 
 from navig8_fc.core.filters import LowPass1
 
@@ -94,6 +95,7 @@ __all__ = [
     "ConstrainedKalmanFilter",
     "ProjectionResult",
     "inertia_ratios",
+    "inv_small",
     "measurement_matrix",
     "project_box_exact",
 ]
@@ -205,6 +207,27 @@ class CkfConfig:
             start_delay_s=float(values["CKF_START_DLY"]),
             dt_s=float(dt_s),
         )
+
+
+_EYES: dict[int, np.ndarray] = {}
+
+
+def inv_small(a: np.ndarray) -> np.ndarray:
+    """np.linalg.inv(a) of a small float64 matrix, same values, ~2 us instead of ~5 us.
+
+    np.linalg.inv solves A X = I with LAPACK dgesv behind ~3 us of Python wrapper; this calls dgesv directly
+    (scipy's binding; the same OpenBLAS routine, bit-identical results) and returns X in C order like
+    np.linalg.inv (later BLAS products take the same kernels). A singular matrix goes to np.linalg.inv, which
+    raises LinAlgError as before.
+    """
+    n = a.shape[0]
+    eye = _EYES.get(n)
+    if eye is None:
+        eye = _EYES[n] = np.eye(n)
+    x, info = _dgesv(a, eye)[2:]
+    if info != 0:
+        return np.linalg.inv(a)
+    return np.ascontiguousarray(x)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -710,16 +733,22 @@ class ConstrainedKalmanFilter:
         v[2, 2] = a3
         v[3, 3] = a4
         v[4, 3] = a5
-        h = gc_uam_inv @ v
+        dot = np.dot  # np.dot on these tiny 2-D arrays: the same BLAS products as @, less call overhead
+        h = dot(gc_uam_inv, v)
         p = self._p
-        pht = p @ h.T  # 4x5
-        s = h @ pht
+        pht = dot(p, h.T)  # 4x5
+        s = dot(h, pht)
         s += self._r_mat  # S = H P H^T + R
-        gain = np.linalg.solve(s, pht.T).T  # K = P H^T S^-1 by a solve, no explicit inverse (S symmetric)
-        innovation = np.asarray(delta_u, dtype=float) - h @ self._x
-        self._x = self._x + gain @ innovation
-        ikh = self._eye - gain @ h
-        p = ikh @ p @ ikh.T + (gain * self._r) @ gain.T  # Joseph form: stays PSD under rounding
+        # K = P H^T S^-1 by a solve, no explicit inverse (S symmetric): LAPACK dgesv called directly, the
+        # routine np.linalg.solve runs, without its ~3 us of wrapper; np.linalg.solve reports a failure.
+        gain_t, info = _dgesv(s, pht.T)[2:]
+        # C order like np.linalg.solve's result: the later products then take the same BLAS kernels (the
+        # transposed-layout gemv sums in another order), keeping the results bit-identical.
+        gain = (np.ascontiguousarray(gain_t) if info == 0 else np.linalg.solve(s, pht.T)).T
+        innovation = np.asarray(delta_u, dtype=float) - dot(h, self._x)
+        self._x = self._x + dot(gain, innovation)
+        ikh = self._eye - dot(gain, h)
+        p = dot(dot(ikh, p), ikh.T) + dot(gain * self._r, gain.T)  # Joseph form: stays PSD under rounding
         self._p = 0.5 * (p + p.T)
         self.n_updates += 1
         return innovation
@@ -734,11 +763,14 @@ class ConstrainedKalmanFilter:
         if self._identity_weight:
             wl = pl = self._eye_list
         else:
-            w = self._weight_inv_p()
-            if w is self._eye:
-                wl, pl = self._eye_list, None
+            try:
+                wl = inv_small(self._p).tolist()
+            except np.linalg.LinAlgError:
+                wl = None
+            if wl is None or not all(math.isfinite(v) for row in wl for v in row):
+                wl, pl = self._eye_list, None  # as _weight_inv_p
             else:
-                wl, pl = w.tolist(), self._p.tolist()
+                pl = self._p.tolist()
         x, used_fallback, _ = self._projector.solve_lists(xl, wl, lo, hi, pl)
         if used_fallback:
             self.n_projection_fallbacks += 1
@@ -764,7 +796,7 @@ class ConstrainedKalmanFilter:
         """W = P^-1 (minimum-variance projection). A singular P (possible only with Q = 0 and P0 = 0, when
         the filter cannot move anyway) falls back to W = I."""
         try:
-            w = np.linalg.inv(self._p)
+            w = inv_small(self._p)
         except np.linalg.LinAlgError:
             return self._eye
         return w if bool(np.isfinite(w).all()) else self._eye

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navig8_fc.core.ckf import AdaptiveLaw, AdaptiveLawInputs, AdaptiveLawStatus, CkfConfig
+from navig8_fc.core.ckf import AdaptiveLaw, AdaptiveLawInputs, AdaptiveLawStatus, CkfConfig, inv_small
 from navig8_fc.core.filters import BackwardDifference
 from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs, IndiStatus
 from navig8_fc.core.outer_loop import OuterLoopConfig, OuterLoopStatus, Setpoint, outer_loop_step
@@ -150,7 +150,7 @@ class FlightControllerCore:
              s.accel_frd[0] + uam.arm_accel_xz[0], s.accel_frd[2] + uam.arm_accel_xz[1]]
         )  # Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM
         u_meas = actuators_to_u(s.tilt_rad[0], s.tilt_rad[1], *s.speed_rad_s)
-        gc_inv = np.linalg.inv(uam.gc)
+        gc_inv = inv_small(uam.gc)  # = np.linalg.inv(uam.gc), bit for bit
         gi_hat, adapt_status = self._adapt.step(
             AdaptiveLawInputs(
                 t_s=s.t_s, u_meas=u_meas, acc_m=acc_m, gc_uam_inv=gc_inv,

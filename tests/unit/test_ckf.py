@@ -23,6 +23,7 @@ from navig8_fc.core.ckf import (
     CkfStepInputs,
     ConstrainedKalmanFilter,
     inertia_ratios,
+    inv_small,
     measurement_matrix,
     project_box_exact,
 )
@@ -527,3 +528,61 @@ def test_adaptive_law_converges_on_consistent_data(pose: Pose, mode: CkfMode) ->
         assert st.active_upper[2] and st.x_hat[2] > st.upper[2]
     assert st.n_projection_fallbacks == 0
     assert math.isfinite(sum(st.p_diag))
+
+
+def test_adaptive_law_fast_path_equals_public_pieces_bit_for_bit(pose: Pose) -> None:
+    """AdaptiveLaw.step (plain-float bookkeeping, KF._step_lists) gives exactly what the public pieces give:
+    LowPass1 increments, ConstrainedKalmanFilter.step(CkfStepInputs) and vehicle.estimate_bounds /
+    estimated_gi / k_from_estimate. Projections are active on most ticks (x_true outside the box)."""
+    cfg = CkfConfig(start_delay_s=0.05)
+    law, kf = AdaptiveLaw(cfg), ConstrainedKalmanFilter(cfg)
+    ref_u, ref_a = LowPass1(cfg.lpf_tau_s, DT, 5), LowPass1(cfg.lpf_tau_s, DT, 5)
+    idot = np.array([[0.02, 0.0, -0.01], [0.0, 0.03, 0.0], [-0.01, 0.0, 0.01]])
+    prev = None
+    n_projected = 0
+    for k, (u, acc) in enumerate(_excitation(pose, pose.base * np.array([2.5, 1.3, 0.8, 1.2]), 300)):
+        inp = AdaptiveLawInputs(
+            t_s=k * DT, u_meas=u, acc_m=acc, gc_uam_inv=pose.gci, inertia_uam=pose.j, mass_uam_kg=pose.m,
+            inertia_rate_uam=idot, k_min=0.5, k_max=1.0,
+        )
+        g, st = law.step(inp)
+        fu, fa = np.array(ref_u.step(u)), np.array(ref_a.step(acc))
+        du, da = (np.zeros(5), np.zeros(5)) if prev is None else (fu - prev[0], fa - prev[1])
+        prev = (fu, fa)
+        lower, upper = veh.estimate_bounds(pose.j, pose.m, 0.5, 1.0)
+        assert st.lower == tuple(lower.tolist()) and st.upper == tuple(upper.tolist())
+        assert st.delta_u == tuple(du.tolist()) and st.delta_acc == tuple(da.tolist())
+        if not st.running:
+            assert np.array_equal(g, veh.estimated_gi(pose.j, pose.base))
+            continue
+        first = not kf.initialised
+        if first:
+            kf.initialise(pose.base)
+        res = kf.step(
+            CkfStepInputs(du, da, pose.gci, pose.rho_x, pose.rho_z, np.diag(idot).copy(), lower, upper),
+            predict=not first,
+        )
+        n_projected += res.projected
+        assert st.x_hat == tuple(res.x_hat.tolist())
+        assert st.x_unconstrained == tuple(res.x_unconstrained.tolist())
+        assert st.innovation == tuple(res.innovation.tolist())
+        assert st.p_diag == tuple(res.p_diag.tolist())
+        assert st.k == tuple(veh.k_from_estimate(pose.j, pose.m, res.x_hat).tolist())
+        assert st.active_lower == tuple((res.x_hat <= lower).tolist())
+        assert st.active_upper == tuple((res.x_hat >= upper).tolist())
+        assert np.array_equal(g, veh.estimated_gi(pose.j, res.x_hat))
+        assert law.mass_estimate_kg == res.x_hat[3]
+    assert n_projected > 100
+
+
+def test_inv_small_is_numpy_inv_bit_for_bit(pose: Pose) -> None:
+    rng = np.random.default_rng(3)
+    mats = [pose.gc, veh.control_effectiveness_gc(pose.cfg, np.array([0.02, 0.0, 0.07]))]
+    for _ in range(200):
+        a = rng.normal(size=(4, 4))
+        mats += [a @ a.T + 1e-3 * np.eye(4), rng.normal(size=(5, 5))]
+    for a in mats:
+        x = inv_small(a)
+        assert np.array_equal(x, np.linalg.inv(a)) and x.flags.c_contiguous
+    with pytest.raises(np.linalg.LinAlgError):
+        inv_small(np.zeros((4, 4)))
