@@ -855,8 +855,8 @@ class AdaptiveLawInputs:
     """Per control step. Signals unfiltered; the law filters them itself."""
 
     t_s: float  # controller time (lockstep sim time), s
-    u_meas: np.ndarray  # (5,) U0 from the measured actuators (Sec. 3 definition of U)
-    acc_m: np.ndarray  # (5,) [P_dot, Q_dot, R_dot, a_x, a_z] incl. the arm term (Eq. 23), body FRD
+    u_meas: Sequence[float] | np.ndarray  # (5,) U0 from the measured actuators (Sec. 3 definition of U)
+    acc_m: Sequence[float] | np.ndarray  # (5,) [P_dot, Q_dot, R_dot, a_x, a_z] incl. the arm term (Eq. 23), body FRD
     gc_uam_inv: np.ndarray  # (5, 5) G_C,UAM^-1 at the measured pose
     inertia_uam: np.ndarray  # (3, 3) UAM inertia tensor about the UAM CoM
     mass_uam_kg: float

@@ -19,13 +19,18 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
-import numpy as np
-
 from navig8_fc.core.ckf import AdaptiveLaw, AdaptiveLawInputs, AdaptiveLawStatus, CkfConfig, inv_small
 from navig8_fc.core.filters import BackwardDifference
-from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs, IndiStatus
+from navig8_fc.core.indi import (
+    ActuatorLimits,
+    IndiConfig,
+    IndiController,
+    IndiInputs,
+    IndiStatus,
+    actuators_to_u_list,
+)
 from navig8_fc.core.outer_loop import OuterLoopConfig, OuterLoopStatus, Setpoint, outer_loop_step
-from navig8_fc.core.vehicle import UamModel, VehicleConfig, actuators_to_u
+from navig8_fc.core.vehicle import UamModel, VehicleConfig
 
 JOINT_OBS_TAU_S = 1.0  # complementary-filter time constant for the joint angles (docs/model.md)
 
@@ -141,15 +146,16 @@ class FlightControllerCore:
         q_est, qdd = self._joint_observer(s)
         # The arm term uses a point object of the estimated extra mass at the tip (notes §3.3 option b).
         m_obj_est = 0.0
-        if self._adapt.kf.initialised:
-            m_obj_est = max(float(self._adapt.kf.x[3]) - self.vehicle.uam_mass_kg, 0.0)
+        m_hat = self._adapt.mass_estimate_kg
+        if m_hat is not None:
+            m_obj_est = max(m_hat - self.vehicle.uam_mass_kg, 0.0)
         uam = self._model.evaluate(q_est, s.joint_rate_rad_s, qdd, m_obj_est)
         wdot_raw = self._gyro_diff.step(s.gyro_frd)
-        acc_m = np.array(
-            [wdot_raw[0], wdot_raw[1], wdot_raw[2],
-             s.accel_frd[0] + uam.arm_accel_xz[0], s.accel_frd[2] + uam.arm_accel_xz[1]]
-        )  # Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM
-        u_meas = actuators_to_u(s.tilt_rad[0], s.tilt_rad[1], *s.speed_rad_s)
+        acc_m = [
+            wdot_raw[0], wdot_raw[1], wdot_raw[2],
+            float(s.accel_frd[0] + uam.arm_accel_xz[0]), float(s.accel_frd[2] + uam.arm_accel_xz[1]),
+        ]  # Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM (a list: the law filters it as floats)
+        u_meas = actuators_to_u_list(s.tilt_rad[0], s.tilt_rad[1], *s.speed_rad_s)
         gc_inv = inv_small(uam.gc)  # = np.linalg.inv(uam.gc), bit for bit
         gi_hat, adapt_status = self._adapt.step(
             AdaptiveLawInputs(

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navig8_fc.core.filters import BackwardDifference, LowPass1
-from navig8_fc.core.vehicle import VehicleConfig, actuators_to_u, u_to_actuators
+from navig8_fc.core.vehicle import VehicleConfig, u_to_actuators
 
 # Axis groups of Delta Acc = [Pdot, Qdot, Rdot, a_x, a_z], scaled back in this order on saturation.
 SATURATION_ORDER: tuple[tuple[int, ...], ...] = ((3,), (2,), (0, 1, 4))
@@ -78,6 +78,17 @@ class IndiStatus:
     fallback_to_u0: bool
 
 
+def actuators_to_u_list(alpha1: float, alpha3: float, w1: float, w2: float, w3: float) -> list[float]:
+    """vehicle.actuators_to_u as a list of floats (the same expressions; no array for 5 numbers)."""
+    return [
+        math.cos(alpha1) * w1 * w1,
+        math.sin(alpha1) * w1 * w1,
+        math.cos(alpha3) * w3 * w3,
+        math.sin(alpha3) * w3 * w3,
+        math.copysign(w2 * w2, w2),
+    ]
+
+
 class IndiController:
     """Incremental nonlinear dynamic inversion on [Pdot, Qdot, Rdot, a_x, a_z]."""
 
@@ -102,21 +113,23 @@ class IndiController:
         f_xz = self._acc_lpf.step((inp.specific_force_frd[0], inp.specific_force_frd[2]))
         a1, a3 = inp.tilt_rad
         w1, w2, w3 = inp.speed_rad_s
-        u0 = self._u0_lpf.step(actuators_to_u(a1, a3, w1, w2, w3).tolist())
+        u0 = self._u0_lpf.step(actuators_to_u_list(a1, a3, w1, w2, w3))
         return [wdot[0], wdot[1], wdot[2], f_xz[0], f_xz[1]], u0
 
     def step(self, inp: IndiInputs) -> tuple[IndiOutput, IndiStatus]:
         acc_f, u0 = self.measure(inp)
         d_acc_l = [inp.accel_cmd[i] - acc_f[i] for i in range(5)]
-        d_acc = np.array(d_acc_l)
-        # Eq. 5: Delta U = G_C^-1 G_hat_I Delta Acc
-        m = inp.gc_inv @ inp.gi_hat if inp.gc_inv is not None else np.linalg.solve(inp.gc, inp.gi_hat)
+        # Eq. 5: Delta U = G_C^-1 G_hat_I Delta Acc (np.dot: the same BLAS products as @, less overhead)
+        m = np.dot(inp.gc_inv, inp.gi_hat) if inp.gc_inv is not None else np.linalg.solve(inp.gc, inp.gi_hat)
         u0_arr = np.array(u0)
         scales = [1.0, 1.0, 1.0]
         fallback = False
-        du = m @ d_acc
-        if not self._feasible((u0_arr + du).tolist()):
+        du = np.dot(m, d_acc_l)
+        u = u0_arr + du
+        ul = u.tolist()
+        if not self._feasible(ul):
             # Keep the high-priority groups; scale the low ones back first, to the largest feasible s.
+            d_acc = np.array(d_acc_l)
             contrib = m * d_acc  # column j = M[:, j] * d_acc[j]: each axis' contribution
             rest = du.copy()
             for g, cols in enumerate(SATURATION_ORDER):
@@ -130,17 +143,19 @@ class IndiController:
                 if self._feasible(u0_arr + rest):
                     break
             du = rest
-        u = u0_arr + du
-        if not np.all(np.isfinite(u)):
+            u = u0_arr + du
+            ul = u.tolist()
+        if not all(math.isfinite(v) for v in ul):
             u, du, fallback = u0_arr.copy(), np.zeros(5), True
-        a1, a3, w1, w2, w3 = u_to_actuators(u)
+            ul = u.tolist()
+        a1, a3, w1, w2, w3 = u_to_actuators(ul)
         lim = self.cfg.limits
         a1 = min(max(a1, lim.tilt_min_rad), lim.tilt_max_rad)
         a3 = min(max(a3, lim.tilt_min_rad), lim.tilt_max_rad)
         w1 = min(w1, lim.duct_speed_max)
         w3 = min(w3, lim.duct_speed_max)
         w2 = min(max(w2, -lim.tail_speed_max), lim.tail_speed_max)
-        out = IndiOutput((a1, a3), (w1, w2, w3), tuple(u.tolist()))
+        out = IndiOutput((a1, a3), (w1, w2, w3), tuple(ul))
         status = IndiStatus(
             acc_filtered=tuple(acc_f),
             u0_filtered=tuple(u0),

@@ -459,20 +459,22 @@ class UamModel:
         f, m0 = _force_moment_per_input(cfg, np.zeros(3))
         self._f = f
         self._m0 = m0
+        self._fl = f.tolist()  # plain-float copies for gc_about (5-element rows: lists beat numpy)
+        self._m0l = m0.tolist()
         j = cfg.uav_inertia_array
         self._jb = (float(j[0, 0]), float(j[1, 1]), float(j[2, 2]), float(j[0, 2]))
 
     def gc_about(self, cx: float, cz: float) -> np.ndarray:
         """G_C rows [L, M, N, Fx, Fz] about c = (cx, 0, cz): M_c = M_O - c x F."""
-        f, m0 = self._f, self._m0
-        gc = np.empty((5, 5))
+        (f0, f1, f2), (m00, m01, m02) = self._fl, self._m0l
         # c x F with c_y = 0: [-cz Fy, cz Fx - cx Fz, cx Fy]
-        gc[0] = m0[0] + cz * f[1]
-        gc[1] = m0[1] - (cz * f[0] - cx * f[2])
-        gc[2] = m0[2] - cx * f[1]
-        gc[3] = f[0]
-        gc[4] = f[2]
-        return gc
+        return np.array([
+            [a + cz * b for a, b in zip(m00, f1, strict=True)],
+            [a - (cz * b - cx * c) for a, b, c in zip(m01, f0, f2, strict=True)],
+            [a - cx * b for a, b in zip(m02, f1, strict=True)],
+            f0,
+            f2,
+        ])
 
     def evaluate(
         self,

@@ -9,7 +9,7 @@ import pytest
 
 from navig8_fc.core import rotation as rot
 from navig8_fc.core import vehicle as vm
-from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs
+from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs, actuators_to_u_list
 from navig8_fc.core.outer_loop import OuterLoopConfig, Setpoint, outer_loop_step
 
 CFG = vm.VehicleConfig.load()
@@ -130,3 +130,12 @@ def test_outer_loop_hover_and_roll_nulls_lateral_force() -> None:
     r, p, y = rot.quat_to_euler(st.att_cmd_quat)
     assert p == pytest.approx(math.radians(45)) and y == pytest.approx(math.radians(30))
     assert math.sqrt(sum(a * a for a in st.accel_cmd_ned)) <= OL.acc_max_m_s2 + 1e-12
+
+
+def test_actuators_to_u_list_is_vehicle_actuators_to_u() -> None:
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        a1, a3 = rng.uniform(-1.0, 2.5, 2)
+        w1, w3 = rng.uniform(0.0, 1500.0, 2)
+        w2 = rng.uniform(-2000.0, 2000.0)
+        assert actuators_to_u_list(a1, a3, w1, w2, w3) == vm.actuators_to_u(a1, a3, w1, w2, w3).tolist()

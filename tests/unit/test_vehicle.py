@@ -207,3 +207,13 @@ def test_fast_uam_model_matches_reference_functions() -> None:
         mo = RNG.uniform(0, 2)
         want = (CFG.link_mass_kg * kin.link_com_acc.sum(axis=0) + mo * kin.object_acc) / (CFG.uam_mass_kg + mo)
         np.testing.assert_allclose(um.evaluate(q, qd, qdd, mo).arm_accel_xz, want[[0, 2]], atol=1e-12)
+
+
+def test_fast_gc_about_is_row_arithmetic_of_the_reference_wrench() -> None:
+    """UamModel.gc_about (plain floats) equals the numpy row form M_c = M_O - c x F bit for bit."""
+    um = vm.UamModel(CFG)
+    f, m0 = vm._force_moment_per_input(CFG, np.zeros(3))
+    for _ in range(20):
+        cx, cz = RNG.uniform(-0.1, 0.1, 2)
+        want = np.vstack([m0[0] + cz * f[1], m0[1] - (cz * f[0] - cx * f[2]), m0[2] - cx * f[1], f[0], f[2]])
+        assert np.array_equal(um.gc_about(cx, cz), want)
