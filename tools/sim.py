@@ -41,18 +41,24 @@ class RunResult:
     log_path: Path | None
 
 
+def _floats(v: Any) -> tuple[float, ...]:
+    # .tolist() gives Python floats: numpy scalars would slow every plain-float operation in the FC ~3x
+    return tuple(v.tolist()) if hasattr(v, "tolist") else tuple(float(x) for x in v)
+
+
 def _sensors_to_fc(sb: Any) -> FcSensors:
+    """The plant's SensorBundle as the FC's input (what the bridge seam delivers over MAVLink)."""
     return FcSensors(
         t_s=sb.time_us * 1e-6,
-        gyro_frd=tuple(sb.gyro_frd),
-        accel_frd=tuple(sb.accel_frd),
-        pos_ned=tuple(sb.pos_ned),
-        vel_ned=tuple(sb.vel_ned),
-        quat_wxyz=tuple(sb.quat_wxyz),
-        tilt_rad=tuple(sb.duct_tilt_rad),
-        speed_rad_s=tuple(sb.prop_speed_rad_s),
-        joint_pos_rad=tuple(sb.joint_pos_rad),
-        joint_rate_rad_s=tuple(sb.joint_rate_rad_s),
+        gyro_frd=_floats(sb.gyro_frd),
+        accel_frd=_floats(sb.accel_frd),
+        pos_ned=_floats(sb.pos_ned),
+        vel_ned=_floats(sb.vel_ned),
+        quat_wxyz=_floats(sb.quat_wxyz),
+        tilt_rad=_floats(sb.duct_tilt_rad),
+        speed_rad_s=_floats(sb.prop_speed_rad_s),
+        joint_pos_rad=_floats(sb.joint_pos_rad),
+        joint_rate_rad_s=_floats(sb.joint_rate_rad_s),
     )
 
 
