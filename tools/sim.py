@@ -96,28 +96,13 @@ class EigenMonitor:
     """Eigenvalues of G_hat G^-1 with G from the plant's truth (Eq. 14), for logs and the summary."""
 
     def __init__(self, cfg: vm.VehicleConfig, lambda_min: float, lambda_crit: float) -> None:
-        self.cfg = cfg
         self.model = vm.UamModel(cfg)
         self.lambda_min = lambda_min
         self.lambda_crit = lambda_crit
 
     def __call__(self, st: ControllerStatus, tr: Any) -> dict[str, Any]:
-        gc_uam = self.model.evaluate(st.q_est_rad, (0.0, 0.0, 0.0)).gc
-        gi_hat = np.array(st.gi_hat).reshape(5, 5)
-        com = np.asarray(tr.com_frd_m, dtype=float)
-        gc_true = self.model.gc_about(float(com[0]), float(com[2]))
-        gi_true = vm.inertia_matrix_gi(np.asarray(tr.inertia_com_kgm2, dtype=float), float(tr.mass_kg))
-        ghat = np.linalg.solve(gi_hat, gc_uam)
-        g = np.linalg.solve(gi_true, gc_true)
-        lam = np.linalg.eigvals(ghat @ np.linalg.inv(g))
-        lam = lam[np.argsort(lam.real)]
-        return {
-            "eig_real": lam.real.tolist(),
-            "eig_imag": lam.imag.tolist(),
-            "lambda_min": self.lambda_min,
-            "lambda_crit": self.lambda_crit,
-            "true_inertia_mass": [gi_true[0, 0], gi_true[1, 1], gi_true[2, 2], gi_true[3, 3]],
-        }
+        return vm.ghat_ginv_eig_record(self.model, st.q_est_rad, st.gi_hat, tr.com_frd_m, tr.inertia_com_kgm2,
+                                       tr.mass_kg, self.lambda_min, self.lambda_crit)
 
 
 def run(

@@ -555,3 +555,33 @@ class UamModel:
             gc=self.gc_about(cx, cz),
             arm_accel_xz=(arm_ax, arm_az),
         )
+
+
+def ghat_ginv_eig_record(
+    model: UamModel,
+    q_est_rad: Sequence3,
+    gi_hat_flat: Sequence[float],
+    com_true_frd_m: Sequence3,
+    inertia_true: np.ndarray,
+    mass_true_kg: float,
+    lambda_min: float,
+    lambda_crit: float,
+) -> dict[str, Any]:
+    """Eigenvalues of G_hat G^-1 (Eq. 14) with G from the plant's truth, as the /analysis/eig log record.
+
+    G_hat^-1 = G_C,UAM(q_est)^-1 G_hat_I (Eq. 4) and G^-1 = G_C,true^-1 G_I,true, so
+    G_hat G^-1 = (G_hat_I^-1 G_C,UAM)(G_C,true^-1 G_I,true). Used by the in-process runner and the SITL FC.
+    """
+    gc_uam = model.evaluate(q_est_rad, (0.0, 0.0, 0.0)).gc
+    gi_hat = np.asarray(gi_hat_flat, dtype=float).reshape(5, 5)
+    gc_true = model.gc_about(float(com_true_frd_m[0]), float(com_true_frd_m[2]))
+    gi_true = inertia_matrix_gi(np.asarray(inertia_true, dtype=float), float(mass_true_kg))
+    lam = np.linalg.eigvals(np.linalg.solve(gi_hat, gc_uam) @ np.linalg.solve(gc_true, gi_true))
+    lam = lam[np.argsort(lam.real)]
+    return {
+        "eig_real": lam.real.tolist(),
+        "eig_imag": lam.imag.tolist(),
+        "lambda_min": float(lambda_min),
+        "lambda_crit": float(lambda_crit),
+        "true_inertia_mass": [float(gi_true[0, 0]), float(gi_true[1, 1]), float(gi_true[2, 2]), float(mass_true_kg)],
+    }

@@ -81,16 +81,9 @@ class FcOptions:
 
 def _eig_record(model: vm.UamModel, st: ControllerStatus, truth: Any, lam_min: float, lam_crit: float
                 ) -> dict[str, Any]:
-    gc_uam = model.evaluate(st.q_est_rad, (0.0, 0.0, 0.0)).gc
-    gi_hat = np.array(st.gi_hat).reshape(5, 5)
-    gc_true = model.gc_about(float(truth.com_frd[0]), float(truth.com_frd[2]))
-    i = truth.inertia
+    i = truth.inertia  # NAVIG8_TRUTH: xx, yy, zz, xy, xz, yz about the composite CoM
     j = np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]], dtype=float)
-    gi_true = vm.inertia_matrix_gi(j, float(truth.mass))
-    lam = np.linalg.eigvals(np.linalg.solve(gi_hat, gc_uam) @ np.linalg.inv(np.linalg.solve(gi_true, gc_true)))
-    lam = lam[np.argsort(lam.real)]
-    return {"eig_real": lam.real.tolist(), "eig_imag": lam.imag.tolist(), "lambda_min": lam_min,
-            "lambda_crit": lam_crit, "true_inertia_mass": [j[0, 0], j[1, 1], j[2, 2], float(truth.mass)]}
+    return vm.ghat_ginv_eig_record(model, st.q_est_rad, st.gi_hat, truth.com_frd, j, truth.mass, lam_min, lam_crit)
 
 
 class FlightControllerProcess:

@@ -217,3 +217,18 @@ def test_fast_gc_about_is_row_arithmetic_of_the_reference_wrench() -> None:
         cx, cz = RNG.uniform(-0.1, 0.1, 2)
         want = np.vstack([m0[0] + cz * f[1], m0[1] - (cz * f[0] - cx * f[2]), m0[2] - cx * f[1], f[0], f[2]])
         assert np.array_equal(um.gc_about(cx, cz), want)
+
+
+def test_eig_record_matches_k_xi_eigenvalues() -> None:
+    # With G_hat_I = G_I,UAM K^-1 the record's eigenvalues are those of K Xi (Eq. 14).
+    q = np.radians([20, -30, 40])
+    k = np.array([0.6, 0.9, 0.7, 0.8])
+    um = vm.UamModel(CFG)
+    j = vm.mass_properties(CFG, q).inertia_com
+    x = np.array([j[0, 0], j[1, 1], j[2, 2], CFG.uam_mass_kg]) / k
+    true = vm.mass_properties(CFG, q, 1.5)
+    rec = vm.ghat_ginv_eig_record(um, q, vm.estimated_gi(j, x).ravel(), true.com_frd_m, true.inertia_com,
+                                  true.mass_kg, 0.5, 0.1)
+    want = vm.ghat_ginv_eigenvalues(vm.effectiveness_pair(CFG, q, 1.5), k)
+    np.testing.assert_allclose(np.sort(rec["eig_real"]), np.sort(want.real), atol=1e-9)
+    assert rec["true_inertia_mass"][3] == pytest.approx(true.mass_kg)
