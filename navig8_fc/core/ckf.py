@@ -250,6 +250,13 @@ def measurement_matrix(
     """
     a1, a2, a3, a4, a5 = (float(v) for v in delta_acc)
     v = np.zeros((N_MEAS, N_STATE))
+    _fill_regressor(v, a1, a2, a3, a4, a5, rho_x, rho_z)
+    return gc_uam_inv @ v
+
+
+def _fill_regressor(v: np.ndarray, a1: float, a2: float, a3: float, a4: float, a5: float, rho_x: float,
+                    rho_z: float) -> None:
+    """The non-zero entries of [v_xx v_yy v_zz v_m] (5x4) in place (notes 2.4); the zeros never change."""
     v[0, 0] = a1
     v[2, 0] = rho_x * a1
     v[1, 1] = a2
@@ -257,7 +264,6 @@ def measurement_matrix(
     v[2, 2] = a3
     v[3, 3] = a4
     v[4, 3] = a5
-    return gc_uam_inv @ v
 
 
 # --------------------------------------------------------------------------------------------------
@@ -726,13 +732,7 @@ class ConstrainedKalmanFilter:
     ) -> np.ndarray:
         # H = measurement_matrix(...), filling a persistent v (its zeros never change): same product, no alloc.
         v = self._v
-        v[0, 0] = a1
-        v[2, 0] = rho_x * a1
-        v[1, 1] = a2
-        v[0, 2] = rho_z * a3
-        v[2, 2] = a3
-        v[3, 3] = a4
-        v[4, 3] = a5
+        _fill_regressor(v, a1, a2, a3, a4, a5, rho_x, rho_z)
         dot = np.dot  # np.dot on these tiny 2-D arrays: the same BLAS products as @, less call overhead
         h = dot(gc_uam_inv, v)
         p = self._p

@@ -145,33 +145,19 @@ class UdpLink:
         buf = msg.pack(self.mav)
         self.send_raw(buf, dest, msg)
 
-    def send_many(self, msgs: list[Any], dest: list[tuple[str, int]] | None = None) -> None:
-        """Several messages in one datagram (one syscall), as the bridge seam does."""
-        if not msgs:
-            return
-        bufs = [m.pack(self.mav) for m in msgs]
-        data = b"".join(bufs)
+    def send_raw(self, buf: bytes, dest: list[tuple[str, int]] | None = None, msg: Any = None) -> None:
+        self._sendto(buf, dest)
+        self.counters.frames_out += 1
+        if self.on_frame:
+            self.on_frame(self.name, "out", buf, msg, ("", 0))
+
+    def _sendto(self, data: bytes, dest: list[tuple[str, int]] | None) -> None:
         for addr in dest if dest is not None else self.destinations():
             try:
                 self.sock.sendto(data, addr)
                 self.counters.bytes_out += len(data)
-            except OSError:
+            except OSError:  # a peer that went away (ICMP unreachable): counted, never fatal
                 self.counters.send_errors += 1
-        self.counters.frames_out += len(bufs)
-        if self.on_frame:
-            for b, m in zip(bufs, msgs, strict=True):
-                self.on_frame(self.name, "out", b, m, ("", 0))
-
-    def send_raw(self, buf: bytes, dest: list[tuple[str, int]] | None = None, msg: Any = None) -> None:
-        for addr in dest if dest is not None else self.destinations():
-            try:
-                self.sock.sendto(buf, addr)
-                self.counters.bytes_out += len(buf)
-            except OSError:
-                self.counters.send_errors += 1
-        self.counters.frames_out += 1
-        if self.on_frame:
-            self.on_frame(self.name, "out", buf, msg, ("", 0))
 
     def close(self) -> None:
         self.sock.close()
