@@ -69,9 +69,18 @@ class GcsService:
             out += self.params.handle(m, now_wall)
             out += self.commands.handle(m, now_wall)
             out += self.misc.handle(m, now_wall)
+            out += self._set_mode_message(m)
         self.broadcast(out)
         for change in self.params.drain_changes():
             self.fc.log_param_change(change)
+
+    def _set_mode_message(self, m: Any) -> list[Any]:
+        """The legacy SET_MODE message (what `mode X` in MAVProxy sends), read in PX4's custom_mode encoding
+        as PX4 does; there is no ACK in that protocol, so a refusal is reported by STATUSTEXT."""
+        if m.get_type() != "SET_MODE" or m.target_system not in (0, self.fc.opts.sysid):
+            return []
+        ok, reason = self.set_mode(int(m.base_mode), int(m.custom_mode))
+        return [] if ok else self.text.warning(reason or f"SET_MODE {int(m.custom_mode):#x} refused")
 
     def poll(self, now_wall: float) -> None:
         self.broadcast(self.params.poll(now_wall))
