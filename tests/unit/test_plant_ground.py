@@ -8,19 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from navig8_fc.core.vehicle import VehicleConfig
-from sim_bridge import ActuatorCommand, Plant, PlantParams, load_scenario
+from sim_bridge import ActuatorCommand, Plant, load_scenario
 from sim_bridge.plant import quat_to_dcm
-
-
-@pytest.fixture(scope="module")
-def cfg() -> VehicleConfig:
-    return VehicleConfig.load()
-
-
-@pytest.fixture(scope="module")
-def params() -> PlantParams:
-    return PlantParams.load().without_noise()
 
 
 def test_ground_scenario_rests_still(cfg, params):

@@ -26,11 +26,6 @@ from sim_bridge.plant import trim_actuators
 
 
 @pytest.fixture(scope="module")
-def cfg() -> VehicleConfig:
-    return VehicleConfig.load()
-
-
-@pytest.fixture(scope="module")
 def params() -> PlantParams:
     return PlantParams.load()
 

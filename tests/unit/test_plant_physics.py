@@ -13,21 +13,11 @@ import numpy as np
 import pytest
 
 from navig8_fc.core.vehicle import VehicleConfig, arm_kinematics, mass_properties
-from sim_bridge import ActuatorCommand, Plant, PlantParams, Scenario, load_scenario
+from sim_bridge import ActuatorCommand, Plant, Scenario, load_scenario
 from sim_bridge.plant import quat_to_dcm
 
 PAPER_FORCE_PEAK_N = 130.7  # paper Sec. 4 / Fig. 10
 PAPER_MOMENT_PEAK_NM = 125.8
-
-
-@pytest.fixture(scope="module")
-def cfg() -> VehicleConfig:
-    return VehicleConfig.load()
-
-
-@pytest.fixture(scope="module")
-def params() -> PlantParams:
-    return PlantParams.load().without_noise()
 
 
 def _scenario(**overrides) -> Scenario:
