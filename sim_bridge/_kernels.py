@@ -153,6 +153,15 @@ def _dcm(qw: float, qx: float, qy: float, qz: float):
 
 
 @njit(cache=True)
+def _own_inertia(k: int, ia: float, io: float, s: float, c: float):
+    """Body k's own inertia about its centre, body axes: link rod Ia (E - e e^T) with e = [s, 0, c]
+    (Table 1: Izz = 0 along the link) for k < 3, the object's sphere io E for k = 3. (xx, yy, zz, xz)."""
+    if k < 3:
+        return ia * c * c, ia, ia * s * s, -ia * s * c
+    return io, io, io, 0.0
+
+
+@njit(cache=True)
 def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
     """Base-state derivative at one instant. xb: (13,) base state; q, qd, qdd: joint motion at this
     instant; act: actuator outputs (5). Writes dx/dt into out (13); sc (36,) is scratch for the
@@ -266,16 +275,7 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
         jxz -= mk * rx * rz
         jyz -= mk * ry * rz
         # own rotational inertia: rod Ia (E - e e^T) (Table 1: Izz = 0 along the link), or sphere io E
-        if k < 3:
-            ixx = ia * c * c
-            iyy = ia
-            izz = ia * s * s
-            ixz = -ia * s * c
-        else:
-            ixx = io
-            iyy = io
-            izz = io
-            ixz = 0.0
+        ixx, iyy, izz, ixz = _own_inertia(k, ia, io, s, c)
         jxx += ixx
         jyy += iyy
         jzz += izz
@@ -522,16 +522,7 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
         c = math.cos(sc[9 * k + 6])
         thd = sc[9 * k + 7]
         thdd = sc[9 * k + 8]
-        if k < 3:
-            ixx = ia * c * c
-            iyy = ia
-            izz = ia * s * s
-            ixz = -ia * s * c
-        else:
-            ixx = io
-            iyy = io
-            izz = io
-            ixz = 0.0
+        ixx, iyy, izz, ixz = _own_inertia(k, ia, io, s, c)
         awx = dwx - wz * thd
         awy = dwy + thdd
         awz = dwz + wx * thd
