@@ -80,6 +80,7 @@ import numpy as np
 from scipy import sparse
 from scipy.linalg.lapack import dgesv as _dgesv
 
+from navig8_fc.core import _kernels as _kern
 from navig8_fc.core.filters import LowPass1
 
 __all__ = [
@@ -727,6 +728,19 @@ class ConstrainedKalmanFilter:
         return self._correct(delta_u, a1, a2, a3, a4, a5, gc_uam_inv, rho_x, rho_z)
 
     def _correct(
+        self, delta_u: Sequence[float] | np.ndarray, a1: float, a2: float, a3: float, a4: float, a5: float,
+        gc_uam_inv: np.ndarray, rho_x: float, rho_z: float,
+    ) -> np.ndarray:
+        """The update in one numba kernel (_kernels.kf_correct); `_correct_reference` is the numpy original
+        (tests compare them; they agree to rounding). A singular S goes to the reference, which raises."""
+        innovation = np.empty(N_MEAS)
+        if _kern.kf_correct(self._x, self._p, self._r, np.asarray(gc_uam_inv, dtype=float),
+                            np.asarray(delta_u, dtype=float), a1, a2, a3, a4, a5, rho_x, rho_z, innovation):
+            self.n_updates += 1
+            return innovation
+        return self._correct_reference(delta_u, a1, a2, a3, a4, a5, gc_uam_inv, rho_x, rho_z)
+
+    def _correct_reference(
         self, delta_u: Sequence[float] | np.ndarray, a1: float, a2: float, a3: float, a4: float, a5: float,
         gc_uam_inv: np.ndarray, rho_x: float, rho_z: float,
     ) -> np.ndarray:

@@ -19,6 +19,9 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass
 
+import numpy as np
+
+from navig8_fc.core import _kernels as _k
 from navig8_fc.core.ckf import AdaptiveLaw, AdaptiveLawInputs, AdaptiveLawStatus, CkfConfig, inv_small
 from navig8_fc.core.filters import BackwardDifference
 from navig8_fc.core.indi import (
@@ -29,8 +32,14 @@ from navig8_fc.core.indi import (
     IndiStatus,
     actuators_to_u_list,
 )
-from navig8_fc.core.outer_loop import OuterLoopConfig, OuterLoopStatus, Setpoint, outer_loop_step
-from navig8_fc.core.vehicle import UamModel, VehicleConfig
+from navig8_fc.core.outer_loop import (
+    OuterLoopConfig,
+    OuterLoopStatus,
+    Setpoint,
+    outer_loop_config_array,
+    outer_loop_step_compiled,
+)
+from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig
 
 JOINT_OBS_TAU_S = 1.0  # complementary-filter time constant for the joint angles (docs/model.md)
 
@@ -119,6 +128,16 @@ class FlightControllerCore:
         self._qd_diff = BackwardDifference(config.dt_s, 3)
         self._q_est: list[float] | None = None
         self._obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
+        # Compiled UAM model (_kernels.uam_model; UamModel.evaluate + inv_small are its reference).
+        v = vehicle
+        jb = self._model._jb
+        self._geo = np.array([v.link_length_m, v.link_mass_kg, v.link_inertia_kgm2, v.mount_frd_m[0],
+                              v.mount_frd_m[2], v.uam_mass_kg, jb[0], jb[1], jb[2], jb[3]])
+        self._f = np.ascontiguousarray(self._model._f)
+        self._m0 = np.ascontiguousarray(self._model._m0)
+        self._outer_cfg = outer_loop_config_array(config.outer)
+        self._uo = np.zeros(_k.N_UO)
+        assert N_LINKS == 3
 
     def reset(self) -> None:
         """Forget filter and estimator state (e.g. on arming); the start delay counts again."""
@@ -149,43 +168,51 @@ class FlightControllerCore:
         m_hat = self._adapt.mass_estimate_kg
         if m_hat is not None:
             m_obj_est = max(m_hat - self.vehicle.uam_mass_kg, 0.0)
-        uam = self._model.evaluate(q_est, s.joint_rate_rad_s, qdd, m_obj_est)
+        # Fresh arrays each tick: the adaptive law and INDI may keep references within the tick only, but
+        # callers of the reference APIs expect independent arrays.
+        inertia, rate = np.empty((3, 3)), np.empty((3, 3))
+        gc, gc_inv = np.empty((5, 5)), np.empty((5, 5))
+        uo = self._uo
+        _k.uam_model(np.array(q_est), np.asarray(s.joint_rate_rad_s, dtype=float), np.array(qdd), float(m_obj_est),
+                     self._geo, self._f, self._m0, inertia, rate, gc, gc_inv, uo)
+        mass, arm_ax, arm_az, singular = uo[_k.UO_MASS], uo[_k.UO_ARM_AX], uo[_k.UO_ARM_AZ], uo[_k.UO_SINGULAR]
+        if singular:
+            gc_inv = inv_small(gc)  # raises LinAlgError as before
         wdot_raw = self._gyro_diff.step(s.gyro_frd)
         acc_m = [
             wdot_raw[0], wdot_raw[1], wdot_raw[2],
-            float(s.accel_frd[0] + uam.arm_accel_xz[0]), float(s.accel_frd[2] + uam.arm_accel_xz[1]),
+            float(s.accel_frd[0] + float(arm_ax)), float(s.accel_frd[2] + float(arm_az)),
         ]  # Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM (a list: the law filters it as floats)
         u_meas = actuators_to_u_list(s.tilt_rad[0], s.tilt_rad[1], *s.speed_rad_s)
-        gc_inv = inv_small(uam.gc)  # = np.linalg.inv(uam.gc), bit for bit
         gi_hat, adapt_status = self._adapt.step(
             AdaptiveLawInputs(
                 t_s=s.t_s, u_meas=u_meas, acc_m=acc_m, gc_uam_inv=gc_inv,
-                inertia_uam=uam.inertia_com, mass_uam_kg=uam.mass_kg, inertia_rate_uam=uam.inertia_rate,
+                inertia_uam=inertia, mass_uam_kg=float(mass), inertia_rate_uam=rate,
                 k_min=cfg.k_min, k_max=cfg.k_max,
             )
         )
         outer: OuterLoopStatus | None = None
         indi_status: IndiStatus | None = None
         if engaged:
-            outer = outer_loop_step(cfg.outer, sp, s.pos_ned, s.vel_ned, s.quat_wxyz, s.gyro_frd)
+            outer = outer_loop_step_compiled(self._outer_cfg, sp, s.pos_ned, s.vel_ned, s.quat_wxyz, s.gyro_frd)
             out, indi_status = self._indi.step(
-                IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, outer.accel_cmd, uam.gc, gi_hat,
+                IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, outer.accel_cmd, gc, gi_hat,
                            gc_inv)
             )
             cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
         else:
             # Keep the INDI filters warm so engaging does not start from a transient.
             self._indi.measure(
-                IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, uam.gc, gi_hat)
+                IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat)
             )
             cmd = MOTORS_OFF
-        j = uam.inertia_com
+        j = inertia
         status = ControllerStatus(
             t_s=s.t_s,
             engaged=engaged,
             q_est_rad=(q_est[0], q_est[1], q_est[2]),
             qdd_est_rad_s2=(qdd[0], qdd[1], qdd[2]),
-            mass_uam_kg=uam.mass_kg,
+            mass_uam_kg=float(mass),
             inertia_uam_diag=(float(j[0, 0]), float(j[1, 1]), float(j[2, 2])),
             gi_hat=tuple(gi_hat.ravel().tolist()),
             outer=outer,

@@ -22,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navig8_fc.core.filters import BackwardDifference, LowPass1
+from navig8_fc.core import _kernels as _k
+from navig8_fc.core.filters import BackwardDifference, LowPass1, lpf_alpha
 from navig8_fc.core.vehicle import VehicleConfig, u_to_actuators
 
 # Axis groups of Delta Acc = [Pdot, Qdot, Rdot, a_x, a_z], scaled back in this order on saturation.
@@ -89,8 +90,11 @@ def actuators_to_u_list(alpha1: float, alpha3: float, w1: float, w2: float, w3: 
     ]
 
 
-class IndiController:
-    """Incremental nonlinear dynamic inversion on [Pdot, Qdot, Rdot, a_x, a_z]."""
+class IndiControllerReference:
+    """Incremental nonlinear dynamic inversion on [Pdot, Qdot, Rdot, a_x, a_z] (plain Python / numpy).
+
+    The reference for the compiled `IndiController` (tests compare the two); not on the hot path.
+    """
 
     def __init__(self, cfg: IndiConfig) -> None:
         self.cfg = cfg
@@ -195,3 +199,53 @@ class IndiController:
             else:
                 hi = mid
         return lo
+
+
+class IndiController(IndiControllerReference):
+    """IndiControllerReference with the tick in one numba kernel (navig8_fc/core/_kernels.indi_step).
+
+    Filter state lives in a flat float64 array; same arithmetic up to rounding (summation order of the
+    5x5 products). Same inputs, outputs and status records.
+    """
+
+    def __init__(self, cfg: IndiConfig) -> None:
+        super().__init__(cfg)
+        lim = cfg.limits
+        self._st = np.zeros(_k.N_ST)
+        self._ic = np.array([
+            lpf_alpha(cfg.lpf_tau_s, cfg.dt_s), 1.0 / cfg.dt_s, lim.tilt_min_rad, lim.tilt_max_rad,
+            lim.duct_speed_max, lim.tail_speed_max, self._w_duct_sq_max**2, self._w_tail_sq_max,
+        ])
+        self._out = np.zeros(_k.N_IO)
+
+    def reset(self) -> None:
+        super().reset()
+        self._st[:] = 0.0
+
+    def measure(self, inp: IndiInputs) -> tuple[list[float], list[float]]:
+        sf, (a1, a3), (w1, w2, w3) = inp.specific_force_frd, inp.tilt_rad, inp.speed_rad_s
+        _k.indi_measure(self._st, self._ic, np.asarray(inp.gyro_frd, dtype=float), float(sf[0]), float(sf[2]),
+                        float(a1), float(a3), float(w1), float(w2), float(w3), self._out)
+        o = self._out.tolist()
+        return o[0:5], o[5:10]
+
+    def step(self, inp: IndiInputs) -> tuple[IndiOutput, IndiStatus]:
+        sf, (a1, a3), (w1, w2, w3) = inp.specific_force_frd, inp.tilt_rad, inp.speed_rad_s
+        gc_inv = inp.gc_inv if inp.gc_inv is not None else np.linalg.inv(inp.gc)
+        out = self._out
+        _k.indi_step(self._st, self._ic, np.asarray(inp.gyro_frd, dtype=float), float(sf[0]), float(sf[2]),
+                     float(a1), float(a3), float(w1), float(w2), float(w3),
+                     np.asarray(inp.accel_cmd, dtype=float), gc_inv, inp.gi_hat, out)
+        o = out.tolist()
+        scales = (o[25], o[26], o[27])
+        res = IndiOutput((o[29], o[30]), (o[31], o[32], o[33]), tuple(o[20:25]))
+        status = IndiStatus(
+            acc_filtered=tuple(o[0:5]),
+            u0_filtered=tuple(o[5:10]),
+            delta_acc=tuple(o[10:15]),
+            delta_u=tuple(o[15:20]),
+            saturation_scale=scales,
+            saturated=scales[0] < 1.0 or scales[1] < 1.0 or scales[2] < 1.0,
+            fallback_to_u0=o[28] != 0.0,
+        )
+        return res, status

@@ -17,6 +17,9 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
+import numpy as np
+
+from navig8_fc.core import _kernels as _k
 from navig8_fc.core.rotation import attitude_error_rotvec, euler_to_quat, rotate_ned_to_body
 
 
@@ -62,6 +65,36 @@ class OuterLoopStatus:
     roll_cmd_rad: float
     rate_cmd_frd: tuple[float, float, float]
     accel_cmd: tuple[float, float, float, float, float]  # [Pdot, Qdot, Rdot, a_x, a_z] for INDI
+
+
+def outer_loop_config_array(cfg: OuterLoopConfig) -> np.ndarray:
+    """The config as the float64 vector `_kernels.outer_loop` takes."""
+    return np.array([cfg.pos_k, cfg.vel_k, cfg.vel_max_m_s, cfg.acc_max_m_s2, cfg.att_k, cfg.rate_k,
+                     cfg.rate_max_rad_s, cfg.gravity_m_s2])
+
+
+def outer_loop_step_compiled(
+    cfg_array: np.ndarray,
+    sp: Setpoint,
+    pos_ned: Sequence[float],
+    vel_ned: Sequence[float],
+    quat_wxyz: Sequence[float],
+    gyro_frd: Sequence[float],
+) -> OuterLoopStatus:
+    """outer_loop_step in one numba kernel (same maths, same status; tests compare the two)."""
+    out = np.empty(19)
+    _k.outer_loop(cfg_array, np.array((sp.pos_ned[0], sp.pos_ned[1], sp.pos_ned[2], sp.pitch_rad, sp.yaw_rad)),
+                  np.asarray(pos_ned, dtype=float), np.asarray(vel_ned, dtype=float),
+                  np.asarray(quat_wxyz, dtype=float), np.asarray(gyro_frd, dtype=float), out)
+    o = out.tolist()
+    return OuterLoopStatus(
+        accel_cmd_ned=(o[0], o[1], o[2]),
+        specific_force_cmd_ned=(o[3], o[4], o[5]),
+        att_cmd_quat=(o[6], o[7], o[8], o[9]),
+        roll_cmd_rad=o[10],
+        rate_cmd_frd=(o[11], o[12], o[13]),
+        accel_cmd=(o[14], o[15], o[16], o[17], o[18]),
+    )
 
 
 def _clip_norm(v: Sequence[float], limit: float) -> tuple[float, ...]:
