@@ -498,3 +498,226 @@ def indi_step(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_
     out[IO_ACT + 2] = min(w1c, ic[4])
     out[IO_ACT + 3] = min(max(w2c, -ic[5]), ic[5])
     out[IO_ACT + 4] = min(w3c, ic[4])
+
+
+# ---------------------------------------------------------------------------------------------
+# Box projection glue around the clarabel solve (ckf.BoxProjector.solve_lists is the reference)
+# ---------------------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def proj_setup(xh, p, lo, hi, identity, w, pl, c, b):
+    """W (= P^-1, or I) and clarabel's data for the scaled QP: c = C's upper triangle in CSC order
+    (C = W / (s s^T), s = sqrt(diag W)), b = [s (hi - xh); s (xh - lo)]. pl gets W^-1 for the polish.
+
+    Returns 0 when the inputs cannot go to clarabel (non-finite, or a non-positive diagonal: the exact
+    fallback answers), 1 with pl valid, 2 without (singular P: W = I, as ConstrainedKalmanFilter did).
+    """
+    n = xh.shape[0]
+    code = 1
+    if identity:
+        for i in range(n):
+            for j in range(n):
+                w[i, j] = 1.0 if i == j else 0.0
+                pl[i, j] = w[i, j]
+    else:
+        ok = inv_gauss_jordan(p, w)
+        if ok:
+            for i in range(n):
+                for j in range(n):
+                    if not math.isfinite(w[i, j]):
+                        ok = False
+        if ok:
+            for i in range(n):
+                for j in range(n):
+                    pl[i, j] = p[i, j]
+        else:
+            code = 2
+            for i in range(n):
+                for j in range(n):
+                    w[i, j] = 1.0 if i == j else 0.0
+    total = 0.0
+    for i in range(n):
+        total += xh[i]
+        for j in range(n):
+            total += w[i, j]
+    if not math.isfinite(total):
+        return 0
+    sc = np.empty(n)
+    for i in range(n):
+        if not w[i, i] > 0.0:
+            return 0
+        sc[i] = math.sqrt(w[i, i])
+    k = 0
+    for j in range(n):
+        for i in range(j + 1):
+            c[k] = w[i, j] / (sc[i] * sc[j])
+            k += 1
+    for i in range(n):
+        b[i] = sc[i] * (hi[i] - xh[i])
+        b[n + i] = sc[i] * (xh[i] - lo[i])
+    return code
+
+
+@njit(cache=True)
+def _gauss_solve_inplace(m, n):
+    """Solve the n x n system in the augmented m (n, n + 1), result in m[:, n]. False if singular."""
+    for c in range(n):
+        p = c
+        big = abs(m[c, c])
+        for r in range(c + 1, n):
+            v = abs(m[r, c])
+            if v > big:
+                p = r
+                big = v
+        piv = m[p, c]
+        if piv == 0.0 or not math.isfinite(piv):
+            return False
+        if p != c:
+            for k in range(n + 1):
+                t = m[c, k]
+                m[c, k] = m[p, k]
+                m[p, k] = t
+        for r in range(c + 1, n):
+            f = m[r, c] / piv
+            if f != 0.0:
+                for k in range(c, n + 1):
+                    m[r, k] -= f * m[c, k]
+    y = np.empty(n)
+    for c in range(n - 1, -1, -1):
+        acc = m[c, n]
+        for k in range(c + 1, n):
+            acc -= m[c, k] * y[k]
+        y[c] = acc / m[c, c]
+    for c in range(n):
+        m[c, n] = y[c]
+    return True
+
+
+@njit(cache=True)
+def _face_point(xh, w, pl, use_pl, lo, hi, state, x):
+    """ckf._face_point / _face_point_cov: the minimiser on the face `state` (-1 lower, +1 upper, 0 free)."""
+    n = xh.shape[0]
+    n_act = 0
+    for i in range(n):
+        if state[i] != 0:
+            n_act += 1
+    for i in range(n):
+        x[i] = xh[i]
+    if use_pl and 2 * n_act <= n:
+        fixed = np.empty(n_act, dtype=np.int64)
+        d = np.empty(n_act)
+        k = 0
+        for i in range(n):
+            if state[i] != 0:
+                fixed[k] = i
+                d[k] = (hi[i] if state[i] > 0 else lo[i]) - xh[i]
+                k += 1
+        if n_act == 1:
+            j = fixed[0]
+            piv = pl[j, j]
+            if not (piv > 0.0 and math.isfinite(piv)):
+                return False
+            nu = d[0] / piv
+            for i in range(n):
+                x[i] = xh[i] + pl[i, j] * nu
+        else:
+            m = np.empty((n_act, n_act + 1))
+            for a in range(n_act):
+                for bb in range(n_act):
+                    m[a, bb] = pl[fixed[a], fixed[bb]]
+                m[a, n_act] = d[a]
+            if not _gauss_solve_inplace(m, n_act):
+                return False
+            for i in range(n):
+                acc = 0.0
+                for a in range(n_act):
+                    acc += pl[i, fixed[a]] * m[a, n_act]
+                x[i] = xh[i] + acc
+        for a in range(n_act):
+            x[fixed[a]] = xh[fixed[a]] + d[a]
+        return True
+    for i in range(n):
+        if state[i] != 0:
+            x[i] = hi[i] if state[i] > 0 else lo[i]
+    n_free = n - n_act
+    if n_free > 0 and n_act > 0:
+        free = np.empty(n_free, dtype=np.int64)
+        k = 0
+        for i in range(n):
+            if state[i] == 0:
+                free[k] = i
+                k += 1
+        m = np.empty((n_free, n_free + 1))
+        for a in range(n_free):
+            i = free[a]
+            for bb in range(n_free):
+                m[a, bb] = w[i, free[bb]]
+            acc = 0.0
+            for j in range(n):
+                if state[j] != 0:
+                    acc += w[i, j] * (x[j] - xh[j])
+            m[a, n_free] = -acc
+        if not _gauss_solve_inplace(m, n_free):
+            return False
+        for a in range(n_free):
+            x[free[a]] = xh[free[a]] + m[a, n_free]
+    return True
+
+
+@njit(cache=True)
+def _kkt_next_state(x, xh, w, lo, hi, state, tol, new):
+    """ckf._kkt_next_state into `new`; True if `state` is optimal (new == state)."""
+    n = x.shape[0]
+    same = True
+    for i in range(n):
+        s = state[i]
+        if s == 0:
+            slack = tol * (1.0 + max(abs(lo[i]), abs(hi[i])))
+            v = 1 if x[i] > hi[i] + slack else (-1 if x[i] < lo[i] - slack else 0)
+        else:
+            g = 0.0
+            scale = 0.0
+            for j in range(n):
+                t = w[i, j] * (x[j] - xh[j])
+                g += t
+                scale += abs(t)
+            gtol = tol * scale
+            v = 0 if (s < 0 and g < -gtol) or (s > 0 and g > gtol) else s
+        new[i] = v
+        if v != s:
+            same = False
+    return same
+
+
+@njit(cache=True)
+def polish(xh, w, pl, use_pl, lo, hi, z, s, x):
+    """BoxProjector._polish: hold the active set clarabel's (z, s) shows, solve that face exactly, settle a
+    weakly active bound by up to n primal-dual active-set updates. x gets the answer; False = no answer."""
+    n = xh.shape[0]
+    state = np.empty(n, dtype=np.int64)
+    any_active = False
+    for i in range(n):
+        if s[i] <= s[n + i]:
+            state[i] = 1 if z[i] > s[i] else 0
+        else:
+            state[i] = -1 if z[n + i] > s[n + i] else 0
+        if state[i] != 0:
+            any_active = True
+    if not any_active:
+        for i in range(n):
+            if not (lo[i] <= xh[i] <= hi[i]):
+                return False
+            x[i] = xh[i]
+        return True
+    new = np.empty(n, dtype=np.int64)
+    for _ in range(n):
+        if not _face_point(xh, w, pl, use_pl, lo, hi, state, x):
+            return False
+        if _kkt_next_state(x, xh, w, lo, hi, state, 1e-7, new):
+            for i in range(n):
+                x[i] = min(max(x[i], lo[i]), hi[i])
+            return True
+        for i in range(n):
+            state[i] = new[i]
+    return False

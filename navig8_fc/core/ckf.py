@@ -529,6 +529,8 @@ class BoxProjector:
             raise RuntimeError("clarabel refuses data updates with these settings")
         self._solved = clarabel.SolverStatus.Solved
         self._by_state = _active_sets(n)[1]
+        self._w, self._pl = np.empty((n, n)), np.empty((n, n))  # work arrays of solve_kf
+        self._c, self._b, self._xo = np.empty(n * (n + 1) // 2), np.empty(2 * n), np.empty(n)
         self.n_calls = 0
         self.n_fallbacks = 0
         self.last_status: str = "none"
@@ -592,6 +594,33 @@ class BoxProjector:
             self.last_status = "bad_input"
         self.n_fallbacks += 1
         return project_box_exact(xh, np.array(wl), lo, hi).tolist(), True, iterations
+
+    def solve_kf(
+        self, xh: np.ndarray, p: np.ndarray, lo: np.ndarray, hi: np.ndarray, identity: bool
+    ) -> tuple[list[float], bool, int]:
+        """The KF's projection, W = P^-1 (identity=False) or I: (x, used_fallback, iterations).
+
+        solve_lists(xh, W, lo, hi, W^-1) with the arithmetic around the clarabel solve (W, the scaled data,
+        the polish) in numba kernels (_kernels.proj_setup, _kernels.polish); the same clarabel solver and
+        data updates. A singular P gives W = I as before. Inputs checked by the caller (n = self.n, lo <= hi).
+        """
+        self.n_calls += 1
+        iterations = 0
+        w, pl, x = self._w, self._pl, self._xo
+        code = _kern.proj_setup(xh, p, lo, hi, identity, w, pl, self._c, self._b)
+        if code:
+            self._solver.update(P=self._c, b=self._b)
+            sol = self._solver.solve()
+            iterations = int(sol.iterations)
+            self.last_status = str(sol.status)
+            if sol.status == self._solved and _kern.polish(
+                xh, w, pl, code == 1, lo, hi, np.array(sol.z), np.array(sol.s), x
+            ):
+                return x.tolist(), False, iterations
+        else:
+            self.last_status = "bad_input"
+        self.n_fallbacks += 1
+        return project_box_exact(xh, w.copy(), lo, hi).tolist(), True, iterations
 
     def _polish(
         self, xh: list[float], wl: list[list[float]], lo: list[float], hi: list[float],
@@ -774,18 +803,8 @@ class ConstrainedKalmanFilter:
             return xl, False, False  # inside: x_tilde = x_hat, W not needed
         if not all(a <= b for a, b in zip(lo, hi, strict=True)):
             raise ValueError(f"empty box (or NaN bound): lower {lo}, upper {hi}")
-        if self._identity_weight:
-            wl = pl = self._eye_list
-        else:
-            try:
-                wl = inv_small(self._p).tolist()
-            except np.linalg.LinAlgError:
-                wl = None
-            if wl is None or not all(math.isfinite(v) for row in wl for v in row):
-                wl, pl = self._eye_list, None  # as _weight_inv_p
-            else:
-                pl = self._p.tolist()
-        x, used_fallback, _ = self._projector.solve_lists(xl, wl, lo, hi, pl)
+        x, used_fallback, _ = self._projector.solve_kf(self._x, self._p, np.array(lo), np.array(hi),
+                                                       self._identity_weight)
         if used_fallback:
             self.n_projection_fallbacks += 1
         self._x = np.array(x)
