@@ -133,6 +133,7 @@ class FlightControllerProcess:
     def _mk_links(self) -> None:
         o = self.opts
         self.sim = UdpLink.open("sim", self._mav(), (o.host, o.port("sim")), [(o.host, o.port("bridge"))])
+        self.sim.fast_decode = seam.fast_decode  # the lockstep messages skip pymavlink (anything else falls back)
         self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
         self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
         for link in (self.sim, self.gcs, self.api):

@@ -82,6 +82,9 @@ class UdpLink:
     counters: LinkCounters = field(default_factory=LinkCounters)
     max_peers: int = 8
     on_frame: Callable[[str, str, bytes, Any, tuple[str, int]], None] | None = None  # (link, dir, raw, msg, peer)
+    # Optional fast path tried before pymavlink (the sim link: navig8_fc.mavlink.seam.fast_decode): a decoded
+    # message, or None to let pymavlink decode (and count) the frame as usual.
+    fast_decode: Callable[[bytes], Any | None] | None = None
 
     @staticmethod
     def open(name: str, mav: Any, bind: tuple[str, int], targets: list[tuple[str, int]] | None = None) -> UdpLink:
@@ -118,19 +121,22 @@ class UdpLink:
             frames, garbage, truncated = split_frames(data)
             c.garbage_bytes += garbage
             c.truncated += truncated
+            fast = self.fast_decode
             for fr in frames:
-                try:
-                    msg = self.mav.decode(bytearray(fr))
-                except Exception:  # noqa: BLE001 - any decode failure is bad input: count, drop
-                    c.bad_crc += 1
-                    if self.on_frame:
-                        self.on_frame(self.name, "in_bad", fr, None, addr)
-                    continue
-                if msg.get_type().startswith(("UNKNOWN_", "BAD_DATA")):
-                    c.unknown_id += 1  # pymavlink hands these back undecoded: not a peer, not an input
-                    if self.on_frame:
-                        self.on_frame(self.name, "in_bad", fr, None, addr)
-                    continue
+                msg = fast(fr) if fast is not None else None
+                if msg is None:
+                    try:
+                        msg = self.mav.decode(bytearray(fr))
+                    except Exception:  # noqa: BLE001 - any decode failure is bad input: count, drop
+                        c.bad_crc += 1
+                        if self.on_frame:
+                            self.on_frame(self.name, "in_bad", fr, None, addr)
+                        continue
+                    if msg.get_type().startswith(("UNKNOWN_", "BAD_DATA")):
+                        c.unknown_id += 1  # pymavlink hands these back undecoded: not a peer, not an input
+                        if self.on_frame:
+                            self.on_frame(self.name, "in_bad", fr, None, addr)
+                        continue
                 c.frames_in += 1
                 if addr not in self.peers:
                     if len(self.peers) >= self.max_peers:

@@ -57,3 +57,37 @@ def test_link_counts_and_drops_bad_datagrams() -> None:
     finally:
         tx.close()
         link.close()
+
+
+def test_fast_decode_keeps_the_counters() -> None:
+    """The sim link's fast path (seam.fast_decode) decodes seam frames; bad and unknown frames count as before."""
+    from navig8_fc.mavlink import dialect, seam
+
+    d = dialect.load()
+    results = []
+    for fast in (None, seam.fast_decode):
+        link = UdpLink.open("t", d.MAVLink(None, srcSystem=1, srcComponent=1), ("127.0.0.1", 0))
+        link.fast_decode = fast
+        tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        tx.bind(("127.0.0.1", 0))
+        try:
+            m = dialect.new_mav(1, 25)
+            good = d.MAVLink_navig8_sim_status_message(1, 2, 1, 1.0, 3.0, 0).pack(m)
+            hb = d.MAVLink_heartbeat_message(2, 8, 0, 0, 0, 3).pack(m)
+            bad_crc = bytearray(good)
+            bad_crc[-1] ^= 0xFF
+            unknown = bytes([0xFD, 4, 0, 0, 0, 255, 190, 0xAA, 0xBB, 0xCC]) + bytes(6)
+            for payload in (good + bytes(bad_crc) + hb, unknown + good):
+                tx.sendto(payload, ("127.0.0.1", link.local_port))
+            got = []
+            deadline = time.monotonic() + 2.0
+            while len(got) < 3 and time.monotonic() < deadline:
+                got += link.receive()
+                time.sleep(0.01)
+            c = link.counters
+            results.append(([(r.msg.get_type(), r.msg.to_dict()) for r in got], c.bad_crc, c.unknown_id, c.frames_in))
+        finally:
+            tx.close()
+            link.close()
+    assert results[0] == results[1]
+    assert results[0][1:] == (1, 1, 3)
