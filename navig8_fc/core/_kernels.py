@@ -721,3 +721,68 @@ def polish(xh, w, pl, use_pl, lo, hi, z, s, x):
         for i in range(n):
             state[i] = new[i]
     return False
+
+
+# ---------------------------------------------------------------------------------------------
+# Controller front end: joint observer, differentiators, UAM model, Acc_m and U0 (one call per tick)
+# ---------------------------------------------------------------------------------------------
+
+# Sensor vector `sens` (FlightControllerCore builds it from FcSensors)
+S_GYRO = 0  # 0:3
+S_ACCEL = 3  # 3:6 specific force at O
+S_TILT = 6  # 6:8 alpha1, alpha3
+S_SPEED = 8  # 8:11 w1, w2, w3
+S_JPOS = 11  # 11:14
+S_JRATE = 14  # 14:17
+N_SENS = 17
+# Front-end state `fst`
+F_QEST = 0  # 0:3 joint-angle estimate
+F_QD_PREV = 3  # 3:6 previous joint rate
+F_GYRO_PREV = 6  # 6:9 previous gyro
+F_INIT = 9  # 1.0 after the first sample
+N_FST = 10
+# Front-end output `fo`
+FO_QEST = 0  # 0:3
+FO_QDD = 3  # 3:6
+FO_ACC_M = 6  # 6:11 [P_dot, Q_dot, R_dot, a_x + arm, a_z + arm] (Eq. 23)
+FO_U_MEAS = 11  # 11:16 U0 from the measured actuators
+N_FO = 16
+
+
+@njit(cache=True)
+def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo, fo):
+    """FlightControllerCore's per-tick front end: the complementary joint observer (q_est), backward
+    differences of the joint rates (q-ddot) and of the gyro (omega-dot), uam_model at (q_est, q-dot, q-ddot),
+    Acc_m (Eq. 23) and U0 = actuators_to_u(measured). All state in fst; first sample: q_est = q, zeros out of
+    the differences."""
+    q = np.empty(3)
+    qd = sens[S_JRATE:S_JRATE + 3]
+    qdd = np.empty(3)
+    if fst[F_INIT] == 0.0:
+        for i in range(3):
+            fst[F_QEST + i] = sens[S_JPOS + i]
+            qdd[i] = 0.0
+            fo[FO_ACC_M + i] = 0.0
+        fst[F_INIT] = 1.0
+    else:
+        for i in range(3):
+            pred = fst[F_QEST + i] + dt * qd[i]
+            fst[F_QEST + i] = pred + obs_gain * (sens[S_JPOS + i] - pred)
+            qdd[i] = (qd[i] - fst[F_QD_PREV + i]) * inv_dt
+            fo[FO_ACC_M + i] = (sens[S_GYRO + i] - fst[F_GYRO_PREV + i]) * inv_dt
+    for i in range(3):
+        fst[F_QD_PREV + i] = qd[i]
+        fst[F_GYRO_PREV + i] = sens[S_GYRO + i]
+        q[i] = fst[F_QEST + i]
+        fo[FO_QEST + i] = q[i]
+        fo[FO_QDD + i] = qdd[i]
+    uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo)
+    fo[FO_ACC_M + 3] = sens[S_ACCEL] + uo[UO_ARM_AX]
+    fo[FO_ACC_M + 4] = sens[S_ACCEL + 2] + uo[UO_ARM_AZ]
+    a1, a3 = sens[S_TILT], sens[S_TILT + 1]
+    w1, w2, w3 = sens[S_SPEED], sens[S_SPEED + 1], sens[S_SPEED + 2]
+    fo[FO_U_MEAS] = math.cos(a1) * w1 * w1
+    fo[FO_U_MEAS + 1] = math.sin(a1) * w1 * w1
+    fo[FO_U_MEAS + 2] = math.cos(a3) * w3 * w3
+    fo[FO_U_MEAS + 3] = math.sin(a3) * w3 * w3
+    fo[FO_U_MEAS + 4] = math.copysign(w2 * w2, w2)

@@ -23,14 +23,12 @@ import numpy as np
 
 from navig8_fc.core import _kernels as _k
 from navig8_fc.core.ckf import AdaptiveLaw, AdaptiveLawInputs, AdaptiveLawStatus, CkfConfig, inv_small
-from navig8_fc.core.filters import BackwardDifference
 from navig8_fc.core.indi import (
     ActuatorLimits,
     IndiConfig,
     IndiController,
     IndiInputs,
     IndiStatus,
-    actuators_to_u_list,
 )
 from navig8_fc.core.outer_loop import (
     OuterLoopConfig,
@@ -124,9 +122,6 @@ class FlightControllerCore:
         self._model = UamModel(vehicle)
         self._indi = IndiController(config.indi)
         self._adapt = AdaptiveLaw(config.ckf)
-        self._gyro_diff = BackwardDifference(config.dt_s, 3)
-        self._qd_diff = BackwardDifference(config.dt_s, 3)
-        self._q_est: list[float] | None = None
         self._obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
         # Compiled UAM model (_kernels.uam_model; UamModel.evaluate + inv_small are its reference).
         v = vehicle
@@ -137,53 +132,42 @@ class FlightControllerCore:
         self._m0 = np.ascontiguousarray(self._model._m0)
         self._outer_cfg = outer_loop_config_array(config.outer)
         self._uo = np.zeros(_k.N_UO)
+        self._fst = np.zeros(_k.N_FST)  # joint observer + differentiator state (_kernels.fc_front)
+        self._fo = np.zeros(_k.N_FO)
+        self._inv_dt = 1.0 / config.dt_s
         assert N_LINKS == 3
 
     def reset(self) -> None:
         """Forget filter and estimator state (e.g. on arming); the start delay counts again."""
         self._indi.reset()
         self._adapt.reset()
-        self._gyro_diff.reset()
-        self._qd_diff.reset()
-        self._q_est = None
-
-    def _joint_observer(self, s: FcSensors) -> tuple[list[float], list[float]]:
-        q_meas, qd = s.joint_pos_rad, s.joint_rate_rad_s
-        if self._q_est is None:
-            self._q_est = [float(v) for v in q_meas]
-        else:
-            dt, g = self.config.dt_s, self._obs_gain
-            pred = [self._q_est[i] + dt * qd[i] for i in range(3)]
-            self._q_est = [pred[i] + g * (q_meas[i] - pred[i]) for i in range(3)]
-        qdd = self._qd_diff.step(qd)
-        return self._q_est, qdd
+        self._fst[:] = 0.0
 
     def step(
         self, s: FcSensors, sp: Setpoint, engaged: bool = True
     ) -> tuple[ActuatorCommand, ControllerStatus]:
         cfg = self.config
-        q_est, qdd = self._joint_observer(s)
         # The arm term uses a point object of the estimated extra mass at the tip (notes §3.3 option b).
         m_obj_est = 0.0
         m_hat = self._adapt.mass_estimate_kg
         if m_hat is not None:
             m_obj_est = max(m_hat - self.vehicle.uam_mass_kg, 0.0)
-        # Fresh arrays each tick: the adaptive law and INDI may keep references within the tick only, but
-        # callers of the reference APIs expect independent arrays.
+        # Front end in one kernel: joint observer (complementary filter, JOINT_OBS_TAU_S), q-ddot and
+        # omega-dot by backward differences, the UAM model (UamModel.evaluate) with G_C and G_C^-1, Acc_m
+        # (Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM) and U0 from the measured actuators.
+        # Fresh output arrays each tick (callers of the reference APIs may keep them).
         inertia, rate = np.empty((3, 3)), np.empty((3, 3))
         gc, gc_inv = np.empty((5, 5)), np.empty((5, 5))
-        uo = self._uo
-        _k.uam_model(np.array(q_est), np.asarray(s.joint_rate_rad_s, dtype=float), np.array(qdd), float(m_obj_est),
-                     self._geo, self._f, self._m0, inertia, rate, gc, gc_inv, uo)
-        mass, arm_ax, arm_az, singular = uo[_k.UO_MASS], uo[_k.UO_ARM_AX], uo[_k.UO_ARM_AZ], uo[_k.UO_SINGULAR]
-        if singular:
+        uo, fo = self._uo, self._fo
+        sens = np.array((*s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
+                         *s.joint_rate_rad_s), dtype=float)
+        _k.fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, float(m_obj_est), self._geo, self._f,
+                    self._m0, inertia, rate, gc, gc_inv, uo, fo)
+        if uo[_k.UO_SINGULAR]:
             gc_inv = inv_small(gc)  # raises LinAlgError as before
-        wdot_raw = self._gyro_diff.step(s.gyro_frd)
-        acc_m = [
-            wdot_raw[0], wdot_raw[1], wdot_raw[2],
-            float(s.accel_frd[0] + float(arm_ax)), float(s.accel_frd[2] + float(arm_az)),
-        ]  # Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM (a list: the law filters it as floats)
-        u_meas = actuators_to_u_list(s.tilt_rad[0], s.tilt_rad[1], *s.speed_rad_s)
+        fl = fo.tolist()
+        q_est, qdd, acc_m, u_meas = fl[0:3], fl[3:6], fl[6:11], fl[11:16]
+        mass = uo[_k.UO_MASS]
         gi_hat, adapt_status = self._adapt.step(
             AdaptiveLawInputs(
                 t_s=s.t_s, u_meas=u_meas, acc_m=acc_m, gc_uam_inv=gc_inv,

@@ -175,3 +175,50 @@ def test_polish_rejects_inconsistent_active_set() -> None:
     assert not k.polish(xh, eye, eye, True, lo, hi, z, s, np.empty(2))
     assert k.polish(np.array([0.5, 0.5]), eye, eye, True, lo, hi, z, s, out := np.empty(2))
     _close(out, [0.5, 0.5])
+
+
+def test_front_end_matches_reference(cfg: VehicleConfig) -> None:
+    """fc_front against the Python front end it replaced: complementary joint observer, BackwardDifference
+    on q-dot and the gyro, UamModel.evaluate, Acc_m (Eq. 23) and actuators_to_u_list; also after a reset."""
+    from navig8_fc.core.controller import JOINT_OBS_TAU_S
+    from navig8_fc.core.filters import BackwardDifference
+    from navig8_fc.core.indi import actuators_to_u_list
+
+    dt = 0.01
+    g = dt / (JOINT_OBS_TAU_S + dt)
+    model = UamModel(cfg)
+    jb = model._jb
+    geo = np.array([cfg.link_length_m, cfg.link_mass_kg, cfg.link_inertia_kgm2, cfg.mount_frd_m[0],
+                    cfg.mount_frd_m[2], cfg.uam_mass_kg, jb[0], jb[1], jb[2], jb[3]])
+    rng = np.random.default_rng(23)
+    fst, fo, uo = np.zeros(k.N_FST), np.zeros(k.N_FO), np.zeros(k.N_UO)
+    for run in range(2):
+        fst[:] = 0.0
+        q_est = None
+        gyro_diff, qd_diff = BackwardDifference(dt, 3), BackwardDifference(dt, 3)
+        for _ in range(50):
+            sens = np.concatenate([rng.normal(size=3), rng.normal(size=3) + [0, 0, -9.8], rng.uniform(0, 1.5, 2),
+                                   rng.uniform(0, 900, 3) * [1, rng.choice([-1, 1]), 1], rng.uniform(-1, 1, 3),
+                                   rng.normal(size=3)])
+            mo = float(rng.uniform(0, 1)) * run
+            inertia, rate, gc, gc_inv = np.empty((3, 3)), np.empty((3, 3)), np.empty((5, 5)), np.empty((5, 5))
+            k.fc_front(fst, dt, g, 1.0 / dt, sens, mo, geo, model._f, model._m0, inertia, rate, gc, gc_inv, uo, fo)
+            s = sens.tolist()
+            q_meas, qd = s[11:14], s[14:17]
+            if q_est is None:
+                q_est = q_meas
+            else:
+                pred = [q_est[i] + dt * qd[i] for i in range(3)]
+                q_est = [pred[i] + g * (q_meas[i] - pred[i]) for i in range(3)]
+            qdd = qd_diff.step(qd)
+            ref = model.evaluate(q_est, qd, qdd, mo)
+            wdot = gyro_diff.step(s[0:3])
+            acc_m = [*wdot, s[3] + ref.arm_accel_xz[0], s[5] + ref.arm_accel_xz[1]]
+            _close(fo[k.FO_QEST:k.FO_QEST + 3], q_est)
+            _close(fo[k.FO_QDD:k.FO_QDD + 3], qdd)
+            _close(fo[k.FO_ACC_M:k.FO_ACC_M + 5], acc_m)
+            _close(fo[k.FO_U_MEAS:k.FO_U_MEAS + 5], actuators_to_u_list(*s[6:11]))
+            _close(inertia, ref.inertia_com)
+            _close(rate, ref.inertia_rate)
+            _close(gc, ref.gc)
+            _close(gc_inv @ gc, np.eye(5), rtol=0.0, atol=1e-9)
