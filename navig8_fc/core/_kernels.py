@@ -786,3 +786,54 @@ def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inerti
     fo[FO_U_MEAS + 2] = math.cos(a3) * w3 * w3
     fo[FO_U_MEAS + 3] = math.sin(a3) * w3 * w3
     fo[FO_U_MEAS + 4] = math.copysign(w2 * w2, w2)
+
+
+# ---------------------------------------------------------------------------------------------
+# Adaptive law: filters and increments (Eq. 23), KF predict (Eq. 22) and correct in one call
+# ---------------------------------------------------------------------------------------------
+
+A_UF = 0  # 0:5 low-passed U0
+A_AF = 5  # 5:10 low-passed Acc_m
+A_INIT = 10  # 1.0 after the first sample
+N_AST = 11
+AO_DU = 0  # 0:5 Delta U
+AO_DA = 5  # 5:10 Delta Acc_m
+AO_INNOV = 10  # 10:15 innovation (when the KF ran)
+N_AO = 15
+
+
+@njit(cache=True)
+def adapt_step(ast, alpha, u_meas, acc_m, run_kf, do_predict, dt, id0, id1, id2, x, p, q_diag, r_diag, gc_inv,
+               rho_x, rho_z, out):
+    """AdaptiveLaw's per-tick numerics: the two low-passes (first sample: the sample itself) and their
+    one-step increments (zeros on the first sample); then, if run_kf, the predict (unless do_predict is
+    False: x += dt I_dot diag, P += diag(Q)) and kf_correct. Returns 0 (KF not run), 1 (updated) or
+    2 (S singular: predicted only; the caller runs the reference update)."""
+    if ast[A_INIT] == 0.0:
+        for i in range(5):
+            ast[A_UF + i] = u_meas[i]
+            ast[A_AF + i] = acc_m[i]
+            out[AO_DU + i] = 0.0
+            out[AO_DA + i] = 0.0
+        ast[A_INIT] = 1.0
+    else:
+        for i in range(5):
+            y = ast[A_UF + i]
+            yn = y + alpha * (u_meas[i] - y)
+            out[AO_DU + i] = yn - y
+            ast[A_UF + i] = yn
+            y = ast[A_AF + i]
+            yn = y + alpha * (acc_m[i] - y)
+            out[AO_DA + i] = yn - y
+            ast[A_AF + i] = yn
+    if not run_kf:
+        return 0
+    if do_predict:
+        x[0] += dt * id0
+        x[1] += dt * id1
+        x[2] += dt * id2
+        for i in range(4):
+            p[i, i] += q_diag[i]
+    ok = kf_correct(x, p, r_diag, gc_inv, out[AO_DU:AO_DU + 5], out[AO_DA], out[AO_DA + 1], out[AO_DA + 2],
+                    out[AO_DA + 3], out[AO_DA + 4], rho_x, rho_z, out[AO_INNOV:AO_INNOV + 5])
+    return 1 if ok else 2

@@ -937,6 +937,9 @@ class AdaptiveLaw:
         self._lpf_u = LowPass1(config.lpf_tau_s, config.dt_s, N_MEAS)
         self._lpf_a = LowPass1(config.lpf_tau_s, config.dt_s, N_MEAS)
         self._kf = ConstrainedKalmanFilter(config)
+        self._alpha = self._lpf_u.alpha  # the compiled path (_kernels.adapt_step) runs the same filters
+        self._ast = np.zeros(_kern.N_AST)
+        self._out = np.zeros(_kern.N_AO)
         self.reset()
 
     @property
@@ -948,6 +951,7 @@ class AdaptiveLaw:
         self._lpf_a.reset()
         self._prev_u: list[float] | None = None
         self._prev_a: list[float] | None = None
+        self._ast[:] = 0.0
         self._t0: float | None = None
         self._running = False
         self._kf.reset()  # re-initialised at the next start; its clarabel solver is reused
@@ -965,16 +969,6 @@ class AdaptiveLaw:
         and inertia_ratios exactly (same IEEE operations, tests compare them bit for bit).
         """
         cfg = self.config
-        uf = self._lpf_u.step(inp.u_meas)  # the filters take lists or 1-D arrays (-> Python floats)
-        af = self._lpf_a.step(inp.acc_m)
-        pu, pa = self._prev_u, self._prev_a
-        if pu is None or pa is None:
-            du, da = list(_ZERO5), list(_ZERO5)
-        else:
-            du = [c - p for c, p in zip(uf, pu, strict=True)]  # Eq. 23, one-step increment
-            da = [c - p for c, p in zip(af, pa, strict=True)]
-        self._prev_u, self._prev_a = uf, af
-
         (j11, _, j13), (_, j22, _), (_, _, j33) = np.asarray(inp.inertia_uam, dtype=float).tolist()
         m = float(inp.mass_uam_kg)
         base = (j11, j22, j33, m)
@@ -986,6 +980,26 @@ class AdaptiveLaw:
             self._t0 = t_s
         # 1e-9 s guards the comparison against time accumulated in floating point.
         started = cfg.adaptive and (t_s - self._t0) >= cfg.start_delay_s - 1e-9
+        kf = self._kf
+        first = False
+        id0 = id1 = id2 = 0.0
+        if started:
+            first = not self._running
+            if first:
+                kf.initialise(base)  # K = 1 at the start (Sec. 4)
+                self._running = True
+            idot = np.asarray(inp.inertia_rate_uam, dtype=float)
+            id0, id1, id2 = float(idot[0, 0]), float(idot[1, 1]), float(idot[2, 2])
+        # Filters, one-step increments (Eq. 23), predict (skipped on the first KF tick: x0 already describes
+        # the current pose) and correct in one kernel; `_step_lists` and the LowPass1 filters are the reference.
+        gc_inv = np.asarray(inp.gc_uam_inv, dtype=float)
+        rho_x, rho_z = j13 / j11, j13 / j33  # inertia_ratios
+        out = self._out
+        code = _kern.adapt_step(self._ast, self._alpha, np.asarray(inp.u_meas, dtype=float),
+                                np.asarray(inp.acc_m, dtype=float), started, started and not first, cfg.dt_s,
+                                id0, id1, id2, kf._x, kf._p, kf._q, kf._r, gc_inv, rho_x, rho_z, out)
+        o = out.tolist()
+        du, da = o[0:5], o[5:10]
         if not started:
             return _gi_hat(j11, j13, j33, base), AdaptiveLawStatus(
                 running=False, x_hat=base, x_unconstrained=base, k=_ONES4,
@@ -994,17 +1008,16 @@ class AdaptiveLaw:
                 delta_u=tuple(du), delta_acc=tuple(da),
             )
 
-        kf = self._kf
-        first = not self._running
-        if first:
-            kf.initialise(base)  # K = 1 at the start (Sec. 4)
-            self._running = True
-        idot = np.asarray(inp.inertia_rate_uam, dtype=float)
-        x, x_unc, innovation = kf._step_lists(
-            du, da, np.asarray(inp.gc_uam_inv, dtype=float), j13 / j11, j13 / j33,  # inertia_ratios
-            None if first else (idot[0, 0], idot[1, 1], idot[2, 2]),  # x0 already describes the current pose
-            lower, upper,
-        )
+        if code == 1:
+            kf.n_updates += 1
+            innovation = o[10:15]
+        else:  # singular S: the reference update (raises or propagates NaN as before)
+            innovation = kf._correct_reference(np.array(du), *da, gc_inv, rho_x, rho_z).tolist()
+        if cfg.constrained:
+            x_unc = kf._x.tolist()
+            x = kf._project_lists(lower, upper)[0]
+        else:
+            x_unc = x = kf._x.tolist()
         return _gi_hat(j11, j13, j33, x), AdaptiveLawStatus(
             running=True,
             x_hat=tuple(x),
@@ -1014,7 +1027,7 @@ class AdaptiveLaw:
             upper=tuple(upper),
             active_lower=tuple([xi <= b for xi, b in zip(x, lower, strict=True)]),
             active_upper=tuple([xi >= b for xi, b in zip(x, upper, strict=True)]),
-            innovation=tuple(innovation.tolist()),
+            innovation=tuple(innovation),
             p_diag=tuple(kf._p.diagonal().tolist()),
             n_updates=kf.n_updates,
             n_projection_fallbacks=kf.n_projection_fallbacks,

@@ -222,3 +222,41 @@ def test_front_end_matches_reference(cfg: VehicleConfig) -> None:
             _close(rate, ref.inertia_rate)
             _close(gc, ref.gc)
             _close(gc_inv @ gc, np.eye(5), rtol=0.0, atol=1e-9)
+
+
+def test_adapt_step_matches_reference(cfg: VehicleConfig) -> None:
+    """adapt_step: the low-pass increments equal LowPass1's bit for bit; predict + correct equal the
+    reference ConstrainedKalmanFilter._step_lists (numpy correct) to rounding."""
+    from navig8_fc.core.filters import LowPass1
+
+    ccfg = CkfConfig(mode=1)  # unconstrained: _step_lists does predict + correct only
+    kf, ref = ConstrainedKalmanFilter(ccfg), ConstrainedKalmanFilter(ccfg)
+    model = UamModel(cfg)
+    st = model.evaluate((0.3, -0.2, 0.1), (0.0, 0.0, 0.0))
+    gc_inv = np.linalg.inv(st.gc)
+    lpf_u, lpf_a = LowPass1(ccfg.lpf_tau_s, ccfg.dt_s, 5), LowPass1(ccfg.lpf_tau_s, ccfg.dt_s, 5)
+    alpha = lpf_u.alpha
+    ast, out = np.zeros(k.N_AST), np.zeros(k.N_AO)
+    base = [0.05, 0.08, 0.06, 3.0]
+    kf.initialise(base)
+    ref.initialise(base)
+    rng = np.random.default_rng(29)
+    prev = None
+    for i in range(100):
+        u, a = rng.normal(size=5) * 1e5, rng.normal(size=5)
+        uf, af = lpf_u.step(u), lpf_a.step(a)
+        du, da = ([0.0] * 5, [0.0] * 5) if prev is None else (
+            [c - p for c, p in zip(uf, prev[0], strict=True)], [c - p for c, p in zip(af, prev[1], strict=True)])
+        prev = (uf, af)
+        idot = rng.normal(size=3) * 0.01
+        code = k.adapt_step(ast, alpha, u, a, i >= 1, i >= 2, ccfg.dt_s, *idot, kf._x, kf._p, kf._q, kf._r, gc_inv,
+                            0.1, -0.05, out)
+        assert out[k.AO_DU:k.AO_DU + 5].tolist() == du and out[k.AO_DA:k.AO_DA + 5].tolist() == da
+        if i == 0:
+            assert code == 0
+            continue
+        assert code == 1
+        _, x_ref, innov = ref._step_lists(du, da, gc_inv, 0.1, -0.05, tuple(idot) if i >= 2 else None, [], [])
+        _close(out[k.AO_INNOV:k.AO_INNOV + 5], innov, rtol=1e-9, atol=1e-6)
+        _close(kf._x, x_ref, rtol=1e-9)
+        _close(kf._p, ref._p, rtol=1e-8, atol=1e-14)
