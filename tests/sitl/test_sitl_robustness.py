@@ -40,8 +40,10 @@ def test_ten_thousand_malformed_datagrams_leave_the_vehicle_holding(tmp_path: Pa
             t0 = time.monotonic()
             for i in range(N_GARBAGE):
                 tx.sendto(_garbage(rng, i), ("127.0.0.1", run.gcs_bind_port))
-                if i % 500 == 0:
-                    time.sleep(0.01)  # a flood, paced so the kernel's receive buffer does not just drop it
+                if i % 100 == 0:
+                    # A flood, paced (~1 s in all) so the kernel's receive buffer does not simply drop most of it
+                    # on a busy 2-core machine: the FC is meant to read, count and drop every datagram.
+                    time.sleep(0.01)
             tx.close()
             assert time.monotonic() - t0 < 20.0
             # The FC still answers: a heartbeat after the flood.
