@@ -60,6 +60,8 @@ class SitlRun:
                     p.kill()
                     p.wait(timeout=timeout_s)
             codes.append(p.returncode)
+            if p.stdout is not None:
+                p.stdout.close()
         return codes[1], codes[0]
 
 
