@@ -17,6 +17,20 @@ from navig8_tools.logdata import load_run
 N_GARBAGE = 10_000
 
 
+def _kernel_udp_drops(port: int) -> int | None:
+    """Datagrams the kernel dropped for the UDP socket bound to `port` (its receive buffer overflowed), or None."""
+    for table in ("/proc/net/udp", "/proc/net/udp6"):
+        try:
+            lines = Path(table).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            fields = line.split()
+            if int(fields[1].rsplit(":", 1)[1], 16) == port:
+                return int(fields[-1])
+    return None
+
+
 def _garbage(rng: np.random.Generator, i: int) -> bytes:
     kind = i % 5
     if kind == 0:
@@ -50,6 +64,7 @@ def test_ten_thousand_malformed_datagrams_leave_the_vehicle_holding(tmp_path: Pa
             assert wait_heartbeat(gcs, 5.0) is not None
             assert run.fc.poll() is None, "navig8-fc died"
             time.sleep(1.0)
+            kernel_drops = _kernel_udp_drops(run.gcs_bind_port)
         finally:
             gcs.close()
     r = load_run(run.log)
@@ -58,7 +73,13 @@ def test_ten_thousand_malformed_datagrams_leave_the_vehicle_holding(tmp_path: Pa
     assert np.max(np.linalg.norm(pos - [0.0, 0.0, -2.0], axis=1)) < 0.2, "the vehicle drifted during the flood"
     c = read_metadata(run.log)["link_counters"]["gcs"]
     dropped = c["bad_crc"] + c["unknown_id"] + c["oversize"] + c["truncated"] + (c["garbage_bytes"] > 0)
-    assert c["datagrams_in"] >= 0.9 * N_GARBAGE and dropped > 0.5 * N_GARBAGE, c
+    # The FC reads, counts and drops every datagram the kernel hands it. On a busy 2-core machine the kernel itself
+    # may drop part of a flood when the socket's buffer is full (CI once saw 8838 of 10000 arrive); those are
+    # counted in /proc/net/udp, so the two together must account for the whole flood.
+    assert c["frames_in"] == 0, c
+    assert c["datagrams_in"] >= 0.5 * N_GARBAGE and dropped > 0.5 * c["datagrams_in"], c
+    if kernel_drops is not None:
+        assert c["datagrams_in"] + kernel_drops >= N_GARBAGE, (c, kernel_drops)
 
 
 def test_killed_fc_leaves_a_readable_log(tmp_path: Path) -> None:
