@@ -3,7 +3,8 @@
     navig8-tlog run.mcap [--out run.tlog] [--link gcs|api|sim|all] [--direction in|out|both]
 
 A .tlog is a sequence of records: an 8-byte big-endian timestamp in microseconds since the Unix epoch,
-then one MAVLink frame. The timestamp is the writer's wall clock when the frame crossed the link.
+then one MAVLink frame. The timestamp is the writer's wall clock when the frame crossed the link. The log
+keeps each datagram as it crossed the link (one or more frames back to back); the export splits them.
 A truncated MCAP exports up to its last complete chunk.
 """
 
@@ -13,6 +14,7 @@ import argparse
 import struct
 from pathlib import Path
 
+from navig8_fc.shell.mavlink_link import split_frames
 from navig8_fc.shell.mcap_log import read_mcap_records
 
 
@@ -27,8 +29,10 @@ def export(mcap_path: str | Path, out_path: str | Path, link: str = "all", direc
                 continue
             if parts[2] not in ("in", "out") or (direction != "both" and parts[2] != direction):
                 continue
-            out.write(struct.pack(">Q", pub_ns // 1000) + bytes(data))
-            n += 1
+            stamp = struct.pack(">Q", pub_ns // 1000)
+            for frame in split_frames(bytes(data))[0]:
+                out.write(stamp + frame)
+                n += 1
     return n
 
 

@@ -21,7 +21,13 @@ import numpy as np
 
 from navig8_fc.core import stability
 from navig8_fc.core import vehicle as vm
-from navig8_fc.core.controller import ControllerConfig, ControllerStatus, FcSensors, FlightControllerCore
+from navig8_fc.core.controller import (
+    ControllerConfig,
+    ControllerStatus,
+    FcSensors,
+    FlightControllerCore,
+    warm_up_kernels,
+)
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.shell.mcap_log import McapLogger
@@ -102,7 +108,7 @@ class EigenMonitor:
 
     def __call__(self, st: ControllerStatus, tr: Any) -> dict[str, Any]:
         return vm.ghat_ginv_eig_record(self.model, st.q_est_rad, st.gi_hat, tr.com_frd_m, tr.inertia_com_kgm2,
-                                       tr.mass_kg, self.lambda_min, self.lambda_crit)
+                                       tr.mass_kg, self.lambda_min, self.lambda_crit, st.gc_uam)
 
 
 def run(
@@ -129,6 +135,7 @@ def run(
     plant = Plant(vehicle, PlantParams.load(), sc, rng)
     cfg = ControllerConfig.from_params(reg.as_dict(), vehicle)
     fc = FlightControllerCore(vehicle, cfg)
+    warm_up_kernels(vehicle, cfg)  # numba's cache loads now, not inside the timed loop
     lam_crit = stability.lambda_crit(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), cfg.dt_s,
                                      float(reg["INDI_LPF_TAU"]))
     eigmon = EigenMonitor(vehicle, float(reg["INDI_LAMBDA_MIN"]), lam_crit)

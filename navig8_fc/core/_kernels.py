@@ -837,3 +837,18 @@ def adapt_step(ast, alpha, u_meas, acc_m, run_kf, do_predict, dt, id0, id1, id2,
     ok = kf_correct(x, p, r_diag, gc_inv, out[AO_DU:AO_DU + 5], out[AO_DA], out[AO_DA + 1], out[AO_DA + 2],
                     out[AO_DA + 3], out[AO_DA + 4], rho_x, rho_z, out[AO_INNOV:AO_INNOV + 5])
     return 1 if ok else 2
+
+
+@njit(cache=True)
+def ghat_ginv_eigs(gi_hat: np.ndarray, gc_uam: np.ndarray, gc_true: np.ndarray, gi_true: np.ndarray,
+                   out_re: np.ndarray, out_im: np.ndarray) -> None:
+    """Eigenvalues of G_hat G^-1 = (G_hat_I^-1 G_C,UAM)(G_C,true^-1 G_I,true) (Eq. 14), sorted by real part.
+
+    Complex arithmetic throughout: K Xi can have complex pairs, and numba's eigvals of a real matrix refuses
+    complex results. Reference: vehicle.ghat_ginv_eig_record_reference (numpy)."""
+    a = np.linalg.solve(gi_hat, gc_uam) @ np.linalg.solve(gc_true, gi_true)
+    lam = np.linalg.eigvals(a.astype(np.complex128))
+    order = np.argsort(lam.real)
+    for i in range(lam.size):
+        out_re[i] = lam[order[i]].real
+        out_im[i] = lam[order[i]].imag

@@ -37,7 +37,7 @@ from navig8_fc.core.outer_loop import (
     outer_loop_config_array,
     outer_loop_step_compiled,
 )
-from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig
+from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig, ghat_ginv_eig_record
 
 JOINT_OBS_TAU_S = 1.0  # complementary-filter time constant for the joint angles (docs/model.md)
 
@@ -108,6 +108,7 @@ class ControllerStatus:
     mass_uam_kg: float
     inertia_uam_diag: tuple[float, float, float]
     gi_hat: tuple[float, ...]  # 5x5 row-major
+    gc_uam: tuple[float, ...]  # G_C,UAM(q_est) this tick used (Eq. 4), 5x5 row-major
     outer: OuterLoopStatus | None
     indi: IndiStatus | None
     adapt: AdaptiveLawStatus
@@ -199,8 +200,33 @@ class FlightControllerCore:
             mass_uam_kg=float(mass),
             inertia_uam_diag=(float(j[0, 0]), float(j[1, 1]), float(j[2, 2])),
             gi_hat=tuple(gi_hat.ravel().tolist()),
+            gc_uam=tuple(gc.ravel().tolist()),
             outer=outer,
             indi=indi_status,
             adapt=adapt_status,
         )
         return cmd, status
+
+
+def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: int = 8) -> None:
+    """Run a throwaway core through every compiled path of the tick (disengaged, engaged, estimator on).
+
+    numba loads a kernel from its on-disk cache at the kernel's first call (~0.2 s for the tick's kernels);
+    without this, that load lands on the first control steps of a run: a stall at real time, and a tenth of
+    a 30 s lockstep run at --speed 0. The inputs need only be finite; the results are discarded."""
+    from dataclasses import replace
+
+    cfg = replace(config, ckf=replace(config.ckf, start_delay_s=0.0))
+    core = FlightControllerCore(vehicle, cfg)
+    w = 600.0
+    sp = Setpoint((0.0, 0.0, -2.0), 0.0, 0.0)
+    st: ControllerStatus | None = None
+    for i in range(n_ticks):
+        s = FcSensors(t_s=i * cfg.dt_s, gyro_frd=(0.01, -0.02, 0.005), accel_frd=(0.1, 0.0, -vehicle.gravity_m_s2),
+                      pos_ned=(0.0, 0.0, -2.0), vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
+                      tilt_rad=(0.1, 0.1), speed_rad_s=(w, 50.0 * (i % 2), w), joint_pos_rad=(0.1 * i, 0.0, -0.1),
+                      joint_rate_rad_s=(0.1, 0.0, -0.1))
+        _, st = core.step(s, sp, engaged=i > 0)
+    assert st is not None
+    ghat_ginv_eig_record(core._model, st.q_est_rad, st.gi_hat, (0.0, 0.0, 0.05), vehicle.uav_inertia_array,
+                         vehicle.uam_mass_kg, config.k_min, 0.1, st.gc_uam)

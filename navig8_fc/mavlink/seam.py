@@ -118,23 +118,31 @@ class ActuatorControls:
     armed: bool
 
 
-def encode_actuator_controls(time_usec: int, cmd: HasActuators, limits: Any, *, armed: bool) -> Any:
-    """HIL_ACTUATOR_CONTROLS answering the bundle stamped time_usec (limits: ActuatorLimits or VehicleConfig).
-
-    Values are divided by the limits but not clipped: the plant clamps and counts out-of-range commands,
-    which would be hidden if the encoder clipped them. Non-finite values pass through (the plant holds).
-    """
+def _actuator_controls_args(time_usec: int, cmd: HasActuators, limits: Any, armed: bool) -> tuple[Any, ...]:
     lim = _limits(limits)
-    d = dialect.load()
     controls = [0.0] * 16
     controls[0] = float(cmd.tilt_rad[0]) / lim.tilt_max_abs_rad
     controls[1] = float(cmd.tilt_rad[1]) / lim.tilt_max_abs_rad
     controls[2] = float(cmd.speed_rad_s[0]) / lim.duct_speed_max_rad_s
     controls[3] = float(cmd.speed_rad_s[1]) / lim.tail_speed_max_rad_s
     controls[4] = float(cmd.speed_rad_s[2]) / lim.duct_speed_max_rad_s
-    return d.MAVLink_hil_actuator_controls_message(
-        int(time_usec), controls, MODE_FLAG_SAFETY_ARMED if armed else 0, 0
-    )
+    return (int(time_usec), controls, MODE_FLAG_SAFETY_ARMED if armed else 0, 0)
+
+
+def encode_actuator_controls(time_usec: int, cmd: HasActuators, limits: Any, *, armed: bool) -> Any:
+    """HIL_ACTUATOR_CONTROLS answering the bundle stamped time_usec (limits: ActuatorLimits or VehicleConfig).
+
+    Values are divided by the limits but not clipped: the plant clamps and counts out-of-range commands,
+    which would be hidden if the encoder clipped them. Non-finite values pass through (the plant holds).
+    """
+    return dialect.load().MAVLink_hil_actuator_controls_message(*_actuator_controls_args(time_usec, cmd, limits,
+                                                                                          armed))
+
+
+def pack_actuator_controls(mav: Any, time_usec: int, cmd: HasActuators, limits: Any, *, armed: bool) -> bytes:
+    """The frame of encode_actuator_controls(...) packed with `mav`, byte-identical, without building the
+    pymavlink message (the FC's answer on every lockstep step; see fast_pack)."""
+    return fast_pack(mav, "HIL_ACTUATOR_CONTROLS", _actuator_controls_args(time_usec, cmd, limits, armed))
 
 
 def decode_actuator_controls(msg: Any, limits: Any) -> ActuatorControls:

@@ -34,6 +34,7 @@ from navig8_fc.core.controller import (
     ControllerStatus,
     FcSensors,
     FlightControllerCore,
+    warm_up_kernels,
 )
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.core.rotation import quat_to_euler
@@ -83,7 +84,8 @@ def _eig_record(model: vm.UamModel, st: ControllerStatus, truth: Any, lam_min: f
                 ) -> dict[str, Any]:
     i = truth.inertia  # NAVIG8_TRUTH: xx, yy, zz, xy, xz, yz about the composite CoM
     j = np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]], dtype=float)
-    return vm.ghat_ginv_eig_record(model, st.q_est_rad, st.gi_hat, truth.com_frd, j, truth.mass, lam_min, lam_crit)
+    return vm.ghat_ginv_eig_record(model, st.q_est_rad, st.gi_hat, truth.com_frd, j, truth.mass, lam_min, lam_crit,
+                                   st.gc_uam)
 
 
 class FlightControllerProcess:
@@ -109,7 +111,7 @@ class FlightControllerProcess:
         self.last_sensors: FcSensors | None = None
         self.mode_out: ModeOutput | None = None
         self._last_step_time_us: int | None = None
-        self._last_cmd_msg: Any = None
+        self._last_answer: bytes | None = None  # the frame answering the last step (re-sent on duplicates)
         self.n_ticks = 0
         self.n_duplicates = 0
         self.last_bundle_wall = time.monotonic()
@@ -119,6 +121,8 @@ class FlightControllerProcess:
         self.last_cmd: ActuatorCommand = MOTORS_OFF
         self.gcs_service = GcsService(self)  # loads persisted parameters (unless --defaults)
         self._reconfigure()
+        assert self.core is not None
+        warm_up_kernels(self.vehicle, self.core.config)  # numba's cache loads before the first step, not in it
         if self.logger:
             self.logger.metadata("run", {"scenario": opts.scenario, "controller": self._controller_name(),
                                          "sysid": opts.sysid, "process": "navig8-fc"})
@@ -137,7 +141,9 @@ class FlightControllerProcess:
         self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
         self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
         for link in (self.sim, self.gcs, self.api):
-            link.on_frame = self._log_frame
+            link.on_datagram = self._log_datagram
+        for link in (self.gcs, self.api):  # the sim link's messages are logged decoded as /truth, /fc/...
+            link.on_frame = self._log_decoded
         self.links = (self.sim, self.gcs, self.api)
 
     def _controller_name(self) -> str:
@@ -158,9 +164,15 @@ class FlightControllerProcess:
                                                  cfg.dt_s, float(self.registry["INDI_LPF_TAU"]))
 
     # --- logging ---------------------------------------------------------------------------------
-    def _log_frame(self, link: str, direction: str, raw: bytes, msg: Any, peer: tuple[str, int]) -> None:
-        """Queue a frame for the log; `_flush_frames` writes the queue after the step's answer has gone out,
-        so logging overlaps with the bridge's physics step instead of delaying the lockstep round trip."""
+    def _log_datagram(self, link: str, direction: str, raw: bytes, peer: tuple[str, int]) -> None:
+        """Queue a datagram (raw, as it crossed the link) for the log; `_flush_frames` writes the queue after the
+        step's answer has gone out, so logging overlaps with the bridge's physics step instead of delaying the
+        lockstep round trip."""
+        if self.logger:
+            self._frame_queue.append((link, direction, raw, None, self._sim_ns(), time.time_ns()))
+
+    def _log_decoded(self, link: str, direction: str, raw: bytes, msg: Any, peer: tuple[str, int]) -> None:
+        """Queue a decoded GCS/API message for its /mavlink/<link>/<dir>/<TYPE> channel."""
         if self.logger:
             self._frame_queue.append((link, direction, raw, msg, self._sim_ns(), time.time_ns()))
 
@@ -169,8 +181,9 @@ class FlightControllerProcess:
         if not self.logger:
             return
         for link, direction, raw, msg, t_ns, wall_ns in q:
-            self.logger.log_raw(f"/mavlink/{link}/{direction}", t_ns, raw, publish_ns=wall_ns)
-            if msg is not None and link != "sim":
+            if msg is None:
+                self.logger.log_raw(f"/mavlink/{link}/{direction}", t_ns, raw, publish_ns=wall_ns)
+            else:
                 self.logger.log(f"/mavlink/{link}/{direction}/{msg.get_type()}", t_ns, msg.to_dict(),
                                 publish_ns=wall_ns, schema=mavlink_json_schema(type(msg)))
 
@@ -194,9 +207,9 @@ class FlightControllerProcess:
         self.last_bundle_wall = time.monotonic()
         self._stall_reported = False
         t_us = int(b.time_usec)
-        if t_us == self._last_step_time_us and self._last_cmd_msg is not None:
+        if t_us == self._last_step_time_us and self._last_answer is not None:
             self.n_duplicates += 1  # a re-sent bundle: answer with the same command, do not re-run control
-            self.sim.send(self._last_cmd_msg)
+            self.sim.send_raw(self._last_answer)
             return
         self._last_step_time_us = t_us
         self._reconfigure()
@@ -206,13 +219,13 @@ class FlightControllerProcess:
         cmd, st = self.core.step(sensors, sp, engaged=engaged)
         self.last_status, self.last_cmd, self.last_sensors = st, cmd, sensors
         self.gcs_service.telemetry.on_tick(sensors.t_s, sensors.speed_rad_s)
-        out = seam.encode_actuator_controls(t_us, cmd, self.vehicle, armed=armed)
-        self._last_cmd_msg = out
+        out = seam.pack_actuator_controls(self.sim.mav, t_us, cmd, self.vehicle, armed=armed)
+        self._last_answer = out
         arm_cmd = self.gcs_service.pending_arm_cmd
         if arm_cmd is not None:  # before the step's answer, so the bridge applies it on this step
             self.gcs_service.pending_arm_cmd = None
             self.sim.send(seam.encode_arm_cmd(replace(arm_cmd, time_usec=t_us)))
-        self.sim.send(out)
+        self.sim.send_raw(out)
         self.n_ticks += 1
         if self.logger:
             self._pending_tick = (t_us, b.truth, st, cmd, sp)

@@ -81,7 +81,10 @@ class UdpLink:
     sysid_filter: int | None = None  # drop frames not from... (kept None: we accept any source)
     counters: LinkCounters = field(default_factory=LinkCounters)
     max_peers: int = 8
-    on_frame: Callable[[str, str, bytes, Any, tuple[str, int]], None] | None = None  # (link, dir, raw, msg, peer)
+    # Logging hooks. on_datagram: every datagram in (up to MAX_DATAGRAM bytes) and out, raw, once, as it crossed
+    # the link (a datagram holds one or more frames). on_frame: every frame that decoded (link, dir, raw, msg, peer).
+    on_datagram: Callable[[str, str, bytes, tuple[str, int]], None] | None = None  # (link, dir, raw, peer)
+    on_frame: Callable[[str, str, bytes, Any, tuple[str, int]], None] | None = None
     # Optional fast path tried before pymavlink (the sim link: navig8_fc.mavlink.seam.fast_decode): a decoded
     # message, or None to let pymavlink decode (and count) the frame as usual.
     fast_decode: Callable[[bytes], Any | None] | None = None
@@ -118,6 +121,8 @@ class UdpLink:
             if len(data) > MAX_DATAGRAM:
                 c.oversize += 1
                 continue
+            if self.on_datagram:
+                self.on_datagram(self.name, "in", data, addr)
             frames, garbage, truncated = split_frames(data)
             c.garbage_bytes += garbage
             c.truncated += truncated
@@ -129,13 +134,9 @@ class UdpLink:
                         msg = self.mav.decode(bytearray(fr))
                     except Exception:  # noqa: BLE001 - any decode failure is bad input: count, drop
                         c.bad_crc += 1
-                        if self.on_frame:
-                            self.on_frame(self.name, "in_bad", fr, None, addr)
                         continue
                     if msg.get_type().startswith(("UNKNOWN_", "BAD_DATA")):
                         c.unknown_id += 1  # pymavlink hands these back undecoded: not a peer, not an input
-                        if self.on_frame:
-                            self.on_frame(self.name, "in_bad", fr, None, addr)
                         continue
                 c.frames_in += 1
                 if addr not in self.peers:
@@ -152,9 +153,12 @@ class UdpLink:
         self.send_raw(buf, dest, msg)
 
     def send_raw(self, buf: bytes, dest: list[tuple[str, int]] | None = None, msg: Any = None) -> None:
+        """Send one datagram; `msg` (the decoded form of a one-frame datagram) goes to on_frame for the log."""
         self._sendto(buf, dest)
         self.counters.frames_out += 1
-        if self.on_frame:
+        if self.on_datagram:
+            self.on_datagram(self.name, "out", buf, ("", 0))
+        if msg is not None and self.on_frame:
             self.on_frame(self.name, "out", buf, msg, ("", 0))
 
     def _sendto(self, data: bytes, dest: list[tuple[str, int]] | None) -> None:

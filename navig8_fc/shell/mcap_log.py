@@ -16,7 +16,8 @@ from typing import Any, BinaryIO
 
 import orjson
 from mcap.reader import NonSeekingReader
-from mcap.writer import CompressionType, Writer
+
+from navig8_fc.shell.mcap_writer import FastMcapWriter
 
 CHUNK_SIZE = 64 * 1024
 
@@ -117,7 +118,9 @@ class McapLogger:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._fh: BinaryIO = open(self.path, "wb")  # noqa: SIM115 - closed in close()
-        self._w = Writer(self._fh, chunk_size=chunk_size, compression=CompressionType.ZSTD)
+        # FastMcapWriter: the library's file layout, byte for byte, at ~0.3 us per message instead of ~3 us (the FC
+        # logs on the lockstep path). lz4 rather than zstd: 3x faster per chunk, files ~1.6x larger.
+        self._w = FastMcapWriter(self._fh, chunk_size=chunk_size, compression="lz4")
         self._w.start(profile=profile, library="navig8-sitl")
         self._channels: dict[str, int] = {}
         self._schemas: dict[str, int] = {}
