@@ -15,6 +15,7 @@ Exit codes: 0 done (--until-done) or stopped by SIGINT/SIGTERM; 1 cannot start (
 from __future__ import annotations
 
 import argparse
+import gc
 import math
 import signal
 import socket
@@ -328,6 +329,8 @@ class Bridge:
               f"bound {o.host}:{o.bridge_port_resolved}, FC at {self.fc_addr[0]}:{self.fc_addr[1]}"
               + (f", until done at t={self.n_steps * self.dt_us * 1e-6:g} s" if o.until_done else ""),
               file=sys.stderr, flush=True)
+        gc.collect()
+        gc.freeze()  # start-up objects live for the whole run: keep them out of every later collection
         # startup: re-send step 0 until the FC answers it (the plant waits at t = 0)
         data = self._bundle()
         now = time.perf_counter()

@@ -13,6 +13,7 @@ whatever the simulation speed (mavlink_notes §1.3).
 from __future__ import annotations
 
 import argparse
+import gc
 import math
 import os
 import select
@@ -48,6 +49,7 @@ from navig8_fc.shell.mcap_log import McapLogger, mavlink_json_schema
 
 FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
+WALL_TICK_S = 0.001  # GCS services (telemetry schedule, paced parameter list) run at most this often
 ESTIMATOR_WARMUP_S = 0.5  # 5 time constants of the INDI feedback filter before arming is allowed
 
 
@@ -309,7 +311,12 @@ class FlightControllerProcess:
               f":{self.opts.port('bridge')}, GCS :{self.gcs.local_port} -> {self.opts.gcs_port}, API "
               f":{self.api.local_port} -> {self.opts.port('api')}, scenario {self.opts.scenario}", file=sys.stderr)
         socks = {link.sock: link for link in self.links}
-        hb_due = 0.0
+        # Everything alive now (imports, numba, the parameter registry) lives for the whole run: a full collection
+        # would walk it all (~70 ms here, a stall of several lockstep steps); freezing keeps the collector to the
+        # run's own short-lived objects.
+        gc.collect()
+        gc.freeze()
+        hb_due = wall_tick_due = 0.0
         sock_list = list(socks)
         try:
             while not self._stop:
@@ -334,7 +341,9 @@ class FlightControllerProcess:
                 if now >= hb_due:
                     hb_due = now + 1.0
                     self.on_wall_second(now)
-                self.on_wall_tick(now)
+                if now >= wall_tick_due:  # not on every lockstep step: at --speed 0 steps come every ~0.3 ms
+                    wall_tick_due = now + WALL_TICK_S
+                    self.on_wall_tick(now)
                 if until_done and self.sim_done:
                     break
                 self._check_timeouts(now)
