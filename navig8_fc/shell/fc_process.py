@@ -140,6 +140,7 @@ class FlightControllerProcess:
         o = self.opts
         self.sim = UdpLink.open("sim", self._mav(), (o.host, o.port("sim")), [(o.host, o.port("bridge"))])
         self.sim.fast_decode = seam.fast_decode  # the lockstep messages skip pymavlink (anything else falls back)
+        self.sim.datagram_decoder = seam.decode_step_datagram  # a clean step datagram straight to a StepBundle
         self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
         self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
         for link in (self.sim, self.gcs, self.api):
@@ -196,6 +197,10 @@ class FlightControllerProcess:
     def _on_sim(self, received: list[Any]) -> None:
         for r in received:
             m = r.msg
+            if type(m) is seam.StepBundle:  # a whole step datagram (UdpLink.datagram_decoder)
+                self._asm.clear()
+                self._on_step(m)
+                continue
             if m.get_type() == "NAVIG8_SIM_STATUS":
                 self.sim_status = seam.decode_sim_status(m)
                 if self.sim_status.state == seam.SIM_STATE_DONE:

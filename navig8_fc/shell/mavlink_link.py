@@ -65,7 +65,7 @@ def split_frames(data: bytes) -> tuple[list[bytes], int, int]:
 @dataclass(frozen=True)
 class Received:
     frame: bytes
-    msg: Any | None  # decoded pymavlink message, None if it failed to decode
+    msg: Any | None  # decoded pymavlink message (or the datagram_decoder's object for a whole datagram)
     addr: tuple[str, int]
 
 
@@ -88,6 +88,9 @@ class UdpLink:
     # Optional fast path tried before pymavlink (the sim link: navig8_fc.mavlink.seam.fast_decode): a decoded
     # message, or None to let pymavlink decode (and count) the frame as usual.
     fast_decode: Callable[[bytes], Any | None] | None = None
+    # Optional whole-datagram path tried first (the sim link: seam.decode_step_datagram): (object, frame count),
+    # delivered as one Received whose msg is that object, or None to split and decode frame by frame.
+    datagram_decoder: Callable[[bytes], tuple[Any, int] | None] | None = None
 
     @staticmethod
     def open(name: str, mav: Any, bind: tuple[str, int], targets: list[tuple[str, int]] | None = None) -> UdpLink:
@@ -123,6 +126,13 @@ class UdpLink:
                 continue
             if self.on_datagram:
                 self.on_datagram(self.name, "in", data, addr)
+            if self.datagram_decoder is not None:
+                whole = self.datagram_decoder(data)
+                if whole is not None:
+                    c.frames_in += whole[1]
+                    self._note_peer(addr)
+                    out.append(Received(data, whole[0], addr))
+                    continue
             frames, garbage, truncated = split_frames(data)
             c.garbage_bytes += garbage
             c.truncated += truncated
@@ -139,14 +149,17 @@ class UdpLink:
                         c.unknown_id += 1  # pymavlink hands these back undecoded: not a peer, not an input
                         continue
                 c.frames_in += 1
-                if addr not in self.peers:
-                    if len(self.peers) >= self.max_peers:
-                        self.peers.pop(0)
-                    self.peers.append(addr)
+                self._note_peer(addr)
                 if self.on_frame:
                     self.on_frame(self.name, "in", fr, msg, addr)
                 out.append(Received(fr, msg, addr))
         return out
+
+    def _note_peer(self, addr: tuple[str, int]) -> None:
+        if addr not in self.peers:
+            if len(self.peers) >= self.max_peers:
+                self.peers.pop(0)
+            self.peers.append(addr)
 
     def send(self, msg: Any, dest: list[tuple[str, int]] | None = None) -> None:
         buf = msg.pack(self.mav)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from navig8_fc.mavlink import dialect, seam
+from navig8_fc.shell.mavlink_link import split_frames
 
 SEAM_MESSAGES = seam._FAST_MESSAGES
 
@@ -186,3 +187,59 @@ def test_pack_actuator_controls_matches_pymavlink_pack() -> None:
         want = seam.encode_actuator_controls(t_us, cmd, veh, armed=bool(i % 2)).pack(ref)
         ref.seq = (ref.seq + 1) % 256
         assert seam.pack_actuator_controls(fast, t_us, cmd, veh, armed=bool(i % 2)) == want
+
+
+def _assembled(d, data: bytes):
+    """The bundle the frame-by-frame path gives: pymavlink decode of each frame + BundleAssembler."""
+    mav = d.MAVLink(None)
+    asm, out = seam.BundleAssembler(), None
+    for fr in split_frames(data)[0]:
+        b = asm.add(mav.decode(bytearray(fr)))
+        out = b if b is not None else out
+    return out
+
+
+def test_decode_step_datagram_equals_the_frame_by_frame_path(d) -> None:
+    from dataclasses import replace
+
+    rng = random.Random(21)
+    tx = dialect.new_mav(1, dialect.COMPID_BRIDGE)
+    for step in range(120):
+        truth = _truth(rng, step) if step % 5 else None
+        data = seam.encode_bundle(tx, step, _sensors(rng, step), truth)
+        got = seam.decode_step_datagram(data)
+        want = _assembled(d, data)
+        assert got is not None and want is not None
+        bundle, n_frames = got
+        assert n_frames == (5 if truth is not None else 4)
+        assert _same(list(vars(replace(bundle, truth=None)).values()), list(vars(replace(want, truth=None)).values()))
+        if truth is None:
+            assert bundle.truth is None and want.truth is None
+        else:
+            assert _same(list(seam.truth_record(bundle.truth).values()), list(seam.truth_record(want.truth).values()))
+
+
+def test_decode_step_datagram_declines_anything_but_a_clean_bundle(d) -> None:
+    rng = random.Random(22)
+    tx = dialect.new_mav(1, dialect.COMPID_BRIDGE)
+    data = seam.encode_bundle(tx, 3, _sensors(rng, 3), _truth(rng, 3))
+    frames = split_frames(data)[0]
+    assert seam.decode_step_datagram(data) is not None
+    bad_crc = bytearray(data)
+    bad_crc[20] ^= 0x01
+    other = seam.encode_bundle(tx, 4, _sensors(rng, 4), None)
+    status = seam.pack(tx, [seam.encode_sim_status(seam.SimStatus(1, 2, seam.SIM_STATE_RUNNING, 0.0, 1.0, 0))])
+    cases = {
+        "bad CRC": bytes(bad_crc),
+        "trailing garbage": data + b"\x01\x02",
+        "truncated": data[:-3],
+        "out of order": b"".join([frames[1], frames[0], *frames[2:]]),
+        "no HIL_SENSOR": b"".join(frames[:-1]),
+        "mixed steps": b"".join([split_frames(other)[0][0], *frames[1:]]),
+        "a status message": status,
+        "status then bundle": status + data,
+        "two bundles": data + data,
+        "empty": b"",
+    }
+    for label, dgram in cases.items():
+        assert seam.decode_step_datagram(dgram) is None, label
