@@ -167,12 +167,12 @@ class FlightControllerProcess:
                                                  cfg.dt_s, float(self.registry["INDI_LPF_TAU"]))
 
     # --- logging ---------------------------------------------------------------------------------
-    def _log_datagram(self, link: str, direction: str, raw: bytes, peer: tuple[str, int]) -> None:
+    def _log_datagram(self, link: str, direction: str, raw: bytes, peer: str) -> None:
         """Queue a datagram (raw, as it crossed the link) for the log; `_flush_frames` writes the queue after the
         step's answer has gone out, so logging overlaps with the bridge's physics step instead of delaying the
         lockstep round trip."""
         if self.logger:
-            self._frame_queue.append((link, direction, raw, None, self._sim_ns(), time.time_ns()))
+            self._frame_queue.append((link, direction, raw, peer, self._sim_ns(), time.time_ns()))
 
     def _log_decoded(self, link: str, direction: str, raw: bytes, msg: Any, peer: tuple[str, int]) -> None:
         """Queue a decoded GCS/API message for its /mavlink/<link>/<dir>/<TYPE> channel."""
@@ -184,8 +184,8 @@ class FlightControllerProcess:
         if not self.logger:
             return
         for link, direction, raw, msg, t_ns, wall_ns in q:
-            if msg is None:
-                self.logger.log_raw(f"/mavlink/{link}/{direction}", t_ns, raw, publish_ns=wall_ns)
+            if type(msg) is str:  # a datagram; msg is its peer
+                self.logger.log_raw(f"/mavlink/{link}/{direction}", t_ns, raw, publish_ns=wall_ns, peer=msg)
             else:
                 self.logger.log(f"/mavlink/{link}/{direction}/{msg.get_type()}", t_ns, msg.to_dict(),
                                 publish_ns=wall_ns, schema=mavlink_json_schema(type(msg)))

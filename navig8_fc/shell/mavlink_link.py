@@ -62,6 +62,18 @@ def split_frames(data: bytes) -> tuple[list[bytes], int, int]:
     return frames, garbage, truncated
 
 
+_peer_texts: dict[tuple[tuple[str, int], ...], str] = {}
+
+
+def _peer_text(dests: list[tuple[str, int]]) -> str:
+    """ "host:port,host:port" of a destination list (cached: the same few lists recur every step)."""
+    key = tuple(dests)
+    text = _peer_texts.get(key)
+    if text is None:
+        text = _peer_texts[key] = ",".join(f"{h}:{p}" for h, p in key)
+    return text
+
+
 @dataclass(frozen=True)
 class Received:
     frame: bytes
@@ -83,7 +95,7 @@ class UdpLink:
     max_peers: int = 8
     # Logging hooks. on_datagram: every datagram in (up to MAX_DATAGRAM bytes) and out, raw, once, as it crossed
     # the link (a datagram holds one or more frames). on_frame: every frame that decoded (link, dir, raw, msg, peer).
-    on_datagram: Callable[[str, str, bytes, tuple[str, int]], None] | None = None  # (link, dir, raw, peer)
+    on_datagram: Callable[[str, str, bytes, str], None] | None = None  # (link, dir, raw, "host:port[,host:port]")
     on_frame: Callable[[str, str, bytes, Any, tuple[str, int]], None] | None = None
     # Optional fast path tried before pymavlink (the sim link: navig8_fc.mavlink.seam.fast_decode): a decoded
     # message, or None to let pymavlink decode (and count) the frame as usual.
@@ -125,7 +137,7 @@ class UdpLink:
                 c.oversize += 1
                 continue
             if self.on_datagram:
-                self.on_datagram(self.name, "in", data, addr)
+                self.on_datagram(self.name, "in", data, f"{addr[0]}:{addr[1]}")
             if self.datagram_decoder is not None:
                 whole = self.datagram_decoder(data)
                 if whole is not None:
@@ -167,10 +179,11 @@ class UdpLink:
 
     def send_raw(self, buf: bytes, dest: list[tuple[str, int]] | None = None, msg: Any = None) -> None:
         """Send one datagram; `msg` (the decoded form of a one-frame datagram) goes to on_frame for the log."""
-        self._sendto(buf, dest)
+        dests = dest if dest is not None else self.destinations()
+        self._sendto(buf, dests)
         self.counters.frames_out += 1
         if self.on_datagram:
-            self.on_datagram(self.name, "out", buf, ("", 0))
+            self.on_datagram(self.name, "out", buf, _peer_text(dests))
         if msg is not None and self.on_frame:
             self.on_frame(self.name, "out", buf, msg, ("", 0))
 

@@ -123,6 +123,7 @@ class McapLogger:
         self._w = FastMcapWriter(self._fh, chunk_size=chunk_size, compression="lz4")
         self._w.start(profile=profile, library="navig8-sitl")
         self._channels: dict[str, int] = {}
+        self._raw_channels: dict[tuple[str, str], int] = {}
         self._schemas: dict[str, int] = {}
         self._closed = False
 
@@ -142,6 +143,20 @@ class McapLogger:
         self._channels[topic] = cid
         return cid
 
+    def _raw_channel(self, topic: str, encoding: str, peer: str) -> int:
+        """A raw channel per (topic, peer): the peer rides in the channel's metadata, so each datagram keeps
+        where it came from or went to at no cost per message (MCAP allows several channels on one topic)."""
+        name = topic.strip("/").replace("/", ".") + ".raw"
+        if name not in self._schemas:
+            self._schemas[name] = self._w.register_schema(name, "", b"")
+        parts = topic.strip("/").split("/")
+        meta = {"peer": peer}
+        if len(parts) == 3 and parts[0] == "mavlink":
+            meta.update(link=parts[1], direction=parts[2])
+        cid = self._w.register_channel(topic, encoding, self._schemas[name], meta)
+        self._raw_channels[(topic, peer)] = cid
+        return cid
+
     def log(self, topic: str, t_ns: int, obj: Any, publish_ns: int | None = None,
             schema: dict[str, Any] | None = None) -> None:
         cid = self._channels.get(topic)
@@ -150,8 +165,11 @@ class McapLogger:
         self._w.add_message(cid, int(t_ns), dumps_json(obj), int(t_ns if publish_ns is None else publish_ns))
 
     def log_raw(self, topic: str, t_ns: int, payload: bytes, publish_ns: int | None = None,
-                encoding: str = "application/octet-stream") -> None:
-        cid = self.channel(topic, None, schema_name=topic.strip("/").replace("/", ".") + ".raw", encoding=encoding)
+                encoding: str = "application/octet-stream", peer: str = "") -> None:
+        """Raw bytes on `topic`; `peer` (e.g. "127.0.0.1:14550") goes to the channel's metadata."""
+        cid = self._raw_channels.get((topic, peer))
+        if cid is None:
+            cid = self._raw_channel(topic, encoding, peer)
         self._w.add_message(cid, int(t_ns), payload, int(t_ns if publish_ns is None else publish_ns))
 
     def metadata(self, name: str, data: Any) -> None:

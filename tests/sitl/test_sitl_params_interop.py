@@ -65,6 +65,14 @@ def test_tlog_export_opens_in_pymavlink(tmp_path: Path) -> None:
             time.sleep(1.0)
         finally:
             gcs.close()
+    # Every datagram is logged raw once, on a channel per peer (the peer in the channel's metadata).
+    from mcap.reader import make_reader
+
+    with open(run.log, "rb") as fh:
+        peers = {(ch.topic, ch.metadata.get("peer")) for ch in make_reader(fh).get_summary().channels.values()
+                 if ch.topic.startswith("/mavlink/") and ch.topic.count("/") == 3}
+    assert ("/mavlink/gcs/in", f"127.0.0.1:{run.gcs_port}") in peers, peers
+    assert any(t == "/mavlink/sim/in" and p for t, p in peers), peers
     tlog = tmp_path / "run.tlog"
     n = export(run.log, tlog, link="gcs")
     assert n > 10

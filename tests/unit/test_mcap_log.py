@@ -68,3 +68,26 @@ def test_mavlink_schema_from_the_message_definition() -> None:
     assert props["repr_offset_q"]["type"] == "array" and props["repr_offset_q"]["maxItems"] == 4
     hb = mavlink_json_schema(m.MAVLink_heartbeat_message)["properties"]
     assert hb["custom_mode"]["type"] == "integer" and "MAV_TYPE" in hb["type"]["description"]
+
+
+def test_raw_channels_carry_the_peer_in_channel_metadata(tmp_path) -> None:
+    from mcap.reader import make_reader
+
+    from navig8_fc.shell.mcap_log import McapLogger, read_mcap
+
+    path = tmp_path / "peers.mcap"
+    with McapLogger(path) as log:
+        log.log_raw("/mavlink/gcs/in", 1, b"\xfd\x01", peer="127.0.0.1:14550")
+        log.log_raw("/mavlink/gcs/in", 2, b"\xfd\x02", peer="127.0.0.1:14551")
+        log.log_raw("/mavlink/gcs/in", 3, b"\xfd\x03", peer="127.0.0.1:14550")
+        log.log_raw("/mavlink/gcs/out", 4, b"\xfd\x04", peer="127.0.0.1:14550,127.0.0.1:14551")
+    with open(path, "rb") as fh:
+        reader = make_reader(fh)
+        peers = [(ch.topic, ch.metadata["peer"], ch.metadata["link"], ch.metadata["direction"])
+                 for _, ch, _ in reader.iter_messages(log_time_order=True)]
+    assert peers == [("/mavlink/gcs/in", "127.0.0.1:14550", "gcs", "in"),
+                     ("/mavlink/gcs/in", "127.0.0.1:14551", "gcs", "in"),
+                     ("/mavlink/gcs/in", "127.0.0.1:14550", "gcs", "in"),
+                     ("/mavlink/gcs/out", "127.0.0.1:14550,127.0.0.1:14551", "gcs", "out")]
+    # One topic for readers that go by topic.
+    assert [d for _, _, d in read_mcap(path, ["/mavlink/gcs/in"])] == [b"\xfd\x01", b"\xfd\x02", b"\xfd\x03"]
