@@ -239,7 +239,9 @@ def test_real_time_pacing(speed: str) -> None:
         wall = time.perf_counter() - t0
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=10) == 0
-    assert 0.27 < wall < 0.6  # 30 steps of 10 ms at real time
+    # 30 steps of 10 ms at real time: never early (the pacing); the upper bound only catches a bridge that
+    # ignores --speed 1 altogether, with room for a loaded CI machine.
+    assert 0.27 < wall < 1.5
 
 
 def test_arm_command_moves_joints_and_releases_the_object() -> None:
