@@ -49,13 +49,39 @@ class BatteryState:
         return int(round(100.0 * min(max(self.soc, 0.0), 1.0)))
 
 
+_DEFAULT_CONFIG = BatteryConfig()  # frozen: one shared default instead of one per step
+_INF = math.inf
+_sqrt = math.sqrt
+_bisect_right = bisect.bisect_right
+_LAST = len(_SOC_POINTS) - 1
+# Indexed like the tables by the segment's upper end i: (soc0, cell V0, V1 - V0, soc1 - soc0) of [i - 1, i].
+_SEGMENTS = tuple(
+    (_SOC_POINTS[i - 1], _CELL_OCV_V[i - 1], _CELL_OCV_V[i] - _CELL_OCV_V[i - 1], _SOC_POINTS[i] - _SOC_POINTS[i - 1])
+    for i in range(_LAST + 1)
+)
+_new_object = object.__new__
+
+
+def _battery_state(
+    soc: float, voltage_v: float, current_a: float, consumed_mah: float, energy_j: float
+) -> BatteryState:
+    """`BatteryState(...)` without the frozen dataclass's __init__ (one object.__setattr__ per field): the same
+    object, filled directly (BatteryState has no __post_init__). tests/unit/test_battery.py checks it."""
+    state = _new_object(BatteryState)
+    state.__dict__.update(soc=soc, voltage_v=voltage_v, current_a=current_a, consumed_mah=consumed_mah,
+                          energy_j=energy_j)  # fmt: skip
+    return state
+
+
 def open_circuit_voltage(soc: float, config: BatteryConfig) -> float:
     """Pack open-circuit voltage (V) at state of charge `soc` (clamped to 0..1)."""
-    s = min(max(soc, 0.0), 1.0)
-    i = min(bisect.bisect_right(_SOC_POINTS, s), len(_SOC_POINTS) - 1)
-    s0, s1 = _SOC_POINTS[i - 1], _SOC_POINTS[i]
-    v0, v1 = _CELL_OCV_V[i - 1], _CELL_OCV_V[i]
-    return config.cells * (v0 + (v1 - v0) * (s - s0) / (s1 - s0))
+    s = soc
+    if s < 0.0:  # min(max(soc, 0.0), 1.0), NaN passes through
+        s = 0.0
+    elif s > 1.0:
+        s = 1.0
+    s0, v0, dv, ds = _SEGMENTS[min(_bisect_right(_SOC_POINTS, s), _LAST)]
+    return config.cells * (v0 + dv * (s - s0) / ds)
 
 
 def battery_initial(config: BatteryConfig | None = None, soc: float = 1.0) -> BatteryState:
@@ -66,22 +92,20 @@ def battery_initial(config: BatteryConfig | None = None, soc: float = 1.0) -> Ba
 
 def battery_step(state: BatteryState, power_w: float, dt_s: float, config: BatteryConfig | None = None) -> BatteryState:
     """Discharge at `power_w` (electrical, >= 0; NaN/negative count as 0) for `dt_s` seconds."""
-    cfg = config or BatteryConfig()
-    p = power_w if math.isfinite(power_w) and power_w > 0.0 else 0.0
-    dt = dt_s if math.isfinite(dt_s) and dt_s > 0.0 else 0.0
-    v_oc = open_circuit_voltage(state.soc, cfg)
+    cfg = _DEFAULT_CONFIG if config is None else config
+    p = power_w if 0.0 < power_w < _INF else 0.0  # NaN, Inf and <= 0 count as 0
+    dt = dt_s if 0.0 < dt_s < _INF else 0.0
+    soc0 = state.soc
+    v_oc = open_circuit_voltage(soc0, cfg)
     r = cfg.internal_resistance_ohm
     disc = v_oc * v_oc - 4.0 * r * p
-    current = v_oc / (2.0 * r) if disc < 0.0 else (v_oc - math.sqrt(disc)) / (2.0 * r)
-    if state.soc <= 0.0:
+    current = v_oc / (2.0 * r) if disc < 0.0 else (v_oc - _sqrt(disc)) / (2.0 * r)
+    if soc0 <= 0.0:
         current = 0.0  # reported empty; the plant is not limited by this model
     v_term = v_oc - current * r
     charge_as = current * dt
-    soc = max(state.soc - charge_as / (cfg.capacity_ah * 3600.0), 0.0)
-    return BatteryState(
-        soc=soc,
-        voltage_v=v_term,
-        current_a=current,
-        consumed_mah=state.consumed_mah + charge_as / 3.6,
-        energy_j=state.energy_j + v_term * current * dt,
-    )
+    soc = soc0 - charge_as / (cfg.capacity_ah * 3600.0)
+    if soc < 0.0:  # max(soc, 0.0)
+        soc = 0.0
+    return _battery_state(soc, v_term, current, state.consumed_mah + charge_as / 3.6,
+                          state.energy_j + v_term * current * dt)  # fmt: skip

@@ -133,26 +133,33 @@ class LandDetector:
 
     def __init__(self, config: ModeConfig) -> None:
         self._cfg = config
+        # The (frozen) config's thresholds, read once per step.
+        self._max_vz = config.landed_max_vz_m_s
+        self._max_vxy = config.landed_max_vxy_m_s
+        self._max_thrust_ratio = config.landed_max_thrust_ratio
+        self._max_height = config.landed_max_height_m
+        self._hold_s = config.landed_hold_s
         self._candidate_since_s: float | None = None
         self._seen_sample = False
         self.landed = False
 
     def candidate(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
-        c = self._cfg
         vx, vy, vz = inp.vel_ned
-        slow = abs(vz) < c.landed_max_vz_m_s and math.hypot(vx, vy) < c.landed_max_vxy_m_s
-        if not slow:
+        if not (abs(vz) < self._max_vz and math.hypot(vx, vy) < self._max_vxy):  # not slow
             return False
-        if math.isfinite(inp.thrust_ratio):
-            return inp.thrust_ratio < c.landed_max_thrust_ratio
-        return home_z_ned_m is not None and (home_z_ned_m - inp.pos_ned[2]) < c.landed_max_height_m
+        thrust_ratio = inp.thrust_ratio
+        if _isfinite(thrust_ratio):
+            return thrust_ratio < self._max_thrust_ratio
+        return home_z_ned_m is not None and (home_z_ned_m - inp.pos_ned[2]) < self._max_height
 
     def step(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
         if self.candidate(inp, home_z_ned_m):
-            if self._candidate_since_s is None:
+            t = inp.t_s
+            since = self._candidate_since_s
+            if since is None:
                 # At the very first sample there is no history: a vehicle that boots resting is landed at once.
-                self._candidate_since_s = inp.t_s if self._seen_sample else inp.t_s - self._cfg.landed_hold_s
-            self.landed = inp.t_s - self._candidate_since_s >= self._cfg.landed_hold_s
+                since = self._candidate_since_s = t if self._seen_sample else t - self._hold_s
+            self.landed = t - since >= self._hold_s
         else:
             self._candidate_since_s = None
             self.landed = False
@@ -210,7 +217,7 @@ class ModeManager:
 
     @property
     def base_mode(self) -> int:
-        return int(MavModeFlag.CUSTOM_MODE_ENABLED) | (int(MavModeFlag.SAFETY_ARMED) if self._armed else 0)
+        return _BASE_MODE_ARMED if self._armed else _BASE_MODE_DISARMED
 
     @property
     def landed(self) -> bool:
@@ -330,46 +337,61 @@ class ModeManager:
     # --- the step ------------------------------------------------------------------------------------
     def step(self, inp: ModeInputs) -> ModeOutput:
         inp = self._sanitise(inp)
+        t = inp.t_s
         prev = self._last
-        dt = max(inp.t_s - prev.t_s, 0.0) if prev is not None else 0.0
-        if self._home is None:
+        if prev is None:
+            dt = 0.0
+        else:
+            dt = t - prev.t_s
+            if dt < 0.0:  # max(dt, 0.0)
+                dt = 0.0
+        home = self._home
+        if home is None:
             if self._script is not None and self._script.starts_armed_in_air:
-                self._home = (inp.pos_ned[0], inp.pos_ned[1], self._cfg.air_start_home_z_ned_m)
+                home = (inp.pos_ned[0], inp.pos_ned[1], self._cfg.air_start_home_z_ned_m)
             else:
-                self._home = inp.pos_ned
+                home = inp.pos_ned
+            self._home = home
             self._home_yaw_rad = inp.yaw_rad
-        self._detector.step(inp, self._home[2])
+        landed = self._detector.step(inp, home[2])
         self._last = inp
         if not self._armed and self._mode is not FlightMode.READY:
             self._switch(FlightMode.READY)
         if self._entry_pending:
             self._enter(inp)
         setpoint, engaged, mission_time = self._run(inp, dt)
-        out = ModeOutput(
-            t_s=inp.t_s,
-            armed=self._armed,
-            engaged=engaged,
-            setpoint=setpoint,
-            flight_mode=self._mode,
-            custom_mode=self.custom_mode,
-            base_mode=self.base_mode,
-            landed_state=int(self._landed_state()),
-            system_status=int(self._system_status(inp)),
-            landed=self._detector.landed,
-            home_ned=self._home,
-            home_yaw_rad=self._home_yaw_rad,
-            mission_time_s=mission_time,
-            events=tuple(self._events),
+        armed = self._armed
+        mode = self._mode
+        events = self._events
+        out = _mode_output(
+            t,
+            armed,
+            engaged,
+            setpoint,
+            mode,
+            mode.custom_mode,
+            _BASE_MODE_ARMED if armed else _BASE_MODE_DISARMED,
+            self._landed_state(),
+            self._system_status(inp),
+            landed,
+            self._home,
+            self._home_yaw_rad,
+            mission_time,
+            tuple(events) if events else (),
         )
-        self._events.clear()
+        if events:
+            events.clear()
         self._last_output = out
         return out
 
     # --- internals -----------------------------------------------------------------------------------
     def _sanitise(self, inp: ModeInputs) -> ModeInputs:
         """A sample with NaN/Inf state must not become a setpoint: reuse the last good state, flag sensors."""
-        values = (*inp.pos_ned, *inp.vel_ned, inp.yaw_rad, inp.t_s)
-        if all(math.isfinite(v) for v in values):
+        pos, vel = inp.pos_ned, inp.vel_ned
+        # One NaN or Inf term makes the sum NaN or Inf, so a finite sum means every term is finite (the common
+        # case, one check); a non-finite sum is either a bad sample or finite terms that overflowed: look closer.
+        total = pos[0] + pos[1] + pos[2] + vel[0] + vel[1] + vel[2] + inp.yaw_rad + inp.t_s
+        if total - total == 0.0 or all(map(_isfinite, (*pos, *vel, inp.yaw_rad, inp.t_s))):
             return inp
         last = self._last
         pos = last.pos_ned if last is not None else (0.0, 0.0, 0.0)
@@ -431,14 +453,15 @@ class ModeManager:
             self._sp = None
 
     def _run(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
-        idle = Setpoint(inp.pos_ned, 0.0, inp.yaw_rad)
         mode = self._mode
+        if mode is FlightMode.MISSION and self._armed:
+            return self._run_mission(inp.t_s)
         if not self._armed or mode is FlightMode.READY:
-            return idle, False, None
+            return _idle(inp), False, None
         if mode is FlightMode.HOLD:
             assert self._sp is not None
             if self._hold_on_ground:
-                return idle, False, None
+                return _idle(inp), False, None
             return self._sp, True, None
         if mode is FlightMode.TAKEOFF:
             assert self._sp is not None
@@ -460,7 +483,7 @@ class ModeManager:
                 if self._detector.landed:
                     self._touchdown_t_s = inp.t_s
                     self._events.append("Landed")
-                    return idle, False, None
+                    return _idle(inp), False, None
                 self._ramp_z = _approach(self._ramp_z, self._target_z, self._cfg.land_descent_rate_m_s * dt)
                 return (
                     Setpoint((self._sp.pos_ned[0], self._sp.pos_ned[1], self._ramp_z), 0.0, self._sp.yaw_rad),
@@ -470,40 +493,104 @@ class ModeManager:
             if inp.t_s - self._touchdown_t_s >= self._cfg.land_disarm_delay_s:
                 self._disarm("Disarmed after landing")
                 self._entry_pending = False
-            return idle, False, None
-        # MISSION
-        assert self._script is not None and self._mission_t0_s is not None
-        mission_t = inp.t_s - self._mission_t0_s
-        duration = self._script.duration_s
+            return _idle(inp), False, None
+        raise AssertionError(f"unhandled mode {mode}")  # MISSION is handled first
+
+    def _run_mission(self, t_s: float) -> tuple[Setpoint, bool, float | None]:
+        script = self._script
+        assert script is not None and self._mission_t0_s is not None
+        mission_t = t_s - self._mission_t0_s
+        duration = script.duration_s
         if duration is not None and mission_t >= duration:
-            final = self._script.setpoint_at(duration)
+            final = script.setpoint_at(duration)
             self._mission_elapsed_s = duration
             self._mission_t0_s = None
             self._mode = FlightMode.HOLD
             self._hold_on_ground = False
             self._sp = final
-            self._events.append(f"Mission {self._script.name} complete: holding")
+            self._events.append(f"Mission {script.name} complete: holding")
             return final, True, None
-        return self._script.setpoint_at(mission_t), True, mission_t
+        return script.setpoint_at(mission_t), True, mission_t
 
-    def _landed_state(self) -> MavLandedState:
+    def _landed_state(self) -> int:
+        """MAV_LANDED_STATE (as a plain int, the way ModeOutput carries it)."""
         mode = self._mode
         if not self._armed or mode is FlightMode.READY:
-            return MavLandedState.ON_GROUND if self._detector.landed else MavLandedState.IN_AIR
+            return _ON_GROUND if self._detector.landed else _IN_AIR
+        if mode is FlightMode.MISSION:
+            return _ON_GROUND if self._detector.landed else _IN_AIR
         if mode is FlightMode.TAKEOFF:
-            return MavLandedState.TAKEOFF
+            return _TAKEOFF
         if mode is FlightMode.LAND:
-            return MavLandedState.LANDING if self._touchdown_t_s is None else MavLandedState.ON_GROUND
+            return _LANDING if self._touchdown_t_s is None else _ON_GROUND
         if mode is FlightMode.HOLD and self._hold_on_ground:
-            return MavLandedState.ON_GROUND
-        if mode is FlightMode.MISSION and self._detector.landed:
-            return MavLandedState.ON_GROUND
-        return MavLandedState.IN_AIR
+            return _ON_GROUND
+        return _IN_AIR
 
-    def _system_status(self, inp: ModeInputs) -> MavState:
+    def _system_status(self, inp: ModeInputs) -> int:
+        """MAV_STATE (as a plain int, the way ModeOutput carries it)."""
         if not self._armed:
-            return MavState.STANDBY
-        return MavState.ACTIVE if inp.sensors_ok else MavState.CRITICAL
+            return _STANDBY
+        return _ACTIVE if inp.sensors_ok else _CRITICAL
+
+
+_isfinite = math.isfinite
+_BASE_MODE_DISARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED)
+_BASE_MODE_ARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED) | int(MavModeFlag.SAFETY_ARMED)
+_ON_GROUND = int(MavLandedState.ON_GROUND)
+_IN_AIR = int(MavLandedState.IN_AIR)
+_TAKEOFF = int(MavLandedState.TAKEOFF)
+_LANDING = int(MavLandedState.LANDING)
+_STANDBY = int(MavState.STANDBY)
+_ACTIVE = int(MavState.ACTIVE)
+_CRITICAL = int(MavState.CRITICAL)
+_new_object = object.__new__
+
+
+def _mode_output(
+    t_s: float,
+    armed: bool,
+    engaged: bool,
+    setpoint: Setpoint,
+    flight_mode: FlightMode,
+    custom_mode: int,
+    base_mode: int,
+    landed_state: int,
+    system_status: int,
+    landed: bool,
+    home_ned: Vec3 | None,
+    home_yaw_rad: float,
+    mission_time_s: float | None,
+    events: tuple[str, ...],
+) -> ModeOutput:
+    """`ModeOutput(...)` (positional, field order) without the frozen dataclass's __init__.
+
+    That __init__ sets each of the 14 fields through object.__setattr__ (~2 us a step on these VMs); filling
+    the instance dict directly gives the same object (same fields, same order, ModeOutput has no
+    __post_init__). tests/unit/test_modes.py checks it against the constructor."""
+    out = _new_object(ModeOutput)
+    out.__dict__.update(
+        t_s=t_s,
+        armed=armed,
+        engaged=engaged,
+        setpoint=setpoint,
+        flight_mode=flight_mode,
+        custom_mode=custom_mode,
+        base_mode=base_mode,
+        landed_state=landed_state,
+        system_status=system_status,
+        landed=landed,
+        home_ned=home_ned,
+        home_yaw_rad=home_yaw_rad,
+        mission_time_s=mission_time_s,
+        events=events,
+    )
+    return out
+
+
+def _idle(inp: ModeInputs) -> Setpoint:
+    """The setpoint reported while the controller is idle: where the vehicle is."""
+    return Setpoint(inp.pos_ned, 0.0, inp.yaw_rad)
 
 
 def _approach(value: float, target: float, max_step: float) -> float:

@@ -61,6 +61,10 @@ class FlightMode(Enum):
     LAND = (Px4MainMode.AUTO, Px4AutoSubMode.LAND)
     MISSION = (Px4MainMode.AUTO, Px4AutoSubMode.MISSION)  # a scripted scenario (e.g. the paper's)
 
+    def __init__(self, main: Px4MainMode, sub: Px4AutoSubMode) -> None:
+        # Encoded once: the mode manager reports custom_mode on every control step.
+        self._custom_mode = px4_custom_mode(int(main), int(sub))
+
     @property
     def main(self) -> int:
         return int(self.value[0])
@@ -71,11 +75,11 @@ class FlightMode(Enum):
 
     @property
     def custom_mode(self) -> int:
-        return px4_custom_mode(self.main, self.sub)
+        return self._custom_mode
 
     @property
     def label(self) -> str:
-        return {"READY": "Ready", "TAKEOFF": "Takeoff", "HOLD": "Hold", "LAND": "Land", "MISSION": "Mission"}[self.name]
+        return _LABELS[self.name]
 
     @classmethod
     def from_px4(cls, main: int, sub: int) -> FlightMode | None:
@@ -83,6 +87,9 @@ class FlightMode(Enum):
             if mode.main == main and mode.sub == sub:
                 return mode
         return None
+
+
+_LABELS = {"READY": "Ready", "TAKEOFF": "Takeoff", "HOLD": "Hold", "LAND": "Land", "MISSION": "Mission"}
 
 
 # --- MAVLink enum values (common.xml / minimal.xml) the mode manager reports ---------------------------

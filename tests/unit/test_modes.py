@@ -351,3 +351,86 @@ def test_modes_package_is_pure() -> None:
             assert not {n.split(".")[0] for n in names} & forbidden, f"{path.name} imports {names}"
             if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
                 assert node.func.id not in {"print", "open"}, f"{path.name} calls {node.func.id}"
+
+
+# --- the per-step fast paths (same results as the plain constructions they replace) -------------------------
+def test_mode_output_fast_constructor_matches_the_dataclass() -> None:
+    from dataclasses import fields
+    from inspect import signature
+
+    from navig8_fc.modes.manager import ModeOutput, _mode_output
+
+    names = [f.name for f in fields(ModeOutput)]
+    assert list(signature(_mode_output).parameters) == names  # a new ModeOutput field must be added there too
+    assert not hasattr(ModeOutput, "__post_init__")
+    args = (1.5, True, True, Setpoint((1.0, 2.0, -3.0), 0.1, 0.2), FlightMode.MISSION, FlightMode.MISSION.custom_mode,
+            129, 2, 4, False, (0.0, 0.0, 0.0), 0.3, 1.5, ("Armed",))  # fmt: skip
+    fast, ref = _mode_output(*args), ModeOutput(*args)
+    assert type(fast) is ModeOutput and fast == ref and repr(fast) == repr(ref) and hash(fast) == hash(ref)
+    assert list(vars(fast).items()) == list(vars(ref).items())  # same fields, same order
+    with pytest.raises(AttributeError):  # still frozen
+        fast.armed = False  # type: ignore[misc]
+
+
+def test_outputs_carry_plain_ints_in_every_mode() -> None:
+    mm, body, t = _armed_on_ground()
+    mm.takeoff(2.0)
+    outs, t = fly(mm, body, t, 6.0)
+    mm.land()
+    more, _ = fly(mm, body, t, 10.0)
+    seen = set()
+    for o in outs + more:
+        seen.add(o.flight_mode)
+        assert o.custom_mode == px4_custom_mode(o.flight_mode.main, o.flight_mode.sub)
+        for v in (o.custom_mode, o.base_mode, o.landed_state, o.system_status):
+            assert type(v) is int
+        assert o.base_mode == (MavModeFlag.CUSTOM_MODE_ENABLED | (MavModeFlag.SAFETY_ARMED if o.armed else 0))
+        assert type(o.events) is tuple
+    assert seen == {FlightMode.TAKEOFF, FlightMode.HOLD, FlightMode.LAND, FlightMode.READY}
+    assert [e for o in outs + more for e in o.events].count("Landed") == 1  # events are reported once
+
+
+def test_mission_resting_on_the_ground_reports_on_ground() -> None:
+    mm = ModeManager(script=_paper_like_script(duration=10.0))
+    out = mm.step(ModeInputs(0.0, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), 0.0, 0.1))
+    assert out.flight_mode is FlightMode.MISSION and out.landed
+    assert out.landed_state == MavLandedState.ON_GROUND and out.system_status == MavState.ACTIVE
+    assert out.events == ("Mission paper started (armed in the air)",)
+    out = mm.step(ModeInputs(0.01, (0.0, 0.0, -1.0), (0.0, 0.0, -1.0), 0.0, 1.0))
+    assert out.landed_state == MavLandedState.IN_AIR and out.events == () and out.mission_time_s == 0.01
+
+
+@pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
+@pytest.mark.parametrize("where", range(8))
+def test_every_non_finite_state_value_is_caught(where: int, bad: float) -> None:
+    mm, body, t = _armed_on_ground()
+    mm.takeoff(2.0)
+    _, t = fly(mm, body, t, 6.0)
+    good = mm.step(body.inputs(t))
+    values = [*body.pos, *body.vel, 0.0, t + DT]
+    values[where] = bad
+    out = mm.step(ModeInputs(values[7], tuple(values[0:3]), tuple(values[3:6]), values[6], 1.0))
+    assert out.system_status == MavState.CRITICAL
+    assert all(math.isfinite(v) for v in (*out.setpoint.pos_ned, out.setpoint.yaw_rad, out.t_s))
+    assert out.t_s == (good.t_s if where == 7 else t + DT)  # a bad time reuses the last good one
+
+
+def test_huge_finite_state_is_not_mistaken_for_a_bad_sample() -> None:
+    # The terms' sum overflows to Inf, yet every value is finite: the sample is used as it is.
+    mm = ModeManager()
+    out = mm.step(ModeInputs(0.0, (1e308, 1e308, 0.0), (1e308, 0.0, 0.0), 0.0, 0.0))
+    assert out.system_status == MavState.STANDBY and out.setpoint.pos_ned == (1e308, 1e308, 0.0)
+    mm.arm(force=True)
+    out = mm.step(ModeInputs(0.01, (1e308, 1e308, 0.0), (1e308, 0.0, 0.0), 0.0, 0.0))
+    assert out.system_status == MavState.ACTIVE
+
+
+def test_time_going_back_does_not_move_a_ramp() -> None:
+    mm, body, t = _armed_on_ground()
+    mm.takeoff(2.0)
+    outs, t = fly(mm, body, t, 0.5)
+    z = outs[-1].setpoint.pos_ned[2]
+    out = mm.step(body.inputs(t - 0.2))  # dt < 0 counts as 0
+    assert out.flight_mode is FlightMode.TAKEOFF and out.setpoint.pos_ned[2] == z
+    out = mm.step(body.inputs(t - 0.2 + DT))
+    assert out.setpoint.pos_ned[2] == pytest.approx(z - ModeConfig().takeoff_climb_rate_m_s * DT)
