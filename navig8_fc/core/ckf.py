@@ -531,6 +531,7 @@ class BoxProjector:
         self._by_state = _active_sets(n)[1]
         self._w, self._pl = np.empty((n, n)), np.empty((n, n))  # work arrays of solve_kf
         self._c, self._b, self._xo = np.empty(n * (n + 1) // 2), np.empty(2 * n), np.empty(n)
+        self._m = 2 * n  # constraint rows
         self.n_calls = 0
         self.n_fallbacks = 0
         self.last_status: str = "none"
@@ -609,14 +610,17 @@ class BoxProjector:
         w, pl, x = self._w, self._pl, self._xo
         code = _kern.proj_setup(xh, p, lo, hi, identity, w, pl, self._c, self._b)
         if code:
-            self._solver.update(P=self._c, b=self._b)
-            sol = self._solver.solve()
+            solver = self._solver
+            # The same values handed over as lists: clarabel's update converts a list ~2 us faster than an array.
+            solver.update(P=self._c.tolist(), b=self._b.tolist())
+            sol = solver.solve()
             iterations = int(sol.iterations)
-            self.last_status = str(sol.status)
-            if sol.status == self._solved and _kern.polish(
-                xh, w, pl, code == 1, lo, hi, np.array(sol.z), np.array(sol.s), x
-            ):
-                return x.tolist(), False, iterations
+            status = sol.status
+            self.last_status = str(status)
+            if status == self._solved:
+                zs, m = np.array(sol.z + sol.s), self._m  # z and s (m = 2n each) in one conversion
+                if _kern.polish(xh, w, pl, code == 1, lo, hi, zs[:m], zs[m:], x):
+                    return x.tolist(), False, iterations
         else:
             self.last_status = "bad_input"
         self.n_fallbacks += 1
@@ -796,13 +800,21 @@ class ConstrainedKalmanFilter:
         self.n_updates += 1
         return innovation
 
-    def _project_lists(self, lo: list[float], hi: list[float]) -> tuple[list[float], bool, bool]:
+    def _project_lists(self, lo: Sequence[float], hi: Sequence[float]) -> tuple[list[float], bool, bool]:
         """project() on plain lists: (x after the step, projected, used_fallback); x <- x_tilde."""
-        xl = self._x.tolist()
-        if all(a <= x <= b for a, x, b in zip(lo, xl, hi, strict=True)):
+        return self._project_xl(self._x.tolist(), lo, hi)
+
+    def _project_xl(
+        self, xl: list[float], lo: Sequence[float], hi: Sequence[float]
+    ) -> tuple[list[float], bool, bool]:
+        """_project_lists with xl = self._x.tolist() already made (N_STATE = 4 components unrolled)."""
+        x0, x1, x2, x3 = xl
+        l0, l1, l2, l3 = lo
+        h0, h1, h2, h3 = hi
+        if l0 <= x0 <= h0 and l1 <= x1 <= h1 and l2 <= x2 <= h2 and l3 <= x3 <= h3:
             return xl, False, False  # inside: x_tilde = x_hat, W not needed
-        if not all(a <= b for a, b in zip(lo, hi, strict=True)):
-            raise ValueError(f"empty box (or NaN bound): lower {lo}, upper {hi}")
+        if not (l0 <= h0 and l1 <= h1 and l2 <= h2 and l3 <= h3):
+            raise ValueError(f"empty box (or NaN bound): lower {list(lo)}, upper {list(hi)}")
         x, used_fallback, _ = self._projector.solve_kf(self._x, self._p, np.array(lo), np.array(hi),
                                                        self._identity_weight)
         if used_fallback:
@@ -940,6 +952,11 @@ class AdaptiveLaw:
         self._alpha = self._lpf_u.alpha  # the compiled path (_kernels.adapt_step) runs the same filters
         self._ast = np.zeros(_kern.N_AST)
         self._out = np.zeros(_kern.N_AO)
+        # Constants of the tick, looked up once: the config is frozen.
+        self._adaptive = config.adaptive
+        self._constrained = config.constrained
+        self._start_delay_tol = config.start_delay_s - 1e-9
+        self._dt = config.dt_s
         self.reset()
 
     @property
@@ -968,18 +985,28 @@ class AdaptiveLaw:
         would dominate); the values equal those of vehicle.estimate_bounds / estimated_gi / k_from_estimate
         and inertia_ratios exactly (same IEEE operations, tests compare them bit for bit).
         """
-        cfg = self.config
-        (j11, _, j13), (_, j22, _), (_, _, j33) = np.asarray(inp.inertia_uam, dtype=float).tolist()
-        m = float(inp.mass_uam_kg)
+        g, _, status = self._step(
+            inp.t_s, np.asarray(inp.u_meas, dtype=float), np.asarray(inp.acc_m, dtype=float),
+            np.asarray(inp.gc_uam_inv, dtype=float), np.asarray(inp.inertia_uam, dtype=float),
+            float(inp.mass_uam_kg), np.asarray(inp.inertia_rate_uam, dtype=float), inp.k_min, inp.k_max,
+        )
+        return g, status
+
+    def _step(
+        self, t_s: float, u_meas: np.ndarray, acc_m: np.ndarray, gc_inv: np.ndarray, inertia: np.ndarray,
+        m: float, inertia_rate: np.ndarray, k_min: float, k_max: float,
+    ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
+        """step() on float64 arrays (u_meas, acc_m (5,), gc_inv (5, 5), inertia and inertia_rate (3, 3)), m a float;
+        also returns G_hat_I row-major as a tuple (the same floats as the array). The controller's tick."""
+        (j11, _, j13), (_, j22, _), (_, _, j33) = inertia.tolist()
         base = (j11, j22, j33, m)
-        k_min, k_max = inp.k_min, inp.k_max
-        lower = [b / k_max for b in base]  # Eq. 21 (estimate_bounds)
-        upper = [b / k_min for b in base]
-        t_s = float(inp.t_s)
+        lower = (j11 / k_max, j22 / k_max, j33 / k_max, m / k_max)  # Eq. 21 (estimate_bounds)
+        upper = (j11 / k_min, j22 / k_min, j33 / k_min, m / k_min)
+        t_s = float(t_s)
         if self._t0 is None:
             self._t0 = t_s
         # 1e-9 s guards the comparison against time accumulated in floating point.
-        started = cfg.adaptive and (t_s - self._t0) >= cfg.start_delay_s - 1e-9
+        started = self._adaptive and (t_s - self._t0) >= self._start_delay_tol
         kf = self._kf
         first = False
         id0 = id1 = id2 = 0.0
@@ -988,61 +1015,60 @@ class AdaptiveLaw:
             if first:
                 kf.initialise(base)  # K = 1 at the start (Sec. 4)
                 self._running = True
-            idot = np.asarray(inp.inertia_rate_uam, dtype=float)
-            id0, id1, id2 = float(idot[0, 0]), float(idot[1, 1]), float(idot[2, 2])
+            id0, id1, id2 = inertia_rate.item(0), inertia_rate.item(4), inertia_rate.item(8)
         # Filters, one-step increments (Eq. 23), predict (skipped on the first KF tick: x0 already describes
         # the current pose) and correct in one kernel; `_step_lists` and the LowPass1 filters are the reference.
-        gc_inv = np.asarray(inp.gc_uam_inv, dtype=float)
         rho_x, rho_z = j13 / j11, j13 / j33  # inertia_ratios
         out = self._out
-        code = _kern.adapt_step(self._ast, self._alpha, np.asarray(inp.u_meas, dtype=float),
-                                np.asarray(inp.acc_m, dtype=float), started, started and not first, cfg.dt_s,
-                                id0, id1, id2, kf._x, kf._p, kf._q, kf._r, gc_inv, rho_x, rho_z, out)
-        o = out.tolist()
+        code = _kern.adapt_step(self._ast, self._alpha, u_meas, acc_m, started, started and not first,
+                                self._dt, id0, id1, id2, kf._x, kf._p, kf._q, kf._r, gc_inv, rho_x, rho_z, out)
+        o = tuple(out.tolist())
         du, da = o[0:5], o[5:10]
         if not started:
-            return _gi_hat(j11, j13, j33, base), AdaptiveLawStatus(
+            g, gl = _gi_hat_flat(j11, j13, j33, base)
+            return g, gl, AdaptiveLawStatus(
                 running=False, x_hat=base, x_unconstrained=base, k=_ONES4,
-                lower=tuple(lower), upper=tuple(upper), active_lower=_FALSE4, active_upper=_FALSE4,
+                lower=lower, upper=upper, active_lower=_FALSE4, active_upper=_FALSE4,
                 innovation=_ZERO5, p_diag=_ZERO4, n_updates=0, n_projection_fallbacks=0,
-                delta_u=tuple(du), delta_acc=tuple(da),
+                delta_u=du, delta_acc=da,
             )
 
         if code == 1:
             kf.n_updates += 1
             innovation = o[10:15]
         else:  # singular S: the reference update (raises or propagates NaN as before)
-            innovation = kf._correct_reference(np.array(du), *da, gc_inv, rho_x, rho_z).tolist()
-        if cfg.constrained:
-            x_unc = kf._x.tolist()
-            x = kf._project_lists(lower, upper)[0]
-        else:
-            x_unc = x = kf._x.tolist()
-        return _gi_hat(j11, j13, j33, x), AdaptiveLawStatus(
+            innovation = tuple(kf._correct_reference(np.array(du), *da, gc_inv, rho_x, rho_z).tolist())
+        x_unc = kf._x.tolist()
+        x = kf._project_xl(x_unc, lower, upper)[0] if self._constrained else x_unc
+        x0, x1, x2, x3 = x
+        g, gl = _gi_hat_flat(j11, j13, j33, x)
+        return g, gl, AdaptiveLawStatus(
             running=True,
-            x_hat=tuple(x),
+            x_hat=(x0, x1, x2, x3),
             x_unconstrained=tuple(x_unc),
-            k=tuple([b / xi for b, xi in zip(base, x, strict=True)]),  # k_from_estimate
-            lower=tuple(lower),
-            upper=tuple(upper),
-            active_lower=tuple([xi <= b for xi, b in zip(x, lower, strict=True)]),
-            active_upper=tuple([xi >= b for xi, b in zip(x, upper, strict=True)]),
-            innovation=tuple(innovation),
+            k=(j11 / x0, j22 / x1, j33 / x2, m / x3),  # k_from_estimate
+            lower=lower,
+            upper=upper,
+            active_lower=(x0 <= lower[0], x1 <= lower[1], x2 <= lower[2], x3 <= lower[3]),
+            active_upper=(x0 >= upper[0], x1 >= upper[1], x2 >= upper[2], x3 >= upper[3]),
+            innovation=innovation,
             p_diag=tuple(kf._p.diagonal().tolist()),
             n_updates=kf.n_updates,
             n_projection_fallbacks=kf.n_projection_fallbacks,
-            delta_u=tuple(du),
-            delta_acc=tuple(da),
+            delta_u=du,
+            delta_acc=da,
         )
 
 
-def _gi_hat(j11: float, j13: float, j33: float, x: Sequence[float]) -> np.ndarray:
-    """vehicle.estimated_gi(J, x) from J's three entries it uses (same operations, same values)."""
+def _gi_hat_flat(j11: float, j13: float, j33: float, x: Sequence[float]) -> tuple[np.ndarray, tuple[float, ...]]:
+    """vehicle.estimated_gi(J, x) from J's three entries it uses (same operations, same values), as the 5x5
+    array and as the row-major tuple of the same floats (the array is built from the tuple)."""
     ixx, iyy, izz, m = x
-    return np.array([
-        [ixx, 0.0, izz * j13 / j33, 0.0, 0.0],
-        [0.0, iyy, 0.0, 0.0, 0.0],
-        [ixx * j13 / j11, 0.0, izz, 0.0, 0.0],
-        [0.0, 0.0, 0.0, m, 0.0],
-        [0.0, 0.0, 0.0, 0.0, m],
-    ])
+    flat = (
+        ixx, 0.0, izz * j13 / j33, 0.0, 0.0,
+        0.0, iyy, 0.0, 0.0, 0.0,
+        ixx * j13 / j11, 0.0, izz, 0.0, 0.0,
+        0.0, 0.0, 0.0, m, 0.0,
+        0.0, 0.0, 0.0, 0.0, m,
+    )
+    return np.array(flat).reshape(5, 5), flat

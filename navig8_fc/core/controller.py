@@ -16,13 +16,14 @@ Signal flow per tick:
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from navig8_fc.core import _kernels as _k
-from navig8_fc.core.ckf import AdaptiveLaw, AdaptiveLawInputs, AdaptiveLawStatus, CkfConfig, inv_small
+from navig8_fc.core.ckf import AdaptiveLaw, AdaptiveLawStatus, CkfConfig, inv_small
 from navig8_fc.core.indi import (
     ActuatorLimits,
     IndiConfig,
@@ -34,10 +35,19 @@ from navig8_fc.core.outer_loop import (
     OuterLoopConfig,
     OuterLoopStatus,
     Setpoint,
+    _outer_loop_arrays,
     outer_loop_config_array,
-    outer_loop_step_compiled,
 )
 from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig, ghat_ginv_eig_record
+
+# Slots of the front-end kernel's outputs the tick reads (module constants: no attribute lookups per tick).
+_UO_MASS, _UO_SINGULAR = _k.UO_MASS, _k.UO_SINGULAR
+# The tick's input vector: the sensors in _kernels' S_* layout, then pos_ned, vel_ned, quat_wxyz and the
+# setpoint [N, E, D, pitch, yaw] (the outer loops' inputs, packed only when engaged). struct packs float64
+# exactly as np.array(..., dtype=float) converts, into a persistent array (no per-tick allocation).
+_N_IN = _k.N_SENS + 15
+_PACK_SENSORS = struct.Struct(f"={_k.N_SENS}d").pack_into
+_PACK_ENGAGED = struct.Struct(f"={_N_IN}d").pack_into
 
 JOINT_OBS_TAU_S = 1.0  # complementary-filter time constant for the joint angles (docs/model.md)
 
@@ -117,6 +127,8 @@ class ControllerStatus:
 class FlightControllerCore:
     """Outer loops + INDI + adaptive law for the Navig8-UAM."""
 
+    _tick_io: tuple | None = None  # the tick's persistent input vector and views (_tick_buffers)
+
     def __init__(self, vehicle: VehicleConfig, config: ControllerConfig) -> None:
         self.vehicle = vehicle
         self.config = config
@@ -148,11 +160,16 @@ class FlightControllerCore:
         self, s: FcSensors, sp: Setpoint, engaged: bool = True
     ) -> tuple[ActuatorCommand, ControllerStatus]:
         cfg = self.config
+        io = self._tick_io
+        if io is None:
+            io = self._tick_buffers()
+        sens, gyro, pos, vel, quat, spv, u_meas, acc_m, uam_mass = io
         # The arm term uses a point object of the estimated extra mass at the tip (notes §3.3 option b).
         m_obj_est = 0.0
-        m_hat = self._adapt.mass_estimate_kg
-        if m_hat is not None:
-            m_obj_est = max(m_hat - self.vehicle.uam_mass_kg, 0.0)
+        adapt = self._adapt
+        kf = adapt._kf
+        if kf._initialised:  # AdaptiveLaw.mass_estimate_kg is not None
+            m_obj_est = max(kf._x.item(3) - uam_mass, 0.0)
         # Front end in one kernel: joint observer (complementary filter, JOINT_OBS_TAU_S), q-ddot and
         # omega-dot by backward differences, the UAM model (UamModel.evaluate) with G_C and G_C^-1, Acc_m
         # (Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM) and U0 from the measured actuators.
@@ -160,30 +177,31 @@ class FlightControllerCore:
         inertia, rate = np.empty((3, 3)), np.empty((3, 3))
         gc, gc_inv = np.empty((5, 5)), np.empty((5, 5))
         uo, fo = self._uo, self._fo
-        sens = np.array((*s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
-                         *s.joint_rate_rad_s), dtype=float)
-        _k.fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, float(m_obj_est), self._geo, self._f,
+        # The sensor values packed as float64 into the persistent input vector (_kernels.S_* layout in [0:17],
+        # which is all fc_front reads); when engaged the outer loops' inputs follow, read through views.
+        if engaged:
+            sp_pos = sp.pos_ned
+            _PACK_ENGAGED(sens, 0, *s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
+                          *s.joint_rate_rad_s, *s.pos_ned, *s.vel_ned, *s.quat_wxyz,
+                          sp_pos[0], sp_pos[1], sp_pos[2], sp.pitch_rad, sp.yaw_rad)
+        else:
+            _PACK_SENSORS(sens, 0, *s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
+                          *s.joint_rate_rad_s)
+        _k.fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, m_obj_est, self._geo, self._f,
                     self._m0, inertia, rate, gc, gc_inv, uo, fo)
-        if uo[_k.UO_SINGULAR]:
+        ul = uo.tolist()
+        if ul[_UO_SINGULAR]:
             gc_inv = inv_small(gc)  # raises LinAlgError as before
-        fl = fo.tolist()
-        q_est, qdd, acc_m, u_meas = fl[0:3], fl[3:6], fl[6:11], fl[11:16]
-        mass = uo[_k.UO_MASS]
-        gi_hat, adapt_status = self._adapt.step(
-            AdaptiveLawInputs(
-                t_s=s.t_s, u_meas=u_meas, acc_m=acc_m, gc_uam_inv=gc_inv,
-                inertia_uam=inertia, mass_uam_kg=float(mass), inertia_rate_uam=rate,
-                k_min=cfg.k_min, k_max=cfg.k_max,
-            )
-        )
+        mass = ul[_UO_MASS]
+        gi_hat, gi_flat, adapt_status = adapt._step(s.t_s, u_meas, acc_m, gc_inv, inertia, mass, rate,
+                                                    cfg.k_min, cfg.k_max)
         outer: OuterLoopStatus | None = None
         indi_status: IndiStatus | None = None
         if engaged:
-            outer = outer_loop_step_compiled(self._outer_cfg, sp, s.pos_ned, s.vel_ned, s.quat_wxyz, s.gyro_frd)
-            out, indi_status = self._indi.step(
-                IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, outer.accel_cmd, gc, gi_hat,
-                           gc_inv)
-            )
+            sl = sens.tolist()
+            outer, ol_out = _outer_loop_arrays(self._outer_cfg, spv, pos, vel, quat, gyro)
+            out, indi_status = self._indi._step(gyro, sl[3], sl[5], sl[6], sl[7], sl[8], sl[9], sl[10],
+                                                ol_out[14:19], gc_inv, gi_hat)
             cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
         else:
             # Keep the INDI filters warm so engaging does not start from a transient.
@@ -191,21 +209,33 @@ class FlightControllerCore:
                 IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat)
             )
             cmd = MOTORS_OFF
-        j = inertia
+        ft = tuple(fo.tolist())
         status = ControllerStatus(
             t_s=s.t_s,
             engaged=engaged,
-            q_est_rad=(q_est[0], q_est[1], q_est[2]),
-            qdd_est_rad_s2=(qdd[0], qdd[1], qdd[2]),
-            mass_uam_kg=float(mass),
-            inertia_uam_diag=(float(j[0, 0]), float(j[1, 1]), float(j[2, 2])),
-            gi_hat=tuple(gi_hat.ravel().tolist()),
+            q_est_rad=ft[0:3],
+            qdd_est_rad_s2=ft[3:6],
+            mass_uam_kg=mass,
+            inertia_uam_diag=(inertia.item(0), inertia.item(4), inertia.item(8)),
+            gi_hat=gi_flat,
             gc_uam=tuple(gc.ravel().tolist()),
             outer=outer,
             indi=indi_status,
             adapt=adapt_status,
         )
         return cmd, status
+
+    def _tick_buffers(self) -> tuple:
+        """Built on the first step and kept (`_tick_io`): the input vector the sensors are packed into, the
+        views of it the outer loop and INDI kernels take (gyro, pos, vel, quat, setpoint), the views of the
+        front end's output the adaptive law takes (U0, Acc_m; its kernel only reads them) and the UAM mass.
+        The arrays are never replaced, so the views stay valid."""
+        sens = np.zeros(_N_IN)
+        fo = self._fo
+        io = (sens, sens[0:3], sens[17:20], sens[20:23], sens[23:27], sens[27:32],
+              fo[_k.FO_U_MEAS:_k.FO_U_MEAS + 5], fo[_k.FO_ACC_M:_k.FO_ACC_M + 5], self.vehicle.uam_mass_kg)
+        self._tick_io = io
+        return io
 
 
 def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: int = 8) -> None:

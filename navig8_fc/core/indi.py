@@ -232,20 +232,26 @@ class IndiController(IndiControllerReference):
     def step(self, inp: IndiInputs) -> tuple[IndiOutput, IndiStatus]:
         sf, (a1, a3), (w1, w2, w3) = inp.specific_force_frd, inp.tilt_rad, inp.speed_rad_s
         gc_inv = inp.gc_inv if inp.gc_inv is not None else np.linalg.inv(inp.gc)
+        return self._step(np.asarray(inp.gyro_frd, dtype=float), float(sf[0]), float(sf[2]), float(a1), float(a3),
+                          float(w1), float(w2), float(w3), np.asarray(inp.accel_cmd, dtype=float), gc_inv, inp.gi_hat)
+
+    def _step(
+        self, gyro: np.ndarray, sf_x: float, sf_z: float, a1: float, a3: float, w1: float, w2: float, w3: float,
+        accel_cmd: np.ndarray, gc_inv: np.ndarray, gi_hat: np.ndarray,
+    ) -> tuple[IndiOutput, IndiStatus]:
+        """step() on its inputs already converted (float64 arrays, Python floats); the controller's tick."""
         out = self._out
-        _k.indi_step(self._st, self._ic, np.asarray(inp.gyro_frd, dtype=float), float(sf[0]), float(sf[2]),
-                     float(a1), float(a3), float(w1), float(w2), float(w3),
-                     np.asarray(inp.accel_cmd, dtype=float), gc_inv, inp.gi_hat, out)
-        o = out.tolist()
-        scales = (o[25], o[26], o[27])
-        res = IndiOutput((o[29], o[30]), (o[31], o[32], o[33]), tuple(o[20:25]))
+        _k.indi_step(self._st, self._ic, gyro, sf_x, sf_z, a1, a3, w1, w2, w3, accel_cmd, gc_inv, gi_hat, out)
+        o = tuple(out.tolist())
+        s0, s1, s2 = scales = o[25:28]
+        res = IndiOutput(o[29:31], o[31:34], o[20:25])
         status = IndiStatus(
-            acc_filtered=tuple(o[0:5]),
-            u0_filtered=tuple(o[5:10]),
-            delta_acc=tuple(o[10:15]),
-            delta_u=tuple(o[15:20]),
+            acc_filtered=o[0:5],
+            u0_filtered=o[5:10],
+            delta_acc=o[10:15],
+            delta_u=o[15:20],
             saturation_scale=scales,
-            saturated=scales[0] < 1.0 or scales[1] < 1.0 or scales[2] < 1.0,
+            saturated=s0 < 1.0 or s1 < 1.0 or s2 < 1.0,
             fallback_to_u0=o[28] != 0.0,
         )
         return res, status

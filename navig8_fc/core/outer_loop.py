@@ -82,19 +82,28 @@ def outer_loop_step_compiled(
     gyro_frd: Sequence[float],
 ) -> OuterLoopStatus:
     """outer_loop_step in one numba kernel (same maths, same status; tests compare the two)."""
+    return _outer_loop_arrays(cfg_array,
+                              np.array((sp.pos_ned[0], sp.pos_ned[1], sp.pos_ned[2], sp.pitch_rad, sp.yaw_rad)),
+                              np.asarray(pos_ned, dtype=float), np.asarray(vel_ned, dtype=float),
+                              np.asarray(quat_wxyz, dtype=float), np.asarray(gyro_frd, dtype=float))[0]
+
+
+def _outer_loop_arrays(
+    cfg_array: np.ndarray, sp: np.ndarray, pos: np.ndarray, vel: np.ndarray, quat: np.ndarray, gyro: np.ndarray
+) -> tuple[OuterLoopStatus, np.ndarray]:
+    """outer_loop_step_compiled on float64 arrays (sp = [p_cmd N, E, D, pitch, yaw]); also returns the kernel's
+    output vector (its [14:19] is accel_cmd as an array)."""
     out = np.empty(19)
-    _k.outer_loop(cfg_array, np.array((sp.pos_ned[0], sp.pos_ned[1], sp.pos_ned[2], sp.pitch_rad, sp.yaw_rad)),
-                  np.asarray(pos_ned, dtype=float), np.asarray(vel_ned, dtype=float),
-                  np.asarray(quat_wxyz, dtype=float), np.asarray(gyro_frd, dtype=float), out)
-    o = out.tolist()
+    _k.outer_loop(cfg_array, sp, pos, vel, quat, gyro, out)
+    o = tuple(out.tolist())
     return OuterLoopStatus(
-        accel_cmd_ned=(o[0], o[1], o[2]),
-        specific_force_cmd_ned=(o[3], o[4], o[5]),
-        att_cmd_quat=(o[6], o[7], o[8], o[9]),
+        accel_cmd_ned=o[0:3],
+        specific_force_cmd_ned=o[3:6],
+        att_cmd_quat=o[6:10],
         roll_cmd_rad=o[10],
-        rate_cmd_frd=(o[11], o[12], o[13]),
-        accel_cmd=(o[14], o[15], o[16], o[17], o[18]),
-    )
+        rate_cmd_frd=o[11:14],
+        accel_cmd=o[14:19],
+    ), out
 
 
 def _clip_norm(v: Sequence[float], limit: float) -> tuple[float, ...]:

@@ -1,0 +1,95 @@
+"""FlightControllerCore.step (the tick's fast path: packed inputs, views, AdaptiveLaw._step, IndiController._step,
+_outer_loop_arrays) equals the tick composed of the public APIs (AdaptiveLawInputs/AdaptiveLaw.step,
+outer_loop_step_compiled, IndiInputs/IndiController.step) bit for bit, status record included."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from navig8_fc.core import _kernels as _k
+from navig8_fc.core.ckf import AdaptiveLawInputs, CkfMode
+from navig8_fc.core.controller import (
+    MOTORS_OFF,
+    ActuatorCommand,
+    ControllerConfig,
+    ControllerStatus,
+    FcSensors,
+    FlightControllerCore,
+)
+from navig8_fc.core.indi import IndiInputs
+from navig8_fc.core.outer_loop import Setpoint, outer_loop_step_compiled
+from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.params.registry import ParamRegistry
+
+
+def _reference_step(core: FlightControllerCore, s: FcSensors, sp: Setpoint,
+                    engaged: bool) -> tuple[ActuatorCommand, ControllerStatus]:
+    """The tick through the public APIs (the form FlightControllerCore.step had before its fast path)."""
+    cfg = core.config
+    m_obj_est = 0.0
+    m_hat = core._adapt.mass_estimate_kg
+    if m_hat is not None:
+        m_obj_est = max(m_hat - core.vehicle.uam_mass_kg, 0.0)
+    inertia, rate = np.empty((3, 3)), np.empty((3, 3))
+    gc, gc_inv = np.empty((5, 5)), np.empty((5, 5))
+    uo, fo = core._uo, core._fo
+    sens = np.array((*s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
+                     *s.joint_rate_rad_s), dtype=float)
+    _k.fc_front(core._fst, cfg.dt_s, core._obs_gain, core._inv_dt, sens, float(m_obj_est), core._geo, core._f,
+                core._m0, inertia, rate, gc, gc_inv, uo, fo)
+    fl = fo.tolist()
+    mass = uo[_k.UO_MASS]
+    gi_hat, adapt_status = core._adapt.step(AdaptiveLawInputs(
+        t_s=s.t_s, u_meas=fl[11:16], acc_m=fl[6:11], gc_uam_inv=gc_inv, inertia_uam=inertia,
+        mass_uam_kg=float(mass), inertia_rate_uam=rate, k_min=cfg.k_min, k_max=cfg.k_max,
+    ))
+    outer = indi_status = None
+    if engaged:
+        outer = outer_loop_step_compiled(core._outer_cfg, sp, s.pos_ned, s.vel_ned, s.quat_wxyz, s.gyro_frd)
+        out, indi_status = core._indi.step(IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s,
+                                                      outer.accel_cmd, gc, gi_hat, gc_inv))
+        cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
+    else:
+        core._indi.measure(IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))
+        cmd = MOTORS_OFF
+    j = inertia
+    return cmd, ControllerStatus(
+        t_s=s.t_s, engaged=engaged, q_est_rad=tuple(fl[0:3]), qdd_est_rad_s2=tuple(fl[3:6]),
+        mass_uam_kg=float(mass), inertia_uam_diag=(float(j[0, 0]), float(j[1, 1]), float(j[2, 2])),
+        gi_hat=tuple(gi_hat.ravel().tolist()), gc_uam=tuple(gc.ravel().tolist()), outer=outer,
+        indi=indi_status, adapt=adapt_status,
+    )
+
+
+@pytest.mark.parametrize("mode", [CkfMode.CONSTRAINED, CkfMode.UNCONSTRAINED, CkfMode.FIXED])
+def test_step_equals_public_api_tick_bit_for_bit(cfg: VehicleConfig, mode: CkfMode) -> None:
+    base = ControllerConfig.from_params(ParamRegistry.from_defaults().as_dict(), cfg)
+    config = replace(base, ckf=replace(base.ckf, mode=mode, start_delay_s=0.05))
+    fast, ref = FlightControllerCore(cfg, config), FlightControllerCore(cfg, config)
+    rng = np.random.default_rng(7)
+    dt = config.dt_s
+    n_projected = 0
+    for i in range(400):
+        t = i * dt
+        w = 620.0 + 40.0 * math.sin(3.0 * t)
+        s = FcSensors(
+            t_s=t, gyro_frd=tuple(rng.normal(0.0, 0.05, 3).tolist()),
+            accel_frd=(0.3 * math.sin(t), 0.05, -cfg.gravity_m_s2 + 0.2 * math.cos(2.0 * t)),
+            pos_ned=(0.1 * math.sin(t), 0.0, -2.0), vel_ned=(0.1, -0.05, 0.0),
+            quat_wxyz=(math.cos(0.1 * t), 0.0, math.sin(0.1 * t), 0.0),
+            tilt_rad=(0.2 + 0.1 * math.sin(5.0 * t), 0.15), speed_rad_s=(w, 80.0 * math.sin(7.0 * t), w - 10.0),
+            joint_pos_rad=(0.4 * math.sin(t), 0.2, -0.3 * math.sin(0.5 * t)),
+            joint_rate_rad_s=(0.4 * math.cos(t), 0.0, -0.15 * math.cos(0.5 * t)),
+        )
+        sp = Setpoint((0.0, 0.5, -2.0), 0.3, 0.1 * i * dt)
+        engaged = not (i < 10 or 200 <= i < 205)  # disengaged ticks at the start and in between
+        got = fast.step(s, sp, engaged=engaged)
+        want = _reference_step(ref, s, sp, engaged)
+        assert repr(got) == repr(want), f"tick {i}"
+        n_projected += got[1].adapt.x_hat != got[1].adapt.x_unconstrained
+    if mode == CkfMode.CONSTRAINED:
+        assert n_projected > 10
