@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import struct
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -150,6 +150,12 @@ class FlightControllerCore:
         self._inv_dt = 1.0 / config.dt_s
         assert N_LINKS == 3
 
+    def update_gains(self, outer: OuterLoopConfig, k_min: float, k_max: float) -> None:
+        """New outer-loop gains and K bounds from the next tick on; filters and estimator keep their state.
+        (A change of rate, filter or estimator settings needs a new core: its filters depend on them.)"""
+        self.config = replace(self.config, outer=outer, k_min=k_min, k_max=k_max)
+        self._outer_cfg = outer_loop_config_array(outer)  # what the tick reads: rebuilt with the gains
+
     def reset(self) -> None:
         """Forget filter and estimator state (e.g. on arming); the start delay counts again."""
         self._indi.reset()
@@ -244,7 +250,6 @@ def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: i
     numba loads a kernel from its on-disk cache at the kernel's first call (~0.2 s for the tick's kernels);
     without this, that load lands on the first control steps of a run: a stall at real time, and a tenth of
     a 30 s lockstep run at --speed 0. The inputs need only be finite; the results are discarded."""
-    from dataclasses import replace
 
     cfg = replace(config, ckf=replace(config.ckf, start_delay_s=0.0))
     core = FlightControllerCore(vehicle, cfg)

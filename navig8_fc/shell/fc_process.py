@@ -161,7 +161,7 @@ class FlightControllerProcess:
         if self.core is None or cfg.indi != self.core.config.indi or cfg.ckf != self.core.config.ckf:
             self.core = FlightControllerCore(self.vehicle, cfg)
         else:
-            self.core.config = replace(self.core.config, outer=cfg.outer, k_min=cfg.k_min, k_max=cfg.k_max)
+            self.core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
         self._cfg_generation = self.registry.generation
         self.lambda_crit = stability.lambda_crit(float(self.registry["ACT_WN"]), float(self.registry["ACT_ZETA"]),
                                                  cfg.dt_s, float(self.registry["INDI_LPF_TAU"]))

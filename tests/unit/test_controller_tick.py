@@ -93,3 +93,31 @@ def test_step_equals_public_api_tick_bit_for_bit(cfg: VehicleConfig, mode: CkfMo
         n_projected += got[1].adapt.x_hat != got[1].adapt.x_unconstrained
     if mode == CkfMode.CONSTRAINED:
         assert n_projected > 10
+
+
+def test_update_gains_takes_effect_at_the_next_tick(cfg: VehicleConfig) -> None:
+    # A core whose outer-loop gains and K bounds change mid-run flies from then on exactly like a core built
+    # with the new values (same filter state up to the change), and differently from one that kept the old.
+    reg = ParamRegistry.from_defaults()
+    old = ControllerConfig.from_params(reg.as_dict(), cfg)
+    values = reg.as_dict()
+    values.update(OL_POS_K=float(values["OL_POS_K"]) * 1.5, OL_ATT_K=float(values["OL_ATT_K"]) * 0.7,
+                  INDI_K_MIN=0.6)
+    new = ControllerConfig.from_params(values, cfg)
+    assert new.outer != old.outer and new.indi == old.indi and new.ckf == old.ckf
+    changed, built_new, kept_old = (FlightControllerCore(cfg, old), FlightControllerCore(cfg, new),
+                                    FlightControllerCore(cfg, old))
+    dt = old.dt_s
+    for i in range(120):
+        t = i * dt
+        s = FcSensors(t_s=t, gyro_frd=(0.01, -0.02, 0.0), accel_frd=(0.1, 0.0, -cfg.gravity_m_s2),
+                      pos_ned=(0.2 * math.sin(t), 0.1, -1.8), vel_ned=(0.1, 0.0, 0.05), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
+                      tilt_rad=(0.2, 0.2), speed_rad_s=(620.0, 10.0, 615.0), joint_pos_rad=(0.3, 0.1, -0.2),
+                      joint_rate_rad_s=(0.1, 0.0, 0.0))
+        sp = Setpoint((0.0, 0.0, -2.0), 0.2, 0.0)
+        if i == 60:
+            changed.update_gains(new.outer, new.k_min, new.k_max)
+        a, b, c = changed.step(s, sp), built_new.step(s, sp), kept_old.step(s, sp)
+        if i >= 60:
+            assert a[0] == b[0] and a[1].outer == b[1].outer, f"tick {i}"
+            assert a[0] != c[0], f"tick {i}: the new gains did not take effect"
