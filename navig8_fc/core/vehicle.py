@@ -595,38 +595,25 @@ def ghat_ginv_eig_record(
     lambda_min: float,
     lambda_crit: float,
     gc_uam_flat: Sequence[float] | None = None,
+    *,
+    compiled: bool = True,
 ) -> dict[str, Any]:
     """Eigenvalues of G_hat G^-1 (Eq. 14) with G from the plant's truth, as the /analysis/eig log record.
 
     G_hat^-1 = G_C,UAM(q_est)^-1 G_hat_I (Eq. 4) and G^-1 = G_C,true^-1 G_I,true, so
     G_hat G^-1 = (G_hat_I^-1 G_C,UAM)(G_C,true^-1 G_I,true). gc_uam_flat: the G_C,UAM(q_est) the controller
     used this tick (ControllerStatus.gc_uam), else it is evaluated here. The linear algebra runs in a numba
-    kernel (every logged tick needs it); ghat_ginv_eig_record_reference is the numpy version tests compare.
+    kernel (every logged tick needs it); compiled=False runs the numpy reference the tests compare it with.
     Used by the in-process runner and the SITL FC.
     """
-    from navig8_fc.core import _kernels as _k  # numba: imported on first use, not by every user of the model
-
     gi_hat, gc_uam, gc_true, gi_true = _eig_inputs(model, q_est_rad, gi_hat_flat, com_true_frd_m, inertia_true,
                                                    mass_true_kg, gc_uam_flat)
-    re, im = np.empty(5), np.empty(5)
-    _k.ghat_ginv_eigs(gi_hat, gc_uam, gc_true, gi_true, re, im)
-    return _eig_record(re.tolist(), im.tolist(), gi_true, mass_true_kg, lambda_min, lambda_crit)
+    if compiled:
+        from navig8_fc.core import _kernels as _k  # numba: imported on first use, not by every user of the model
 
-
-def ghat_ginv_eig_record_reference(
-    model: UamModel,
-    q_est_rad: Sequence3,
-    gi_hat_flat: Sequence[float],
-    com_true_frd_m: Sequence3,
-    inertia_true: np.ndarray,
-    mass_true_kg: float,
-    lambda_min: float,
-    lambda_crit: float,
-    gc_uam_flat: Sequence[float] | None = None,
-) -> dict[str, Any]:
-    """ghat_ginv_eig_record in numpy (the reference for the compiled kernel)."""
-    gi_hat, gc_uam, gc_true, gi_true = _eig_inputs(model, q_est_rad, gi_hat_flat, com_true_frd_m, inertia_true,
-                                                   mass_true_kg, gc_uam_flat)
+        re, im = np.empty(5), np.empty(5)
+        _k.ghat_ginv_eigs(gi_hat, gc_uam, gc_true, gi_true, re, im)
+        return _eig_record(re.tolist(), im.tolist(), gi_true, mass_true_kg, lambda_min, lambda_crit)
     lam = np.linalg.eigvals(np.linalg.solve(gi_hat, gc_uam) @ np.linalg.solve(gc_true, gi_true))
     lam = lam[np.argsort(lam.real)]
     return _eig_record(lam.real.tolist(), lam.imag.tolist(), gi_true, mass_true_kg, lambda_min, lambda_crit)
