@@ -120,12 +120,18 @@ def main(argv: list[str] | None = None) -> int:
         print(f"navig8-sitl: navig8-fc exited with {rc_fc}, navig8-bridge with {rc_b}", file=sys.stderr)
     print(f"navig8-sitl: log {log}", file=sys.stderr)
     if a.until_done:
+        from navig8_fc.shell.mcap_log import read_metadata
         from navig8_tools.logdata import load_run
         from navig8_tools.summary import summarize
 
+        # wall_time_s / real_time_factor: the lockstep's own (the bridge's, from its first answered step to the
+        # end), as navig8-sim times its loop; process_wall_time_s: the whole command, start-up included.
+        bridge_rtf = float(read_metadata(log).get("bridge_status", {}).get("rtf") or 0.0)
         summary = summarize(load_run(log), wall)
+        if bridge_rtf > 0.0:
+            summary.update(wall_time_s=summary["sim_time_s"] / bridge_rtf, real_time_factor=bridge_rtf)
         summary.update({"scenario": scen_name, "transport": "mavlink-udp", "speed": a.speed, "seed": a.seed,
-                        "log": str(log)})
+                        "process_wall_time_s": wall, "log": str(log)})
         text = json.dumps(summary, indent=2)
         print(text)
         if a.summary:
