@@ -131,3 +131,48 @@ class Truth:
     # bad-input counters
     cmd_nonfinite_count: int
     cmd_clamped_count: int
+
+
+class WireSensors:
+    """Plant.sense_wire(): a SensorBundle's values as plain Python floats (lists), for the bridge's encoder.
+
+    Same attribute names and numbers as SensorBundle (what navig8_fc.mavlink.seam.encode_bundle reads), without
+    the numpy views seam would convert back to floats at once. Not frozen; made fresh for every step.
+    """
+
+    time_us: int
+    gyro_frd: list[float]
+    accel_frd: list[float]
+    pos_ned: list[float]
+    vel_ned: list[float]
+    quat_wxyz: list[float]
+    duct_tilt_rad: list[float]
+    prop_speed_rad_s: list[float]
+    joint_pos_rad: list[float]
+    joint_rate_rad_s: list[float]
+    gripper_closed: bool
+    updated: int
+
+
+class WireTruth:
+    """Plant.truth_wire(): the Truth fields NAVIG8_TRUTH carries, as plain Python floats (lists; the inertia as
+    a tuple of three rows), same names and numbers as Truth, for the bridge's encoder."""
+
+    time_us: int
+    pos_ned_m: list[float]
+    vel_ned_m_s: list[float]
+    quat_wxyz: list[float]
+    rate_frd_rad_s: list[float]
+    accel_frd_m_s2: list[float]
+    actuator_pos: list[float]
+    joint_pos_rad: list[float]
+    joint_rate_rad_s: list[float]
+    joint_accel_rad_s2: list[float]
+    object_mass_kg: float
+    mass_kg: float
+    com_frd_m: list[float]
+    inertia_com_kgm2: tuple[list[float], list[float], list[float]]
+    reaction_force_frd_n: list[float]
+    reaction_moment_mount_frd_nm: list[float]
+    cmd_nonfinite_count: int
+    cmd_clamped_count: int

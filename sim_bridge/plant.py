@@ -35,6 +35,7 @@ time-optimal rate/acceleration-limited joint servo, skid contact with the NED z 
 from __future__ import annotations
 
 import math
+from operator import itemgetter
 
 import numpy as np
 import scipy.linalg
@@ -42,11 +43,33 @@ import scipy.linalg
 from navig8_fc.core.rotation import euler_to_quat, quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig, hover_trim, propulsion_wrench, u_to_actuators
 from sim_bridge import _kernels as K
-from sim_bridge.messages import ActuatorCommand, SensorBundle, SensorField, Truth, make_frozen
+from sim_bridge.messages import (
+    ActuatorCommand,
+    SensorBundle,
+    SensorField,
+    Truth,
+    WireSensors,
+    WireTruth,
+    make_frozen,
+)
 from sim_bridge.params import ActuatorDynamics, PlantParams
 from sim_bridge.scenario import Scenario
 
 BASE_MODES = {"free": K.BASE_FREE, "attitude_locked": K.BASE_ATTITUDE_LOCKED, "fixed": K.BASE_FIXED}
+
+
+# sense_wire / truth_wire: the groups of the sensor vector and the wire truth's parts of the state and
+# derived vectors, cut from their tolist() in one C call each
+_S_WIRE = itemgetter(*(slice(a, b) for a, b in ((0, 3), (3, 6), (6, 9), (9, 12), (12, 16), (16, 18), (18, 21),
+                                                 (21, 24), (24, 27))))
+_X_WIRE = itemgetter(slice(K.X_POS, K.X_POS + 3), slice(K.X_VEL, K.X_VEL + 3), slice(K.X_QUAT, K.X_QUAT + 4),
+                     slice(K.X_RATE, K.X_RATE + 3), slice(K.X_ACT, K.X_ACT + 5), slice(K.X_Q, K.X_Q + 3),
+                     slice(K.X_QD, K.X_QD + 3), slice(K.X_QDD, K.X_QDD + 3), K.X_MOBJ)
+_D_WIRE = itemgetter(slice(K.D_ACC, K.D_ACC + 3), K.D_MASS, slice(K.D_COM, K.D_COM + 3),
+                     slice(K.D_JC, K.D_JC + 3), slice(K.D_JC + 3, K.D_JC + 6), slice(K.D_JC + 6, K.D_JC + 9),
+                     slice(K.D_FR_G, K.D_FR_G + 3), slice(K.D_MR_MOUNT_G, K.D_MR_MOUNT_G + 3))
+_new = object.__new__
+_C_ACT, _C_JOVR = K.C_ACT, K.C_JOVR
 
 
 class PlantDivergedError(RuntimeError):
@@ -158,6 +181,7 @@ class Plant:
         self._h_us = params.physics_step_us
         self._sched = scenario.arm_schedule()
         self._act_lo, self._act_hi = actuator_limits(vehicle)
+        self._act_lo_list, self._act_hi_list = self._act_lo.tolist(), self._act_hi.tolist()
         self._qlim = vehicle.joint_limit_rad
         self._cmd = np.zeros(K.N_C)
         self._valid_cmd = [0.0] * 5  # last valid value per actuator channel
@@ -248,27 +272,29 @@ class Plant:
 
     # ---- commands -----------------------------------------------------------------------------
     def _set_command(self, cmd: ActuatorCommand) -> None:
-        vals = (cmd.tilt_rad[0], cmd.tilt_rad[1], cmd.speed_rad_s[0], cmd.speed_rad_s[1], cmd.speed_rad_s[2])
-        c = self._cmd
-        lo, hi = self._act_lo, self._act_hi
+        tilt, speed = cmd.tilt_rad, cmd.speed_rad_s
+        vals = [float(tilt[0]), float(tilt[1]), float(speed[0]), float(speed[1]), float(speed[2])]
+        valid = self._valid_cmd
+        lo, hi = self._act_lo_list, self._act_hi_list
         for i in range(5):
-            v = float(vals[i])
+            v = vals[i]
             if not math.isfinite(v):
                 self._nonfinite += 1
-                v = self._valid_cmd[i]
+                vals[i] = v = valid[i]
             elif v < lo[i]:
                 self._clamped += 1
-                v = float(lo[i])
+                vals[i] = v = lo[i]
             elif v > hi[i]:
                 self._clamped += 1
-                v = float(hi[i])
-            self._valid_cmd[i] = v
-            c[K.C_ACT + i] = v
+                vals[i] = v = hi[i]
+            valid[i] = v
+        c = self._cmd
+        c[_C_ACT:_C_ACT + 5] = vals
         jt = cmd.joint_targets_rad
         if jt is None:
-            c[K.C_JOVR] = 0.0
+            c[_C_JOVR] = 0.0
             return
-        c[K.C_JOVR] = 1.0
+        c[_C_JOVR] = 1.0
         for j in range(3):
             v = float(jt[j])
             if not math.isfinite(v):
@@ -341,7 +367,8 @@ class Plant:
         return True
 
     # ---- outputs --------------------------------------------------------------------------------
-    def sense(self) -> SensorBundle:
+    def _sample(self) -> int:
+        """Sample the sensor groups that are due into self._meas (the others hold); the groups sampled."""
         t = self._t_us
         groups = 0
         due = self._sensor_due_us
@@ -352,6 +379,11 @@ class Plant:
         noise = self._rng.standard_normal(K.N_NOISE)
         # in place: the groups not due keep their previous sample (sample and hold)
         K.sense(self._x, self._d, self._sig, noise, self._meas, groups, self._meas)
+        return groups
+
+    def sense(self) -> SensorBundle:
+        t = self._t_us
+        groups = self._sample()
         s = self._meas.copy()
         s.flags.writeable = False
         return make_frozen(SensorBundle, {
@@ -415,6 +447,30 @@ class Plant:
             "cmd_nonfinite_count": self._nonfinite,
             "cmd_clamped_count": self._clamped,
         })
+
+    def sense_wire(self) -> WireSensors:
+        """sense() as plain Python floats in lists (WireSensors): the same sample, the same rng draws, for the
+        bridge's encoder without the numpy views it would convert back at once."""
+        groups = self._sample()
+        g, a, p, v, q, tilt, speed, jp, jr = _S_WIRE(self._meas.tolist())
+        w = _new(WireSensors)
+        w.__dict__ = {"time_us": self._t_us, "gyro_frd": g, "accel_frd": a, "pos_ned": p, "vel_ned": v,
+                      "quat_wxyz": q, "duct_tilt_rad": tilt, "prop_speed_rad_s": speed, "joint_pos_rad": jp,
+                      "joint_rate_rad_s": jr, "gripper_closed": self._gripper_closed, "updated": groups}
+        return w
+
+    def truth_wire(self) -> WireTruth:
+        """The part of truth() that NAVIG8_TRUTH carries, as plain Python floats (WireTruth; same values)."""
+        pos, vel, quat, rate, act, jq, jqd, jqdd, mobj = _X_WIRE(self._x.tolist())
+        acc, mass, com, j0, j1, j2, fr, mr = _D_WIRE(self._d.tolist())
+        w = _new(WireTruth)
+        w.__dict__ = {"time_us": self._t_us, "pos_ned_m": pos, "vel_ned_m_s": vel, "quat_wxyz": quat,
+                      "rate_frd_rad_s": rate, "accel_frd_m_s2": acc, "actuator_pos": act, "joint_pos_rad": jq,
+                      "joint_rate_rad_s": jqd, "joint_accel_rad_s2": jqdd, "object_mass_kg": mobj,
+                      "mass_kg": mass, "com_frd_m": com, "inertia_com_kgm2": (j0, j1, j2),
+                      "reaction_force_frd_n": fr, "reaction_moment_mount_frd_nm": mr,
+                      "cmd_nonfinite_count": self._nonfinite, "cmd_clamped_count": self._clamped}
+        return w
 
     def trim_command(self) -> ActuatorCommand:
         """Level hover trim for the current arm pose and object (vehicle.hover_trim), clamped to limits."""

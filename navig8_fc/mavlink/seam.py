@@ -206,25 +206,28 @@ class StepBundle:
 
 
 def _f(v: Any) -> list[float]:
-    # numpy's tolist() yields Python floats ~5x faster than a comprehension over the array
+    # a list passes as it is (Plant.sense_wire / truth_wire already give Python floats); numpy's tolist() yields
+    # Python floats ~5x faster than a comprehension over the array
+    if type(v) is list:
+        return v
     return v.tolist() if hasattr(v, "tolist") else [float(x) for x in v]
 
 
 def _bundle_args(step: int, sensors: Any, truth: Any) -> list[tuple[str, tuple[Any, ...]]]:
     """(message name, constructor arguments) of the five messages of step `step`, in datagram order."""
-    d = dialect.load()
-    tu = time_usec_from_sim_us(sensors.time_us)
+    consts = _BUNDLE_CONSTS or _bundle_consts()
+    tu = int(sensors.time_us) + 1  # time_usec_from_sim_us
     g = _f(sensors.gyro_frd)
     a = _f(sensors.accel_frd)
     p = _f(sensors.pos_ned)
     v = _f(sensors.vel_ned)
     out: list[tuple[str, tuple[Any, ...]]] = [
         ("ODOMETRY", (
-            tu, d.MAV_FRAME_LOCAL_NED, d.MAV_FRAME_LOCAL_NED, p[0], p[1], p[2], _f(sensors.quat_wxyz),
+            tu, consts[0], consts[0], p[0], p[1], p[2], _f(sensors.quat_wxyz),
             v[0], v[1], v[2],
             # ODOMETRY's body rates: the gyro (motion capture has no rate of its own); the same numbers as HIL_SENSOR
             g[0], g[1], g[2],
-            _COV_UNKNOWN, _COV_UNKNOWN, 0, d.MAV_ESTIMATOR_TYPE_MOCAP, 0,
+            _COV_UNKNOWN, _COV_UNKNOWN, 0, consts[1], 0,
         )),
         ("NAVIG8_ACTUATOR_STATE", (tu, step, _f(sensors.duct_tilt_rad), _f(sensors.prop_speed_rad_s))),
         ("NAVIG8_ARM_STATE", (
@@ -241,6 +244,16 @@ def _bundle_args(step: int, sensors: Any, truth: Any) -> list[tuple[str, tuple[A
     return out
 
 
+_BUNDLE_CONSTS: tuple[int, int] | None = None  # MAV_FRAME_LOCAL_NED, MAV_ESTIMATOR_TYPE_MOCAP
+
+
+def _bundle_consts() -> tuple[int, int]:
+    global _BUNDLE_CONSTS
+    d = dialect.load()
+    _BUNDLE_CONSTS = (d.MAV_FRAME_LOCAL_NED, d.MAV_ESTIMATOR_TYPE_MOCAP)
+    return _BUNDLE_CONSTS
+
+
 def bundle_messages(step: int, sensors: Any, truth: Any) -> list[Any]:
     """The five messages of step `step` in datagram order, from a plant SensorBundle and Truth (duck-typed)."""
     d = dialect.load()
@@ -250,9 +263,10 @@ def bundle_messages(step: int, sensors: Any, truth: Any) -> list[Any]:
 
 def _truth_args(step: int, truth: Any) -> tuple[Any, ...]:
     j = truth.inertia_com_kgm2
-    inertia = [float(j[0][0]), float(j[1][1]), float(j[2][2]), float(j[0][1]), float(j[0][2]), float(j[1][2])]
+    j0, j1, j2 = j[0], j[1], j[2]
+    inertia = [float(j0[0]), float(j1[1]), float(j2[2]), float(j0[1]), float(j0[2]), float(j1[2])]
     return (
-        time_usec_from_sim_us(truth.time_us), step,
+        int(truth.time_us) + 1, step,  # time_usec_from_sim_us
         _f(truth.pos_ned_m), _f(truth.vel_ned_m_s), _f(truth.quat_wxyz), _f(truth.rate_frd_rad_s),
         _f(truth.accel_frd_m_s2), _f(truth.actuator_pos), _f(truth.joint_pos_rad), _f(truth.joint_rate_rad_s),
         _f(truth.joint_accel_rad_s2), float(truth.object_mass_kg), float(truth.mass_kg), _f(truth.com_frd_m),
@@ -278,12 +292,29 @@ def pack(mav: Any, msgs: Iterable[Any]) -> bytes:
 
 
 def encode_bundle(mav: Any, step: int, sensors: Any, truth: Any) -> bytes:
-    """The step datagram (bytes) for `step` from the plant's SensorBundle and Truth.
+    """The step datagram (bytes) for `step` from the plant's SensorBundle and Truth (or anything with their
+    attributes: Plant.sense_wire / truth_wire give them as plain float lists, the bridge's fast path).
 
     Byte-identical to `pack(mav, bundle_messages(...))` (tests/unit/test_seam_fast.py), without building
-    pymavlink message objects (see `fast_pack`).
+    pymavlink message objects (see `fast_pack`); mav's sequence number and counters advance as there.
     """
-    return b"".join([fast_pack(mav, name, args) for name, args in _bundle_args(step, sensors, truth)])
+    if _codecs is None:
+        _codec_table()
+    codecs = _codecs_by_name
+    seq, sysid, compid = mav.seq, mav.srcSystem, mav.srcComponent
+    hdr = _V2_HEADER_NO_MAGIC.pack
+    parts = []
+    for name, args in _bundle_args(step, sensors, truth):
+        c = codecs[name]
+        payload = c.pack_args(args).rstrip(b"\0") or b"\0"
+        body = hdr(len(payload), 0, 0, seq, sysid, compid, c.msg_id_lo, c.msg_id_hi) + payload
+        parts += (b"\xfd", body, _crc16(body + c.crc_extra_byte).to_bytes(2, "little"))
+        seq = (seq + 1) % 256
+    out = b"".join(parts)
+    mav.seq = seq
+    mav.total_packets_sent += len(parts) // 3
+    mav.total_bytes_sent += len(out)
+    return out
 
 
 class BundleAssembler:
@@ -403,6 +434,7 @@ def truth_record(msg: Any) -> dict[str, Any]:
 # MAVLink 2 header and trailing-zero truncation exactly as MAVLink_message._pack does, and the CRC with
 # fastcrc's mcrf4xx as pymavlink uses it. Anything else falls back to pymavlink.
 _V2_HEADER = struct.Struct("<BBBBBBBHB")
+_V2_HEADER_NO_MAGIC = struct.Struct("<BBBBBBHB")  # the header after the magic byte (what the CRC covers)
 _CRC = struct.Struct("<H")
 _FAST_MESSAGES = ("ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH", "HIL_SENSOR",
                   "HIL_ACTUATOR_CONTROLS", "NAVIG8_ARM_CMD", "NAVIG8_SIM_STATUS")
@@ -426,7 +458,7 @@ class _MsgCodec:
     field name -> value dict (arrays as lists) as MAVLink.decode sets the fields."""
 
     __slots__ = ("cls", "msg_id", "name", "crc_extra", "struct", "size", "pack_args", "from_wire", "fieldnames",
-                 "crc_extra_byte")
+                 "crc_extra_byte", "msg_id_lo", "msg_id_hi")
 
     def __init__(self, cls: Any) -> None:
         self.cls = cls
@@ -434,6 +466,7 @@ class _MsgCodec:
         self.name = str(cls.msgname)
         self.crc_extra = int(cls.crc_extra)
         self.crc_extra_byte = bytes((self.crc_extra,))
+        self.msg_id_lo, self.msg_id_hi = self.msg_id & 0xFFFF, self.msg_id >> 16
         self.struct = cls.unpacker
         self.size = cls.unpacker.size
         if "s" in cls.unpacker.format or "c" in cls.unpacker.format:
@@ -448,7 +481,8 @@ class _MsgCodec:
             n = int(cls.array_lengths[j])  # lengths and array_lengths are in wire order, like ordered_fieldnames
             if int(cls.lengths[j]) != max(n, 1):
                 raise ValueError(f"{self.name}.{fname}: lengths and array_lengths disagree")
-            pack_terms += [f"a[{i}][{k}]" for k in range(n)] if n else [f"a[{i}]"]
+            # an array's first n elements, unpacked (as pymavlink's pack indexes them; faster than n subscripts)
+            pack_terms.append(f"*a[{i}][:{n}]" if n else f"a[{i}]")
             start[fname] = (pos, n)
             pos += max(n, 1)
         wire_terms = []
@@ -462,8 +496,8 @@ class _MsgCodec:
 def frame_v2(payload: bytes, msg_id: int, crc_extra: int, seq: int, sysid: int, compid: int) -> bytes:
     """A MAVLink 2 frame (unsigned) as MAVLink_message._pack writes it: trailing zeros stripped (>= 1 byte)."""
     payload = payload.rstrip(b"\0") or payload[:1]
-    body = _V2_HEADER.pack(253, len(payload), 0, 0, seq, sysid, compid, msg_id & 0xFFFF, msg_id >> 16) + payload
-    return body + _CRC.pack(_crc16(body[1:] + bytes((crc_extra,))))
+    body = _V2_HEADER_NO_MAGIC.pack(len(payload), 0, 0, seq, sysid, compid, msg_id & 0xFFFF, msg_id >> 16) + payload
+    return b"\xfd" + body + _CRC.pack(_crc16(body + bytes((crc_extra,))))
 
 
 _codecs: dict[int, _MsgCodec] | None = None
