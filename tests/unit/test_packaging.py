@@ -20,8 +20,19 @@ def test_dockerfile_uses_make_install_and_valid_sitl_options() -> None:
 
     args = build_arg_parser().parse_args(argv[1:])
     assert args.speed == 1.0 and args.bind_host == "0.0.0.0" and args.gcs_host == "gcs.example"
-    for port in ("14550/udp", "14540/udp"):
-        assert port in text
+    # The documented `docker run` publishes the FC's own ports, never the host GCS ports it sends to
+    # (docker-proxy would hold host 14550/14540 and QGroundControl / MAVSDK could not bind them).
+    readme = (ROOT / "README.md").read_text()
+    for doc in (text, readme):
+        run = re.search(r"docker run (.*?)navig8-sitl", doc, flags=re.S).group(1)
+        published = set(re.findall(r"-p (\d+):\d+/udp", run))
+        assert published == {"18570", "14580"}, published
+    assert re.search(r"^EXPOSE 18570/udp 14580/udp$", text, flags=re.M)
+    from navig8_fc.shell.fc_process import FcOptions, options_from_args
+    from navig8_fc.shell.fc_process import build_arg_parser as fc_arg_parser
+
+    opts: FcOptions = options_from_args(fc_arg_parser().parse_args([]))
+    assert {str(opts.port("gcs_bind")), str(opts.port("api_bind"))} == {"18570", "14580"}
 
 
 def test_makefile_targets_and_ci_entry() -> None:
