@@ -1,14 +1,19 @@
 """navig8-bench: speed (and accuracy) benchmarks, one section per piece of the system.
 
-    navig8-bench                  # every available section
+    navig8-bench                  # every section (~25 s on a quiet 2-core machine)
     navig8-bench --plant          # the plant alone: us per physics step (with sensors), real-time factor
     navig8-bench --plant-accuracy # the plant's integration error against a 10 kHz reference
-    navig8-bench --plant --json   # one JSON object: plant_step_us_median, plant_rtf, ...
+    navig8-bench --fc             # the flight controller's tick inside the closed loop: median and p99 us
+    navig8-bench --inprocess      # plant + FC in one process: real-time factor without and with the MCAP log
+    navig8-bench --lockstep       # navig8-sitl at --speed 0 (two processes, MAVLink over UDP, MCAP on):
+                                  # real-time factor, median of --repeat runs (5), and its ratio to in-process
+    navig8-bench --json           # one JSON object with every metric (plant_rtf, fc_tick_us_median,
+                                  # inprocess_rtf, lockstep_rtf, lockstep_over_inprocess, ...)
 
-Adding a section: write `def _my_section(args) -> SectionResult` and append a Section to SECTIONS
-(flag, help, function); its metrics are merged into the JSON object (prefix them with the section's
-name, e.g. fc_step_us_median) and its lines printed in the text report. Later sections: --fc (the
-flight-controller core), --inprocess (the closed loop in one process).
+The machine's speed drifts by tens of percent over minutes on a shared VM: compare medians and ratios,
+measured close in time. Adding a section: write `def _my_section(args) -> SectionResult` and append a
+Section to SECTIONS (flag, help, function); its metrics are merged into the JSON object (prefix them with
+the section's name) and its lines printed in the text report.
 """
 
 from __future__ import annotations
