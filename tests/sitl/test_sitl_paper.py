@@ -48,3 +48,14 @@ def test_sitl_matches_in_process_run(sitl_summary: dict, tmp_path: Path) -> None
         assert s[key] == pytest.approx(ref[key], rel=2e-3, abs=1e-3), key
     for a, b in zip(s["settle"], ref["settle"], strict=True):
         assert a["axis"] == b["axis"] and a["settle_s"] == pytest.approx(b["settle_s"], abs=0.05)
+
+
+def test_navig8_plot_draws_the_figures_from_the_sitl_log(sitl_summary: dict, tmp_path: Path) -> None:
+    # The same figures as from an in-process log: the SITL log holds the same channels (/truth, /fc/...).
+    out = tmp_path / "figs"
+    p = subprocess.run([sys.executable, "-m", "navig8_tools.plot", sitl_summary["log"], "--out", str(out)],
+                       stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr[-2000:]
+    pngs = sorted(out.glob("fig1[0-6]_*.png"))
+    assert [f.name[:5] for f in pngs] == [f"fig1{k}" for k in range(7)], pngs
+    assert all(f.stat().st_size > 20_000 for f in pngs)
