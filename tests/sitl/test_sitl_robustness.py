@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from sitl_helpers import gcs_client, sitl, wait_heartbeat
+from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.shell.mcap_log import read_mcap, read_metadata
 from navig8_tools.logdata import load_run
@@ -93,3 +93,49 @@ def test_killed_fc_leaves_a_readable_log(tmp_path: Path) -> None:
     assert len(msgs) > 100, "nothing recovered from the truncated log"
     times = [t for _, t, _ in msgs]
     assert times == sorted(times)
+
+
+def test_a_flood_of_valid_frames_for_another_system_changes_nothing(tmp_path: Path) -> None:
+    # Well-formed commands a careless GCS might send to vehicle 99 (disarm, land, a parameter that would
+    # break the outer loop), thousands of them: none may touch this vehicle, and it keeps flying.
+    from pymavlink.dialects.v20 import common as mavlink2
+
+    with sitl(tmp_path, scenario="hover", speed=1.0, bridge_args=["--duration", "8"]) as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            hb0 = wait_heartbeat(gcs, 15.0)
+            assert hb0.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED
+            gcs.mav.param_request_read_send(gcs.target_system, 1, b"OL_POS_K", -1)
+            pv0 = wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == "OL_POS_K")
+            assert pv0 is not None
+            t0 = time.monotonic()
+            for i in range(3000):
+                if i % 3 == 0:
+                    gcs.mav.command_long_send(99, 1, mavlink2.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 21196, 0, 0,
+                                              0, 0, 0)
+                elif i % 3 == 1:
+                    gcs.mav.command_long_send(99, 1, mavlink2.MAV_CMD_NAV_LAND, 0, 0, 0, 0, 0, 0, 0, 0)
+                else:
+                    gcs.mav.param_set_send(99, 1, b"OL_POS_K", 0.01, mavlink2.MAV_PARAM_TYPE_REAL32)
+                if i % 100 == 0:
+                    time.sleep(0.02)
+            assert time.monotonic() - t0 < 20.0
+            acks = []
+            deadline = time.monotonic() + 2.0
+            while time.monotonic() < deadline:
+                m = gcs.recv_match(type=["COMMAND_ACK", "HEARTBEAT"], blocking=True, timeout=0.2)
+                if m is not None and m.get_type() == "COMMAND_ACK":
+                    acks.append(m)
+            assert not acks, f"{len(acks)} COMMAND_ACKs for commands addressed to another system"
+            hb = wait_heartbeat(gcs, 5.0)
+            assert hb.base_mode & mavlink2.MAV_MODE_FLAG_SAFETY_ARMED and hb.custom_mode == hb0.custom_mode
+            gcs.mav.param_request_read_send(gcs.target_system, 1, b"OL_POS_K", -1)
+            pv = wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == "OL_POS_K")
+            assert pv is not None and pv.param_value == pv0.param_value
+            assert run.fc.poll() is None, "navig8-fc died"
+        finally:
+            gcs.close()
+    r = load_run(run.log)
+    pos = r["/truth"].field("pos_ned_m", 3)
+    assert len(pos) > 300
+    assert np.max(np.linalg.norm(pos - [0.0, 0.0, -2.0], axis=1)) < 0.2, "the vehicle moved"
