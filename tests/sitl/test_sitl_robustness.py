@@ -31,6 +31,13 @@ def _kernel_udp_drops(port: int) -> int | None:
     return None
 
 
+def _assert_held_hover(log: Path, min_samples: int) -> None:
+    """The logged truth stayed within 0.2 m of the hover point (0, 0, -2) all run."""
+    pos = load_run(log)["/truth"].field("pos_ned_m", 3)
+    assert len(pos) > min_samples
+    assert np.max(np.linalg.norm(pos - [0.0, 0.0, -2.0], axis=1)) < 0.2, "the vehicle moved off its hover point"
+
+
 def _garbage(rng: np.random.Generator, i: int) -> bytes:
     kind = i % 5
     if kind == 0:
@@ -67,10 +74,7 @@ def test_ten_thousand_malformed_datagrams_leave_the_vehicle_holding(tmp_path: Pa
             kernel_drops = _kernel_udp_drops(run.gcs_bind_port)
         finally:
             gcs.close()
-    r = load_run(run.log)
-    pos = r["/truth"].field("pos_ned_m", 3)
-    assert len(pos) > 100
-    assert np.max(np.linalg.norm(pos - [0.0, 0.0, -2.0], axis=1)) < 0.2, "the vehicle drifted during the flood"
+    _assert_held_hover(run.log, min_samples=100)
     c = read_metadata(run.log)["link_counters"]["gcs"]
     dropped = c["bad_crc"] + c["unknown_id"] + c["oversize"] + c["truncated"] + (c["garbage_bytes"] > 0)
     # The FC reads, counts and drops every datagram the kernel hands it. On a busy 2-core machine the kernel itself
@@ -135,7 +139,4 @@ def test_a_flood_of_valid_frames_for_another_system_changes_nothing(tmp_path: Pa
             assert run.fc.poll() is None, "navig8-fc died"
         finally:
             gcs.close()
-    r = load_run(run.log)
-    pos = r["/truth"].field("pos_ned_m", 3)
-    assert len(pos) > 300
-    assert np.max(np.linalg.norm(pos - [0.0, 0.0, -2.0], axis=1)) < 0.2, "the vehicle moved"
+    _assert_held_hover(run.log, min_samples=300)
