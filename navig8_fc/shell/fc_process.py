@@ -274,7 +274,8 @@ class FlightControllerProcess:
         """STATUSTEXT to every GCS (and the log keeps it)."""
         self.gcs_service.statustext(text, severity)
         if self.logger:
-            self.logger.log("/fc/statustext", self._sim_ns(), {"severity": severity, "text": text})
+            self.logger.log("/fc/statustext", self._sim_ns(), {"severity": severity, "text": text},
+                            publish_ns=time.time_ns())
 
     def _log_tick(self, t_us: int, tr: Any, st: ControllerStatus, cmd: ActuatorCommand, sp: Setpoint) -> None:
         assert self.logger is not None
