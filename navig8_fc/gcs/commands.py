@@ -2,8 +2,10 @@
 
 `CommandHandler.handle(msg, now_s)` decodes a command addressed to us (target_system 0 or ours,
 target_component 0 or ours), runs it against the vehicle (the shell implements `VehicleCommands`) and
-returns [COMMAND_ACK, then any STATUSTEXT reason, then any requested messages]. The ACK goes back to the
-sender (ACK.target_system/component = the sender's ids). Results:
+returns [COMMAND_ACK, then any STATUSTEXT reason, then any requested messages]. Commands that act on the
+simulated hardware (DO_GRIPPER, the arm-joint target) add a STATUSTEXT(INFO) event when accepted
+("Gripper: grab", "Arm joints: target 20.0 20.0 20.0 deg"), like the mode manager's arm/mode events.
+The ACK goes back to the sender (ACK.target_system/component = the sender's ids). Results:
 - ACCEPTED: done (or, for takeoff/land/mode changes, started: the mode manager carries them out);
 - DENIED + STATUSTEXT(WARNING) with the reason when a check refuses it (pre-arm, not landed, bad params);
 - UNSUPPORTED for command ids we do not implement (no STATUSTEXT: QGC probes several on connect);
@@ -115,6 +117,7 @@ class CommandRequest:
 class _Outcome:
     result: int
     reason: str | None = None  # STATUSTEXT(WARNING) when set
+    info: str | None = None  # STATUSTEXT(INFO) when set: the event an accepted command caused
     extra: list[Any] = field(default_factory=list)  # messages after the ACK
 
 
@@ -194,6 +197,8 @@ class CommandHandler:
         out = [self._ack(req, outcome.result)]
         if outcome.reason:
             out += self._text.warning(outcome.reason)
+        if outcome.info and outcome.result == CMD.MAV_RESULT_ACCEPTED:
+            out += self._text.info(outcome.info)
         return out + outcome.extra
 
     def decode(self, msg: Any) -> CommandRequest | None:
@@ -245,9 +250,11 @@ class CommandHandler:
         self._recent[key] = (pkey, now_s, int(result))
 
     @staticmethod
-    def _verdict(v: tuple[bool, str]) -> _Outcome:
+    def _verdict(v: tuple[bool, str], info: str | None = None) -> _Outcome:
+        """ACCEPTED (with `info` as STATUSTEXT INFO) or DENIED with the reason as STATUSTEXT WARNING."""
         ok, reason = v
-        return _Outcome(CMD.MAV_RESULT_ACCEPTED) if ok else _Outcome(CMD.MAV_RESULT_DENIED, reason or "denied")
+        return _Outcome(CMD.MAV_RESULT_ACCEPTED, info=info) if ok else _Outcome(CMD.MAV_RESULT_DENIED,
+                                                                                 reason or "denied")
 
     def _arm_disarm(self, req: CommandRequest) -> _Outcome:
         p1, p2 = req.params[0], req.params[1]
@@ -314,9 +321,9 @@ class CommandHandler:
             raise _BadParam(f"no gripper {instance} (0 = all, 1 = the arm's gripper)")
         action = _int_param(req.params[1], "param2 (action)")
         if action == CMD.GRIPPER_ACTION_GRAB:
-            return self._verdict(self._vehicle.gripper("grab"))
+            return self._verdict(self._vehicle.gripper("grab"), "Gripper: grab")
         if action == CMD.GRIPPER_ACTION_RELEASE:
-            return self._verdict(self._vehicle.gripper("release"))
+            return self._verdict(self._vehicle.gripper("release"), "Gripper: release")
         raise _BadParam(f"action {action} unsupported (0 release, 1 grab)")
 
     def _arm_joints(self, req: CommandRequest) -> _Outcome:
@@ -326,7 +333,8 @@ class CommandHandler:
         if not all(math.isfinite(v) for v in q_deg):
             raise _BadParam("joint targets p1..p3 must be numbers (degrees)")
         q_rad = (math.radians(q_deg[0]), math.radians(q_deg[1]), math.radians(q_deg[2]))
-        return self._verdict(self._vehicle.arm_joints(q_rad))
+        info = "Arm joints: target " + " ".join(f"{q:.1f}" for q in q_deg[:3]) + " deg"
+        return self._verdict(self._vehicle.arm_joints(q_rad), info)
 
     def _storage(self, req: CommandRequest) -> _Outcome:
         action = _int_param(req.params[0], "param1 (storage action)")

@@ -261,6 +261,22 @@ def test_arm_joints_user_1(rig) -> None:
     assert the_ack(out, 31010).result == M.MAV_RESULT_DENIED
 
 
+def test_gripper_and_arm_joints_accepted_send_an_info_statustext(rig) -> None:
+    out = cmd_long(rig, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_GRAB)
+    assert [m.get_type() for m in out] == ["COMMAND_ACK", "STATUSTEXT"]
+    assert out[1].severity == M.MAV_SEVERITY_INFO and out[1].text == "Gripper: grab"
+    out = cmd_long(rig, M.MAV_CMD_DO_GRIPPER, 0, M.GRIPPER_ACTION_RELEASE)
+    assert out[1].severity == M.MAV_SEVERITY_INFO and out[1].text == "Gripper: release"
+    out = cmd_long(rig, 31010, 20.0, -20.0, 10.0, 1.0)
+    assert [m.get_type() for m in out] == ["COMMAND_ACK", "STATUSTEXT"]
+    assert out[1].severity == M.MAV_SEVERITY_INFO and out[1].text == "Arm joints: target 20.0 -20.0 10.0 deg"
+    # Denied ones keep their reason (WARNING) and report no event.
+    for out in (cmd_long(rig, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_HOLD), cmd_long(rig, 31010, 200.0, 0, 0, 1)):
+        assert out[0].result == M.MAV_RESULT_DENIED
+        assert [m.severity for m in out[1:]] == [M.MAV_SEVERITY_WARNING] * (len(out) - 1) and len(out) > 1
+        assert "Gripper:" not in texts(out) and "Arm joints: target" not in texts(out)
+
+
 def test_storage_passes_result_and_messages(rig) -> None:
     out = cmd_long(rig, M.MAV_CMD_PREFLIGHT_STORAGE, 1)
     assert the_ack(out, M.MAV_CMD_PREFLIGHT_STORAGE).result == M.MAV_RESULT_ACCEPTED
