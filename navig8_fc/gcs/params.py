@@ -3,7 +3,10 @@
 PARAM_REQUEST_LIST starts a paced download: `poll(now_s)` then emits PARAM_VALUE for every index exactly
 once, in index order, at most `burst` per call and `rate_per_s` on average (a token bucket on the caller's
 clock: wall time, so pacing does not depend on the simulation speed). A new PARAM_REQUEST_LIST restarts the
-download from index 0 (clients retry the whole list when they time out, QGC up to 4 times).
+download from index 0 (clients retry the whole list when they time out, QGC up to 4 times). Downloads are
+kept per requester (`handle(..., source=...)`, an opaque key such as (link, address)): `poll_routed` says
+whom each PARAM_VALUE of a download is for, so a list requested on one link is not streamed to another;
+two requesters are served one after the other, each list restarting only on its own requester's request.
 PARAM_REQUEST_READ answers by index (param_index >= 0) or by name (param_index == -1); an unknown name or
 index gets no PARAM_VALUE (there is nothing true to put in it) but a STATUSTEXT, as the spec asks.
 PARAM_SET is validated by the registry (range, NaN/Inf, cross rules, stability floor) and always answered
@@ -11,7 +14,9 @@ with PARAM_VALUE carrying the value now in force: the new one, or the old one pl
 with the reason when refused. An unknown name cannot be echoed (no index): STATUSTEXT only.
 Accepted values are saved through the ParamStore at once (only values that differ from the defaults, as
 PX4 does, so a later change of a default in fc_params.yaml reaches vehicles that never touched it).
-All replies are meant for every GCS link (PARAM_VALUE is a broadcast in the protocol).
+Routing (the shell's job): the answer to PARAM_REQUEST_READ goes back to the requester; the PARAM_VALUE that
+answers a PARAM_SET (accepted or refused) announces the value in force and is broadcast on every link, as
+PX4 and ArduPilot do, so every connected GCS stays in sync; STATUSTEXT is broadcast.
 
 Value encoding (mavlink_notes §2.3): REAL32 parameters travel as their float value. INT32 parameters are
 encoded *bytewise* (the int32's four bytes copied into the float field) and the vehicle advertises
@@ -126,40 +131,53 @@ class ParamProtocol:
         self._text = statustext or StatusTextEncoder(mav)
         self._rate_per_s = float(rate_per_s)
         self._burst = int(burst)
-        self._queue: deque[int] = deque()
+        self._lists: dict[Any, deque[int]] = {}  # requester -> indices still to send
         self._credit = float(burst)
         self._last_poll_s: float | None = None
         self._changes: list[SetResult] = []
 
     # --- inbound -------------------------------------------------------------------------------------
-    def handle(self, msg: Any, now_s: float) -> list[Any]:
-        """Replies to one inbound message (empty for messages that are not ours or not parameter messages)."""
+    def handle(self, msg: Any, now_s: float, source: Any = None) -> list[Any]:
+        """Replies to one inbound message (empty for messages that are not ours or not parameter messages).
+
+        `source` identifies the requester of a PARAM_REQUEST_LIST (see `poll_routed`)."""
         kind = msg.get_type()
         if kind not in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"):
             return []
         if not is_for_us(msg, self._sysid, self._compid):
             return []
         if kind == "PARAM_REQUEST_LIST":
-            self._queue = deque(range(len(self._reg)))
+            self._lists.pop(source, None)  # a restart goes to the back of the line
+            self._lists[source] = deque(range(len(self._reg)))
             return []
         if kind == "PARAM_REQUEST_READ":
             return self._read(msg)
         return self._set(msg)
 
     def poll(self, now_s: float) -> list[Any]:
-        """The next paced batch of a running list download (at most `burst`, `rate_per_s` on average)."""
+        """The next paced batch of the running list downloads (at most `burst`, `rate_per_s` on average)."""
+        return [m for _, m in self.poll_routed(now_s)]
+
+    def poll_routed(self, now_s: float) -> list[tuple[Any, Any]]:
+        """Like `poll`, as (source, PARAM_VALUE): source is what `handle` got with the PARAM_REQUEST_LIST."""
         if self._last_poll_s is not None:
             elapsed = max(now_s - self._last_poll_s, 0.0)
             self._credit = min(float(self._burst), self._credit + elapsed * self._rate_per_s)
         self._last_poll_s = now_s
-        n = min(int(self._credit), len(self._queue))
-        self._credit -= n
-        return [self.param_value_at(self._queue.popleft()) for _ in range(n)]
+        out: list[tuple[Any, Any]] = []
+        while self._lists and self._credit >= 1.0:
+            source, queue = next(iter(self._lists.items()))
+            n = min(int(self._credit), len(queue))
+            self._credit -= n
+            out += [(source, self.param_value_at(queue.popleft())) for _ in range(n)]
+            if not queue:
+                del self._lists[source]
+        return out
 
     @property
     def list_remaining(self) -> int:
-        """PARAM_VALUEs still to send for the running list download."""
-        return len(self._queue)
+        """PARAM_VALUEs still to send for the running list downloads."""
+        return sum(len(q) for q in self._lists.values())
 
     # --- PARAM_VALUE ---------------------------------------------------------------------------------
     def param_value(self, name: str) -> Any:

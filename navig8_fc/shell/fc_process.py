@@ -391,8 +391,8 @@ class FlightControllerProcess:
             if m.get_srcSystem() == self.opts.sysid and m.get_srcComponent() == FC_COMPID:
                 link.counters.foreign += 1
                 continue
-            mine.append(m)
-        self.gcs_service.handle(mine, time.monotonic())
+            mine.append((m, r.addr))
+        self.gcs_service.handle(mine, time.monotonic(), link)  # replies go back to link and sender
 
     def on_wall_second(self, now: float) -> None:
         pass

@@ -2,7 +2,14 @@
 
 Implements `VehicleCommands` for the command handler on top of the mode manager, the bridge seam (arm
 joints, gripper) and the telemetry scheduler; routes inbound GCS/API messages; sends telemetry on the wall
-clock. Every outbound GCS message goes to both GCS-facing links (PARAM_VALUE and STATUSTEXT are broadcasts).
+clock.
+
+Routing (PX4 and ArduPilot behave the same): a reply to a request (COMMAND_ACK and the messages a command
+produces, PARAM_VALUE answering PARAM_REQUEST_READ, the paced PARAM_REQUEST_LIST download, mission, FTP and
+TIMESYNC answers) goes only to the link and the peer the request came from. Broadcasts go to both GCS-facing
+links (every peer of each): telemetry streams and HEARTBEAT, STATUSTEXT (events and refusal reasons), and the
+PARAM_VALUE announcing the value in force after a PARAM_SET (accepted or refused) or a PREFLIGHT_STORAGE
+load/reset, so every connected GCS stays in sync.
 """
 
 from __future__ import annotations
@@ -30,6 +37,18 @@ MAV_TYPE_GCS = 6
 
 if TYPE_CHECKING:
     from navig8_fc.shell.fc_process import FlightControllerProcess
+    from navig8_fc.shell.mavlink_link import UdpLink
+
+Addr = tuple[str, int]
+_BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
+
+
+def is_broadcast_reply(request_type: str, reply_type: str) -> bool:
+    """Whether a message produced in answer to a `request_type` message goes to every link (module docstring):
+    STATUSTEXT always; PARAM_VALUE unless it answers a PARAM_REQUEST_READ (then it is that client's reply)."""
+    if reply_type in _BROADCAST_TYPES:
+        return True
+    return reply_type == "PARAM_VALUE" and request_type != "PARAM_REQUEST_READ"
 
 
 class GcsService:
@@ -57,20 +76,27 @@ class GcsService:
             fc.log_event("starting from default parameters (--defaults)")
 
     # --- routing ---------------------------------------------------------------------------------
-    def handle(self, msgs: list[Any], now_wall: float) -> None:
-        out: list[Any] = []
-        for m in msgs:
+    def handle(self, received: list[tuple[Any, Addr | None]], now_wall: float, link: UdpLink | None = None) -> None:
+        """Inbound messages (msg, sender address) from `link`; replies go back there (module docstring).
+        With no link or address (in-process callers), replies are broadcast."""
+        for m, addr in received:
             self.n_gcs_msgs += 1
-            if m.get_type() == "HEARTBEAT" and m.type == MAV_TYPE_GCS:
+            kind = m.get_type()
+            if kind == "HEARTBEAT" and m.type == MAV_TYPE_GCS:
                 self.last_gcs_heartbeat = now_wall
                 if self.gcs_lost:
                     self.gcs_lost = False
                     self.fc.log_event("GCS link regained")
-            out += self.params.handle(m, now_wall)
+            source = (link.name, addr) if link is not None and addr is not None else None  # hashable
+            out = self.params.handle(m, now_wall, source)
             out += self.commands.handle(m, now_wall)
             out += self.misc.handle(m, now_wall)
             out += self._set_mode_message(m)
-        self.broadcast(out)
+            for r in out:
+                if source is None or is_broadcast_reply(kind, r.get_type()):
+                    self.broadcast([r])
+                else:
+                    self.reply(source, [r])
         for change in self.params.drain_changes():
             self.fc.log_param_change(change)
 
@@ -83,15 +109,28 @@ class GcsService:
         return [] if ok else self.text.warning(reason or f"SET_MODE {int(m.custom_mode):#x} refused")
 
     def poll(self, now_wall: float) -> None:
-        self.broadcast(self.params.poll(now_wall))
+        for source, m in self.params.poll_routed(now_wall):
+            if source is None:
+                self.broadcast([m])
+            else:
+                self.reply(source, [m])
         self.broadcast(self.telemetry.due_messages(now_wall))
 
     def broadcast(self, msgs: list[Any]) -> None:
+        """To every peer of both GCS-facing links (telemetry, HEARTBEAT, STATUSTEXT, PARAM_VALUE announcements)."""
         if not msgs:
             return
         for link in (self.fc.gcs, self.fc.api):
             for m in msgs:
                 link.send(m)
+
+    def reply(self, source: tuple[str, Addr], msgs: list[Any]) -> None:
+        """To the one peer a request came from, on its link: source = (link name, sender address)."""
+        name, addr = source
+        link = self.fc.api if name == self.fc.api.name else self.fc.gcs
+        dest = [addr]
+        for m in msgs:
+            link.send(m, dest)
 
     def statustext(self, text: str, severity: int) -> None:
         self.broadcast(self.text.encode(severity, text))

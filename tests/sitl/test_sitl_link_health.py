@@ -7,11 +7,17 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from typing import Any
 
-from sitl_helpers import free_udp_ports
+from pymavlink.dialects.v20 import common as mavlink2
+from sitl_helpers import free_udp_ports, gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.shell import fc_process as fp
 from navig8_fc.shell.mcap_log import read_mcap_records
+
+M = mavlink2
+SENSOR_BITS = M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL | M.MAV_SYS_STATUS_SENSOR_GPS
+PREARM = M.MAV_SYS_STATUS_PREARM_CHECK
 
 
 def _fc_in_process(tmp_path: Path, log: Path | None = None) -> fp.FlightControllerProcess:
@@ -22,6 +28,28 @@ def _fc_in_process(tmp_path: Path, log: Path | None = None) -> fp.FlightControll
     if log is not None:
         argv += ["--log", str(log)]
     return fp.FlightControllerProcess(fp.options_from_args(fp.build_arg_parser().parse_args(argv)))
+
+
+def _command(conn: Any, command: int, *params: float, timeout_s: float = 5.0) -> int:
+    p = list(params) + [0.0] * (7 - len(params))
+    conn.mav.command_long_send(conn.target_system, 1, command, 0, *p)
+    ack = wait_for(conn, "COMMAND_ACK", timeout_s, lambda m: m.command == command)
+    assert ack is not None, f"no COMMAND_ACK for {command}"
+    return int(ack.result)
+
+
+def _set_param(conn: Any, name: str, value: float, param_type: int = M.MAV_PARAM_TYPE_REAL32) -> None:
+    conn.mav.param_set_send(conn.target_system, 1, name.encode(), value, param_type)
+    pv = wait_for(conn, "PARAM_VALUE", 5.0, lambda m: m.param_id == name)
+    assert pv is not None, f"no PARAM_VALUE for {name}"
+
+
+def _texts_until(conn: Any, pred, timeout_s: float) -> Any:
+    return wait_for(conn, "STATUSTEXT", timeout_s, lambda m: pred(m.text))
+
+
+def _sys_status(conn: Any, cond, timeout_s: float) -> Any:
+    return wait_for(conn, "SYS_STATUS", timeout_s, cond)
 
 
 def test_statustext_log_publish_time_is_wall_clock(tmp_path: Path) -> None:
@@ -36,3 +64,46 @@ def test_statustext_log_publish_time_is_wall_clock(tmp_path: Path) -> None:
     recs = [(t, pub, d) for topic, t, pub, d in read_mcap_records(log, ["/fc/statustext"])]
     assert len(recs) == 1 and recs[0][2]["text"] == "hello from the test"
     assert t0 <= recs[0][1] <= t1, "publish_time must be the writer's wall clock (docs/logs.md)"
+
+
+def test_replies_go_to_the_link_that_asked(tmp_path: Path) -> None:
+    with sitl(tmp_path, scenario="ground", speed=1.0) as run:
+        gcs = gcs_client(run.gcs_port, source_system=255)
+        api = gcs_client(run.api_port, source_system=245)
+        try:
+            wait_heartbeat(gcs, 15.0)
+            wait_heartbeat(api, 15.0)
+            # Both clients talk first so the FC knows both peers.
+            for c in (gcs, api):
+                c.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            time.sleep(0.3)
+            # A command from the API client: ACKed to it only.
+            assert _command(api, M.MAV_CMD_GET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE) == M.MAV_RESULT_ACCEPTED
+            assert wait_for(gcs, ["COMMAND_ACK", "MESSAGE_INTERVAL"], 1.0) is None, "the GCS got the API's reply"
+            # ...and the other way round.
+            assert _command(gcs, M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION) == \
+                M.MAV_RESULT_ACCEPTED
+            assert wait_for(gcs, "AUTOPILOT_VERSION", 3.0) is not None
+            assert wait_for(api, ["COMMAND_ACK", "AUTOPILOT_VERSION"], 1.0) is None, "the API got the GCS's reply"
+            # A parameter read is a reply; a parameter set is announced on both links.
+            api.mav.param_request_read_send(api.target_system, 1, b"OL_POS_K", -1)
+            assert wait_for(api, "PARAM_VALUE", 3.0, lambda m: m.param_id == "OL_POS_K") is not None
+            assert wait_for(gcs, "PARAM_VALUE", 1.0) is None, "the GCS got the API's PARAM_VALUE read"
+            api.mav.param_set_send(api.target_system, 1, b"OL_POS_K", 1.1, M.MAV_PARAM_TYPE_REAL32)
+            for c in (api, gcs):
+                pv = wait_for(c, "PARAM_VALUE", 3.0, lambda m: m.param_id == "OL_POS_K")
+                assert pv is not None and abs(pv.param_value - 1.1) < 1e-6
+            # The paced list goes to the link that asked.
+            api.mav.param_request_list_send(api.target_system, 1)
+            assert wait_for(api, "PARAM_VALUE", 3.0) is not None
+            assert wait_for(gcs, "PARAM_VALUE", 1.0) is None, "the GCS got the API's parameter list"
+            # Telemetry, heartbeats and events stay on both links.
+            for c in (gcs, api):
+                assert wait_for(c, "HEARTBEAT", 3.0, lambda m: m.get_srcComponent() == 1) is not None
+                assert wait_for(c, "ATTITUDE", 3.0) is not None
+            assert _command(api, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_GRAB) == M.MAV_RESULT_ACCEPTED
+            for c in (gcs, api):
+                assert wait_for(c, "STATUSTEXT", 3.0, lambda m: m.text == "Gripper: grab") is not None
+        finally:
+            gcs.close()
+            api.close()

@@ -107,6 +107,31 @@ def test_list_restarts_on_new_request_and_ignores_other_targets(mavs) -> None:
     assert proto.list_remaining == len(reg)
 
 
+def test_list_downloads_are_routed_to_their_requester(mavs) -> None:
+    """Each PARAM_REQUEST_LIST's PARAM_VALUEs are tagged with that request's source (the shell sends them
+    only there); two requesters each get every index once, and a restart only restarts its own list."""
+    reg = ParamRegistry.from_defaults(stability_check=_floor)
+    proto = ParamProtocol(reg, mavs[0], rate_per_s=1000.0, burst=7)
+    req = wire(mavs[1].param_request_list_encode(1, 1), mavs[1], mavs[0])
+    proto.handle(req, 0.0, source="api")
+    proto.handle(req, 0.0, source="gcs")
+    got: dict[str, list[int]] = {"api": [], "gcs": []}
+    first = proto.poll_routed(0.0)
+    assert {s for s, _ in first} == {"api"} and len(first) == 7
+    got["api"] += [m.param_index for _, m in first]
+    proto.handle(req, 0.0, source="gcs")  # the GCS retries: its list restarts, the API's carries on
+    t = 0.0
+    while proto.list_remaining:
+        t += 0.01
+        for source, m in proto.poll_routed(t):
+            got[source].append(m.param_index)
+        assert t < 10.0
+    assert got["api"] == list(range(len(reg))) and got["gcs"] == list(range(len(reg)))
+    # Without a source (an in-process caller) the download is untagged.
+    proto.handle(req, 0.0)
+    assert {s for s, _ in proto.poll_routed(20.0)} == {None}
+
+
 # --- read ----------------------------------------------------------------------------------------------
 def test_read_by_name_and_by_index(mavs) -> None:
     proto, reg = make(mavs)
