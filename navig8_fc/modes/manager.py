@@ -193,6 +193,8 @@ class ModeManager:
         # Mission clock: mission time = t_s - _mission_t0_s while in MISSION; _mission_elapsed_s when paused.
         self._mission_t0_s: float | None = script.start_t_s if air_start and script else None
         self._mission_elapsed_s = 0.0
+        # Faults the shell reports from outside the step (wall-clock watchdogs, link checks): name -> reason.
+        self._faults: dict[str, str] = {}
 
     # --- read access ---------------------------------------------------------------------------------
     @property
@@ -235,11 +237,35 @@ class ModeManager:
     def last_output(self) -> ModeOutput | None:
         return self._last_output
 
+    @property
+    def faults(self) -> dict[str, str]:
+        """The shell-reported faults now set (name -> reason); a copy."""
+        return dict(self._faults)
+
+    def set_fault(self, name: str, reason: str) -> None:
+        """A fault found outside the step (e.g. no sensor bundles for FS_SENS_TOUT, a control-rate mismatch):
+        pre-arm fails with `reason`, takeoff is refused and an armed vehicle reports MAV_STATE_CRITICAL until
+        `clear_fault(name)`. The flight itself is not changed (the shell decides on failsafe actions)."""
+        self._faults[name] = reason
+
+    def clear_fault(self, name: str) -> bool:
+        """Clear a fault; True when it was set."""
+        return self._faults.pop(name, None) is not None
+
+    @property
+    def system_status(self) -> int:
+        """MAV_STATE now, including faults set since the last step (HEARTBEAT reads this, not the last step's)."""
+        if self._last is None:
+            return _STANDBY
+        return self._system_status(self._last)
+
     def prearm_check(self) -> Verdict:
         """Would `arm()` pass its checks now? (Also drives SYS_STATUS's PREARM_CHECK health bit.)"""
         inp = self._last
         if inp is None:
             return Verdict(False, "no sensor data yet")
+        if self._faults:
+            return Verdict(False, next(iter(self._faults.values())))
         if not inp.sensors_ok:
             return Verdict(False, "sensors not ready (missing or stale data)")
         if not inp.estimator_ready:
@@ -283,6 +309,8 @@ class ModeManager:
             return Verdict(False, f"Takeoff denied: altitude {alt:g} m outside (0, {self._cfg.takeoff_max_alt_m:g}]")
         if self._last is not None and not self._last.sensors_ok:
             return Verdict(False, "Takeoff denied: sensors not ready")
+        if self._faults:
+            return Verdict(False, f"Takeoff denied: {next(iter(self._faults.values()))}")
         self._takeoff_alt_m = alt
         if self._mode is FlightMode.TAKEOFF and not self._entry_pending:
             self._target_z = self._home_z() - alt  # retarget; the ramp carries on from where it is
@@ -531,7 +559,7 @@ class ModeManager:
         """MAV_STATE (as a plain int, the way ModeOutput carries it)."""
         if not self._armed:
             return _STANDBY
-        return _ACTIVE if inp.sensors_ok else _CRITICAL
+        return _ACTIVE if inp.sensors_ok and not self._faults else _CRITICAL
 
 
 _isfinite = math.isfinite

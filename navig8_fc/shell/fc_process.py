@@ -51,6 +51,8 @@ FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
 WALL_TICK_S = 0.001  # GCS services (telemetry schedule, paced parameter list) run at most this often
 ESTIMATOR_WARMUP_S = 0.5  # 5 time constants of the INDI feedback filter before arming is allowed
+SEVERITY_CRITICAL, SEVERITY_ERROR, SEVERITY_WARNING, SEVERITY_INFO = 2, 3, 4, 6  # MAV_SEVERITY
+FAULT_SENSORS = "sensors"  # ModeManager fault names
 
 
 @dataclass(frozen=True)
@@ -117,7 +119,8 @@ class FlightControllerProcess:
         self.n_ticks = 0
         self.n_duplicates = 0
         self.last_bundle_wall = time.monotonic()
-        self._stall_reported = False
+        self._stall_reported = False  # the current sensor outage has been reported (cleared when data is back)
+        self._stall_since_wall = 0.0
         self.sim_done = False
         self.last_status: ControllerStatus | None = None
         self.last_cmd: ActuatorCommand = MOTORS_OFF
@@ -212,7 +215,6 @@ class FlightControllerProcess:
 
     def _on_step(self, b: seam.StepBundle) -> None:
         self.last_bundle_wall = time.monotonic()
-        self._stall_reported = False
         t_us = int(b.time_usec)
         if t_us == self._last_step_time_us and self._last_answer is not None:
             self.n_duplicates += 1  # a re-sent bundle: answer with the same command, do not re-run control
@@ -363,14 +365,19 @@ class FlightControllerProcess:
 
     def _check_timeouts(self, now: float) -> None:
         """Wall-clock watchdogs (lockstep has no sim time without bundles):
-        - FS_SENS_TOUT: the bridge went silent -> reported by name once (the vehicle cannot be commanded
-          without bundles; in lockstep the plant waits too);
+        - FS_SENS_TOUT: the bridge went silent -> STATUSTEXT (CRITICAL) naming navig8-bridge once per outage and
+          a /fc/event; pre-arm fails (arming DENIED with that reason), an armed vehicle reports
+          MAV_STATE_CRITICAL, SYS_STATUS drops the sensor and PREARM_CHECK health bits (Telemetry.snapshot);
+          all of it clears, with a STATUSTEXT, when bundles arrive again. The vehicle cannot be commanded
+          without bundles; in lockstep the plant waits too;
         - FS_GCS_TOUT: a GCS that sent heartbeats stops while the vehicle is armed in a GCS-commanded mode
           (not a scripted mission) -> land, as PX4's data-link-loss failsafe can."""
-        if self.n_ticks > 0 and now - self.last_bundle_wall > self.sensor_timeout_s and not self._stall_reported:
-            self._stall_reported = True
-            self.log_event(f"no sensor bundle from navig8-bridge for {self.sensor_timeout_s:.1f} s "
-                           f"(last step t = {self._sim_ns() * 1e-9:.3f} s); waiting")
+        if self.n_ticks > 0:
+            if now - self.last_bundle_wall > self.sensor_timeout_s:
+                if not self._stall_reported:
+                    self._sensors_lost()
+            elif self._stall_reported:
+                self._sensors_back()
         g = self.gcs_service
         if (g.last_gcs_heartbeat is not None and now - g.last_gcs_heartbeat > float(self.registry["FS_GCS_TOUT"])
                 and not g.gcs_lost):
@@ -381,6 +388,21 @@ class FlightControllerProcess:
                 self.statustext("GCS link lost: landing", severity=4)
             else:
                 self.log_event("GCS link lost")
+
+    def _sensors_lost(self) -> None:
+        self._stall_reported = True
+        self._stall_since_wall = self.last_bundle_wall
+        text = f"no sensor data from navig8-bridge for {self.sensor_timeout_s:.1f} s"
+        self.modes.set_fault(FAULT_SENSORS, f"sensors stale: {text}")
+        self.statustext(text.capitalize(), severity=SEVERITY_CRITICAL)
+        self.log_event(f"{text} (last step t = {self._sim_ns() * 1e-9:.3f} s); waiting")
+
+    def _sensors_back(self) -> None:
+        self._stall_reported = False
+        self.modes.clear_fault(FAULT_SENSORS)
+        text = f"sensor data from navig8-bridge back after {self.last_bundle_wall - self._stall_since_wall:.1f} s"
+        self.statustext(text.capitalize(), severity=SEVERITY_INFO)
+        self.log_event(text)
 
     # --- GCS side --------------------------------------------------------------------------------
     def on_gcs(self, link: UdpLink, received: list[Any]) -> None:

@@ -234,7 +234,7 @@ class Telemetry:
             armed=armed,
             base_mode=mo.base_mode if mo else (modes.base_mode if modes else 1),
             custom_mode=mo.custom_mode if mo else (modes.custom_mode if modes else 0),
-            system_status=mo.system_status if mo else 3,
+            system_status=modes.system_status if modes is not None else 3,  # now, with faults since the step
             landed_state=mo.landed_state if mo else 0,
             pos_ned=s.pos_ned if s else zero3,
             vel_ned=s.vel_ned if s else zero3,

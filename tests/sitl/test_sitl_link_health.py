@@ -13,7 +13,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from sitl_helpers import free_udp_ports, gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.shell import fc_process as fp
-from navig8_fc.shell.mcap_log import read_mcap_records
+from navig8_fc.shell.mcap_log import read_mcap, read_mcap_records
 
 M = mavlink2
 SENSOR_BITS = M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL | M.MAV_SYS_STATUS_SENSOR_GPS
@@ -52,6 +52,17 @@ def _sys_status(conn: Any, cond, timeout_s: float) -> Any:
     return wait_for(conn, "SYS_STATUS", timeout_s, cond)
 
 
+def _full_text(conn: Any, first: Any) -> str:
+    """The whole text of a STATUSTEXT that may be chunked (id != 0: chunks until one shorter than 50)."""
+    assert first is not None, "no STATUSTEXT"
+    text, m = first.text, first
+    while first.id and len(m.text) == 50:
+        m = wait_for(conn, "STATUSTEXT", 2.0, lambda x: x.id == first.id)
+        assert m is not None, f"missing chunk of {text!r}"
+        text += m.text
+    return text
+
+
 def test_statustext_log_publish_time_is_wall_clock(tmp_path: Path) -> None:
     log = tmp_path / "fc.mcap"
     fc = _fc_in_process(tmp_path, log)
@@ -64,6 +75,75 @@ def test_statustext_log_publish_time_is_wall_clock(tmp_path: Path) -> None:
     recs = [(t, pub, d) for topic, t, pub, d in read_mcap_records(log, ["/fc/statustext"])]
     assert len(recs) == 1 and recs[0][2]["text"] == "hello from the test"
     assert t0 <= recs[0][1] <= t1, "publish_time must be the writer's wall clock (docs/logs.md)"
+
+
+def test_stalled_bridge_is_reported_and_blocks_arming(tmp_path: Path) -> None:
+    with sitl(tmp_path, scenario="ground", speed=1.0) as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            wait_heartbeat(gcs, 15.0)
+            _set_param(gcs, "FS_SENS_TOUT", 0.3)
+            ok = _sys_status(gcs, lambda m: m.onboard_control_sensors_health & PREARM, 15.0)
+            assert ok is not None and ok.onboard_control_sensors_health & SENSOR_BITS == SENSOR_BITS
+            # The bridge dies: the FC must say so, drop the health and pre-arm bits and refuse to arm.
+            assert run.bridge is not None
+            run.bridge.kill()
+            run.bridge.wait(timeout=10.0)
+            st = _texts_until(gcs, lambda t: "navig8-bridge" in t and "no sensor data" in t.lower(), 5.0)
+            assert st is not None, "no STATUSTEXT about the silent bridge"
+            assert st.severity <= M.MAV_SEVERITY_ERROR
+            bad = _sys_status(gcs, lambda m: not m.onboard_control_sensors_health & PREARM, 5.0)
+            assert bad is not None, "PREARM_CHECK stays healthy without sensor data"
+            assert bad.onboard_control_sensors_health & SENSOR_BITS == 0
+            assert bad.onboard_control_sensors_present & (SENSOR_BITS | PREARM) == SENSOR_BITS | PREARM
+            assert _command(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_DENIED
+            why = _full_text(gcs, _texts_until(gcs, lambda t: t.startswith("Arming denied"), 3.0))
+            assert "navig8-bridge" in why, why
+            hb = wait_for(gcs, "HEARTBEAT", 3.0, lambda m: m.get_srcComponent() == 1)
+            assert hb is not None and not hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
+            assert hb.system_status == M.MAV_STATE_STANDBY
+            # Exactly one report per outage.
+            again = _texts_until(gcs, lambda t: "no sensor data" in t.lower(), 1.5)
+            assert again is None, "the outage was reported more than once"
+        finally:
+            gcs.close()
+        run.stop()
+    events = [d["text"] for _, _, d in read_mcap(run.log, ["/fc/event"])]
+    assert any("navig8-bridge" in e for e in events), events
+
+
+def test_bridge_back_after_a_stall_restores_health(tmp_path: Path) -> None:
+    # A stopped (SIGSTOP) bridge stalls the lockstep; SIGCONT resumes it: health must come back.
+    import signal
+
+    with sitl(tmp_path, scenario="ground", speed=1.0) as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            wait_heartbeat(gcs, 15.0)
+            _set_param(gcs, "FS_SENS_TOUT", 0.3)
+            assert _sys_status(gcs, lambda m: m.onboard_control_sensors_health & PREARM, 15.0) is not None
+            assert _command(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+            assert run.bridge is not None
+            run.bridge.send_signal(signal.SIGSTOP)
+            try:
+                assert _texts_until(gcs, lambda t: "no sensor data" in t.lower(), 5.0) is not None
+                assert _sys_status(gcs, lambda m: not m.onboard_control_sensors_health & PREARM, 5.0) is not None
+                hb = wait_for(gcs, "HEARTBEAT", 3.0, lambda m: m.get_srcComponent() == 1)
+                assert hb is not None and hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
+                assert hb.system_status == M.MAV_STATE_CRITICAL, "armed without sensor data must be CRITICAL"
+            finally:
+                run.bridge.send_signal(signal.SIGCONT)
+            back = _texts_until(gcs, lambda t: "navig8-bridge" in t and "back" in t, 10.0)
+            assert back is not None, "no STATUSTEXT when sensor data resumed"
+            good = _sys_status(gcs, lambda m: m.onboard_control_sensors_health & (SENSOR_BITS | PREARM)
+                               == SENSOR_BITS | PREARM, 10.0)
+            assert good is not None, "health did not come back with the bundles"
+            hb = wait_for(gcs, "HEARTBEAT", 3.0, lambda m: m.get_srcComponent() == 1)
+            assert hb is not None and hb.system_status == M.MAV_STATE_ACTIVE
+            assert _command(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 0) == M.MAV_RESULT_ACCEPTED
+            assert _command(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+        finally:
+            gcs.close()
 
 
 def test_replies_go_to_the_link_that_asked(tmp_path: Path) -> None:

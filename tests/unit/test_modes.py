@@ -111,6 +111,30 @@ def test_arm_denied_without_data_and_on_failed_prearm_checks() -> None:
     assert mm.prearm_check().ok is False
 
 
+def test_shell_faults_fail_prearm_and_make_an_armed_vehicle_critical_between_steps() -> None:
+    """A fault the shell finds on the wall clock (no bundles: no steps) acts at once, without a step."""
+    mm = ModeManager()
+    body = PointMass()
+    mm.step(body.inputs(0.0))
+    assert mm.prearm_check().ok and mm.system_status == MavState.STANDBY
+    mm.set_fault("sensors", "no sensor data from navig8-bridge for 0.5 s")
+    check = mm.prearm_check()
+    assert not check.ok and "navig8-bridge" in check.reason
+    ok, reason = mm.arm()
+    assert not ok and reason == "Arming denied: no sensor data from navig8-bridge for 0.5 s" and not mm.armed
+    assert mm.system_status == MavState.STANDBY  # disarmed: standby, but not armable
+    assert mm.clear_fault("sensors") and not mm.clear_fault("sensors")
+    assert mm.arm().ok and mm.system_status == MavState.ACTIVE
+    mm.set_fault("rate", "control rate mismatch")
+    assert mm.system_status == MavState.CRITICAL  # armed with a fault, before any further step
+    assert mm.step(body.inputs(0.01)).system_status == MavState.CRITICAL
+    ok, reason = mm.takeoff(2.0)
+    assert not ok and "control rate mismatch" in reason
+    assert mm.faults == {"rate": "control rate mismatch"}
+    mm.clear_fault("rate")
+    assert mm.system_status == MavState.ACTIVE and mm.step(body.inputs(0.02)).system_status == MavState.ACTIVE
+
+
 def test_arm_denied_when_not_on_ground_unless_forced() -> None:
     mm = ModeManager()
     body = PointMass(pos=(0.0, 0.0, -3.0))
