@@ -51,8 +51,10 @@ FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
 WALL_TICK_S = 0.001  # GCS services (telemetry schedule, paced parameter list) run at most this often
 ESTIMATOR_WARMUP_S = 0.5  # 5 time constants of the INDI feedback filter before arming is allowed
+RATE_MISMATCH_STEPS = 3  # consecutive bundle spacings != 1/INDI_RATE_HZ before it is reported (not a glitch)
 SEVERITY_CRITICAL, SEVERITY_ERROR, SEVERITY_WARNING, SEVERITY_INFO = 2, 3, 4, 6  # MAV_SEVERITY
 FAULT_SENSORS = "sensors"  # ModeManager fault names
+FAULT_RATE = "rate"
 
 
 @dataclass(frozen=True)
@@ -121,6 +123,7 @@ class FlightControllerProcess:
         self.last_bundle_wall = time.monotonic()
         self._stall_reported = False  # the current sensor outage has been reported (cleared when data is back)
         self._stall_since_wall = 0.0
+        self._dt_bad_n = 0  # consecutive bundle spacings that disagree with 1/INDI_RATE_HZ
         self.sim_done = False
         self.last_status: ControllerStatus | None = None
         self.last_cmd: ActuatorCommand = MOTORS_OFF
@@ -166,6 +169,8 @@ class FlightControllerProcess:
         else:
             self.core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
         self._cfg_generation = self.registry.generation
+        step_us = 1e6 / float(self.registry["INDI_RATE_HZ"])  # the bundle spacing this rate needs
+        self._dt_lo_us, self._dt_hi_us = math.floor(step_us), math.ceil(step_us)
         self.lambda_crit = stability.lambda_crit(float(self.registry["ACT_WN"]), float(self.registry["ACT_ZETA"]),
                                                  cfg.dt_s, float(self.registry["INDI_LPF_TAU"]))
 
@@ -216,12 +221,17 @@ class FlightControllerProcess:
     def _on_step(self, b: seam.StepBundle) -> None:
         self.last_bundle_wall = time.monotonic()
         t_us = int(b.time_usec)
-        if t_us == self._last_step_time_us and self._last_answer is not None:
+        prev_us = self._last_step_time_us
+        if t_us == prev_us and self._last_answer is not None:
             self.n_duplicates += 1  # a re-sent bundle: answer with the same command, do not re-run control
             self.sim.send_raw(self._last_answer)
             return
         self._last_step_time_us = t_us
         self._reconfigure()
+        if prev_us is not None and not self._dt_lo_us <= t_us - prev_us <= self._dt_hi_us:
+            self._step_spacing_off(t_us - prev_us)  # rare: the bridge's --dt disagrees with INDI_RATE_HZ
+        elif self._dt_bad_n:
+            self._step_spacing_ok()
         sensors = b.fc_sensors()
         armed, engaged, sp = self.flight_state(sensors, imu_fresh=b.imu_fresh)
         assert self.core is not None
@@ -271,6 +281,35 @@ class FlightControllerProcess:
         for ev in out.events:
             self.statustext(ev, severity=6)
         return out.armed, out.engaged, out.setpoint
+
+    def _step_spacing_off(self, d_us: int) -> None:
+        """A bundle spacing that is not 1/INDI_RATE_HZ: the controller would run with the wrong timing (its
+        filters, the rate limits and the stability analysis all use 1/INDI_RATE_HZ). After RATE_MISMATCH_STEPS
+        in a row: report once (STATUSTEXT, /fc/event) and fail pre-arm until the spacings agree again."""
+        if d_us <= 0:  # time went back: a restarted bridge (a new run, not a spacing)
+            self._dt_bad_n = 0
+            return
+        self._dt_bad_n += 1
+        if self._dt_bad_n != RATE_MISMATCH_STEPS:
+            return
+        rate = int(self.registry["INDI_RATE_HZ"])
+        bridge_ms, need_ms = d_us * 1e-3, 1e3 / rate
+        fix = f"navig8-bridge --dt {1.0 / rate:g}"
+        if 1_000_000 % d_us == 0 and 20 <= 1_000_000 // d_us <= 1000:
+            fix += f" or restore INDI_RATE_HZ {1_000_000 // d_us}"
+        text = (f"Control rate mismatch: navig8-bridge steps {bridge_ms:g} ms, INDI_RATE_HZ {rate} needs "
+                f"{need_ms:g} ms; fix: {fix}")
+        self.modes.set_fault(FAULT_RATE, f"control rate mismatch (bridge {bridge_ms:g} ms, INDI_RATE_HZ {rate}"
+                                         f" needs {need_ms:g} ms)")
+        self.statustext(text, severity=SEVERITY_ERROR)
+        self.log_event(text)
+
+    def _step_spacing_ok(self) -> None:
+        if self._dt_bad_n >= RATE_MISMATCH_STEPS and self.modes.clear_fault(FAULT_RATE):
+            text = f"Control rate matches navig8-bridge again ({1e3 / float(self.registry['INDI_RATE_HZ']):g} ms)"
+            self.statustext(text, severity=SEVERITY_INFO)
+            self.log_event(text)
+        self._dt_bad_n = 0
 
     def statustext(self, text: str, severity: int = 6) -> None:
         """STATUSTEXT to every GCS (and the log keeps it)."""

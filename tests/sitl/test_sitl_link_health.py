@@ -146,6 +146,38 @@ def test_bridge_back_after_a_stall_restores_health(tmp_path: Path) -> None:
             gcs.close()
 
 
+def test_indi_rate_that_disagrees_with_the_bridge_is_reported(tmp_path: Path) -> None:
+    with sitl(tmp_path, scenario="ground", speed=1.0) as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            wait_heartbeat(gcs, 15.0)
+            assert _sys_status(gcs, lambda m: m.onboard_control_sensors_health & PREARM, 15.0) is not None
+            # The bridge steps 10 ms (--dt 0.01); 200 Hz needs 5 ms.
+            _set_param(gcs, "INDI_RATE_HZ", 200.0)
+            st = _texts_until(gcs, lambda t: "rate mismatch" in t, 5.0)
+            assert st is not None, "no STATUSTEXT about the rate mismatch"
+            assert st.severity <= M.MAV_SEVERITY_ERROR
+            full = _full_text(gcs, st)
+            assert "10 ms" in full and "INDI_RATE_HZ 200" in full and "5 ms" in full, full
+            assert "navig8-bridge --dt 0.005" in full and "INDI_RATE_HZ 100" in full, full
+            bad = _sys_status(gcs, lambda m: not m.onboard_control_sensors_health & PREARM, 5.0)
+            assert bad is not None, "pre-arm must fail on a rate mismatch"
+            assert _command(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_DENIED
+            why = _full_text(gcs, _texts_until(gcs, lambda t: t.startswith("Arming denied"), 3.0))
+            assert "rate mismatch" in why and "INDI_RATE_HZ 200" in why, why
+            again = _texts_until(gcs, lambda t: "rate mismatch" in t, 1.0)
+            assert again is None, "the mismatch was reported more than once"
+            # Restoring the rate clears it.
+            _set_param(gcs, "INDI_RATE_HZ", 100.0)
+            good = _sys_status(gcs, lambda m: m.onboard_control_sensors_health & PREARM, 5.0)
+            assert good is not None, "pre-arm stays failed after INDI_RATE_HZ was restored"
+        finally:
+            gcs.close()
+        run.stop()
+    events = [d["text"] for _, _, d in read_mcap(run.log, ["/fc/event"])]
+    assert any("INDI_RATE_HZ" in e for e in events), events
+
+
 def test_replies_go_to_the_link_that_asked(tmp_path: Path) -> None:
     with sitl(tmp_path, scenario="ground", speed=1.0) as run:
         gcs = gcs_client(run.gcs_port, source_system=255)
