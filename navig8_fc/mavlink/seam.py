@@ -763,8 +763,10 @@ class TruthFields:
 _BUNDLE_ORDER = ("ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH", "HIL_SENSOR")
 
 
-def decode_step_datagram(data: bytes) -> tuple[StepBundle, int] | None:
-    """(StepBundle, number of frames) of a clean step datagram as encode_bundle writes it, or None.
+def decode_step_datagram(data: bytes) -> tuple[StepBundle, int, dict[str, dict[str, Any]]] | None:
+    """(StepBundle, number of frames, {message name: fields}) of a clean step datagram as encode_bundle writes
+    it, or None. The fields are each message's as MAVLink.decode sets them (arrays as lists): the log's
+    decoded /mavlink/sim/in/<NAME> channels.
 
     Clean: only whole, unsigned MAVLink 2 frames with valid CRCs, in the bridge's order (ODOMETRY,
     NAVIG8_ACTUATOR_STATE, NAVIG8_ARM_STATE, NAVIG8_TRUTH optional, HIL_SENSOR), all with the same time_usec.
@@ -824,4 +826,9 @@ def decode_step_datagram(data: bytes) -> tuple[StepBundle, int] | None:
         gripper_closed=bool(arm["gripper_closed"]),
         truth=TruthFields(truth) if truth is not None else None,
     )
-    return bundle, len(fields)
+    return bundle, len(fields), fields
+
+
+def wire_class(name: str) -> Any:
+    """The generated pymavlink class of a seam message (for its JSON schema in the log)."""
+    return (_codecs_by_name.get(name) or _codec(name)).cls

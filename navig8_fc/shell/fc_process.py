@@ -94,6 +94,12 @@ def _eig_record(model: vm.UamModel, st: ControllerStatus, truth: Any, lam_min: f
                                    st.gc_uam)
 
 
+def _decode_step(data: bytes) -> tuple[tuple[seam.StepBundle, dict[str, dict[str, Any]]], int] | None:
+    """UdpLink.datagram_decoder of the sim link: ((bundle, decoded fields per message), frame count)."""
+    got = seam.decode_step_datagram(data)
+    return None if got is None else ((got[0], got[2]), got[1])
+
+
 class FlightControllerProcess:
     """Sockets + lockstep tick + GCS services around the pure controller core."""
 
@@ -146,7 +152,7 @@ class FlightControllerProcess:
         o = self.opts
         self.sim = UdpLink.open("sim", self._mav(), (o.host, o.port("sim")), [(o.host, o.port("bridge"))])
         self.sim.fast_decode = seam.fast_decode  # the lockstep messages skip pymavlink (anything else falls back)
-        self.sim.datagram_decoder = seam.decode_step_datagram  # a clean step datagram straight to a StepBundle
+        self.sim.datagram_decoder = _decode_step  # a clean step datagram straight to a StepBundle
         self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
         self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
         for link in (self.sim, self.gcs, self.api):
@@ -205,9 +211,9 @@ class FlightControllerProcess:
     def _on_sim(self, received: list[Any]) -> None:
         for r in received:
             m = r.msg
-            if type(m) is seam.StepBundle:  # a whole step datagram (UdpLink.datagram_decoder)
+            if type(m) is tuple:  # a whole step datagram (UdpLink.datagram_decoder): (bundle, fields)
                 self._asm.clear()
-                self._on_step(m)
+                self._on_step(m[0], m[1])
                 continue
             if m.get_type() == "NAVIG8_SIM_STATUS":
                 self.sim_status = seam.decode_sim_status(m)
@@ -218,7 +224,9 @@ class FlightControllerProcess:
             if bundle is not None:
                 self._on_step(bundle)
 
-    def _on_step(self, b: seam.StepBundle) -> None:
+    def _on_step(self, b: seam.StepBundle, wire: dict[str, dict[str, Any]] | None = None) -> None:
+        """One lockstep step: control, answer, and queue the step's log records (written after the answer).
+        wire: the bundle's messages decoded (field dicts), for the /mavlink/sim/in/<NAME> channels."""
         self.last_bundle_wall = time.monotonic()
         t_us = int(b.time_usec)
         prev_us = self._last_step_time_us
@@ -247,7 +255,7 @@ class FlightControllerProcess:
         self.sim.send_raw(out)
         self.n_ticks += 1
         if self.logger:
-            self._pending_tick = (t_us, b.truth, st, cmd, sp)
+            self._pending_tick = (t_us, b.truth, st, cmd, sp, wire, out)
 
     def _mode_manager(self) -> ModeManager:
         sc = self._scenario
@@ -318,10 +326,21 @@ class FlightControllerProcess:
             self.logger.log("/fc/statustext", self._sim_ns(), {"severity": severity, "text": text},
                             publish_ns=time.time_ns())
 
-    def _log_tick(self, t_us: int, tr: Any, st: ControllerStatus, cmd: ActuatorCommand, sp: Setpoint) -> None:
+    def _log_tick(self, t_us: int, tr: Any, st: ControllerStatus, cmd: ActuatorCommand, sp: Setpoint,
+                  wire: dict[str, dict[str, Any]] | None = None, answer: bytes | None = None) -> None:
         assert self.logger is not None
         t_ns = seam.sim_us_from_time_usec(t_us) * 1000
         w = time.time_ns()
+        log = self.logger.log
+        # The sim link decoded, as the GCS links are: the FC's raw sensor inputs and its answer, plottable.
+        for name, fields in (wire or {}).items():
+            log(f"/mavlink/sim/in/{name}", t_ns, {"mavpackettype": name, **fields}, publish_ns=w,
+                schema=mavlink_json_schema(seam.wire_class(name)))
+        if answer is not None:
+            m = seam.fast_decode(answer)
+            if m is not None:
+                log("/mavlink/sim/out/HIL_ACTUATOR_CONTROLS", t_ns, m.to_dict(), publish_ns=w,
+                    schema=mavlink_json_schema(type(m)))
         if tr is not None:
             self.logger.log("/truth", t_ns, seam.truth_record(tr), publish_ns=w)
             self.logger.log("/analysis/eig", t_ns, _eig_record(self.model, st, tr,

@@ -59,3 +59,35 @@ def test_navig8_plot_draws_the_figures_from_the_sitl_log(sitl_summary: dict, tmp
     pngs = sorted(out.glob("fig1[0-6]_*.png"))
     assert [f.name[:5] for f in pngs] == [f"fig1{k}" for k in range(7)], pngs
     assert all(f.stat().st_size > 20_000 for f in pngs)
+
+
+def test_the_sim_link_is_logged_decoded_as_well_as_raw(sitl_summary: dict) -> None:
+    # Every step's bundle and answer also on /mavlink/sim/<dir>/<NAME> (JSON, schema from the definition):
+    # the same values pymavlink decodes from the raw datagrams logged beside them.
+    from mcap.reader import make_reader
+    from pymavlink.dialects.v20 import common as mavlink2
+
+    from navig8_fc.mavlink import dialect
+    from navig8_fc.shell.mavlink_link import split_frames
+    from navig8_fc.shell.mcap_log import read_mcap
+
+    log = sitl_summary["log"]
+    with open(log, "rb") as fh:
+        summary = make_reader(fh).get_summary()
+    counts = {summary.channels[cid].topic: n for cid, n in summary.statistics.channel_message_counts.items()}
+    for name in ("ODOMETRY", "HIL_SENSOR", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH"):
+        assert counts.get(f"/mavlink/sim/in/{name}", 0) >= 3000, name
+    assert counts.get("/mavlink/sim/out/HIL_ACTUATOR_CONTROLS", 0) >= 3000
+    schemas = {s.name: s for s in summary.schemas.values()}
+    assert b'"xacc"' in schemas["mavlink.sim.in.HIL_SENSOR"].data
+    mav = dialect.load().MAVLink(None)
+    raw_hil = {}  # HIL_SENSOR of every raw bundle, by its time_usec
+    for _, _, data in read_mcap(log, ["/mavlink/sim/in"]):
+        for m in (mav.decode(bytearray(f)) for f in split_frames(data)[0]):
+            if m.get_msgId() == mavlink2.MAVLINK_MSG_ID_HIL_SENSOR:
+                raw_hil[m.time_usec] = m.to_dict()
+    checked = 0
+    for _, _, rec in read_mcap(log, ["/mavlink/sim/in/HIL_SENSOR"]):
+        assert rec["mavpackettype"] == "HIL_SENSOR" and rec == raw_hil[rec["time_usec"]]
+        checked += 1
+    assert checked >= 3000

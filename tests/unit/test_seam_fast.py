@@ -210,8 +210,13 @@ def test_decode_step_datagram_equals_the_frame_by_frame_path(d) -> None:
         got = seam.decode_step_datagram(data)
         want = _assembled(d, data)
         assert got is not None and want is not None
-        bundle, n_frames = got
-        assert n_frames == (5 if truth is not None else 4)
+        bundle, n_frames, fields = got
+        assert n_frames == (5 if truth is not None else 4) == len(fields)
+        for m in (d.MAVLink(None).decode(bytearray(fr)) for fr in split_frames(data)[0]):  # pymavlink's decode
+            want_fields = m.to_dict()
+            assert want_fields.pop("mavpackettype") == m.get_type()
+            assert _same(list(fields[m.get_type()].values()), list(want_fields.values()))
+            assert list(fields[m.get_type()]) == list(want_fields)
         assert _same(list(vars(replace(bundle, truth=None)).values()), list(vars(replace(want, truth=None)).values()))
         if truth is None:
             assert bundle.truth is None and want.truth is None
