@@ -829,6 +829,22 @@ def decode_step_datagram(data: bytes) -> tuple[StepBundle, int, dict[str, dict[s
     return bundle, len(fields), fields
 
 
+def frame_fields(frame: bytes) -> tuple[str, dict[str, Any]] | None:
+    """(message name, fields as MAVLink.decode sets them) of one clean MAVLink 2 frame of a seam message, or
+    None (another id, signed, bad length or CRC). The log's decoded form of the FC's answer, without building
+    the pymavlink object."""
+    n = len(frame)
+    if n < 12 or frame[0] != 253 or frame[2] != 0 or frame[1] + 12 != n:
+        return None
+    c = (_codecs or _codec_table()).get(frame[7] | (frame[8] << 8) | (frame[9] << 16))
+    if c is None or _crc16(frame[1:-2] + c.crc_extra_byte) != (frame[-2] | (frame[-1] << 8)):
+        return None
+    payload = frame[10:-2]
+    if len(payload) < c.size:
+        payload += bytes(c.size - len(payload))
+    return c.name, c.from_wire(c.struct.unpack(payload[: c.size]))
+
+
 def wire_class(name: str) -> Any:
     """The generated pymavlink class of a seam message (for its JSON schema in the log)."""
     return (_codecs_by_name.get(name) or _codec(name)).cls

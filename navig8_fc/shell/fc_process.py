@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import orjson
 
 from navig8_fc.core import stability
 from navig8_fc.core import vehicle as vm
@@ -112,6 +113,7 @@ class FlightControllerProcess:
         self.logger = McapLogger(opts.log_path) if opts.log_path else None
         self._frame_queue: list[tuple[str, str, bytes, Any, int, int]] = []
         self._pending_tick: tuple[Any, ...] | None = None
+        self._sim_channels: dict[tuple[str, str], int] = {}
         self._spin_until = 0.0
         self._mk_links()
         self._cfg_generation = -1
@@ -326,21 +328,32 @@ class FlightControllerProcess:
             self.logger.log("/fc/statustext", self._sim_ns(), {"severity": severity, "text": text},
                             publish_ns=time.time_ns())
 
+    def _sim_channel(self, direction: str, name: str) -> int:
+        """The decoded /mavlink/sim/<direction>/<NAME> channel (schema from the message definition)."""
+        cid = self._sim_channels.get((direction, name))
+        if cid is None:
+            assert self.logger is not None
+            cid = self._sim_channels[(direction, name)] = self.logger.json_channel(
+                f"/mavlink/sim/{direction}/{name}", mavlink_json_schema(seam.wire_class(name)))
+        return cid
+
     def _log_tick(self, t_us: int, tr: Any, st: ControllerStatus, cmd: ActuatorCommand, sp: Setpoint,
                   wire: dict[str, dict[str, Any]] | None = None, answer: bytes | None = None) -> None:
         assert self.logger is not None
         t_ns = seam.sim_us_from_time_usec(t_us) * 1000
         w = time.time_ns()
-        log = self.logger.log
         # The sim link decoded, as the GCS links are: the FC's raw sensor inputs and its answer, plottable.
-        for name, fields in (wire or {}).items():
-            log(f"/mavlink/sim/in/{name}", t_ns, {"mavpackettype": name, **fields}, publish_ns=w,
-                schema=mavlink_json_schema(seam.wire_class(name)))
+        # NAVIG8_TRUTH's decoded form is /truth. Lean path: channel ids cached, orjson straight to the writer.
+        if wire:
+            for name, fields in wire.items():
+                if name != "NAVIG8_TRUTH":
+                    fields["mavpackettype"] = name
+                    self.logger.log_json_bytes(self._sim_channel("in", name), t_ns, orjson.dumps(fields), w)
         if answer is not None:
-            m = seam.fast_decode(answer)
-            if m is not None:
-                log("/mavlink/sim/out/HIL_ACTUATOR_CONTROLS", t_ns, m.to_dict(), publish_ns=w,
-                    schema=mavlink_json_schema(type(m)))
+            got = seam.frame_fields(answer)
+            if got is not None:
+                got[1]["mavpackettype"] = got[0]
+                self.logger.log_json_bytes(self._sim_channel("out", got[0]), t_ns, orjson.dumps(got[1]), w)
         if tr is not None:
             self.logger.log("/truth", t_ns, seam.truth_record(tr), publish_ns=w)
             self.logger.log("/analysis/eig", t_ns, _eig_record(self.model, st, tr,

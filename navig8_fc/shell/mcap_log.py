@@ -164,6 +164,15 @@ class McapLogger:
             cid = self.channel(topic, to_jsonable(obj), schema=schema)
         self._w.add_message(cid, int(t_ns), dumps_json(obj), int(t_ns if publish_ns is None else publish_ns))
 
+    def json_channel(self, topic: str, schema: dict[str, Any]) -> int:
+        """The id of a JSON channel with this schema (registered on first use), for log_json_bytes."""
+        cid = self._channels.get(topic)
+        return cid if cid is not None else self.channel(topic, None, schema=schema)
+
+    def log_json_bytes(self, channel_id: int, t_ns: int, data: bytes, publish_ns: int) -> None:
+        """A record already serialised as JSON on a json_channel: the lean path for records logged every step."""
+        self._w.add_message(channel_id, t_ns, data, publish_ns)
+
     def log_raw(self, topic: str, t_ns: int, payload: bytes, publish_ns: int | None = None,
                 encoding: str = "application/octet-stream", peer: str = "") -> None:
         """Raw bytes on `topic`; `peer` (e.g. "127.0.0.1:14550") goes to the channel's metadata."""

@@ -248,3 +248,23 @@ def test_decode_step_datagram_declines_anything_but_a_clean_bundle(d) -> None:
     }
     for label, dgram in cases.items():
         assert seam.decode_step_datagram(dgram) is None, label
+
+
+def test_frame_fields_equals_pymavlink_decode_and_declines_bad_frames(d) -> None:
+    from navig8_fc.core.vehicle import VehicleConfig
+
+    veh = VehicleConfig.load()
+    rng = np.random.default_rng(4)
+    tx, mav = dialect.new_mav(2, 1), d.MAVLink(None)
+    for i in range(50):
+        cmd = SimpleNamespace(tilt_rad=rng.uniform(-1, 1, 2).tolist(), speed_rad_s=rng.uniform(-900, 900, 3).tolist())
+        frame = seam.pack_actuator_controls(tx, 1_700_000_000_000_000 + 10_000 * i, cmd, veh, armed=i % 2 == 0)
+        name, fields = seam.frame_fields(frame)
+        want = mav.decode(bytearray(frame)).to_dict()
+        assert name == want.pop("mavpackettype") == "HIL_ACTUATOR_CONTROLS"
+        assert _same(list(fields.values()), list(want.values())) and list(fields) == list(want)
+    bad = bytearray(frame)
+    bad[15] ^= 0x10
+    assert seam.frame_fields(bytes(bad)) is None
+    assert seam.frame_fields(frame[:-1]) is None
+    assert seam.frame_fields(b"") is None
