@@ -539,6 +539,25 @@ def fast_pack(mav: Any, name: str, args: Sequence[Any]) -> bytes:
     return fr
 
 
+def _frame_at(data: bytes, i: int) -> tuple[_MsgCodec, dict[str, Any], int] | None:
+    """(codec, fields as MAVLink.decode sets them, end offset) of the unsigned MAVLink 2 frame of a seam message
+    that starts at data[i] and lies wholly in data with a valid CRC; None otherwise. The one frame check of
+    fast_decode, frame_fields and decode_step_datagram."""
+    n = len(data)
+    if i + 12 > n or data[i] != 253 or data[i + 2] != 0:
+        return None
+    end = i + 12 + data[i + 1]
+    if end > n:
+        return None
+    c = (_codecs or _codec_table()).get(data[i + 7] | (data[i + 8] << 8) | (data[i + 9] << 16))
+    if c is None or _crc16(data[i + 1 : end - 2] + c.crc_extra_byte) != (data[end - 2] | (data[end - 1] << 8)):
+        return None
+    payload = data[i + 10 : end - 2]
+    if len(payload) < c.size:
+        payload += bytes(c.size - len(payload))
+    return c, c.from_wire(c.struct.unpack(payload[: c.size])), end
+
+
 def fast_decode(frame: bytes | bytearray) -> Any | None:
     """The pymavlink message object of one MAVLink 2 frame of a seam message, or None when the fast path does not
     apply (another message id, MAVLink 1, signed, a length that disagrees with the header, a bad CRC): the caller
@@ -547,24 +566,15 @@ def fast_decode(frame: bytes | bytearray) -> Any | None:
     The object is an instance of the generated class with the same fields, header, CRC and buffers as
     MAVLink.decode would give it, built without running the class constructor.
     """
-    n = len(frame)
-    if n < 12 or frame[0] != 253 or frame[2] != 0 or frame[1] + 12 != n:
+    frame = bytes(frame)
+    got = _frame_at(frame, 0)
+    if got is None or got[2] != len(frame):
         return None
-    c = (_codecs or _codec_table()).get(frame[7] | (frame[8] << 8) | (frame[9] << 16))
-    if c is None:
-        return None
-    crc = frame[-2] | (frame[-1] << 8)
-    if _crc16(bytes(frame[1:-2]) + c.crc_extra_byte) != crc:
-        return None
-    payload = bytes(frame[10:-2])
-    if len(payload) < c.size:
-        payload += bytes(c.size - len(payload))
-    elif len(payload) > c.size:
-        payload = payload[: c.size]
+    c, state, _ = got
     cls = c.cls
     m = cls.__new__(cls)
     buf = bytearray(frame)
-    state = c.from_wire(c.struct.unpack(payload))
+    crc = frame[-2] | (frame[-1] << 8)
     header = _header_new(_header_class)
     header.__dict__ = {"mlen": frame[1], "seq": frame[4], "srcSystem": frame[5], "srcComponent": frame[6],
                        "msgId": c.msg_id, "incompat_flags": 0, "compat_flags": frame[3]}
@@ -575,8 +585,6 @@ def fast_decode(frame: bytes | bytearray) -> Any | None:
     )
     m.__dict__ = state
     return m
-
-
 
 
 # ---- datagram parsing -----------------------------------------------------------------------------
@@ -774,18 +782,13 @@ def decode_step_datagram(data: bytes) -> tuple[StepBundle, int, dict[str, dict[s
     counting what is wrong as before. The result equals BundleAssembler's for the same frames (the truth as
     TruthFields instead of a message object; tests/unit/test_seam_fast.py). ~3x cheaper than fast_decode per
     frame plus the assembler: this runs for every lockstep step."""
-    codecs = _codecs or _codec_table()
     fields: dict[str, dict[str, Any]] = {}
     i, n, k = 0, len(data), 0
     while i < n:
-        if i + 12 > n or data[i] != 253 or data[i + 2] != 0:
+        got = _frame_at(data, i)
+        if got is None:
             return None
-        end = i + 12 + data[i + 1]
-        if end > n:
-            return None
-        c = codecs.get(data[i + 7] | (data[i + 8] << 8) | (data[i + 9] << 16))
-        if c is None:
-            return None
+        c, f, i = got
         name = c.name
         while k < 5 and _BUNDLE_ORDER[k] != name:
             if k != 3:  # only the truth may be missing
@@ -794,13 +797,7 @@ def decode_step_datagram(data: bytes) -> tuple[StepBundle, int, dict[str, dict[s
         if k == 5:
             return None
         k += 1
-        if _crc16(data[i + 1 : end - 2] + c.crc_extra_byte) != (data[end - 2] | (data[end - 1] << 8)):
-            return None
-        payload = data[i + 10 : end - 2]
-        if len(payload) < c.size:
-            payload += bytes(c.size - len(payload))
-        fields[name] = c.from_wire(c.struct.unpack(payload[: c.size]))
-        i = end
+        fields[name] = f
     if k != 5:
         return None
     odom, act, arm, sens = (fields["ODOMETRY"], fields["NAVIG8_ACTUATOR_STATE"], fields["NAVIG8_ARM_STATE"],
@@ -833,16 +830,8 @@ def frame_fields(frame: bytes) -> tuple[str, dict[str, Any]] | None:
     """(message name, fields as MAVLink.decode sets them) of one clean MAVLink 2 frame of a seam message, or
     None (another id, signed, bad length or CRC). The log's decoded form of the FC's answer, without building
     the pymavlink object."""
-    n = len(frame)
-    if n < 12 or frame[0] != 253 or frame[2] != 0 or frame[1] + 12 != n:
-        return None
-    c = (_codecs or _codec_table()).get(frame[7] | (frame[8] << 8) | (frame[9] << 16))
-    if c is None or _crc16(frame[1:-2] + c.crc_extra_byte) != (frame[-2] | (frame[-1] << 8)):
-        return None
-    payload = frame[10:-2]
-    if len(payload) < c.size:
-        payload += bytes(c.size - len(payload))
-    return c.name, c.from_wire(c.struct.unpack(payload[: c.size]))
+    got = _frame_at(frame, 0)
+    return None if got is None or got[2] != len(frame) else (got[0].name, got[1])
 
 
 def wire_class(name: str) -> Any:
