@@ -111,7 +111,8 @@ class FlightControllerProcess:
         self.registry = ParamRegistry.from_defaults()
         self._stop = False
         self.logger = McapLogger(opts.log_path) if opts.log_path else None
-        self._frame_queue: list[tuple[str, str, bytes, Any, int, int]] = []
+        # (topic, raw datagram or decoded message, peer for a datagram / None for a message, sim ns, wall ns)
+        self._frame_queue: list[tuple[str, Any, str | None, int, int]] = []
         self._pending_tick: tuple[Any, ...] | None = None
         self._sim_channels: dict[tuple[str, str], int] = {}
         self._spin_until = 0.0
@@ -188,23 +189,23 @@ class FlightControllerProcess:
         step's answer has gone out, so logging overlaps with the bridge's physics step instead of delaying the
         lockstep round trip."""
         if self.logger:
-            self._frame_queue.append((link, direction, raw, peer, self._sim_ns(), time.time_ns()))
+            self._frame_queue.append((f"/mavlink/{link}/{direction}", raw, peer, self._sim_ns(), time.time_ns()))
 
     def _log_decoded(self, link: str, direction: str, raw: bytes, msg: Any, peer: tuple[str, int]) -> None:
         """Queue a decoded GCS/API message for its /mavlink/<link>/<dir>/<TYPE> channel."""
         if self.logger:
-            self._frame_queue.append((link, direction, raw, msg, self._sim_ns(), time.time_ns()))
+            self._frame_queue.append((f"/mavlink/{link}/{direction}/{msg.get_type()}", msg, None, self._sim_ns(),
+                                      time.time_ns()))
 
     def _flush_frames(self) -> None:
         q, self._frame_queue = self._frame_queue, []
         if not self.logger:
             return
-        for link, direction, raw, msg, t_ns, wall_ns in q:
-            if type(msg) is str:  # a datagram; msg is its peer
-                self.logger.log_raw(f"/mavlink/{link}/{direction}", t_ns, raw, publish_ns=wall_ns, peer=msg)
-            else:
-                self.logger.log(f"/mavlink/{link}/{direction}/{msg.get_type()}", t_ns, msg.to_dict(),
-                                publish_ns=wall_ns, schema=mavlink_json_schema(type(msg)))
+        for topic, item, peer, t_ns, wall_ns in q:
+            if peer is not None:  # a raw datagram
+                self.logger.log_raw(topic, t_ns, item, publish_ns=wall_ns, peer=peer)
+            else:  # a decoded message
+                self.logger.log(topic, t_ns, item.to_dict(), publish_ns=wall_ns, schema=mavlink_json_schema(type(item)))
 
     def _sim_ns(self) -> int:
         return seam.sim_us_from_time_usec(self._last_step_time_us) * 1000 if self._last_step_time_us else 0
