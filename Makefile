@@ -26,7 +26,10 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check navig8_fc sim_bridge tools tests
-	$(PY) -m pytest -q; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: pytest collected no tests' >&2; fi; exit $$rc
+	# Fast lane (unit, integration) on both cores; then the SITL lane alone (real processes, wall-clock pacing).
+	# tests/conftest.py warms numba's cache once before xdist starts its workers. Exit 5 (no tests) fails.
+	$(PY) -m pytest -q -m 'not slow' -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: fast lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
+	$(PY) -m pytest -q -m slow; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; exit $$rc
 
 bench: $(STAMP)
 	$(VENV)/bin/navig8-bench
