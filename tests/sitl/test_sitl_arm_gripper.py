@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +13,7 @@ from navig8_tools.logdata import load_run
 
 M = mavlink2
 MAV_CMD_NAVIG8_ARM_JOINTS = 31010
+JOINT_TOL_RAD = 0.3  # telemetry carries the encoders (sigma 0.08 rad, params/plant.yaml): ~4 sigma
 
 
 def _command(gcs, command: int, *params: float):
@@ -24,19 +24,30 @@ def _command(gcs, command: int, *params: float):
     return ack
 
 
+def _joints(gcs, cond, timeout_s: float):
+    """The arm joints (rad) from ACTUATOR_OUTPUT_STATUS channels 5-7, once they satisfy cond (else None)."""
+    m = wait_for(gcs, "ACTUATOR_OUTPUT_STATUS", timeout_s, lambda m: cond(np.array(m.actuator[5:8])))
+    return None if m is None else np.array(m.actuator[5:8])
+
+
 def test_arm_joint_targets_and_gripper_release(tmp_path: Path) -> None:
     with sitl(tmp_path, scenario="hover", speed=2.0) as run:
         gcs = gcs_client(run.gcs_port)
         try:
             wait_heartbeat(gcs, 15.0)
-            time.sleep(1.0)
+            # The bridge is stepping: the arm channels of ACTUATOR_OUTPUT_STATUS report the held pose (q = 0).
+            assert _joints(gcs, lambda q: np.allclose(q, 0.0, atol=JOINT_TOL_RAD), 15.0) is not None
             assert _command(gcs, MAV_CMD_NAVIG8_ARM_JOINTS, 30, 10, -10, 1).result == M.MAV_RESULT_ACCEPTED
             # out of the joint range: refused with a reason, nothing changes
             ack = _command(gcs, MAV_CMD_NAVIG8_ARM_JOINTS, 170, 0, 0, 1)
             assert ack.result == M.MAV_RESULT_DENIED
-            time.sleep(1.5)
+            target = np.radians([30, 10, -10])
+            assert _joints(gcs, lambda q: np.allclose(q, target, atol=JOINT_TOL_RAD), 10.0) is not None, \
+                "the arm never reached the accepted joint targets"
             assert _command(gcs, M.MAV_CMD_DO_GRIPPER, 1, 0).result == M.MAV_RESULT_ACCEPTED  # p2 0 = release
-            time.sleep(1.5)
+            # The release reaches the bridge with the next step: let a few telemetry periods of flight follow it.
+            for _ in range(3):
+                assert wait_for(gcs, "ACTUATOR_OUTPUT_STATUS", 5.0) is not None
         finally:
             gcs.close()
     tr = load_run(run.log)["/truth"]

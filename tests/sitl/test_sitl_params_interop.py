@@ -61,7 +61,8 @@ def test_tlog_export_opens_in_pymavlink(tmp_path: Path) -> None:
         try:
             wait_heartbeat(gcs, 15.0)
             assert _read(gcs, "OL_POS_K") is not None
-            time.sleep(1.0)
+            # A second heartbeat after the read: the exchange is behind us and in the FC's log queue.
+            assert wait_for(gcs, "HEARTBEAT", 5.0, lambda m: m.get_srcComponent() == 1) is not None
         finally:
             gcs.close()
     # Every datagram is logged raw once, on a channel per peer (the peer in the channel's metadata).

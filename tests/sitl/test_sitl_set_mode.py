@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink2
@@ -27,7 +26,9 @@ def test_set_mode_message(tmp_path: Path) -> None:
             gcs.mav.set_mode_send(gcs.target_system, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 5)  # ArduCopter LOITER
             st = wait_for(gcs, "STATUSTEXT", 5.0, lambda m: "not supported" in m.text or "refused" in m.text)
             assert st is not None
-            time.sleep(0.5)
+            # The refused mode changed nothing: the next heartbeats still say Hold.
+            hb = wait_for(gcs, "HEARTBEAT", 5.0, lambda m: m.get_srcComponent() == 1)
+            assert hb is not None and hb.custom_mode == hold
             gcs.mav.set_mode_send(gcs.target_system, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, land)
             hb = wait_for(gcs, "HEARTBEAT", 5.0, lambda m: m.get_srcComponent() == 1 and m.custom_mode == land)
             assert hb is not None, "SET_MODE Land not applied"
