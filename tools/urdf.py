@@ -153,8 +153,9 @@ def build_urdf(cfg: VehicleConfig, size_m: tuple[float, float, float],
     """The URDF tree of the Navig8-UAM for the vehicle constants cfg and Table 1's body envelope size_m."""
     d = DisplaySizes() if display is None else display
     robot = ET.Element("robot", name=ROBOT_NAME)
-    robot.append(ET.Comment(" Generated from params/vehicle.yaml by `navig8-urdf --write` (tools/urdf.py): do not "
-                            "edit. Frames and axes: docs/urdf.md. Root base_link = body FRD at the UAV CoM. "))
+    # XML comments cannot hold "--", so the command's option is spelled out.
+    robot.append(ET.Comment(" Generated from params/vehicle.yaml by navig8-urdf (tools/urdf.py) with its write option:"
+                            " do not edit. Frames and axes: docs/urdf.md. Root base_link = body FRD at the UAV CoM. "))
     for name, (r, g, b, a) in _MATERIALS.items():
         alpha = d.body_alpha if a is None else a
         ET.SubElement(ET.SubElement(robot, "material", name=name), "color", rgba=_vec((r, g, b, alpha)))
