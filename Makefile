@@ -36,6 +36,7 @@ bench: $(STAMP)
 
 docs: $(STAMP)
 	$(VENV)/bin/navig8-params-doc --write docs/params.md
+	$(VENV)/bin/navig8-urdf --write
 
 clean:
 	rm -rf $(VENV) out build *.egg-info
