@@ -911,7 +911,7 @@ def ghat_ginv_eigs(gi_hat: np.ndarray, gc_uam: np.ndarray, gc_true: np.ndarray, 
     """Eigenvalues of G_hat G^-1 = (G_hat_I^-1 G_C,UAM)(G_C,true^-1 G_I,true) (Eq. 14), sorted by real part.
 
     K Xi can have complex pairs (~1 % of poses): real eigvals first, complex arithmetic when that fails.
-    Reference: vehicle.ghat_ginv_eig_record(..., compiled=False) (numpy)."""
+    tests/unit/test_vehicle.py checks it against scipy.linalg.eigvals."""
     a = np.linalg.solve(gi_hat, gc_uam) @ np.linalg.solve(gc_true, gi_true)
     if _real_eigvals_sorted(a, out_re):  # the usual case, ~3x cheaper than the complex path
         out_im[:] = 0.0

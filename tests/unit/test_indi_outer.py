@@ -6,10 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from navig8_fc.core import rotation as rot
 from navig8_fc.core import vehicle as vm
-from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs, actuators_to_u_list
+from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs
 from navig8_fc.core.outer_loop import OuterLoopConfig, Setpoint, outer_loop_step
 
 CFG = vm.VehicleConfig.load()
@@ -132,10 +133,35 @@ def test_outer_loop_hover_and_roll_nulls_lateral_force() -> None:
     assert math.sqrt(sum(a * a for a in st.accel_cmd_ned)) <= OL.acc_max_m_s2 + 1e-12
 
 
-def test_actuators_to_u_list_is_vehicle_actuators_to_u() -> None:
-    rng = np.random.default_rng(4)
+def _clip(v: np.ndarray, limit: float) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    return v * (limit / n) if n > limit > 0.0 else v
+
+
+def test_outer_loop_against_scipy_rotations() -> None:
+    # The cascade of the module docstring, computed here with scipy's Rotation (ZYX Euler, rotation vectors):
+    # a_cmd, f_cmd = a_cmd - g, the roll that nulls body-y force at the commanded pitch and yaw, body x/z force
+    # with the measured attitude, omega_cmd = K_att rotvec(q^-1 q_cmd) limited, Pdot.. = K_rate (omega_cmd - omega).
+    rng = np.random.default_rng(5)
+    g = np.array([0.0, 0.0, OL.gravity_m_s2])
     for _ in range(200):
-        a1, a3 = rng.uniform(-1.0, 2.5, 2)
-        w1, w3 = rng.uniform(0.0, 1500.0, 2)
-        w2 = rng.uniform(-2000.0, 2000.0)
-        assert actuators_to_u_list(a1, a3, w1, w2, w3) == vm.actuators_to_u(a1, a3, w1, w2, w3).tolist()
+        sp = Setpoint(tuple(rng.uniform(-5, 5, 3)), float(rng.uniform(-1, 1)), float(rng.uniform(-3, 3)))
+        quat = rng.normal(size=4)
+        quat /= np.linalg.norm(quat)
+        pos, vel, gyro = rng.uniform(-5, 5, 3), rng.uniform(-3, 3, 3), rng.normal(size=3)
+        st = outer_loop_step(OL, sp, pos, vel, quat, gyro)
+        a_cmd = _clip(OL.vel_k * (_clip(OL.pos_k * (np.array(sp.pos_ned) - pos), OL.vel_max_m_s) - vel),
+                      OL.acc_max_m_s2)
+        f_cmd = a_cmd - g
+        np.testing.assert_allclose(st.accel_cmd_ned, a_cmd, atol=1e-12)
+        np.testing.assert_allclose(st.specific_force_cmd_ned, f_cmd, atol=1e-12)
+        cmd = Rotation.from_quat(np.roll(st.att_cmd_quat, -1))  # scipy: [x, y, z, w]
+        np.testing.assert_allclose(cmd.as_euler("ZYX")[[1, 0]], [sp.pitch_rad, sp.yaw_rad], atol=1e-9)
+        assert cmd.as_euler("ZYX")[2] == pytest.approx(st.roll_cmd_rad, abs=1e-9)
+        f_at_cmd = cmd.inv().apply(f_cmd)
+        assert abs(f_at_cmd[1]) < 1e-9 * max(1.0, np.linalg.norm(f_cmd)) and f_at_cmd[2] <= 0.0
+        meas = Rotation.from_quat(np.roll(quat, -1))
+        f_body = meas.inv().apply(f_cmd)
+        w_cmd = _clip(OL.att_k * (meas.inv() * cmd).as_rotvec(), OL.rate_max_rad_s)
+        np.testing.assert_allclose(st.rate_cmd_frd, w_cmd, atol=1e-9)
+        np.testing.assert_allclose(st.accel_cmd, [*(OL.rate_k * (w_cmd - gyro)), f_body[0], f_body[2]], atol=1e-9)

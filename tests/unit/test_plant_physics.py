@@ -1,7 +1,7 @@
 """Physics checks of the plant against closed forms and independent computations (issue 3).
 
-Tolerances are stated per test; "independent" means computed here from vehicle.py's numpy model or a
-closed form, never from the plant's kernel.
+Tolerances are stated per test; "independent" means computed here from the vector-form model oracle
+(tests/unit/model_oracle.py) or a closed form, never from the plant's kernel.
 """
 
 from __future__ import annotations
@@ -9,10 +9,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
+import model_oracle as oracle
 import numpy as np
 import pytest
 
-from navig8_fc.core.vehicle import VehicleConfig, arm_kinematics, mass_properties
+from navig8_fc.core.vehicle import VehicleConfig
 from sim_bridge import ActuatorCommand, Plant, Scenario, load_scenario
 from sim_bridge.plant import quat_to_dcm
 
@@ -39,10 +40,10 @@ def _scenario(**overrides) -> Scenario:
 
 def _system_momentum(cfg: VehicleConfig, tr) -> tuple[np.ndarray, np.ndarray]:
     """Linear momentum and angular momentum about the NED origin of UAV + links + object, from the
-    bodies' velocities (vehicle.arm_kinematics), independent of the plant's composite formulation."""
+    bodies' velocities (the vector-form oracle's arm_kinematics), independent of the plant's composite formulation."""
     r_bn = quat_to_dcm(tr.quat_wxyz)
     w = np.asarray(tr.rate_frd_rad_s)
-    kin = arm_kinematics(cfg, tr.joint_pos_rad, tr.joint_rate_rad_s)
+    kin = oracle.arm_kinematics(cfg, tr.joint_pos_rad, tr.joint_rate_rad_s)
     thd = np.cumsum(tr.joint_rate_rad_s)
     y = np.array([0.0, 1.0, 0.0])
     p0, v0 = np.asarray(tr.pos_ned_m), np.asarray(tr.vel_ned_m_s)
@@ -63,15 +64,15 @@ def _system_momentum(cfg: VehicleConfig, tr) -> tuple[np.ndarray, np.ndarray]:
     return lin, ang
 
 
-def test_mass_properties_match_vehicle_model(cfg, params):
-    """Composite mass, CoM and inertia from the kernel equal vehicle.mass_properties (to 1e-12)."""
+def test_mass_properties_match_discretised_bodies(cfg, params):
+    """Composite mass, CoM and inertia from the plant's kernel equal the dumbbell oracle's (to 1e-12)."""
     scn = _scenario(initial={"joint_pos_deg": [30.0, -45.0, 60.0]})
     tr = Plant(cfg, params, scn, np.random.default_rng(0)).truth()
-    mp = mass_properties(cfg, tr.joint_pos_rad, 2.0)
-    assert tr.mass_kg == pytest.approx(mp.mass_kg, abs=1e-12)
-    np.testing.assert_allclose(tr.com_frd_m, mp.com_frd_m, atol=1e-12)
-    np.testing.assert_allclose(tr.inertia_o_kgm2, mp.inertia_o, atol=1e-12)
-    np.testing.assert_allclose(tr.inertia_com_kgm2, mp.inertia_com, atol=1e-12)
+    m, c, j_c, j_o = oracle.dumbbell_mass_properties(cfg, tr.joint_pos_rad, 2.0)
+    assert tr.mass_kg == pytest.approx(m, abs=1e-12)
+    np.testing.assert_allclose(tr.com_frd_m, c, atol=1e-12)
+    np.testing.assert_allclose(tr.inertia_o_kgm2, j_o, atol=1e-12)
+    np.testing.assert_allclose(tr.inertia_com_kgm2, j_c, atol=1e-12)
 
 
 def test_free_fall_closed_form(cfg, params):
