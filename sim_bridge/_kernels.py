@@ -150,6 +150,20 @@ def _own_inertia(k: int, ia: float, io: float, s: float, c: float):
 
 
 @njit(cache=True)
+def _euler_moment(ixx, iyy, izz, ixz, wx, wy, wz, thd, ax, ay, az):
+    """I a + W x I W for a body of own inertia I (x-z symmetric: xx, yy, zz, xz) turning at W = w + thd y (its joint
+    rate about body y on top of the base's w) with angular acceleration a (Euler's equation about its centre)."""
+    Wx = wx
+    Wy = wy + thd
+    Wz = wz
+    iWx = ixx * Wx + ixz * Wz
+    iWy = iyy * Wy
+    iWz = ixz * Wx + izz * Wz
+    return (ixx * ax + ixz * az + (Wy * iWz - Wz * iWy), iyy * ay + (Wz * iWx - Wx * iWz),
+            ixz * ax + izz * az + (Wx * iWy - Wy * iWx))
+
+
+@njit(cache=True)
 def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
     """Base-state derivative at one instant. xb: the base state (x[:N_BASE], X layout); q, qd, qdd: joint motion
     at this instant; act: actuator outputs (5). Writes dx/dt into out (N_BASE); sc (4 x SC) is scratch for the
@@ -270,18 +284,11 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
         jzz += izz
         jxz += ixz
         # Euler bias of the body's own inertia: I (thdd y + w x thd y) + W x I W, W = w + thd y
-        ux = -wz * thd  # w x (thd y) = [-wz thd, 0, wx thd]
-        uy = thdd
-        uz = wx * thd
-        Wx = wx
-        Wy = wy + thd
-        Wz = wz
-        iWx = ixx * Wx + ixz * Wz
-        iWy = iyy * Wy
-        iWz = ixz * Wx + izz * Wz
-        bmx += ixx * ux + ixz * uz + (Wy * iWz - Wz * iWy)
-        bmy += iyy * uy + (Wz * iWx - Wx * iWz)
-        bmz += ixz * ux + izz * uz + (Wx * iWy - Wy * iWx)
+        # (w x (thd y) = [-wz thd, 0, wx thd])
+        tx, ty, tz = _euler_moment(ixx, iyy, izz, ixz, wx, wy, wz, thd, -wz * thd, thdd, wx * thd)
+        bmx += tx
+        bmy += ty
+        bmz += tz
 
     cx = mcx / m
     cy = mcy / m
@@ -480,18 +487,10 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
         thd = sc[o + SC.THD]
         thdd = sc[o + SC.THDD]
         ixx, iyy, izz, ixz = _own_inertia(k, ia, io, s, c)
-        awx = dwx - wz * thd
-        awy = dwy + thdd
-        awz = dwz + wx * thd
-        Wx = wx
-        Wy = wy + thd
-        Wz = wz
-        iWx = ixx * Wx + ixz * Wz
-        iWy = iyy * Wy
-        iWz = ixz * Wx + izz * Wz
-        mrx -= ixx * awx + ixz * awz + (Wy * iWz - Wz * iWy)
-        mry -= iyy * awy + (Wz * iWx - Wx * iWz)
-        mrz -= ixz * awx + izz * awz + (Wx * iWy - Wy * iWx)
+        tx, ty, tz = _euler_moment(ixx, iyy, izz, ixz, wx, wy, wz, thd, dwx - wz * thd, dwy + thdd, dwz + wx * thd)
+        mrx -= tx
+        mry -= ty
+        mrz -= tz
     _put3(d, D.FR_NOG, frx, fry, frz)
     _put3(d, D.FR_G, frx + marm * gbx, fry + marm * gby, frz + marm * gbz)
     _put3(d, D.MR_MOUNT_NOG, mrx, mry, mrz)
@@ -572,6 +571,21 @@ def _act_at(x, p, cmd, phi, gam, out):
 
 
 @njit(cache=True)
+def _joints_at(x, qdd, tau, q, qd) -> None:
+    """Joint angles and rates tau after the state x with q'' held (exact for constant acceleration)."""
+    for j in range(3):
+        q[j] = x[X.Q + j] + x[X.QD + j] * tau + 0.5 * qdd[j] * tau * tau
+        qd[j] = x[X.QD + j] + qdd[j] * tau
+
+
+@njit(cache=True)
+def _stage_state(xb, tau, k, xs) -> None:
+    """An RK4 stage's base state: xs = xb + tau k."""
+    for i in range(N_BASE):
+        xs[i] = xb[i] + tau * k[i]
+
+
+@njit(cache=True)
 def advance(x, p, cmd, sched, n_steps, t0_us, base_mode, d, w) -> int:
     """Advance the state x in place by n_steps physics steps from time t0_us (an integer on the
     physics grid). w is caller-owned scratch (N_WORK) so the hot path does not allocate.
@@ -636,20 +650,13 @@ def advance(x, p, cmd, sched, n_steps, t0_us, base_mode, d, w) -> int:
             qd[j] = x[X.QD + j]
         _dynamics(xb, q, qd, qdd, act0, mobj, p, base_mode, k1, sc, d, False)
         th = 0.5 * h
-        for j in range(3):
-            q[j] = x[X.Q + j] + x[X.QD + j] * th + 0.5 * qdd[j] * th * th
-            qd[j] = x[X.QD + j] + qdd[j] * th
-        for i in range(N_BASE):
-            xs[i] = xb[i] + th * k1[i]
+        _joints_at(x, qdd, th, q, qd)
+        _stage_state(xb, th, k1, xs)
         _dynamics(xs, q, qd, qdd, acth, mobj, p, base_mode, k2, sc, d, False)
-        for i in range(N_BASE):
-            xs[i] = xb[i] + th * k2[i]
+        _stage_state(xb, th, k2, xs)
         _dynamics(xs, q, qd, qdd, acth, mobj, p, base_mode, k3, sc, d, False)
-        for j in range(3):
-            q[j] = x[X.Q + j] + x[X.QD + j] * h + 0.5 * qdd[j] * h * h
-            qd[j] = x[X.QD + j] + qdd[j] * h
-        for i in range(N_BASE):
-            xs[i] = xb[i] + h * k3[i]
+        _joints_at(x, qdd, h, q, qd)
+        _stage_state(xb, h, k3, xs)
         _dynamics(xs, q, qd, qdd, act1, mobj, p, base_mode, k4, sc, d, False)
         for i in range(N_BASE):
             x[i] = xb[i] + (h / 6.0) * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
