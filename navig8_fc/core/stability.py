@@ -31,13 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, signal
 
-from navig8_fc.core.vehicle import (
-    EffectivenessPair,
-    VehicleConfig,
-    control_effectiveness_gc,
-    inertia_matrix_gi,
-    mass_properties,
-)
+from navig8_fc.core.vehicle import VehicleConfig, effectiveness_pair
 
 # Paper Fig. 7 poses (deg): arm stretched forward and curled, both holding a 2 kg object.
 POSE_STRETCHED_DEG: tuple[float, float, float] = (80.0, 10.0, 10.0)
@@ -328,27 +322,13 @@ def step_metrics(lam: float, wn: float, zeta: float, ts: float, tl: float) -> St
 
 
 def xi_batch(cfg: VehicleConfig, poses_rad: np.ndarray, object_masses_kg: np.ndarray) -> np.ndarray:
-    """Xi (Eq. 14) for every (pose, mass): array (n_poses, n_masses, 5, 5).
-
-    Same construction as vehicle.effectiveness_pair, with the object-free (controller) side computed once
-    per pose instead of once per (pose, mass).
-    """
+    """Xi (Eq. 14) for every (pose, mass): array (n_poses, n_masses, 5, 5) (vehicle.effectiveness_pair)."""
     poses = np.atleast_2d(np.asarray(poses_rad, dtype=float))
     masses = np.atleast_1d(np.asarray(object_masses_kg, dtype=float))
     out = np.empty((poses.shape[0], masses.size, 5, 5))
     for i, q in enumerate(poses):
-        uam = mass_properties(cfg, q, 0.0)
-        gc_uam = control_effectiveness_gc(cfg, uam.com_frd_m)
-        gi_uam = inertia_matrix_gi(uam.inertia_com, uam.mass_kg)
         for j, m_o in enumerate(masses):
-            true = mass_properties(cfg, q, float(m_o))
-            pair = EffectivenessPair(
-                gc_uam=gc_uam,
-                gi_uam=gi_uam,
-                gc_true=control_effectiveness_gc(cfg, true.com_frd_m),
-                gi_true=inertia_matrix_gi(true.inertia_com, true.mass_kg),
-            )
-            out[i, j] = pair.xi
+            out[i, j] = effectiveness_pair(cfg, q, float(m_o)).xi
     return out
 
 

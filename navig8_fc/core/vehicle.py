@@ -318,16 +318,6 @@ def ghat_ginv_eigenvalues(pair: EffectivenessPair, k: np.ndarray) -> np.ndarray:
     return lam[np.argsort(lam.real)]
 
 
-def ghat_ginv_eigenvalues_from_estimate(
-    pair: EffectivenessPair, gi_hat: np.ndarray
-) -> np.ndarray:
-    """Eigenvalues of G_hat G^-1 for an arbitrary G_hat_I: G_hat^-1 = G_C,UAM^-1 G_hat_I (Eq. 4)."""
-    ghat = np.linalg.solve(gi_hat, pair.gc_uam)
-    g = np.linalg.solve(pair.gi_true, pair.gc_true)
-    lam = np.linalg.eigvals(ghat @ np.linalg.inv(g))
-    return lam[np.argsort(lam.real)]
-
-
 # --------------------------------------------------------------------------------------
 # U <-> actuators (Sec. 3)
 # --------------------------------------------------------------------------------------

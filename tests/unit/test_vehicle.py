@@ -188,17 +188,6 @@ def test_estimated_gi_structure() -> None:
     np.testing.assert_allclose(hi, 2 * lo)
 
 
-def test_eigenvalues_from_k_and_from_estimate_agree() -> None:
-    q = np.radians([60, -60, 60])
-    pair = vm.effectiveness_pair(CFG, q, 2.0)
-    j = vm.mass_properties(CFG, q).inertia_com
-    k = np.array([0.55, 0.8, 0.95, 0.6])
-    x = np.array([j[0, 0], j[1, 1], j[2, 2], CFG.uam_mass_kg]) / k
-    lam_k = vm.ghat_ginv_eigenvalues(pair, k)
-    lam_x = vm.ghat_ginv_eigenvalues_from_estimate(pair, vm.estimated_gi(j, x))
-    np.testing.assert_allclose(np.sort_complex(lam_k), np.sort_complex(lam_x), atol=1e-9)
-
-
 def test_uam_model_against_the_oracle() -> None:
     # UamModel.evaluate (the controller's kernel): mass properties of the UAM without object (dumbbell oracle),
     # G_C about its CoM (geometric wrench) and the arm's CoM acceleration with a point object of the estimated
