@@ -41,6 +41,7 @@ from typing import Any, TypeVar
 import numpy as np
 import scipy.linalg
 
+from navig8_fc.core import rotation
 from navig8_fc.core.rotation import euler_to_quat, quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig, hover_trim, propulsion_per_input, u_to_actuators
 from sim_bridge import _kernels as K
@@ -81,8 +82,8 @@ class PlantDivergedError(RuntimeError):
 
 
 def quat_to_dcm(q: np.ndarray) -> np.ndarray:
-    """R (body -> NED) from [w, x, y, z]."""
-    return np.array(K._dcm(*(float(v) for v in q))).reshape(3, 3)
+    """R (body -> NED) from [w, x, y, z] as a 3x3 array (rotation.quat_to_dcm)."""
+    return np.array(rotation.quat_to_dcm(q))
 
 
 def _actuator_discretisation(dyn: ActuatorDynamics, tau_s: float) -> tuple[np.ndarray, np.ndarray]:

@@ -299,6 +299,59 @@ def kf_correct(x, p, r_diag, gc_inv, du, a1, a2, a3, a4, a5, rho_x, rho_z, innov
     return True
 
 
+# Attitude (quaternions [w, x, y, z] rotate body FRD into NED; Euler ZYX). navig8_fc.core.rotation wraps these
+# for Python callers.
+
+
+@njit(cache=True)
+def quat_mul(aw, ax, ay, az, bw, bx, by, bz):
+    """a (x) b (Hamilton product)."""
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw)
+
+
+@njit(cache=True)
+def quat_to_dcm(w, x, y, z):
+    """R (body -> NED), row-major (9 values)."""
+    return (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+
+
+@njit(cache=True)
+def euler_to_quat(roll, pitch, yaw):
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return (cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy)
+
+
+@njit(cache=True)
+def quat_to_euler(w, x, y, z):
+    """(roll, pitch, yaw) in rad, ZYX."""
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    s = max(-1.0, min(1.0, 2 * (w * y - z * x)))
+    return roll, math.asin(s), math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+@njit(cache=True)
+def attitude_error_rotvec(mw, mx, my, mz, cw, cx, cy, cz):
+    """Rotation vector (body frame, rad) from the measured attitude m to the command c: rotvec(conj(m) (x) c),
+    the shortest rotation (sign of the error quaternion's w), so 359 deg of yaw error is -1 deg."""
+    ew, ex, ey, ez = quat_mul(mw, -mx, -my, -mz, cw, cx, cy, cz)
+    sgn = 1.0 if ew >= 0.0 else -1.0
+    vn = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if vn < 1e-12:
+        return 0.0, 0.0, 0.0
+    k = sgn * (2.0 * math.atan2(vn, abs(ew))) / vn
+    return k * ex, k * ey, k * ez
+
+
 # Outer loops: config, setpoint and output vectors (outer_loop)
 OC = layout("OC", pos_k=1, vel_k=1, vel_max=1, acc_max=1, att_k=1, rate_k=1, rate_max=1, gravity=1)
 OSP = layout("OSP", pos=3, pitch=1, yaw=1)  # p_cmd N, E, D (m); pitch, yaw (rad)
@@ -341,38 +394,13 @@ def outer_loop(cfg, sp, pos, vel, quat, gyro, out):
     fy1 = -sy * f0 + cy * f1
     fz2 = spp * fx1 + cp * f2
     roll = math.atan2(fy1, -fz2)
-    # euler_to_quat
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp2, sp2 = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy2, sy2 = math.cos(yaw / 2), math.sin(yaw / 2)
-    qw = cr * cp2 * cy2 + sr * sp2 * sy2
-    qx = sr * cp2 * cy2 - cr * sp2 * sy2
-    qy = cr * sp2 * cy2 + sr * cp2 * sy2
-    qz = cr * cp2 * sy2 - sr * sp2 * cy2
-    # rotate_ned_to_body(quat, f): R^T f with R = quat_to_dcm(quat)
-    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
-    r00 = 1 - 2 * (y * y + z * z)
-    r02 = 2 * (x * z + w * y)
-    r10 = 2 * (x * y + w * z)
-    r12 = 2 * (y * z - w * x)
-    r20 = 2 * (x * z - w * y)
-    r22 = 1 - 2 * (x * x + y * y)
+    qw, qx, qy, qz = euler_to_quat(roll, pitch, yaw)
+    # f in body axes with the measured attitude: R^T f
+    r00, _, r02, r10, _, r12, r20, _, r22 = quat_to_dcm(quat[0], quat[1], quat[2], quat[3])
     fb0 = r00 * f0 + r10 * f1 + r20 * f2
     fb2 = r02 * f0 + r12 * f1 + r22 * f2
-    # attitude_error_rotvec(quat, q_cmd): e = conj(quat) * q_cmd
-    aw, ax, ay, az = w, -x, -y, -z
-    ew = aw * qw - ax * qx - ay * qy - az * qz
-    ex = aw * qx + ax * qw + ay * qz - az * qy
-    ey = aw * qy - ax * qz + ay * qw + az * qx
-    ez = aw * qz + ax * qy - ay * qx + az * qw
-    sgn = 1.0 if ew >= 0.0 else -1.0
-    vn = math.sqrt(ex * ex + ey * ey + ez * ez)
-    err = np.zeros(3)
-    if vn >= 1e-12:
-        k = sgn * (2.0 * math.atan2(vn, abs(ew))) / vn
-        err[0] = k * ex
-        err[1] = k * ey
-        err[2] = k * ez
+    err = np.empty(3)
+    err[0], err[1], err[2] = attitude_error_rotvec(quat[0], quat[1], quat[2], quat[3], qw, qx, qy, qz)
     for i in range(3):
         err[i] = cfg[OC.ATT_K] * err[i]
     _clip_norm3(err, cfg[OC.RATE_MAX])
