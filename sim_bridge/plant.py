@@ -74,7 +74,15 @@ def _fill(record: _R, **fields: Any) -> _R:
     for name, value in fields.items():
         setattr(record, name, value)
     return record
-_C_ACT, _C_JOVR = K.C.ACT.sl, int(K.C.JOVR)
+_C_ACT, _C_JOVR, _C_JTGT = K.C.ACT.sl, int(K.C.JOVR), int(K.C.JTGT)
+# truth(): its views of the state and derived vectors, cut in one C call each
+_TRUTH_X = itemgetter(*(m.sl for m in (K.X.POS, K.X.VEL, K.X.QUAT, K.X.RATE, K.X.ACT, K.X.ACTD, K.X.Q, K.X.QD,
+                                       K.X.QDD, K.X.QTGT)))
+_TRUTH_D = itemgetter(*(m.sl for m in (K.D.ACC, K.D.WDOT, K.D.SPF, K.D.COM, K.D.FR_G, K.D.MR_MOUNT_G, K.D.MR_O_G,
+                                       K.D.FR_NOG, K.D.MR_MOUNT_NOG, K.D.MR_O_NOG, K.D.FPROP, K.D.MPROP, K.D.FCONT,
+                                       K.D.MCONT)))
+_X_MOBJ, _X_QUAT = int(K.X.MOBJ), K.X.QUAT.sl
+_D_MASS, _D_NCONT, _D_JC, _D_JO = int(K.D.MASS), int(K.D.NCONT), K.D.JC.sl, K.D.JO.sl
 
 
 class PlantDivergedError(RuntimeError):
@@ -287,7 +295,7 @@ class Plant:
                 self._clamped += 1
                 v = math.copysign(self._qlim, v)
             self._valid_joint[j] = v
-            c[K.C.JTGT + j] = v
+            c[_C_JTGT + j] = v
 
     # ---- stepping -----------------------------------------------------------------------------
     def step(self, cmd: ActuatorCommand, dt_s: float) -> None:
@@ -379,26 +387,23 @@ class Plant:
         d = self._d.copy()
         x.flags.writeable = False
         d.flags.writeable = False
-        cmd = self._cmd[K.C.ACT.sl].copy()
+        cmd = self._cmd[_C_ACT].copy()
         cmd.flags.writeable = False
-        euler = np.array(quat_to_euler(x[K.X.QUAT.sl]))
+        euler = np.array(quat_to_euler(x[_X_QUAT]))
         euler.flags.writeable = False
-        X, D = K.X, K.D
+        pos, vel, quat, rate, act, actd, jq, jqd, jqdd, jtgt = _TRUTH_X(x)
+        acc, wdot, spf, com, fr, mr, mr_o, fr_nog, mr_nog, mr_o_nog, fprop, mprop, fcont, mcont = _TRUTH_D(d)
         return Truth(
-            time_us=self._t_us, pos_ned_m=x[X.POS.sl], vel_ned_m_s=x[X.VEL.sl], quat_wxyz=x[X.QUAT.sl],
-            euler_rad=euler, rate_frd_rad_s=x[X.RATE.sl], accel_frd_m_s2=d[D.ACC.sl],
-            ang_accel_frd_rad_s2=d[D.WDOT.sl], specific_force_frd_m_s2=d[D.SPF.sl],
-            actuator_pos=x[X.ACT.sl], actuator_rate=x[X.ACTD.sl], actuator_cmd=cmd,
-            joint_pos_rad=x[X.Q.sl], joint_rate_rad_s=x[X.QD.sl], joint_accel_rad_s2=x[X.QDD.sl],
-            joint_target_rad=x[X.QTGT.sl], object_mass_kg=float(x[X.MOBJ]), gripper_closed=self._gripper_closed,
-            mass_kg=float(d[D.MASS]), com_frd_m=d[D.COM.sl], inertia_com_kgm2=d[D.JC.sl].reshape(3, 3),
-            inertia_o_kgm2=d[D.JO.sl].reshape(3, 3), reaction_force_frd_n=d[D.FR_G.sl],
-            reaction_moment_mount_frd_nm=d[D.MR_MOUNT_G.sl], reaction_moment_o_frd_nm=d[D.MR_O_G.sl],
-            reaction_force_nog_frd_n=d[D.FR_NOG.sl], reaction_moment_mount_nog_frd_nm=d[D.MR_MOUNT_NOG.sl],
-            reaction_moment_o_nog_frd_nm=d[D.MR_O_NOG.sl], prop_force_frd_n=d[D.FPROP.sl],
-            prop_moment_frd_nm=d[D.MPROP.sl], contact_force_frd_n=d[D.FCONT.sl], contact_moment_frd_nm=d[D.MCONT.sl],
-            contact_points_active=int(d[D.NCONT]), cmd_nonfinite_count=self._nonfinite,
-            cmd_clamped_count=self._clamped,
+            time_us=self._t_us, pos_ned_m=pos, vel_ned_m_s=vel, quat_wxyz=quat, euler_rad=euler, rate_frd_rad_s=rate,
+            accel_frd_m_s2=acc, ang_accel_frd_rad_s2=wdot, specific_force_frd_m_s2=spf, actuator_pos=act,
+            actuator_rate=actd, actuator_cmd=cmd, joint_pos_rad=jq, joint_rate_rad_s=jqd, joint_accel_rad_s2=jqdd,
+            joint_target_rad=jtgt, object_mass_kg=float(x[_X_MOBJ]), gripper_closed=self._gripper_closed,
+            mass_kg=float(d[_D_MASS]), com_frd_m=com, inertia_com_kgm2=d[_D_JC].reshape(3, 3),
+            inertia_o_kgm2=d[_D_JO].reshape(3, 3), reaction_force_frd_n=fr, reaction_moment_mount_frd_nm=mr,
+            reaction_moment_o_frd_nm=mr_o, reaction_force_nog_frd_n=fr_nog, reaction_moment_mount_nog_frd_nm=mr_nog,
+            reaction_moment_o_nog_frd_nm=mr_o_nog, prop_force_frd_n=fprop, prop_moment_frd_nm=mprop,
+            contact_force_frd_n=fcont, contact_moment_frd_nm=mcont, contact_points_active=int(d[_D_NCONT]),
+            cmd_nonfinite_count=self._nonfinite, cmd_clamped_count=self._clamped,
         )
 
     def sense_wire(self) -> WireSensors:

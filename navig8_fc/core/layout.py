@@ -26,12 +26,12 @@ class Slots(enum.IntEnum):
     @property
     def size(self) -> int:
         """Number of slots of this field (0 for SIZE)."""
-        return type(self).__sizes__[self.name]  # type: ignore[attr-defined]
+        return type(self).__sizes__[self._value_]  # type: ignore[attr-defined]
 
     @property
     def sl(self) -> slice:
         """The field's slice of the vector."""
-        return slice(int(self), int(self) + self.size)
+        return type(self).__slices__[self._value_]  # type: ignore[attr-defined]
 
     @classmethod
     def fields(cls) -> list[Slots]:
@@ -69,17 +69,17 @@ def layout(name: str, fields: Mapping[str, int] | None = None, **sizes: int) -> 
     """The Slots enum of a vector made of the given fields, in order, each `size` slots long (>= 1)."""
     table = dict(fields or {}, **sizes)
     starts: dict[str, int] = {}
-    size_of: dict[str, int] = {}
+    size_of: dict[int, int] = {}  # by start slot (every field starts at a different slot: sizes are >= 1)
     pos = 0
     for field, n in table.items():
         if n < 1:
             raise ValueError(f"layout {name}: field {field} has size {n}")
-        key = field.upper()
-        starts[key] = pos
-        size_of[key] = n
+        starts[field.upper()] = pos
+        size_of[pos] = n
         pos += n
     starts["SIZE"] = pos
-    size_of["SIZE"] = 0
+    size_of[pos] = 0
     cls = Slots(name, starts)  # type: ignore[call-overload]
     type.__setattr__(cls, "__sizes__", size_of)
+    type.__setattr__(cls, "__slices__", {at: slice(at, at + n) for at, n in size_of.items()})
     return cls
