@@ -20,6 +20,7 @@ class ArmKinematics:
     """Positions (FRD, m) of the arm bodies relative to O, with their first and second time derivatives."""
 
     theta: np.ndarray  # (3,) absolute link angles
+    theta_dir: np.ndarray  # (3, 3) link directions e(theta)
     joints: np.ndarray  # (4, 3) joint 1..3 positions and the tip
     link_com: np.ndarray  # (3, 3) link centres of mass
     object_pos: np.ndarray  # (3,) object centre
@@ -64,7 +65,8 @@ def arm_kinematics(cfg: VehicleConfig, q, qd=None, qdd=None) -> ArmKinematics:
     obj = joints[-1] + d * e3
     obj_v = jv[-1] + d * thd[-1] * de3
     obj_a = ja[-1] + d * (thdd[-1] * de3 - thd[-1] ** 2 * e3)
-    return ArmKinematics(theta, joints, com, obj, cv, obj_v, ca, obj_a, ja[-1])
+    dirs = np.array([_e(t) for t in theta])
+    return ArmKinematics(theta, dirs, joints, com, obj, cv, obj_v, ca, obj_a, ja[-1])
 
 
 def point_inertia(m: float, r: np.ndarray) -> np.ndarray:
