@@ -164,13 +164,7 @@ def lambda_crit(
     _check_loop_params(wn, zeta, ts, tl)
     if not 0.0 < lam_lo < 1.0:
         raise ValueError(f"need 0 < lam_lo < 1, got {lam_lo}")
-    _check_nominal_stable(wn, zeta, ts, tl)
-    f = lambda lam: max_real_pole(lam, wn, zeta, ts, tl)
-    bracket = _bracket_scan(f, np.geomspace(1.0, lam_lo, n_scan))
-    if bracket is None:
-        return 0.0
-    stable_lam, unstable_lam = bracket
-    return float(optimize.brentq(f, unstable_lam, stable_lam, xtol=1e-12, rtol=1e-12))
+    return _stability_edge(wn, zeta, ts, tl, lam_lo, n_scan, 0.0)
 
 
 def lambda_upper(
@@ -190,13 +184,20 @@ def lambda_upper(
     _check_loop_params(wn, zeta, ts, tl)
     if not lam_hi > 1.0:
         raise ValueError(f"need lam_hi > 1, got {lam_hi}")
+    return _stability_edge(wn, zeta, ts, tl, lam_hi, n_scan, math.inf)
+
+
+def _stability_edge(wn: float, zeta: float, ts: float, tl: float, lam_end: float, n_scan: int,
+                    if_none: float) -> float:
+    """The lam between 1 and lam_end where the dominant pole of H_i crosses into the right half plane: a
+    geometric scan from 1 brackets the first crossing, brentq refines it; if_none when the scan finds none."""
     _check_nominal_stable(wn, zeta, ts, tl)
     f = lambda lam: max_real_pole(lam, wn, zeta, ts, tl)
-    bracket = _bracket_scan(f, np.geomspace(1.0, lam_hi, n_scan))
+    bracket = _bracket_scan(f, np.geomspace(1.0, lam_end, n_scan))
     if bracket is None:
-        return math.inf
-    stable_lam, unstable_lam = bracket
-    return float(optimize.brentq(f, stable_lam, unstable_lam, xtol=1e-12, rtol=1e-12))
+        return if_none
+    a, b = sorted(bracket)
+    return float(optimize.brentq(f, a, b, xtol=1e-12, rtol=1e-12))
 
 
 @dataclass(frozen=True)

@@ -22,6 +22,12 @@ def _plant_accel(u: np.ndarray, gc: np.ndarray, gi: np.ndarray) -> np.ndarray:
     return np.linalg.solve(gi, gc @ u)
 
 
+def _model(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """G_C and G_I of the UAM without object at pose q (Eq. 1-2)."""
+    mp = vm.mass_properties(CFG, q)
+    return vm.control_effectiveness_gc(CFG, mp.com_frd_m), vm.inertia_matrix_gi(mp.inertia_com, mp.mass_kg)
+
+
 def _inputs(gyro, f_xz, u0, v, gc, gi_hat):
     a1, a3, w1, w2, w3 = vm.u_to_actuators(u0)
     return IndiInputs(
@@ -33,9 +39,7 @@ def _inputs(gyro, f_xz, u0, v, gc, gi_hat):
 @pytest.mark.parametrize("q_deg", [(0, 0, 0), (20, 20, 20), (80, 10, 10)])
 def test_indi_recovers_commanded_acceleration_in_one_step(q_deg) -> None:
     q = np.radians(q_deg)
-    mp = vm.mass_properties(CFG, q)
-    gc = vm.control_effectiveness_gc(CFG, mp.com_frd_m)
-    gi = vm.inertia_matrix_gi(mp.inertia_com, mp.mass_kg)
+    gc, gi = _model(q)
     indi = IndiController(IndiConfig(DT, 0.0, ActuatorLimits.from_vehicle(CFG)))  # tau 0: filters pass through
     u0 = vm.hover_trim(CFG, q, 0.0)
     acc0 = _plant_accel(u0, gc, gi)  # current accelerations produced by U0
@@ -53,9 +57,7 @@ def test_indi_recovers_commanded_acceleration_in_one_step(q_deg) -> None:
 def test_indi_with_scaled_effectiveness_moves_by_lambda() -> None:
     # With G_hat = K G (K diag), one step moves each axis by Delta Acc / K (Eq. 14 with Xi = I).
     q = np.zeros(3)
-    mp = vm.mass_properties(CFG, q)
-    gc = vm.control_effectiveness_gc(CFG, mp.com_frd_m)
-    gi = vm.inertia_matrix_gi(mp.inertia_com, mp.mass_kg)
+    gc, gi = _model(q)
     k = np.array([0.5, 0.8, 0.6, 0.7, 0.7])
     gi_hat = gi @ np.diag(1.0 / k)
     indi = IndiController(IndiConfig(DT, 0.0, ActuatorLimits.from_vehicle(CFG)))
@@ -73,9 +75,7 @@ def test_indi_with_scaled_effectiveness_moves_by_lambda() -> None:
 
 def test_saturation_keeps_limits_and_priorities_and_never_nan() -> None:
     q = np.zeros(3)
-    mp = vm.mass_properties(CFG, q)
-    gc = vm.control_effectiveness_gc(CFG, mp.com_frd_m)
-    gi = vm.inertia_matrix_gi(mp.inertia_com, mp.mass_kg)
+    gc, gi = _model(q)
     indi = IndiController(IndiConfig(DT, 0.0, ActuatorLimits.from_vehicle(CFG)))
     u0 = vm.hover_trim(CFG, q, 0.0)
     acc0 = _plant_accel(u0, gc, gi)
