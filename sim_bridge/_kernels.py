@@ -107,11 +107,12 @@ N_NOISE = int(NOISE.SIZE)
 # Standard deviations per sensor group (params.SensorParams)
 SIG = layout("SIG", gyro=1, acc=1, pos=1, vel=1, att=1, duct=1, prop=1, jq=1, jqd=1)
 N_SIG = int(SIG.SIZE)
-# Sensor group bits (same values as sensors.SensorField).
+# Sensor group bits (same values as messages.SensorField), bit i = group i of sense()'s schedule.
 G_IMU = 1
 G_MOCAP = 2
 G_ACT = 4
 G_JOINT = 8
+N_GROUPS = 4
 
 
 @njit(cache=True)
@@ -700,11 +701,18 @@ def evaluate(x, p, base_mode, d, w) -> None:
 
 
 @njit(cache=True)
-def sense(x, d, sig, noise, prev, groups, out) -> None:
-    """Sensor sample: truth + sigma * N(0,1) for the groups due now, previous values for the others.
+def sense(x, d, sig, noise, prev, t_us, due_us, period_us, out) -> int:
+    """Sensor sample at t_us: truth + sigma * N(0,1) for the groups due now, previous values for the others.
+    Returns the groups sampled (G_* bits). due_us, period_us (int64, one per group in G_* bit order): a group is
+    due when t_us >= its due time, which then moves past t_us by whole periods.
 
     The mocap attitude noise is a small body-frame rotation q_meas = q (x) [1, dth/2] (renormalised).
     """
+    groups = 0
+    for i in range(N_GROUPS):
+        if t_us >= due_us[i]:
+            groups |= 1 << i
+            due_us[i] += period_us[i] * ((t_us - due_us[i]) // period_us[i] + 1)
     for i in range(N_S):
         out[i] = prev[i]
     if groups & G_IMU:
@@ -740,3 +748,4 @@ def sense(x, d, sig, noise, prev, groups, out) -> None:
         for i in range(3):
             out[S.JQ + i] = x[X.Q + i] + sig[SIG.JQ] * noise[NOISE.JQ + i]
             out[S.JQD + i] = x[X.QD + i] + sig[SIG.JQD] * noise[NOISE.JQD + i]
+    return groups

@@ -48,7 +48,6 @@ from sim_bridge import _kernels as K
 from sim_bridge.messages import (
     ActuatorCommand,
     SensorBundle,
-    SensorField,
     Truth,
     WireSensors,
     WireTruth,
@@ -189,13 +188,12 @@ class Plant:
         self._sig = K.SIG.pack(gyro=s.gyro_sigma_rad_s, acc=s.accel_sigma_m_s2, pos=s.mocap_pos_sigma_m,
                                vel=s.mocap_vel_sigma_m_s, att=s.mocap_att_sigma_rad, duct=s.duct_tilt_sigma_rad,
                                prop=s.prop_speed_sigma_rad_s, jq=s.joint_pos_sigma_rad, jqd=s.joint_rate_sigma_rad_s)
-        self._sensor_periods_us = [
-            (int(SensorField.IMU), round(1e6 / s.imu_rate_hz)),
-            (int(SensorField.MOCAP), round(1e6 / s.mocap_rate_hz)),
-            (int(SensorField.ACTUATORS), round(1e6 / s.actuator_rate_hz)),
-            (int(SensorField.JOINTS), round(1e6 / s.joint_rate_hz)),
-        ]
-        self._sensor_due_us = [0, 0, 0, 0]
+        # per group, in SensorField bit order (IMU, MOCAP, ACTUATORS, JOINTS): period and next due time (us)
+        self._sensor_period_us = np.array([round(1e6 / r) for r in (s.imu_rate_hz, s.mocap_rate_hz,
+                                                                     s.actuator_rate_hz, s.joint_rate_hz)],
+                                          dtype=np.int64)
+        self._sensor_due_us = np.zeros(K.N_GROUPS, dtype=np.int64)
+        self._noise = np.empty(K.N_NOISE)  # the draws of one sample (refilled in place)
         self._meas = np.zeros(K.N_S)  # last sample of every sensor group (kernel-owned, writable)
         self._t_us = 0
         self._init_state(scenario)
@@ -314,7 +312,8 @@ class Plant:
         events = self._events
         while self._t_us < t_end:
             t_stop = t_end
-            if self._ev_i < len(events) and events[self._ev_i][0] < t_stop:
+            pending = self._ev_i < len(events)
+            if pending and events[self._ev_i][0] < t_stop:
                 t_stop = events[self._ev_i][0]
             n = (t_stop - self._t_us) // h_us
             if K.advance(
@@ -322,7 +321,7 @@ class Plant:
             ):
                 raise PlantDivergedError(f"non-finite plant state in ({self._t_us}, {t_stop}] us")
             self._t_us = t_stop
-            if self._apply_due_events():
+            if pending and self._apply_due_events():
                 K.evaluate(self._x, self._p, self._base_mode, self._d, self._work)
 
     def _apply_due_events(self) -> bool:
@@ -360,27 +359,18 @@ class Plant:
     # ---- outputs --------------------------------------------------------------------------------
     def _sample(self) -> int:
         """Sample the sensor groups that are due into self._meas (the others hold); the groups sampled."""
-        t = self._t_us
-        groups = 0
-        due = self._sensor_due_us
-        for i, (bit, period) in enumerate(self._sensor_periods_us):
-            if t >= due[i]:
-                groups |= bit
-                due[i] += period * ((t - due[i]) // period + 1)
-        noise = self._rng.standard_normal(K.N_NOISE)
+        self._rng.standard_normal(out=self._noise)  # every call draws the same number: a seed fixes the run
         # in place: the groups not due keep their previous sample (sample and hold)
-        K.sense(self._x, self._d, self._sig, noise, self._meas, groups, self._meas)
-        return groups
+        return K.sense(self._x, self._d, self._sig, self._noise, self._meas, self._t_us, self._sensor_due_us,
+                       self._sensor_period_us, self._meas)
 
     def sense(self) -> SensorBundle:
         t = self._t_us
         groups = self._sample()
         s = self._meas.copy()
         s.flags.writeable = False
-        g, a, p, v, q, tilt, speed, jp, jr = _S_GROUPS(s)
-        return SensorBundle(time_us=t, gyro_frd=g, accel_frd=a, pos_ned=p, vel_ned=v, quat_wxyz=q, duct_tilt_rad=tilt,
-                            prop_speed_rad_s=speed, joint_pos_rad=jp, joint_rate_rad_s=jr,
-                            gripper_closed=self._gripper_closed, updated=groups)
+        # positional: the S layout lists SensorBundle's array fields in its order (test_plant_io checks the fields)
+        return SensorBundle(t, *_S_GROUPS(s), self._gripper_closed, groups)
 
     def truth(self) -> Truth:
         x = self._x.copy()
