@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from navig8_fc.core import _kernels as _k
+from navig8_fc.core import rotation
 from navig8_fc.core.ckf import AdaptiveLaw, AdaptiveLawStatus, CkfConfig, inv_small
 from navig8_fc.core.indi import (
     ActuatorLimits,
@@ -259,5 +260,10 @@ def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: i
                       joint_rate_rad_s=(0.1, 0.0, -0.1))
         _, st = core.step(s, sp, engaged=i > 0)
     assert st is not None
+    # the attitude kernels Python code calls directly (rotation.py: telemetry, the plant's truth)
+    q = rotation.euler_to_quat(0.1, 0.2, 0.3)
+    rotation.quat_to_euler(rotation.quat_mul(q, q))
+    rotation.attitude_error_rotvec(q, q)
+    rotation.rotate_ned_to_body(q, (0.0, 0.0, 1.0))
     ghat_ginv_eig_record(core._model, st.q_est_rad, st.gi_hat, (0.0, 0.0, 0.05), vehicle.uav_inertia_array,
                          vehicle.uam_mass_kg, config.k_min, 0.1, st.gc_uam)
