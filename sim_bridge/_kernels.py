@@ -23,123 +23,96 @@ import math
 
 from numba import njit
 
-# ---------------------------------------------------------------------------------------------
-# State vector x (float64)
-# ---------------------------------------------------------------------------------------------
-X_POS = 0  # 0:3 position of O, NED (m)
-X_VEL = 3  # 3:6 velocity of O, NED (m/s)
-X_QUAT = 6  # 6:10 attitude [w, x, y, z], body FRD -> NED
-X_RATE = 10  # 10:13 body rates, FRD (rad/s)
-N_BASE = 13  # the part of x integrated by RK4
-X_ACT = 13  # 13:18 actuator outputs (alpha1, alpha3 rad; w1, w2, w3 rad/s)
-X_ACTD = 18  # 18:23 their time derivatives
-X_Q = 23  # 23:26 joint angles (rad)
-X_QD = 26  # 26:29 joint rates (rad/s)
-X_QDD = 29  # 29:32 joint accelerations over the current servo period (rad/s^2)
-X_MOBJ = 32  # object mass (kg), 0 when nothing is held
-X_QTGT = 33  # 33:36 joint targets the servo used last (rad)
-N_X = 36
+from navig8_fc.core.layout import layout
 
+# Layouts of the flat float64 vectors (navig8_fc.core.layout: one table gives the kernels their slot constants,
+# X.POS, and plant.py its slices, X.POS.sl). Defined here, next to the kernels, so numba's cache follows them.
+
+# State vector x
+X = layout("X", pos=3,  # position of O, NED (m)
+           vel=3,  # velocity of O, NED (m/s)
+           quat=4,  # attitude [w, x, y, z], body FRD -> NED
+           rate=3,  # body rates, FRD (rad/s)
+           act=5,  # actuator outputs (alpha1, alpha3 rad; w1, w2, w3 rad/s); x[:X.ACT] is what RK4 integrates
+           actd=5,  # their time derivatives
+           q=3, qd=3,  # joint angles (rad) and rates (rad/s)
+           qdd=3,  # joint accelerations over the current servo period (rad/s^2)
+           mobj=1,  # object mass (kg), 0 when nothing is held
+           qtgt=3)  # joint targets the servo used last (rad)
+N_X = int(X.SIZE)
+N_BASE = int(X.ACT)  # the part of x integrated by RK4
 N_ACT = 5
 N_CONTACT_MAX = 8
 
-# ---------------------------------------------------------------------------------------------
-# Parameter vector p (float64), built once by plant.py
-# ---------------------------------------------------------------------------------------------
-P_G = 0  # gravity (m/s^2)
-P_M0 = 1  # UAV mass (kg)
-P_J0 = 2  # 2:11 UAV inertia about O, row-major 3x3
-P_ML = 11  # link mass
-P_IA = 12  # link transverse inertia (slender rod)
-P_L = 13  # link length
-P_MOUNT = 14  # 14:17 joint-1 position relative to O, FRD
-P_OBJ_D = 17  # object centre offset beyond the tip along link 3
-P_OBJ_R = 18  # object sphere radius (inertia 0.4 m r^2)
-P_PF = 19  # 19:34 force per unit U, 3x5 row-major (vehicle.propulsion_wrench)
-P_PM = 34  # 34:49 moment about O per unit U, 3x5 row-major
-P_PHI_H = 49  # 49:69 actuator transition matrices over h, 5 x [p11, p12, p21, p22]
-P_GAM_H = 69  # 69:79 actuator input vectors over h, 5 x [g1, g2]
-P_PHI_H2 = 79  # 79:99 same over h/2 (RK4 mid stages)
-P_GAM_H2 = 99  # 99:109
-P_ACT_MIN = 109  # 109:114
-P_ACT_MAX = 114  # 114:119
-P_H = 119  # physics step (s)
-P_SERVO_N = 120  # physics steps per servo period
-P_VMAX = 121  # joint rate limit (rad/s)
-P_AMAX = 122  # joint acceleration limit (rad/s^2)
-P_QLIM = 123  # joint angle limit (rad), targets are clamped to +-QLIM
-P_KN = 124  # contact normal stiffness per point (N/m)
-P_CN = 125  # contact normal damping per point (N s/m)
-P_MU = 126  # friction coefficient
-P_VEPS = 127  # friction regularisation speed (m/s)
-P_NC = 128  # number of contact points
-P_CP = 129  # 129:153 contact points, FRD relative to O (8 x 3)
-P_H_US = 153  # physics step in microseconds (integer-valued)
-N_P = 154
+# Parameter vector p, built once by plant.py
+P = layout("P", g=1,  # gravity (m/s^2)
+           m0=1, j0=9,  # UAV mass (kg), inertia about O (row-major 3x3)
+           ml=1, ia=1, l=1,  # link mass, transverse inertia (slender rod), length
+           mount=3,  # joint-1 position relative to O, FRD
+           obj_d=1, obj_r=1,  # object centre offset beyond the tip along link 3; sphere radius (0.4 m r^2)
+           pf=15, pm=15,  # force and moment about O per unit U, 3x5 row-major (vehicle.propulsion_per_input)
+           phi_h=20, gam_h=10,  # actuator transition matrices over h, 5 x [p11, p12, p21, p22]; inputs 5 x [g1, g2]
+           phi_h2=20, gam_h2=10,  # the same over h/2 (RK4 mid stages)
+           act_min=5, act_max=5,
+           h=1, servo_n=1,  # physics step (s), physics steps per servo period
+           vmax=1, amax=1, qlim=1,  # joint rate, acceleration and angle limits (targets clamped to +-qlim)
+           kn=1, cn=1, mu=1, veps=1,  # contact stiffness, damping per point; friction coeff., regularisation speed
+           nc=1, cp=3 * N_CONTACT_MAX,  # number of contact points; the points, FRD relative to O
+           h_us=1)  # physics step in microseconds (integer-valued)
+N_P = int(P.SIZE)
 
-# ---------------------------------------------------------------------------------------------
-# Derived quantities d (float64), filled at the end of every advance() / evaluate()
-# ---------------------------------------------------------------------------------------------
-D_ACC = 0  # 0:3 absolute acceleration of O, body FRD (m/s^2)
-D_WDOT = 3  # 3:6 body angular acceleration (rad/s^2)
-D_SPF = 6  # 6:9 specific force at O, body (a_O - g), what an ideal accelerometer at O reads
-D_MASS = 9  # total mass (kg)
-D_COM = 10  # 10:13 composite CoM relative to O, FRD
-D_JC = 13  # 13:22 inertia about the composite CoM (3x3 row-major)
-D_JO = 22  # 22:31 inertia about O
-D_FR_G = 31  # 31:34 reaction force of the arm on the UAV, gravity included (N, FRD)
-D_FR_NOG = 34  # 34:37 same without the arm's weight (inertial part only)
-D_MR_MOUNT_G = 37  # 37:40 reaction moment about the mount, gravity included (N m)
-D_MR_MOUNT_NOG = 40  # 40:43
-D_MR_O_G = 43  # 43:46 reaction moment about O, gravity included
-D_MR_O_NOG = 46  # 46:49
-D_FPROP = 49  # 49:52 propulsive force (N, FRD)
-D_MPROP = 52  # 52:55 propulsive moment about O (N m)
-D_FCONT = 55  # 55:58 ground contact force (N, FRD)
-D_MCONT = 58  # 58:61 ground contact moment about O
-D_NCONT = 61  # number of contact points touching
-N_D = 62
+# Derived quantities d, filled at the end of every advance() / evaluate()
+D = layout("D", acc=3,  # absolute acceleration of O, body FRD (m/s^2)
+           wdot=3,  # body angular acceleration (rad/s^2)
+           spf=3,  # specific force at O, body (a_O - g), what an ideal accelerometer at O reads
+           mass=1, com=3,  # total mass (kg), composite CoM relative to O, FRD
+           jc=9, jo=9,  # inertia about the composite CoM and about O (3x3 row-major)
+           fr_g=3, fr_nog=3,  # reaction force of the arm on the UAV with / without the arm's weight (N, FRD)
+           mr_mount_g=3, mr_mount_nog=3,  # reaction moment about the mount (N m)
+           mr_o_g=3, mr_o_nog=3,  # reaction moment about O
+           fprop=3, mprop=3,  # propulsive force (N, FRD) and moment about O (N m)
+           fcont=3, mcont=3,  # ground contact force and moment about O
+           ncont=1)  # number of contact points touching
+N_D = int(D.SIZE)
 
 # Base modes: how the floating base is constrained (analysis variants; flight uses FREE).
 BASE_FREE = 0
 BASE_ATTITUDE_LOCKED = 1  # w = w' = 0, translation free: the limit of an infinitely stiff attitude loop
 BASE_FIXED = 2  # a_O = w' = 0: the base is held (a test stand)
 
-# Command vector: 0:5 actuator commands (already validated and clamped by plant.py),
-# 5 joint-override flag (1.0: use 6:9 as joint targets instead of the schedule), 6:9 targets.
-C_ACT = 0
-C_JOVR = 5
-C_JTGT = 6
-N_C = 9
+# Command vector: actuator commands (already validated and clamped by plant.py), joint-override flag (1.0: use
+# jtgt as joint targets instead of the schedule), joint targets.
+C = layout("C", act=N_ACT, jovr=1, jtgt=3)
+N_C = int(C.SIZE)
 
 # Arm schedule rows: [t0_us, t1_us, qa1, qa2, qa3, qb1, qb2, qb3]; target(t) interpolates linearly
 # from qa at t0 to qb at t1 (a step is a zero-length segment's neighbour). Before the first row the
 # first qa holds, after the last row the last qb holds.
 N_SCHED_COLS = 8
 
+# Per-body data of _dynamics for the reaction wrench (4 bodies: 3 links and the object, SC.SIZE slots each)
+SC = layout("SC", m=1, rx=1, rz=1, bx=1, by=1, bz=1, th=1, thd=1, thdd=1)
+N_SC = int(SC.SIZE)
 # Scratch for advance()/evaluate(), owned by the caller (no allocation in the hot path).
-N_WORK = 138 + N_X
+W = layout("W", xb=N_BASE, xs=N_BASE, k1=N_BASE, k2=N_BASE, k3=N_BASE, k4=N_BASE, q=3, qd=3, qdd=3,
+           act0=N_ACT, acth=N_ACT, act1=N_ACT, sc=4 * N_SC, backup=N_X)
+N_WORK = int(W.SIZE)
 
-# Sensor output vector s (float64), the SensorBundle's fields in this order.
-S_GYRO = 0  # 0:3
-S_ACC = 3  # 3:6
-S_POS = 6  # 6:9
-S_VEL = 9  # 9:12
-S_QUAT = 12  # 12:16
-S_DUCT = 16  # 16:18
-S_PROP = 18  # 18:21
-S_JQ = 21  # 21:24
-S_JQD = 24  # 24:27
-N_S = 27
-# Noise draws per sample: gyro 3, accel 3, pos 3, vel 3, attitude 3, duct 2, prop 3, jq 3, jqd 3.
-N_NOISE = 26
-# Sigma vector: gyro, accel, pos, vel, attitude, duct, prop, joint pos, joint rate.
-N_SIG = 9
-# Sensor group bits (same values as sensors.SensorField).
+# Sensor output vector s, the SensorBundle's fields in this order.
+S = layout("S", gyro=3, acc=3, pos=3, vel=3, quat=4, duct=2, prop=3, jq=3, jqd=3)
+N_S = int(S.SIZE)
+# Noise draws per sample (N(0, 1)); the mocap attitude noise is a small rotation vector.
+NOISE = layout("NOISE", gyro=3, acc=3, pos=3, vel=3, att=3, duct=2, prop=3, jq=3, jqd=3)
+N_NOISE = int(NOISE.SIZE)
+# Standard deviations per sensor group (params.SensorParams)
+SIG = layout("SIG", gyro=1, acc=1, pos=1, vel=1, att=1, duct=1, prop=1, jq=1, jqd=1)
+N_SIG = int(SIG.SIZE)
+# Sensor group bits (same values as messages.SensorField), bit i = group i of sense()'s schedule.
 G_IMU = 1
 G_MOCAP = 2
 G_ACT = 4
 G_JOINT = 8
+N_GROUPS = 4
 
 
 @njit(cache=True)
@@ -153,6 +126,22 @@ def _dcm(qw: float, qx: float, qy: float, qz: float):
 
 
 @njit(cache=True)
+def _put3(v, at, a, b, c) -> None:
+    """v[at:at + 3] = (a, b, c): one 3-vector slot of a layout."""
+    v[at] = a
+    v[at + 1] = b
+    v[at + 2] = c
+
+
+@njit(cache=True)
+def _put_sym3(v, at, xx, xy, xz, yy, yz, zz) -> None:
+    """v[at:at + 9] = the symmetric 3x3 matrix, row-major."""
+    _put3(v, at, xx, xy, xz)
+    _put3(v, at + 3, xy, yy, yz)
+    _put3(v, at + 6, xz, yz, zz)
+
+
+@njit(cache=True)
 def _own_inertia(k: int, ia: float, io: float, s: float, c: float):
     """Body k's own inertia about its centre, body axes: link rod Ia (E - e e^T) with e = [s, 0, c]
     (Table 1: Izz = 0 along the link) for k < 3, the object's sphere io E for k = 3. (xx, yy, zz, xz)."""
@@ -162,38 +151,52 @@ def _own_inertia(k: int, ia: float, io: float, s: float, c: float):
 
 
 @njit(cache=True)
+def _euler_moment(ixx, iyy, izz, ixz, wx, wy, wz, thd, ax, ay, az):
+    """I a + W x I W for a body of own inertia I (x-z symmetric: xx, yy, zz, xz) turning at W = w + thd y (its joint
+    rate about body y on top of the base's w) with angular acceleration a (Euler's equation about its centre)."""
+    Wx = wx
+    Wy = wy + thd
+    Wz = wz
+    iWx = ixx * Wx + ixz * Wz
+    iWy = iyy * Wy
+    iWz = ixz * Wx + izz * Wz
+    return (ixx * ax + ixz * az + (Wy * iWz - Wz * iWy), iyy * ay + (Wz * iWx - Wx * iWz),
+            ixz * ax + izz * az + (Wx * iWy - Wy * iWx))
+
+
+@njit(cache=True)
 def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
-    """Base-state derivative at one instant. xb: (13,) base state; q, qd, qdd: joint motion at this
-    instant; act: actuator outputs (5). Writes dx/dt into out (13); sc (36,) is scratch for the
+    """Base-state derivative at one instant. xb: the base state (x[:N_BASE], X layout); q, qd, qdd: joint motion
+    at this instant; act: actuator outputs (5). Writes dx/dt into out (N_BASE); sc (4 x SC) is scratch for the
     per-body data of the reaction wrench. With full=True also fills the derived quantities d."""
-    g = p[P_G]
-    qw, qx, qy, qz = xb[6], xb[7], xb[8], xb[9]
-    wx, wy, wz = xb[10], xb[11], xb[12]
+    g = p[P.G]
+    qw, qx, qy, qz = xb[X.QUAT], xb[X.QUAT + 1], xb[X.QUAT + 2], xb[X.QUAT + 3]
+    wx, wy, wz = xb[X.RATE], xb[X.RATE + 1], xb[X.RATE + 2]
     r00, r01, r02, r10, r11, r12, r20, r21, r22 = _dcm(qw, qx, qy, qz)
     # gravity in body axes: R^T [0, 0, g]
     gbx, gby, gbz = g * r20, g * r21, g * r22
 
     # ---- arm kinematics relative to the body (notes §3.1) and composite sums ------------------
-    ml = p[P_ML]
-    ia = p[P_IA]
-    L = p[P_L]
-    mx, my, mz = p[P_MOUNT], p[P_MOUNT + 1], p[P_MOUNT + 2]
-    m = p[P_M0] + 3.0 * ml + mobj
+    ml = p[P.ML]
+    ia = p[P.IA]
+    L = p[P.L]
+    mx, my, mz = p[P.MOUNT], p[P.MOUNT + 1], p[P.MOUNT + 2]
+    m = p[P.M0] + 3.0 * ml + mobj
     # first moment m c (UAV contributes nothing: O is its CoM)
     mcx = 0.0
     mcy = 0.0
     mcz = 0.0
     # J_O accumulators (symmetric; J_xy = J_yz = 0 is NOT assumed for the mount's y offset)
-    jxx = p[P_J0]
-    jxy = p[P_J0 + 1]
-    jxz = p[P_J0 + 2]
-    jyy = p[P_J0 + 4]
-    jyz = p[P_J0 + 5]
-    jzz = p[P_J0 + 8]
+    jxx = p[P.J0]
+    jxy = p[P.J0 + 1]
+    jxz = p[P.J0 + 2]
+    jyy = p[P.J0 + 4]
+    jyz = p[P.J0 + 5]
+    jzz = p[P.J0 + 8]
     # UAV gyroscopic term w x J0 w goes into the Euler bias
-    j0wx = p[P_J0] * wx + p[P_J0 + 1] * wy + p[P_J0 + 2] * wz
-    j0wy = p[P_J0 + 3] * wx + p[P_J0 + 4] * wy + p[P_J0 + 5] * wz
-    j0wz = p[P_J0 + 6] * wx + p[P_J0 + 7] * wy + p[P_J0 + 8] * wz
+    j0wx = p[P.J0] * wx + p[P.J0 + 1] * wy + p[P.J0 + 2] * wz
+    j0wy = p[P.J0 + 3] * wx + p[P.J0 + 4] * wy + p[P.J0 + 5] * wz
+    j0wz = p[P.J0 + 6] * wx + p[P.J0 + 7] * wy + p[P.J0 + 8] * wz
     bfx = 0.0
     bfy = 0.0
     bfz = 0.0
@@ -210,8 +213,9 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
     jvz = 0.0
     jax = 0.0
     jaz = 0.0
-    io = 0.4 * mobj * p[P_OBJ_R] * p[P_OBJ_R]
+    io = 0.4 * mobj * p[P.OBJ_R] * p[P.OBJ_R]
     for k in range(4):
+        o = N_SC * k  # body k's slots in sc
         if k < 3:
             th += q[k]
             thd += qd[k]
@@ -222,7 +226,7 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
             half = 0.5 * L
             mk = ml
         else:
-            half = p[P_OBJ_D]
+            half = p[P.OBJ_D]
             mk = mobj
         # e = [s, 0, c], de/dth = [c, 0, -s]; a = thdd de - thd^2 e
         rx = jx + half * s
@@ -248,15 +252,15 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
         by = wz * wrx - wx * wrz + 2.0 * (wz * vx - wx * vz)
         bz = wx * wry - wy * wrx + 2.0 * (-wy * vx) + az
         # per-body data for the reaction wrench (no allocation in the hot path)
-        sc[9 * k] = mk
-        sc[9 * k + 1] = rx
-        sc[9 * k + 2] = rz
-        sc[9 * k + 3] = bx
-        sc[9 * k + 4] = by
-        sc[9 * k + 5] = bz
-        sc[9 * k + 6] = th
-        sc[9 * k + 7] = thd
-        sc[9 * k + 8] = thdd
+        sc[o + SC.M] = mk
+        sc[o + SC.RX] = rx
+        sc[o + SC.RZ] = rz
+        sc[o + SC.BX] = bx
+        sc[o + SC.BY] = by
+        sc[o + SC.BZ] = bz
+        sc[o + SC.TH] = th
+        sc[o + SC.THD] = thd
+        sc[o + SC.THDD] = thdd
         bfx += mk * bx
         bfy += mk * by
         bfz += mk * bz
@@ -281,18 +285,11 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
         jzz += izz
         jxz += ixz
         # Euler bias of the body's own inertia: I (thdd y + w x thd y) + W x I W, W = w + thd y
-        ux = -wz * thd  # w x (thd y) = [-wz thd, 0, wx thd]
-        uy = thdd
-        uz = wx * thd
-        Wx = wx
-        Wy = wy + thd
-        Wz = wz
-        iWx = ixx * Wx + ixz * Wz
-        iWy = iyy * Wy
-        iWz = ixz * Wx + izz * Wz
-        bmx += ixx * ux + ixz * uz + (Wy * iWz - Wz * iWy)
-        bmy += iyy * uy + (Wz * iWx - Wx * iWz)
-        bmz += ixz * ux + izz * uz + (Wx * iWy - Wy * iWx)
+        # (w x (thd y) = [-wz thd, 0, wx thd])
+        tx, ty, tz = _euler_moment(ixx, iyy, izz, ixz, wx, wy, wz, thd, -wz * thd, thdd, wx * thd)
+        bmx += tx
+        bmy += ty
+        bmz += tz
 
     cx = mcx / m
     cy = mcy / m
@@ -312,12 +309,12 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
     u2 = math.cos(a3) * w3s
     u3 = math.sin(a3) * w3s
     u4 = w2 * abs(w2)
-    fpx = p[P_PF + 0] * u0 + p[P_PF + 1] * u1 + p[P_PF + 2] * u2 + p[P_PF + 3] * u3 + p[P_PF + 4] * u4
-    fpy = p[P_PF + 5] * u0 + p[P_PF + 6] * u1 + p[P_PF + 7] * u2 + p[P_PF + 8] * u3 + p[P_PF + 9] * u4
-    fpz = p[P_PF + 10] * u0 + p[P_PF + 11] * u1 + p[P_PF + 12] * u2 + p[P_PF + 13] * u3 + p[P_PF + 14] * u4
-    mpx = p[P_PM + 0] * u0 + p[P_PM + 1] * u1 + p[P_PM + 2] * u2 + p[P_PM + 3] * u3 + p[P_PM + 4] * u4
-    mpy = p[P_PM + 5] * u0 + p[P_PM + 6] * u1 + p[P_PM + 7] * u2 + p[P_PM + 8] * u3 + p[P_PM + 9] * u4
-    mpz = p[P_PM + 10] * u0 + p[P_PM + 11] * u1 + p[P_PM + 12] * u2 + p[P_PM + 13] * u3 + p[P_PM + 14] * u4
+    fpx = p[P.PF + 0] * u0 + p[P.PF + 1] * u1 + p[P.PF + 2] * u2 + p[P.PF + 3] * u3 + p[P.PF + 4] * u4
+    fpy = p[P.PF + 5] * u0 + p[P.PF + 6] * u1 + p[P.PF + 7] * u2 + p[P.PF + 8] * u3 + p[P.PF + 9] * u4
+    fpz = p[P.PF + 10] * u0 + p[P.PF + 11] * u1 + p[P.PF + 12] * u2 + p[P.PF + 13] * u3 + p[P.PF + 14] * u4
+    mpx = p[P.PM + 0] * u0 + p[P.PM + 1] * u1 + p[P.PM + 2] * u2 + p[P.PM + 3] * u3 + p[P.PM + 4] * u4
+    mpy = p[P.PM + 5] * u0 + p[P.PM + 6] * u1 + p[P.PM + 7] * u2 + p[P.PM + 8] * u3 + p[P.PM + 9] * u4
+    mpz = p[P.PM + 10] * u0 + p[P.PM + 11] * u1 + p[P.PM + 12] * u2 + p[P.PM + 13] * u3 + p[P.PM + 14] * u4
 
     # ground contact: spring-damper + regularised Coulomb friction at the skid points (NED z = 0 ground)
     fcx = 0.0
@@ -327,26 +324,26 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
     mcoy = 0.0
     mcoz = 0.0
     ncont = 0
-    nc = int(p[P_NC])
+    nc = int(p[P.NC])
     for i in range(nc):
-        px = p[P_CP + 3 * i]
-        py = p[P_CP + 3 * i + 1]
-        pz = p[P_CP + 3 * i + 2]
-        depth = xb[2] + r20 * px + r21 * py + r22 * pz
+        px = p[P.CP + 3 * i]
+        py = p[P.CP + 3 * i + 1]
+        pz = p[P.CP + 3 * i + 2]
+        depth = xb[X.POS + 2] + r20 * px + r21 * py + r22 * pz
         if depth > 0.0:
             # point velocity in NED: v + R (w x p)
             ox = wy * pz - wz * py
             oy = wz * px - wx * pz
             oz = wx * py - wy * px
-            vnx = xb[3] + r00 * ox + r01 * oy + r02 * oz
-            vny = xb[4] + r10 * ox + r11 * oy + r12 * oz
-            vnz = xb[5] + r20 * ox + r21 * oy + r22 * oz
-            fn = p[P_KN] * depth + p[P_CN] * vnz
+            vnx = xb[X.VEL] + r00 * ox + r01 * oy + r02 * oz
+            vny = xb[X.VEL + 1] + r10 * ox + r11 * oy + r12 * oz
+            vnz = xb[X.VEL + 2] + r20 * ox + r21 * oy + r22 * oz
+            fn = p[P.KN] * depth + p[P.CN] * vnz
             if fn > 0.0:
                 ncont += 1
-                vt = math.sqrt(vnx * vnx + vny * vny + p[P_VEPS] * p[P_VEPS])
-                ftx = -p[P_MU] * fn * vnx / vt
-                fty = -p[P_MU] * fn * vny / vt
+                vt = math.sqrt(vnx * vnx + vny * vny + p[P.VEPS] * p[P.VEPS])
+                ftx = -p[P.MU] * fn * vnx / vt
+                fty = -p[P.MU] * fn * vny / vt
                 ftz = -fn
                 # NED -> body: R^T f
                 fbx = r00 * ftx + r10 * fty + r20 * ftz
@@ -371,15 +368,15 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
     ex = fx - bfx
     ey = fy - bfy
     ez = fz - bfz
+    # J_c = J_O - m (|c|^2 E - c c^T), the inertia about the composite CoM
+    c2 = cx * cx + cy * cy + cz * cz
+    a11 = jxx - m * (c2 - cx * cx)
+    a22 = jyy - m * (c2 - cy * cy)
+    a33 = jzz - m * (c2 - cz * cz)
+    a12 = jxy + m * cx * cy
+    a13 = jxz + m * cx * cz
+    a23 = jyz + m * cy * cz
     if base_mode == BASE_FREE:
-        # J_c = J_O - m (|c|^2 E - c c^T)
-        c2 = cx * cx + cy * cy + cz * cz
-        a11 = jxx - m * (c2 - cx * cx)
-        a22 = jyy - m * (c2 - cy * cy)
-        a33 = jzz - m * (c2 - cz * cz)
-        a12 = jxy + m * cx * cy
-        a13 = jxz + m * cx * cz
-        a23 = jyz + m * cy * cz
         # rhs = M_O - b_M - c x (F - b_F)
         hx = mox - bmx - (cy * ez - cz * ey)
         hy = moy - bmy - (cz * ex - cx * ez)
@@ -415,74 +412,41 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
         aoz = 0.0
 
     # ---- state derivative ---------------------------------------------------------------------
-    out[0] = xb[3]
-    out[1] = xb[4]
-    out[2] = xb[5]
-    out[3] = r00 * aox + r01 * aoy + r02 * aoz
-    out[4] = r10 * aox + r11 * aoy + r12 * aoz
-    out[5] = r20 * aox + r21 * aoy + r22 * aoz
+    out[X.POS] = xb[X.VEL]
+    out[X.POS + 1] = xb[X.VEL + 1]
+    out[X.POS + 2] = xb[X.VEL + 2]
+    out[X.VEL] = r00 * aox + r01 * aoy + r02 * aoz
+    out[X.VEL + 1] = r10 * aox + r11 * aoy + r12 * aoz
+    out[X.VEL + 2] = r20 * aox + r21 * aoy + r22 * aoz
     # q' = 1/2 q (x) [0, w]
-    out[6] = -0.5 * (qx * wx + qy * wy + qz * wz)
-    out[7] = 0.5 * (qw * wx + qy * wz - qz * wy)
-    out[8] = 0.5 * (qw * wy + qz * wx - qx * wz)
-    out[9] = 0.5 * (qw * wz + qx * wy - qy * wx)
+    out[X.QUAT] = -0.5 * (qx * wx + qy * wy + qz * wz)
+    out[X.QUAT + 1] = 0.5 * (qw * wx + qy * wz - qz * wy)
+    out[X.QUAT + 2] = 0.5 * (qw * wy + qz * wx - qx * wz)
+    out[X.QUAT + 3] = 0.5 * (qw * wz + qx * wy - qy * wx)
     if base_mode == BASE_FREE:
-        out[10] = dwx
-        out[11] = dwy
-        out[12] = dwz
+        out[X.RATE] = dwx
+        out[X.RATE + 1] = dwy
+        out[X.RATE + 2] = dwz
     else:
-        out[10] = 0.0
-        out[11] = 0.0
-        out[12] = 0.0
+        out[X.RATE] = 0.0
+        out[X.RATE + 1] = 0.0
+        out[X.RATE + 2] = 0.0
 
     if not full:
         return
 
-    d[D_ACC] = aox
-    d[D_ACC + 1] = aoy
-    d[D_ACC + 2] = aoz
-    d[D_WDOT] = dwx
-    d[D_WDOT + 1] = dwy
-    d[D_WDOT + 2] = dwz
-    d[D_SPF] = aox - gbx
-    d[D_SPF + 1] = aoy - gby
-    d[D_SPF + 2] = aoz - gbz
-    d[D_MASS] = m
-    d[D_COM] = cx
-    d[D_COM + 1] = cy
-    d[D_COM + 2] = cz
-    c2 = cx * cx + cy * cy + cz * cz
-    d[D_JO + 0] = jxx
-    d[D_JO + 1] = jxy
-    d[D_JO + 2] = jxz
-    d[D_JO + 3] = jxy
-    d[D_JO + 4] = jyy
-    d[D_JO + 5] = jyz
-    d[D_JO + 6] = jxz
-    d[D_JO + 7] = jyz
-    d[D_JO + 8] = jzz
-    d[D_JC + 0] = jxx - m * (c2 - cx * cx)
-    d[D_JC + 1] = jxy + m * cx * cy
-    d[D_JC + 2] = jxz + m * cx * cz
-    d[D_JC + 3] = d[D_JC + 1]
-    d[D_JC + 4] = jyy - m * (c2 - cy * cy)
-    d[D_JC + 5] = jyz + m * cy * cz
-    d[D_JC + 6] = d[D_JC + 2]
-    d[D_JC + 7] = d[D_JC + 5]
-    d[D_JC + 8] = jzz - m * (c2 - cz * cz)
-    d[D_FPROP] = fpx
-    d[D_FPROP + 1] = fpy
-    d[D_FPROP + 2] = fpz
-    d[D_MPROP] = mpx
-    d[D_MPROP + 1] = mpy
-    d[D_MPROP + 2] = mpz
-    d[D_FCONT] = fcx
-    d[D_FCONT + 1] = fcy
-    d[D_FCONT + 2] = fcz
-    d[D_MCONT] = mcox
-    d[D_MCONT + 1] = mcoy
-    d[D_MCONT + 2] = mcoz
-    d[D_NCONT] = ncont
+    _put3(d, D.ACC, aox, aoy, aoz)
+    _put3(d, D.WDOT, dwx, dwy, dwz)
+    _put3(d, D.SPF, aox - gbx, aoy - gby, aoz - gbz)
+    d[D.MASS] = m
+    _put3(d, D.COM, cx, cy, cz)
+    _put_sym3(d, D.JO, jxx, jxy, jxz, jyy, jyz, jzz)
+    _put_sym3(d, D.JC, a11, a12, a13, a22, a23, a33)
+    _put3(d, D.FPROP, fpx, fpy, fpz)
+    _put3(d, D.MPROP, mpx, mpy, mpz)
+    _put3(d, D.FCONT, fcx, fcy, fcz)
+    _put3(d, D.MCONT, mcox, mcoy, mcoz)
+    d[D.NCONT] = ncont
 
     # ---- reaction wrench of the arm on the UAV (notes §3.4 step 5) -----------------------------
     # a_k = a_O + w' x r_k + b_k; link angular acceleration W'_k = w' + thdd y + w x thd y.
@@ -498,13 +462,14 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
     gmy = 0.0
     gmz = 0.0
     for k in range(4):
-        mk = sc[9 * k]
-        rx = sc[9 * k + 1]
+        o = N_SC * k
+        mk = sc[o + SC.M]
+        rx = sc[o + SC.RX]
         ry = my
-        rz = sc[9 * k + 2]
-        akx = aox + (dwy * rz - dwz * ry) + sc[9 * k + 3]
-        aky = aoy + (dwz * rx - dwx * rz) + sc[9 * k + 4]
-        akz = aoz + (dwx * ry - dwy * rx) + sc[9 * k + 5]
+        rz = sc[o + SC.RZ]
+        akx = aox + (dwy * rz - dwz * ry) + sc[o + SC.BX]
+        aky = aoy + (dwz * rx - dwx * rz) + sc[o + SC.BY]
+        akz = aoz + (dwx * ry - dwy * rx) + sc[o + SC.BZ]
         dx_ = rx - mx
         dy_ = ry - my
         dz_ = rz - mz
@@ -518,49 +483,29 @@ def _dynamics(xb, q, qd, qdd, act, mobj, p, base_mode, out, sc, d, full):
         gmx += mk * dx_
         gmy += mk * dy_
         gmz += mk * dz_
-        s = math.sin(sc[9 * k + 6])
-        c = math.cos(sc[9 * k + 6])
-        thd = sc[9 * k + 7]
-        thdd = sc[9 * k + 8]
+        s = math.sin(sc[o + SC.TH])
+        c = math.cos(sc[o + SC.TH])
+        thd = sc[o + SC.THD]
+        thdd = sc[o + SC.THDD]
         ixx, iyy, izz, ixz = _own_inertia(k, ia, io, s, c)
-        awx = dwx - wz * thd
-        awy = dwy + thdd
-        awz = dwz + wx * thd
-        Wx = wx
-        Wy = wy + thd
-        Wz = wz
-        iWx = ixx * Wx + ixz * Wz
-        iWy = iyy * Wy
-        iWz = ixz * Wx + izz * Wz
-        mrx -= ixx * awx + ixz * awz + (Wy * iWz - Wz * iWy)
-        mry -= iyy * awy + (Wz * iWx - Wx * iWz)
-        mrz -= ixz * awx + izz * awz + (Wx * iWy - Wy * iWx)
-    d[D_FR_NOG] = frx
-    d[D_FR_NOG + 1] = fry
-    d[D_FR_NOG + 2] = frz
-    d[D_FR_G] = frx + marm * gbx
-    d[D_FR_G + 1] = fry + marm * gby
-    d[D_FR_G + 2] = frz + marm * gbz
-    d[D_MR_MOUNT_NOG] = mrx
-    d[D_MR_MOUNT_NOG + 1] = mry
-    d[D_MR_MOUNT_NOG + 2] = mrz
+        tx, ty, tz = _euler_moment(ixx, iyy, izz, ixz, wx, wy, wz, thd, dwx - wz * thd, dwy + thdd, dwz + wx * thd)
+        mrx -= tx
+        mry -= ty
+        mrz -= tz
+    _put3(d, D.FR_NOG, frx, fry, frz)
+    _put3(d, D.FR_G, frx + marm * gbx, fry + marm * gby, frz + marm * gbz)
+    _put3(d, D.MR_MOUNT_NOG, mrx, mry, mrz)
     # the weight acting at the arm bodies, seen at the mount: + sum (r_k - mount) x m_k g
     mgx = mrx + (gmy * gbz - gmz * gby)
     mgy = mry + (gmz * gbx - gmx * gbz)
     mgz = mrz + (gmx * gby - gmy * gbx)
-    d[D_MR_MOUNT_G] = mgx
-    d[D_MR_MOUNT_G + 1] = mgy
-    d[D_MR_MOUNT_G + 2] = mgz
+    _put3(d, D.MR_MOUNT_G, mgx, mgy, mgz)
     # about O: M_O = M_mount + r_mount x F_r
-    fgx = d[D_FR_G]
-    fgy = d[D_FR_G + 1]
-    fgz = d[D_FR_G + 2]
-    d[D_MR_O_NOG] = mrx + (my * frz - mz * fry)
-    d[D_MR_O_NOG + 1] = mry + (mz * frx - mx * frz)
-    d[D_MR_O_NOG + 2] = mrz + (mx * fry - my * frx)
-    d[D_MR_O_G] = mgx + (my * fgz - mz * fgy)
-    d[D_MR_O_G + 1] = mgy + (mz * fgx - mx * fgz)
-    d[D_MR_O_G + 2] = mgz + (mx * fgy - my * fgx)
+    fgx = d[D.FR_G]
+    fgy = d[D.FR_G + 1]
+    fgz = d[D.FR_G + 2]
+    _put3(d, D.MR_O_NOG, mrx + (my * frz - mz * fry), mry + (mz * frx - mx * frz), mrz + (mx * fry - my * frx))
+    _put3(d, D.MR_O_G, mgx + (my * fgz - mz * fgy), mgy + (mz * fgx - mx * fgz), mgz + (mx * fgy - my * fgx))
 
 
 @njit(cache=True)
@@ -618,12 +563,27 @@ def _schedule_target(sched, t_us: float, j: int) -> float:
 
 @njit(cache=True)
 def _act_at(x, p, cmd, phi, gam, out):
-    """Exact second-order actuator outputs after tau (phi, gam = P_PHI_H or P_PHI_H2 offsets)."""
+    """Exact second-order actuator outputs after tau (phi, gam = P.PHI_H or P.PHI_H2 offsets)."""
     for i in range(N_ACT):
-        y = x[X_ACT + i]
-        yd = x[X_ACTD + i]
-        u = cmd[C_ACT + i]
+        y = x[X.ACT + i]
+        yd = x[X.ACTD + i]
+        u = cmd[C.ACT + i]
         out[i] = p[phi + 4 * i] * y + p[phi + 4 * i + 1] * yd + p[gam + 2 * i] * u
+
+
+@njit(cache=True)
+def _joints_at(x, qdd, tau, q, qd) -> None:
+    """Joint angles and rates tau after the state x with q'' held (exact for constant acceleration)."""
+    for j in range(3):
+        q[j] = x[X.Q + j] + x[X.QD + j] * tau + 0.5 * qdd[j] * tau * tau
+        qd[j] = x[X.QD + j] + qdd[j] * tau
+
+
+@njit(cache=True)
+def _stage_state(xb, tau, k, xs) -> None:
+    """An RK4 stage's base state: xs = xb + tau k."""
+    for i in range(N_BASE):
+        xs[i] = xb[i] + tau * k[i]
 
 
 @njit(cache=True)
@@ -631,105 +591,99 @@ def advance(x, p, cmd, sched, n_steps, t0_us, base_mode, d, w) -> int:
     """Advance the state x in place by n_steps physics steps from time t0_us (an integer on the
     physics grid). w is caller-owned scratch (N_WORK) so the hot path does not allocate.
     Returns 0, or 1 if the state became non-finite (x is then left as it was)."""
-    h = p[P_H]
-    h_us = int(p[P_H_US])
-    servo_n = int(p[P_SERVO_N])
+    h = p[P.H]
+    h_us = int(p[P.H_US])
+    servo_n = int(p[P.SERVO_N])
     hs = h * servo_n
-    amax = p[P_AMAX]
-    vmax = p[P_VMAX]
-    qlim = p[P_QLIM]
-    xb = w[0:13]
-    xs = w[13:26]
-    k1 = w[26:39]
-    k2 = w[39:52]
-    k3 = w[52:65]
-    k4 = w[65:78]
-    q = w[78:81]
-    qd = w[81:84]
-    qdd = w[84:87]
-    act0 = w[87:92]
-    acth = w[92:97]
-    act1 = w[97:102]
-    sc = w[102:138]
-    backup = w[138:138 + N_X]
+    amax = p[P.AMAX]
+    vmax = p[P.VMAX]
+    qlim = p[P.QLIM]
+    xb = w[W.XB:W.XB + N_BASE]
+    xs = w[W.XS:W.XS + N_BASE]
+    k1 = w[W.K1:W.K1 + N_BASE]
+    k2 = w[W.K2:W.K2 + N_BASE]
+    k3 = w[W.K3:W.K3 + N_BASE]
+    k4 = w[W.K4:W.K4 + N_BASE]
+    q = w[W.Q:W.Q + 3]
+    qd = w[W.QD:W.QD + 3]
+    qdd = w[W.QDD:W.QDD + 3]
+    act0 = w[W.ACT0:W.ACT0 + N_ACT]
+    acth = w[W.ACTH:W.ACTH + N_ACT]
+    act1 = w[W.ACT1:W.ACT1 + N_ACT]
+    sc = w[W.SC:W.SC + 4 * N_SC]
+    backup = w[W.BACKUP:W.BACKUP + N_X]
     for i in range(N_X):
         backup[i] = x[i]
-    mobj = x[X_MOBJ]
+    mobj = x[X.MOBJ]
     for n in range(n_steps):
         t_us = t0_us + n * h_us
         # ---- joint servo: new q'' at the start of each servo period -------------------------
         if (t_us // h_us) % servo_n == 0:
             for j in range(3):
-                if cmd[C_JOVR] > 0.5:
-                    tgt = cmd[C_JTGT + j]
+                if cmd[C.JOVR] > 0.5:
+                    tgt = cmd[C.JTGT + j]
                 else:
                     tgt = _schedule_target(sched, float(t_us), j)
                 if tgt > qlim:
                     tgt = qlim
                 elif tgt < -qlim:
                     tgt = -qlim
-                x[X_QTGT + j] = tgt
-                if abs(tgt - x[X_Q + j]) <= 1e-12 and abs(x[X_QD + j]) <= 1e-9:
+                x[X.QTGT + j] = tgt
+                if abs(tgt - x[X.Q + j]) <= 1e-12 and abs(x[X.QD + j]) <= 1e-9:
                     # arrived: snap the round-off residue of the deadbeat law so the joint rests exactly
-                    x[X_Q + j] = tgt
-                    x[X_QD + j] = 0.0
-                    x[X_QDD + j] = 0.0
+                    x[X.Q + j] = tgt
+                    x[X.QD + j] = 0.0
+                    x[X.QDD + j] = 0.0
                 else:
-                    x[X_QDD + j] = _servo_accel(tgt - x[X_Q + j], x[X_QD + j], hs, amax, vmax)
+                    x[X.QDD + j] = _servo_accel(tgt - x[X.Q + j], x[X.QD + j], hs, amax, vmax)
         for i in range(N_BASE):
             xb[i] = x[i]
         for j in range(3):
-            qdd[j] = x[X_QDD + j]
+            qdd[j] = x[X.QDD + j]
         # ---- actuator outputs at t, t + h/2, t + h (exact, ZOH command) ---------------------
         for i in range(N_ACT):
-            act0[i] = x[X_ACT + i]
-        _act_at(x, p, cmd, P_PHI_H2, P_GAM_H2, acth)
-        _act_at(x, p, cmd, P_PHI_H, P_GAM_H, act1)
+            act0[i] = x[X.ACT + i]
+        _act_at(x, p, cmd, P.PHI_H2, P.GAM_H2, acth)
+        _act_at(x, p, cmd, P.PHI_H, P.GAM_H, act1)
         # ---- RK4 on the base with the exact joint and actuator trajectories -----------------
         for j in range(3):
-            q[j] = x[X_Q + j]
-            qd[j] = x[X_QD + j]
+            q[j] = x[X.Q + j]
+            qd[j] = x[X.QD + j]
         _dynamics(xb, q, qd, qdd, act0, mobj, p, base_mode, k1, sc, d, False)
         th = 0.5 * h
-        for j in range(3):
-            q[j] = x[X_Q + j] + x[X_QD + j] * th + 0.5 * qdd[j] * th * th
-            qd[j] = x[X_QD + j] + qdd[j] * th
-        for i in range(N_BASE):
-            xs[i] = xb[i] + th * k1[i]
+        _joints_at(x, qdd, th, q, qd)
+        _stage_state(xb, th, k1, xs)
         _dynamics(xs, q, qd, qdd, acth, mobj, p, base_mode, k2, sc, d, False)
-        for i in range(N_BASE):
-            xs[i] = xb[i] + th * k2[i]
+        _stage_state(xb, th, k2, xs)
         _dynamics(xs, q, qd, qdd, acth, mobj, p, base_mode, k3, sc, d, False)
-        for j in range(3):
-            q[j] = x[X_Q + j] + x[X_QD + j] * h + 0.5 * qdd[j] * h * h
-            qd[j] = x[X_QD + j] + qdd[j] * h
-        for i in range(N_BASE):
-            xs[i] = xb[i] + h * k3[i]
+        _joints_at(x, qdd, h, q, qd)
+        _stage_state(xb, h, k3, xs)
         _dynamics(xs, q, qd, qdd, act1, mobj, p, base_mode, k4, sc, d, False)
         for i in range(N_BASE):
             x[i] = xb[i] + (h / 6.0) * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
-        qn = math.sqrt(x[6] * x[6] + x[7] * x[7] + x[8] * x[8] + x[9] * x[9])
-        for i in range(6, 10):
-            x[i] /= qn
+        qw, qx, qy, qz = x[X.QUAT], x[X.QUAT + 1], x[X.QUAT + 2], x[X.QUAT + 3]
+        qn = math.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
+        for i in range(4):
+            x[X.QUAT + i] /= qn
         # ---- joints: exact for constant q'' ---------------------------------------------------
         for j in range(3):
-            x[X_Q + j] = q[j]
-            x[X_QD + j] = qd[j]
+            x[X.Q + j] = q[j]
+            x[X.QD + j] = qd[j]
         # ---- actuators: exact discretisation, then the hard stops ----------------------------
         for i in range(N_ACT):
-            yd = (p[P_PHI_H + 4 * i + 2] * x[X_ACT + i] + p[P_PHI_H + 4 * i + 3] * x[X_ACTD + i]
-                  + p[P_GAM_H + 2 * i + 1] * cmd[C_ACT + i])
+            yd = (p[P.PHI_H + 4 * i + 2] * x[X.ACT + i] + p[P.PHI_H + 4 * i + 3] * x[X.ACTD + i]
+                  + p[P.GAM_H + 2 * i + 1] * cmd[C.ACT + i])
             y = act1[i]
-            if y > p[P_ACT_MAX + i]:
-                y = p[P_ACT_MAX + i]
+            if y > p[P.ACT_MAX + i]:
+                y = p[P.ACT_MAX + i]
                 if yd > 0.0:
                     yd = 0.0
-            elif y < p[P_ACT_MIN + i]:
-                y = p[P_ACT_MIN + i]
+            elif y < p[P.ACT_MIN + i]:
+                y = p[P.ACT_MIN + i]
                 if yd < 0.0:
                     yd = 0.0
-            x[X_ACT + i] = y
-            x[X_ACTD + i] = yd
+            x[X.ACT + i] = y
+            x[X.ACTD + i] = yd
     for i in range(N_X):
         if not math.isfinite(x[i]):
             for j in range(N_X):
@@ -742,30 +696,37 @@ def advance(x, p, cmd, sched, n_steps, t0_us, base_mode, d, w) -> int:
 @njit(cache=True)
 def evaluate(x, p, base_mode, d, w) -> None:
     """Fill the derived quantities d at the current state (q'' = the current servo period's)."""
-    _dynamics(x[0:N_BASE], x[X_Q:X_Q + 3], x[X_QD:X_QD + 3], x[X_QDD:X_QDD + 3], x[X_ACT:X_ACT + N_ACT],
-              x[X_MOBJ], p, base_mode, w[13:26], w[102:138], d, True)
+    _dynamics(x[0:N_BASE], x[X.Q:X.Q + 3], x[X.QD:X.QD + 3], x[X.QDD:X.QDD + 3], x[X.ACT:X.ACT + N_ACT],
+              x[X.MOBJ], p, base_mode, w[W.XS:W.XS + N_BASE], w[W.SC:W.SC + 4 * N_SC], d, True)
 
 
 @njit(cache=True)
-def sense(x, d, sig, noise, prev, groups, out) -> None:
-    """Sensor sample: truth + sigma * N(0,1) for the groups due now, previous values for the others.
+def sense(x, d, sig, noise, prev, t_us, due_us, period_us, out) -> int:
+    """Sensor sample at t_us: truth + sigma * N(0,1) for the groups due now, previous values for the others.
+    Returns the groups sampled (G_* bits). due_us, period_us (int64, one per group in G_* bit order): a group is
+    due when t_us >= its due time, which then moves past t_us by whole periods.
 
     The mocap attitude noise is a small body-frame rotation q_meas = q (x) [1, dth/2] (renormalised).
     """
+    groups = 0
+    for i in range(N_GROUPS):
+        if t_us >= due_us[i]:
+            groups |= 1 << i
+            due_us[i] += period_us[i] * ((t_us - due_us[i]) // period_us[i] + 1)
     for i in range(N_S):
         out[i] = prev[i]
     if groups & G_IMU:
         for i in range(3):
-            out[S_GYRO + i] = x[X_RATE + i] + sig[0] * noise[i]
-            out[S_ACC + i] = d[D_SPF + i] + sig[1] * noise[3 + i]
+            out[S.GYRO + i] = x[X.RATE + i] + sig[SIG.GYRO] * noise[NOISE.GYRO + i]
+            out[S.ACC + i] = d[D.SPF + i] + sig[SIG.ACC] * noise[NOISE.ACC + i]
     if groups & G_MOCAP:
         for i in range(3):
-            out[S_POS + i] = x[X_POS + i] + sig[2] * noise[6 + i]
-            out[S_VEL + i] = x[X_VEL + i] + sig[3] * noise[9 + i]
-        hx = 0.5 * sig[4] * noise[12]
-        hy = 0.5 * sig[4] * noise[13]
-        hz = 0.5 * sig[4] * noise[14]
-        qw, qx, qy, qz = x[6], x[7], x[8], x[9]
+            out[S.POS + i] = x[X.POS + i] + sig[SIG.POS] * noise[NOISE.POS + i]
+            out[S.VEL + i] = x[X.VEL + i] + sig[SIG.VEL] * noise[NOISE.VEL + i]
+        hx = 0.5 * sig[SIG.ATT] * noise[NOISE.ATT]
+        hy = 0.5 * sig[SIG.ATT] * noise[NOISE.ATT + 1]
+        hz = 0.5 * sig[SIG.ATT] * noise[NOISE.ATT + 2]
+        qw, qx, qy, qz = x[X.QUAT], x[X.QUAT + 1], x[X.QUAT + 2], x[X.QUAT + 3]
         ow = qw - qx * hx - qy * hy - qz * hz
         ox = qw * hx + qx + qy * hz - qz * hy
         oy = qw * hy - qx * hz + qy + qz * hx
@@ -773,17 +734,18 @@ def sense(x, d, sig, noise, prev, groups, out) -> None:
         nq = math.sqrt(ow * ow + ox * ox + oy * oy + oz * oz)
         if ow < 0.0:
             nq = -nq  # keep w >= 0 (same rotation)
-        out[S_QUAT] = ow / nq
-        out[S_QUAT + 1] = ox / nq
-        out[S_QUAT + 2] = oy / nq
-        out[S_QUAT + 3] = oz / nq
+        out[S.QUAT] = ow / nq
+        out[S.QUAT + 1] = ox / nq
+        out[S.QUAT + 2] = oy / nq
+        out[S.QUAT + 3] = oz / nq
     if groups & G_ACT:
-        out[S_DUCT] = x[X_ACT] + sig[5] * noise[15]
-        out[S_DUCT + 1] = x[X_ACT + 1] + sig[5] * noise[16]
-        out[S_PROP] = x[X_ACT + 2] + sig[6] * noise[17]
-        out[S_PROP + 1] = x[X_ACT + 3] + sig[6] * noise[18]
-        out[S_PROP + 2] = x[X_ACT + 4] + sig[6] * noise[19]
+        out[S.DUCT] = x[X.ACT] + sig[SIG.DUCT] * noise[NOISE.DUCT]
+        out[S.DUCT + 1] = x[X.ACT + 1] + sig[SIG.DUCT] * noise[NOISE.DUCT + 1]
+        out[S.PROP] = x[X.ACT + 2] + sig[SIG.PROP] * noise[NOISE.PROP]
+        out[S.PROP + 1] = x[X.ACT + 3] + sig[SIG.PROP] * noise[NOISE.PROP + 1]
+        out[S.PROP + 2] = x[X.ACT + 4] + sig[SIG.PROP] * noise[NOISE.PROP + 2]
     if groups & G_JOINT:
         for i in range(3):
-            out[S_JQ + i] = x[X_Q + i] + sig[7] * noise[20 + i]
-            out[S_JQD + i] = x[X_QD + i] + sig[8] * noise[23 + i]
+            out[S.JQ + i] = x[X.Q + i] + sig[SIG.JQ] * noise[NOISE.JQ + i]
+            out[S.JQD + i] = x[X.QD + i] + sig[SIG.JQD] * noise[NOISE.JQD + i]
+    return groups

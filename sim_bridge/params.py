@@ -47,20 +47,6 @@ class SensorParams:
             if not math.isfinite(v) or v < 0.0 or (f.name.endswith("_hz") and v <= 0.0):
                 raise ValueError(f"sensor parameter {f.name} = {v} is invalid")
 
-    def sigmas(self) -> tuple[float, ...]:
-        """In the kernel's order: gyro, accel, pos, vel, attitude, duct, prop, joint pos, joint rate."""
-        return (
-            self.gyro_sigma_rad_s,
-            self.accel_sigma_m_s2,
-            self.mocap_pos_sigma_m,
-            self.mocap_vel_sigma_m_s,
-            self.mocap_att_sigma_rad,
-            self.duct_tilt_sigma_rad,
-            self.prop_speed_sigma_rad_s,
-            self.joint_pos_sigma_rad,
-            self.joint_rate_sigma_rad_s,
-        )
-
 
 @dataclass(frozen=True)
 class GroundParams:

@@ -36,40 +36,52 @@ from __future__ import annotations
 
 import math
 from operator import itemgetter
+from typing import Any, TypeVar
 
 import numpy as np
 import scipy.linalg
 
+from navig8_fc.core import rotation
 from navig8_fc.core.rotation import euler_to_quat, quat_to_euler
-from navig8_fc.core.vehicle import VehicleConfig, hover_trim, propulsion_wrench, u_to_actuators
+from navig8_fc.core.vehicle import VehicleConfig, hover_trim, propulsion_per_input, u_to_actuators
 from sim_bridge import _kernels as K
 from sim_bridge.messages import (
     ActuatorCommand,
     SensorBundle,
-    SensorField,
     Truth,
     WireSensors,
     WireTruth,
-    make_frozen,
 )
 from sim_bridge.params import ActuatorDynamics, PlantParams
 from sim_bridge.scenario import Scenario
 
+_R = TypeVar("_R")
 BASE_MODES = {"free": K.BASE_FREE, "attitude_locked": K.BASE_ATTITUDE_LOCKED, "fixed": K.BASE_FIXED}
 
 
-# sense_wire / truth_wire: the groups of the sensor vector and the wire truth's parts of the state and
-# derived vectors, cut from their tolist() in one C call each
-_S_WIRE = itemgetter(*(slice(a, b) for a, b in ((0, 3), (3, 6), (6, 9), (9, 12), (12, 16), (16, 18), (18, 21),
-                                                 (21, 24), (24, 27))))
-_X_WIRE = itemgetter(slice(K.X_POS, K.X_POS + 3), slice(K.X_VEL, K.X_VEL + 3), slice(K.X_QUAT, K.X_QUAT + 4),
-                     slice(K.X_RATE, K.X_RATE + 3), slice(K.X_ACT, K.X_ACT + 5), slice(K.X_Q, K.X_Q + 3),
-                     slice(K.X_QD, K.X_QD + 3), slice(K.X_QDD, K.X_QDD + 3), K.X_MOBJ)
-_D_WIRE = itemgetter(slice(K.D_ACC, K.D_ACC + 3), K.D_MASS, slice(K.D_COM, K.D_COM + 3),
-                     slice(K.D_JC, K.D_JC + 3), slice(K.D_JC + 3, K.D_JC + 6), slice(K.D_JC + 6, K.D_JC + 9),
-                     slice(K.D_FR_G, K.D_FR_G + 3), slice(K.D_MR_MOUNT_G, K.D_MR_MOUNT_G + 3))
-_new = object.__new__
-_C_ACT, _C_JOVR = K.C_ACT, K.C_JOVR
+# sense / sense_wire: the sensor vector's groups (SensorBundle's fields in order); truth_wire: the wire truth's
+# parts of the state and derived vectors (the inertia about the CoM as three rows). Cut in one C call each.
+_S_GROUPS = itemgetter(*(m.sl for m in K.S.fields()))
+_X_WIRE = itemgetter(*(m.sl for m in (K.X.POS, K.X.VEL, K.X.QUAT, K.X.RATE, K.X.ACT, K.X.Q, K.X.QD, K.X.QDD)),
+                     int(K.X.MOBJ))
+_D_WIRE = itemgetter(K.D.ACC.sl, int(K.D.MASS), K.D.COM.sl,
+                     *(slice(K.D.JC + 3 * r, K.D.JC + 3 * r + 3) for r in range(3)), K.D.FR_G.sl, K.D.MR_MOUNT_G.sl)
+
+
+def _fill(record: _R, **fields: Any) -> _R:
+    """Set the fields of a plain record class (WireSensors, WireTruth: attributes, no __init__)."""
+    for name, value in fields.items():
+        setattr(record, name, value)
+    return record
+_C_ACT, _C_JOVR, _C_JTGT = K.C.ACT.sl, int(K.C.JOVR), int(K.C.JTGT)
+# truth(): its views of the state and derived vectors, cut in one C call each
+_TRUTH_X = itemgetter(*(m.sl for m in (K.X.POS, K.X.VEL, K.X.QUAT, K.X.RATE, K.X.ACT, K.X.ACTD, K.X.Q, K.X.QD,
+                                       K.X.QDD, K.X.QTGT)))
+_TRUTH_D = itemgetter(*(m.sl for m in (K.D.ACC, K.D.WDOT, K.D.SPF, K.D.COM, K.D.FR_G, K.D.MR_MOUNT_G, K.D.MR_O_G,
+                                       K.D.FR_NOG, K.D.MR_MOUNT_NOG, K.D.MR_O_NOG, K.D.FPROP, K.D.MPROP, K.D.FCONT,
+                                       K.D.MCONT)))
+_X_MOBJ, _X_QUAT = int(K.X.MOBJ), K.X.QUAT.sl
+_D_MASS, _D_NCONT, _D_JC, _D_JO = int(K.D.MASS), int(K.D.NCONT), K.D.JC.sl, K.D.JO.sl
 
 
 class PlantDivergedError(RuntimeError):
@@ -77,8 +89,8 @@ class PlantDivergedError(RuntimeError):
 
 
 def quat_to_dcm(q: np.ndarray) -> np.ndarray:
-    """R (body -> NED) from [w, x, y, z]."""
-    return np.array(K._dcm(*(float(v) for v in q))).reshape(3, 3)
+    """R (body -> NED) from [w, x, y, z] as a 3x3 array (rotation.quat_to_dcm)."""
+    return np.array(rotation.quat_to_dcm(q))
 
 
 def _actuator_discretisation(dyn: ActuatorDynamics, tau_s: float) -> tuple[np.ndarray, np.ndarray]:
@@ -94,53 +106,29 @@ def _actuator_discretisation(dyn: ActuatorDynamics, tau_s: float) -> tuple[np.nd
 
 
 def build_param_vector(vehicle: VehicleConfig, params: PlantParams) -> np.ndarray:
-    """The kernel's parameter vector (layout in _kernels.py)."""
-    p = np.zeros(K.N_P)
-    p[K.P_G] = vehicle.gravity_m_s2
-    p[K.P_M0] = vehicle.uav_mass_kg
-    p[K.P_J0:K.P_J0 + 9] = vehicle.uav_inertia_array.reshape(9)
-    p[K.P_ML] = vehicle.link_mass_kg
-    p[K.P_IA] = vehicle.link_inertia_kgm2
-    p[K.P_L] = vehicle.link_length_m
-    p[K.P_MOUNT:K.P_MOUNT + 3] = vehicle.mount_frd_m
-    p[K.P_OBJ_D] = vehicle.object_offset_m
-    p[K.P_OBJ_R] = vehicle.object_radius_m
+    """The kernel's parameter vector (_kernels.P layout)."""
+    h = 1.0 / params.physics_rate_hz
     # Per-input force and moment about O from the FC's own propulsion model (notes §2.1-2.2), so the
     # plant and vehicle.hover_trim / G_C agree exactly; the kernel only multiplies by U.
-    f = np.zeros((3, 5))
-    mom = np.zeros((3, 5))
-    for k in range(5):
-        e = np.zeros(5)
-        e[k] = 1.0
-        f[:, k], mom[:, k] = propulsion_wrench(vehicle, e)
-    p[K.P_PF:K.P_PF + 15] = f.reshape(15)
-    p[K.P_PM:K.P_PM + 15] = mom.reshape(15)
-    h = 1.0 / params.physics_rate_hz
+    f, mom = propulsion_per_input(vehicle)
     dyns = (params.tilt_dynamics, params.tilt_dynamics, params.speed_dynamics, params.speed_dynamics,
             params.speed_dynamics)
-    for i, dyn in enumerate(dyns):
-        for tau, po, go in ((h, K.P_PHI_H, K.P_GAM_H), (0.5 * h, K.P_PHI_H2, K.P_GAM_H2)):
-            phi, gam = _actuator_discretisation(dyn, tau)
-            p[po + 4 * i:po + 4 * i + 4] = phi.reshape(4)
-            p[go + 2 * i:go + 2 * i + 2] = gam
+    disc = {tau: [_actuator_discretisation(dyn, tau) for dyn in dyns] for tau in (h, 0.5 * h)}
     lo, hi = actuator_limits(vehicle)
-    p[K.P_ACT_MIN:K.P_ACT_MIN + 5] = lo
-    p[K.P_ACT_MAX:K.P_ACT_MAX + 5] = hi
-    p[K.P_H] = h
-    p[K.P_H_US] = params.physics_step_us
-    p[K.P_SERVO_N] = params.servo_substeps
-    p[K.P_VMAX] = params.joint_v_max_rad_s
-    p[K.P_AMAX] = params.joint_a_max_rad_s2
-    p[K.P_QLIM] = vehicle.joint_limit_rad
     g = params.ground
-    p[K.P_KN] = g.stiffness_n_m
-    p[K.P_CN] = g.damping_n_s_m
-    p[K.P_MU] = g.friction_coeff
-    p[K.P_VEPS] = g.friction_reg_speed_m_s
-    p[K.P_NC] = len(g.contact_points_frd_m)
-    for i, cp in enumerate(g.contact_points_frd_m):
-        p[K.P_CP + 3 * i:K.P_CP + 3 * i + 3] = cp
-    return p
+    cp = np.zeros((K.N_CONTACT_MAX, 3))
+    cp[:len(g.contact_points_frd_m)] = g.contact_points_frd_m
+    return K.P.pack(
+        g=vehicle.gravity_m_s2, m0=vehicle.uav_mass_kg, j0=vehicle.uav_inertia_array, ml=vehicle.link_mass_kg,
+        ia=vehicle.link_inertia_kgm2, l=vehicle.link_length_m, mount=vehicle.mount_frd_m,
+        obj_d=vehicle.object_offset_m, obj_r=vehicle.object_radius_m, pf=f, pm=mom,
+        phi_h=[phi for phi, _ in disc[h]], gam_h=[gam for _, gam in disc[h]],
+        phi_h2=[phi for phi, _ in disc[0.5 * h]], gam_h2=[gam for _, gam in disc[0.5 * h]],
+        act_min=lo, act_max=hi, h=h, servo_n=params.servo_substeps, vmax=params.joint_v_max_rad_s,
+        amax=params.joint_a_max_rad_s2, qlim=vehicle.joint_limit_rad, kn=g.stiffness_n_m, cn=g.damping_n_s_m,
+        mu=g.friction_coeff, veps=g.friction_reg_speed_m_s, nc=len(g.contact_points_frd_m), cp=cp,
+        h_us=params.physics_step_us,
+    )
 
 
 def actuator_limits(vehicle: VehicleConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -197,14 +185,15 @@ class Plant:
         self._ev_i = 0
         # sensors
         s = params.sensors
-        self._sig = np.array(s.sigmas(), dtype=np.float64)
-        self._sensor_periods_us = [
-            (int(SensorField.IMU), round(1e6 / s.imu_rate_hz)),
-            (int(SensorField.MOCAP), round(1e6 / s.mocap_rate_hz)),
-            (int(SensorField.ACTUATORS), round(1e6 / s.actuator_rate_hz)),
-            (int(SensorField.JOINTS), round(1e6 / s.joint_rate_hz)),
-        ]
-        self._sensor_due_us = [0, 0, 0, 0]
+        self._sig = K.SIG.pack(gyro=s.gyro_sigma_rad_s, acc=s.accel_sigma_m_s2, pos=s.mocap_pos_sigma_m,
+                               vel=s.mocap_vel_sigma_m_s, att=s.mocap_att_sigma_rad, duct=s.duct_tilt_sigma_rad,
+                               prop=s.prop_speed_sigma_rad_s, jq=s.joint_pos_sigma_rad, jqd=s.joint_rate_sigma_rad_s)
+        # per group, in SensorField bit order (IMU, MOCAP, ACTUATORS, JOINTS): period and next due time (us)
+        self._sensor_period_us = np.array([round(1e6 / r) for r in (s.imu_rate_hz, s.mocap_rate_hz,
+                                                                     s.actuator_rate_hz, s.joint_rate_hz)],
+                                          dtype=np.int64)
+        self._sensor_due_us = np.zeros(K.N_GROUPS, dtype=np.int64)
+        self._noise = np.empty(K.N_NOISE)  # the draws of one sample (refilled in place)
         self._meas = np.zeros(K.N_S)  # last sample of every sensor group (kernel-owned, writable)
         self._t_us = 0
         self._init_state(scenario)
@@ -213,27 +202,27 @@ class Plant:
     def _init_state(self, scn: Scenario) -> None:
         ini = scn.initial
         x = np.zeros(K.N_X)
-        x[K.X_POS:K.X_POS + 3] = ini.pos_ned_m
-        x[K.X_VEL:K.X_VEL + 3] = ini.vel_ned_m_s
+        x[K.X.POS.sl] = ini.pos_ned_m
+        x[K.X.VEL.sl] = ini.vel_ned_m_s
         quat = euler_to_quat(*ini.euler_rad)
-        x[K.X_QUAT:K.X_QUAT + 4] = quat
+        x[K.X.QUAT.sl] = quat
         if self._base_mode == K.BASE_FREE:
-            x[K.X_RATE:K.X_RATE + 3] = ini.rate_frd_rad_s
+            x[K.X.RATE.sl] = ini.rate_frd_rad_s
         q0 = np.clip(np.array(ini.joint_pos_rad), -self._qlim, self._qlim)
-        x[K.X_Q:K.X_Q + 3] = q0
-        x[K.X_QTGT:K.X_QTGT + 3] = q0
+        x[K.X.Q.sl] = q0
+        x[K.X.QTGT.sl] = q0
         self._gripper_closed = scn.gripper_closed
-        x[K.X_MOBJ] = scn.object_mass_kg if scn.gripper_closed else 0.0
+        x[K.X.MOBJ] = scn.object_mass_kg if scn.gripper_closed else 0.0
         self._x = x
         self._apply_due_events()  # events at t = 0
         if ini.on_ground:
             self._place_on_ground()
         if ini.actuators == "trim":
-            act = np.clip(trim_actuators(self.vehicle, q0, x[K.X_MOBJ]), self._act_lo, self._act_hi)
+            act = np.clip(trim_actuators(self.vehicle, q0, x[K.X.MOBJ]), self._act_lo, self._act_hi)
         else:
             act = np.zeros(5)
-        x[K.X_ACT:K.X_ACT + 5] = act
-        self._cmd[K.C_ACT:K.C_ACT + 5] = act
+        x[K.X.ACT.sl] = act
+        self._cmd[K.C.ACT.sl] = act
         self._valid_cmd = [float(v) for v in act]
         self._valid_joint = [float(v) for v in q0]
         K.evaluate(self._x, self._p, self._base_mode, self._d, self._work)
@@ -243,11 +232,11 @@ class Plant:
         pts = np.array(self.params.ground.contact_points_frd_m)
         if len(pts) == 0:
             raise ValueError("scenario starts on the ground but there are no contact points")
-        r = quat_to_dcm(self._x[K.X_QUAT:K.X_QUAT + 4])
+        r = quat_to_dcm(self._x[K.X.QUAT.sl])
         lowest = float(np.max(pts @ r[2]))
-        mass = self.vehicle.uam_mass_kg + self._x[K.X_MOBJ]
+        mass = self.vehicle.uam_mass_kg + self._x[K.X.MOBJ]
         sag = mass * self.vehicle.gravity_m_s2 / (len(pts) * self.params.ground.stiffness_n_m)
-        self._x[K.X_POS + 2] = -lowest + sag
+        self._x[K.X.POS + 2] = -lowest + sag
 
     # ---- time ---------------------------------------------------------------------------------
     @property
@@ -289,7 +278,7 @@ class Plant:
                 vals[i] = v = hi[i]
             valid[i] = v
         c = self._cmd
-        c[_C_ACT:_C_ACT + 5] = vals
+        c[_C_ACT] = vals
         jt = cmd.joint_targets_rad
         if jt is None:
             c[_C_JOVR] = 0.0
@@ -304,7 +293,7 @@ class Plant:
                 self._clamped += 1
                 v = math.copysign(self._qlim, v)
             self._valid_joint[j] = v
-            c[K.C_JTGT + j] = v
+            c[_C_JTGT + j] = v
 
     # ---- stepping -----------------------------------------------------------------------------
     def step(self, cmd: ActuatorCommand, dt_s: float) -> None:
@@ -323,7 +312,8 @@ class Plant:
         events = self._events
         while self._t_us < t_end:
             t_stop = t_end
-            if self._ev_i < len(events) and events[self._ev_i][0] < t_stop:
+            pending = self._ev_i < len(events)
+            if pending and events[self._ev_i][0] < t_stop:
                 t_stop = events[self._ev_i][0]
             n = (t_stop - self._t_us) // h_us
             if K.advance(
@@ -331,7 +321,7 @@ class Plant:
             ):
                 raise PlantDivergedError(f"non-finite plant state in ({self._t_us}, {t_stop}] us")
             self._t_us = t_stop
-            if self._apply_due_events():
+            if pending and self._apply_due_events():
                 K.evaluate(self._x, self._p, self._base_mode, self._d, self._work)
 
     def _apply_due_events(self) -> bool:
@@ -340,11 +330,11 @@ class Plant:
             ev = self._events[self._ev_i][1]
             if ev.kind == "release":
                 self._gripper_closed = False
-                self._x[K.X_MOBJ] = 0.0
+                self._x[K.X.MOBJ] = 0.0
             else:
                 # the new mass appears at the gripper moving with it: the base velocities are continuous
                 self._gripper_closed = True
-                self._x[K.X_MOBJ] = ev.mass_kg
+                self._x[K.X.MOBJ] = ev.mass_kg
             self._ev_i += 1
             applied = True
         return applied
@@ -362,120 +352,73 @@ class Plant:
         if bool(close) == self._gripper_closed:
             return False
         self._gripper_closed = bool(close)
-        self._x[K.X_MOBJ] = m if close else 0.0
+        self._x[K.X.MOBJ] = m if close else 0.0
         K.evaluate(self._x, self._p, self._base_mode, self._d, self._work)
         return True
 
     # ---- outputs --------------------------------------------------------------------------------
     def _sample(self) -> int:
         """Sample the sensor groups that are due into self._meas (the others hold); the groups sampled."""
-        t = self._t_us
-        groups = 0
-        due = self._sensor_due_us
-        for i, (bit, period) in enumerate(self._sensor_periods_us):
-            if t >= due[i]:
-                groups |= bit
-                due[i] += period * ((t - due[i]) // period + 1)
-        noise = self._rng.standard_normal(K.N_NOISE)
+        self._rng.standard_normal(out=self._noise)  # every call draws the same number: a seed fixes the run
         # in place: the groups not due keep their previous sample (sample and hold)
-        K.sense(self._x, self._d, self._sig, noise, self._meas, groups, self._meas)
-        return groups
+        return K.sense(self._x, self._d, self._sig, self._noise, self._meas, self._t_us, self._sensor_due_us,
+                       self._sensor_period_us, self._meas)
 
     def sense(self) -> SensorBundle:
         t = self._t_us
         groups = self._sample()
         s = self._meas.copy()
         s.flags.writeable = False
-        return make_frozen(SensorBundle, {
-            "time_us": t,
-            "gyro_frd": s[0:3],
-            "accel_frd": s[3:6],
-            "pos_ned": s[6:9],
-            "vel_ned": s[9:12],
-            "quat_wxyz": s[12:16],
-            "duct_tilt_rad": s[16:18],
-            "prop_speed_rad_s": s[18:21],
-            "joint_pos_rad": s[21:24],
-            "joint_rate_rad_s": s[24:27],
-            "gripper_closed": self._gripper_closed,
-            "updated": groups,
-        })
+        # positional: the S layout lists SensorBundle's array fields in its order (test_plant_io checks the fields)
+        return SensorBundle(t, *_S_GROUPS(s), self._gripper_closed, groups)
 
     def truth(self) -> Truth:
         x = self._x.copy()
         d = self._d.copy()
         x.flags.writeable = False
         d.flags.writeable = False
-        cmd = self._cmd[K.C_ACT:K.C_ACT + 5].copy()
+        cmd = self._cmd[_C_ACT].copy()
         cmd.flags.writeable = False
-        euler = np.array(quat_to_euler(x[K.X_QUAT:K.X_QUAT + 4]))
+        euler = np.array(quat_to_euler(x[_X_QUAT]))
         euler.flags.writeable = False
-        return make_frozen(Truth, {
-            "time_us": self._t_us,
-            "pos_ned_m": x[K.X_POS:K.X_POS + 3],
-            "vel_ned_m_s": x[K.X_VEL:K.X_VEL + 3],
-            "quat_wxyz": x[K.X_QUAT:K.X_QUAT + 4],
-            "euler_rad": euler,
-            "rate_frd_rad_s": x[K.X_RATE:K.X_RATE + 3],
-            "accel_frd_m_s2": d[K.D_ACC:K.D_ACC + 3],
-            "ang_accel_frd_rad_s2": d[K.D_WDOT:K.D_WDOT + 3],
-            "specific_force_frd_m_s2": d[K.D_SPF:K.D_SPF + 3],
-            "actuator_pos": x[K.X_ACT:K.X_ACT + 5],
-            "actuator_rate": x[K.X_ACTD:K.X_ACTD + 5],
-            "actuator_cmd": cmd,
-            "joint_pos_rad": x[K.X_Q:K.X_Q + 3],
-            "joint_rate_rad_s": x[K.X_QD:K.X_QD + 3],
-            "joint_accel_rad_s2": x[K.X_QDD:K.X_QDD + 3],
-            "joint_target_rad": x[K.X_QTGT:K.X_QTGT + 3],
-            "object_mass_kg": float(x[K.X_MOBJ]),
-            "gripper_closed": self._gripper_closed,
-            "mass_kg": float(d[K.D_MASS]),
-            "com_frd_m": d[K.D_COM:K.D_COM + 3],
-            "inertia_com_kgm2": d[K.D_JC:K.D_JC + 9].reshape(3, 3),
-            "inertia_o_kgm2": d[K.D_JO:K.D_JO + 9].reshape(3, 3),
-            "reaction_force_frd_n": d[K.D_FR_G:K.D_FR_G + 3],
-            "reaction_moment_mount_frd_nm": d[K.D_MR_MOUNT_G:K.D_MR_MOUNT_G + 3],
-            "reaction_moment_o_frd_nm": d[K.D_MR_O_G:K.D_MR_O_G + 3],
-            "reaction_force_nog_frd_n": d[K.D_FR_NOG:K.D_FR_NOG + 3],
-            "reaction_moment_mount_nog_frd_nm": d[K.D_MR_MOUNT_NOG:K.D_MR_MOUNT_NOG + 3],
-            "reaction_moment_o_nog_frd_nm": d[K.D_MR_O_NOG:K.D_MR_O_NOG + 3],
-            "prop_force_frd_n": d[K.D_FPROP:K.D_FPROP + 3],
-            "prop_moment_frd_nm": d[K.D_MPROP:K.D_MPROP + 3],
-            "contact_force_frd_n": d[K.D_FCONT:K.D_FCONT + 3],
-            "contact_moment_frd_nm": d[K.D_MCONT:K.D_MCONT + 3],
-            "contact_points_active": int(d[K.D_NCONT]),
-            "cmd_nonfinite_count": self._nonfinite,
-            "cmd_clamped_count": self._clamped,
-        })
+        pos, vel, quat, rate, act, actd, jq, jqd, jqdd, jtgt = _TRUTH_X(x)
+        acc, wdot, spf, com, fr, mr, mr_o, fr_nog, mr_nog, mr_o_nog, fprop, mprop, fcont, mcont = _TRUTH_D(d)
+        return Truth(
+            time_us=self._t_us, pos_ned_m=pos, vel_ned_m_s=vel, quat_wxyz=quat, euler_rad=euler, rate_frd_rad_s=rate,
+            accel_frd_m_s2=acc, ang_accel_frd_rad_s2=wdot, specific_force_frd_m_s2=spf, actuator_pos=act,
+            actuator_rate=actd, actuator_cmd=cmd, joint_pos_rad=jq, joint_rate_rad_s=jqd, joint_accel_rad_s2=jqdd,
+            joint_target_rad=jtgt, object_mass_kg=float(x[_X_MOBJ]), gripper_closed=self._gripper_closed,
+            mass_kg=float(d[_D_MASS]), com_frd_m=com, inertia_com_kgm2=d[_D_JC].reshape(3, 3),
+            inertia_o_kgm2=d[_D_JO].reshape(3, 3), reaction_force_frd_n=fr, reaction_moment_mount_frd_nm=mr,
+            reaction_moment_o_frd_nm=mr_o, reaction_force_nog_frd_n=fr_nog, reaction_moment_mount_nog_frd_nm=mr_nog,
+            reaction_moment_o_nog_frd_nm=mr_o_nog, prop_force_frd_n=fprop, prop_moment_frd_nm=mprop,
+            contact_force_frd_n=fcont, contact_moment_frd_nm=mcont, contact_points_active=int(d[_D_NCONT]),
+            cmd_nonfinite_count=self._nonfinite, cmd_clamped_count=self._clamped,
+        )
 
     def sense_wire(self) -> WireSensors:
         """sense() as plain Python floats in lists (WireSensors): the same sample, the same rng draws, for the
         bridge's encoder without the numpy views it would convert back at once."""
         groups = self._sample()
-        g, a, p, v, q, tilt, speed, jp, jr = _S_WIRE(self._meas.tolist())
-        w = _new(WireSensors)
-        w.__dict__ = {"time_us": self._t_us, "gyro_frd": g, "accel_frd": a, "pos_ned": p, "vel_ned": v,
-                      "quat_wxyz": q, "duct_tilt_rad": tilt, "prop_speed_rad_s": speed, "joint_pos_rad": jp,
-                      "joint_rate_rad_s": jr, "gripper_closed": self._gripper_closed, "updated": groups}
-        return w
+        g, a, p, v, q, tilt, speed, jp, jr = _S_GROUPS(self._meas.tolist())
+        return _fill(WireSensors(), time_us=self._t_us, gyro_frd=g, accel_frd=a, pos_ned=p, vel_ned=v, quat_wxyz=q,
+                     duct_tilt_rad=tilt, prop_speed_rad_s=speed, joint_pos_rad=jp, joint_rate_rad_s=jr,
+                     gripper_closed=self._gripper_closed, updated=groups)
 
     def truth_wire(self) -> WireTruth:
         """The part of truth() that NAVIG8_TRUTH carries, as plain Python floats (WireTruth; same values)."""
         pos, vel, quat, rate, act, jq, jqd, jqdd, mobj = _X_WIRE(self._x.tolist())
         acc, mass, com, j0, j1, j2, fr, mr = _D_WIRE(self._d.tolist())
-        w = _new(WireTruth)
-        w.__dict__ = {"time_us": self._t_us, "pos_ned_m": pos, "vel_ned_m_s": vel, "quat_wxyz": quat,
-                      "rate_frd_rad_s": rate, "accel_frd_m_s2": acc, "actuator_pos": act, "joint_pos_rad": jq,
-                      "joint_rate_rad_s": jqd, "joint_accel_rad_s2": jqdd, "object_mass_kg": mobj,
-                      "mass_kg": mass, "com_frd_m": com, "inertia_com_kgm2": (j0, j1, j2),
-                      "reaction_force_frd_n": fr, "reaction_moment_mount_frd_nm": mr,
-                      "cmd_nonfinite_count": self._nonfinite, "cmd_clamped_count": self._clamped}
-        return w
+        return _fill(WireTruth(), time_us=self._t_us, pos_ned_m=pos, vel_ned_m_s=vel, quat_wxyz=quat,
+                     rate_frd_rad_s=rate, accel_frd_m_s2=acc, actuator_pos=act, joint_pos_rad=jq, joint_rate_rad_s=jqd,
+                     joint_accel_rad_s2=jqdd, object_mass_kg=mobj, mass_kg=mass, com_frd_m=com,
+                     inertia_com_kgm2=(j0, j1, j2), reaction_force_frd_n=fr, reaction_moment_mount_frd_nm=mr,
+                     cmd_nonfinite_count=self._nonfinite, cmd_clamped_count=self._clamped)
 
     def trim_command(self) -> ActuatorCommand:
         """Level hover trim for the current arm pose and object (vehicle.hover_trim), clamped to limits."""
         act = np.clip(
-            trim_actuators(self.vehicle, self._x[K.X_Q:K.X_Q + 3], float(self._x[K.X_MOBJ])),
+            trim_actuators(self.vehicle, self._x[K.X.Q.sl], float(self._x[K.X.MOBJ])),
             self._act_lo,
             self._act_hi,
         )

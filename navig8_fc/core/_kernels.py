@@ -1,10 +1,10 @@
 """Numba hot path of the controller tick: UAM model + G_C^-1, KF correct, outer loops, INDI increment.
 
-Plain float maths on flat float64 arrays (the same style as sim_bridge/_kernels.py): the controller's
-vectors have 3-5 components, where numpy's per-call overhead dominates. Each kernel here has a
-plain-Python / numpy reference (UamModel.evaluate + inv_small, ConstrainedKalmanFilter._correct_reference,
-outer_loop_step, IndiControllerReference) and tests/unit/test_fc_kernels.py compares them; results
-agree to rounding (different summation order than BLAS / LAPACK). Pure: no I/O, no clocks.
+Plain float maths on flat float64 vectors whose slots are named by the layouts below (navig8_fc.core.layout:
+one table gives the kernels their constants and the Python callers their slices): the controller's vectors
+have 3-5 components, where numpy's per-call overhead dominates. Each algorithm is written once, here; its
+plain-Python path is the kernel's `py_func`. tests/unit/test_vehicle.py and test_fc_kernels.py check them
+against independent oracles (a vector-form model, finite differences, numpy/scipy). Pure: no I/O, no clocks.
 """
 
 from __future__ import annotations
@@ -14,14 +14,21 @@ import math
 import numpy as np
 from numba import njit
 
-# Layout of the UAM-model output vector `uo` (uam_model)
-UO_MASS = 0
-UO_CX = 1
-UO_CZ = 2
-UO_ARM_AX = 3
-UO_ARM_AZ = 4
-UO_SINGULAR = 5  # 1.0 when G_C could not be inverted (the caller then falls back to numpy)
-N_UO = 6
+from navig8_fc.core.layout import layout
+
+# Vehicle geometry the model kernels take (vehicle.model_geometry builds it from a VehicleConfig).
+GEO = layout("GEO", link_len=1, link_mass=1, link_inertia=1, mount_x=1, mount_z=1, uam_mass=1,
+             j11=1, j22=1, j33=1, j13=1,  # UAV inertia about O (x-z symmetric)
+             obj_offset=1, obj_radius=1)  # object centre beyond the tip along link 3; sphere radius
+# Mass properties (mass_props): the 3x3 inertia about the CoM and its rate go to their own arrays.
+MP = layout("MP", mass=1, cx=1, cz=1,
+            ma_x=1, ma_z=1,  # sum_k m_k r''_k over the arm bodies (first moment's second derivative)
+            tip_ax=1, tip_az=1,  # acceleration of the arm's tip (link 3's end)
+            jo=4)  # inertia about O: xx, yy, zz, xz
+_N_MP = int(MP.SIZE)  # np.empty takes an int, not an IntEnum member
+# UAM model + G_C^-1 (uam_model), the controller's per-tick view
+UO = layout("UO", mass=1, cx=1, cz=1, arm_ax=1, arm_az=1,
+            singular=1)  # 1.0 when G_C could not be inverted (the caller then falls back to numpy)
 
 
 @njit(cache=True)
@@ -64,25 +71,29 @@ def inv_gauss_jordan(a: np.ndarray, out: np.ndarray) -> bool:
 
 
 @njit(cache=True)
-def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo):
-    """UamModel.evaluate + G_C about the CoM + its inverse, into preallocated arrays.
+def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
+    """Composite mass properties of UAV + 3 links (+ the object) at the arm state (q, q-dot, q-ddot) (notes 3.1-3.2).
 
-    geo = [L, m_link, I_link, mount_x, mount_z, m_uam, jb11, jb22, jb33, jb13]; f, m0: (3, 5) force and
-    moment-about-O rows per input. Writes inertia (3x3), rate (3x3), gc (5x5), gc_inv (5x5) and uo.
+    Planar arm in the body x-z plane through O (mount y = 0): link k's centre r_k = joint_k + L/2 e(theta_k),
+    e = [sin, 0, cos]; rod inertia Ia (E - e e^T) about its centre; the object (object_mass_kg > 0) a point at
+    geo[OBJ_OFFSET] beyond the tip along link 3 with sphere inertia 0.4 m r^2. Writes inertia (3x3, about the
+    composite CoM) and rate (its time derivative about the moving CoM, Eq. 22's I-dot), and mp (MP layout).
     """
-    L, ml, ia, mx, mz = geo[0], geo[1], geo[2], geo[3], geo[4]
+    L, ml, ia = geo[GEO.LINK_LEN], geo[GEO.LINK_MASS], geo[GEO.LINK_INERTIA]
     th = thd = thdd = 0.0
-    jx, jz, jvx, jvz, jax, jaz = mx, mz, 0.0, 0.0, 0.0, 0.0
-    s1 = s1z = 0.0
-    v1x = v1z = a1x = a1z = 0.0
-    j11 = j22 = j33 = j13 = 0.0
-    d11 = d22 = d33 = d13 = 0.0
+    jx, jz, jvx, jvz, jax, jaz = geo[GEO.MOUNT_X], geo[GEO.MOUNT_Z], 0.0, 0.0, 0.0, 0.0
+    s1 = s1z = 0.0  # sum m x, sum m z
+    v1x = v1z = a1x = a1z = 0.0  # sum m xdot, sum m zdot, sum m xddot, sum m zddot
+    j11 = j22 = j33 = j13 = 0.0  # arm inertia about O
+    d11 = d22 = d33 = d13 = 0.0  # and its rate
+    s = c = 0.0
     h = 0.5 * L
     for i in range(3):
         th += q[i]
         thd += qd[i]
         thdd += qdd[i]
         s, c = math.sin(th), math.cos(th)
+        # d/dt e = thd e', e' = [cos, 0, -sin]; d2/dt2 e = thdd e' - thd^2 e
         vx, vz = thd * c, -thd * s
         ax, az = thdd * c - thd * thd * s, -thdd * s - thd * thd * c
         x, z = jx + h * s, jz + h * c
@@ -106,15 +117,38 @@ def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv,
         jx, jz = jx + L * s, jz + L * c
         jvx, jvz = jvx + L * vx, jvz + L * vz
         jax, jaz = jax + L * ax, jaz + L * az
-    m = geo[5]
+    m = geo[GEO.UAM_MASS]
+    mo = object_mass_kg
+    if mo > 0.0:
+        d = geo[GEO.OBJ_OFFSET]
+        io = 0.4 * mo * geo[GEO.OBJ_RADIUS] * geo[GEO.OBJ_RADIUS]
+        x, z = jx + d * s, jz + d * c
+        xd, zd = jvx + d * thd * c, jvz - d * thd * s
+        xdd, zdd = jax + d * (thdd * c - thd * thd * s), jaz + d * (-thdd * s - thd * thd * c)
+        s1 += mo * x
+        s1z += mo * z
+        v1x += mo * xd
+        v1z += mo * zd
+        a1x += mo * xdd
+        a1z += mo * zdd
+        j11 += io + mo * z * z
+        j22 += io + mo * (x * x + z * z)
+        j33 += io + mo * x * x
+        j13 += -mo * x * z
+        d11 += 2.0 * mo * z * zd
+        d22 += 2.0 * mo * (x * xd + z * zd)
+        d33 += 2.0 * mo * x * xd
+        d13 += -mo * (xd * z + x * zd)
+        m = m + mo
     cx, cz = s1 / m, s1z / m
     cxd, czd = v1x / m, v1z / m
+    # Parallel-axis theorem from O to the CoM (c_y = 0): I_c = I_O - m (|c|^2 E - c c^T), and its rate.
     inertia[:, :] = 0.0
     rate[:, :] = 0.0
-    inertia[0, 0] = geo[6] + j11 - m * cz * cz
-    inertia[1, 1] = geo[7] + j22 - m * (cx * cx + cz * cz)
-    inertia[2, 2] = geo[8] + j33 - m * cx * cx
-    i13 = geo[9] + j13 + m * cx * cz
+    inertia[0, 0] = geo[GEO.J11] + j11 - m * cz * cz
+    inertia[1, 1] = geo[GEO.J22] + j22 - m * (cx * cx + cz * cz)
+    inertia[2, 2] = geo[GEO.J33] + j33 - m * cx * cx
+    i13 = geo[GEO.J13] + j13 + m * cx * cz
     inertia[0, 2] = i13
     inertia[2, 0] = i13
     rate[0, 0] = d11 - 2.0 * m * cz * czd
@@ -123,20 +157,49 @@ def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv,
     r13 = d13 + m * (cxd * cz + cx * czd)
     rate[0, 2] = r13
     rate[2, 0] = r13
-    mo = max(object_mass_kg, 0.0)
-    m_tot = m + mo
-    uo[UO_MASS] = m
-    uo[UO_CX] = cx
-    uo[UO_CZ] = cz
-    uo[UO_ARM_AX] = (a1x + mo * jax) / m_tot
-    uo[UO_ARM_AZ] = (a1z + mo * jaz) / m_tot
+    mp[MP.MASS] = m
+    mp[MP.CX] = cx
+    mp[MP.CZ] = cz
+    mp[MP.MA_X] = a1x
+    mp[MP.MA_Z] = a1z
+    mp[MP.TIP_AX] = jax
+    mp[MP.TIP_AZ] = jaz
+    mp[MP.JO] = geo[GEO.J11] + j11
+    mp[MP.JO + 1] = geo[GEO.J22] + j22
+    mp[MP.JO + 2] = geo[GEO.J33] + j33
+    mp[MP.JO + 3] = geo[GEO.J13] + j13
+
+
+@njit(cache=True)
+def gc_about(f, m0, cx, cz, gc):
+    """G_C (Eq. 2) about the point c = (cx, 0, cz): rows [L, M, N, Fx, Fz] from the per-input force f (3x5) and
+    moment about O m0 (3x5), M_c = M_O - c x F (notes 2.5); c x F with c_y = 0 is [-cz Fy, cz Fx - cx Fz, cx Fy]."""
     for j in range(5):
         gc[0, j] = m0[0, j] + cz * f[1, j]
         gc[1, j] = m0[1, j] - (cz * f[0, j] - cx * f[2, j])
         gc[2, j] = m0[2, j] - cx * f[1, j]
         gc[3, j] = f[0, j]
         gc[4, j] = f[2, j]
-    uo[UO_SINGULAR] = 0.0 if inv_gauss_jordan(gc, gc_inv) else 1.0
+
+
+@njit(cache=True)
+def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo):
+    """The controller's model of the UAM without object at the arm state: mass_props, G_C about the UAM CoM and
+    its inverse, and the arm's CoM-acceleration term sum_k m_k r''_k / m with a point object of object_mass_kg
+    (the estimate) at the tip (notes 3.3 option b). Writes inertia, rate (3x3), gc, gc_inv (5x5) and uo (UO)."""
+    mp = np.empty(_N_MP)
+    mass_props(q, qd, qdd, 0.0, geo, inertia, rate, mp)
+    m, cx, cz = mp[MP.MASS], mp[MP.CX], mp[MP.CZ]
+    mo = max(object_mass_kg, 0.0)
+    m_tot = m + mo
+    uo[UO.MASS] = m
+    uo[UO.CX] = cx
+    uo[UO.CZ] = cz
+    uo[UO.ARM_AX] = (mp[MP.MA_X] + mo * mp[MP.TIP_AX]) / m_tot
+    uo[UO.ARM_AZ] = (mp[MP.MA_Z] + mo * mp[MP.TIP_AZ]) / m_tot
+    gc_about(f, m0, cx, cz, gc)
+    uo[UO.SINGULAR] = 0.0 if inv_gauss_jordan(gc, gc_inv) else 1.0
+
 
 
 @njit(cache=True)
@@ -236,6 +299,66 @@ def kf_correct(x, p, r_diag, gc_inv, du, a1, a2, a3, a4, a5, rho_x, rho_z, innov
     return True
 
 
+# Attitude (quaternions [w, x, y, z] rotate body FRD into NED; Euler ZYX). navig8_fc.core.rotation wraps these
+# for Python callers.
+
+
+@njit(cache=True)
+def quat_mul(aw, ax, ay, az, bw, bx, by, bz):
+    """a (x) b (Hamilton product)."""
+    return (aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw)
+
+
+@njit(cache=True)
+def quat_to_dcm(w, x, y, z):
+    """R (body -> NED), row-major (9 values)."""
+    return (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),
+            2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+            2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y))
+
+
+@njit(cache=True)
+def euler_to_quat(roll, pitch, yaw):
+    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
+    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
+    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
+    return (cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy)
+
+
+@njit(cache=True)
+def quat_to_euler(w, x, y, z):
+    """(roll, pitch, yaw) in rad, ZYX."""
+    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
+    s = max(-1.0, min(1.0, 2 * (w * y - z * x)))
+    return roll, math.asin(s), math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+@njit(cache=True)
+def attitude_error_rotvec(mw, mx, my, mz, cw, cx, cy, cz):
+    """Rotation vector (body frame, rad) from the measured attitude m to the command c: rotvec(conj(m) (x) c),
+    the shortest rotation (sign of the error quaternion's w), so 359 deg of yaw error is -1 deg."""
+    ew, ex, ey, ez = quat_mul(mw, -mx, -my, -mz, cw, cx, cy, cz)
+    sgn = 1.0 if ew >= 0.0 else -1.0
+    vn = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if vn < 1e-12:
+        return 0.0, 0.0, 0.0
+    k = sgn * (2.0 * math.atan2(vn, abs(ew))) / vn
+    return k * ex, k * ey, k * ez
+
+
+# Outer loops: config, setpoint and output vectors (outer_loop)
+OC = layout("OC", pos_k=1, vel_k=1, vel_max=1, acc_max=1, att_k=1, rate_k=1, rate_max=1, gravity=1)
+OSP = layout("OSP", pos=3, pitch=1, yaw=1)  # p_cmd N, E, D (m); pitch, yaw (rad)
+OO = layout("OO", accel_cmd_ned=3, specific_force_cmd_ned=3, att_cmd_quat=4, roll_cmd=1, rate_cmd=3,
+            accel_cmd=5)  # accel_cmd = [Pdot, Qdot, Rdot, a_x, a_z] for INDI
+
+
 @njit(cache=True)
 def _clip_norm3(v, limit):
     n = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
@@ -248,135 +371,123 @@ def _clip_norm3(v, limit):
 
 @njit(cache=True)
 def outer_loop(cfg, sp, pos, vel, quat, gyro, out):
-    """outer_loop_step on arrays. cfg = [pos_k, vel_k, vel_max, acc_max, att_k, rate_k, rate_max, g];
-    sp = [n, e, d, pitch, yaw]. out (19,) = a_cmd(3), f_cmd(3), q_cmd(4), roll, w_cmd(3), accel_cmd(5)."""
+    """One step of the outer loops (stateless P cascade of [28], notes 6.5); cfg: OC, sp: OSP, out: OO.
+
+    a_cmd = K_v (sat(K_p (p_cmd - p), v_max) - v), |a_cmd| <= a_max; f_cmd = a_cmd - g (NED). Pitch and yaw
+    follow the setpoint; roll nulls the body-y part of f_cmd (the ducts act in x-z only): with
+    f' = R_y(theta)^T R_z(psi)^T f_cmd, roll = atan2(f'_y, -f'_z). omega_cmd = K_att rotvec(q^-1 q_cmd), limited;
+    [Pdot, Qdot, Rdot] = K_rate (omega_cmd - omega); body a_x, a_z = f_cmd rotated with the measured attitude.
+    """
     v = np.empty(3)
     for i in range(3):
-        v[i] = cfg[0] * (sp[i] - pos[i])
-    _clip_norm3(v, cfg[2])
+        v[i] = cfg[OC.POS_K] * (sp[OSP.POS + i] - pos[i])
+    _clip_norm3(v, cfg[OC.VEL_MAX])
     a = np.empty(3)
     for i in range(3):
-        a[i] = cfg[1] * (v[i] - vel[i])
-    _clip_norm3(a, cfg[3])
-    f0, f1, f2 = a[0], a[1], a[2] - cfg[7]
-    pitch, yaw = sp[3], sp[4]
+        a[i] = cfg[OC.VEL_K] * (v[i] - vel[i])
+    _clip_norm3(a, cfg[OC.ACC_MAX])
+    f0, f1, f2 = a[0], a[1], a[2] - cfg[OC.GRAVITY]
+    pitch, yaw = sp[OSP.PITCH], sp[OSP.YAW]
     cy, sy = math.cos(yaw), math.sin(yaw)
     cp, spp = math.cos(pitch), math.sin(pitch)
     fx1 = cy * f0 + sy * f1
     fy1 = -sy * f0 + cy * f1
     fz2 = spp * fx1 + cp * f2
     roll = math.atan2(fy1, -fz2)
-    # euler_to_quat
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp2, sp2 = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy2, sy2 = math.cos(yaw / 2), math.sin(yaw / 2)
-    qw = cr * cp2 * cy2 + sr * sp2 * sy2
-    qx = sr * cp2 * cy2 - cr * sp2 * sy2
-    qy = cr * sp2 * cy2 + sr * cp2 * sy2
-    qz = cr * cp2 * sy2 - sr * sp2 * cy2
-    # rotate_ned_to_body(quat, f): R^T f with R = quat_to_dcm(quat)
-    w, x, y, z = quat[0], quat[1], quat[2], quat[3]
-    r00 = 1 - 2 * (y * y + z * z)
-    r02 = 2 * (x * z + w * y)
-    r10 = 2 * (x * y + w * z)
-    r12 = 2 * (y * z - w * x)
-    r20 = 2 * (x * z - w * y)
-    r22 = 1 - 2 * (x * x + y * y)
+    qw, qx, qy, qz = euler_to_quat(roll, pitch, yaw)
+    # f in body axes with the measured attitude: R^T f
+    r00, _, r02, r10, _, r12, r20, _, r22 = quat_to_dcm(quat[0], quat[1], quat[2], quat[3])
     fb0 = r00 * f0 + r10 * f1 + r20 * f2
     fb2 = r02 * f0 + r12 * f1 + r22 * f2
-    # attitude_error_rotvec(quat, q_cmd): e = conj(quat) * q_cmd
-    aw, ax, ay, az = w, -x, -y, -z
-    ew = aw * qw - ax * qx - ay * qy - az * qz
-    ex = aw * qx + ax * qw + ay * qz - az * qy
-    ey = aw * qy - ax * qz + ay * qw + az * qx
-    ez = aw * qz + ax * qy - ay * qx + az * qw
-    sgn = 1.0 if ew >= 0.0 else -1.0
-    vn = math.sqrt(ex * ex + ey * ey + ez * ez)
-    err = np.zeros(3)
-    if vn >= 1e-12:
-        k = sgn * (2.0 * math.atan2(vn, abs(ew))) / vn
-        err[0] = k * ex
-        err[1] = k * ey
-        err[2] = k * ez
+    err = np.empty(3)
+    err[0], err[1], err[2] = attitude_error_rotvec(quat[0], quat[1], quat[2], quat[3], qw, qx, qy, qz)
     for i in range(3):
-        err[i] = cfg[4] * err[i]
-    _clip_norm3(err, cfg[6])
-    out[0] = a[0]
-    out[1] = a[1]
-    out[2] = a[2]
-    out[3] = f0
-    out[4] = f1
-    out[5] = f2
-    out[6] = qw
-    out[7] = qx
-    out[8] = qy
-    out[9] = qz
-    out[10] = roll
+        err[i] = cfg[OC.ATT_K] * err[i]
+    _clip_norm3(err, cfg[OC.RATE_MAX])
     for i in range(3):
-        out[11 + i] = err[i]
-        out[14 + i] = cfg[5] * (err[i] - gyro[i])
-    out[17] = fb0
-    out[18] = fb2
+        out[OO.ACCEL_CMD_NED + i] = a[i]
+    out[OO.SPECIFIC_FORCE_CMD_NED] = f0
+    out[OO.SPECIFIC_FORCE_CMD_NED + 1] = f1
+    out[OO.SPECIFIC_FORCE_CMD_NED + 2] = f2
+    out[OO.ATT_CMD_QUAT] = qw
+    out[OO.ATT_CMD_QUAT + 1] = qx
+    out[OO.ATT_CMD_QUAT + 2] = qy
+    out[OO.ATT_CMD_QUAT + 3] = qz
+    out[OO.ROLL_CMD] = roll
+    for i in range(3):
+        out[OO.RATE_CMD + i] = err[i]
+        out[OO.ACCEL_CMD + i] = cfg[OC.RATE_K] * (err[i] - gyro[i])
+    out[OO.ACCEL_CMD + 3] = fb0
+    out[OO.ACCEL_CMD + 4] = fb2
 
 
-# INDI: state vector `st` and config `ic` layouts (IndiController owns them)
-ST_GYRO_F = 0  # 0:3 low-passed gyro
-ST_GYRO_PREV = 3  # 3:6 previous low-passed gyro (backward difference)
-ST_ACC_F = 6  # 6:8 low-passed specific force x, z
-ST_U0_F = 8  # 8:13 low-passed U0
-ST_INIT = 13  # 1.0 once the filters have had their first sample
-N_ST = 14
-# ic = [alpha, 1/dt, tilt_min, tilt_max, duct_speed_max, tail_speed_max, (w_duct_max^2)^2, w_tail_max^2]
-# Output vector of indi_step
-IO_ACC_F = 0
-IO_U0 = 5
-IO_DACC = 10
-IO_DU = 15
-IO_U = 20
-IO_SCALE = 25
-IO_FALLBACK = 28
-IO_ACT = 29  # alpha1, alpha3, w1, w2, w3 (clipped)
-N_IO = 34
+# INDI (IndiController owns these vectors): filter state, configuration and the output of indi_step
+ST = layout("ST", gyro_f=3,  # low-passed gyro
+            gyro_prev=3,  # previous low-passed gyro (backward difference)
+            acc_f=2,  # low-passed specific force x, z
+            u0_f=5,  # low-passed U0
+            init=1)  # 1.0 once the filters have had their first sample
+IC = layout("IC", alpha=1, inv_dt=1, tilt_min=1, tilt_max=1, duct_speed_max=1, tail_speed_max=1,
+            u_duct_sq_max=1,  # (w_duct_max^2)^2: bound on U_c^2 + U_s^2 of a duct
+            u_tail_max=1)  # w_tail_max^2: bound on |U5|
+IO = layout("IO", acc_f=5, u0=5, dacc=5, du=5, u=5, scale=3, fallback=1,
+            act=5)  # alpha1, alpha3, w1, w2, w3 (clipped)
+
+
+@njit(cache=True)
+def actuators_to_u(alpha1, alpha3, w1, w2, w3, out, at):
+    """U = [cos a1 w1^2, sin a1 w1^2, cos a3 w3^2, sin a3 w3^2, sign(w2) w2^2] (Sec. 3) into out[at:at + 5]."""
+    out[at] = math.cos(alpha1) * w1 * w1
+    out[at + 1] = math.sin(alpha1) * w1 * w1
+    out[at + 2] = math.cos(alpha3) * w3 * w3
+    out[at + 3] = math.sin(alpha3) * w3 * w3
+    out[at + 4] = math.copysign(w2 * w2, w2)
+
+
+@njit(cache=True)
+def u_to_actuators(u, out, at):
+    """(alpha1, alpha3, w1, w2, w3) from U (Sec. 3) into out[at:at + 5]: alpha = atan2, w = (U_c^2 + U_s^2)^(1/4)."""
+    out[at] = math.atan2(u[1], u[0])
+    out[at + 1] = math.atan2(u[3], u[2])
+    out[at + 2] = math.hypot(u[0], u[1]) ** 0.5
+    out[at + 3] = math.copysign(abs(u[4]) ** 0.5, u[4])
+    out[at + 4] = math.hypot(u[2], u[3]) ** 0.5
 
 
 @njit(cache=True)
 def indi_measure(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, out):
     """Filters of IndiController.measure: writes acc_f (out[0:5]) and u0 (out[5:10])."""
     u = np.empty(5)
-    u[0] = math.cos(tilt1) * w1 * w1
-    u[1] = math.sin(tilt1) * w1 * w1
-    u[2] = math.cos(tilt3) * w3 * w3
-    u[3] = math.sin(tilt3) * w3 * w3
-    u[4] = math.copysign(w2 * w2, w2)
-    if st[ST_INIT] == 0.0:
+    actuators_to_u(tilt1, tilt3, w1, w2, w3, u, 0)
+    if st[ST.INIT] == 0.0:
         for i in range(3):
-            st[ST_GYRO_F + i] = gyro[i]
-            st[ST_GYRO_PREV + i] = gyro[i]
-            out[IO_ACC_F + i] = 0.0
-        st[ST_ACC_F] = sf_x
-        st[ST_ACC_F + 1] = sf_z
+            st[ST.GYRO_F + i] = gyro[i]
+            st[ST.GYRO_PREV + i] = gyro[i]
+            out[IO.ACC_F + i] = 0.0
+        st[ST.ACC_F] = sf_x
+        st[ST.ACC_F + 1] = sf_z
         for i in range(5):
-            st[ST_U0_F + i] = u[i]
-        st[ST_INIT] = 1.0
+            st[ST.U0_F + i] = u[i]
+        st[ST.INIT] = 1.0
     else:
-        a, k = ic[0], ic[1]
+        a, k = ic[IC.ALPHA], ic[IC.INV_DT]
         for i in range(3):
-            y = st[ST_GYRO_F + i]
+            y = st[ST.GYRO_F + i]
             y = y + a * (gyro[i] - y)
-            out[IO_ACC_F + i] = (y - st[ST_GYRO_PREV + i]) * k
-            st[ST_GYRO_F + i] = y
-            st[ST_GYRO_PREV + i] = y
-        y = st[ST_ACC_F]
-        st[ST_ACC_F] = y + a * (sf_x - y)
-        y = st[ST_ACC_F + 1]
-        st[ST_ACC_F + 1] = y + a * (sf_z - y)
+            out[IO.ACC_F + i] = (y - st[ST.GYRO_PREV + i]) * k
+            st[ST.GYRO_F + i] = y
+            st[ST.GYRO_PREV + i] = y
+        y = st[ST.ACC_F]
+        st[ST.ACC_F] = y + a * (sf_x - y)
+        y = st[ST.ACC_F + 1]
+        st[ST.ACC_F + 1] = y + a * (sf_z - y)
         for i in range(5):
-            y = st[ST_U0_F + i]
-            st[ST_U0_F + i] = y + a * (u[i] - y)
-    out[IO_ACC_F + 3] = st[ST_ACC_F]
-    out[IO_ACC_F + 4] = st[ST_ACC_F + 1]
+            y = st[ST.U0_F + i]
+            st[ST.U0_F + i] = y + a * (u[i] - y)
+    out[IO.ACC_F + 3] = st[ST.ACC_F]
+    out[IO.ACC_F + 4] = st[ST.ACC_F + 1]
     for i in range(5):
-        out[IO_U0 + i] = st[ST_U0_F + i]
+        out[IO.U0 + i] = st[ST.U0_F + i]
 
 
 @njit(cache=True)
@@ -384,17 +495,17 @@ def _feasible(ic, u0, u1, u2, u3, u4):
     if not (math.isfinite(u0) and math.isfinite(u1) and math.isfinite(u2) and math.isfinite(u3)
             and math.isfinite(u4)):
         return False
-    if u0 * u0 + u1 * u1 > ic[6] or u2 * u2 + u3 * u3 > ic[6]:
+    if u0 * u0 + u1 * u1 > ic[IC.U_DUCT_SQ_MAX] or u2 * u2 + u3 * u3 > ic[IC.U_DUCT_SQ_MAX]:
         return False
-    if abs(u4) > ic[7]:
+    if abs(u4) > ic[IC.U_TAIL_MAX]:
         return False
     if u0 * u0 + u1 * u1 > 1e-6:
         a = math.atan2(u1, u0)
-        if a < ic[2] or a > ic[3]:
+        if a < ic[IC.TILT_MIN] or a > ic[IC.TILT_MAX]:
             return False
     if u2 * u2 + u3 * u3 > 1e-6:
         a = math.atan2(u3, u2)
-        if a < ic[2] or a > ic[3]:
+        if a < ic[IC.TILT_MIN] or a > ic[IC.TILT_MAX]:
             return False
     return True
 
@@ -433,9 +544,9 @@ def indi_step(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_
             m[i, j] = acc
     d = np.empty(5)
     for i in range(5):
-        d[i] = accel_cmd[i] - out[IO_ACC_F + i]
-        out[IO_DACC + i] = d[i]
-    u0 = out[IO_U0:IO_U0 + 5].copy()
+        d[i] = accel_cmd[i] - out[IO.ACC_F + i]
+        out[IO.DACC + i] = d[i]
+    u0 = out[IO.U0:IO.U0 + 5].copy()
     du = np.empty(5)
     u = np.empty(5)
     for i in range(5):
@@ -444,9 +555,9 @@ def indi_step(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_
             acc += m[i, k] * d[k]
         du[i] = acc
         u[i] = u0[i] + acc
-    out[IO_SCALE] = 1.0
-    out[IO_SCALE + 1] = 1.0
-    out[IO_SCALE + 2] = 1.0
+    out[IO.SCALE] = 1.0
+    out[IO.SCALE + 1] = 1.0
+    out[IO.SCALE + 2] = 1.0
     if not _feasible_v(ic, u):
         rest = du.copy()
         part = np.empty(5)
@@ -467,7 +578,7 @@ def indi_step(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_
             for i in range(5):
                 tmp[i] = u0[i] + base[i]
             s = _max_scale(ic, tmp, part)
-            out[IO_SCALE + g] = s
+            out[IO.SCALE + g] = s
             for i in range(5):
                 rest[i] = base[i] + s * part[i]
                 tmp[i] = u0[i] + rest[i]
@@ -484,20 +595,16 @@ def indi_step(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_
         for i in range(5):
             u[i] = u0[i]
             du[i] = 0.0
-    out[IO_FALLBACK] = 1.0 if fallback else 0.0
+    out[IO.FALLBACK] = 1.0 if fallback else 0.0
     for i in range(5):
-        out[IO_DU + i] = du[i]
-        out[IO_U + i] = u[i]
-    a1 = math.atan2(u[1], u[0])
-    a3 = math.atan2(u[3], u[2])
-    w1c = math.hypot(u[0], u[1]) ** 0.5
-    w3c = math.hypot(u[2], u[3]) ** 0.5
-    w2c = math.copysign(abs(u[4]) ** 0.5, u[4])
-    out[IO_ACT] = min(max(a1, ic[2]), ic[3])
-    out[IO_ACT + 1] = min(max(a3, ic[2]), ic[3])
-    out[IO_ACT + 2] = min(w1c, ic[4])
-    out[IO_ACT + 3] = min(max(w2c, -ic[5]), ic[5])
-    out[IO_ACT + 4] = min(w3c, ic[4])
+        out[IO.DU + i] = du[i]
+        out[IO.U + i] = u[i]
+    u_to_actuators(u, out, IO.ACT)  # then clipped into the limits
+    out[IO.ACT] = min(max(out[IO.ACT], ic[IC.TILT_MIN]), ic[IC.TILT_MAX])
+    out[IO.ACT + 1] = min(max(out[IO.ACT + 1], ic[IC.TILT_MIN]), ic[IC.TILT_MAX])
+    out[IO.ACT + 2] = min(out[IO.ACT + 2], ic[IC.DUCT_SPEED_MAX])
+    out[IO.ACT + 3] = min(max(out[IO.ACT + 3], -ic[IC.TAIL_SPEED_MAX]), ic[IC.TAIL_SPEED_MAX])
+    out[IO.ACT + 4] = min(out[IO.ACT + 4], ic[IC.DUCT_SPEED_MAX])
 
 
 # ---------------------------------------------------------------------------------------------
@@ -727,26 +834,18 @@ def polish(xh, w, pl, use_pl, lo, hi, z, s, x):
 # Controller front end: joint observer, differentiators, UAM model, Acc_m and U0 (one call per tick)
 # ---------------------------------------------------------------------------------------------
 
-# Sensor vector `sens` (FlightControllerCore builds it from FcSensors)
-S_GYRO = 0  # 0:3
-S_ACCEL = 3  # 3:6 specific force at O
-S_TILT = 6  # 6:8 alpha1, alpha3
-S_SPEED = 8  # 8:11 w1, w2, w3
-S_JPOS = 11  # 11:14
-S_JRATE = 14  # 14:17
-N_SENS = 17
-# Front-end state `fst`
-F_QEST = 0  # 0:3 joint-angle estimate
-F_QD_PREV = 3  # 3:6 previous joint rate
-F_GYRO_PREV = 6  # 6:9 previous gyro
-F_INIT = 9  # 1.0 after the first sample
-N_FST = 10
-# Front-end output `fo`
-FO_QEST = 0  # 0:3
-FO_QDD = 3  # 3:6
-FO_ACC_M = 6  # 6:11 [P_dot, Q_dot, R_dot, a_x + arm, a_z + arm] (Eq. 23)
-FO_U_MEAS = 11  # 11:16 U0 from the measured actuators
-N_FO = 16
+# The tick's input vector (FlightControllerCore packs FcSensors into it): the sensors fc_front reads, then the
+# outer loops' inputs (packed only when engaged).
+TIN = layout("TIN", gyro=3, accel=3,  # specific force at O
+             tilt=2, speed=3, jpos=3, jrate=3,  # alpha1, alpha3; w1, w2, w3; joint angles and rates
+             pos=3, vel=3, quat=4, sp=5)  # pos_ned, vel_ned, quat_wxyz, setpoint (OSP layout)
+# Front-end state `fst` and output `fo`
+FST = layout("FST", qest=3,  # joint-angle estimate
+             qd_prev=3, gyro_prev=3,  # previous joint rate and gyro (backward differences)
+             init=1)  # 1.0 after the first sample
+FO = layout("FO", qest=3, qdd=3,
+            acc_m=5,  # [P_dot, Q_dot, R_dot, a_x + arm, a_z + arm] (Eq. 23)
+            u_meas=5)  # U0 from the measured actuators
 
 
 @njit(cache=True)
@@ -754,38 +853,33 @@ def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inerti
     """FlightControllerCore's per-tick front end: the complementary joint observer (q_est), backward
     differences of the joint rates (q-ddot) and of the gyro (omega-dot), uam_model at (q_est, q-dot, q-ddot),
     Acc_m (Eq. 23) and U0 = actuators_to_u(measured). All state in fst; first sample: q_est = q, zeros out of
-    the differences."""
+    the differences. sens: TIN (only its sensor part is read)."""
     q = np.empty(3)
-    qd = sens[S_JRATE:S_JRATE + 3]
+    qd = sens[TIN.JRATE:TIN.JRATE + 3]
     qdd = np.empty(3)
-    if fst[F_INIT] == 0.0:
+    if fst[FST.INIT] == 0.0:
         for i in range(3):
-            fst[F_QEST + i] = sens[S_JPOS + i]
+            fst[FST.QEST + i] = sens[TIN.JPOS + i]
             qdd[i] = 0.0
-            fo[FO_ACC_M + i] = 0.0
-        fst[F_INIT] = 1.0
+            fo[FO.ACC_M + i] = 0.0
+        fst[FST.INIT] = 1.0
     else:
         for i in range(3):
-            pred = fst[F_QEST + i] + dt * qd[i]
-            fst[F_QEST + i] = pred + obs_gain * (sens[S_JPOS + i] - pred)
-            qdd[i] = (qd[i] - fst[F_QD_PREV + i]) * inv_dt
-            fo[FO_ACC_M + i] = (sens[S_GYRO + i] - fst[F_GYRO_PREV + i]) * inv_dt
+            pred = fst[FST.QEST + i] + dt * qd[i]
+            fst[FST.QEST + i] = pred + obs_gain * (sens[TIN.JPOS + i] - pred)
+            qdd[i] = (qd[i] - fst[FST.QD_PREV + i]) * inv_dt
+            fo[FO.ACC_M + i] = (sens[TIN.GYRO + i] - fst[FST.GYRO_PREV + i]) * inv_dt
     for i in range(3):
-        fst[F_QD_PREV + i] = qd[i]
-        fst[F_GYRO_PREV + i] = sens[S_GYRO + i]
-        q[i] = fst[F_QEST + i]
-        fo[FO_QEST + i] = q[i]
-        fo[FO_QDD + i] = qdd[i]
+        fst[FST.QD_PREV + i] = qd[i]
+        fst[FST.GYRO_PREV + i] = sens[TIN.GYRO + i]
+        q[i] = fst[FST.QEST + i]
+        fo[FO.QEST + i] = q[i]
+        fo[FO.QDD + i] = qdd[i]
     uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo)
-    fo[FO_ACC_M + 3] = sens[S_ACCEL] + uo[UO_ARM_AX]
-    fo[FO_ACC_M + 4] = sens[S_ACCEL + 2] + uo[UO_ARM_AZ]
-    a1, a3 = sens[S_TILT], sens[S_TILT + 1]
-    w1, w2, w3 = sens[S_SPEED], sens[S_SPEED + 1], sens[S_SPEED + 2]
-    fo[FO_U_MEAS] = math.cos(a1) * w1 * w1
-    fo[FO_U_MEAS + 1] = math.sin(a1) * w1 * w1
-    fo[FO_U_MEAS + 2] = math.cos(a3) * w3 * w3
-    fo[FO_U_MEAS + 3] = math.sin(a3) * w3 * w3
-    fo[FO_U_MEAS + 4] = math.copysign(w2 * w2, w2)
+    fo[FO.ACC_M + 3] = sens[TIN.ACCEL] + uo[UO.ARM_AX]
+    fo[FO.ACC_M + 4] = sens[TIN.ACCEL + 2] + uo[UO.ARM_AZ]
+    actuators_to_u(sens[TIN.TILT], sens[TIN.TILT + 1], sens[TIN.SPEED], sens[TIN.SPEED + 1], sens[TIN.SPEED + 2],
+                   fo, FO.U_MEAS)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -845,7 +939,7 @@ def ghat_ginv_eigs(gi_hat: np.ndarray, gc_uam: np.ndarray, gc_true: np.ndarray, 
     """Eigenvalues of G_hat G^-1 = (G_hat_I^-1 G_C,UAM)(G_C,true^-1 G_I,true) (Eq. 14), sorted by real part.
 
     K Xi can have complex pairs (~1 % of poses): real eigvals first, complex arithmetic when that fails.
-    Reference: vehicle.ghat_ginv_eig_record(..., compiled=False) (numpy)."""
+    tests/unit/test_vehicle.py checks it against scipy.linalg.eigvals."""
     a = np.linalg.solve(gi_hat, gc_uam) @ np.linalg.solve(gc_true, gi_true)
     if _real_eigvals_sorted(a, out_re):  # the usual case, ~3x cheaper than the complex path
         out_im[:] = 0.0

@@ -23,6 +23,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from navig8_fc.core import _kernels as _k
+from navig8_fc.core import rotation
 from navig8_fc.core.ckf import AdaptiveLaw, AdaptiveLawStatus, CkfConfig, inv_small
 from navig8_fc.core.indi import (
     ActuatorLimits,
@@ -40,14 +41,15 @@ from navig8_fc.core.outer_loop import (
 )
 from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig, ghat_ginv_eig_record
 
-# Slots of the front-end kernel's outputs the tick reads (module constants: no attribute lookups per tick).
-_UO_MASS, _UO_SINGULAR = _k.UO_MASS, _k.UO_SINGULAR
-# The tick's input vector: the sensors in _kernels' S_* layout, then pos_ned, vel_ned, quat_wxyz and the
-# setpoint [N, E, D, pitch, yaw] (the outer loops' inputs, packed only when engaged). struct packs float64
-# exactly as np.array(..., dtype=float) converts, into a persistent array (no per-tick allocation).
-_N_IN = _k.N_SENS + 15
-_PACK_SENSORS = struct.Struct(f"={_k.N_SENS}d").pack_into
-_PACK_ENGAGED = struct.Struct(f"={_N_IN}d").pack_into
+# Slots of the front-end kernel's outputs the tick reads (module constants: no enum lookups per tick).
+_UO_MASS, _UO_SINGULAR = int(_k.UO.MASS), int(_k.UO.SINGULAR)
+# The tick's input vector (_kernels.TIN): the sensors, then pos_ned, vel_ned, quat_wxyz and the setpoint
+# (the outer loops' inputs, packed only when engaged). struct packs float64 exactly as np.array(..., dtype=float)
+# converts, into a persistent array (no per-tick allocation).
+_PACK_SENSORS = struct.Struct(f"={int(_k.TIN.POS)}d").pack_into
+_PACK_ENGAGED = struct.Struct(f"={int(_k.TIN.SIZE)}d").pack_into
+_IN_ACCEL, _IN_TILT, _IN_SPEED = int(_k.TIN.ACCEL), int(_k.TIN.TILT), int(_k.TIN.SPEED)
+_FO_QEST, _FO_QDD, _OO_ACCEL = _k.FO.QEST.sl, _k.FO.QDD.sl, _k.OO.ACCEL_CMD.sl
 
 JOINT_OBS_TAU_S = 1.0  # complementary-filter time constant for the joint angles (docs/model.md)
 
@@ -136,17 +138,10 @@ class FlightControllerCore:
         self._indi = IndiController(config.indi)
         self._adapt = AdaptiveLaw(config.ckf)
         self._obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
-        # Compiled UAM model (_kernels.uam_model; UamModel.evaluate + inv_small are its reference).
-        v = vehicle
-        jb = self._model._jb
-        self._geo = np.array([v.link_length_m, v.link_mass_kg, v.link_inertia_kgm2, v.mount_frd_m[0],
-                              v.mount_frd_m[2], v.uam_mass_kg, jb[0], jb[1], jb[2], jb[3]])
-        self._f = np.ascontiguousarray(self._model._f)
-        self._m0 = np.ascontiguousarray(self._model._m0)
         self._outer_cfg = outer_loop_config_array(config.outer)
-        self._uo = np.zeros(_k.N_UO)
-        self._fst = np.zeros(_k.N_FST)  # joint observer + differentiator state (_kernels.fc_front)
-        self._fo = np.zeros(_k.N_FO)
+        self._uo = _k.UO.zeros()
+        self._fst = _k.FST.zeros()  # joint observer + differentiator state (_kernels.fc_front)
+        self._fo = _k.FO.zeros()
         self._inv_dt = 1.0 / config.dt_s
         assert N_LINKS == 3
 
@@ -183,8 +178,8 @@ class FlightControllerCore:
         inertia, rate = np.empty((3, 3)), np.empty((3, 3))
         gc, gc_inv = np.empty((5, 5)), np.empty((5, 5))
         uo, fo = self._uo, self._fo
-        # The sensor values packed as float64 into the persistent input vector (_kernels.S_* layout in [0:17],
-        # which is all fc_front reads); when engaged the outer loops' inputs follow, read through views.
+        # The sensor values packed as float64 into the persistent input vector (TIN's sensor part is all fc_front
+        # reads); when engaged the outer loops' inputs follow, read through views.
         if engaged:
             sp_pos = sp.pos_ned
             _PACK_ENGAGED(sens, 0, *s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
@@ -193,8 +188,9 @@ class FlightControllerCore:
         else:
             _PACK_SENSORS(sens, 0, *s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
                           *s.joint_rate_rad_s)
-        _k.fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, m_obj_est, self._geo, self._f,
-                    self._m0, inertia, rate, gc, gc_inv, uo, fo)
+        model = self._model
+        _k.fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, m_obj_est, model.geometry,
+                    model.force_per_input, model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
         ul = uo.tolist()
         if ul[_UO_SINGULAR]:
             gc_inv = inv_small(gc)  # raises LinAlgError as before
@@ -206,8 +202,9 @@ class FlightControllerCore:
         if engaged:
             sl = sens.tolist()
             outer, ol_out = _outer_loop_arrays(self._outer_cfg, spv, pos, vel, quat, gyro)
-            out, indi_status = self._indi._step(gyro, sl[3], sl[5], sl[6], sl[7], sl[8], sl[9], sl[10],
-                                                ol_out[14:19], gc_inv, gi_hat)
+            out, indi_status = self._indi._step(gyro, sl[_IN_ACCEL], sl[_IN_ACCEL + 2], sl[_IN_TILT],
+                                                sl[_IN_TILT + 1], sl[_IN_SPEED], sl[_IN_SPEED + 1],
+                                                sl[_IN_SPEED + 2], ol_out[_OO_ACCEL], gc_inv, gi_hat)
             cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
         else:
             # Keep the INDI filters warm so engaging does not start from a transient.
@@ -219,8 +216,8 @@ class FlightControllerCore:
         status = ControllerStatus(
             t_s=s.t_s,
             engaged=engaged,
-            q_est_rad=ft[0:3],
-            qdd_est_rad_s2=ft[3:6],
+            q_est_rad=ft[_FO_QEST],
+            qdd_est_rad_s2=ft[_FO_QDD],
             mass_uam_kg=mass,
             inertia_uam_diag=(inertia.item(0), inertia.item(4), inertia.item(8)),
             gi_hat=gi_flat,
@@ -236,10 +233,10 @@ class FlightControllerCore:
         views of it the outer loop and INDI kernels take (gyro, pos, vel, quat, setpoint), the views of the
         front end's output the adaptive law takes (U0, Acc_m; its kernel only reads them) and the UAM mass.
         The arrays are never replaced, so the views stay valid."""
-        sens = np.zeros(_N_IN)
-        fo = self._fo
-        io = (sens, sens[0:3], sens[17:20], sens[20:23], sens[23:27], sens[27:32],
-              fo[_k.FO_U_MEAS:_k.FO_U_MEAS + 5], fo[_k.FO_ACC_M:_k.FO_ACC_M + 5], self.vehicle.uam_mass_kg)
+        sens = _k.TIN.zeros()
+        t = _k.TIN.views(sens)
+        f = _k.FO.views(self._fo)
+        io = (sens, t.gyro, t.pos, t.vel, t.quat, t.sp, f.u_meas, f.acc_m, self.vehicle.uam_mass_kg)
         self._tick_io = io
         return io
 
@@ -263,5 +260,10 @@ def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: i
                       joint_rate_rad_s=(0.1, 0.0, -0.1))
         _, st = core.step(s, sp, engaged=i > 0)
     assert st is not None
+    # the attitude kernels Python code calls directly (rotation.py: telemetry, the plant's truth)
+    q = rotation.euler_to_quat(0.1, 0.2, 0.3)
+    rotation.quat_to_euler(rotation.quat_mul(q, q))
+    rotation.attitude_error_rotvec(q, q)
+    rotation.rotate_ned_to_body(q, (0.0, 0.0, 1.0))
     ghat_ginv_eig_record(core._model, st.q_est_rad, st.gi_hat, (0.0, 0.0, 0.05), vehicle.uav_inertia_array,
                          vehicle.uam_mass_kg, config.k_min, 0.1, st.gc_uam)

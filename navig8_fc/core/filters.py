@@ -38,31 +38,46 @@ def lpf_alpha(tau_s: float, dt_s: float) -> float:
     return -math.expm1(-dt_s / tau_s)
 
 
-class LowPass1:
+class _VectorFilter:
+    """What both filters share: a fixed number of components and the check of an input against it."""
+
+    __slots__ = ("_n",)
+
+    def __init__(self, n: int) -> None:
+        if n < 1:
+            raise ValueError(f"n must be >= 1, got {n}")
+        self._n = int(n)
+
+    @property
+    def n(self) -> int:
+        return self._n
+
+    def _checked(self, x: Sequence[float] | np.ndarray) -> list[float]:
+        v = [float(xi) for xi in (x.tolist() if isinstance(x, np.ndarray) else x)]
+        if len(v) != self._n:
+            raise ValueError(f"expected {self._n} components, got {len(v)}")
+        return v
+
+
+class LowPass1(_VectorFilter):
     """Vector first-order low-pass filter, time constant ``tau_s``, sample time ``dt_s``.
 
     ``step(x)`` returns the filtered vector. The first sample after construction or ``reset()``
     initialises the state to that sample, unless ``reset(value)`` gave an explicit initial state.
     """
 
-    __slots__ = ("_alpha", "_n", "_y", "tau_s", "dt_s")
+    __slots__ = ("_alpha", "_y", "tau_s", "dt_s")
 
     def __init__(self, tau_s: float, dt_s: float, n: int = 1) -> None:
-        if n < 1:
-            raise ValueError(f"n must be >= 1, got {n}")
+        super().__init__(n)
         self.tau_s = float(tau_s)
         self.dt_s = float(dt_s)
         self._alpha = lpf_alpha(self.tau_s, self.dt_s)
-        self._n = int(n)
         self._y: list[float] | None = None
 
     @property
     def alpha(self) -> float:
         return self._alpha
-
-    @property
-    def n(self) -> int:
-        return self._n
 
     @property
     def initialised(self) -> bool:
@@ -75,10 +90,7 @@ class LowPass1:
 
     def reset(self, value: Sequence[float] | None = None) -> None:
         """Forget the state; with ``value``, start from it instead of from the next sample."""
-        if value is None:
-            self._y = None
-        else:
-            self._y = self._checked(value)
+        self._y = None if value is None else self._checked(value)
 
     def step(self, x: Sequence[float] | np.ndarray) -> list[float]:
         if isinstance(x, np.ndarray):
@@ -92,35 +104,23 @@ class LowPass1:
         self._y = y
         return list(y)
 
-    def _checked(self, x: Sequence[float]) -> list[float]:
-        v = [float(xi) for xi in x]
-        if len(v) != self._n:
-            raise ValueError(f"expected {self._n} components, got {len(v)}")
-        return v
 
-
-class BackwardDifference:
+class BackwardDifference(_VectorFilter):
     """Vector backward-difference differentiator: y[k] = (x[k] - x[k-1]) / dt_s.
 
     The first sample after construction or ``reset()`` gives zeros. Its transfer function
     (1 - z^-1)/dt approximates s with half a sample of delay.
     """
 
-    __slots__ = ("_inv_dt", "_n", "_prev", "dt_s")
+    __slots__ = ("_inv_dt", "_prev", "dt_s")
 
     def __init__(self, dt_s: float, n: int = 1) -> None:
         if not (dt_s > 0.0 and math.isfinite(dt_s)):
             raise ValueError(f"dt_s must be positive and finite, got {dt_s}")
-        if n < 1:
-            raise ValueError(f"n must be >= 1, got {n}")
+        super().__init__(n)
         self.dt_s = float(dt_s)
         self._inv_dt = 1.0 / self.dt_s
-        self._n = int(n)
         self._prev: list[float] | None = None
-
-    @property
-    def n(self) -> int:
-        return self._n
 
     @property
     def initialised(self) -> bool:
@@ -131,16 +131,10 @@ class BackwardDifference:
         self._prev = None if previous is None else self._checked(previous)
 
     def step(self, x: Sequence[float] | np.ndarray) -> list[float]:
-        cur = self._checked(x.tolist() if isinstance(x, np.ndarray) else x)
+        cur = self._checked(x)
         prev = self._prev
         self._prev = cur
         if prev is None:
             return [0.0] * self._n
         k = self._inv_dt
         return [(c - p) * k for c, p in zip(cur, prev, strict=True)]
-
-    def _checked(self, x: Sequence[float]) -> list[float]:
-        v = [float(xi) for xi in x]
-        if len(v) != self._n:
-            raise ValueError(f"expected {self._n} components, got {len(v)}")
-        return v

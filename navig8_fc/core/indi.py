@@ -16,15 +16,19 @@ then clipped into the limits, and a non-finite U falls back to U0 (never NaN to 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from navig8_fc.core import _kernels as _k
-from navig8_fc.core.filters import BackwardDifference, LowPass1, lpf_alpha
-from navig8_fc.core.vehicle import VehicleConfig, u_to_actuators
+from navig8_fc.core.filters import lpf_alpha
+from navig8_fc.core.vehicle import VehicleConfig
+
+# The slices of indi_step's output the status reads (module constants: no enum lookups per tick)
+_IO_ACC_F, _IO_U0, _IO_DACC, _IO_DU, _IO_U, _IO_SCALE, _IO_ACT = (
+    m.sl for m in (_k.IO.ACC_F, _k.IO.U0, _k.IO.DACC, _k.IO.DU, _k.IO.U, _k.IO.SCALE, _k.IO.ACT))
+_IO_FALLBACK = int(_k.IO.FALLBACK)
 
 # Axis groups of Delta Acc = [Pdot, Qdot, Rdot, a_x, a_z], scaled back in this order on saturation.
 SATURATION_ORDER: tuple[tuple[int, ...], ...] = ((3,), (2,), (0, 1, 4))
@@ -79,155 +83,30 @@ class IndiStatus:
     fallback_to_u0: bool
 
 
-def actuators_to_u_list(alpha1: float, alpha3: float, w1: float, w2: float, w3: float) -> list[float]:
-    """vehicle.actuators_to_u as a list of floats (the same expressions; no array for 5 numbers)."""
-    return [
-        math.cos(alpha1) * w1 * w1,
-        math.sin(alpha1) * w1 * w1,
-        math.cos(alpha3) * w3 * w3,
-        math.sin(alpha3) * w3 * w3,
-        math.copysign(w2 * w2, w2),
-    ]
-
-
-class IndiControllerReference:
-    """Incremental nonlinear dynamic inversion on [Pdot, Qdot, Rdot, a_x, a_z] (plain Python / numpy).
-
-    The reference for the compiled `IndiController` (tests compare the two); not on the hot path.
-    """
+class IndiController:
+    """Incremental nonlinear dynamic inversion on [Pdot, Qdot, Rdot, a_x, a_z]; the tick is one numba kernel
+    (_kernels.indi_step), its filter state a flat float64 vector (_kernels.ST layout)."""
 
     def __init__(self, cfg: IndiConfig) -> None:
         self.cfg = cfg
-        self._gyro_lpf = LowPass1(cfg.lpf_tau_s, cfg.dt_s, 3)
-        self._diff = BackwardDifference(cfg.dt_s, 3)
-        self._acc_lpf = LowPass1(cfg.lpf_tau_s, cfg.dt_s, 2)
-        self._u0_lpf = LowPass1(cfg.lpf_tau_s, cfg.dt_s, 5)
         lim = cfg.limits
-        self._w_duct_sq_max = lim.duct_speed_max**2
-        self._w_tail_sq_max = lim.tail_speed_max**2
+        self._st = _k.ST.zeros()
+        self._ic = _k.IC.pack(alpha=lpf_alpha(cfg.lpf_tau_s, cfg.dt_s), inv_dt=1.0 / cfg.dt_s,
+                              tilt_min=lim.tilt_min_rad, tilt_max=lim.tilt_max_rad, duct_speed_max=lim.duct_speed_max,
+                              tail_speed_max=lim.tail_speed_max, u_duct_sq_max=(lim.duct_speed_max**2)**2,
+                              u_tail_max=lim.tail_speed_max**2)
+        self._out = _k.IO.zeros()
 
     def reset(self) -> None:
-        for f in (self._gyro_lpf, self._diff, self._acc_lpf, self._u0_lpf):
-            f.reset()
-
-    def measure(self, inp: IndiInputs) -> tuple[list[float], list[float]]:
-        """Filtered acceleration feedback and filtered U0 (also used while disarmed, to stay warm)."""
-        w_f = self._gyro_lpf.step(inp.gyro_frd)
-        wdot = self._diff.step(w_f)
-        f_xz = self._acc_lpf.step((inp.specific_force_frd[0], inp.specific_force_frd[2]))
-        a1, a3 = inp.tilt_rad
-        w1, w2, w3 = inp.speed_rad_s
-        u0 = self._u0_lpf.step(actuators_to_u_list(a1, a3, w1, w2, w3))
-        return [wdot[0], wdot[1], wdot[2], f_xz[0], f_xz[1]], u0
-
-    def step(self, inp: IndiInputs) -> tuple[IndiOutput, IndiStatus]:
-        acc_f, u0 = self.measure(inp)
-        d_acc_l = [inp.accel_cmd[i] - acc_f[i] for i in range(5)]
-        # Eq. 5: Delta U = G_C^-1 G_hat_I Delta Acc (np.dot: the same BLAS products as @, less overhead)
-        m = np.dot(inp.gc_inv, inp.gi_hat) if inp.gc_inv is not None else np.linalg.solve(inp.gc, inp.gi_hat)
-        u0_arr = np.array(u0)
-        scales = [1.0, 1.0, 1.0]
-        fallback = False
-        du = np.dot(m, d_acc_l)
-        u = u0_arr + du
-        ul = u.tolist()
-        if not self._feasible(ul):
-            # Keep the high-priority groups; scale the low ones back first, to the largest feasible s.
-            d_acc = np.array(d_acc_l)
-            contrib = m * d_acc  # column j = M[:, j] * d_acc[j]: each axis' contribution
-            rest = du.copy()
-            for g, cols in enumerate(SATURATION_ORDER):
-                part = contrib[:, list(cols)].sum(axis=1)
-                base = rest - part
-                if self._feasible(u0_arr + base + part):
-                    break
-                s = self._max_scale(u0_arr + base, part)
-                scales[g] = s
-                rest = base + s * part
-                if self._feasible(u0_arr + rest):
-                    break
-            du = rest
-            u = u0_arr + du
-            ul = u.tolist()
-        if not all(math.isfinite(v) for v in ul):
-            u, du, fallback = u0_arr.copy(), np.zeros(5), True
-            ul = u.tolist()
-        a1, a3, w1, w2, w3 = u_to_actuators(ul)
-        lim = self.cfg.limits
-        a1 = min(max(a1, lim.tilt_min_rad), lim.tilt_max_rad)
-        a3 = min(max(a3, lim.tilt_min_rad), lim.tilt_max_rad)
-        w1 = min(w1, lim.duct_speed_max)
-        w3 = min(w3, lim.duct_speed_max)
-        w2 = min(max(w2, -lim.tail_speed_max), lim.tail_speed_max)
-        out = IndiOutput((a1, a3), (w1, w2, w3), tuple(ul))
-        status = IndiStatus(
-            acc_filtered=tuple(acc_f),
-            u0_filtered=tuple(u0),
-            delta_acc=tuple(d_acc_l),
-            delta_u=tuple(du.tolist()),
-            saturation_scale=(scales[0], scales[1], scales[2]),
-            saturated=any(s < 1.0 for s in scales),
-            fallback_to_u0=fallback,
-        )
-        return out, status
-
-    def _feasible(self, u: np.ndarray | list[float]) -> bool:
-        u1, u2, u3, u4, u5 = u.tolist() if isinstance(u, np.ndarray) else u
-        if not all(math.isfinite(v) for v in (u1, u2, u3, u4, u5)):
-            return False
-        if u1 * u1 + u2 * u2 > self._w_duct_sq_max**2 or u3 * u3 + u4 * u4 > self._w_duct_sq_max**2:
-            return False
-        if abs(u5) > self._w_tail_sq_max:
-            return False
-        lim = self.cfg.limits
-        for uc, us in ((u1, u2), (u3, u4)):
-            if uc * uc + us * us > 1e-6:
-                a = math.atan2(us, uc)
-                if a < lim.tilt_min_rad or a > lim.tilt_max_rad:
-                    return False
-        return True
-
-    def _max_scale(self, base: np.ndarray, part: np.ndarray, iters: int = 12) -> float:
-        """Largest s in [0, 1] with base + s*part feasible (bisection; 0 if base alone is infeasible)."""
-        if not self._feasible(base):
-            return 0.0
-        lo, hi = 0.0, 1.0
-        for _ in range(iters):
-            mid = 0.5 * (lo + hi)
-            if self._feasible(base + mid * part):
-                lo = mid
-            else:
-                hi = mid
-        return lo
-
-
-class IndiController(IndiControllerReference):
-    """IndiControllerReference with the tick in one numba kernel (navig8_fc/core/_kernels.indi_step).
-
-    Filter state lives in a flat float64 array; same arithmetic up to rounding (summation order of the
-    5x5 products). Same inputs, outputs and status records.
-    """
-
-    def __init__(self, cfg: IndiConfig) -> None:
-        super().__init__(cfg)
-        lim = cfg.limits
-        self._st = np.zeros(_k.N_ST)
-        self._ic = np.array([
-            lpf_alpha(cfg.lpf_tau_s, cfg.dt_s), 1.0 / cfg.dt_s, lim.tilt_min_rad, lim.tilt_max_rad,
-            lim.duct_speed_max, lim.tail_speed_max, self._w_duct_sq_max**2, self._w_tail_sq_max,
-        ])
-        self._out = np.zeros(_k.N_IO)
-
-    def reset(self) -> None:
-        super().reset()
         self._st[:] = 0.0
 
     def measure(self, inp: IndiInputs) -> tuple[list[float], list[float]]:
+        """Filtered acceleration feedback and filtered U0 (also used while disarmed, to stay warm)."""
         sf, (a1, a3), (w1, w2, w3) = inp.specific_force_frd, inp.tilt_rad, inp.speed_rad_s
         _k.indi_measure(self._st, self._ic, np.asarray(inp.gyro_frd, dtype=float), float(sf[0]), float(sf[2]),
                         float(a1), float(a3), float(w1), float(w2), float(w3), self._out)
         o = self._out.tolist()
-        return o[0:5], o[5:10]
+        return o[_IO_ACC_F], o[_IO_U0]
 
     def step(self, inp: IndiInputs) -> tuple[IndiOutput, IndiStatus]:
         sf, (a1, a3), (w1, w2, w3) = inp.specific_force_frd, inp.tilt_rad, inp.speed_rad_s
@@ -243,15 +122,16 @@ class IndiController(IndiControllerReference):
         out = self._out
         _k.indi_step(self._st, self._ic, gyro, sf_x, sf_z, a1, a3, w1, w2, w3, accel_cmd, gc_inv, gi_hat, out)
         o = tuple(out.tolist())
-        s0, s1, s2 = scales = o[25:28]
-        res = IndiOutput(o[29:31], o[31:34], o[20:25])
+        s0, s1, s2 = scales = o[_IO_SCALE]
+        act = o[_IO_ACT]
+        res = IndiOutput(act[0:2], act[2:5], o[_IO_U])
         status = IndiStatus(
-            acc_filtered=o[0:5],
-            u0_filtered=o[5:10],
-            delta_acc=o[10:15],
-            delta_u=o[15:20],
+            acc_filtered=o[_IO_ACC_F],
+            u0_filtered=o[_IO_U0],
+            delta_acc=o[_IO_DACC],
+            delta_u=o[_IO_DU],
             saturation_scale=scales,
             saturated=s0 < 1.0 or s1 < 1.0 or s2 < 1.0,
-            fallback_to_u0=o[28] != 0.0,
+            fallback_to_u0=o[_IO_FALLBACK] != 0.0,
         )
         return res, status

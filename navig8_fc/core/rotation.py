@@ -1,5 +1,8 @@
 """Attitude helpers with plain floats (hot path: numpy is overhead-bound on 3-vectors).
 
+The maths is written once, as numba kernels in navig8_fc.core._kernels (the outer loop calls them there);
+these functions give Python callers the same results on any sequence of floats.
+
 Quaternions are [w, x, y, z] and rotate body FRD vectors into NED: v_ned = R(q) v_frd.
 Euler angles are the aerospace ZYX sequence (yaw psi, pitch theta, roll phi).
 Frames change here and at the ENU/NED edge (`enu_to_ned`), nowhere else.
@@ -9,6 +12,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+
+from navig8_fc.core import _kernels as _k
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
@@ -25,12 +30,7 @@ def quat_normalize(q: Sequence[float]) -> Quat:
 def quat_mul(a: Sequence[float], b: Sequence[float]) -> Quat:
     aw, ax, ay, az = a
     bw, bx, by, bz = b
-    return (
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    )
+    return _k.quat_mul(float(aw), float(ax), float(ay), float(az), float(bw), float(bx), float(by), float(bz))
 
 
 def quat_conj(q: Sequence[float]) -> Quat:
@@ -40,11 +40,8 @@ def quat_conj(q: Sequence[float]) -> Quat:
 def quat_to_dcm(q: Sequence[float]) -> tuple[Vec3, Vec3, Vec3]:
     """Rows of R (body -> NED)."""
     w, x, y, z = q
-    return (
-        (1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)),
-        (2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)),
-        (2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)),
-    )
+    r = _k.quat_to_dcm(float(w), float(x), float(y), float(z))
+    return (r[0:3], r[3:6], r[6:9])
 
 
 def rotate_body_to_ned(q: Sequence[float], v: Sequence[float]) -> Vec3:
@@ -58,25 +55,13 @@ def rotate_ned_to_body(q: Sequence[float], v: Sequence[float]) -> Vec3:
 
 
 def euler_to_quat(roll: float, pitch: float, yaw: float) -> Quat:
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return (
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    )
+    return _k.euler_to_quat(float(roll), float(pitch), float(yaw))
 
 
 def quat_to_euler(q: Sequence[float]) -> Vec3:
     """(roll, pitch, yaw) in rad, ZYX."""
     w, x, y, z = q
-    roll = math.atan2(2 * (w * x + y * z), 1 - 2 * (x * x + y * y))
-    s = max(-1.0, min(1.0, 2 * (w * y - z * x)))
-    pitch = math.asin(s)
-    yaw = math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-    return (roll, pitch, yaw)
+    return _k.quat_to_euler(float(w), float(x), float(y), float(z))
 
 
 def attitude_error_rotvec(q_meas: Sequence[float], q_cmd: Sequence[float]) -> Vec3:
@@ -84,15 +69,10 @@ def attitude_error_rotvec(q_meas: Sequence[float], q_cmd: Sequence[float]) -> Ve
 
     Uses the shortest rotation (sign of the error quaternion's w) so 359 deg of yaw error is -1 deg.
     """
-    e = quat_mul(quat_conj(q_meas), q_cmd)
-    w = e[0]
-    s = 1.0 if w >= 0.0 else -1.0
-    vn = math.sqrt(e[1] * e[1] + e[2] * e[2] + e[3] * e[3])
-    if vn < 1e-12:
-        return (0.0, 0.0, 0.0)
-    angle = 2.0 * math.atan2(vn, abs(w))
-    k = s * angle / vn
-    return (k * e[1], k * e[2], k * e[3])
+    mw, mx, my, mz = q_meas
+    cw, cx, cy, cz = q_cmd
+    return _k.attitude_error_rotvec(float(mw), float(mx), float(my), float(mz), float(cw), float(cx), float(cy),
+                                    float(cz))
 
 
 def attitude_error_angle(q_meas: Sequence[float], q_cmd: Sequence[float]) -> float:

@@ -31,13 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, signal
 
-from navig8_fc.core.vehicle import (
-    EffectivenessPair,
-    VehicleConfig,
-    control_effectiveness_gc,
-    inertia_matrix_gi,
-    mass_properties,
-)
+from navig8_fc.core.vehicle import VehicleConfig, effectiveness_pair
 
 # Paper Fig. 7 poses (deg): arm stretched forward and curled, both holding a 2 kg object.
 POSE_STRETCHED_DEG: tuple[float, float, float] = (80.0, 10.0, 10.0)
@@ -170,13 +164,7 @@ def lambda_crit(
     _check_loop_params(wn, zeta, ts, tl)
     if not 0.0 < lam_lo < 1.0:
         raise ValueError(f"need 0 < lam_lo < 1, got {lam_lo}")
-    _check_nominal_stable(wn, zeta, ts, tl)
-    f = lambda lam: max_real_pole(lam, wn, zeta, ts, tl)
-    bracket = _bracket_scan(f, np.geomspace(1.0, lam_lo, n_scan))
-    if bracket is None:
-        return 0.0
-    stable_lam, unstable_lam = bracket
-    return float(optimize.brentq(f, unstable_lam, stable_lam, xtol=1e-12, rtol=1e-12))
+    return _stability_edge(wn, zeta, ts, tl, lam_lo, n_scan, 0.0)
 
 
 def lambda_upper(
@@ -196,13 +184,20 @@ def lambda_upper(
     _check_loop_params(wn, zeta, ts, tl)
     if not lam_hi > 1.0:
         raise ValueError(f"need lam_hi > 1, got {lam_hi}")
+    return _stability_edge(wn, zeta, ts, tl, lam_hi, n_scan, math.inf)
+
+
+def _stability_edge(wn: float, zeta: float, ts: float, tl: float, lam_end: float, n_scan: int,
+                    if_none: float) -> float:
+    """The lam between 1 and lam_end where the dominant pole of H_i crosses into the right half plane: a
+    geometric scan from 1 brackets the first crossing, brentq refines it; if_none when the scan finds none."""
     _check_nominal_stable(wn, zeta, ts, tl)
     f = lambda lam: max_real_pole(lam, wn, zeta, ts, tl)
-    bracket = _bracket_scan(f, np.geomspace(1.0, lam_hi, n_scan))
+    bracket = _bracket_scan(f, np.geomspace(1.0, lam_end, n_scan))
     if bracket is None:
-        return math.inf
-    stable_lam, unstable_lam = bracket
-    return float(optimize.brentq(f, stable_lam, unstable_lam, xtol=1e-12, rtol=1e-12))
+        return if_none
+    a, b = sorted(bracket)
+    return float(optimize.brentq(f, a, b, xtol=1e-12, rtol=1e-12))
 
 
 @dataclass(frozen=True)
@@ -328,27 +323,13 @@ def step_metrics(lam: float, wn: float, zeta: float, ts: float, tl: float) -> St
 
 
 def xi_batch(cfg: VehicleConfig, poses_rad: np.ndarray, object_masses_kg: np.ndarray) -> np.ndarray:
-    """Xi (Eq. 14) for every (pose, mass): array (n_poses, n_masses, 5, 5).
-
-    Same construction as vehicle.effectiveness_pair, with the object-free (controller) side computed once
-    per pose instead of once per (pose, mass).
-    """
+    """Xi (Eq. 14) for every (pose, mass): array (n_poses, n_masses, 5, 5) (vehicle.effectiveness_pair)."""
     poses = np.atleast_2d(np.asarray(poses_rad, dtype=float))
     masses = np.atleast_1d(np.asarray(object_masses_kg, dtype=float))
     out = np.empty((poses.shape[0], masses.size, 5, 5))
     for i, q in enumerate(poses):
-        uam = mass_properties(cfg, q, 0.0)
-        gc_uam = control_effectiveness_gc(cfg, uam.com_frd_m)
-        gi_uam = inertia_matrix_gi(uam.inertia_com, uam.mass_kg)
         for j, m_o in enumerate(masses):
-            true = mass_properties(cfg, q, float(m_o))
-            pair = EffectivenessPair(
-                gc_uam=gc_uam,
-                gi_uam=gi_uam,
-                gc_true=control_effectiveness_gc(cfg, true.com_frd_m),
-                gi_true=inertia_matrix_gi(true.inertia_com, true.mass_kg),
-            )
-            out[i, j] = pair.xi
+            out[i, j] = effectiveness_pair(cfg, q, float(m_o)).xi
     return out
 
 

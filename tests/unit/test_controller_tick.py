@@ -1,6 +1,6 @@
 """FlightControllerCore.step (the tick's fast path: packed inputs, views, AdaptiveLaw._step, IndiController._step,
 _outer_loop_arrays) equals the tick composed of the public APIs (AdaptiveLawInputs/AdaptiveLaw.step,
-outer_loop_step_compiled, IndiInputs/IndiController.step) bit for bit, status record included."""
+outer_loop_step, IndiInputs/IndiController.step) bit for bit, status record included."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from navig8_fc.core.controller import (
     FlightControllerCore,
 )
 from navig8_fc.core.indi import IndiInputs
-from navig8_fc.core.outer_loop import Setpoint, outer_loop_step_compiled
+from navig8_fc.core.outer_loop import Setpoint, outer_loop_step
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.params.registry import ParamRegistry
 
@@ -37,19 +37,22 @@ def _reference_step(core: FlightControllerCore, s: FcSensors, sp: Setpoint,
     inertia, rate = np.empty((3, 3)), np.empty((3, 3))
     gc, gc_inv = np.empty((5, 5)), np.empty((5, 5))
     uo, fo = core._uo, core._fo
-    sens = np.array((*s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
-                     *s.joint_rate_rad_s), dtype=float)
-    _k.fc_front(core._fst, cfg.dt_s, core._obs_gain, core._inv_dt, sens, float(m_obj_est), core._geo, core._f,
-                core._m0, inertia, rate, gc, gc_inv, uo, fo)
-    fl = fo.tolist()
-    mass = uo[_k.UO_MASS]
+    sens = _k.TIN.zeros()
+    t = _k.TIN.views(sens)
+    t.gyro[:], t.accel[:], t.tilt[:], t.speed[:] = s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s
+    t.jpos[:], t.jrate[:] = s.joint_pos_rad, s.joint_rate_rad_s
+    model = core._model
+    _k.fc_front(core._fst, cfg.dt_s, core._obs_gain, core._inv_dt, sens, float(m_obj_est), model.geometry,
+                model.force_per_input, model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
+    f = _k.FO.views(fo)
+    mass = uo[_k.UO.MASS]
     gi_hat, adapt_status = core._adapt.step(AdaptiveLawInputs(
-        t_s=s.t_s, u_meas=fl[11:16], acc_m=fl[6:11], gc_uam_inv=gc_inv, inertia_uam=inertia,
+        t_s=s.t_s, u_meas=f.u_meas.tolist(), acc_m=f.acc_m.tolist(), gc_uam_inv=gc_inv, inertia_uam=inertia,
         mass_uam_kg=float(mass), inertia_rate_uam=rate, k_min=cfg.k_min, k_max=cfg.k_max,
     ))
     outer = indi_status = None
     if engaged:
-        outer = outer_loop_step_compiled(core._outer_cfg, sp, s.pos_ned, s.vel_ned, s.quat_wxyz, s.gyro_frd)
+        outer = outer_loop_step(core._outer_cfg, sp, s.pos_ned, s.vel_ned, s.quat_wxyz, s.gyro_frd)
         out, indi_status = core._indi.step(IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s,
                                                       outer.accel_cmd, gc, gi_hat, gc_inv))
         cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
@@ -58,7 +61,7 @@ def _reference_step(core: FlightControllerCore, s: FcSensors, sp: Setpoint,
         cmd = MOTORS_OFF
     j = inertia
     return cmd, ControllerStatus(
-        t_s=s.t_s, engaged=engaged, q_est_rad=tuple(fl[0:3]), qdd_est_rad_s2=tuple(fl[3:6]),
+        t_s=s.t_s, engaged=engaged, q_est_rad=tuple(f.qest.tolist()), qdd_est_rad_s2=tuple(f.qdd.tolist()),
         mass_uam_kg=float(mass), inertia_uam_diag=(float(j[0, 0]), float(j[1, 1]), float(j[2, 2])),
         gi_hat=tuple(gi_hat.ravel().tolist()), gc_uam=tuple(gc.ravel().tolist()), outer=outer,
         indi=indi_status, adapt=adapt_status,

@@ -1,26 +1,18 @@
-"""The compiled controller kernels (navig8_fc/core/_kernels.py) against their plain-Python references."""
+"""The compiled controller kernels (navig8_fc/core/_kernels.py) against independent checks: numpy's inverse and
+solve, the textbook filters of core/filters.py, the vector-form model oracle and finite differences."""
 
 from __future__ import annotations
 
+import math
+
+import model_oracle as oracle
 import numpy as np
 import pytest
 
 from navig8_fc.core import _kernels as k
 from navig8_fc.core.ckf import CkfConfig, ConstrainedKalmanFilter
-from navig8_fc.core.indi import (
-    ActuatorLimits,
-    IndiConfig,
-    IndiController,
-    IndiControllerReference,
-    IndiInputs,
-)
-from navig8_fc.core.outer_loop import (
-    OuterLoopConfig,
-    Setpoint,
-    outer_loop_config_array,
-    outer_loop_step,
-    outer_loop_step_compiled,
-)
+from navig8_fc.core.filters import BackwardDifference, LowPass1
+from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs
 from navig8_fc.core.vehicle import UamModel, VehicleConfig, estimated_gi
 
 RTOL = 1e-12
@@ -42,26 +34,26 @@ def test_inverse_matches_numpy() -> None:
     assert not k.inv_gauss_jordan(np.zeros((3, 3)), np.empty((3, 3)))
 
 
-def test_uam_model_matches_reference(cfg: VehicleConfig) -> None:
+def test_uam_model_inverse_and_slots(cfg: VehicleConfig) -> None:
+    """uam_model's G_C^-1 is numpy's inverse of its G_C; its UO slots are the model's mass, CoM and arm term."""
     model = UamModel(cfg)
-    jb = model._jb
-    geo = np.array([cfg.link_length_m, cfg.link_mass_kg, cfg.link_inertia_kgm2, cfg.mount_frd_m[0],
-                    cfg.mount_frd_m[2], cfg.uam_mass_kg, jb[0], jb[1], jb[2], jb[3]])
     rng = np.random.default_rng(7)
     for _ in range(100):
         q, qd, qdd = rng.uniform(-2, 2, 3), rng.uniform(-3, 3, 3), rng.uniform(-10, 10, 3)
         mo = float(rng.uniform(-0.5, 2.0))
-        ref = model.evaluate(q, qd, qdd, mo)
         inertia, rate, gc, gc_inv, uo = (np.empty((3, 3)), np.empty((3, 3)), np.empty((5, 5)), np.empty((5, 5)),
-                                         np.empty(k.N_UO))
-        k.uam_model(q, qd, qdd, mo, geo, model._f, model._m0, inertia, rate, gc, gc_inv, uo)
-        _close(inertia, ref.inertia_com)
-        _close(rate, ref.inertia_rate)
-        _close(gc, ref.gc)
-        _close(gc_inv, np.linalg.inv(ref.gc), rtol=1e-9, atol=1e-12 * np.abs(gc_inv).max())
-        assert uo[k.UO_MASS] == ref.mass_kg and uo[k.UO_SINGULAR] == 0.0
-        _close(uo[[k.UO_CX, k.UO_CZ]], ref.com_frd_m[[0, 2]])
-        _close(uo[[k.UO_ARM_AX, k.UO_ARM_AZ]], ref.arm_accel_xz)
+                                         k.UO.zeros())
+        k.uam_model(q, qd, qdd, mo, model.geometry, model.force_per_input, model.moment_o_per_input, inertia, rate,
+                    gc, gc_inv, uo)
+        _close(gc_inv, np.linalg.inv(gc), rtol=1e-9, atol=1e-12 * np.abs(gc_inv).max())
+        m, c, j, _ = oracle.dumbbell_mass_properties(cfg, q)
+        assert uo[k.UO.SINGULAR] == 0.0
+        _close(uo[[k.UO.MASS, k.UO.CX, k.UO.CZ]], [m, c[0], c[2]])
+        _close(inertia, j)
+        kin = oracle.arm_kinematics(cfg, q, qd, qdd)
+        mo = max(mo, 0.0)  # a negative estimate counts as no object
+        want = (cfg.link_mass_kg * kin.link_com_acc.sum(axis=0) + mo * kin.tip_acc) / (cfg.uam_mass_kg + mo)
+        _close(uo[[k.UO.ARM_AX, k.UO.ARM_AZ]], want[[0, 2]], atol=1e-9)
 
 
 def test_kf_correct_matches_reference(cfg: VehicleConfig) -> None:
@@ -84,54 +76,47 @@ def test_kf_correct_matches_reference(cfg: VehicleConfig) -> None:
             assert np.array_equal(kf.p, kf.p.T) and kf.n_updates == ref.n_updates
 
 
-def test_outer_loop_matches_reference() -> None:
-    cfg = OuterLoopConfig(1.0, 2.0, 2.0, 5.0, 6.0, 10.0, 3.0, 9.81)
-    arr = outer_loop_config_array(cfg)
-    rng = np.random.default_rng(5)
-    for _ in range(200):
-        sp = Setpoint(tuple(rng.uniform(-5, 5, 3)), float(rng.uniform(-1, 1)), float(rng.uniform(-3, 3)))
-        quat = rng.normal(size=4)
-        quat /= np.linalg.norm(quat)
-        args = (tuple(rng.uniform(-5, 5, 3)), tuple(rng.uniform(-3, 3, 3)), tuple(quat), tuple(rng.normal(size=3)))
-        ref = outer_loop_step(cfg, sp, *args)
-        got = outer_loop_step_compiled(arr, sp, *args)
-        for name in ref.__dataclass_fields__:
-            a, b = getattr(got, name), getattr(ref, name)
-            assert isinstance(a, type(b))
-            _close(a, b, rtol=1e-12, atol=1e-12)
-
-
-@pytest.mark.parametrize("scale", [1.0, 40.0])  # 40: large commands drive the saturation handling
-def test_indi_matches_reference(cfg: VehicleConfig, scale: float) -> None:
+@pytest.mark.parametrize("scale", [0.05, 1.0])
+def test_indi_filters_and_increment(cfg: VehicleConfig, scale: float) -> None:
+    """IndiController (indi_step) against textbook parts: LowPass1 on gyro, specific force x/z and U0 (Sec. 3's U
+    from the measured actuators), BackwardDifference of the filtered gyro, and, while unsaturated,
+    Delta U = G_C^-1 G_hat_I Delta Acc (Eq. 5) by numpy's solve, U = U0 + Delta U (Eq. 6)."""
     icfg = IndiConfig(0.01, 0.05, ActuatorLimits.from_vehicle(cfg))
-    fast, ref = IndiController(icfg), IndiControllerReference(icfg)
+    indi = IndiController(icfg)
+    gyro_lpf, diff = LowPass1(icfg.lpf_tau_s, icfg.dt_s, 3), BackwardDifference(icfg.dt_s, 3)
+    acc_lpf, u0_lpf = LowPass1(icfg.lpf_tau_s, icfg.dt_s, 2), LowPass1(icfg.lpf_tau_s, icfg.dt_s, 5)
     model = UamModel(cfg)
     rng = np.random.default_rng(13)
-    saturated = 0
-    for i in range(300):
+    n_free = 0
+    for i in range(200):
         st = model.evaluate(rng.uniform(-0.5, 0.5, 3), (0.0, 0.0, 0.0))
         gi = estimated_gi(st.inertia_com, np.array([st.inertia_com[0, 0], st.inertia_com[1, 1],
                                                      st.inertia_com[2, 2], st.mass_kg]) * rng.uniform(1, 2))
+        a1, a3 = rng.uniform(0.2, 1.2, 2)
+        w1, w2, w3 = 800.0 + 50 * rng.normal(), 200 * rng.normal(), 800.0
         inp = IndiInputs(tuple(rng.normal(size=3)), (float(rng.normal()), 0.0, -9.8 + float(rng.normal())),
-                         tuple(rng.uniform(0.2, 1.2, 2)), (800.0 + 50 * rng.normal(), 200 * rng.normal(), 800.0),
-                         tuple(scale * rng.normal(size=5)), st.gc, gi, np.linalg.inv(st.gc))
+                         (a1, a3), (w1, w2, w3), tuple(scale * rng.normal(size=5)), st.gc, gi)
+        u_meas = [math.cos(a1) * w1**2, math.sin(a1) * w1**2, math.cos(a3) * w3**2, math.sin(a3) * w3**2,
+                  math.copysign(w2**2, w2)]
+        acc_f = [*diff.step(gyro_lpf.step(inp.gyro_frd)),
+                 *acc_lpf.step((inp.specific_force_frd[0], inp.specific_force_frd[2]))]
+        u0 = u0_lpf.step(u_meas)
         if i % 50 == 7:
-            _close(fast.measure(inp), ref.measure(inp))
+            got_acc, got_u0 = indi.measure(inp)
+            _close(got_acc, acc_f)
+            _close(got_u0, u0)
             continue
-        (o1, s1), (o2, s2) = fast.step(inp), ref.step(inp)
-        _close(o1.u_cmd, o2.u_cmd, rtol=1e-9, atol=1e-6)
-        _close(o1.tilt_cmd_rad + o1.speed_cmd_rad_s, o2.tilt_cmd_rad + o2.speed_cmd_rad_s, rtol=1e-9, atol=1e-9)
-        for name in ("acc_filtered", "u0_filtered", "delta_acc", "delta_u", "saturation_scale"):
-            _close(getattr(s1, name), getattr(s2, name), rtol=1e-9, atol=1e-6)
-        assert (s1.saturated, s1.fallback_to_u0) == (s2.saturated, s2.fallback_to_u0)
-        saturated += s1.saturated
-    if scale > 1.0:
-        assert saturated > 10
-    fast.reset()
-    ref.reset()
-    inp = IndiInputs((0.1, 0.2, 0.3), (0.0, 0.0, -9.8), (0.5, 0.5), (700.0, 10.0, 700.0), (0.0,) * 5,
-                     st.gc, gi, np.linalg.inv(st.gc))
-    _close(fast.step(inp)[1].acc_filtered, ref.step(inp)[1].acc_filtered)
+        out, status = indi.step(inp)
+        _close(status.acc_filtered, acc_f)
+        _close(status.u0_filtered, u0)
+        d_acc = np.array(inp.accel_cmd) - acc_f
+        _close(status.delta_acc, d_acc)
+        if not status.saturated:
+            n_free += 1
+            du = np.linalg.solve(st.gc, gi @ d_acc)
+            _close(status.delta_u, du, rtol=1e-9, atol=1e-6)
+            _close(out.u_cmd, np.array(u0) + du, rtol=1e-9, atol=1e-6)
+    assert n_free > 50
 
 
 def _random_spd(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -177,58 +162,60 @@ def test_polish_rejects_inconsistent_active_set() -> None:
     _close(out, [0.5, 0.5])
 
 
-def test_front_end_matches_reference(cfg: VehicleConfig) -> None:
-    """fc_front against the Python front end it replaced: complementary joint observer, BackwardDifference
-    on q-dot and the gyro, UamModel.evaluate, Acc_m (Eq. 23) and actuators_to_u_list; also after a reset."""
+def test_front_end_against_textbook_parts(cfg: VehicleConfig) -> None:
+    """fc_front against independent parts: the complementary joint observer written here, BackwardDifference on
+    q-dot and the gyro, the dumbbell oracle's inertia at q_est, the central difference of the oracle's inertia
+    along q-dot for I-dot, Acc_m (Eq. 23) with the oracle's arm term and Sec. 3's U; also after a reset."""
     from navig8_fc.core.controller import JOINT_OBS_TAU_S
-    from navig8_fc.core.filters import BackwardDifference
-    from navig8_fc.core.indi import actuators_to_u_list
 
     dt = 0.01
     g = dt / (JOINT_OBS_TAU_S + dt)
     model = UamModel(cfg)
-    jb = model._jb
-    geo = np.array([cfg.link_length_m, cfg.link_mass_kg, cfg.link_inertia_kgm2, cfg.mount_frd_m[0],
-                    cfg.mount_frd_m[2], cfg.uam_mass_kg, jb[0], jb[1], jb[2], jb[3]])
     rng = np.random.default_rng(23)
-    fst, fo, uo = np.zeros(k.N_FST), np.zeros(k.N_FO), np.zeros(k.N_UO)
+    fst, fo, uo = k.FST.zeros(), k.FO.zeros(), k.UO.zeros()
     for run in range(2):
         fst[:] = 0.0
         q_est = None
         gyro_diff, qd_diff = BackwardDifference(dt, 3), BackwardDifference(dt, 3)
         for _ in range(50):
-            sens = np.concatenate([rng.normal(size=3), rng.normal(size=3) + [0, 0, -9.8], rng.uniform(0, 1.5, 2),
-                                   rng.uniform(0, 900, 3) * [1, rng.choice([-1, 1]), 1], rng.uniform(-1, 1, 3),
-                                   rng.normal(size=3)])
+            sens = k.TIN.zeros()
+            t = k.TIN.views(sens)
+            t.gyro[:], t.accel[:] = rng.normal(size=3), rng.normal(size=3) + [0, 0, -9.8]
+            t.tilt[:], t.speed[:] = rng.uniform(0, 1.5, 2), rng.uniform(0, 900, 3) * [1, rng.choice([-1, 1]), 1]
+            t.jpos[:], t.jrate[:] = rng.uniform(-1, 1, 3), rng.normal(size=3)
             mo = float(rng.uniform(0, 1)) * run
             inertia, rate, gc, gc_inv = np.empty((3, 3)), np.empty((3, 3)), np.empty((5, 5)), np.empty((5, 5))
-            k.fc_front(fst, dt, g, 1.0 / dt, sens, mo, geo, model._f, model._m0, inertia, rate, gc, gc_inv, uo, fo)
-            s = sens.tolist()
-            q_meas, qd = s[11:14], s[14:17]
+            k.fc_front(fst, dt, g, 1.0 / dt, sens, mo, model.geometry, model.force_per_input,
+                       model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
+            q_meas, qd = t.jpos.tolist(), t.jrate.tolist()
             if q_est is None:
                 q_est = q_meas
             else:
                 pred = [q_est[i] + dt * qd[i] for i in range(3)]
                 q_est = [pred[i] + g * (q_meas[i] - pred[i]) for i in range(3)]
             qdd = qd_diff.step(qd)
-            ref = model.evaluate(q_est, qd, qdd, mo)
-            wdot = gyro_diff.step(s[0:3])
-            acc_m = [*wdot, s[3] + ref.arm_accel_xz[0], s[5] + ref.arm_accel_xz[1]]
-            _close(fo[k.FO_QEST:k.FO_QEST + 3], q_est)
-            _close(fo[k.FO_QDD:k.FO_QDD + 3], qdd)
-            _close(fo[k.FO_ACC_M:k.FO_ACC_M + 5], acc_m)
-            _close(fo[k.FO_U_MEAS:k.FO_U_MEAS + 5], actuators_to_u_list(*s[6:11]))
-            _close(inertia, ref.inertia_com)
-            _close(rate, ref.inertia_rate)
-            _close(gc, ref.gc)
+            kin = oracle.arm_kinematics(cfg, q_est, qd, qdd)
+            arm = (cfg.link_mass_kg * kin.link_com_acc.sum(axis=0) + mo * kin.tip_acc) / (cfg.uam_mass_kg + mo)
+            acc_m = [*gyro_diff.step(t.gyro), t.accel[0] + arm[0], t.accel[2] + arm[2]]
+            (a1, a3), (w1, w2, w3) = t.tilt.tolist(), t.speed.tolist()
+            u = [math.cos(a1) * w1**2, math.sin(a1) * w1**2, math.cos(a3) * w3**2, math.sin(a3) * w3**2,
+                 math.copysign(w2**2, w2)]
+            f = k.FO.views(fo)
+            _close(f.qest, q_est)
+            _close(f.qdd, qdd)
+            _close(f.acc_m, acc_m, atol=1e-9)
+            _close(f.u_meas, u)
+            _close(inertia, oracle.dumbbell_mass_properties(cfg, q_est)[2])
+            h = 1e-6
+            fd = (oracle.dumbbell_mass_properties(cfg, np.add(q_est, h * np.array(qd)))[2]
+                  - oracle.dumbbell_mass_properties(cfg, np.subtract(q_est, h * np.array(qd)))[2]) / (2 * h)
+            _close(rate, fd, rtol=1e-6, atol=1e-7)
             _close(gc_inv @ gc, np.eye(5), rtol=0.0, atol=1e-9)
 
 
 def test_adapt_step_matches_reference(cfg: VehicleConfig) -> None:
     """adapt_step: the low-pass increments equal LowPass1's bit for bit; predict + correct equal the
     reference ConstrainedKalmanFilter._step_lists (numpy correct) to rounding."""
-    from navig8_fc.core.filters import LowPass1
-
     ccfg = CkfConfig(mode=1)  # unconstrained: _step_lists does predict + correct only
     kf, ref = ConstrainedKalmanFilter(ccfg), ConstrainedKalmanFilter(ccfg)
     model = UamModel(cfg)

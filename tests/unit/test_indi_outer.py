@@ -6,10 +6,11 @@ import math
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from navig8_fc.core import rotation as rot
 from navig8_fc.core import vehicle as vm
-from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs, actuators_to_u_list
+from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs
 from navig8_fc.core.outer_loop import OuterLoopConfig, Setpoint, outer_loop_step
 
 CFG = vm.VehicleConfig.load()
@@ -19,6 +20,12 @@ DT = 0.01
 def _plant_accel(u: np.ndarray, gc: np.ndarray, gi: np.ndarray) -> np.ndarray:
     """Linear plant: [Pdot, Qdot, Rdot, a_x, a_z] = G_I^-1 G_C U (Eq. 1-2), gravity-free specific force."""
     return np.linalg.solve(gi, gc @ u)
+
+
+def _model(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """G_C and G_I of the UAM without object at pose q (Eq. 1-2)."""
+    mp = vm.mass_properties(CFG, q)
+    return vm.control_effectiveness_gc(CFG, mp.com_frd_m), vm.inertia_matrix_gi(mp.inertia_com, mp.mass_kg)
 
 
 def _inputs(gyro, f_xz, u0, v, gc, gi_hat):
@@ -32,9 +39,7 @@ def _inputs(gyro, f_xz, u0, v, gc, gi_hat):
 @pytest.mark.parametrize("q_deg", [(0, 0, 0), (20, 20, 20), (80, 10, 10)])
 def test_indi_recovers_commanded_acceleration_in_one_step(q_deg) -> None:
     q = np.radians(q_deg)
-    mp = vm.mass_properties(CFG, q)
-    gc = vm.control_effectiveness_gc(CFG, mp.com_frd_m)
-    gi = vm.inertia_matrix_gi(mp.inertia_com, mp.mass_kg)
+    gc, gi = _model(q)
     indi = IndiController(IndiConfig(DT, 0.0, ActuatorLimits.from_vehicle(CFG)))  # tau 0: filters pass through
     u0 = vm.hover_trim(CFG, q, 0.0)
     acc0 = _plant_accel(u0, gc, gi)  # current accelerations produced by U0
@@ -52,9 +57,7 @@ def test_indi_recovers_commanded_acceleration_in_one_step(q_deg) -> None:
 def test_indi_with_scaled_effectiveness_moves_by_lambda() -> None:
     # With G_hat = K G (K diag), one step moves each axis by Delta Acc / K (Eq. 14 with Xi = I).
     q = np.zeros(3)
-    mp = vm.mass_properties(CFG, q)
-    gc = vm.control_effectiveness_gc(CFG, mp.com_frd_m)
-    gi = vm.inertia_matrix_gi(mp.inertia_com, mp.mass_kg)
+    gc, gi = _model(q)
     k = np.array([0.5, 0.8, 0.6, 0.7, 0.7])
     gi_hat = gi @ np.diag(1.0 / k)
     indi = IndiController(IndiConfig(DT, 0.0, ActuatorLimits.from_vehicle(CFG)))
@@ -72,9 +75,7 @@ def test_indi_with_scaled_effectiveness_moves_by_lambda() -> None:
 
 def test_saturation_keeps_limits_and_priorities_and_never_nan() -> None:
     q = np.zeros(3)
-    mp = vm.mass_properties(CFG, q)
-    gc = vm.control_effectiveness_gc(CFG, mp.com_frd_m)
-    gi = vm.inertia_matrix_gi(mp.inertia_com, mp.mass_kg)
+    gc, gi = _model(q)
     indi = IndiController(IndiConfig(DT, 0.0, ActuatorLimits.from_vehicle(CFG)))
     u0 = vm.hover_trim(CFG, q, 0.0)
     acc0 = _plant_accel(u0, gc, gi)
@@ -132,10 +133,35 @@ def test_outer_loop_hover_and_roll_nulls_lateral_force() -> None:
     assert math.sqrt(sum(a * a for a in st.accel_cmd_ned)) <= OL.acc_max_m_s2 + 1e-12
 
 
-def test_actuators_to_u_list_is_vehicle_actuators_to_u() -> None:
-    rng = np.random.default_rng(4)
+def _clip(v: np.ndarray, limit: float) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    return v * (limit / n) if n > limit > 0.0 else v
+
+
+def test_outer_loop_against_scipy_rotations() -> None:
+    # The cascade of the module docstring, computed here with scipy's Rotation (ZYX Euler, rotation vectors):
+    # a_cmd, f_cmd = a_cmd - g, the roll that nulls body-y force at the commanded pitch and yaw, body x/z force
+    # with the measured attitude, omega_cmd = K_att rotvec(q^-1 q_cmd) limited, Pdot.. = K_rate (omega_cmd - omega).
+    rng = np.random.default_rng(5)
+    g = np.array([0.0, 0.0, OL.gravity_m_s2])
     for _ in range(200):
-        a1, a3 = rng.uniform(-1.0, 2.5, 2)
-        w1, w3 = rng.uniform(0.0, 1500.0, 2)
-        w2 = rng.uniform(-2000.0, 2000.0)
-        assert actuators_to_u_list(a1, a3, w1, w2, w3) == vm.actuators_to_u(a1, a3, w1, w2, w3).tolist()
+        sp = Setpoint(tuple(rng.uniform(-5, 5, 3)), float(rng.uniform(-1, 1)), float(rng.uniform(-3, 3)))
+        quat = rng.normal(size=4)
+        quat /= np.linalg.norm(quat)
+        pos, vel, gyro = rng.uniform(-5, 5, 3), rng.uniform(-3, 3, 3), rng.normal(size=3)
+        st = outer_loop_step(OL, sp, pos, vel, quat, gyro)
+        a_cmd = _clip(OL.vel_k * (_clip(OL.pos_k * (np.array(sp.pos_ned) - pos), OL.vel_max_m_s) - vel),
+                      OL.acc_max_m_s2)
+        f_cmd = a_cmd - g
+        np.testing.assert_allclose(st.accel_cmd_ned, a_cmd, atol=1e-12)
+        np.testing.assert_allclose(st.specific_force_cmd_ned, f_cmd, atol=1e-12)
+        cmd = Rotation.from_quat(np.roll(st.att_cmd_quat, -1))  # scipy: [x, y, z, w]
+        np.testing.assert_allclose(cmd.as_euler("ZYX")[[1, 0]], [sp.pitch_rad, sp.yaw_rad], atol=1e-9)
+        assert cmd.as_euler("ZYX")[2] == pytest.approx(st.roll_cmd_rad, abs=1e-9)
+        f_at_cmd = cmd.inv().apply(f_cmd)
+        assert abs(f_at_cmd[1]) < 1e-9 * max(1.0, np.linalg.norm(f_cmd)) and f_at_cmd[2] <= 0.0
+        meas = Rotation.from_quat(np.roll(quat, -1))
+        f_body = meas.inv().apply(f_cmd)
+        w_cmd = _clip(OL.att_k * (meas.inv() * cmd).as_rotvec(), OL.rate_max_rad_s)
+        np.testing.assert_allclose(st.rate_cmd_frd, w_cmd, atol=1e-9)
+        np.testing.assert_allclose(st.accel_cmd, [*(OL.rate_k * (w_cmd - gyro)), f_body[0], f_body[2]], atol=1e-9)

@@ -196,7 +196,7 @@ def test_hover_scenarios_start_at_trim(cfg, params):
 
 
 def test_messages_are_complete_and_frozen(cfg, params):
-    """sense() and truth() build their frozen dataclasses with make_frozen: every field set, none writable."""
+    """sense() and truth() give complete frozen dataclasses: every field set, no array writable."""
     plant = Plant(cfg, params, load_scenario("paper"), np.random.default_rng(0))
     for msg, cls in ((plant.sense(), SensorBundle), (plant.truth(), Truth)):
         assert set(vars(msg)) == {f.name for f in dataclasses.fields(cls)}
