@@ -193,23 +193,13 @@ def _regressor(gc_inv, da, rho_x, rho_z, h):
 
 @njit(cache=True)
 def _mul(a, b, out):
-    """out = a @ b (plain loops: the summation order of every product here is fixed)."""
+    """out = a @ b (plain loops: the summation order of every product here is fixed; b may be a transposed
+    view)."""
     for i in range(a.shape[0]):
         for j in range(b.shape[1]):
             acc = 0.0
             for k in range(a.shape[1]):
                 acc += a[i, k] * b[k, j]
-            out[i, j] = acc
-
-
-@njit(cache=True)
-def _mul_bt(a, b, out):
-    """out = a @ b.T."""
-    for i in range(a.shape[0]):
-        for j in range(b.shape[0]):
-            acc = 0.0
-            for k in range(a.shape[1]):
-                acc += a[i, k] * b[j, k]
             out[i, j] = acc
 
 
@@ -234,7 +224,7 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, innovation):
     h = np.empty((5, 4))
     _regressor(gc_inv, da, rho_x, rho_z, h)
     pht = np.empty((4, 5))
-    _mul_bt(p, h, pht)
+    _mul(p, h.T, pht)
     for i in range(5):
         acc = 0.0
         for k in range(4):
@@ -265,13 +255,13 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, innovation):
     t1 = np.empty((4, 4))
     _mul(ikh, p, t1)
     pn = np.empty((4, 4))
-    _mul_bt(t1, ikh, pn)
+    _mul(t1, ikh.T, pn)
     gr = np.empty((4, 5))
     for i in range(4):
         for k in range(5):
             gr[i, k] = gain[i, k] * r_diag[k]
     krk = np.empty((4, 4))
-    _mul_bt(gr, gain, krk)
+    _mul(gr, gain.T, krk)
     for i in range(4):
         for j in range(4):
             pn[i, j] += krk[i, j]
@@ -327,7 +317,7 @@ def kf_project(x, p, identity, lo, hi):
             usable = False
     if usable:
         code = box_qp.solve(xh, w, pl, use_pl, lo, hi, x)
-    else:  # non-finite estimate: straight to the enumeration, counted as a fallback
+    else:  # a non-finite estimate or a W that is not positive definite: the enumeration (a fallback)
         code = box_qp.SOLVED_BY_ENUMERATION if box_qp.enumerate_faces(xh, w, lo, hi, x) else box_qp.NO_SOLUTION
     if code == box_qp.NO_SOLUTION:
         x[:] = xh
@@ -336,12 +326,11 @@ def kf_project(x, p, identity, lo, hi):
 
 
 # Output of kf_step
-STEP_OUT = Layout(x_hat=N_STATE, x_unconstrained=N_STATE, innovation=N_MEAS, p_diag=N_STATE, projection=1)
+STEP_OUT = Layout(x_hat=N_STATE, x_unconstrained=N_STATE, innovation=N_MEAS, p_diag=N_STATE)
 SO_X_HAT = STEP_OUT.start("x_hat")
 SO_X_UNC = STEP_OUT.start("x_unconstrained")
 SO_INNOV = STEP_OUT.start("innovation")
 SO_P_DIAG = STEP_OUT.start("p_diag")
-SO_PROJ = STEP_OUT.start("projection")  # the PROJ_* code (PROJ_INSIDE when not constrained)
 
 
 @njit(cache=True)
@@ -358,7 +347,6 @@ def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, gc_inv, du, da,
     for i in range(N_STATE):
         out[SO_X_HAT + i] = x[i]
         out[SO_P_DIAG + i] = p[i, i]
-    out[SO_PROJ] = code
     return code
 
 

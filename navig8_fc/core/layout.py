@@ -35,9 +35,6 @@ class Layout:
     def start(self, name: str) -> int:
         return self._slices[name].start
 
-    def slice(self, name: str) -> slice:
-        return self._slices[name]
-
     def zeros(self) -> np.ndarray:
         return np.zeros(self.size)
 
