@@ -9,7 +9,8 @@ One solver: a primal-dual active-set iteration started on the clip face (the vio
 iteration solves the equality-constrained problem on the current face exactly (`_face_point`), then checks
 the KKT conditions (`_kkt_next_state`): a free component outside the box is held at the bound it violates,
 a held bound whose multiplier has the wrong sign is released. For W = I (and a diagonal W) the clip face is
-already optimal: one iteration. The answer lies exactly on the held bounds and passes the KKT check, which is
+already optimal: one iteration. In the paper scenario (seed 1) the KF projected on 1724 ticks: 1670 took one
+iteration, 54 two, none the fallback. The answer lies exactly on the held bounds and passes the KKT check, which is
 the optimality certificate of the strictly convex QP.
 
 Checked fallback: if the iteration does not certify a face within MAX_ITER (active-set methods can cycle for
