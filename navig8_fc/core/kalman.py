@@ -382,10 +382,6 @@ class KfStepResult(NamedTuple):
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-def _box_error(lo: Sequence[float], hi: Sequence[float]) -> ValueError:
-    return ValueError(f"empty box (or NaN bound): lower {list(lo)}, upper {list(hi)}")
-
-
 class ConstrainedKalmanFilter:
     """KF on x = [I_xx, I_yy, I_zz, m] with Eq. 22 (predict), Eq. 24 (correct) and the Eq. 21 projection
     (constrained mode; CkfConfig.mode)."""
@@ -433,6 +429,15 @@ class ConstrainedKalmanFilter:
         self.n_updates = 0
         self.n_projection_fallbacks = 0
 
+    def _account(self, code: int, lower: Sequence[float], upper: Sequence[float]) -> None:
+        """Count a fallback, raise on a failed projection (kf_project's PROJ_* code)."""
+        if code == PROJ_FALLBACK:
+            self.n_projection_fallbacks += 1
+        elif code == PROJ_EMPTY_BOX:
+            raise ValueError(f"empty box (or NaN bound): lower {list(lower)}, upper {list(upper)}")
+        elif code == PROJ_FAILED:
+            raise np.linalg.LinAlgError("box projection: no feasible candidate")
+
     def _require_initialised(self) -> None:
         if not self._initialised:
             raise RuntimeError("ConstrainedKalmanFilter used before initialise()")
@@ -468,12 +473,7 @@ class ConstrainedKalmanFilter:
         self._require_initialised()
         lo, hi = np.asarray(lower, dtype=float), np.asarray(upper, dtype=float)
         code = kf_project(self._x, self._p, self._identity_weight, lo, hi)
-        if code == PROJ_EMPTY_BOX:
-            raise _box_error(lo, hi)
-        if code == PROJ_FAILED:
-            raise np.linalg.LinAlgError("box projection: no feasible candidate")
-        if code == PROJ_FALLBACK:
-            self.n_projection_fallbacks += 1
+        self._account(code, lo, hi)
         return ProjectionResult(self._x.copy(), code != PROJ_INSIDE, code == PROJ_FALLBACK, 0)
 
     def step(
@@ -500,12 +500,7 @@ class ConstrainedKalmanFilter:
         code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, gc_uam_inv, delta_u,
                        delta_acc, rho_x, rho_z, self._constrained, self._identity_weight, lower, upper, self._out)
         self.n_updates += 1
-        if code < 0:
-            if code == PROJ_EMPTY_BOX:
-                raise _box_error(lower, upper)
-            raise np.linalg.LinAlgError("box projection: no feasible candidate")
-        if code == PROJ_FALLBACK:
-            self.n_projection_fallbacks += 1
+        self._account(code, lower, upper)
         o = self._out.tolist()
         return KfStepResult(tuple(o[SO_X_HAT:SO_X_HAT + 4]), tuple(o[SO_X_UNC:SO_X_UNC + 4]),
                             tuple(o[SO_INNOV:SO_INNOV + 5]), tuple(o[SO_P_DIAG:SO_P_DIAG + 4]),
