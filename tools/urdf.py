@@ -14,7 +14,7 @@ Tree (frame names the log transforms use; * = movable joint, the log publishes i
     base_link -> arm_mount -*joint_1-> link_1 -*joint_2-> link_2 -*joint_3-> link_3 -> gripper -> object
 
 Joint positions are the project's own variables: duct tilts alpha1, alpha3 (rad, > 0 tilts the thrust forward)
-and arm angles q1..q3 (rad, q = 0 points down, > 0 swings forward; navig8_fc.core.vehicle.arm_kinematics).
+and arm angles q1..q3 (rad, q = 0 points down, > 0 swings forward; the arm kinematics of docs/model.md).
 Masses: the UAV of Table 1 (ducts and tail included) on base_link, one slender rod per link; the frames
 duct_*, tail, arm_mount, gripper and object carry no mass, so the URDF's total equals the model's m_UAM.
 Sizes used only for drawing (duct and propeller radii, rod thickness) are DisplaySizes below.

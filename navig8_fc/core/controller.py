@@ -24,7 +24,7 @@ import numpy as np
 
 from navig8_fc.core import _kernels as _k
 from navig8_fc.core import rotation
-from navig8_fc.core.ckf import AdaptiveLaw, AdaptiveLawStatus, CkfConfig, inv_small
+from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig, AdaptiveLawStatus
 from navig8_fc.core.indi import (
     ActuatorLimits,
     IndiConfig,
@@ -32,6 +32,7 @@ from navig8_fc.core.indi import (
     IndiInputs,
     IndiStatus,
 )
+from navig8_fc.core.kalman import CkfConfig
 from navig8_fc.core.outer_loop import (
     OuterLoopConfig,
     OuterLoopStatus,
@@ -136,7 +137,7 @@ class FlightControllerCore:
         self.config = config
         self._model = UamModel(vehicle)
         self._indi = IndiController(config.indi)
-        self._adapt = AdaptiveLaw(config.ckf)
+        self._adapt = AdaptiveLaw(AdaptiveLawConfig(config.ckf, config.k_min, config.k_max))
         self._obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
         self._outer_cfg = outer_loop_config_array(config.outer)
         self._uo = _k.UO.zeros()
@@ -150,6 +151,7 @@ class FlightControllerCore:
         (A change of rate, filter or estimator settings needs a new core: its filters depend on them.)"""
         self.config = replace(self.config, outer=outer, k_min=k_min, k_max=k_max)
         self._outer_cfg = outer_loop_config_array(outer)  # what the tick reads: rebuilt with the gains
+        self._adapt.set_k_bounds(k_min, k_max)
 
     def reset(self) -> None:
         """Forget filter and estimator state (e.g. on arming); the start delay counts again."""
@@ -168,9 +170,9 @@ class FlightControllerCore:
         # The arm term uses a point object of the estimated extra mass at the tip (notes §3.3 option b).
         m_obj_est = 0.0
         adapt = self._adapt
-        kf = adapt._kf
-        if kf._initialised:  # AdaptiveLaw.mass_estimate_kg is not None
-            m_obj_est = max(kf._x.item(3) - uam_mass, 0.0)
+        m_hat = adapt.mass_estimate_kg
+        if m_hat is not None:
+            m_obj_est = max(m_hat - uam_mass, 0.0)
         # Front end in one kernel: joint observer (complementary filter, JOINT_OBS_TAU_S), q-ddot and
         # omega-dot by backward differences, the UAM model (UamModel.evaluate) with G_C and G_C^-1, Acc_m
         # (Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM) and U0 from the measured actuators.
@@ -193,10 +195,9 @@ class FlightControllerCore:
                     model.force_per_input, model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
         ul = uo.tolist()
         if ul[_UO_SINGULAR]:
-            gc_inv = inv_small(gc)  # raises LinAlgError as before
+            gc_inv = np.linalg.inv(gc)  # raises LinAlgError as before
         mass = ul[_UO_MASS]
-        gi_hat, gi_flat, adapt_status = adapt._step(s.t_s, u_meas, acc_m, gc_inv, inertia, mass, rate,
-                                                    cfg.k_min, cfg.k_max)
+        gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_m, gc_inv, inertia, mass, rate)
         outer: OuterLoopStatus | None = None
         indi_status: IndiStatus | None = None
         if engaged:

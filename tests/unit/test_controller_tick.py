@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from navig8_fc.core import _kernels as _k
-from navig8_fc.core.ckf import AdaptiveLawInputs, CkfMode
+from navig8_fc.core.adaptive_law import AdaptiveLawInputs
 from navig8_fc.core.controller import (
     MOTORS_OFF,
     ActuatorCommand,
@@ -21,6 +21,7 @@ from navig8_fc.core.controller import (
     FlightControllerCore,
 )
 from navig8_fc.core.indi import IndiInputs
+from navig8_fc.core.kalman import CkfMode
 from navig8_fc.core.outer_loop import Setpoint, outer_loop_step
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.params.registry import ParamRegistry
@@ -48,7 +49,7 @@ def _reference_step(core: FlightControllerCore, s: FcSensors, sp: Setpoint,
     mass = uo[_k.UO.MASS]
     gi_hat, adapt_status = core._adapt.step(AdaptiveLawInputs(
         t_s=s.t_s, u_meas=f.u_meas.tolist(), acc_m=f.acc_m.tolist(), gc_uam_inv=gc_inv, inertia_uam=inertia,
-        mass_uam_kg=float(mass), inertia_rate_uam=rate, k_min=cfg.k_min, k_max=cfg.k_max,
+        mass_uam_kg=float(mass), inertia_rate_uam=rate,
     ))
     outer = indi_status = None
     if engaged:

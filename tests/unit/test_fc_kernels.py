@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from navig8_fc.core import _kernels as k
-from navig8_fc.core.ckf import CkfConfig, ConstrainedKalmanFilter
 from navig8_fc.core.filters import BackwardDifference, LowPass1
 from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs
 from navig8_fc.core.vehicle import UamModel, VehicleConfig, estimated_gi
@@ -54,26 +53,6 @@ def test_uam_model_inverse_and_slots(cfg: VehicleConfig) -> None:
         mo = max(mo, 0.0)  # a negative estimate counts as no object
         want = (cfg.link_mass_kg * kin.link_com_acc.sum(axis=0) + mo * kin.tip_acc) / (cfg.uam_mass_kg + mo)
         _close(uo[[k.UO.ARM_AX, k.UO.ARM_AZ]], want[[0, 2]], atol=1e-9)
-
-
-def test_kf_correct_matches_reference(cfg: VehicleConfig) -> None:
-    model = UamModel(cfg)
-    rng = np.random.default_rng(11)
-    kf, ref = ConstrainedKalmanFilter(CkfConfig()), ConstrainedKalmanFilter(CkfConfig())
-    for _ in range(50):
-        st = model.evaluate(rng.uniform(-1, 1, 3), (0.0, 0.0, 0.0))
-        gc_inv = np.linalg.inv(st.gc)
-        kf.initialise(rng.uniform(0.05, 2.0, 4))
-        for _ in range(5):  # a few updates so P gets off-diagonal terms
-            ref._x, ref._p, ref.n_updates = kf.x, kf.p, kf.n_updates
-            du, da = rng.normal(size=5) * 1e3, rng.normal(size=5)
-            args = (*da.tolist(), gc_inv, 0.1, -0.2)
-            innov = kf._correct(du, *args)
-            innov_ref = ref._correct_reference(du, *args)
-            _close(innov, innov_ref, rtol=1e-10, atol=1e-9)
-            _close(kf.x, ref.x, rtol=1e-10)
-            _close(kf.p, ref.p, rtol=1e-9, atol=1e-15)
-            assert np.array_equal(kf.p, kf.p.T) and kf.n_updates == ref.n_updates
 
 
 @pytest.mark.parametrize("scale", [0.05, 1.0])
@@ -122,44 +101,6 @@ def test_indi_filters_and_increment(cfg: VehicleConfig, scale: float) -> None:
 def _random_spd(rng: np.random.Generator, n: int) -> np.ndarray:
     q, _ = np.linalg.qr(rng.normal(size=(n, n)))
     return (q * 10.0 ** rng.uniform(-2.0, 2.0, n)) @ q.T
-
-
-@pytest.mark.parametrize("identity", [False, True])
-def test_projection_kernels_match_reference_glue(identity: bool) -> None:
-    """BoxProjector.solve_kf (compiled W = P^-1, data and polish) equals solve_lists (Python glue) with
-    W = P^-1, W^-1 = P, on random SPD P and boxes; no fallbacks; the same clarabel solver underneath."""
-    from navig8_fc.core.ckf import BoxProjector
-
-    rng = np.random.default_rng(17)
-    fast, ref = BoxProjector(4), BoxProjector(4)
-    n_active = 0
-    for _ in range(300):
-        p = _random_spd(rng, 4)
-        centre = rng.uniform(-5.0, 5.0, 4)
-        half = 10.0 ** rng.uniform(-2.0, 1.0, 4)
-        lo, hi = centre - half, centre + half
-        xh = centre + half * rng.choice([0.5, 1.5, 5.0], size=4) * rng.uniform(-1.0, 1.0, 4)
-        if np.all((xh >= lo) & (xh <= hi)):
-            continue
-        w = np.eye(4) if identity else np.linalg.inv(p)
-        x_ref, fb_ref, _ = ref.solve_lists(xh.tolist(), w.tolist(), lo.tolist(), hi.tolist(),
-                                           np.eye(4).tolist() if identity else p.tolist())
-        x, fb, _ = fast.solve_kf(xh, p, lo, hi, identity)
-        assert not fb and not fb_ref
-        assert np.all(np.array(x) >= lo) and np.all(np.array(x) <= hi)
-        _close(x, x_ref, rtol=1e-9, atol=1e-9 * max(1.0, float(np.abs(x_ref).max())))
-        n_active += 1
-    assert n_active > 100 and fast.n_fallbacks == 0
-
-
-def test_polish_rejects_inconsistent_active_set() -> None:
-    """No active bound in (z, s) while x_hat is outside: no answer (the caller falls back)."""
-    xh, lo, hi = np.array([2.0, 0.0]), np.zeros(2), np.ones(2)
-    eye = np.eye(2)
-    z, s = np.zeros(4), np.ones(4)
-    assert not k.polish(xh, eye, eye, True, lo, hi, z, s, np.empty(2))
-    assert k.polish(np.array([0.5, 0.5]), eye, eye, True, lo, hi, z, s, out := np.empty(2))
-    _close(out, [0.5, 0.5])
 
 
 def test_front_end_against_textbook_parts(cfg: VehicleConfig) -> None:
@@ -213,37 +154,3 @@ def test_front_end_against_textbook_parts(cfg: VehicleConfig) -> None:
             _close(gc_inv @ gc, np.eye(5), rtol=0.0, atol=1e-9)
 
 
-def test_adapt_step_matches_reference(cfg: VehicleConfig) -> None:
-    """adapt_step: the low-pass increments equal LowPass1's bit for bit; predict + correct equal the
-    reference ConstrainedKalmanFilter._step_lists (numpy correct) to rounding."""
-    ccfg = CkfConfig(mode=1)  # unconstrained: _step_lists does predict + correct only
-    kf, ref = ConstrainedKalmanFilter(ccfg), ConstrainedKalmanFilter(ccfg)
-    model = UamModel(cfg)
-    st = model.evaluate((0.3, -0.2, 0.1), (0.0, 0.0, 0.0))
-    gc_inv = np.linalg.inv(st.gc)
-    lpf_u, lpf_a = LowPass1(ccfg.lpf_tau_s, ccfg.dt_s, 5), LowPass1(ccfg.lpf_tau_s, ccfg.dt_s, 5)
-    alpha = lpf_u.alpha
-    ast, out = np.zeros(k.N_AST), np.zeros(k.N_AO)
-    base = [0.05, 0.08, 0.06, 3.0]
-    kf.initialise(base)
-    ref.initialise(base)
-    rng = np.random.default_rng(29)
-    prev = None
-    for i in range(100):
-        u, a = rng.normal(size=5) * 1e5, rng.normal(size=5)
-        uf, af = lpf_u.step(u), lpf_a.step(a)
-        du, da = ([0.0] * 5, [0.0] * 5) if prev is None else (
-            [c - p for c, p in zip(uf, prev[0], strict=True)], [c - p for c, p in zip(af, prev[1], strict=True)])
-        prev = (uf, af)
-        idot = rng.normal(size=3) * 0.01
-        code = k.adapt_step(ast, alpha, u, a, i >= 1, i >= 2, ccfg.dt_s, *idot, kf._x, kf._p, kf._q, kf._r, gc_inv,
-                            0.1, -0.05, out)
-        assert out[k.AO_DU:k.AO_DU + 5].tolist() == du and out[k.AO_DA:k.AO_DA + 5].tolist() == da
-        if i == 0:
-            assert code == 0
-            continue
-        assert code == 1
-        _, x_ref, innov = ref._step_lists(du, da, gc_inv, 0.1, -0.05, tuple(idot) if i >= 2 else None, [], [])
-        _close(out[k.AO_INNOV:k.AO_INNOV + 5], innov, rtol=1e-9, atol=1e-6)
-        _close(kf._x, x_ref, rtol=1e-9)
-        _close(kf._p, ref._p, rtol=1e-8, atol=1e-14)

@@ -1,8 +1,9 @@
 """params/navig8_uam.urdf: current, a valid tree, and the same vehicle as the model.
 
 The kinematic and mass checks walk the URDF with their own homogeneous transforms (rpy and Rodrigues from the XML
-text, written here independently of tools/urdf.py) and compare with navig8_fc.core.vehicle: arm_kinematics for the
-frames, propulsion_wrench for the thrust axes, mass_properties for mass, CoM and inertia.
+text, written here independently of tools/urdf.py) and compare with the vector-form model
+(tests/unit/model_oracle.py) arm_kinematics for the frames, and with navig8_fc.core.vehicle's propulsion_wrench
+for the thrust axes and mass_properties for mass, CoM and inertia.
 """
 
 from __future__ import annotations
@@ -15,8 +16,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from model_oracle import arm_kinematics
 
-from navig8_fc.core.vehicle import VehicleConfig, arm_kinematics, mass_properties, propulsion_wrench
+from navig8_fc.core.vehicle import VehicleConfig, mass_properties, propulsion_wrench
 from navig8_tools.urdf import default_urdf_path, main, render
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -1,0 +1,269 @@
+"""The adaptive law of Fig. 3 (paper Sec. 3.3): low-passed increments (Eq. 23), the constrained KF
+(kalman.py; Eq. 22-24) on the Eq. 21 box from the K bounds (Eq. 20), and G_hat_I (Eq. 4).
+
+Increments (our reading of Eq. 23)
+----------------------------------
+The law low-passes U0 (from the measured actuators) and Acc_m with the *same* first-order filter
+(tau = CKF_LPF_TAU, 0.7 s in Sec. 4) and uses one-step increments of the filtered signals,
+
+    Delta U[k] = U_f[k] - U_f[k-1],   Delta Acc_m[k] = A_f[k] - A_f[k-1].
+
+Why: Eq. 1 relates increments, Acc = G U + b(x) => Delta Acc = G Delta U + Delta b. One-step differences
+cancel slowly varying b (gravity, accelerometer bias, aerodynamic terms) and, because the same linear
+filter is applied to both sides, the static relation Delta U = G^-1 Delta Acc survives filtering exactly
+(up to the variation of G within the filter memory). Paparazzi's LMS adaptation does the same (filtered
+first differences, notes 4). The paper does not define the increment; alternatives we considered:
+(a) N-step or since-start differences U_f[k] - U_f[k-N] (more signal per sample, but consecutive
+measurements share noise and bias drift, breaking the white-noise assumption of the KF); (b) high-pass
+increments U[k] - U_f[k] (the INDI-style "command minus filtered"), which are larger but carry the full
+raw-sensor noise and the unfiltered disturbance. With one-step increments of tau = 0.7 s filtered signals
+the per-step signal is small: a step change of size D arrives as increments alpha D (1 - alpha)^k with
+alpha = 1 - exp(-0.01/0.7) = 0.0142, total squared size D^2 alpha / (2 - alpha) = 0.0071 D^2.
+Caveat: H is built from the *measured* Delta Acc_m, which the KF treats as exact. Noise in it (differentiated
+gyro, accelerometer) biases the estimate towards zero (errors-in-variables attenuation), i.e. towards
+the lower bound K = 1 once constrained.
+
+The filters and increments are one numba kernel (`lpf_increments`) over a named state layout; the KF is
+used through its public `step`. Pure core: no I/O, no clocks; time comes in as t_s from the caller.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numba import njit
+
+from navig8_fc.core.filters import lpf_alpha
+from navig8_fc.core.kalman import N_MEAS, N_STATE, CkfConfig, ConstrainedKalmanFilter, inertia_ratios
+from navig8_fc.core.layout import layout
+
+__all__ = [
+    "AdaptiveLaw",
+    "AdaptiveLawConfig",
+    "AdaptiveLawInputs",
+    "AdaptiveLawStatus",
+    "lpf_increments",
+]
+
+
+@dataclass(frozen=True)
+class AdaptiveLawConfig:
+    """The law's settings: the CKF_* group (filter, low-pass, start delay, mode) and the K bounds of Eq. 20
+    (INDI_K_MIN, INDI_K_MAX), which make the Eq. 21 box I_UAM / k_max <= x <= I_UAM / k_min."""
+
+    ckf: CkfConfig = field(default_factory=CkfConfig)
+    k_min: float = 0.5
+    k_max: float = 1.0
+
+    def __post_init__(self) -> None:
+        k_min, k_max = float(self.k_min), float(self.k_max)
+        if not (0.0 < k_min <= k_max and math.isfinite(k_max)):
+            raise ValueError(f"K bounds need 0 < k_min <= k_max < inf, got k_min {k_min}, k_max {k_max}")
+        object.__setattr__(self, "k_min", k_min)
+        object.__setattr__(self, "k_max", k_max)
+
+
+# Filter state of lpf_increments
+LAW_STATE = layout("LAW_STATE", u_f=N_MEAS, acc_f=N_MEAS, started=1)
+LS_UF = LAW_STATE.U_F  # low-passed U0
+LS_AF = LAW_STATE.ACC_F  # low-passed Acc_m
+LS_STARTED = LAW_STATE.STARTED  # 1.0 after the first sample
+# Its output: the increments fed to the KF (Eq. 23)
+LAW_OUT = layout("LAW_OUT", delta_u=N_MEAS, delta_acc=N_MEAS)
+LO_DU = LAW_OUT.DELTA_U
+LO_DA = LAW_OUT.DELTA_ACC
+
+
+@njit(cache=True)
+def lpf_increments(st, alpha, u_meas, acc_m, out):
+    """The two first-order low-passes (y += alpha (x - y); the first sample sets y) and their one-step
+    increments (zeros on the first sample) into out (LAW_OUT). st: LAW_STATE."""
+    if st[LS_STARTED] == 0.0:
+        for i in range(N_MEAS):
+            st[LS_UF + i] = u_meas[i]
+            st[LS_AF + i] = acc_m[i]
+            out[LO_DU + i] = 0.0
+            out[LO_DA + i] = 0.0
+        st[LS_STARTED] = 1.0
+        return
+    for i in range(N_MEAS):
+        y = st[LS_UF + i]
+        yn = y + alpha * (u_meas[i] - y)
+        out[LO_DU + i] = yn - y
+        st[LS_UF + i] = yn
+        y = st[LS_AF + i]
+        yn = y + alpha * (acc_m[i] - y)
+        out[LO_DA + i] = yn - y
+        st[LS_AF + i] = yn
+
+
+@dataclass(frozen=True)
+class AdaptiveLawInputs:
+    """Per control step. Signals unfiltered; the law filters them itself."""
+
+    t_s: float  # controller time (lockstep sim time), s
+    u_meas: Sequence[float] | np.ndarray  # (5,) U0 from the measured actuators (Sec. 3 definition of U)
+    acc_m: Sequence[float] | np.ndarray  # (5,) [P_dot, Q_dot, R_dot, a_x, a_z] incl. the arm term (Eq. 23), body FRD
+    gc_uam_inv: np.ndarray  # (5, 5) G_C,UAM^-1 at the measured pose
+    inertia_uam: np.ndarray  # (3, 3) UAM inertia tensor about the UAM CoM
+    mass_uam_kg: float
+    inertia_rate_uam: np.ndarray  # (3, 3) d/dt of inertia_uam (Eq. 22)
+
+
+@dataclass(frozen=True)
+class AdaptiveLawStatus:
+    """What the adaptive law did this step (tuples of floats/bools so it logs as plain JSON)."""
+
+    running: bool
+    x_hat: tuple[float, ...]  # [I_xx, I_yy, I_zz, m] used for G_hat_I
+    x_unconstrained: tuple[float, ...]  # before projection
+    k: tuple[float, ...]  # implied [K1..K4] (Eq. 4)
+    lower: tuple[float, ...]  # Eq. 21 box
+    upper: tuple[float, ...]
+    active_lower: tuple[bool, ...]
+    active_upper: tuple[bool, ...]
+    innovation: tuple[float, ...]  # (5,)
+    p_diag: tuple[float, ...]  # (4,)
+    n_updates: int
+    n_projection_fallbacks: int
+    delta_u: tuple[float, ...] = (0.0,) * N_MEAS  # increments fed to the KF (Eq. 23)
+    delta_acc: tuple[float, ...] = (0.0,) * N_MEAS
+
+
+_ZERO4 = (0.0,) * N_STATE
+_ZERO5 = (0.0,) * N_MEAS
+_ONES4 = (1.0,) * N_STATE
+_FALSE4 = (False,) * N_STATE
+
+
+class AdaptiveLaw:
+    """Fig. 3's adaptive law: filters, increments (Eq. 23), the constrained KF, and G_hat_I (Eq. 4).
+
+    The start delay counts from the first sample after construction or reset(); the shell resets the law
+    when the controller engages. Before the start, and always in mode FIXED, G_I,UAM (K = 1) is returned.
+    The filters run from the first sample in every mode, so the increments are settled when the KF starts.
+    """
+
+    def __init__(self, config: AdaptiveLawConfig) -> None:
+        self.config = config
+        ckf = config.ckf
+        self._kf = ConstrainedKalmanFilter(ckf)
+        self._alpha = lpf_alpha(ckf.lpf_tau_s, ckf.dt_s)
+        self._st = LAW_STATE.zeros()
+        self._inc = LAW_OUT.zeros()
+        inc = LAW_OUT.views(self._inc)
+        self._du, self._da = inc.delta_u, inc.delta_acc  # what the KF step reads
+        # Constants of the tick, looked up once: the config is frozen.
+        self._adaptive = ckf.adaptive
+        self._start_delay_tol = ckf.start_delay_s - 1e-9
+        self._k_min, self._k_max = config.k_min, config.k_max
+        self.reset()
+
+    @property
+    def kf(self) -> ConstrainedKalmanFilter:
+        return self._kf
+
+    def set_k_bounds(self, k_min: float, k_max: float) -> None:
+        """New K bounds (Eq. 20) from the next step on; the filters and the estimate keep their state."""
+        self.config = replace(self.config, k_min=k_min, k_max=k_max)
+        self._k_min, self._k_max = self.config.k_min, self.config.k_max
+
+    def reset(self) -> None:
+        self._st[:] = 0.0
+        self._t0: float | None = None
+        self._running = False
+        self._mass_hat: float | None = None
+        self._kf.reset()  # re-initialised at the next start
+
+    @property
+    def mass_estimate_kg(self) -> float | None:
+        """The estimated mass x_hat[3] while the KF runs, else None."""
+        return self._mass_hat
+
+    def step(self, inp: AdaptiveLawInputs) -> tuple[np.ndarray, AdaptiveLawStatus]:
+        """Returns (G_hat_I 5x5, status)."""
+        g, _, status = self.step_arrays(
+            inp.t_s, np.asarray(inp.u_meas, dtype=float), np.asarray(inp.acc_m, dtype=float),
+            np.ascontiguousarray(inp.gc_uam_inv, dtype=float), np.asarray(inp.inertia_uam, dtype=float),
+            float(inp.mass_uam_kg), np.asarray(inp.inertia_rate_uam, dtype=float),
+        )
+        return g, status
+
+    def step_arrays(
+        self, t_s: float, u_meas: np.ndarray, acc_m: np.ndarray, gc_inv: np.ndarray, inertia: np.ndarray,
+        m: float, inertia_rate: np.ndarray,
+    ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
+        """step() on float64 arrays (u_meas, acc_m (5,), gc_inv (5, 5) C-contiguous, inertia and inertia_rate
+        (3, 3)), m a float; also returns G_hat_I row-major as a tuple (the same floats). The controller's tick.
+
+        Bookkeeping on plain floats (the vectors have 4-5 components: numpy's per-call overhead would
+        dominate); the values equal those of vehicle.estimate_bounds / estimated_gi / k_from_estimate exactly
+        (same IEEE operations; tests compare them bit for bit).
+        """
+        (j11, _, j13), (_, j22, _), (_, _, j33) = inertia.tolist()
+        base = (j11, j22, j33, m)
+        k_min, k_max = self._k_min, self._k_max
+        lower = (j11 / k_max, j22 / k_max, j33 / k_max, m / k_max)  # Eq. 21 (estimate_bounds)
+        upper = (j11 / k_min, j22 / k_min, j33 / k_min, m / k_min)
+        t_s = float(t_s)
+        if self._t0 is None:
+            self._t0 = t_s
+        # 1e-9 s guards the comparison against time accumulated in floating point.
+        started = self._adaptive and (t_s - self._t0) >= self._start_delay_tol
+        lpf_increments(self._st, self._alpha, u_meas, acc_m, self._inc)
+        inc = self._inc.tolist()
+        du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
+        if not started:
+            g, gl = _gi_hat_flat(j11, j13, j33, base)
+            return g, gl, AdaptiveLawStatus(
+                running=False, x_hat=base, x_unconstrained=base, k=_ONES4,
+                lower=lower, upper=upper, active_lower=_FALSE4, active_upper=_FALSE4,
+                innovation=_ZERO5, p_diag=_ZERO4, n_updates=0, n_projection_fallbacks=0,
+                delta_u=du, delta_acc=da,
+            )
+        kf = self._kf
+        idot: tuple[float, float, float] | None = None  # no predict on the first KF tick: x0 is this pose
+        if self._running:
+            idot = (inertia_rate.item(0), inertia_rate.item(4), inertia_rate.item(8))
+        else:
+            kf.initialise(base)  # K = 1 at the start (Sec. 4)
+            self._running = True
+        rho_x, rho_z = inertia_ratios(j11, j13, j33)
+        r = kf.step(self._du, self._da, gc_inv, rho_x, rho_z, idot, lower, upper)
+        x = r.x_hat
+        x0, x1, x2, x3 = x
+        self._mass_hat = x3
+        g, gl = _gi_hat_flat(j11, j13, j33, x)
+        return g, gl, AdaptiveLawStatus(
+            running=True,
+            x_hat=x,
+            x_unconstrained=r.x_unconstrained,
+            k=(j11 / x0, j22 / x1, j33 / x2, m / x3),  # k_from_estimate
+            lower=lower,
+            upper=upper,
+            active_lower=(x0 <= lower[0], x1 <= lower[1], x2 <= lower[2], x3 <= lower[3]),
+            active_upper=(x0 >= upper[0], x1 >= upper[1], x2 >= upper[2], x3 >= upper[3]),
+            innovation=r.innovation,
+            p_diag=r.p_diag,
+            n_updates=kf.n_updates,
+            n_projection_fallbacks=kf.n_projection_fallbacks,
+            delta_u=du,
+            delta_acc=da,
+        )
+
+
+def _gi_hat_flat(j11: float, j13: float, j33: float, x: Sequence[float]) -> tuple[np.ndarray, tuple[float, ...]]:
+    """vehicle.estimated_gi(J, x) from J's three entries it uses (same operations, same values), as the 5x5
+    array and as the row-major tuple of the same floats (the array is built from the tuple)."""
+    ixx, iyy, izz, m = x
+    flat = (
+        ixx, 0.0, izz * j13 / j33, 0.0, 0.0,
+        0.0, iyy, 0.0, 0.0, 0.0,
+        ixx * j13 / j11, 0.0, izz, 0.0, 0.0,
+        0.0, 0.0, 0.0, m, 0.0,
+        0.0, 0.0, 0.0, 0.0, m,
+    )
+    return np.array(flat).reshape(5, 5), flat

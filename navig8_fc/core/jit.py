@@ -1,0 +1,70 @@
+"""numba's njit with an on-disk cache that also knows the kernels it calls in other modules.
+
+numba keys a cached kernel on its own source file (its timestamp and size) and bytecode only: a kernel that
+calls a kernel of another module has the callee's machine code compiled into it, and keeps running that old
+code after the callee's module changes, until its own file changes (numba issue #6845). `njit_cached(deps)`
+adds a digest of the dependency modules to the cache key: the bytecode, constants and names of each numba
+kernel in them and their numeric module constants (which numba freezes into compiled code). Changing any of
+these recompiles the caller. No file is read (the core does no I/O): the digest comes from the loaded modules.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from collections.abc import Callable
+from types import CodeType, ModuleType
+from typing import Any
+
+from numba import njit
+from numba.core.caching import FunctionCache
+from numba.core.dispatcher import Dispatcher
+
+__all__ = ["module_digest", "njit_cached"]
+
+
+def _code_digest(code: CodeType, h: Any) -> None:
+    h.update(code.co_code)
+    h.update(repr(code.co_names).encode())
+    for c in code.co_consts:
+        if isinstance(c, CodeType):
+            _code_digest(c, h)
+        elif isinstance(c, frozenset):
+            h.update(repr(sorted(map(repr, c))).encode())  # set order varies with the hash seed
+        else:
+            h.update(repr(c).encode())
+
+
+def module_digest(module: ModuleType) -> str:
+    """SHA-256 over a module's numba kernels (bytecode, constants, names) and numeric module constants."""
+    h = hashlib.sha256()
+    for name, value in sorted(vars(module).items()):
+        if isinstance(value, Dispatcher):
+            h.update(name.encode())
+            _code_digest(value.py_func.__code__, h)
+        elif isinstance(value, (bool, int, float)) and not name.startswith("__"):
+            h.update(f"{name}={value!r}".encode())
+    return h.hexdigest()
+
+
+class _DependentCache(FunctionCache):
+    """numba's function cache with the dependencies' digest in every index key."""
+
+    def __init__(self, py_func: Callable[..., Any], digest: str) -> None:
+        super().__init__(py_func)
+        self._digest = digest
+
+    def _index_key(self, sig: Any, codegen: Any) -> tuple[Any, ...]:
+        return (*super()._index_key(sig, codegen), self._digest)
+
+
+def njit_cached(*depends_on: ModuleType) -> Callable[[Callable[..., Any]], Dispatcher]:
+    """numba.njit(cache=True) for a kernel that calls the kernels of the modules `depends_on` (list the modules
+    of every kernel reached, directly or not)."""
+    digest = hashlib.sha256("".join(module_digest(m) for m in depends_on).encode()).hexdigest()
+
+    def decorate(fn: Callable[..., Any]) -> Dispatcher:
+        disp = njit(cache=True)(fn)
+        disp._cache = _DependentCache(fn, digest)  # replaces the FunctionCache enable_caching() installed
+        return disp
+
+    return decorate

@@ -1,0 +1,241 @@
+"""navig8_fc.core.adaptive_law: the law of Fig. 3 at its public boundary.
+
+Independent checks: the increments against filters.LowPass1 (a separate implementation of the same
+low-pass), the box and G_hat_I against vehicle.estimate_bounds / estimated_gi / k_from_estimate, the KF part
+against ConstrainedKalmanFilter.step fed with those increments, and convergence to known parameters on
+data generated from a known G.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from navig8_fc.core import vehicle as veh
+from navig8_fc.core.adaptive_law import (
+    LAW_OUT,
+    LAW_STATE,
+    AdaptiveLaw,
+    AdaptiveLawConfig,
+    AdaptiveLawInputs,
+    lpf_increments,
+)
+from navig8_fc.core.filters import LowPass1
+from navig8_fc.core.kalman import CkfConfig, CkfMode, ConstrainedKalmanFilter
+
+DT = 0.01
+
+
+class Pose:
+    """UAM (no object) model quantities at a fixed arm pose."""
+
+    def __init__(self, q_deg: tuple[float, float, float] = (20.0, 20.0, 20.0)) -> None:
+        self.cfg = veh.VehicleConfig.load()
+        self.q = np.radians(q_deg)
+        uam = veh.mass_properties(self.cfg, self.q, 0.0)
+        self.j = uam.inertia_com
+        self.m = uam.mass_kg
+        self.gc = veh.control_effectiveness_gc(self.cfg, uam.com_frd_m)
+        self.gci = np.linalg.inv(self.gc)
+        self.base = np.array([self.j[0, 0], self.j[1, 1], self.j[2, 2], self.m])
+        self.lower, self.upper = veh.estimate_bounds(self.j, self.m, 0.5, 1.0)
+        self.rho_x, self.rho_z = self.j[0, 2] / self.j[0, 0], self.j[0, 2] / self.j[2, 2]
+
+
+@pytest.fixture(scope="module")
+def pose() -> Pose:
+    return Pose()
+
+
+def _law(k_min: float = 0.5, k_max: float = 1.0, **ckf: object) -> AdaptiveLaw:
+    return AdaptiveLaw(AdaptiveLawConfig(CkfConfig(**ckf), k_min, k_max))  # type: ignore[arg-type]
+
+
+def _law_inputs(pose: Pose, t: float, u: np.ndarray, acc: np.ndarray,
+                idot: np.ndarray | None = None) -> AdaptiveLawInputs:
+    return AdaptiveLawInputs(
+        t_s=t, u_meas=u, acc_m=acc, gc_uam_inv=pose.gci, inertia_uam=pose.j, mass_uam_kg=pose.m,
+        inertia_rate_uam=np.zeros((3, 3)) if idot is None else idot,
+    )
+
+
+def _excitation(pose: Pose, x_true: np.ndarray, n: int, seed: int = 0) -> list[tuple[np.ndarray, np.ndarray]]:
+    """u around hover with a random walk; acc = G_true u + b with G_true^-1 = G_C^-1 G_hat_I(x_true), b const."""
+    rng = np.random.default_rng(seed)
+    g_true_inv = pose.gci @ veh.estimated_gi(pose.j, x_true)
+    g_true = np.linalg.inv(g_true_inv)
+    u_trim = veh.hover_trim(pose.cfg, pose.q, 0.0)
+    bias = np.array([0.1, -0.2, 0.05, 0.3, -9.80665])
+    out = []
+    walk = np.zeros(5)
+    for _ in range(n):
+        walk += rng.normal(0.0, 3e3, 5)
+        walk *= 0.98
+        u = u_trim + walk
+        out.append((u, g_true @ u + bias))
+    return out
+
+
+def test_config_holds_the_k_bounds() -> None:
+    c = AdaptiveLawConfig()
+    assert (c.k_min, c.k_max) == (0.5, 1.0) and c.ckf == CkfConfig()  # Eq. 20, Sec. 4
+    for k_min, k_max in ((0.0, 1.0), (1.2, 1.0), (0.5, math.inf), (math.nan, 1.0)):
+        with pytest.raises(ValueError):
+            AdaptiveLawConfig(CkfConfig(), k_min, k_max)
+
+
+def test_before_start_and_start(pose: Pose) -> None:
+    law = _law()
+    data = _excitation(pose, pose.base * 1.4, 80)
+    gi_uam = veh.inertia_matrix_gi(pose.j, pose.m)
+    for k, (u, acc) in enumerate(data):
+        t = 10.0 + k * DT  # the delay counts from the first sample, not from t = 0
+        g, st = law.step(_law_inputs(pose, t, u, acc))
+        if t - 10.0 < 0.5 - 1e-9:
+            assert not st.running and law.mass_estimate_kg is None
+            np.testing.assert_allclose(g, gi_uam, rtol=1e-14, atol=1e-15)
+            assert st.k == (1.0, 1.0, 1.0, 1.0) and st.n_updates == 0
+        else:
+            assert st.running and law.mass_estimate_kg == st.x_hat[3]
+            if k == 50:  # first running tick: x0 = [J11, J22, J33, m] (K = 1), one correction
+                assert st.n_updates == 1
+        np.testing.assert_allclose(st.lower, pose.lower)
+        np.testing.assert_allclose(st.upper, pose.upper)
+        assert len(st.x_hat) == 4 and len(st.innovation) == 5 and len(st.active_lower) == 4
+    assert st.n_updates == 30
+
+
+def test_increments_are_one_step_differences_of_filtered_signals(pose: Pose) -> None:
+    law = _law(start_delay_s=0.0)
+    ref_u, ref_a = LowPass1(0.7, DT, 5), LowPass1(0.7, DT, 5)
+    prev_u = prev_a = None
+    for k, (u, acc) in enumerate(_excitation(pose, pose.base * 1.2, 20)):
+        _, st = law.step(_law_inputs(pose, k * DT, u, acc))
+        fu, fa = np.array(ref_u.step(u.tolist())), np.array(ref_a.step(acc.tolist()))
+        if prev_u is None:
+            assert st.delta_u == (0.0,) * 5
+        else:
+            assert st.delta_u == tuple((fu - prev_u).tolist())  # same IEEE operations as LowPass1
+            assert st.delta_acc == tuple((fa - prev_a).tolist())
+        prev_u, prev_a = fu, fa
+
+
+def test_increments_kernel_python_path(pose: Pose) -> None:
+    """lpf_increments' plain-Python path (its py_func) equals the compiled kernel bit for bit."""
+    st_c, st_p = LAW_STATE.zeros(), LAW_STATE.zeros()
+    out_c, out_p = LAW_OUT.zeros(), LAW_OUT.zeros()
+    for u, acc in _excitation(pose, pose.base, 10):
+        lpf_increments(st_c, 0.0142, u, acc, out_c)
+        lpf_increments.py_func(st_p, 0.0142, u, acc, out_p)
+        assert np.array_equal(st_c, st_p) and np.array_equal(out_c, out_p)
+    views = LAW_OUT.views(out_c)
+    assert views.delta_u.shape == (5,) and views.delta_acc.shape == (5,)
+
+
+def test_reset_restarts_delay_and_filter(pose: Pose) -> None:
+    law = _law(start_delay_s=0.1)
+    data = _excitation(pose, pose.base * 1.3, 40)
+    for k, (u, acc) in enumerate(data[:20]):
+        _, st = law.step(_law_inputs(pose, k * DT, u, acc))
+    assert st.running and law.kf.initialised and st.n_updates == 10
+    law.reset()
+    assert not law.kf.initialised and law.mass_estimate_kg is None
+    for k, (u, acc) in enumerate(data[20:], start=20):
+        _, st = law.step(_law_inputs(pose, k * DT, u, acc))
+        if k == 20:
+            assert st.delta_u == (0.0,) * 5  # filters re-initialise on the first sample after reset
+        if k < 30:
+            assert not st.running  # the delay counts again from t = 0.2 s
+    assert st.running and st.n_updates == 10
+
+
+def test_fixed_mode_never_runs(pose: Pose) -> None:
+    law = _law(mode=CkfMode.FIXED)
+    gi_uam = veh.inertia_matrix_gi(pose.j, pose.m)
+    for k, (u, acc) in enumerate(_excitation(pose, pose.base * 1.5, 100)):
+        g, st = law.step(_law_inputs(pose, k * DT, u, acc))
+        assert not st.running
+        np.testing.assert_allclose(g, gi_uam, rtol=1e-14, atol=1e-15)
+
+
+@pytest.mark.parametrize("mode", [CkfMode.CONSTRAINED, CkfMode.UNCONSTRAINED])
+def test_converges_on_consistent_data(pose: Pose, mode: CkfMode) -> None:
+    """Noise-free u/acc consistent with G_true (plus a constant acceleration bias, which the increments
+    remove): x_hat -> x_true within 2 % in 20 s. x_true inside the box for constrained, and the
+    unconstrained filter is given a component outside it (I_zz = 2.4 I_UAM,zz) to show it leaves the box."""
+    factors = np.array([1.6, 1.3, 1.8, 1.2]) if mode == CkfMode.CONSTRAINED else np.array([1.6, 1.3, 2.4, 1.2])
+    x_true = pose.base * factors
+    law = _law(mode=mode, r_diag=(1.0,) * 5, q_diag=(1e-10,) * 4, p0_scale=1e8)
+    for k, (u, acc) in enumerate(_excitation(pose, x_true, 2000, seed=1)):
+        g, st = law.step(_law_inputs(pose, k * DT, u, acc))
+        if mode == CkfMode.CONSTRAINED and st.running:
+            assert all(lo <= x <= hi for lo, x, hi in zip(st.lower, st.x_hat, st.upper, strict=True))
+    np.testing.assert_allclose(st.x_hat, x_true, rtol=0.02)
+    np.testing.assert_allclose(st.k, pose.base / np.array(st.x_hat), rtol=1e-12)
+    np.testing.assert_allclose(g, veh.estimated_gi(pose.j, np.array(st.x_hat)), rtol=1e-14)
+    if mode == CkfMode.UNCONSTRAINED:
+        assert st.active_upper[2] and st.x_hat[2] > st.upper[2]
+    assert st.n_projection_fallbacks == 0
+    assert math.isfinite(sum(st.p_diag))
+
+
+def test_law_equals_its_public_pieces_bit_for_bit(pose: Pose) -> None:
+    """AdaptiveLaw.step gives exactly what the public pieces give: LowPass1 increments,
+    ConstrainedKalmanFilter.step and vehicle.estimate_bounds / estimated_gi / k_from_estimate.
+    Projections are active on most ticks (x_true outside the box)."""
+    cfg = CkfConfig(start_delay_s=0.05)
+    law, kf = AdaptiveLaw(AdaptiveLawConfig(cfg)), ConstrainedKalmanFilter(cfg)
+    ref_u, ref_a = LowPass1(cfg.lpf_tau_s, DT, 5), LowPass1(cfg.lpf_tau_s, DT, 5)
+    idot = np.array([[0.02, 0.0, -0.01], [0.0, 0.03, 0.0], [-0.01, 0.0, 0.01]])
+    prev = None
+    n_projected = 0
+    for k, (u, acc) in enumerate(_excitation(pose, pose.base * np.array([2.5, 1.3, 0.8, 1.2]), 300)):
+        g, st = law.step(_law_inputs(pose, k * DT, u, acc, idot))
+        fu, fa = np.array(ref_u.step(u)), np.array(ref_a.step(acc))
+        du, da = (np.zeros(5), np.zeros(5)) if prev is None else (fu - prev[0], fa - prev[1])
+        prev = (fu, fa)
+        lower, upper = veh.estimate_bounds(pose.j, pose.m, 0.5, 1.0)
+        assert st.lower == tuple(lower.tolist()) and st.upper == tuple(upper.tolist())
+        assert st.delta_u == tuple(du.tolist()) and st.delta_acc == tuple(da.tolist())
+        if not st.running:
+            assert np.array_equal(g, veh.estimated_gi(pose.j, pose.base))
+            continue
+        first = not kf.initialised
+        if first:
+            kf.initialise(pose.base)
+        res = kf.step(du, da, pose.gci, pose.rho_x, pose.rho_z, None if first else tuple(np.diag(idot).tolist()),
+                      tuple(lower.tolist()), tuple(upper.tolist()))
+        n_projected += res.projected
+        x_hat = np.array(res.x_hat)
+        assert st.x_hat == res.x_hat and st.x_unconstrained == res.x_unconstrained
+        assert st.innovation == res.innovation and st.p_diag == res.p_diag
+        assert st.k == tuple(veh.k_from_estimate(pose.j, pose.m, x_hat).tolist())
+        assert st.active_lower == tuple((x_hat <= lower).tolist())
+        assert st.active_upper == tuple((x_hat >= upper).tolist())
+        assert np.array_equal(g, veh.estimated_gi(pose.j, x_hat))
+        assert law.mass_estimate_kg == res.x_hat[3]
+    assert n_projected > 100
+
+
+def test_set_k_bounds_moves_the_box_and_keeps_the_state(pose: Pose) -> None:
+    """New K bounds act from the next step on (Eq. 21 box = I_UAM / K, the estimate kept inside it); the
+    estimator is not restarted (its update count continues), and the estimate departs from the old law's."""
+    data = _excitation(pose, pose.base * np.array([2.5, 1.3, 0.8, 1.2]), 200)
+    changed, fresh = _law(start_delay_s=0.05), _law(start_delay_s=0.05)
+    for k, (u, acc) in enumerate(data[:100]):
+        changed.step(_law_inputs(pose, k * DT, u, acc))
+        fresh.step(_law_inputs(pose, k * DT, u, acc))
+    changed.set_k_bounds(0.6, 0.9)
+    assert (changed.config.k_min, changed.config.k_max) == (0.6, 0.9)
+    with pytest.raises(ValueError):
+        changed.set_k_bounds(0.9, 0.6)
+    lower, upper = veh.estimate_bounds(pose.j, pose.m, 0.6, 0.9)
+    for k, (u, acc) in enumerate(data[100:], start=100):
+        _, st = changed.step(_law_inputs(pose, k * DT, u, acc))
+        _, st_old = fresh.step(_law_inputs(pose, k * DT, u, acc))
+        assert st.lower == tuple(lower.tolist()) and st.upper == tuple(upper.tolist())
+        assert all(lo <= x <= hi for lo, x, hi in zip(st.lower, st.x_hat, st.upper, strict=True))
+        assert st.n_updates == st_old.n_updates  # not restarted
+    assert st.x_hat != st_old.x_hat
