@@ -4,7 +4,7 @@ publishes (`VehicleState`), and what the shell announces for it (`Notice`). Plai
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, Protocol
+from typing import Literal, NamedTuple, Protocol
 
 from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FcSensors
 from navig8_fc.core.outer_loop import Setpoint
@@ -61,11 +61,11 @@ class Notice:
     event: str | None = None
 
 
-@dataclass(frozen=True)
-class StepResult:
+class StepResult(NamedTuple):
     """One control step: the actuator command and the controller's status, the setpoint flown, whether the
     vehicle is armed and the controller engaged, the notices to announce and an arm request for the bridge
-    (sent before the step's answer so it applies on this step)."""
+    (sent before the step's answer so it applies on this step). A NamedTuple: built once per control step,
+    where a frozen dataclass's __init__ costs ~1 us (~2 % of the stack's step)."""
 
     command: ActuatorCommand
     status: ControllerStatus
