@@ -59,6 +59,7 @@ from typing import Any
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
+from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.gcs.battery import BatteryState, battery_initial
 from navig8_fc.gcs.params import PARAM_ENCODING_CAPABILITY
 
@@ -266,13 +267,7 @@ def _i(x: float, lo: int, hi: int, default: int) -> int:
     return max(lo, min(hi, int(round(x))))
 
 
-def euler_from_quat(q: Sequence[float]) -> Vec3:
-    """(roll, pitch, yaw) ZYX from [w, x, y, z]."""
-    w, x, y, z = q
-    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
-    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return roll, pitch, yaw
+euler_from_quat = quat_to_euler  # (roll, pitch, yaw) ZYX from [w, x, y, z]: the core's one conversion
 
 
 def heading_cdeg(yaw_rad: float) -> int:

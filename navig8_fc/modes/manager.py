@@ -193,7 +193,7 @@ class ModeManager:
         # Mission clock: mission time = t_s - _mission_t0_s while in MISSION; _mission_elapsed_s when paused.
         self._mission_t0_s: float | None = script.start_t_s if air_start and script else None
         self._mission_elapsed_s = 0.0
-        # Faults the shell reports from outside the step (wall-clock watchdogs, link checks): name -> reason.
+        # Faults reported from outside the step (the FlightStack's link checks, rate check): name -> reason.
         self._faults: dict[str, str] = {}
 
     # --- read access ---------------------------------------------------------------------------------
@@ -239,13 +239,13 @@ class ModeManager:
 
     @property
     def faults(self) -> dict[str, str]:
-        """The shell-reported faults now set (name -> reason); a copy."""
+        """The faults now set (name -> reason); a copy."""
         return dict(self._faults)
 
     def set_fault(self, name: str, reason: str) -> None:
         """A fault found outside the step (e.g. no sensor bundles for FS_SENS_TOUT, a control-rate mismatch):
         pre-arm fails with `reason`, takeoff is refused and an armed vehicle reports MAV_STATE_CRITICAL until
-        `clear_fault(name)`. The flight itself is not changed (the shell decides on failsafe actions)."""
+        `clear_fault(name)`. The flight itself is not changed (the FlightStack decides on failsafe actions)."""
         self._faults[name] = reason
 
     def clear_fault(self, name: str) -> bool:
