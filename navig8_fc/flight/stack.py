@@ -101,7 +101,7 @@ class FlightStack:
         self._battery_step_t_s: float | None = None  # the last step's sim time
         self._battery_energy_j = 0.0  # drawn since _battery_t_s
         self._arm_request: ArmRequest | None = None
-        self._notices: list[Notice] = []  # decided between steps (commands): announced with the next result
+        self._notices: list[Notice] = []  # decided in the step before the mode manager runs (the rate check)
         self._sensors_stale = False
         self._stale_age_s = 0.0  # the longest sensor age seen in the current outage
         self._gcs_lost = False
