@@ -6,7 +6,7 @@ The plant itself does no I/O; see sim_bridge/plant.py for the API.
 from sim_bridge.messages import ActuatorCommand, SensorBundle, SensorField, Truth
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant, PlantDivergedError
-from sim_bridge.scenario import Scenario, Setpoint, load_scenario
+from sim_bridge.scenario import Scenario, load_scenario
 
 __all__ = [
     "ActuatorCommand",
@@ -16,7 +16,6 @@ __all__ = [
     "Scenario",
     "SensorBundle",
     "SensorField",
-    "Setpoint",
     "Truth",
     "load_scenario",
 ]

@@ -1,7 +1,9 @@
-"""Scenarios (params/scenarios/*.yaml): initial state, object events, arm commands, setpoints.
+"""Scenarios (params/scenarios/*.yaml): the world's part (initial state, object events, arm commands).
 
 A scenario is data: the plant reads the initial state, the object events and the arm command
-schedule; the flight controller (later) reads the setpoints. Everything is stored in NED/FRD; the
+schedule; the flight controller reads its setpoint script (`name`, `duration_s`, `armed`, `setpoints`)
+through `navig8_fc.flight.script`, which also reads the files; `Scenario.script` is that same parse, so
+each key has one parser. Everything is stored in NED/FRD; the
 paper's ENU commands (Eq. 25) are kept beside them as printed, and the mapping is E -> y_NED,
 N -> x_NED, U -> -z_NED, yaw_NED = 90 deg - yaw_ENU (ENU yaw is measured from east, counter-clockwise;
 NED yaw from north, clockwise), pitch nose-up positive in both (docs/plant.md).
@@ -9,7 +11,7 @@ NED yaw from north, clockwise), pitch nose-up positive in both (docs/plant.md).
     scn = load_scenario("paper")          # or a path to a YAML file
     scn.arm_targets(3.0)                  # joint targets (rad) at t = 3 s
     scn.object_mass(7.0)                  # kg
-    scn.setpoints(12.0)                   # Setpoint(pos_ned_m, pitch_rad, yaw_rad)
+    scn.script.setpoint_at(12.0)          # the FC's setpoint (navig8_fc.flight.script.FlightScript)
 """
 
 from __future__ import annotations
@@ -21,12 +23,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
+
+from navig8_fc.flight.script import FlightScript, parse_flight_script, read_scenario_file, vec3
 
 Vec3 = tuple[float, float, float]
 
 EVENT_KINDS = ("grasp", "release", "mass")
-SETPOINT_CHANNELS = ("x_ned_m", "y_ned_m", "z_ned_m", "pitch_deg", "yaw_deg")
 
 
 @dataclass(frozen=True)
@@ -56,15 +58,6 @@ class ArmSegment:
 
 
 @dataclass(frozen=True)
-class Setpoint:
-    """What the scenario commands at one instant (Eq. 25 in NED/FRD)."""
-
-    pos_ned_m: Vec3
-    pitch_rad: float
-    yaw_rad: float
-
-
-@dataclass(frozen=True)
 class InitialState:
     pos_ned_m: Vec3
     vel_ned_m_s: Vec3
@@ -77,19 +70,28 @@ class InitialState:
 
 @dataclass(frozen=True)
 class Scenario:
-    name: str
+    script: FlightScript  # name, duration, armed start and the FC's setpoints
     description: str
-    duration_s: float
-    armed: bool
     initial: InitialState
     object_mass_kg: float  # held at t = 0
     gripper_closed: bool  # at t = 0
     events: tuple[ObjectEvent, ...]
     arm_kind: str
     arm_segments: tuple[ArmSegment, ...]
-    setpoint0: Setpoint
-    setpoint_steps: tuple[tuple[float, str, float], ...]  # (t_s, channel, value in SI units)
     paper_text: str
+
+    @property
+    def name(self) -> str:
+        return self.script.name
+
+    @property
+    def duration_s(self) -> float:
+        return self.script.duration_s
+
+    @property
+    def armed(self) -> bool:
+        """Starts armed in the air (the plant at trim, the FC flying its script)."""
+        return self.script.starts_armed_in_air
 
     # ---- arm ------------------------------------------------------------------------------------
     def arm_targets(self, t_s: float) -> np.ndarray:
@@ -128,39 +130,20 @@ class Scenario:
                 closed = ev.kind != "release"
         return closed
 
-    # ---- setpoints (consumed by the flight controller) ----------------------------------------
-    def setpoints(self, t_s: float) -> Setpoint:
-        pos = list(self.setpoint0.pos_ned_m)
-        pitch, yaw = self.setpoint0.pitch_rad, self.setpoint0.yaw_rad
-        for t, ch, v in self.setpoint_steps:
-            if t > t_s:
-                break
-            if ch == "x_ned_m":
-                pos[0] = v
-            elif ch == "y_ned_m":
-                pos[1] = v
-            elif ch == "z_ned_m":
-                pos[2] = v
-            elif ch == "pitch_deg":
-                pitch = v
-            else:
-                yaw = v
-        return Setpoint((pos[0], pos[1], pos[2]), pitch, yaw)
-
     # ---- construction -----------------------------------------------------------------------
     @staticmethod
     def from_dict(d: dict[str, Any]) -> Scenario:
-        duration = float(d["duration_s"])
+        script = parse_flight_script(d)
         ini = d["initial"]
-        q0 = _vec3(ini.get("joint_pos_deg", [0.0, 0.0, 0.0]), deg=True)
+        q0 = vec3(ini.get("joint_pos_deg", [0.0, 0.0, 0.0]), deg=True)
         actuators = str(ini.get("actuators", "trim"))
         if actuators not in ("trim", "off"):
             raise ValueError(f"initial.actuators must be 'trim' or 'off', got {actuators!r}")
         initial = InitialState(
-            pos_ned_m=_vec3(ini.get("pos_ned_m", [0.0, 0.0, 0.0])),
-            vel_ned_m_s=_vec3(ini.get("vel_ned_m_s", [0.0, 0.0, 0.0])),
-            euler_rad=_vec3(ini.get("euler_deg", [0.0, 0.0, 0.0]), deg=True),
-            rate_frd_rad_s=_vec3(ini.get("rate_frd_rad_s", [0.0, 0.0, 0.0])),
+            pos_ned_m=vec3(ini.get("pos_ned_m", [0.0, 0.0, 0.0])),
+            vel_ned_m_s=vec3(ini.get("vel_ned_m_s", [0.0, 0.0, 0.0])),
+            euler_rad=vec3(ini.get("euler_deg", [0.0, 0.0, 0.0]), deg=True),
+            rate_frd_rad_s=vec3(ini.get("rate_frd_rad_s", [0.0, 0.0, 0.0])),
             joint_pos_rad=q0,
             actuators=actuators,
             on_ground=bool(ini.get("on_ground", False)),
@@ -174,58 +157,28 @@ class Scenario:
             raise ValueError("scenario events must be sorted by time")
         arm = d.get("arm", {"kind": "hold"})
         kind = str(arm["kind"])
-        segments = _arm_segments(kind, arm, q0, duration)
-        sp = d.get("setpoints", {})
-        sp0 = sp.get("initial", {})
-        setpoint0 = Setpoint(
-            pos_ned_m=_vec3(sp0.get("pos_ned_m", list(initial.pos_ned_m))),
-            pitch_rad=math.radians(float(sp0.get("pitch_deg", 0.0))),
-            yaw_rad=math.radians(float(sp0.get("yaw_deg", math.degrees(initial.euler_rad[2])))),
-        )
-        steps: list[tuple[float, str, float]] = []
-        for st in sp.get("steps", []):
-            t = float(st["t_s"])
-            for ch in SETPOINT_CHANNELS:
-                if ch in st:
-                    v = float(st[ch])
-                    # internal units: radians; the channel keeps its YAML name for traceability
-                    steps.append((t, ch, math.radians(v) if ch.endswith("_deg") else v))
-            unknown = set(st) - set(SETPOINT_CHANNELS) - {"t_s", "note"}
-            if unknown:
-                raise ValueError(f"unknown setpoint channels {sorted(unknown)}")
-        steps.sort(key=lambda s: s[0])
+        segments = _arm_segments(kind, arm, q0, script.duration_s)
         return Scenario(
-            name=str(d["name"]),
+            script=script,
             description=str(d.get("description", "")),
-            duration_s=duration,
-            armed=bool(d.get("armed", True)),
             initial=initial,
             object_mass_kg=float(obj.get("mass_kg", 0.0)),
             gripper_closed=bool(obj.get("gripper_closed", False)),
             events=events,
             arm_kind=kind,
             arm_segments=segments,
-            setpoint0=setpoint0,
-            setpoint_steps=tuple(steps),
             paper_text=str(d.get("paper_text", "")),
         )
 
 
-def _vec3(v: Any, deg: bool = False) -> Vec3:
-    if len(v) != 3:
-        raise ValueError(f"expected 3 values, got {v!r}")
-    f = math.radians if deg else float
-    return (f(float(v[0])), f(float(v[1])), f(float(v[2])))
-
-
 def _arm_segments(kind: str, arm: dict[str, Any], q0: Vec3, duration_s: float) -> tuple[ArmSegment, ...]:
     if kind == "hold":
-        q = _vec3(arm["q_deg"], deg=True) if "q_deg" in arm else q0
+        q = vec3(arm["q_deg"], deg=True) if "q_deg" in arm else q0
         return (ArmSegment(0.0, 0.0, q, q),)
     if kind == "steps":
         segs = [ArmSegment(0.0, 0.0, q0, q0)]
         for st in arm["steps"]:
-            q = _vec3(st["q_deg"], deg=True)
+            q = vec3(st["q_deg"], deg=True)
             t = float(st["t_s"])
             segs.append(ArmSegment(t, t, segs[-1].q_end_rad, q))
         return tuple(segs)
@@ -251,14 +204,4 @@ def _arm_segments(kind: str, arm: dict[str, Any], q0: Vec3, duration_s: float) -
 
 def load_scenario(name_or_path: str | Path) -> Scenario:
     """Load a scenario by name (params/scenarios/<name>.yaml, package navig8_params.scenarios) or path."""
-    p = Path(name_or_path)
-    if isinstance(name_or_path, Path) or p.suffix in (".yaml", ".yml") or len(p.parts) > 1:
-        text = p.read_text()
-    else:
-        from importlib.resources import files
-
-        res = files("navig8_params.scenarios") / f"{name_or_path}.yaml"
-        if not res.is_file():
-            raise FileNotFoundError(f"no scenario named {name_or_path!r} in params/scenarios/")
-        text = res.read_text()
-    return Scenario.from_dict(yaml.safe_load(text))
+    return Scenario.from_dict(read_scenario_file(name_or_path))

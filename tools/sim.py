@@ -3,8 +3,9 @@
     navig8-sim --scenario paper --controller proposed|unconstrained|fixed [--seed N] [--duration S]
                [--log run.mcap] [--summary summary.json] [--plots DIR] [--set NAME=VALUE ...]
 
-The controller runs at INDI_RATE_HZ on the sensor bundle's time; the plant integrates in between with
-the command held (zero-order hold), as in lockstep SITL.
+The flight controller is the same `FlightStack` navig8-fc runs (mode manager, failsafes, controller core),
+stepped at INDI_RATE_HZ on the sensor bundle's time; the plant integrates in between with the command held
+(zero-order hold), as in lockstep SITL.
 """
 
 from __future__ import annotations
@@ -19,16 +20,9 @@ from typing import Any
 
 import numpy as np
 
-from navig8_fc.core import stability
 from navig8_fc.core import vehicle as vm
-from navig8_fc.core.controller import (
-    ControllerConfig,
-    ControllerStatus,
-    FcSensors,
-    FlightControllerCore,
-    warm_up_kernels,
-)
-from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.core.controller import ControllerStatus, FcSensors, warm_up_kernels
+from navig8_fc.flight import FlightStack
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.shell.mcap_log import McapLogger
 from navig8_tools.logdata import load_run
@@ -133,12 +127,10 @@ def run(
     duration = sc.duration_s if duration_s is None else float(duration_s)
     rng = np.random.default_rng(seed)
     plant = Plant(vehicle, PlantParams.load(), sc, rng)
-    cfg = ControllerConfig.from_params(reg.as_dict(), vehicle)
-    fc = FlightControllerCore(vehicle, cfg)
+    stack = FlightStack(vehicle, reg, sc.script)
+    cfg = stack.core.config
     warm_up_kernels(vehicle, cfg)  # numba's cache loads now, not inside the timed loop
-    lam_crit = stability.lambda_crit(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), cfg.dt_s,
-                                     float(reg["INDI_LPF_TAU"]))
-    eigmon = EigenMonitor(vehicle, float(reg["INDI_LAMBDA_MIN"]), lam_crit)
+    eigmon = EigenMonitor(vehicle, float(reg["INDI_LAMBDA_MIN"]), stack.lambda_crit)
     logger = McapLogger(log_path) if log_path else None
     if logger:
         logger.metadata("run", {"scenario": sc.name, "controller": controller, "seed": seed,
@@ -152,14 +144,13 @@ def run(
         for k in range(n_steps + 1):
             sb = plant.sense()
             s = _sensors_to_fc(sb)
-            spc = sc.setpoints(s.t_s)
-            sp = Setpoint(tuple(spc.pos_ned_m), spc.pitch_rad, spc.yaw_rad)
             if tick_times_s is not None:
                 t_tick = time.perf_counter()
-                fc_cmd, st = fc.step(s, sp, engaged=sc.armed)
+                res = stack.step(s, True, sb.time_us)
                 tick_times_s.append(time.perf_counter() - t_tick)
             else:
-                fc_cmd, st = fc.step(s, sp, engaged=sc.armed)
+                res = stack.step(s, True, sb.time_us)
+            fc_cmd, st, sp = res.command, res.status, res.setpoint
             cmd = PlantCommand(tilt_rad=fc_cmd.tilt_rad, speed_rad_s=fc_cmd.speed_rad_s)
             if logger:
                 t_ns = int(sb.time_us) * 1000
@@ -170,6 +161,9 @@ def run(
                                                   "yaw_rad": sp.yaw_rad})
                 logger.log("/fc/command", t_ns, fc_cmd)
                 logger.log("/analysis/eig", t_ns, eigmon(st, tr))
+                for n in res.notices:  # as navig8-fc logs what it announces (mode events, failsafes)
+                    if n.statustext:
+                        logger.log("/fc/statustext", t_ns, {"severity": n.severity, "text": n.statustext})
             if k == n_steps:
                 break
             plant.step(cmd, cfg.dt_s)

@@ -59,20 +59,6 @@ _SEGMENTS = tuple(
     (_SOC_POINTS[i - 1], _CELL_OCV_V[i - 1], _CELL_OCV_V[i] - _CELL_OCV_V[i - 1], _SOC_POINTS[i] - _SOC_POINTS[i - 1])
     for i in range(_LAST + 1)
 )
-_new_object = object.__new__
-
-
-def _battery_state(
-    soc: float, voltage_v: float, current_a: float, consumed_mah: float, energy_j: float
-) -> BatteryState:
-    """`BatteryState(...)` without the frozen dataclass's __init__ (one object.__setattr__ per field): the same
-    object, filled directly (BatteryState has no __post_init__). tests/unit/test_battery.py checks it."""
-    state = _new_object(BatteryState)
-    state.__dict__.update(soc=soc, voltage_v=voltage_v, current_a=current_a, consumed_mah=consumed_mah,
-                          energy_j=energy_j)  # fmt: skip
-    return state
-
-
 def open_circuit_voltage(soc: float, config: BatteryConfig) -> float:
     """Pack open-circuit voltage (V) at state of charge `soc` (clamped to 0..1)."""
     s = soc
@@ -107,5 +93,5 @@ def battery_step(state: BatteryState, power_w: float, dt_s: float, config: Batte
     soc = soc0 - charge_as / (cfg.capacity_ah * 3600.0)
     if soc < 0.0:  # max(soc, 0.0)
         soc = 0.0
-    return _battery_state(soc, v_term, current, state.consumed_mah + charge_as / 3.6,
-                          state.energy_j + v_term * current * dt)  # fmt: skip
+    return BatteryState(soc, v_term, current, state.consumed_mah + charge_as / 3.6,
+                        state.energy_j + v_term * current * dt)  # fmt: skip

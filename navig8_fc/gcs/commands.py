@@ -1,7 +1,8 @@
 """MAVLink command protocol (COMMAND_LONG, COMMAND_INT): exactly one final COMMAND_ACK per command.
 
 `CommandHandler.handle(msg, now_s)` decodes a command addressed to us (target_system 0 or ours,
-target_component 0 or ours), runs it against the vehicle (the shell implements `VehicleCommands`) and
+target_component 0 or ours), runs it against the vehicle (a `CommandTarget`: the FlightStack's
+`VehicleCommands` plus the GCS service's message and storage requests) and
 returns [COMMAND_ACK, then any STATUSTEXT reason, then any requested messages]. Commands that act on the
 simulated hardware (DO_GRIPPER, the arm-joint target) add a STATUSTEXT(INFO) event when accepted
 ("Gripper: grab", "Arm joints: target 20.0 20.0 20.0 deg"), like the mode manager's arm/mode events.
@@ -31,15 +32,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any, Literal, Protocol
+from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from navig8_fc.flight.state import VehicleCommands
 from navig8_fc.gcs.params import is_for_us
 from navig8_fc.gcs.statustext import StatusTextEncoder
 from navig8_fc.modes.px4 import px4_custom_mode
-
-GripperAction = Literal["grab", "release"]
 
 MAV_CMD_NAVIG8_ARM_JOINTS = 31010  # = MAV_CMD_USER_1 in common.xml; named in navig8.xml
 ARM_FORCE_MAGIC = 21196  # COMPONENT_ARM_DISARM p2: arm despite checks / disarm in flight
@@ -56,29 +56,10 @@ _READ_ONLY = frozenset({
 _RELATIVE_ALT_FRAMES = frozenset({CMD.MAV_FRAME_GLOBAL_RELATIVE_ALT, CMD.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
 
 
-class VehicleCommands(Protocol):
-    """What the command handler needs from the vehicle; the FC shell implements it.
-
-    Verdict-style methods return (ok, reason): reason is shown as STATUSTEXT when ok is False.
-    """
-
-    def arm(self, force: bool) -> tuple[bool, str]: ...
-
-    def disarm(self, force: bool) -> tuple[bool, str]: ...
-
-    def takeoff(self, alt_m: float) -> tuple[bool, str]:
-        """Climb to alt_m above home (NaN: the default takeoff altitude)."""
-        ...
-
-    def land(self) -> tuple[bool, str]: ...
-
-    def set_mode(self, base_mode: int, custom_mode: int) -> tuple[bool, str]:
-        """custom_mode in PX4 encoding (main << 16 | sub << 24)."""
-        ...
-
-    def gripper(self, action: GripperAction) -> tuple[bool, str]: ...
-
-    def arm_joints(self, q_rad: tuple[float, float, float]) -> tuple[bool, str]: ...
+class CommandTarget(VehicleCommands, Protocol):
+    """What the command handler needs: the vehicle's commands (`VehicleCommands`, the FlightStack answers them)
+    and the GCS service's own (message requests and intervals, parameter storage); the shell's GCS service
+    implements it."""
 
     def request_message(self, msg_id: int, params: tuple[float, ...]) -> list[Any] | None:
         """The requested message(s); None when msg_id is not supported, [] when not available yet.
@@ -148,7 +129,7 @@ class CommandHandler:
         mav: Any,
         sysid: int,
         compid: int,
-        vehicle: VehicleCommands,
+        vehicle: CommandTarget,
         *,
         statustext: StatusTextEncoder | None = None,
         duplicate_window_s: float = 2.0,

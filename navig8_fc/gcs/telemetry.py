@@ -24,6 +24,11 @@ is the interval in us (clamped to at least `min_interval_us`, 2 ms = 500 Hz); id
 refused (False -> the command handler answers DENIED). `interval_us` reads back in MESSAGE_INTERVAL terms:
 the interval, -1 when disabled, 0 when the id is not available here.
 
+Before the first sensor data (`VehicleSnapshot.state_valid` False) the state streams (ATTITUDE,
+ATTITUDE_QUATERNION, LOCAL_POSITION_NED, GLOBAL_POSITION_INT, VFR_HUD) send nothing, as PX4 sends no
+position before it has an estimate: a GCS would otherwise see the vehicle at the origin, level, until the
+simulator's first bundle. A REQUEST_MESSAGE for one of them then answers TEMPORARILY_REJECTED.
+
 Stability telemetry (NAMED_VALUE_FLOAT, names <= 10 chars, graphable in QGC's MAVLink Inspector and MAVProxy):
 IXX_HAT, IYY_HAT, IZZ_HAT (kg m^2), M_HAT (kg): the constrained KF's estimate x_hat (G_hat_I, Eq. 4/21);
 K1..K4: the implied weighting factors (Eq. 4); EIG_MARGIN: the *bound-based* margin the FC can compute
@@ -54,6 +59,7 @@ from typing import Any
 import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
+from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.gcs.battery import BatteryState, battery_initial
 from navig8_fc.gcs.params import PARAM_ENCODING_CAPABILITY
 
@@ -180,6 +186,7 @@ class VehicleSnapshot:
     vel_ned: Vec3
     quat_wxyz: Vec4
     rates_frd: Vec3
+    state_valid: bool = True  # pos/vel/attitude come from sensor data (False before the first: no state streams)
     home_ned: Vec3 | None = None
     home_yaw_rad: float = 0.0
     origin: GeoOrigin = field(default_factory=GeoOrigin)
@@ -260,13 +267,7 @@ def _i(x: float, lo: int, hi: int, default: int) -> int:
     return max(lo, min(hi, int(round(x))))
 
 
-def euler_from_quat(q: Sequence[float]) -> Vec3:
-    """(roll, pitch, yaw) ZYX from [w, x, y, z]."""
-    w, x, y, z = q
-    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
-    yaw = math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return roll, pitch, yaw
+euler_from_quat = quat_to_euler  # (roll, pitch, yaw) ZYX from [w, x, y, z]: the core's one conversion
 
 
 def heading_cdeg(yaw_rad: float) -> int:
@@ -381,19 +382,27 @@ class TelemetryBuilder:
         return [self._mav.extended_sys_state_encode(M.MAV_VTOL_STATE_UNDEFINED, snap.landed_state)]
 
     def attitude(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        if not snap.state_valid:
+            return []
         roll, pitch, yaw = euler_from_quat(snap.quat_wxyz)
         p, q, r = snap.rates_frd
         return [self._mav.attitude_encode(now_boot_ms, roll, pitch, yaw, p, q, r)]
 
     def attitude_quaternion(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        if not snap.state_valid:
+            return []
         w, x, y, z = snap.quat_wxyz
         p, q, r = snap.rates_frd
         return [self._mav.attitude_quaternion_encode(now_boot_ms, w, x, y, z, p, q, r, [1.0, 0.0, 0.0, 0.0])]
 
     def local_position_ned(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        if not snap.state_valid:
+            return []
         return [self._mav.local_position_ned_encode(now_boot_ms, *snap.pos_ned, *snap.vel_ned)]
 
     def global_position_int(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        if not snap.state_valid:
+            return []
         lat, lon, alt = snap.origin.to_global(snap.pos_ned)
         home_d = snap.home_ned[2] if snap.home_ned is not None else 0.0
         rel_alt = home_d - snap.pos_ned[2]
@@ -409,6 +418,8 @@ class TelemetryBuilder:
         ]  # fmt: skip
 
     def vfr_hud(self, snap: VehicleSnapshot, now_boot_ms: int = 0) -> list[Any]:
+        if not snap.state_valid:
+            return []
         vn, ve, vd = snap.vel_ned
         ground = math.hypot(vn, ve)
         yaw = euler_from_quat(snap.quat_wxyz)[2]

@@ -193,7 +193,7 @@ class ModeManager:
         # Mission clock: mission time = t_s - _mission_t0_s while in MISSION; _mission_elapsed_s when paused.
         self._mission_t0_s: float | None = script.start_t_s if air_start and script else None
         self._mission_elapsed_s = 0.0
-        # Faults the shell reports from outside the step (wall-clock watchdogs, link checks): name -> reason.
+        # Faults reported from outside the step (the FlightStack's link checks, rate check): name -> reason.
         self._faults: dict[str, str] = {}
 
     # --- read access ---------------------------------------------------------------------------------
@@ -239,13 +239,13 @@ class ModeManager:
 
     @property
     def faults(self) -> dict[str, str]:
-        """The shell-reported faults now set (name -> reason); a copy."""
+        """The faults now set (name -> reason); a copy."""
         return dict(self._faults)
 
     def set_fault(self, name: str, reason: str) -> None:
         """A fault found outside the step (e.g. no sensor bundles for FS_SENS_TOUT, a control-rate mismatch):
         pre-arm fails with `reason`, takeoff is refused and an armed vehicle reports MAV_STATE_CRITICAL until
-        `clear_fault(name)`. The flight itself is not changed (the shell decides on failsafe actions)."""
+        `clear_fault(name)`. The flight itself is not changed (the FlightStack decides on failsafe actions)."""
         self._faults[name] = reason
 
     def clear_fault(self, name: str) -> bool:
@@ -391,7 +391,7 @@ class ModeManager:
         armed = self._armed
         mode = self._mode
         events = self._events
-        out = _mode_output(
+        out = ModeOutput(
             t,
             armed,
             engaged,
@@ -572,50 +572,6 @@ _LANDING = int(MavLandedState.LANDING)
 _STANDBY = int(MavState.STANDBY)
 _ACTIVE = int(MavState.ACTIVE)
 _CRITICAL = int(MavState.CRITICAL)
-_new_object = object.__new__
-
-
-def _mode_output(
-    t_s: float,
-    armed: bool,
-    engaged: bool,
-    setpoint: Setpoint,
-    flight_mode: FlightMode,
-    custom_mode: int,
-    base_mode: int,
-    landed_state: int,
-    system_status: int,
-    landed: bool,
-    home_ned: Vec3 | None,
-    home_yaw_rad: float,
-    mission_time_s: float | None,
-    events: tuple[str, ...],
-) -> ModeOutput:
-    """`ModeOutput(...)` (positional, field order) without the frozen dataclass's __init__.
-
-    That __init__ sets each of the 14 fields through object.__setattr__ (~2 us a step on these VMs); filling
-    the instance dict directly gives the same object (same fields, same order, ModeOutput has no
-    __post_init__). tests/unit/test_modes.py checks it against the constructor."""
-    out = _new_object(ModeOutput)
-    out.__dict__.update(
-        t_s=t_s,
-        armed=armed,
-        engaged=engaged,
-        setpoint=setpoint,
-        flight_mode=flight_mode,
-        custom_mode=custom_mode,
-        base_mode=base_mode,
-        landed_state=landed_state,
-        system_status=system_status,
-        landed=landed,
-        home_ned=home_ned,
-        home_yaw_rad=home_yaw_rad,
-        mission_time_s=mission_time_s,
-        events=events,
-    )
-    return out
-
-
 def _idle(inp: ModeInputs) -> Setpoint:
     """The setpoint reported while the controller is idle: where the vehicle is."""
     return Setpoint(inp.pos_ned, 0.0, inp.yaw_rad)

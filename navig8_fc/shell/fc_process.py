@@ -20,42 +20,29 @@ import select
 import signal
 import sys
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import orjson
 
-from navig8_fc.core import stability
 from navig8_fc.core import vehicle as vm
-from navig8_fc.core.controller import (
-    MOTORS_OFF,
-    ActuatorCommand,
-    ControllerConfig,
-    ControllerStatus,
-    FcSensors,
-    FlightControllerCore,
-    warm_up_kernels,
-)
+from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FlightControllerCore, warm_up_kernels
 from navig8_fc.core.outer_loop import Setpoint
-from navig8_fc.core.rotation import quat_to_euler
+from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
 from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mavlink import seam
-from navig8_fc.modes import MissionScript, ModeConfig, ModeInputs, ModeManager, ModeOutput
 from navig8_fc.params.registry import ParamRegistry
-from navig8_fc.shell.gcs_service import GcsService
+from navig8_fc.params.store import ParamStore, default_state_path
+from navig8_fc.shell.gcs_service import GcsService, Source
 from navig8_fc.shell.mavlink_link import UdpLink
 from navig8_fc.shell.mcap_log import McapLogger, mavlink_json_schema
 
 FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
 WALL_TICK_S = 0.001  # GCS services (telemetry schedule, paced parameter list) run at most this often
-ESTIMATOR_WARMUP_S = 0.5  # 5 time constants of the INDI feedback filter before arming is allowed
-RATE_MISMATCH_STEPS = 3  # consecutive bundle spacings != 1/INDI_RATE_HZ before it is reported (not a glitch)
-SEVERITY_CRITICAL, SEVERITY_ERROR, SEVERITY_WARNING, SEVERITY_INFO = 2, 3, 4, 6  # MAV_SEVERITY
-FAULT_SENSORS = "sensors"  # ModeManager fault names
-FAULT_RATE = "rate"
+_GRIPPER_CODES = {None: seam.GRIPPER_NONE, "grab": seam.GRIPPER_GRAB, "release": seam.GRIPPER_RELEASE}
 
 
 @dataclass(frozen=True)
@@ -102,7 +89,8 @@ def _decode_step(data: bytes) -> tuple[tuple[seam.StepBundle, dict[str, dict[str
 
 
 class FlightControllerProcess:
-    """Sockets + lockstep tick + GCS services around the pure controller core."""
+    """Sockets, clocks and logs around the pure FlightStack (control, modes, failsafes) and the GCS service.
+    It is the GCS service's Outbox (`broadcast`, `reply`) over the GCS and API links."""
 
     def __init__(self, opts: FcOptions) -> None:
         self.opts = opts
@@ -117,28 +105,29 @@ class FlightControllerProcess:
         self._sim_channels: dict[tuple[str, str], int] = {}
         self._spin_until = 0.0
         self._mk_links()
-        self._cfg_generation = -1
-        self.core: FlightControllerCore | None = None
-        self._reconfigure()
+        script = load_flight_script(opts.scenario)  # the scenario's setpoint script (a scripted run: AUTO.MISSION)
+        self.stack = FlightStack(self.vehicle, self.registry, script)
         self.model = vm.UamModel(self.vehicle)
         self._asm = seam.BundleAssembler()
         self.sim_status: Any = None
-        self.last_sensors: FcSensors | None = None
-        self.mode_out: ModeOutput | None = None
         self._last_step_time_us: int | None = None
         self._last_answer: bytes | None = None  # the frame answering the last step (re-sent on duplicates)
         self.n_ticks = 0
         self.n_duplicates = 0
         self.last_bundle_wall = time.monotonic()
-        self._stall_reported = False  # the current sensor outage has been reported (cleared when data is back)
-        self._stall_since_wall = 0.0
-        self._dt_bad_n = 0  # consecutive bundle spacings that disagree with 1/INDI_RATE_HZ
         self.sim_done = False
-        self.last_status: ControllerStatus | None = None
-        self.last_cmd: ActuatorCommand = MOTORS_OFF
-        self.gcs_service = GcsService(self)  # loads persisted parameters (unless --defaults)
-        self._reconfigure()
-        assert self.core is not None
+        store = ParamStore(default_state_path(opts.state_dir, opts.instance)) if opts.state_dir else None
+        self.gcs_service = GcsService(self._mav(), opts.sysid, self.stack.state, self.stack, self, self.registry,
+                                      self.vehicle, store)
+        if store is not None and not opts.defaults:
+            loaded = self.gcs_service.load_stored_params()
+            if loaded.ok:
+                self.log_event(f"parameters loaded from {store.path} ({loaded.applied} values)")
+            for r in loaded.refused:
+                self.log_event(f"stored value refused: {r.reason}")
+        elif opts.defaults:
+            self.log_event("starting from default parameters (--defaults)")
+        self.stack.reconfigure()
         warm_up_kernels(self.vehicle, self.core.config)  # numba's cache loads before the first step, not in it
         if self.logger:
             self.logger.metadata("run", {"scenario": opts.scenario, "controller": self._controller_name(),
@@ -167,21 +156,14 @@ class FlightControllerProcess:
     def _controller_name(self) -> str:
         return {0: "fixed", 1: "unconstrained", 2: "proposed"}[int(self.registry["CKF_MODE"])]
 
-    def _reconfigure(self) -> None:
-        """Parameter changes apply at the next control step: gains and bounds swap in place; a change of
-        rate, filter or estimator settings rebuilds the core (its filters depend on them)."""
-        if self.registry.generation == self._cfg_generation:
-            return
-        cfg = ControllerConfig.from_params(self.registry.as_dict(), self.vehicle)
-        if self.core is None or cfg.indi != self.core.config.indi or cfg.ckf != self.core.config.ckf:
-            self.core = FlightControllerCore(self.vehicle, cfg)
-        else:
-            self.core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
-        self._cfg_generation = self.registry.generation
-        step_us = 1e6 / float(self.registry["INDI_RATE_HZ"])  # the bundle spacing this rate needs
-        self._dt_lo_us, self._dt_hi_us = math.floor(step_us), math.ceil(step_us)
-        self.lambda_crit = stability.lambda_crit(float(self.registry["ACT_WN"]), float(self.registry["ACT_ZETA"]),
-                                                 cfg.dt_s, float(self.registry["INDI_LPF_TAU"]))
+    @property
+    def core(self) -> FlightControllerCore:
+        """The stack's controller core (rebuilt by the stack when rate, filter or estimator settings change)."""
+        return self.stack.core
+
+    @property
+    def lambda_crit(self) -> float:
+        return self.stack.lambda_crit
 
     # --- logging ---------------------------------------------------------------------------------
     def _log_datagram(self, link: str, direction: str, raw: bytes, peer: str) -> None:
@@ -238,89 +220,17 @@ class FlightControllerProcess:
             self.sim.send_raw(self._last_answer)
             return
         self._last_step_time_us = t_us
-        self._reconfigure()
-        if prev_us is not None and not self._dt_lo_us <= t_us - prev_us <= self._dt_hi_us:
-            self._step_spacing_off(t_us - prev_us)  # rare: the bridge's --dt disagrees with INDI_RATE_HZ
-        elif self._dt_bad_n:
-            self._step_spacing_ok()
-        sensors = b.fc_sensors()
-        armed, engaged, sp = self.flight_state(sensors, imu_fresh=b.imu_fresh)
-        assert self.core is not None
-        cmd, st = self.core.step(sensors, sp, engaged=engaged)
-        self.last_status, self.last_cmd, self.last_sensors = st, cmd, sensors
-        self.gcs_service.telemetry.on_tick(sensors.t_s, sensors.speed_rad_s)
-        out = seam.pack_actuator_controls(self.sim.mav, t_us, cmd, self.vehicle, armed=armed)
+        res = self.stack.step(b.fc_sensors(), b.imu_fresh, t_us)
+        cmd = res.command
+        out = seam.pack_actuator_controls(self.sim.mav, t_us, cmd, self.vehicle, armed=res.armed)
         self._last_answer = out
-        arm_cmd = self.gcs_service.pending_arm_cmd
-        if arm_cmd is not None:  # before the step's answer, so the bridge applies it on this step
-            self.gcs_service.pending_arm_cmd = None
-            self.sim.send(seam.encode_arm_cmd(replace(arm_cmd, time_usec=t_us)))
+        if res.arm_request is not None:  # before the step's answer, so the bridge applies it on this step
+            self.sim.send(seam.encode_arm_cmd(_arm_command(res.arm_request, t_us)))
         self.sim.send_raw(out)
         self.n_ticks += 1
+        self.announce(res.notices)
         if self.logger:
-            self._pending_tick = (t_us, b.truth, st, cmd, sp, wire, out)
-
-    def _mode_manager(self) -> ModeManager:
-        sc = self._scenario
-        script = None
-        if sc.setpoint_steps or sc.armed:  # a scripted scenario (the paper's) runs as AUTO.MISSION
-
-            def setpoint_at(t_s: float) -> Setpoint:
-                spc = sc.setpoints(t_s)
-                return Setpoint(tuple(spc.pos_ned_m), spc.pitch_rad, spc.yaw_rad)
-
-            script = MissionScript(sc.name, setpoint_at, starts_armed_in_air=sc.armed, duration_s=sc.duration_s)
-        return ModeManager(ModeConfig(), script)
-
-    def flight_state(self, s: FcSensors, imu_fresh: bool = True) -> tuple[bool, bool, Setpoint]:
-        """(armed, controller engaged, setpoint) from the mode manager, on sim time.
-
-        Pre-arm inputs: sensors are ok when this step's IMU sample is fresh (the bundle is complete by
-        construction); the estimator is ready once its filters have run ESTIMATOR_WARMUP_S of sim time."""
-        _, _, yaw = quat_to_euler(s.quat_wxyz)
-        w1, w2, w3 = s.speed_rad_s
-        thrust_n = self.vehicle.k_thrust_duct * (w1 * w1 + w3 * w3) + self.vehicle.k_thrust_tail * w2 * abs(w2)
-        weight_n = self.vehicle.uam_mass_kg * self.vehicle.gravity_m_s2
-        was_armed = self.modes.armed
-        out = self.modes.step(ModeInputs(t_s=s.t_s, pos_ned=s.pos_ned, vel_ned=s.vel_ned, yaw_rad=yaw,
-                                         thrust_ratio=thrust_n / weight_n, sensors_ok=imu_fresh,
-                                         estimator_ready=self.n_ticks * self.core.config.dt_s
-                                         >= ESTIMATOR_WARMUP_S))
-        if out.armed and not was_armed and self.core is not None:
-            self.core.reset()  # the estimator's start delay counts from arming
-        self.mode_out = out
-        for ev in out.events:
-            self.statustext(ev, severity=6)
-        return out.armed, out.engaged, out.setpoint
-
-    def _step_spacing_off(self, d_us: int) -> None:
-        """A bundle spacing that is not 1/INDI_RATE_HZ: the controller would run with the wrong timing (its
-        filters, the rate limits and the stability analysis all use 1/INDI_RATE_HZ). After RATE_MISMATCH_STEPS
-        in a row: report once (STATUSTEXT, /fc/event) and fail pre-arm until the spacings agree again."""
-        if d_us <= 0:  # time went back: a restarted bridge (a new run, not a spacing)
-            self._dt_bad_n = 0
-            return
-        self._dt_bad_n += 1
-        if self._dt_bad_n != RATE_MISMATCH_STEPS:
-            return
-        rate = int(self.registry["INDI_RATE_HZ"])
-        bridge_ms, need_ms = d_us * 1e-3, 1e3 / rate
-        fix = f"navig8-bridge --dt {1.0 / rate:g}"
-        if 1_000_000 % d_us == 0 and 20 <= 1_000_000 // d_us <= 1000:
-            fix += f" or restore INDI_RATE_HZ {1_000_000 // d_us}"
-        text = (f"Control rate mismatch: navig8-bridge steps {bridge_ms:g} ms, INDI_RATE_HZ {rate} needs "
-                f"{need_ms:g} ms; fix: {fix}")
-        self.modes.set_fault(FAULT_RATE, f"control rate mismatch (bridge {bridge_ms:g} ms, INDI_RATE_HZ {rate}"
-                                         f" needs {need_ms:g} ms)")
-        self.statustext(text, severity=SEVERITY_ERROR)
-        self.log_event(text)
-
-    def _step_spacing_ok(self) -> None:
-        if self._dt_bad_n >= RATE_MISMATCH_STEPS and self.modes.clear_fault(FAULT_RATE):
-            text = f"Control rate matches navig8-bridge again ({1e3 / float(self.registry['INDI_RATE_HZ']):g} ms)"
-            self.statustext(text, severity=SEVERITY_INFO)
-            self.log_event(text)
-        self._dt_bad_n = 0
+            self._pending_tick = (t_us, b.truth, res.status, cmd, res.setpoint, wire, out)
 
     def statustext(self, text: str, severity: int = 6) -> None:
         """STATUSTEXT to every GCS (and the log keeps it)."""
@@ -383,10 +293,6 @@ class FlightControllerProcess:
         self._stop = True
 
     def run(self, until_done: bool = False) -> int:
-        from sim_bridge.scenario import load_scenario  # the FC reads the scenario's script (setpoints)
-
-        self._scenario = load_scenario(self.opts.scenario)
-        self.modes = self._mode_manager()
         print(f"navig8-fc: sysid {self.opts.sysid}, sim link :{self.sim.local_port} -> bridge "
               f":{self.opts.port('bridge')}, GCS :{self.gcs.local_port} -> {self.opts.gcs_port}, API "
               f":{self.api.local_port} -> {self.opts.port('api')}, scenario {self.opts.scenario}", file=sys.stderr)
@@ -431,50 +337,23 @@ class FlightControllerProcess:
             self.close()
         return 0
 
-    @property
-    def sensor_timeout_s(self) -> float:
-        return float(self.registry["FS_SENS_TOUT"])
-
     def _check_timeouts(self, now: float) -> None:
-        """Wall-clock watchdogs (lockstep has no sim time without bundles):
-        - FS_SENS_TOUT: the bridge went silent -> STATUSTEXT (CRITICAL) naming navig8-bridge once per outage and
-          a /fc/event; pre-arm fails (arming DENIED with that reason), an armed vehicle reports
-          MAV_STATE_CRITICAL, SYS_STATUS drops the sensor and PREARM_CHECK health bits (Telemetry.snapshot);
-          all of it clears, with a STATUSTEXT, when bundles arrive again. The vehicle cannot be commanded
-          without bundles; in lockstep the plant waits too;
-        - FS_GCS_TOUT: a GCS that sent heartbeats stops while the vehicle is armed in a GCS-commanded mode
-          (not a scripted mission) -> land, as PX4's data-link-loss failsafe can."""
-        if self.n_ticks > 0:
-            if now - self.last_bundle_wall > self.sensor_timeout_s:
-                if not self._stall_reported:
-                    self._sensors_lost()
-            elif self._stall_reported:
-                self._sensors_back()
-        g = self.gcs_service
-        if (g.last_gcs_heartbeat is not None and now - g.last_gcs_heartbeat > float(self.registry["FS_GCS_TOUT"])
-                and not g.gcs_lost):
-            g.gcs_lost = True
-            modes = getattr(self, "modes", None)
-            if modes is not None and modes.armed and modes.flight_mode.name != "MISSION" and not modes.landed:
-                modes.land()
-                self.statustext("GCS link lost: landing", severity=4)
-            else:
-                self.log_event("GCS link lost")
+        """The failsafe inputs, measured on the wall clock (lockstep has no sim time without bundles): the age of
+        the last sensor bundle (once one has arrived) and of the last GCS heartbeat (once a GCS has sent one).
+        The stack decides (sensor-stale fault, GCS-loss landing: navig8_fc.flight.stack); this announces."""
+        last_hb = self.gcs_service.last_gcs_heartbeat
+        notices = self.stack.check_links(now - self.last_bundle_wall if self.n_ticks > 0 else None,
+                                         None if last_hb is None else now - last_hb)
+        if notices:
+            self.announce(notices)
 
-    def _sensors_lost(self) -> None:
-        self._stall_reported = True
-        self._stall_since_wall = self.last_bundle_wall
-        text = f"no sensor data from navig8-bridge for {self.sensor_timeout_s:.1f} s"
-        self.modes.set_fault(FAULT_SENSORS, f"sensors stale: {text}")
-        self.statustext(text.capitalize(), severity=SEVERITY_CRITICAL)
-        self.log_event(f"{text} (last step t = {self._sim_ns() * 1e-9:.3f} s); waiting")
-
-    def _sensors_back(self) -> None:
-        self._stall_reported = False
-        self.modes.clear_fault(FAULT_SENSORS)
-        text = f"sensor data from navig8-bridge back after {self.last_bundle_wall - self._stall_since_wall:.1f} s"
-        self.statustext(text.capitalize(), severity=SEVERITY_INFO)
-        self.log_event(text)
+    def announce(self, notices: tuple[Notice, ...]) -> None:
+        """The stack's notices: STATUSTEXT to every GCS (and /fc/statustext), events to /fc/event."""
+        for n in notices:
+            if n.statustext:
+                self.statustext(n.statustext, n.severity)
+            if n.event:
+                self.log_event(n.event)
 
     # --- GCS side --------------------------------------------------------------------------------
     def on_gcs(self, link: UdpLink, received: list[Any]) -> None:
@@ -485,8 +364,24 @@ class FlightControllerProcess:
             if m.get_srcSystem() == self.opts.sysid and m.get_srcComponent() == FC_COMPID:
                 link.counters.foreign += 1
                 continue
-            mine.append((m, r.addr))
-        self.gcs_service.handle(mine, time.monotonic(), link)  # replies go back to link and sender
+            mine.append((m, (link.name, r.addr) if r.addr is not None else None))
+        for change in self.gcs_service.handle(mine, time.monotonic()):  # replies go back to link and sender
+            self.log_param_change(change)
+
+    # --- Outbox (GcsService) ---------------------------------------------------------------------
+    def broadcast(self, msgs: list[Any]) -> None:
+        """To every peer of both GCS-facing links (telemetry, HEARTBEAT, STATUSTEXT, PARAM_VALUE announcements)."""
+        for link in (self.gcs, self.api):
+            for m in msgs:
+                link.send(m)
+
+    def reply(self, source: Source, msgs: list[Any]) -> None:
+        """To the one peer a request came from, on its link: source = (link name, sender address)."""
+        name, addr = source  # type: ignore[misc]
+        link = self.api if name == self.api.name else self.gcs
+        dest = [addr]
+        for m in msgs:
+            link.send(m, dest)
 
     def on_wall_second(self, now: float) -> None:
         pass
@@ -520,6 +415,10 @@ class FlightControllerProcess:
             self.logger = None
         for link in self.links:
             link.close()
+
+
+def _arm_command(req: ArmRequest, t_us: int) -> seam.ArmCommand:
+    return seam.ArmCommand(t_us, req.joint_target_rad, _GRIPPER_CODES[req.gripper])
 
 
 def build_arg_parser() -> argparse.ArgumentParser:

@@ -1,8 +1,11 @@
-"""The FC's ground-station side: wires the pure protocol pieces (navig8_fc.gcs, navig8_fc.modes) to the links.
+"""The FC's ground-station side: wires the pure protocol pieces (navig8_fc.gcs) to the vehicle and the links.
 
-Implements `VehicleCommands` for the command handler on top of the mode manager, the bridge seam (arm
-joints, gripper) and the telemetry scheduler; routes inbound GCS/API messages; sends telemetry on the wall
-clock.
+Depends on three seams only: the vehicle's published `VehicleState` (a callable returning the latest
+snapshot), its `VehicleCommands` (the FlightStack answers arm, takeoff, land, modes, gripper, arm joints) and
+an `Outbox` (broadcast / reply to the sender; the process implements it over its links), plus the parameter
+registry and store it is given. It implements the command handler's `CommandTarget` (the vehicle's commands
+passed on, message requests and intervals from the telemetry scheduler, parameter storage), routes inbound
+GCS/API messages and sends telemetry on the wall clock. It never reads the process.
 
 Routing (PX4 and ArduPilot behave the same): a reply to a request (COMMAND_ACK and the messages a command
 produces, PARAM_VALUE answering PARAM_REQUEST_READ, the paced PARAM_REQUEST_LIST download, mission, FTP and
@@ -16,12 +19,14 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Hashable
+from typing import Any, Protocol
 
-from navig8_fc.gcs.battery import battery_initial, battery_step
-from navig8_fc.gcs.commands import CommandHandler, GripperAction
+from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.flight.state import GripperAction, VehicleCommands, VehicleState
+from navig8_fc.gcs.commands import CommandHandler
 from navig8_fc.gcs.misc import MiscProtocols
-from navig8_fc.gcs.params import ParamProtocol
+from navig8_fc.gcs.params import ParamProtocol, StoredLoad
 from navig8_fc.gcs.statustext import StatusTextEncoder
 from navig8_fc.gcs.telemetry import (
     TelemetryBuilder,
@@ -30,17 +35,25 @@ from navig8_fc.gcs.telemetry import (
     eig_margin_lower_bound,
     sensor_bits,
 )
-from navig8_fc.mavlink import seam
-from navig8_fc.params.store import ParamStore, default_state_path
+from navig8_fc.params.registry import ParamRegistry, SetResult
+from navig8_fc.params.store import ParamStore
 
 MAV_TYPE_GCS = 6
 
-if TYPE_CHECKING:
-    from navig8_fc.shell.fc_process import FlightControllerProcess
-    from navig8_fc.shell.mavlink_link import UdpLink
-
-Addr = tuple[str, int]
+Source = Hashable  # who sent a message, as the Outbox knows how to answer it (the process: (link name, address))
 _BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
+
+
+class Outbox(Protocol):
+    """Where GcsService's messages go (the process implements it over its GCS-facing links)."""
+
+    def broadcast(self, msgs: list[Any]) -> None:
+        """To every peer of every GCS-facing link."""
+        ...
+
+    def reply(self, source: Source, msgs: list[Any]) -> None:
+        """To the one peer `source` (as given to GcsService.handle), on its link."""
+        ...
 
 
 def is_broadcast_reply(request_type: str, reply_type: str) -> bool:
@@ -52,58 +65,57 @@ def is_broadcast_reply(request_type: str, reply_type: str) -> bool:
 
 
 class GcsService:
-    def __init__(self, fc: FlightControllerProcess) -> None:
-        self.fc = fc
-        o = fc.opts
-        self.mav = fc.d.MAVLink(None, srcSystem=o.sysid, srcComponent=1)  # builds messages (links pack them)
-        self.text = StatusTextEncoder(self.mav)
-        store = ParamStore(default_state_path(o.state_dir, o.instance)) if o.state_dir else None
-        self.params = ParamProtocol(fc.registry, self.mav, store, statustext=self.text)
-        self.commands = CommandHandler(self.mav, o.sysid, 1, self, statustext=self.text)
-        self.misc = MiscProtocols(self.mav, statustext=self.text)
+    def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], vehicle: VehicleCommands,
+                 outbox: Outbox, registry: ParamRegistry, vehicle_config: VehicleConfig,
+                 store: ParamStore | None = None) -> None:
+        """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them)."""
+        self.mav = mav
+        self.sysid = int(sysid)
+        self._state = state
+        self._vehicle = vehicle
+        self._outbox = outbox
+        self.text = StatusTextEncoder(mav)
+        self.params = ParamProtocol(registry, mav, store, statustext=self.text)
+        self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text)
+        self.misc = MiscProtocols(mav, statustext=self.text)
         self.n_gcs_msgs = 0
-        self.last_gcs_heartbeat: float | None = None  # wall time of the last HEARTBEAT from a ground station
-        self.gcs_lost = False
-        self.pending_arm_cmd: seam.ArmCommand | None = None
-        self.telemetry = Telemetry(fc, self.mav)
-        if store is not None and not o.defaults:
-            loaded = self.params.load_stored()
-            if loaded.ok:
-                fc.log_event(f"parameters loaded from {store.path} ({loaded.applied} values)")
-            for r in loaded.refused:
-                fc.log_event(f"stored value refused: {r.reason}")
-        elif o.defaults:
-            fc.log_event("starting from default parameters (--defaults)")
+        self._last_gcs_heartbeat: float | None = None
+        self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config)
+
+    @property
+    def last_gcs_heartbeat(self) -> float | None:
+        """Wall time (the caller's clock, as given to `handle`) of the last HEARTBEAT from a ground station."""
+        return self._last_gcs_heartbeat
+
+    def load_stored_params(self) -> StoredLoad:
+        """The persisted parameter values (startup); the caller logs the outcome."""
+        return self.params.load_stored()
 
     # --- routing ---------------------------------------------------------------------------------
-    def handle(self, received: list[tuple[Any, Addr | None]], now_wall: float, link: UdpLink | None = None) -> None:
-        """Inbound messages (msg, sender address) from `link`; replies go back there (module docstring).
-        With no link or address (in-process callers), replies are broadcast."""
-        for m, addr in received:
+    def handle(self, received: list[tuple[Any, Source | None]], now_wall: float) -> list[SetResult]:
+        """Inbound messages (msg, source); replies go back to the source through the outbox (module docstring).
+        Without a source (in-process callers), replies are broadcast. Returns the parameter changes (set, load,
+        reset outcomes) the messages caused, for the caller's log."""
+        for m, source in received:
             self.n_gcs_msgs += 1
             kind = m.get_type()
             if kind == "HEARTBEAT" and m.type == MAV_TYPE_GCS:
-                self.last_gcs_heartbeat = now_wall
-                if self.gcs_lost:
-                    self.gcs_lost = False
-                    self.fc.log_event("GCS link regained")
-            source = (link.name, addr) if link is not None and addr is not None else None  # hashable
+                self._last_gcs_heartbeat = now_wall
             out = self.params.handle(m, now_wall, source)
             out += self.commands.handle(m, now_wall)
             out += self.misc.handle(m, now_wall)
             out += self._set_mode_message(m)
             for r in out:
                 if source is None or is_broadcast_reply(kind, r.get_type()):
-                    self.broadcast([r])
+                    self._outbox.broadcast([r])
                 else:
-                    self.reply(source, [r])
-        for change in self.params.drain_changes():
-            self.fc.log_param_change(change)
+                    self._outbox.reply(source, [r])
+        return self.params.drain_changes()
 
     def _set_mode_message(self, m: Any) -> list[Any]:
         """The legacy SET_MODE message (what `mode X` in MAVProxy sends), read in PX4's custom_mode encoding
         as PX4 does; there is no ACK in that protocol, so a refusal is reported by STATUSTEXT."""
-        if m.get_type() != "SET_MODE" or m.target_system not in (0, self.fc.opts.sysid):
+        if m.get_type() != "SET_MODE" or m.target_system not in (0, self.sysid):
             return []
         ok, reason = self.set_mode(int(m.base_mode), int(m.custom_mode))
         return [] if ok else self.text.warning(reason or f"SET_MODE {int(m.custom_mode):#x} refused")
@@ -111,72 +123,40 @@ class GcsService:
     def poll(self, now_wall: float) -> None:
         for source, m in self.params.poll_routed(now_wall):
             if source is None:
-                self.broadcast([m])
+                self._outbox.broadcast([m])
             else:
-                self.reply(source, [m])
-        self.broadcast(self.telemetry.due_messages(now_wall))
-
-    def broadcast(self, msgs: list[Any]) -> None:
-        """To every peer of both GCS-facing links (telemetry, HEARTBEAT, STATUSTEXT, PARAM_VALUE announcements)."""
-        if not msgs:
-            return
-        for link in (self.fc.gcs, self.fc.api):
-            for m in msgs:
-                link.send(m)
-
-    def reply(self, source: tuple[str, Addr], msgs: list[Any]) -> None:
-        """To the one peer a request came from, on its link: source = (link name, sender address)."""
-        name, addr = source
-        link = self.fc.api if name == self.fc.api.name else self.fc.gcs
-        dest = [addr]
-        for m in msgs:
-            link.send(m, dest)
+                self._outbox.reply(source, [m])
+        msgs = self.telemetry.due_messages(now_wall)
+        if msgs:
+            self._outbox.broadcast(msgs)
 
     def statustext(self, text: str, severity: int) -> None:
-        self.broadcast(self.text.encode(severity, text))
+        """STATUSTEXT to every GCS (chunked when longer than one message)."""
+        self._outbox.broadcast(self.text.encode(severity, text))
 
-    # --- VehicleCommands ---------------------------------------------------------------------------
+    # --- CommandTarget: the vehicle's commands, passed on ------------------------------------------
     def arm(self, force: bool) -> tuple[bool, str]:
-        v = self.fc.modes.arm(force)
-        return v.ok, v.reason
+        return self._vehicle.arm(force)
 
     def disarm(self, force: bool) -> tuple[bool, str]:
-        v = self.fc.modes.disarm(force)
-        return v.ok, v.reason
+        return self._vehicle.disarm(force)
 
     def takeoff(self, alt_m: float) -> tuple[bool, str]:
-        v = self.fc.modes.takeoff(alt_m)
-        return v.ok, v.reason
+        return self._vehicle.takeoff(alt_m)
 
     def land(self) -> tuple[bool, str]:
-        v = self.fc.modes.land()
-        return v.ok, v.reason
+        return self._vehicle.land()
 
     def set_mode(self, base_mode: int, custom_mode: int) -> tuple[bool, str]:
-        v = self.fc.modes.set_custom_mode(int(custom_mode))
-        return v.ok, v.reason
+        return self._vehicle.set_mode(base_mode, custom_mode)
 
     def gripper(self, action: GripperAction) -> tuple[bool, str]:
-        grab = action == "grab"
-        self._queue_arm_cmd(seam.ArmCommand(0, None, seam.GRIPPER_GRAB if grab else seam.GRIPPER_RELEASE))
-        return True, ""
+        return self._vehicle.gripper(action)
 
     def arm_joints(self, q_rad: tuple[float, float, float]) -> tuple[bool, str]:
-        if not all(math.isfinite(q) for q in q_rad):
-            return False, "arm joints: targets must be finite"
-        lim = self.fc.vehicle.joint_limit_rad
-        if any(abs(q) > lim for q in q_rad):
-            return False, f"arm joints: targets beyond +-{math.degrees(lim):.0f} deg"
-        self._queue_arm_cmd(seam.ArmCommand(0, tuple(float(q) for q in q_rad), seam.GRIPPER_NONE))
-        return True, ""
+        return self._vehicle.arm_joints(q_rad)
 
-    def _queue_arm_cmd(self, cmd: seam.ArmCommand) -> None:
-        p = self.pending_arm_cmd
-        if p is not None:  # merge: keep both a joint target and a gripper action queued before the next step
-            cmd = seam.ArmCommand(0, cmd.joint_target_rad or p.joint_target_rad,
-                                  cmd.gripper if cmd.gripper != seam.GRIPPER_NONE else p.gripper)
-        self.pending_arm_cmd = cmd
-
+    # --- CommandTarget: the GCS service's own ------------------------------------------------------
     def request_message(self, msg_id: int, params: tuple[float, ...]) -> list[Any] | None:
         return self.telemetry.build_now(msg_id, time.monotonic())
 
@@ -187,68 +167,55 @@ class GcsService:
         return self.telemetry.scheduler.interval_us(msg_id)
 
     def storage(self, action: int) -> tuple[int, list[Any]]:
-        return self.params.storage_command(action, armed=self.fc.modes.armed)
+        return self.params.storage_command(action, armed=self._state().armed)
 
 
 class Telemetry:
-    """Streams on the wall clock from a snapshot of the FC's latest state (built only when something is due)."""
+    """Streams on the wall clock from a snapshot of the vehicle's latest state (built only when something is due)."""
 
     EIG_MARGIN_PERIOD_S = 0.5  # the bound-based margin costs ~1.4 ms: refresh it at 2 Hz
 
-    def __init__(self, fc: FlightControllerProcess, mav: Any) -> None:
-        self.fc = fc
+    def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], registry: ParamRegistry,
+                 vehicle_config: VehicleConfig) -> None:
+        self._state = state
+        self._registry = registry
+        self._vehicle = vehicle_config
         self.scheduler = TelemetryScheduler()
-        self.builder = TelemetryBuilder(mav, fc.opts.sysid, 1)
+        self.builder = TelemetryBuilder(mav, sysid, 1)
         self.boot_wall = time.monotonic()
-        self.battery = battery_initial()
-        self._last_batt_t: float | None = None
         self._eig_margin = math.nan
         self._eig_t = -1e9
 
-    def on_tick(self, t_s: float, speed_rad_s: tuple[float, float, float]) -> None:
-        """Battery discharge on sim time from the propeller speeds (hover ~ 0.6 kW at 8 kg, docs/gcs.md)."""
-        if self._last_batt_t is not None and t_s > self._last_batt_t:
-            v = self.fc.vehicle
-            w1, w2, w3 = speed_rad_s
-            # Ideal induced power P = T^1.5 / sqrt(2 rho A) per rotor with a figure of merit: a simple model.
-            thrusts = (v.k_thrust_duct * w1 * w1, v.k_thrust_tail * w2 * w2, v.k_thrust_duct * w3 * w3)
-            power = sum(max(t, 0.0) ** 1.5 for t in thrusts) / (math.sqrt(2 * 1.225 * 0.07) * 0.6)
-            self.battery = battery_step(self.battery, power, t_s - self._last_batt_t)
-        self._last_batt_t = t_s
-
     def snapshot(self, now_wall: float) -> VehicleSnapshot:
-        fc = self.fc
-        mo = fc.mode_out
-        s = fc.last_sensors
-        st = fc.last_status
-        modes = getattr(fc, "modes", None)
-        armed = bool(modes.armed) if modes is not None else False
-        sensors_ok = s is not None and now_wall - fc.last_bundle_wall < fc.sensor_timeout_s
-        prearm_ok = bool(modes.prearm_check().ok) if modes is not None else False
+        v = self._state()
+        s = v.sensors
+        st = v.status
         if st is not None and now_wall - self._eig_t > self.EIG_MARGIN_PERIOD_S:
             self._eig_t = now_wall
-            self._eig_margin = eig_margin_lower_bound(fc.vehicle, st.q_est_rad, float(fc.registry["INDI_K_MIN"]),
-                                                      float(fc.registry["INDI_K_MAX"]), fc.lambda_crit)
+            reg = self._registry
+            self._eig_margin = eig_margin_lower_bound(self._vehicle, st.q_est_rad, float(reg["INDI_K_MIN"]),
+                                                      float(reg["INDI_K_MAX"]), v.lambda_crit)
         zero3 = (0.0, 0.0, 0.0)
+        ok = v.sensors_ok
         return VehicleSnapshot(
-            armed=armed,
-            base_mode=mo.base_mode if mo else (modes.base_mode if modes else 1),
-            custom_mode=mo.custom_mode if mo else (modes.custom_mode if modes else 0),
-            system_status=modes.system_status if modes is not None else 3,  # now, with faults since the step
-            landed_state=mo.landed_state if mo else 0,
+            armed=v.armed,
+            base_mode=v.base_mode,
+            custom_mode=v.custom_mode,
+            system_status=v.system_status,
+            landed_state=v.landed_state,
             pos_ned=s.pos_ned if s else zero3,
             vel_ned=s.vel_ned if s else zero3,
             quat_wxyz=s.quat_wxyz if s else (1.0, 0.0, 0.0, 0.0),
             rates_frd=s.gyro_frd if s else zero3,
-            home_ned=mo.home_ned if mo else None,
-            home_yaw_rad=mo.home_yaw_rad if mo else 0.0,
-            battery=self.battery,
+            state_valid=s is not None,  # no made-up pose before the first sensor data
+            home_ned=v.home_ned,
+            home_yaw_rad=v.home_yaw_rad,
+            battery=v.battery,
             tilt_rad=s.tilt_rad if s else (0.0, 0.0),
             speed_rad_s=s.speed_rad_s if s else zero3,
             joint_pos_rad=s.joint_pos_rad if s else zero3,
-            sensors=sensor_bits(imu_ok=sensors_ok, pose_ok=sensors_ok, actuators_ok=sensors_ok,
-                                estimator_ok=st is not None, battery_ok=self.battery.remaining_pct > 10,
-                                prearm_ok=prearm_ok),
+            sensors=sensor_bits(imu_ok=ok, pose_ok=ok, actuators_ok=ok, estimator_ok=st is not None,
+                                battery_ok=v.battery.remaining_pct > 10, prearm_ok=bool(v.prearm.ok)),
             ckf_x_hat=st.adapt.x_hat if st else (math.nan,) * 4,  # type: ignore[arg-type]
             ckf_k=st.adapt.k if st else (math.nan,) * 4,  # type: ignore[arg-type]
             eig_margin=self._eig_margin,

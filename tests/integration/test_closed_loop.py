@@ -41,6 +41,9 @@ def test_log_has_the_channels_and_figures_render(paper_proposed, tmp_path: Path)
     for topic in ("/truth", "/fc/status", "/fc/setpoint", "/fc/command", "/analysis/eig"):
         assert len(r[topic].t) == 3001, topic
     assert r.metadata["run"]["controller"] == "proposed" and "INDI_K_MIN" in r.metadata["params"]
+    # The in-process loop flies the FlightStack, as navig8-fc does: the mode manager runs the script as a mission.
+    texts = [m["text"] for m in r["/fc/statustext"].msgs]
+    assert texts == ["Mission paper started (armed in the air)", "Mission paper complete: holding"], texts
     paths = plot_runs([log, log], tmp_path)
     assert len(paths) == 7 and all(p.stat().st_size > 10_000 for p in paths)
 

@@ -6,7 +6,6 @@ import bisect
 import math
 import random
 from dataclasses import fields
-from inspect import signature
 
 import pytest
 
@@ -15,7 +14,6 @@ from navig8_fc.gcs.battery import (
     _SOC_POINTS,
     BatteryConfig,
     BatteryState,
-    _battery_state,
     battery_initial,
     battery_step,
     open_circuit_voltage,
@@ -49,16 +47,6 @@ def _ref_step(state: BatteryState, power_w: float, dt_s: float, config: BatteryC
 
 def _bits(state: BatteryState) -> tuple[str, ...]:
     return tuple(float(getattr(state, f.name)).hex() for f in fields(BatteryState))
-
-
-def test_fast_state_constructor_matches_the_dataclass() -> None:
-    assert list(signature(_battery_state).parameters) == [f.name for f in fields(BatteryState)]
-    assert not hasattr(BatteryState, "__post_init__")
-    fast, ref = _battery_state(0.5, 22.0, 60.0, 100.0, 5e4), BatteryState(0.5, 22.0, 60.0, 100.0, 5e4)
-    assert type(fast) is BatteryState and fast == ref and repr(fast) == repr(ref)
-    assert list(vars(fast).items()) == list(vars(ref).items()) and fast.remaining_pct == 50
-    with pytest.raises(AttributeError):
-        fast.soc = 0.0  # type: ignore[misc]
 
 
 @pytest.mark.parametrize("soc", [-1.0, -0.0, 0.0, 0.01, 0.05, 0.1, 0.33, 0.5, 0.95, 0.999, 1.0, 1.5, math.nan])

@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from navig8_fc.gcs.commands import ARM_FORCE_MAGIC, MAV_CMD_NAVIG8_ARM_JOINTS, CommandHandler, VehicleCommands
+from navig8_fc.gcs.commands import ARM_FORCE_MAGIC, MAV_CMD_NAVIG8_ARM_JOINTS, CommandHandler, CommandTarget
 from navig8_fc.modes import FlightMode, ModeInputs, ModeManager
 
 M = mavlink2
@@ -122,7 +122,7 @@ def texts(out: list[Any]) -> str:
 
 
 def test_fake_vehicle_satisfies_protocol() -> None:
-    v: VehicleCommands = FakeVehicle()  # type-checks structurally
+    v: CommandTarget = FakeVehicle()  # type-checks structurally
     assert callable(v.arm)
 
 

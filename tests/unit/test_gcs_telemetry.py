@@ -129,6 +129,16 @@ def test_every_supported_message_packs(mavs) -> None:
     assert tb.build(9999, snap, 0) == []
 
 
+def test_no_state_streams_before_the_first_sensor_data(mavs) -> None:
+    tb = TelemetryBuilder(mavs[0], 1, 1)
+    state_ids = {M.MAVLINK_MSG_ID_ATTITUDE, M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION, M.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
+                 M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_VFR_HUD}
+    snap = snapshot(state_valid=False)
+    for msg_id in sorted(tb.supported_ids):
+        got = tb.build(msg_id, snap, 0)
+        assert (got == []) == (msg_id in state_ids), msg_id
+
+
 def test_messages_pack_with_hostile_values(mavs) -> None:
     tb = TelemetryBuilder(mavs[0], 1, 1)
     nan = math.nan

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import ast
 import math
-from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
@@ -359,41 +357,6 @@ def test_nan_state_never_becomes_a_setpoint() -> None:
     out = mm.step(ModeInputs(t, (math.nan, 0.0, -2.0), (0.0, 0.0, 0.0), math.nan, 1.0))
     assert all(math.isfinite(v) for v in (*out.setpoint.pos_ned, out.setpoint.yaw_rad))
     assert out.system_status == MavState.CRITICAL
-
-
-def test_modes_package_is_pure() -> None:
-    root = Path(__file__).resolve().parents[2] / "navig8_fc" / "modes"
-    forbidden = {"socket", "time", "pymavlink", "threading", "asyncio", "select", "datetime", "random"}
-    for path in root.glob("*.py"):
-        tree = ast.parse(path.read_text())
-        for node in ast.walk(tree):
-            names = []
-            if isinstance(node, ast.Import):
-                names = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.module:
-                names = [node.module]
-            assert not {n.split(".")[0] for n in names} & forbidden, f"{path.name} imports {names}"
-            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name):
-                assert node.func.id not in {"print", "open"}, f"{path.name} calls {node.func.id}"
-
-
-# --- the per-step fast paths (same results as the plain constructions they replace) -------------------------
-def test_mode_output_fast_constructor_matches_the_dataclass() -> None:
-    from dataclasses import fields
-    from inspect import signature
-
-    from navig8_fc.modes.manager import ModeOutput, _mode_output
-
-    names = [f.name for f in fields(ModeOutput)]
-    assert list(signature(_mode_output).parameters) == names  # a new ModeOutput field must be added there too
-    assert not hasattr(ModeOutput, "__post_init__")
-    args = (1.5, True, True, Setpoint((1.0, 2.0, -3.0), 0.1, 0.2), FlightMode.MISSION, FlightMode.MISSION.custom_mode,
-            129, 2, 4, False, (0.0, 0.0, 0.0), 0.3, 1.5, ("Armed",))  # fmt: skip
-    fast, ref = _mode_output(*args), ModeOutput(*args)
-    assert type(fast) is ModeOutput and fast == ref and repr(fast) == repr(ref) and hash(fast) == hash(ref)
-    assert list(vars(fast).items()) == list(vars(ref).items())  # same fields, same order
-    with pytest.raises(AttributeError):  # still frozen
-        fast.armed = False  # type: ignore[misc]
 
 
 def test_outputs_carry_plain_ints_in_every_mode() -> None:

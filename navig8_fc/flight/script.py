@@ -1,0 +1,131 @@
+"""The flight controller's part of a scenario (params/scenarios/*.yaml): the setpoint script.
+
+A scenario file describes a world (initial state, object events, the arm's schedule: `sim_bridge.scenario`) and
+what the flight controller flies in it: the keys `name`, `duration_s`, `armed` (the vehicle starts armed in the
+air, running the script as AUTO.MISSION) and `setpoints` (Eq. 25 in NED: an initial setpoint and steps). This
+module is the one parser of those keys and the one reader of the YAML files; `sim_bridge.scenario` builds on it
+(the allowed direction: the FC never imports the bridge).
+
+Units: positions NED (m); the file's `*_deg` channels become radians here. A setpoint key left out of
+`setpoints.initial` defaults to the scenario's initial pose (`initial.pos_ned_m`, the yaw of `initial.euler_deg`),
+so a file that does not script anything holds where the vehicle starts.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from importlib.resources import files
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.modes.manager import MissionScript
+
+Vec3 = tuple[float, float, float]
+
+SETPOINT_CHANNELS = ("x_ned_m", "y_ned_m", "z_ned_m", "pitch_deg", "yaw_deg")
+
+
+@dataclass(frozen=True)
+class FlightScript:
+    """What the flight controller flies in a scenario: the setpoint at each time, armed in the air or not."""
+
+    name: str
+    duration_s: float
+    starts_armed_in_air: bool
+    setpoint0: Setpoint
+    steps: tuple[tuple[float, str, float], ...]  # (t_s, channel, value in SI units), sorted by time
+
+    @property
+    def scripted(self) -> bool:
+        """A script to fly (steps, or an air start holding its initial setpoint) rather than a GCS-driven run."""
+        return bool(self.steps) or self.starts_armed_in_air
+
+    def setpoint_at(self, t_s: float) -> Setpoint:
+        """The setpoint in force at script time t_s (each step holds from its time on: u(t - t_k), Eq. 25)."""
+        sp0 = self.setpoint0
+        x, y, z = sp0.pos_ned
+        pitch, yaw = sp0.pitch_rad, sp0.yaw_rad
+        for t, ch, v in self.steps:
+            if t > t_s:
+                break
+            if ch == "x_ned_m":
+                x = v
+            elif ch == "y_ned_m":
+                y = v
+            elif ch == "z_ned_m":
+                z = v
+            elif ch == "pitch_deg":
+                pitch = v
+            else:
+                yaw = v
+        return Setpoint((x, y, z), pitch, yaw)
+
+    def mission(self) -> MissionScript | None:
+        """The script as the mode manager's AUTO.MISSION, or None when there is nothing to fly."""
+        if not self.scripted:
+            return None
+        return MissionScript(self.name, self.setpoint_at, starts_armed_in_air=self.starts_armed_in_air,
+                             duration_s=self.duration_s)
+
+
+def vec3(v: Any, deg: bool = False) -> Vec3:
+    """Three numbers from a YAML list (degrees to radians with deg=True)."""
+    if len(v) != 3:
+        raise ValueError(f"expected 3 values, got {v!r}")
+    f = math.radians if deg else float
+    return (f(float(v[0])), f(float(v[1])), f(float(v[2])))
+
+
+def parse_flight_script(d: dict[str, Any]) -> FlightScript:
+    """The FC's keys of a scenario dict (module docstring)."""
+    ini = d.get("initial", {})
+    sp = d.get("setpoints", {})
+    sp0 = sp.get("initial", {})
+    initial_yaw_deg = math.degrees(vec3(ini.get("euler_deg", [0.0, 0.0, 0.0]), deg=True)[2])
+    setpoint0 = Setpoint(
+        pos_ned=vec3(sp0.get("pos_ned_m", ini.get("pos_ned_m", [0.0, 0.0, 0.0]))),
+        pitch_rad=math.radians(float(sp0.get("pitch_deg", 0.0))),
+        yaw_rad=math.radians(float(sp0.get("yaw_deg", initial_yaw_deg))),
+    )
+    steps: list[tuple[float, str, float]] = []
+    for st in sp.get("steps", []):
+        t = float(st["t_s"])
+        for ch in SETPOINT_CHANNELS:
+            if ch in st:
+                v = float(st[ch])
+                # internal units: radians; the channel keeps its YAML name for traceability
+                steps.append((t, ch, math.radians(v) if ch.endswith("_deg") else v))
+        unknown = set(st) - set(SETPOINT_CHANNELS) - {"t_s", "note"}
+        if unknown:
+            raise ValueError(f"unknown setpoint channels {sorted(unknown)}")
+    steps.sort(key=lambda s: s[0])
+    return FlightScript(
+        name=str(d["name"]),
+        duration_s=float(d["duration_s"]),
+        starts_armed_in_air=bool(d.get("armed", True)),
+        setpoint0=setpoint0,
+        steps=tuple(steps),
+    )
+
+
+def read_scenario_file(name_or_path: str | Path) -> dict[str, Any]:
+    """A scenario's YAML as a dict: by name (params/scenarios/<name>.yaml, package navig8_params.scenarios) or
+    by path (a .yaml/.yml suffix or a directory part)."""
+    p = Path(name_or_path)
+    if isinstance(name_or_path, Path) or p.suffix in (".yaml", ".yml") or len(p.parts) > 1:
+        text = p.read_text()
+    else:
+        res = files("navig8_params.scenarios") / f"{name_or_path}.yaml"
+        if not res.is_file():
+            raise FileNotFoundError(f"no scenario named {name_or_path!r} in params/scenarios/")
+        text = res.read_text()
+    return yaml.safe_load(text)
+
+
+def load_flight_script(name_or_path: str | Path) -> FlightScript:
+    """The setpoint script of a scenario file (by name or path, as `read_scenario_file`)."""
+    return parse_flight_script(read_scenario_file(name_or_path))

@@ -1,0 +1,317 @@
+"""FlightStack: the flight controller as one pure object (mode manager + failsafe decisions + controller core).
+
+`step(sensors, imu_fresh, time_us) -> StepResult` runs one control tick on the sensor bundle's time; the
+`VehicleCommands` methods (arm, takeoff, land, set_mode, gripper, arm joints) answer a ground station between
+steps; `check_links(sensor_age_s, gcs_heartbeat_age_s)` takes the link ages the shell measures on its own clock
+and decides the failsafes; `state()` publishes a frozen `VehicleState`. navig8-fc (lockstep SITL), navig8-sim
+(in-process) and the tests drive this same object, so they fly the same code path. No sockets, clocks, prints
+or pymavlink here: the caller sends, logs and keeps time.
+
+Failsafes and faults (STATUSTEXT texts are part of the interface: docs/gcs.md):
+- sensor data stale: no bundle for FS_SENS_TOUT (the shell's wall clock: lockstep has no sim time without
+  bundles) -> CRITICAL notice once per outage, pre-arm fails, an armed vehicle reports MAV_STATE_CRITICAL;
+  cleared (INFO notice) when bundles arrive again. The vehicle cannot be commanded without bundles;
+- GCS link lost: a ground station that sent heartbeats goes silent for FS_GCS_TOUT while the vehicle is armed
+  in the air in a GCS-commanded mode (not a scripted mission) -> land (PX4's data-link-loss failsafe); a GCS
+  that never sent a heartbeat is never lost;
+- control-rate mismatch: RATE_MISMATCH_STEPS bundle spacings in a row that are not 1/INDI_RATE_HZ -> ERROR
+  notice once, pre-arm fails until the spacings agree again (the filters, rate limits and the stability
+  analysis all assume 1/INDI_RATE_HZ).
+Parameter changes in the registry apply at the next step: gains and bounds swap in place; a change of rate,
+filter or estimator settings rebuilds the core (its filters depend on them).
+"""
+
+from __future__ import annotations
+
+import math
+
+from navig8_fc.core import stability
+from navig8_fc.core.controller import (
+    MOTORS_OFF,
+    ActuatorCommand,
+    ControllerConfig,
+    ControllerStatus,
+    FcSensors,
+    FlightControllerCore,
+)
+from navig8_fc.core.rotation import quat_to_euler
+from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.flight.script import FlightScript
+from navig8_fc.flight.state import (
+    SEVERITY_CRITICAL,
+    SEVERITY_ERROR,
+    SEVERITY_INFO,
+    SEVERITY_WARNING,
+    ArmRequest,
+    GripperAction,
+    Notice,
+    StepResult,
+    VehicleState,
+)
+from navig8_fc.gcs.battery import BatteryState, battery_initial, battery_step
+from navig8_fc.modes.manager import ModeConfig, ModeInputs, ModeManager, ModeOutput, Verdict
+from navig8_fc.modes.px4 import FlightMode
+from navig8_fc.params.registry import ParamRegistry
+
+ESTIMATOR_WARMUP_S = 0.5  # 5 time constants of the INDI feedback filter before arming is allowed
+RATE_MISMATCH_STEPS = 3  # consecutive bundle spacings != 1/INDI_RATE_HZ before it is reported (not a glitch)
+FAULT_SENSORS = "sensors"  # ModeManager fault names
+FAULT_RATE = "rate"
+# Induced power of one rotor, P = T^1.5 / sqrt(2 rho A) / FM (momentum theory with a figure of merit; sea-level
+# air, the duct's disk area): a simple load model for the simulated battery (docs/gcs.md, hover ~0.6 kW at 8 kg).
+AIR_DENSITY_KG_M3 = 1.225
+ROTOR_DISK_AREA_M2 = 0.07
+FIGURE_OF_MERIT = 0.6
+BATTERY_PERIOD_S = 0.1  # the pack model's update period (BATTERY_STATUS streams at 1 Hz)
+_POWER_DIVISOR = math.sqrt(2 * AIR_DENSITY_KG_M3 * ROTOR_DISK_AREA_M2) * FIGURE_OF_MERIT
+
+
+def rotor_thrusts_n(vehicle: VehicleConfig, speed_rad_s: tuple[float, float, float]) -> tuple[float, float, float]:
+    """Thrust of duct 1, the tail rotor and duct 3 (N) from the propeller speeds: T = k w^2, the tail's sign
+    following its direction of spin (U5 = sign(w2) w2^2, Sec. 3)."""
+    w1, w2, w3 = speed_rad_s
+    kd = vehicle.k_thrust_duct
+    return kd * w1 * w1, vehicle.k_thrust_tail * w2 * abs(w2), kd * w3 * w3
+
+
+class FlightStack:
+    """Mode manager + failsafes + controller core (module docstring). One owner calls everything."""
+
+    def __init__(self, vehicle: VehicleConfig, registry: ParamRegistry, script: FlightScript | None = None,
+                 mode_config: ModeConfig | None = None, sensor_source: str = "navig8-bridge") -> None:
+        self.vehicle = vehicle
+        self.registry = registry
+        self.script = script
+        self._sensor_source = sensor_source  # named in the sensor-stale notices
+        self._core: FlightControllerCore | None = None
+        self._cfg_generation = -1
+        self.lambda_crit = math.nan
+        self.reconfigure()
+        self._modes = ModeManager(mode_config or ModeConfig(), script.mission() if script is not None else None)
+        self._weight_n = vehicle.uam_mass_kg * vehicle.gravity_m_s2
+        self._n_steps = 0
+        self._last_time_us: int | None = None
+        self._dt_bad_n = 0  # consecutive bundle spacings that disagree with 1/INDI_RATE_HZ
+        self._sensors: FcSensors | None = None
+        self._status: ControllerStatus | None = None
+        self._command: ActuatorCommand = MOTORS_OFF
+        self._mode_out: ModeOutput | None = None
+        self._battery: BatteryState = battery_initial()
+        self._battery_t_s: float | None = None  # sim time the pack model has advanced to
+        self._battery_step_t_s: float | None = None  # the last step's sim time
+        self._battery_energy_j = 0.0  # drawn since _battery_t_s
+        self._arm_request: ArmRequest | None = None
+        self._notices: list[Notice] = []  # decided in the step before the mode manager runs (the rate check)
+        self._sensors_stale = False
+        self._stale_age_s = 0.0  # the longest sensor age seen in the current outage
+        self._gcs_lost = False
+
+    # --- configuration ---------------------------------------------------------------------------------
+    @property
+    def core(self) -> FlightControllerCore:
+        assert self._core is not None
+        return self._core
+
+    def reconfigure(self) -> bool:
+        """Apply the registry's parameters if they changed since the last call (each step calls it); True when
+        something was applied."""
+        reg = self.registry
+        if reg.generation == self._cfg_generation:
+            return False
+        cfg = ControllerConfig.from_params(reg.as_dict(), self.vehicle)
+        core = self._core
+        if core is None or cfg.indi != core.config.indi or cfg.ckf != core.config.ckf:
+            self._core = FlightControllerCore(self.vehicle, cfg)
+        else:
+            core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
+        self._cfg_generation = reg.generation
+        step_us = 1e6 / float(reg["INDI_RATE_HZ"])  # the bundle spacing this rate needs
+        self._dt_lo_us, self._dt_hi_us = math.floor(step_us), math.ceil(step_us)
+        self.lambda_crit = stability.lambda_crit(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), cfg.dt_s,
+                                                 float(reg["INDI_LPF_TAU"]))
+        return True
+
+    # --- the control step ------------------------------------------------------------------------------
+    def step(self, sensors: FcSensors, imu_fresh: bool = True, time_us: int | None = None) -> StepResult:
+        """One control tick on `sensors` (sim time). imu_fresh: this step's IMU sample is new (the pre-arm
+        sensor check); time_us: the bundle's integer time stamp, for the spacing check (default: from t_s)."""
+        self.reconfigure()
+        t_us = round(sensors.t_s * 1e6) if time_us is None else int(time_us)
+        prev_us = self._last_time_us
+        self._last_time_us = t_us
+        if prev_us is not None and not self._dt_lo_us <= t_us - prev_us <= self._dt_hi_us:
+            self._spacing_off(t_us - prev_us)  # rare: the bridge's --dt disagrees with INDI_RATE_HZ
+        elif self._dt_bad_n:
+            self._spacing_ok()
+        core = self._core
+        assert core is not None
+        modes = self._modes
+        t1, t2, t3 = rotor_thrusts_n(self.vehicle, sensors.speed_rad_s)
+        was_armed = modes.armed
+        out = modes.step(ModeInputs(sensors.t_s, sensors.pos_ned, sensors.vel_ned, quat_to_euler(sensors.quat_wxyz)[2],
+                                    (t1 + t2 + t3) / self._weight_n, imu_fresh,
+                                    self._n_steps * core.config.dt_s >= ESTIMATOR_WARMUP_S))
+        if out.armed and not was_armed:
+            core.reset()  # the estimator's start delay counts from arming
+        cmd, st = core.step(sensors, out.setpoint, engaged=out.engaged)
+        self._discharge(sensors.t_s, t1, t2, t3)
+        self._sensors, self._status, self._command, self._mode_out = sensors, st, cmd, out
+        self._n_steps += 1
+        notices = self._notices
+        if out.events:
+            notices += [Notice(SEVERITY_INFO, ev) for ev in out.events]
+        if notices:
+            self._notices = []
+        req, self._arm_request = self._arm_request, None
+        return StepResult(cmd, st, out.setpoint, out.armed, out.engaged, tuple(notices), req)
+
+    def _discharge(self, t_s: float, t1: float, t2: float, t3: float) -> None:
+        """The simulated battery on sim time, loaded with the rotors' induced power (module constants). The
+        energy is summed every step and the pack model advances every BATTERY_PERIOD_S with the mean power
+        (its state moves by ~1e-5 of charge per period; a step each tick cost ~1.5 us, 3 % of the stack's)."""
+        last = self._battery_step_t_s
+        self._battery_step_t_s = t_s
+        if last is None:
+            self._battery_t_s = t_s
+            return
+        if t_s > last:
+            self._battery_energy_j += (abs(t1) ** 1.5 + abs(t2) ** 1.5 + abs(t3) ** 1.5) / _POWER_DIVISOR * (t_s - last)
+            if t_s - self._battery_t_s >= BATTERY_PERIOD_S:
+                self._battery_flush()
+
+    def _battery_flush(self) -> None:
+        t0, t1 = self._battery_t_s, self._battery_step_t_s
+        if t0 is None or t1 is None or t1 <= t0:
+            return
+        self._battery = battery_step(self._battery, self._battery_energy_j / (t1 - t0), t1 - t0)
+        self._battery_t_s, self._battery_energy_j = t1, 0.0
+
+    def _spacing_off(self, d_us: int) -> None:
+        if d_us <= 0:  # time went back: a restarted bridge (a new run, not a spacing)
+            self._dt_bad_n = 0
+            return
+        self._dt_bad_n += 1
+        if self._dt_bad_n != RATE_MISMATCH_STEPS:
+            return
+        rate = int(self.registry["INDI_RATE_HZ"])
+        bridge_ms, need_ms = d_us * 1e-3, 1e3 / rate
+        fix = f"{self._sensor_source} --dt {1.0 / rate:g}"
+        if 1_000_000 % d_us == 0 and 20 <= 1_000_000 // d_us <= 1000:
+            fix += f" or restore INDI_RATE_HZ {1_000_000 // d_us}"
+        text = (f"Control rate mismatch: {self._sensor_source} steps {bridge_ms:g} ms, INDI_RATE_HZ {rate} needs "
+                f"{need_ms:g} ms; fix: {fix}")
+        self._modes.set_fault(FAULT_RATE, f"control rate mismatch (bridge {bridge_ms:g} ms, INDI_RATE_HZ {rate}"
+                                          f" needs {need_ms:g} ms)")
+        self._notices.append(Notice(SEVERITY_ERROR, text, text))
+
+    def _spacing_ok(self) -> None:
+        if self._dt_bad_n >= RATE_MISMATCH_STEPS and self._modes.clear_fault(FAULT_RATE):
+            text = (f"Control rate matches {self._sensor_source} again "
+                    f"({1e3 / float(self.registry['INDI_RATE_HZ']):g} ms)")
+            self._notices.append(Notice(SEVERITY_INFO, text, text))
+        self._dt_bad_n = 0
+
+    # --- failsafe inputs -------------------------------------------------------------------------------
+    def check_links(self, sensor_age_s: float | None, gcs_heartbeat_age_s: float | None) -> tuple[Notice, ...]:
+        """The failsafes (module docstring) from link ages measured on the caller's clock: the time since the
+        last sensor bundle (None before the first) and since the last GCS heartbeat (None: no GCS ever sent
+        one). Returns the notices to announce now; call it often (every loop of the shell)."""
+        notices: list[Notice] = []
+        if sensor_age_s is not None:
+            tout = float(self.registry["FS_SENS_TOUT"])
+            if sensor_age_s > tout:
+                self._stale_age_s = max(self._stale_age_s, sensor_age_s)
+                if not self._sensors_stale:
+                    self._sensors_stale = True
+                    text = f"no sensor data from {self._sensor_source} for {tout:.1f} s"
+                    self._modes.set_fault(FAULT_SENSORS, f"sensors stale: {text}")
+                    t_s = self._sensors.t_s if self._sensors is not None else 0.0
+                    notices.append(Notice(SEVERITY_CRITICAL, text.capitalize(),
+                                          f"{text} (last step t = {t_s:.3f} s); waiting"))
+            elif self._sensors_stale:
+                self._sensors_stale = False
+                self._modes.clear_fault(FAULT_SENSORS)
+                text = f"sensor data from {self._sensor_source} back after {self._stale_age_s:.1f} s"
+                self._stale_age_s = 0.0
+                notices.append(Notice(SEVERITY_INFO, text.capitalize(), text))
+        if gcs_heartbeat_age_s is not None:
+            if gcs_heartbeat_age_s > float(self.registry["FS_GCS_TOUT"]):
+                if not self._gcs_lost:
+                    self._gcs_lost = True
+                    m = self._modes
+                    if m.armed and m.flight_mode is not FlightMode.MISSION and not m.landed:
+                        m.land()
+                        notices.append(Notice(SEVERITY_WARNING, "GCS link lost: landing"))
+                    else:
+                        notices.append(Notice(SEVERITY_WARNING, None, "GCS link lost"))
+            elif self._gcs_lost:
+                self._gcs_lost = False
+                notices.append(Notice(SEVERITY_INFO, None, "GCS link regained"))
+        return tuple(notices)
+
+    # --- VehicleCommands -------------------------------------------------------------------------------
+    def arm(self, force: bool = False) -> Verdict:
+        return self._modes.arm(force)
+
+    def disarm(self, force: bool = False) -> Verdict:
+        return self._modes.disarm(force)
+
+    def takeoff(self, alt_m: float = math.nan) -> Verdict:
+        return self._modes.takeoff(alt_m)
+
+    def land(self) -> Verdict:
+        return self._modes.land()
+
+    def set_mode(self, base_mode: int, custom_mode: int) -> Verdict:
+        return self._modes.set_custom_mode(int(custom_mode))
+
+    def gripper(self, action: GripperAction) -> Verdict:
+        self._queue(ArmRequest(gripper=action))
+        return Verdict(True)
+
+    def arm_joints(self, q_rad: tuple[float, float, float]) -> Verdict:
+        if not all(math.isfinite(q) for q in q_rad):
+            return Verdict(False, "arm joints: targets must be finite")
+        lim = self.vehicle.joint_limit_rad
+        if any(abs(q) > lim for q in q_rad):
+            return Verdict(False, f"arm joints: targets beyond +-{math.degrees(lim):.0f} deg")
+        self._queue(ArmRequest(joint_target_rad=(float(q_rad[0]), float(q_rad[1]), float(q_rad[2]))))
+        return Verdict(True)
+
+    def _queue(self, req: ArmRequest) -> None:
+        p = self._arm_request
+        if p is not None:  # merge: keep both a joint target and a gripper action queued before the next step
+            req = ArmRequest(req.joint_target_rad or p.joint_target_rad, req.gripper or p.gripper)
+        self._arm_request = req
+
+    # --- published state -------------------------------------------------------------------------------
+    def state(self) -> VehicleState:
+        self._battery_flush()  # the pack up to the last step
+        m = self._modes
+        mo = self._mode_out
+        faults = m.faults
+        return VehicleState(
+            armed=m.armed,
+            base_mode=mo.base_mode if mo is not None else m.base_mode,
+            custom_mode=mo.custom_mode if mo is not None else m.custom_mode,
+            flight_mode=mo.flight_mode if mo is not None else m.flight_mode,
+            system_status=m.system_status,
+            landed_state=mo.landed_state if mo is not None else 0,
+            landed=m.landed,
+            home_ned=mo.home_ned if mo is not None else None,
+            home_yaw_rad=mo.home_yaw_rad if mo is not None else 0.0,
+            mission_time_s=mo.mission_time_s if mo is not None else None,
+            sensors=self._sensors,
+            sensors_ok=self._sensors is not None and not self._sensors_stale,
+            status=self._status,
+            command=self._command,
+            setpoint=mo.setpoint if mo is not None else None,
+            engaged=mo.engaged if mo is not None else False,
+            faults=tuple(faults.items()),
+            prearm=m.prearm_check(),
+            battery=self._battery,
+            gcs_lost=self._gcs_lost,
+            pending_arm_request=self._arm_request,
+            lambda_crit=self.lambda_crit,
+            n_steps=self._n_steps,
+        )

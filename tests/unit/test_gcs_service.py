@@ -1,0 +1,154 @@
+"""GcsService at its seams: it sees the vehicle only through `VehicleState` (a callable) and `VehicleCommands`, and
+sends only through an `Outbox` (broadcast / reply to the sender). Here the outbox is a recording fake (the
+process implements it over its links), the vehicle is a real FlightStack fed synthetic sensors, or a replaced
+VehicleState; messages cross a pymavlink encode/decode as on the wire."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from io import BytesIO
+from typing import Any
+
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from navig8_fc.core import vehicle as vm
+from navig8_fc.core.controller import FcSensors
+from navig8_fc.flight import FlightStack, VehicleState
+from navig8_fc.modes import FlightMode
+from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.shell.gcs_service import GcsService
+
+M = mavlink2
+API = ("api", ("127.0.0.1", 14540))
+GCS = ("gcs", ("127.0.0.1", 14550))
+
+
+class Outbox:
+    def __init__(self, mav: Any) -> None:
+        self.sent: list[tuple[Any, Any]] = []  # (source or "all", decoded message)
+        self._mav = mav
+        self._rx = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
+
+    def _wire(self, m: Any) -> Any:
+        return self._rx.decode(bytearray(m.pack(self._mav)))
+
+    def broadcast(self, msgs: list[Any]) -> None:
+        self.sent += [("all", self._wire(m)) for m in msgs]
+
+    def reply(self, source: Any, msgs: list[Any]) -> None:
+        self.sent += [(source, self._wire(m)) for m in msgs]
+
+    def pop(self, kind: str) -> list[tuple[Any, Any]]:
+        got = [(d, m) for d, m in self.sent if m.get_type() == kind]
+        self.sent = [(d, m) for d, m in self.sent if m.get_type() != kind]
+        return got
+
+
+def _sensors(t_us: int, z: float, w: float) -> FcSensors:
+    return FcSensors(t_s=t_us * 1e-6, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -9.81), pos_ned=(0.0, 0.0, z),
+                     vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0), tilt_rad=(0.0, 0.0),
+                     speed_rad_s=(w, 0.0, w), joint_pos_rad=(0.0, 0.0, 0.0), joint_rate_rad_s=(0.0, 0.0, 0.0))
+
+
+class Rig:
+    def __init__(self, state_override: dict[str, Any] | None = None) -> None:
+        self.vehicle = vm.VehicleConfig.load()
+        self.registry = ParamRegistry.from_defaults()
+        self.stack = FlightStack(self.vehicle, self.registry)
+        self.mav = M.MAVLink(BytesIO(), srcSystem=1, srcComponent=1)
+        self.outbox = Outbox(self.mav)
+
+        def state() -> VehicleState:
+            s = self.stack.state()
+            return replace(s, **state_override) if state_override else s
+
+        self.gcs = GcsService(self.mav, 1, state, self.stack, self.outbox, self.registry, self.vehicle)
+        self.client = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
+        self.t_us = 0
+        self.z, self.w = 0.0, 0.0
+
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            for notice in self.stack.step(_sensors(self.t_us, self.z, self.w), True, self.t_us).notices:
+                if notice.statustext:
+                    self.gcs.statustext(notice.statustext, notice.severity)
+            self.t_us += 10_000
+
+    def send(self, msg: Any, source: Any, now: float = 0.0) -> list[Any]:
+        decoded = self.mav.decode(bytearray(msg.pack(self.client)))
+        return self.gcs.handle([(decoded, source)], now)
+
+    def command(self, source: Any, command: int, *p: float) -> Any:
+        params = list(p) + [0.0] * (7 - len(p))
+        self.send(self.client.command_long_encode(1, 1, command, 0, *params), source)
+        ((dest, ack),) = self.outbox.pop("COMMAND_ACK")
+        assert ack.command == command and dest == source, (dest, source)
+        return ack
+
+
+def test_commands_reach_the_vehicle_and_acks_go_to_the_sender_only() -> None:
+    rig = Rig()
+    rig.step(60)
+    assert rig.command(API, M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+    assert rig.stack.state().armed
+    # Refused: ACK to the sender, the reason to everyone.
+    assert rig.command(GCS, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, 0, 0, 99.0).result == M.MAV_RESULT_DENIED
+    ((dest, text),) = rig.outbox.pop("STATUSTEXT")
+    assert dest == "all" and text.text.startswith("Takeoff denied: altitude 99")
+    # Gripper and arm joints become the stack's arm request for the bridge.
+    assert rig.command(API, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_GRAB).result == M.MAV_RESULT_ACCEPTED
+    assert rig.stack.state().pending_arm_request.gripper == "grab"
+
+
+def test_parameter_reads_are_replies_and_sets_are_announced_and_returned_for_the_log() -> None:
+    rig = Rig()
+    assert rig.send(rig.client.param_request_read_encode(1, 1, b"OL_POS_K", -1), API) == []
+    ((dest, pv),) = rig.outbox.pop("PARAM_VALUE")
+    assert dest == API and pv.param_id == "OL_POS_K"
+    changes = rig.send(rig.client.param_set_encode(1, 1, b"OL_POS_K", 1.25, M.MAV_PARAM_TYPE_REAL32), API)
+    assert [(c.name, c.accepted) for c in changes] == [("OL_POS_K", True)]
+    ((dest, pv),) = rig.outbox.pop("PARAM_VALUE")
+    assert dest == "all" and pv.param_value == pytest.approx(1.25)
+
+
+def test_only_ground_station_heartbeats_count_for_the_gcs_link() -> None:
+    rig = Rig()
+    assert rig.gcs.last_gcs_heartbeat is None
+    rig.send(rig.client.heartbeat_encode(M.MAV_TYPE_ONBOARD_CONTROLLER, M.MAV_AUTOPILOT_INVALID, 0, 0, 0), API, 1.0)
+    assert rig.gcs.last_gcs_heartbeat is None
+    rig.send(rig.client.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0), GCS, 2.0)
+    assert rig.gcs.last_gcs_heartbeat == 2.0
+
+
+def test_telemetry_shows_the_published_state() -> None:
+    rig = Rig({"sensors_ok": False, "armed": True, "base_mode": int(M.MAV_MODE_FLAG_SAFETY_ARMED
+                                                                     | M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED)})
+    rig.step(60)
+    rig.gcs.poll(10.0)
+    (_, hb), = rig.outbox.pop("HEARTBEAT")
+    assert hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
+    (_, ss), = rig.outbox.pop("SYS_STATUS")
+    gyro = M.MAV_SYS_STATUS_SENSOR_3D_GYRO
+    assert ss.onboard_control_sensors_present & gyro and not ss.onboard_control_sensors_health & gyro
+
+
+def test_gcs_silence_lands_through_the_stack_failsafe_input() -> None:
+    """The shell's loop, reduced to its decisions: GcsService records the heartbeat time, the shell passes the
+    age to the stack, the stack lands a vehicle holding after a GCS takeoff."""
+    rig = Rig()
+    rig.step(60)
+    rig.send(rig.client.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0), GCS, 0.0)
+    assert rig.command(GCS, M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+    assert rig.command(GCS, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, 0, 0, 2.0).result == M.MAV_RESULT_ACCEPTED
+    hover_w = math.sqrt(rig.vehicle.uam_mass_kg * rig.vehicle.gravity_m_s2 / (2 * rig.vehicle.k_thrust_duct))
+    rig.z, rig.w = -2.0, hover_w  # the vehicle climbed (the plant is not the point here)
+    rig.step(250)
+    assert rig.stack.state().flight_mode is FlightMode.HOLD
+    tout = float(rig.registry["FS_GCS_TOUT"])
+    last = rig.gcs.last_gcs_heartbeat
+    assert last is not None
+    assert rig.stack.check_links(0.0, (last + tout + 0.5) - last)[0].statustext == "GCS link lost: landing"
+    rig.step(1)
+    assert rig.stack.state().flight_mode is FlightMode.LAND
