@@ -122,7 +122,7 @@ def test_a_flood_of_valid_frames_for_another_system_changes_nothing(tmp_path: Pa
     # break the outer loop), thousands of them: none may touch this vehicle, and it keeps flying.
     from pymavlink.dialects.v20 import common as mavlink2
 
-    with sitl(tmp_path, scenario="hover", speed=1.0, bridge_args=["--duration", "8"]) as run:
+    with sitl(tmp_path, scenario="hover", speed=1.0, bridge_args=["--duration", "8", "--until-done"]) as run:
         gcs = gcs_client(run.gcs_port)
         try:
             hb0 = wait_heartbeat(gcs, 15.0)
@@ -155,6 +155,8 @@ def test_a_flood_of_valid_frames_for_another_system_changes_nothing(tmp_path: Pa
             pv = wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == "OL_POS_K")
             assert pv is not None and pv.param_value == pv0.param_value
             assert run.fc.poll() is None, "navig8-fc died"
+            assert run.bridge is not None
+            run.bridge.wait(timeout=60.0)  # the whole 8 s flight is flown (the bridge ends it)
         finally:
             gcs.close()
-    _assert_held_hover(run.log, min_samples=300)
+    _assert_held_hover(run.log, min_samples=700)
