@@ -25,7 +25,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import orjson
 
 from navig8_fc.core import stability
 from navig8_fc.core import vehicle as vm
@@ -40,13 +39,14 @@ from navig8_fc.core.controller import (
 )
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.core.rotation import quat_to_euler
+from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
+from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink import dialect as dialect_mod
-from navig8_fc.mavlink import seam
 from navig8_fc.modes import MissionScript, ModeConfig, ModeInputs, ModeManager, ModeOutput
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.shell.gcs_service import GcsService
-from navig8_fc.shell.mavlink_link import UdpLink
-from navig8_fc.shell.mcap_log import McapLogger, mavlink_json_schema
+from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
+from navig8_fc.shell.mcap_log import McapLogger
 
 FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
@@ -56,6 +56,8 @@ RATE_MISMATCH_STEPS = 3  # consecutive bundle spacings != 1/INDI_RATE_HZ before 
 SEVERITY_CRITICAL, SEVERITY_ERROR, SEVERITY_WARNING, SEVERITY_INFO = 2, 3, 4, 6  # MAV_SEVERITY
 FAULT_SENSORS = "sensors"  # ModeManager fault names
 FAULT_RATE = "rate"
+EXIT_USAGE = 2  # bad arguments, or a port in use
+_PORT_OPTIONS = {"sim": "--sim-port", "gcs": "--gcs-bind-port", "api": "--api-bind-port"}
 
 
 @dataclass(frozen=True)
@@ -74,6 +76,7 @@ class FcOptions:
     log_path: Path | None = None
     state_dir: Path | None = None
     defaults: bool = False
+    ports_file: Path | None = None  # written after binding: {"sim": p, "gcs": p, "api": p}
 
     @property
     def sysid(self) -> int:
@@ -93,12 +96,6 @@ def _eig_record(model: vm.UamModel, st: ControllerStatus, truth: Any, lam_min: f
     j = np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]], dtype=float)
     return vm.ghat_ginv_eig_record(model, st.q_est_rad, st.gi_hat, truth.com_frd, j, truth.mass, lam_min, lam_crit,
                                    st.gc_uam)
-
-
-def _decode_step(data: bytes) -> tuple[tuple[seam.StepBundle, dict[str, dict[str, Any]]], int] | None:
-    """UdpLink.datagram_decoder of the sim link: ((bundle, decoded fields per message), frame count)."""
-    got = seam.decode_step_datagram(data)
-    return None if got is None else ((got[0], got[2]), got[1])
 
 
 class FlightControllerProcess:
@@ -152,12 +149,18 @@ class FlightControllerProcess:
         return m
 
     def _mk_links(self) -> None:
+        """Bind the three links (PortInUseError names a busy one; port 0: any free port), write the ports file,
+        and announce the FC to the bridge (DESIGN §4: a bridge that does not know our port learns it from this)."""
         o = self.opts
-        self.sim = UdpLink.open("sim", self._mav(), (o.host, o.port("sim")), [(o.host, o.port("bridge"))])
-        self.sim.fast_decode = seam.fast_decode  # the lockstep messages skip pymavlink (anything else falls back)
-        self.sim.datagram_decoder = _decode_step  # a clean step datagram straight to a StepBundle
+        sim_codec = codec.seam_codec()  # the sim link speaks only the seam's messages, decoded by the codec
+        self.sim = UdpLink.open("sim", codec.Encoder(sim_codec, o.sysid, FC_COMPID), (o.host, o.port("sim")),
+                                [(o.host, o.port("bridge"))], codec=sim_codec)
         self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
         self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
+        if o.ports_file is not None:
+            write_ports_file(o.ports_file, {"sim": self.sim.local_port, "gcs": self.gcs.local_port,
+                                            "api": self.api.local_port})
+        self.sim.send(seam.announce_record())  # before the log hooks: nothing is set up to log it yet
         for link in (self.sim, self.gcs, self.api):
             link.on_datagram = self._log_datagram
         for link in (self.gcs, self.api):  # the sim link's messages are logged decoded as /truth, /fc/...
@@ -204,7 +207,7 @@ class FlightControllerProcess:
         for topic, item, peer, t_ns, wall_ns in q:
             if peer is not None:  # a raw datagram
                 self.logger.log_raw(topic, t_ns, item, publish_ns=wall_ns, peer=peer)
-            else:  # a decoded message
+            else:  # a decoded GCS message (pymavlink)
                 self.logger.log(topic, t_ns, item.to_dict(), publish_ns=wall_ns, schema=mavlink_json_schema(type(item)))
 
     def _sim_ns(self) -> int:
@@ -212,20 +215,18 @@ class FlightControllerProcess:
 
     # --- lockstep --------------------------------------------------------------------------------
     def _on_sim(self, received: list[Any]) -> None:
+        """The sim link's messages (codec.Message records): bundles to _on_step, the bridge's status kept."""
+        asm = self._asm
         for r in received:
             m = r.msg
-            if type(m) is tuple:  # a whole step datagram (UdpLink.datagram_decoder): (bundle, fields)
-                self._asm.clear()
-                self._on_step(m[0], m[1])
-                continue
-            if m.get_type() == "NAVIG8_SIM_STATUS":
-                self.sim_status = seam.decode_sim_status(m)
+            if m.name == "NAVIG8_SIM_STATUS":
+                self.sim_status = seam.decode_sim_status(m.fields)
                 if self.sim_status.state == seam.SIM_STATE_DONE:
                     self.sim_done = True
                 continue
-            bundle = self._asm.add(m)
+            bundle = asm.add(m)
             if bundle is not None:
-                self._on_step(bundle)
+                self._on_step(bundle, asm.completed)
 
     def _on_step(self, b: seam.StepBundle, wire: dict[str, dict[str, Any]] | None = None) -> None:
         """One lockstep step: control, answer, and queue the step's log records (written after the answer).
@@ -335,7 +336,7 @@ class FlightControllerProcess:
         if cid is None:
             assert self.logger is not None
             cid = self._sim_channels[(direction, name)] = self.logger.json_channel(
-                f"/mavlink/sim/{direction}/{name}", mavlink_json_schema(seam.wire_class(name)))
+                f"/mavlink/sim/{direction}/{name}", dialect_json_schema(name))
         return cid
 
     def _log_tick(self, t_us: int, tr: Any, st: ControllerStatus, cmd: ActuatorCommand, sp: Setpoint,
@@ -348,15 +349,15 @@ class FlightControllerProcess:
         if wire:
             for name, fields in wire.items():
                 if name != "NAVIG8_TRUTH":
-                    fields["mavpackettype"] = name
-                    self.logger.log_json_bytes(self._sim_channel("in", name), t_ns, orjson.dumps(fields), w)
+                    self.logger.log_json_bytes(self._sim_channel("in", name), t_ns, mavlink_record_json(name, fields),
+                                               w)
         if answer is not None:
-            got = seam.frame_fields(answer)
+            got = self.sim.codec.decode_frame(answer) if self.sim.codec is not None else None
             if got is not None:
-                got[1]["mavpackettype"] = got[0]
-                self.logger.log_json_bytes(self._sim_channel("out", got[0]), t_ns, orjson.dumps(got[1]), w)
+                self.logger.log_json_bytes(self._sim_channel("out", got.name), t_ns,
+                                           mavlink_record_json(got.name, got.fields), w)
         if tr is not None:
-            self.logger.log("/truth", t_ns, seam.truth_record(tr), publish_ns=w)
+            self.logger.log("/truth", t_ns, wire_truth_record(tr), publish_ns=w)
             self.logger.log("/analysis/eig", t_ns, _eig_record(self.model, st, tr,
                                                                float(self.registry["INDI_LAMBDA_MIN"]),
                                                                self.lambda_crit), publish_ns=w)
@@ -540,6 +541,8 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--state-dir", default=None, help="directory for persisted parameters")
     ap.add_argument("--defaults", action="store_true", help="start from default parameters (ignore stored)")
     ap.add_argument("--until-done", action="store_true", help="exit when the bridge reports the scenario done")
+    ap.add_argument("--ports-file", default=None,
+                    help='after binding, write {"sim": p, "gcs": p, "api": p} here as JSON (for ports given as 0)')
     return ap
 
 
@@ -549,12 +552,18 @@ def options_from_args(a: argparse.Namespace) -> FcOptions:
         sim_port=a.sim_port, bridge_port=a.bridge_port, gcs_bind_port=a.gcs_bind_port, gcs_port=a.gcs_port,
         api_bind_port=a.api_bind_port, api_port=a.api_port, log_path=Path(a.log) if a.log else None,
         state_dir=Path(a.state_dir) if a.state_dir else None, defaults=a.defaults,
+        ports_file=Path(a.ports_file) if a.ports_file else None,
     )
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_arg_parser().parse_args(argv)
-    proc = FlightControllerProcess(options_from_args(args))
+    try:
+        proc = FlightControllerProcess(options_from_args(args))
+    except PortInUseError as e:
+        print(f"navig8-fc: {e.strerror}; choose another with {_PORT_OPTIONS[e.link]} (0: any free port)",
+              file=sys.stderr)
+        return EXIT_USAGE
     signal.signal(signal.SIGINT, proc.request_stop)
     signal.signal(signal.SIGTERM, proc.request_stop)
     rc = proc.run(until_done=args.until_done)

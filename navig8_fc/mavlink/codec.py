@@ -1,0 +1,333 @@
+"""One MAVLink 2 framer/parser for the messages Navig8 handles itself (the lockstep seam), built from the dialect.
+
+    from navig8_fc.mavlink import codec
+    c = codec.seam_codec()                                   # the seam's messages of the navig8 dialect
+    enc = codec.Encoder(c, sysid=1, compid=25)
+    frame = enc.frame("NAVIG8_SIM_STATUS", (1, 0, 1, 0.0, 0.0, 0))   # values in the message's field order
+    for m in c.parse(frame, codec.ParseCounters()):          # -> [Message("NAVIG8_SIM_STATUS", {...}, 1, 25, 0)]
+        ...
+
+Each message's layout (`MessageSpec`) is read from the public metadata of the class mavgen generated for it
+(msgname, id, crc_extra, fieldnames, fieldtypes, ordered_fieldnames, array_lengths); the struct format is
+built from the C types and checked against the class's own. Decoded messages are plain records: `Message`
+(name, fields dict in field order, arrays as tuples, source system/component, sequence). Packing takes the
+field values in field order (`pack_values`) or a name -> value mapping (`pack_fields`).
+
+Frames: MAVLink 2 (0xFD) and MAVLink 1 (0xFE) headers; MAVLink 2 payloads are written with trailing zero
+bytes stripped (>= 1 byte kept) and zero-padded when read (a truncated payload); the CRC (X.25 with the
+message's CRC_EXTRA) is checked. Signed frames are recognised by their incompat flag and skipped (counted:
+nothing here verifies signatures), frames with an incompat flag we do not know are skipped (counted).
+Whatever is wrong (bytes between frames, a truncated tail, a bad CRC, an id the codec was not asked to handle)
+is counted in `ParseCounters` and dropped; nothing raises on input.
+
+pymavlink stays the test oracle (tests/unit/test_codec.py: byte-identical frames, equal fields) and the
+decoder for everything else (the GCS links keep pymavlink message objects for the gcs/ handlers).
+"""
+
+from __future__ import annotations
+
+import functools
+import struct
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from operator import itemgetter
+from typing import Any, NamedTuple, Protocol
+
+from navig8_fc.mavlink import dialect
+
+V1_MAGIC, V2_MAGIC = 0xFE, 0xFD
+V1_OVERHEAD, V2_OVERHEAD, SIGNATURE_LEN = 8, 12, 13
+IFLAG_SIGNED = 0x01  # MAVLINK_IFLAG_SIGNED, the only incompat flag MAVLink 2 defines
+
+# The messages the seam carries (docs/bridge.md), plus HEARTBEAT: the FC announces itself on the sim link with one.
+SEAM_MESSAGES = ("ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH", "HIL_SENSOR",
+                 "HIL_ACTUATOR_CONTROLS", "NAVIG8_ARM_CMD", "NAVIG8_SIM_STATUS", "HEARTBEAT")
+
+# C type -> struct code (MAVLink is little endian); mavparse's uint8_t_mavlink_version is a uint8_t on the wire
+_STRUCT_CODES = {"float": "f", "double": "d", "char": "s", "int8_t": "b", "uint8_t": "B",
+                 "uint8_t_mavlink_version": "B",
+                 "int16_t": "h", "uint16_t": "H", "int32_t": "i", "uint32_t": "I", "int64_t": "q", "uint64_t": "Q"}
+_V2_HEADER = struct.Struct("<BBBBBBHB")  # the header after the magic byte (the part the CRC covers)
+_V1_HEADER = struct.Struct("<BBBBB")
+
+
+try:  # the CRC pymavlink uses when fastcrc is installed (MCRF4XX = X.25 as MAVLink defines it)
+    from fastcrc.crc16 import mcrf4xx as _mcrf4xx
+
+    def crc16(data: bytes) -> int:
+        """MAVLink's X.25 CRC of data (seed 0xFFFF)."""
+        return _mcrf4xx(data, 0xFFFF)
+except ImportError:  # pragma: no cover - pymavlink's own (slower) CRC
+    def crc16(data: bytes) -> int:
+        """MAVLink's X.25 CRC of data (seed 0xFFFF)."""
+        return int(dialect.load().x25crc(data).crc)
+
+
+class Message(NamedTuple):
+    """A decoded frame: message name, fields (field order, arrays as tuples), source, sequence number."""
+
+    name: str
+    fields: dict[str, Any]
+    sysid: int
+    compid: int
+    seq: int
+
+
+class Counts(Protocol):
+    """Where `Codec.parse` counts what it drops (ParseCounters, or a link's own counters with these names)."""
+
+    garbage_bytes: int
+    truncated: int
+    bad_crc: int
+    unknown_id: int
+    signed: int
+    bad_flags: int
+
+
+@dataclass
+class ParseCounters:
+    """What `Codec.parse` dropped, summed over the datagrams it parsed."""
+
+    garbage_bytes: int = 0  # bytes skipped looking for a frame start
+    truncated: int = 0  # datagrams that end in part of a frame
+    bad_crc: int = 0
+    unknown_id: int = 0  # whole frames of ids this codec does not handle (their CRC cannot be checked)
+    signed: int = 0  # signed frames (skipped: nothing verifies signatures here)
+    bad_flags: int = 0  # MAVLink 2 frames with an incompat flag other than "signed"
+
+    @property
+    def bad_frames(self) -> int:
+        """Frames dropped (truncated, bad CRC, unknown id, signed, bad flags); garbage bytes are not frames."""
+        return self.truncated + self.bad_crc + self.unknown_id + self.signed + self.bad_flags
+
+
+class MessageSpec:
+    """The wire layout of one message, from its generated class (see the module docstring).
+
+    Plain class: built once per message at load; its two methods are the codec's per-frame work."""
+
+    __slots__ = ("name", "msg_id", "crc_extra", "crc_extra_byte", "fieldnames", "struct", "size", "_plan",
+                 "_reorder", "_group", "_simple")
+
+    def __init__(self, cls: Any) -> None:
+        self.name = str(cls.msgname)
+        self.msg_id = int(cls.id)
+        self.crc_extra = int(cls.crc_extra)
+        self.crc_extra_byte = bytes((self.crc_extra,))
+        names = [str(n) for n in cls.fieldnames]  # declaration order (the constructor's)
+        wire = [str(n) for n in cls.ordered_fieldnames]  # wire order: by type size, extensions last
+        types = dict(zip(names, cls.fieldtypes, strict=True))
+        lengths = dict(zip(wire, (int(n) for n in cls.array_lengths), strict=True))
+        if any(types[n] == "char" for n in names):
+            raise ValueError(f"{self.name}: char fields are not handled by the codec (pymavlink decodes it)")
+        fmt = "<" + "".join(f"{lengths[n] or ''}{_STRUCT_CODES[types[n]]}" for n in wire)
+        if struct.calcsize(fmt) != cls.unpacker.size or fmt.replace("<", "") != _expand(cls.unpacker.format):
+            raise ValueError(f"{self.name}: layout {fmt} disagrees with the generated class's {cls.unpacker.format}")
+        self.fieldnames = tuple(names)
+        self.struct = struct.Struct(fmt)
+        self.size = self.struct.size
+        # pack: (index in field order, array length or 0) per wire field
+        self._plan = tuple((names.index(n), lengths[n]) for n in wire)
+        self._simple = all(n == 0 for n in lengths.values())
+        self._reorder = itemgetter(*(i for i, _ in self._plan)) if len(names) > 1 else (lambda v: (v[0],))
+        # unpack: one key per field in field order, a slice for an array (itemgetter runs in C)
+        pos, keys = 0, {}
+        for n in wire:
+            keys[n] = slice(pos, pos + lengths[n]) if lengths[n] else pos
+            pos += lengths[n] or 1
+        self._group = itemgetter(*(keys[n] for n in names)) if len(names) > 1 else (lambda t: (t[keys[names[0]]],))
+
+    def pack_values(self, values: Sequence[Any]) -> bytes:
+        """The full (untruncated) payload of field values given in field order; arrays as sequences of at
+        least their length (extra elements are ignored, as pymavlink does)."""
+        if self._simple:
+            return self.struct.pack(*self._reorder(values))
+        flat: list[Any] = []
+        for i, n in self._plan:
+            if n:
+                flat += values[i][:n]
+            else:
+                flat.append(values[i])
+        return self.struct.pack(*flat)
+
+    def pack_fields(self, fields: Mapping[str, Any]) -> bytes:
+        return self.pack_values([fields[n] for n in self.fieldnames])
+
+    def unpack(self, payload: bytes) -> dict[str, Any]:
+        """Fields of a payload (zero-padded if shorter than the message, extra bytes ignored)."""
+        n = len(payload)
+        if n < self.size:
+            payload = payload + bytes(self.size - n)
+        elif n > self.size:
+            payload = payload[: self.size]
+        return dict(zip(self.fieldnames, self._group(self.struct.unpack(payload)), strict=True))
+
+
+def _expand(fmt: str) -> str:
+    """A struct format with repeat counts of 1 written out, for comparing two spellings of one layout."""
+    return struct.Struct(fmt).format.lstrip("<")
+
+
+class Codec:
+    """Framer/parser for a set of messages of the dialect (`SEAM_MESSAGES` by default)."""
+
+    def __init__(self, names: Iterable[str] = SEAM_MESSAGES, module: Any = None) -> None:
+        d = module if module is not None else dialect.load()
+        self.specs: dict[str, MessageSpec] = {}
+        self.by_id: dict[int, MessageSpec] = {}
+        for name in names:
+            spec = MessageSpec(d.mavlink_map[getattr(d, f"MAVLINK_MSG_ID_{name}")])
+            self.specs[spec.name] = spec
+            self.by_id[spec.msg_id] = spec
+
+    def frame(self, name: str, values: Sequence[Any], seq: int, sysid: int, compid: int) -> bytes:
+        """One unsigned MAVLink 2 frame of `name` (values in field order), trailing payload zeros stripped."""
+        s = self.specs[name]
+        payload = s.pack_values(values).rstrip(b"\0") or b"\0"
+        body = _V2_HEADER.pack(len(payload), 0, 0, seq, sysid, compid, s.msg_id & 0xFFFF, s.msg_id >> 16) + payload
+        return b"\xfd" + body + crc16(body + s.crc_extra_byte).to_bytes(2, "little")
+
+    def parse(self, data: bytes, counters: Counts) -> list[Message]:
+        """The messages of one datagram, in order; everything else counted in `counters` and dropped."""
+        out: list[Message] = []
+        by_id = self.by_id
+        i, n = 0, len(data)
+        while i < n:
+            b = data[i]
+            if b == V2_MAGIC:
+                if i + 3 > n:
+                    counters.truncated += 1
+                    break
+                flags = data[i + 2]
+                end = i + V2_OVERHEAD + data[i + 1]
+                sig_end = end + SIGNATURE_LEN if flags & IFLAG_SIGNED else end
+                if sig_end > n:
+                    counters.truncated += 1
+                    break
+                spec = by_id.get(data[i + 7] | (data[i + 8] << 8) | (data[i + 9] << 16))
+                start, hdr, so = i, 10, i + 4
+            elif b == V1_MAGIC:
+                if i + 2 > n:
+                    counters.truncated += 1
+                    break
+                end = sig_end = i + V1_OVERHEAD + data[i + 1]
+                if end > n:
+                    counters.truncated += 1
+                    break
+                flags = 0
+                spec = by_id.get(data[i + 5])
+                start, hdr, so = i, 6, i + 2
+            else:
+                counters.garbage_bytes += 1
+                i += 1
+                continue
+            i = sig_end
+            if spec is None:
+                counters.unknown_id += 1
+                continue
+            if crc16(data[start + 1 : end - 2] + spec.crc_extra_byte) != data[end - 2] | (data[end - 1] << 8):
+                counters.bad_crc += 1
+                continue
+            if flags:
+                if flags & ~IFLAG_SIGNED:
+                    counters.bad_flags += 1
+                else:
+                    counters.signed += 1
+                continue
+            # header: ... seq, sysid, compid at so, so + 1, so + 2 (v1 and v2 alike)
+            out.append(Message(spec.name, spec.unpack(data[start + hdr : end - 2]), data[so + 1], data[so + 2],
+                               data[so]))
+        return out
+
+    def decode_frame(self, frame: bytes) -> Message | None:
+        """The message of exactly one whole frame, or None (anything else in it, or a bad frame)."""
+        got = self.parse(frame, ParseCounters())
+        return got[0] if len(got) == 1 and _frame_len(frame) == len(frame) else None
+
+
+def _frame_len(frame: bytes) -> int:
+    if len(frame) < 3:
+        return -1
+    if frame[0] == V1_MAGIC:
+        return V1_OVERHEAD + frame[1]
+    return V2_OVERHEAD + frame[1] + (SIGNATURE_LEN if frame[2] & IFLAG_SIGNED else 0)
+
+
+def split_frames(data: bytes) -> tuple[list[bytes], int, int]:
+    """The frames of a datagram by their own length fields (MAVLink 1 and 2, signed or not; no CRC check: the
+    decoder checks it), the count of bytes skipped between frames, and 1 if the datagram ends in part of a frame.
+    The GCS links split with this and decode each frame with pymavlink."""
+    frames: list[bytes] = []
+    i, n, garbage, truncated = 0, len(data), 0, 0
+    while i < n:
+        b = data[i]
+        if b == V2_MAGIC:
+            if i + 3 > n:
+                truncated = 1
+                break
+            length = V2_OVERHEAD + data[i + 1] + (SIGNATURE_LEN if data[i + 2] & IFLAG_SIGNED else 0)
+        elif b == V1_MAGIC:
+            if i + 2 > n:
+                truncated = 1
+                break
+            length = V1_OVERHEAD + data[i + 1]
+        else:
+            garbage += 1
+            i += 1
+            continue
+        if i + length > n:
+            truncated = 1
+            break
+        frames.append(bytes(data[i : i + length]))
+        i += length
+    return frames, garbage, truncated
+
+
+@dataclass
+class Encoder:
+    """Packs frames from one system/component and owns its sequence number (like a pymavlink MAVLink object)."""
+
+    codec: Codec
+    sysid: int
+    compid: int
+    seq: int = 0
+    frames_out: int = 0
+    bytes_out: int = 0
+    _frame: Any = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self._frame = self.codec.frame
+
+    def frame(self, name: str, values: Sequence[Any]) -> bytes:
+        """One frame; the sequence number advances (mod 256)."""
+        out = self._frame(name, values, self.seq, self.sysid, self.compid)
+        self.seq = (self.seq + 1) & 0xFF
+        self.frames_out += 1
+        self.bytes_out += len(out)
+        return out
+
+    def frame_fields(self, name: str, fields: Mapping[str, Any]) -> bytes:
+        return self.frame(name, [fields[n] for n in self.codec.specs[name].fieldnames])
+
+    def frames(self, records: Iterable[tuple[str, Sequence[Any]]]) -> bytes:
+        """Frames of (name, values) records back to back (one datagram), one sequence number each."""
+        frame, seq, sysid, compid = self._frame, self.seq, self.sysid, self.compid
+        parts = []
+        for name, values in records:
+            parts.append(frame(name, values, seq, sysid, compid))
+            seq = (seq + 1) & 0xFF
+        out = b"".join(parts)
+        self.seq = seq
+        self.frames_out += len(parts)
+        self.bytes_out += len(out)
+        return out
+
+
+@functools.cache
+def seam_codec() -> Codec:
+    """The codec for SEAM_MESSAGES (built once per process, like dialect.load())."""
+    return Codec(SEAM_MESSAGES)
+
+
+__all__ = ["SEAM_MESSAGES", "Codec", "Counts", "Encoder", "Message", "MessageSpec", "ParseCounters", "crc16",
+           "seam_codec", "split_frames"]
