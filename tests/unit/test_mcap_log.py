@@ -59,7 +59,7 @@ def test_schema_describes_fields() -> None:
 def test_mavlink_schema_from_the_message_definition() -> None:
     from pymavlink.dialects.v20 import common as m
 
-    from navig8_fc.shell.mcap_log import mavlink_json_schema
+    from navig8_fc.logrecords import mavlink_json_schema
 
     s = mavlink_json_schema(m.MAVLink_attitude_quaternion_message)
     props = s["properties"]
@@ -68,6 +68,10 @@ def test_mavlink_schema_from_the_message_definition() -> None:
     assert props["repr_offset_q"]["type"] == "array" and props["repr_offset_q"]["maxItems"] == 4
     hb = mavlink_json_schema(m.MAVLink_heartbeat_message)["properties"]
     assert hb["custom_mode"]["type"] == "integer" and "MAV_TYPE" in hb["type"]["description"]
+    # array lengths belong to the right fields when the wire order differs from the declaration order
+    odom = mavlink_json_schema(m.MAVLink_odometry_message)["properties"]
+    assert odom["y"]["type"] == ["number", "null"] and odom["frame_id"]["type"] == "integer"
+    assert (odom["q"]["maxItems"], odom["pose_covariance"]["maxItems"]) == (4, 21)
 
 
 def test_raw_channels_carry_the_peer_in_channel_metadata(tmp_path) -> None:
