@@ -257,6 +257,7 @@ class Bridge:
                 continue
             if addr is not None and addr != self.fc_addr:
                 self.fc_addr = addr
+                self._status_due = 0.0  # a new FC address hears the status first, then the (re-sent) bundle
             name = m.name
             if name == "HIL_ACTUATOR_CONTROLS":
                 if m.fields["time_usec"] == want and answer is None:
