@@ -155,12 +155,15 @@ class MessageSpec:
 
     def unpack(self, payload: bytes) -> dict[str, Any]:
         """Fields of a payload (zero-padded if shorter than the message, extra bytes ignored)."""
-        n = len(payload)
-        if n < self.size:
-            payload = payload + bytes(self.size - n)
-        elif n > self.size:
-            payload = payload[: self.size]
-        return dict(zip(self.fieldnames, self._group(self.struct.unpack(payload)), strict=True))
+        return self.unpack_from(payload, 0, len(payload))
+
+    def unpack_from(self, data: bytes, start: int, end: int) -> dict[str, Any]:
+        """Fields of the payload data[start:end], read in place when it is whole (the usual case)."""
+        if end - start >= self.size:
+            t = self.struct.unpack_from(data, start)
+        else:  # a truncated payload (MAVLink 2 strips trailing zeros): pad
+            t = self.struct.unpack(data[start:end] + bytes(self.size - (end - start)))
+        return dict(zip(self.fieldnames, self._group(t)))  # one value per name by construction
 
 
 def _expand(fmt: str) -> str:
@@ -235,7 +238,7 @@ class Codec:
                     counters.signed += 1
                 continue
             # header: ... seq, sysid, compid at so, so + 1, so + 2 (v1 and v2 alike)
-            out.append(Message(spec.name, spec.unpack(data[start + hdr : end - 2]), data[so + 1], data[so + 2],
+            out.append(Message(spec.name, spec.unpack_from(data, start + hdr, end - 2), data[so + 1], data[so + 2],
                                data[so]))
         return out
 
