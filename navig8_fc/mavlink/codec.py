@@ -163,7 +163,7 @@ class MessageSpec:
             t = self.struct.unpack_from(data, start)
         else:  # a truncated payload (MAVLink 2 strips trailing zeros): pad
             t = self.struct.unpack(data[start:end] + bytes(self.size - (end - start)))
-        return dict(zip(self.fieldnames, self._group(t)))  # one value per name by construction
+        return dict(zip(self.fieldnames, self._group(t), strict=False))  # one value per name by construction
 
 
 def _expand(fmt: str) -> str:
