@@ -1,4 +1,4 @@
-"""One MAVLink 2 framer/parser for the messages Navig8 handles itself (the lockstep seam), built from the dialect.
+"""One MAVLink framer/parser for the messages Navig8 handles itself (the lockstep seam), built from the dialect.
 
     from navig8_fc.mavlink import codec
     c = codec.seam_codec()                                   # the seam's messages of the navig8 dialect
@@ -48,7 +48,6 @@ _STRUCT_CODES = {"float": "f", "double": "d", "char": "s", "int8_t": "b", "uint8
                  "uint8_t_mavlink_version": "B",
                  "int16_t": "h", "uint16_t": "H", "int32_t": "i", "uint32_t": "I", "int64_t": "q", "uint64_t": "Q"}
 _V2_HEADER = struct.Struct("<BBBBBBHB")  # the header after the magic byte (the part the CRC covers)
-_V1_HEADER = struct.Struct("<BBBBB")
 
 
 try:  # the CRC pymavlink uses when fastcrc is installed (MCRF4XX = X.25 as MAVLink defines it)
@@ -104,7 +103,7 @@ class ParseCounters:
 class MessageSpec:
     """The wire layout of one message, from its generated class (see the module docstring).
 
-    Plain class: built once per message at load; its two methods are the codec's per-frame work."""
+    Plain class: built once per message at load; pack_values and unpack_from are the codec's per-frame work."""
 
     __slots__ = ("name", "msg_id", "crc_extra", "crc_extra_byte", "fieldnames", "struct", "size", "_plan",
                  "_reorder", "_group", "_simple")
@@ -121,7 +120,7 @@ class MessageSpec:
         if any(types[n] == "char" for n in names):
             raise ValueError(f"{self.name}: char fields are not handled by the codec (pymavlink decodes it)")
         fmt = "<" + "".join(f"{lengths[n] or ''}{_STRUCT_CODES[types[n]]}" for n in wire)
-        if struct.calcsize(fmt) != cls.unpacker.size or fmt.replace("<", "") != _expand(cls.unpacker.format):
+        if fmt != cls.unpacker.format:
             raise ValueError(f"{self.name}: layout {fmt} disagrees with the generated class's {cls.unpacker.format}")
         self.fieldnames = tuple(names)
         self.struct = struct.Struct(fmt)
@@ -166,11 +165,6 @@ class MessageSpec:
         return dict(zip(self.fieldnames, self._group(t), strict=False))  # one value per name by construction
 
 
-def _expand(fmt: str) -> str:
-    """A struct format with repeat counts of 1 written out, for comparing two spellings of one layout."""
-    return struct.Struct(fmt).format.lstrip("<")
-
-
 class Codec:
     """Framer/parser for a set of messages of the dialect (`SEAM_MESSAGES` by default)."""
 
@@ -178,6 +172,7 @@ class Codec:
         d = module if module is not None else dialect.load()
         self.specs: dict[str, MessageSpec] = {}
         self.by_id: dict[int, MessageSpec] = {}
+        self._rejected = ParseCounters()  # decode_frame's: it answers None, nobody reads these
         for name in names:
             spec = MessageSpec(d.mavlink_map[getattr(d, f"MAVLINK_MSG_ID_{name}")])
             self.specs[spec.name] = spec
@@ -194,57 +189,36 @@ class Codec:
         """The messages of one datagram, in order; everything else counted in `counters` and dropped."""
         out: list[Message] = []
         by_id = self.by_id
-        i, n = 0, len(data)
-        while i < n:
-            b = data[i]
-            if b == V2_MAGIC:
-                if i + 3 > n:
-                    counters.truncated += 1
-                    break
-                flags = data[i + 2]
-                end = i + V2_OVERHEAD + data[i + 1]
-                sig_end = end + SIGNATURE_LEN if flags & IFLAG_SIGNED else end
-                if sig_end > n:
-                    counters.truncated += 1
-                    break
-                spec = by_id.get(data[i + 7] | (data[i + 8] << 8) | (data[i + 9] << 16))
-                start, hdr, so = i, 10, i + 4
-            elif b == V1_MAGIC:
-                if i + 2 > n:
-                    counters.truncated += 1
-                    break
-                end = sig_end = i + V1_OVERHEAD + data[i + 1]
-                if end > n:
-                    counters.truncated += 1
-                    break
-                flags = 0
-                spec = by_id.get(data[i + 5])
-                start, hdr, so = i, 6, i + 2
-            else:
-                counters.garbage_bytes += 1
-                i += 1
-                continue
-            i = sig_end
+        for start, end, _sig_end in frame_bounds(data, counters):
+            v2 = data[start] == V2_MAGIC
+            spec = by_id.get(data[start + 7] | (data[start + 8] << 8) | (data[start + 9] << 16) if v2
+                             else data[start + 5])
             if spec is None:
                 counters.unknown_id += 1
                 continue
             if crc16(data[start + 1 : end - 2] + spec.crc_extra_byte) != data[end - 2] | (data[end - 1] << 8):
                 counters.bad_crc += 1
                 continue
-            if flags:
-                if flags & ~IFLAG_SIGNED:
-                    counters.bad_flags += 1
-                else:
-                    counters.signed += 1
-                continue
-            # header: ... seq, sysid, compid at so, so + 1, so + 2 (v1 and v2 alike)
-            out.append(Message(spec.name, spec.unpack_from(data, start + hdr, end - 2), data[so + 1], data[so + 2],
+            if v2:
+                flags = data[start + 2]
+                if flags:
+                    if flags & ~IFLAG_SIGNED:
+                        counters.bad_flags += 1
+                    else:
+                        counters.signed += 1
+                    continue
+                so = start + 4  # header: ..., seq, sysid, compid at so, so + 1, so + 2
+                payload = start + 10
+            else:
+                so = start + 2
+                payload = start + 6
+            out.append(Message(spec.name, spec.unpack_from(data, payload, end - 2), data[so + 1], data[so + 2],
                                data[so]))
         return out
 
     def decode_frame(self, frame: bytes) -> Message | None:
         """The message of exactly one whole frame, or None (anything else in it, or a bad frame)."""
-        got = self.parse(frame, ParseCounters())
+        got = self.parse(frame, self._rejected)
         return got[0] if len(got) == 1 and _frame_len(frame) == len(frame) else None
 
 
@@ -256,34 +230,44 @@ def _frame_len(frame: bytes) -> int:
     return V2_OVERHEAD + frame[1] + (SIGNATURE_LEN if frame[2] & IFLAG_SIGNED else 0)
 
 
-def split_frames(data: bytes) -> tuple[list[bytes], int, int]:
-    """The frames of a datagram by their own length fields (MAVLink 1 and 2, signed or not; no CRC check: the
-    decoder checks it), the count of bytes skipped between frames, and 1 if the datagram ends in part of a frame.
-    The GCS links split with this and decode each frame with pymavlink."""
-    frames: list[bytes] = []
-    i, n, garbage, truncated = 0, len(data), 0, 0
+def frame_bounds(data: bytes, counters: Counts) -> list[tuple[int, int, int]]:
+    """The framer: (start, end of the CRC, end with the signature) of each frame of a datagram, by the frames' own
+    length fields (MAVLink 1 and 2, signed or not; nothing checked beyond the lengths); bytes between frames and
+    a truncated tail counted in `counters` (garbage_bytes, truncated)."""
+    out = []
+    i, n = 0, len(data)
     while i < n:
         b = data[i]
         if b == V2_MAGIC:
             if i + 3 > n:
-                truncated = 1
+                counters.truncated += 1
                 break
-            length = V2_OVERHEAD + data[i + 1] + (SIGNATURE_LEN if data[i + 2] & IFLAG_SIGNED else 0)
+            end = i + V2_OVERHEAD + data[i + 1]
+            sig_end = end + SIGNATURE_LEN if data[i + 2] & IFLAG_SIGNED else end
         elif b == V1_MAGIC:
             if i + 2 > n:
-                truncated = 1
+                counters.truncated += 1
                 break
-            length = V1_OVERHEAD + data[i + 1]
+            end = sig_end = i + V1_OVERHEAD + data[i + 1]
         else:
-            garbage += 1
+            counters.garbage_bytes += 1
             i += 1
             continue
-        if i + length > n:
-            truncated = 1
+        if sig_end > n:
+            counters.truncated += 1
             break
-        frames.append(bytes(data[i : i + length]))
-        i += length
-    return frames, garbage, truncated
+        out.append((i, end, sig_end))
+        i = sig_end
+    return out
+
+
+def split_frames(data: bytes) -> tuple[list[bytes], int, int]:
+    """The frames of a datagram (`frame_bounds`; no CRC check: the decoder checks it), the count of bytes skipped
+    between frames, and 1 if the datagram ends in part of a frame. The GCS links split with this and decode each
+    frame with pymavlink."""
+    counts = ParseCounters()
+    frames = [bytes(data[i:e]) for i, _, e in frame_bounds(data, counts)]
+    return frames, counts.garbage_bytes, counts.truncated
 
 
 @dataclass
@@ -333,4 +317,4 @@ def seam_codec() -> Codec:
 
 
 __all__ = ["SEAM_MESSAGES", "Codec", "Counts", "Encoder", "Message", "MessageSpec", "ParseCounters", "crc16",
-           "seam_codec", "split_frames"]
+           "frame_bounds", "seam_codec", "split_frames"]
