@@ -69,14 +69,12 @@ def truth_record(tr: Any) -> dict[str, Any]:
 
 
 def wire_truth_record(t: Any) -> dict[str, Any]:
-    """The /truth record of a decoded NAVIG8_TRUTH (its fields as attributes: seam.StepBundle.truth)."""
-    q = [float(v) for v in t.quat]
-    act = [float(v) for v in t.actuators]
+    """The /truth record of a decoded NAVIG8_TRUTH (its fields as attributes: seam.StepBundle.truth; arrays as
+    tuples, which serialise as JSON arrays like lists)."""
     return _truth(
-        list(t.pos_ned), list(t.vel_ned), q, list(quat_to_euler(q)), list(t.rate_frd), list(t.accel_frd), None, act,
-        list(t.joint_pos), list(t.joint_rate), list(t.joint_accel), float(t.object_mass), float(t.mass),
-        list(t.com_frd), list(t.inertia[:3]), list(t.reaction_force), list(t.reaction_moment_mount), {},
-        int(t.cmd_nonfinite), int(t.cmd_clamped),
+        t.pos_ned, t.vel_ned, t.quat, list(quat_to_euler(t.quat)), t.rate_frd, t.accel_frd, None, t.actuators,
+        t.joint_pos, t.joint_rate, t.joint_accel, t.object_mass, t.mass, t.com_frd, t.inertia[:3], t.reaction_force,
+        t.reaction_moment_mount, {}, t.cmd_nonfinite, t.cmd_clamped,
     )
 
 

@@ -215,18 +215,18 @@ class FlightControllerProcess:
 
     # --- lockstep --------------------------------------------------------------------------------
     def _on_sim(self, received: list[Any]) -> None:
-        """The sim link's messages (codec.Message records): bundles to _on_step, the bridge's status kept."""
+        """The sim link's datagrams (lists of codec.Message records): bundles to _on_step, the bridge's status kept."""
         asm = self._asm
         for r in received:
-            m = r.msg
-            if m.name == "NAVIG8_SIM_STATUS":
-                self.sim_status = seam.decode_sim_status(m.fields)
-                if self.sim_status.state == seam.SIM_STATE_DONE:
-                    self.sim_done = True
-                continue
-            bundle = asm.add(m)
-            if bundle is not None:
-                self._on_step(bundle, asm.completed)
+            for m in r.msg:
+                if m.name == "NAVIG8_SIM_STATUS":
+                    self.sim_status = seam.decode_sim_status(m.fields)
+                    if self.sim_status.state == seam.SIM_STATE_DONE:
+                        self.sim_done = True
+                    continue
+                bundle = asm.add(m)
+                if bundle is not None:
+                    self._on_step(bundle, asm.completed)
 
     def _on_step(self, b: seam.StepBundle, wire: dict[str, dict[str, Any]] | None = None) -> None:
         """One lockstep step: control, answer, and queue the step's log records (written after the answer).

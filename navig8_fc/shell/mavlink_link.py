@@ -89,10 +89,10 @@ def _peer_text(dests: list[tuple[str, int]]) -> str:
 
 
 class Received(NamedTuple):
-    """One received message (a NamedTuple: the sim link makes five per lockstep step, ~0.2 us each)."""
+    """One received message, or a codec link's datagram of messages (a NamedTuple: made on every lockstep step)."""
 
-    frame: bytes  # the frame (GCS links) or the whole datagram it came in (the sim link)
-    msg: Any  # the pymavlink message (GCS links) or the codec.Message (the sim link)
+    frame: bytes  # the frame (GCS links) or the datagram (codec links)
+    msg: Any  # the pymavlink message (GCS links) or the datagram's codec.Message records, a list (codec links)
     addr: tuple[str, int]
 
 
@@ -174,14 +174,14 @@ class UdpLink:
         return out
 
     def _receive_records(self, data: bytes, addr: tuple[str, int], out: list[Received]) -> None:
-        """A codec link's datagram: its messages as codec.Message records, the rest counted."""
+        """A codec link's datagram: ONE Received whose msg is the list of its codec.Message records (a lockstep
+        step is one datagram of five), the rest counted."""
         assert self.codec is not None
         msgs: list[Message] = self.codec.parse(data, self.counters)
         if msgs:
             self.counters.frames_in += len(msgs)
             self._note_peer(addr)
-            for m in msgs:
-                out.append(Received(data, m, addr))
+            out.append(Received(data, msgs, addr))
 
     def _note_peer(self, addr: tuple[str, int]) -> None:
         if addr not in self.peers:
