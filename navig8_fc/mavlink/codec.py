@@ -29,7 +29,7 @@ from __future__ import annotations
 import functools
 import struct
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from operator import itemgetter
 from typing import Any, NamedTuple, Protocol
 
@@ -125,16 +125,28 @@ class MessageSpec:
         self.fieldnames = tuple(names)
         self.struct = struct.Struct(fmt)
         self.size = self.struct.size
-        # pack: (index in field order, array length or 0) per wire field
-        self._plan = tuple((names.index(n), lengths[n]) for n in wire)
+        # pack: the wire order as segments (start, stop, array length): a run of scalars that are neighbours in field
+        # order too is one slice of the values (values[start:stop]), an array is values[start][:length]
+        plan: list[list[int]] = []
+        for n in wire:
+            i = names.index(n)
+            if lengths[n]:
+                plan.append([i, i + 1, lengths[n]])
+            elif plan and plan[-1][2] == 0 and plan[-1][1] == i:
+                plan[-1][1] = i + 1
+            else:
+                plan.append([i, i + 1, 0])
+        self._plan = tuple((a, b, k) for a, b, k in plan)
         self._simple = all(n == 0 for n in lengths.values())
-        self._reorder = itemgetter(*(i for i, _ in self._plan)) if len(names) > 1 else (lambda v: (v[0],))
+        self._reorder = itemgetter(*(names.index(n) for n in wire)) if len(names) > 1 else (lambda v: (v[0],))
         # unpack: one key per field in field order, a slice for an array (itemgetter runs in C)
         pos, keys = 0, {}
         for n in wire:
             keys[n] = slice(pos, pos + lengths[n]) if lengths[n] else pos
             pos += lengths[n] or 1
-        self._group = itemgetter(*(keys[n] for n in names)) if len(names) > 1 else (lambda t: (t[keys[names[0]]],))
+        # None: the unpacked tuple is already one value per field in field order (no arrays, wire order = field order)
+        self._group = (None if names == wire and self._simple else
+                       itemgetter(*(keys[n] for n in names)) if len(names) > 1 else (lambda t: (t[keys[names[0]]],)))
 
     def pack_values(self, values: Sequence[Any]) -> bytes:
         """The full (untruncated) payload of field values given in field order; arrays as sequences of at
@@ -142,11 +154,8 @@ class MessageSpec:
         if self._simple:
             return self.struct.pack(*self._reorder(values))
         flat: list[Any] = []
-        for i, n in self._plan:
-            if n:
-                flat += values[i][:n]
-            else:
-                flat.append(values[i])
+        for a, b, n in self._plan:
+            flat += values[a][:n] if n else values[a:b]
         return self.struct.pack(*flat)
 
     def pack_fields(self, fields: Mapping[str, Any]) -> bytes:
@@ -162,7 +171,8 @@ class MessageSpec:
             t = self.struct.unpack_from(data, start)
         else:  # a truncated payload (MAVLink 2 strips trailing zeros): pad
             t = self.struct.unpack(data[start:end] + bytes(self.size - (end - start)))
-        return dict(zip(self.fieldnames, self._group(t), strict=False))  # one value per name by construction
+        g = self._group
+        return dict(zip(self.fieldnames, g(t) if g is not None else t, strict=False))  # one value per name
 
 
 class Codec:
@@ -180,41 +190,19 @@ class Codec:
 
     def frame(self, name: str, values: Sequence[Any], seq: int, sysid: int, compid: int) -> bytes:
         """One unsigned MAVLink 2 frame of `name` (values in field order), trailing payload zeros stripped."""
+        return b"".join(self.frame_parts(name, values, seq, sysid, compid))
+
+    def frame_parts(self, name: str, values: Sequence[Any], seq: int, sysid: int, compid: int
+                    ) -> tuple[bytes, bytes, bytes]:
+        """frame()'s bytes in three pieces (magic, header + payload, CRC), for joining many frames at once."""
         s = self.specs[name]
         payload = s.pack_values(values).rstrip(b"\0") or b"\0"
         body = _V2_HEADER.pack(len(payload), 0, 0, seq, sysid, compid, s.msg_id & 0xFFFF, s.msg_id >> 16) + payload
-        return b"\xfd" + body + crc16(body + s.crc_extra_byte).to_bytes(2, "little")
+        return b"\xfd", body, crc16(body + s.crc_extra_byte).to_bytes(2, "little")
 
     def parse(self, data: bytes, counters: Counts) -> list[Message]:
         """The messages of one datagram, in order; everything else counted in `counters` and dropped."""
-        out: list[Message] = []
-        by_id = self.by_id
-        for start, end, _sig_end in frame_bounds(data, counters):
-            v2 = data[start] == V2_MAGIC
-            spec = by_id.get(data[start + 7] | (data[start + 8] << 8) | (data[start + 9] << 16) if v2
-                             else data[start + 5])
-            if spec is None:
-                counters.unknown_id += 1
-                continue
-            if crc16(data[start + 1 : end - 2] + spec.crc_extra_byte) != data[end - 2] | (data[end - 1] << 8):
-                counters.bad_crc += 1
-                continue
-            if v2:
-                flags = data[start + 2]
-                if flags:
-                    if flags & ~IFLAG_SIGNED:
-                        counters.bad_flags += 1
-                    else:
-                        counters.signed += 1
-                    continue
-                so = start + 4  # header: ..., seq, sysid, compid at so, so + 1, so + 2
-                payload = start + 10
-            else:
-                so = start + 2
-                payload = start + 6
-            out.append(Message(spec.name, spec.unpack_from(data, payload, end - 2), data[so + 1], data[so + 2],
-                               data[so]))
-        return out
+        return _scan(data, counters, self.by_id)
 
     def decode_frame(self, frame: bytes) -> Message | None:
         """The message of exactly one whole frame, or None (anything else in it, or a bad frame)."""
@@ -230,43 +218,64 @@ def _frame_len(frame: bytes) -> int:
     return V2_OVERHEAD + frame[1] + (SIGNATURE_LEN if frame[2] & IFLAG_SIGNED else 0)
 
 
-def frame_bounds(data: bytes, counters: Counts) -> list[tuple[int, int, int]]:
-    """The framer: (start, end of the CRC, end with the signature) of each frame of a datagram, by the frames' own
-    length fields (MAVLink 1 and 2, signed or not; nothing checked beyond the lengths); bytes between frames and
-    a truncated tail counted in `counters` (garbage_bytes, truncated)."""
-    out = []
+def _scan(data: bytes, counters: Counts, by_id: dict[int, MessageSpec] | None) -> list[Any]:
+    """The framer: each frame of a datagram by its own length fields (MAVLink 1 and 2, signed or not), bytes
+    between frames and a truncated tail counted. by_id None: the frames' raw bytes (nothing checked beyond the
+    lengths); else the decoded messages of the ids in by_id (CRC checked, the rest counted and dropped)."""
+    out: list[Any] = []
     i, n = 0, len(data)
     while i < n:
-        b = data[i]
-        if b == V2_MAGIC:
+        start = i
+        if data[i] == V2_MAGIC:
             if i + 3 > n:
                 counters.truncated += 1
                 break
+            flags = data[i + 2]
             end = i + V2_OVERHEAD + data[i + 1]
-            sig_end = end + SIGNATURE_LEN if data[i + 2] & IFLAG_SIGNED else end
-        elif b == V1_MAGIC:
+            i = end + SIGNATURE_LEN if flags & IFLAG_SIGNED else end
+            v2 = True
+        elif data[i] == V1_MAGIC:
             if i + 2 > n:
                 counters.truncated += 1
                 break
-            end = sig_end = i + V1_OVERHEAD + data[i + 1]
+            end = i = i + V1_OVERHEAD + data[i + 1]
+            flags, v2 = 0, False
         else:
             counters.garbage_bytes += 1
             i += 1
             continue
-        if sig_end > n:
+        if i > n:
             counters.truncated += 1
             break
-        out.append((i, end, sig_end))
-        i = sig_end
+        if by_id is None:
+            out.append(bytes(data[start:i]))
+            continue
+        spec = by_id.get(data[start + 7] | (data[start + 8] << 8) | (data[start + 9] << 16) if v2
+                         else data[start + 5])
+        if spec is None:
+            counters.unknown_id += 1
+            continue
+        if crc16(data[start + 1 : end - 2] + spec.crc_extra_byte) != data[end - 2] | (data[end - 1] << 8):
+            counters.bad_crc += 1
+            continue
+        if flags:
+            if flags & ~IFLAG_SIGNED:
+                counters.bad_flags += 1
+            else:
+                counters.signed += 1
+            continue
+        so = start + 4 if v2 else start + 2  # header: ..., seq, sysid, compid at so, so + 1, so + 2
+        out.append(Message(spec.name, spec.unpack_from(data, so + 6 if v2 else so + 4, end - 2), data[so + 1],
+                           data[so + 2], data[so]))
     return out
 
 
 def split_frames(data: bytes) -> tuple[list[bytes], int, int]:
-    """The frames of a datagram (`frame_bounds`; no CRC check: the decoder checks it), the count of bytes skipped
-    between frames, and 1 if the datagram ends in part of a frame. The GCS links split with this and decode each
-    frame with pymavlink."""
+    """The frames of a datagram (the codec's framer; no CRC check: the decoder checks it), the count of bytes
+    skipped between frames, and 1 if the datagram ends in part of a frame. The GCS links split with this and
+    decode each frame with pymavlink."""
     counts = ParseCounters()
-    frames = [bytes(data[i:e]) for i, _, e in frame_bounds(data, counts)]
+    frames = _scan(data, counts, None)
     return frames, counts.garbage_bytes, counts.truncated
 
 
@@ -280,14 +289,9 @@ class Encoder:
     seq: int = 0
     frames_out: int = 0
     bytes_out: int = 0
-    _frame: Any = field(init=False, repr=False)
-
-    def __post_init__(self) -> None:
-        self._frame = self.codec.frame
-
     def frame(self, name: str, values: Sequence[Any]) -> bytes:
         """One frame; the sequence number advances (mod 256)."""
-        out = self._frame(name, values, self.seq, self.sysid, self.compid)
+        out = self.codec.frame(name, values, self.seq, self.sysid, self.compid)
         self.seq = (self.seq + 1) & 0xFF
         self.frames_out += 1
         self.bytes_out += len(out)
@@ -298,14 +302,15 @@ class Encoder:
 
     def frames(self, records: Iterable[tuple[str, Sequence[Any]]]) -> bytes:
         """Frames of (name, values) records back to back (one datagram), one sequence number each."""
-        frame, seq, sysid, compid = self._frame, self.seq, self.sysid, self.compid
-        parts = []
+        parts: list[bytes] = []
+        seq, n = self.seq, 0
         for name, values in records:
-            parts.append(frame(name, values, seq, sysid, compid))
+            parts += self.codec.frame_parts(name, values, seq, self.sysid, self.compid)
             seq = (seq + 1) & 0xFF
+            n += 1
         out = b"".join(parts)
         self.seq = seq
-        self.frames_out += len(parts)
+        self.frames_out += n
         self.bytes_out += len(out)
         return out
 
@@ -317,4 +322,4 @@ def seam_codec() -> Codec:
 
 
 __all__ = ["SEAM_MESSAGES", "Codec", "Counts", "Encoder", "Message", "MessageSpec", "ParseCounters", "crc16",
-           "frame_bounds", "seam_codec", "split_frames"]
+           "seam_codec", "split_frames"]
