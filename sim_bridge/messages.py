@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import Any, NamedTuple, TypeVar
 
 import numpy as np
 
@@ -20,9 +20,11 @@ def make_frozen(cls: type[_T], fields: dict[str, Any]) -> _T:
     return cls(**fields)
 
 
-@dataclass(frozen=True)
-class ActuatorCommand:
+class ActuatorCommand(NamedTuple):
     """Commanded actuator positions (what HIL_ACTUATOR_CONTROLS will carry, in SI units).
+
+    Immutable like the other messages, but a NamedTuple: the bridge makes one every lockstep step (and navig8-sim
+    every control step), and a frozen dataclass's __init__ costs ~1 us there.
 
     tilt_rad: duct angles (alpha1 right, alpha3 left); speed_rad_s: propeller speeds (w1 right duct,
     w2 tail (signed, reversible), w3 left duct); joint_targets_rad: arm joint targets, or None to follow
