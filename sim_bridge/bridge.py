@@ -260,8 +260,9 @@ class Bridge:
                 self._status_due = 0.0  # a new FC address hears the status first, then the (re-sent) bundle
             name = m.name
             if name == "HIL_ACTUATOR_CONTROLS":
-                if m.fields["time_usec"] == want and answer is None:
-                    answer = seam.decode_actuator_controls(m.fields, self.limits)
+                fields = m.fields
+                if fields["time_usec"] == want and answer is None:
+                    answer = seam.decode_actuator_controls(fields, self.limits)
                     c.answers += 1
                 else:
                     c.stale_answers += 1

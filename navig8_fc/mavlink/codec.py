@@ -4,13 +4,14 @@
     c = codec.seam_codec()                                   # the seam's messages of the navig8 dialect
     enc = codec.Encoder(c, sysid=1, compid=25)
     frame = enc.frame("NAVIG8_SIM_STATUS", (1, 0, 1, 0.0, 0.0, 0))   # values in the message's field order
-    for m in c.parse(frame, codec.ParseCounters()):          # -> [Message("NAVIG8_SIM_STATUS", {...}, 1, 25, 0)]
-        ...
+    for m in c.parse(frame, codec.ParseCounters()):          # -> [Message("NAVIG8_SIM_STATUS", keys, values, 1, 25, 0)]
+        m.fields                                             # {"time_usec": 1, "step": 0, ...}
 
 Each message's layout (`MessageSpec`) is read from the public metadata of the class mavgen generated for it
 (msgname, id, crc_extra, fieldnames, fieldtypes, ordered_fieldnames, array_lengths); the struct format is
 built from the C types and checked against the class's own. Decoded messages are plain records: `Message`
-(name, fields dict in field order, arrays as tuples, source system/component, sequence). Packing takes the
+(name, field names and values in field order, arrays as tuples, source system/component, sequence; `.fields`
+the name -> value dict). Packing takes the
 field values in field order (`pack_values`) or a name -> value mapping (`pack_fields`).
 
 Frames: MAVLink 2 (0xFD) and MAVLink 1 (0xFE) headers; MAVLink 2 payloads are written with trailing zero
@@ -63,13 +64,21 @@ except ImportError:  # pragma: no cover - pymavlink's own (slower) CRC
 
 
 class Message(NamedTuple):
-    """A decoded frame: message name, fields (field order, arrays as tuples), source, sequence number."""
+    """A decoded frame: message name, its field names and values (field order, arrays as tuples), source system
+    and component, sequence number. `fields` makes the name -> value dict; a hot path reads `values` by index
+    (`MessageSpec.index`) and leaves the dict to whoever needs it (the log, after the step's answer is out)."""
 
     name: str
-    fields: dict[str, Any]
+    keys: tuple[str, ...]
+    values: tuple[Any, ...]
     sysid: int
     compid: int
     seq: int
+
+    @property
+    def fields(self) -> dict[str, Any]:
+        """A fresh name -> value dict, in field order."""
+        return dict(zip(self.keys, self.values, strict=True))
 
 
 class Counts(Protocol):
@@ -105,7 +114,7 @@ class MessageSpec:
 
     Plain class: built once per message at load; pack_values and unpack_from are the codec's per-frame work."""
 
-    __slots__ = ("name", "msg_id", "crc_extra", "crc_extra_byte", "fieldnames", "struct", "size", "_plan",
+    __slots__ = ("name", "msg_id", "crc_extra", "crc_extra_byte", "fieldnames", "index", "struct", "size", "_plan",
                  "_reorder", "_group", "_simple")
 
     def __init__(self, cls: Any) -> None:
@@ -123,6 +132,7 @@ class MessageSpec:
         if fmt != cls.unpacker.format:
             raise ValueError(f"{self.name}: layout {fmt} disagrees with the generated class's {cls.unpacker.format}")
         self.fieldnames = tuple(names)
+        self.index = {n: i for i, n in enumerate(names)}  # field name -> position in Message.values
         self.struct = struct.Struct(fmt)
         self.size = self.struct.size
         # pack: the wire order as segments (start, stop, array length): a run of scalars that are neighbours in field
@@ -163,16 +173,16 @@ class MessageSpec:
 
     def unpack(self, payload: bytes) -> dict[str, Any]:
         """Fields of a payload (zero-padded if shorter than the message, extra bytes ignored)."""
-        return self.unpack_from(payload, 0, len(payload))
+        return dict(zip(self.fieldnames, self.unpack_from(payload, 0, len(payload)), strict=True))
 
-    def unpack_from(self, data: bytes, start: int, end: int) -> dict[str, Any]:
-        """Fields of the payload data[start:end], read in place when it is whole (the usual case)."""
+    def unpack_from(self, data: bytes, start: int, end: int) -> tuple[Any, ...]:
+        """The field values (field order) of the payload data[start:end], read in place when it is whole."""
         if end - start >= self.size:
             t = self.struct.unpack_from(data, start)
         else:  # a truncated payload (MAVLink 2 strips trailing zeros): pad
             t = self.struct.unpack(data[start:end] + bytes(self.size - (end - start)))
         g = self._group
-        return dict(zip(self.fieldnames, g(t) if g is not None else t, strict=False))  # one value per name
+        return g(t) if g is not None else t
 
 
 class Codec:
@@ -190,15 +200,19 @@ class Codec:
 
     def frame(self, name: str, values: Sequence[Any], seq: int, sysid: int, compid: int) -> bytes:
         """One unsigned MAVLink 2 frame of `name` (values in field order), trailing payload zeros stripped."""
-        return b"".join(self.frame_parts(name, values, seq, sysid, compid))
+        return self.frames(((name, values),), seq, sysid, compid)
 
-    def frame_parts(self, name: str, values: Sequence[Any], seq: int, sysid: int, compid: int
-                    ) -> tuple[bytes, bytes, bytes]:
-        """frame()'s bytes in three pieces (magic, header + payload, CRC), for joining many frames at once."""
-        s = self.specs[name]
-        payload = s.pack_values(values).rstrip(b"\0") or b"\0"
-        body = _V2_HEADER.pack(len(payload), 0, 0, seq, sysid, compid, s.msg_id & 0xFFFF, s.msg_id >> 16) + payload
-        return b"\xfd", body, crc16(body + s.crc_extra_byte).to_bytes(2, "little")
+    def frames(self, records: Iterable[tuple[str, Sequence[Any]]], seq: int, sysid: int, compid: int) -> bytes:
+        """Frames of (name, values) records back to back, sequence numbers seq, seq + 1, ... (mod 256)."""
+        specs, hdr = self.specs, _V2_HEADER.pack
+        parts: list[bytes] = []
+        for name, values in records:
+            s = specs[name]
+            payload = s.pack_values(values).rstrip(b"\0") or b"\0"
+            body = hdr(len(payload), 0, 0, seq, sysid, compid, s.msg_id & 0xFFFF, s.msg_id >> 16) + payload
+            parts += (b"\xfd", body, crc16(body + s.crc_extra_byte).to_bytes(2, "little"))
+            seq = (seq + 1) & 0xFF
+        return b"".join(parts)
 
     def parse(self, data: bytes, counters: Counts) -> list[Message]:
         """The messages of one datagram, in order; everything else counted in `counters` and dropped."""
@@ -265,8 +279,8 @@ def _scan(data: bytes, counters: Counts, by_id: dict[int, MessageSpec] | None) -
                 counters.signed += 1
             continue
         so = start + 4 if v2 else start + 2  # header: ..., seq, sysid, compid at so, so + 1, so + 2
-        out.append(Message(spec.name, spec.unpack_from(data, so + 6 if v2 else so + 4, end - 2), data[so + 1],
-                           data[so + 2], data[so]))
+        out.append(Message(spec.name, spec.fieldnames, spec.unpack_from(data, so + 6 if v2 else so + 4, end - 2),
+                           data[so + 1], data[so + 2], data[so]))
     return out
 
 
@@ -300,16 +314,11 @@ class Encoder:
     def frame_fields(self, name: str, fields: Mapping[str, Any]) -> bytes:
         return self.frame(name, [fields[n] for n in self.codec.specs[name].fieldnames])
 
-    def frames(self, records: Iterable[tuple[str, Sequence[Any]]]) -> bytes:
+    def frames(self, records: Sequence[tuple[str, Sequence[Any]]]) -> bytes:
         """Frames of (name, values) records back to back (one datagram), one sequence number each."""
-        parts: list[bytes] = []
-        seq, n = self.seq, 0
-        for name, values in records:
-            parts += self.codec.frame_parts(name, values, seq, self.sysid, self.compid)
-            seq = (seq + 1) & 0xFF
-            n += 1
-        out = b"".join(parts)
-        self.seq = seq
+        out = self.codec.frames(records, self.seq, self.sysid, self.compid)
+        n = len(records)
+        self.seq = (self.seq + n) & 0xFF
         self.frames_out += n
         self.bytes_out += len(out)
         return out

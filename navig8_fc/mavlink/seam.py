@@ -30,11 +30,12 @@ import functools
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from operator import itemgetter
 from types import SimpleNamespace
 from typing import Any, NamedTuple, Protocol
 
 from navig8_fc.mavlink import dialect
-from navig8_fc.mavlink.codec import Encoder, Message
+from navig8_fc.mavlink.codec import Encoder, Message, seam_codec
 
 # HIL_SENSOR.fields_updated bits for accel (0x7) and gyro (0x38), PX4's grouping.
 HIL_SENSOR_ACCEL_GYRO = 0b111111
@@ -284,57 +285,69 @@ class BundleAssembler:
 
     Parts are keyed by time_usec, so a stray part of another step never mixes into a bundle. A HIL_SENSOR
     whose ODOMETRY / ACTUATOR_STATE / ARM_STATE with the same stamp did not arrive yields nothing and
-    counts in `incomplete` (NAVIG8_TRUTH is optional). `completed` holds the messages' fields of the last
-    bundle returned, by name (the FC logs them decoded).
+    counts in `incomplete` (NAVIG8_TRUTH is optional). `completed` holds the messages of the last bundle
+    returned, by name (the FC logs them decoded). Values are read by position (codec.MessageSpec.index): the
+    FC assembles on every lockstep step, before its answer; the field dicts are left to the log.
     """
 
     def __init__(self) -> None:
-        self._parts: dict[str, dict[str, Any]] = {}
-        self.completed: dict[str, dict[str, Any]] = {}
+        self._parts: dict[str, Message] = {}
+        self.completed: dict[str, Message] = {}
         self.incomplete = 0
+        specs = seam_codec().specs
+
+        def at(name: str, *fields: str) -> Any:
+            ix = specs[name].index
+            return itemgetter(*(ix[f] for f in fields))
+
+        self._time = {n: specs[n].index["time_usec"] for n in (*_BUNDLE_PARTS, "HIL_SENSOR")}
+        self._sensor = at("HIL_SENSOR", "id", "fields_updated")
+        self._gyro = at("HIL_SENSOR", "xgyro", "ygyro", "zgyro")
+        self._accel = at("HIL_SENSOR", "xacc", "yacc", "zacc")
+        self._pos = at("ODOMETRY", "x", "y", "z")
+        self._vel = at("ODOMETRY", "vx", "vy", "vz")
+        self._quat = specs["ODOMETRY"].index["q"]
+        self._act = at("NAVIG8_ACTUATOR_STATE", "step", "duct_tilt", "prop_speed")
+        self._arm = at("NAVIG8_ARM_STATE", "joint_pos", "joint_rate", "gripper_closed")
 
     def clear(self) -> None:
         """Forget collected parts."""
         self._parts.clear()
 
     def add(self, msg: Message) -> StepBundle | None:
-        name, fields = msg.name, msg.fields
+        name = msg.name
         if name in _BUNDLE_PARTS:
-            self._parts[name] = fields
+            self._parts[name] = msg
             return None
-        if name != "HIL_SENSOR" or fields["id"] != 0:
+        if name != "HIL_SENSOR":
             return None
-        tu = fields["time_usec"]
+        h = msg.values
+        sensor_id, updated = self._sensor(h)
+        if sensor_id != 0:
+            return None
+        t = self._time
+        tu = h[t["HIL_SENSOR"]]
         parts, self._parts = self._parts, {}
         odom = parts.get("ODOMETRY")
         act = parts.get("NAVIG8_ACTUATOR_STATE")
         arm = parts.get("NAVIG8_ARM_STATE")
-        if (odom is None or act is None or arm is None or odom["time_usec"] != tu or act["time_usec"] != tu
-                or arm["time_usec"] != tu):
+        if (odom is None or act is None or arm is None or odom.values[t["ODOMETRY"]] != tu
+                or act.values[t["NAVIG8_ACTUATOR_STATE"]] != tu or arm.values[t["NAVIG8_ARM_STATE"]] != tu):
             self.incomplete += 1
             return None
         truth = parts.get("NAVIG8_TRUTH")
-        if truth is not None and truth["time_usec"] != tu:
+        if truth is not None and truth.values[t["NAVIG8_TRUTH"]] != tu:
             del parts["NAVIG8_TRUTH"]  # a stray truth of another step: not this bundle's (it is optional)
             truth = None
-        parts["HIL_SENSOR"] = fields
+        parts["HIL_SENSOR"] = msg
         self.completed = parts
-        return StepBundle(
-            step=int(act["step"]),
-            time_usec=int(tu),
-            gyro_frd=(fields["xgyro"], fields["ygyro"], fields["zgyro"]),
-            accel_frd=(fields["xacc"], fields["yacc"], fields["zacc"]),
-            imu_fresh=(fields["fields_updated"] & HIL_SENSOR_ACCEL_GYRO) == HIL_SENSOR_ACCEL_GYRO,
-            pos_ned=(odom["x"], odom["y"], odom["z"]),
-            vel_ned=(odom["vx"], odom["vy"], odom["vz"]),
-            quat_wxyz=odom["q"],
-            duct_tilt_rad=act["duct_tilt"],
-            prop_speed_rad_s=act["prop_speed"],
-            joint_pos_rad=arm["joint_pos"],
-            joint_rate_rad_s=arm["joint_rate"],
-            gripper_closed=bool(arm["gripper_closed"]),
-            truth=SimpleNamespace(**truth) if truth is not None else None,
-        )
+        o = odom.values
+        step, tilt, speed = self._act(act.values)
+        jp, jr, grip = self._arm(arm.values)
+        return StepBundle(int(step), int(tu), self._gyro(h), self._accel(h),
+                          (updated & HIL_SENSOR_ACCEL_GYRO) == HIL_SENSOR_ACCEL_GYRO, self._pos(o), self._vel(o),
+                          o[self._quat], tilt, speed, jp, jr, bool(grip),
+                          SimpleNamespace(**truth.fields) if truth is not None else None)
 
 
 def decode_bundle(msgs: Iterable[Message]) -> StepBundle | None:

@@ -340,16 +340,16 @@ class FlightControllerProcess:
         return cid
 
     def _log_tick(self, t_us: int, tr: Any, st: ControllerStatus, cmd: ActuatorCommand, sp: Setpoint,
-                  wire: dict[str, dict[str, Any]] | None = None, answer: bytes | None = None) -> None:
+                  wire: dict[str, Any] | None = None, answer: bytes | None = None) -> None:
         assert self.logger is not None
         t_ns = seam.sim_us_from_time_usec(t_us) * 1000
         w = time.time_ns()
         # The sim link decoded, as the GCS links are: the FC's raw sensor inputs and its answer, plottable.
         # NAVIG8_TRUTH's decoded form is /truth. Lean path: channel ids cached, orjson straight to the writer.
         if wire:
-            for name, fields in wire.items():
+            for name, m in wire.items():  # codec.Message records (BundleAssembler.completed)
                 if name != "NAVIG8_TRUTH":
-                    self.logger.log_json_bytes(self._sim_channel("in", name), t_ns, mavlink_record_json(name, fields),
+                    self.logger.log_json_bytes(self._sim_channel("in", name), t_ns, mavlink_record_json(name, m.fields),
                                                w)
         if answer is not None:
             got = self.sim.codec.decode_frame(answer) if self.sim.codec is not None else None

@@ -295,7 +295,7 @@ def test_assembler_never_mixes_steps(plant: Plant) -> None:
     assert out is not None and out.time_usec == sb.time_us + 1
     assert list(asm.completed) == ["ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH",
                                    "HIL_SENSOR"]
-    assert all(asm.completed[m.name] is m.fields for m in msgs)
+    assert all(asm.completed[m.name] is m for m in msgs)
     assert seam.decode_bundle(msgs[1:]) is None  # ODOMETRY missing
     no_truth = seam.decode_bundle([m for m in msgs if m.name != "NAVIG8_TRUTH"])
     assert no_truth is not None and no_truth.truth is None

@@ -123,8 +123,8 @@ def test_the_fc_decode_path_equals_pymavlink_decode(d) -> None:
         ref = {m.get_type(): m for m in dialect.new_mav(1, 1).parse_buffer(data)}
         assert counts == codec.ParseCounters() and len(bundles) == 1
         assert [m.name for m in msgs] == list(ref) == list(asm.completed)
-        for name, fields in asm.completed.items():
-            assert same_fields(fields, ref[name])
+        for name, m in asm.completed.items():
+            assert same_fields(m.fields, ref[name])
         b = bundles[0]
         o, a, r, h = ref["ODOMETRY"], ref["NAVIG8_ACTUATOR_STATE"], ref["NAVIG8_ARM_STATE"], ref["HIL_SENSOR"]
         want = [a.step, h.time_usec, [h.xgyro, h.ygyro, h.zgyro], [h.xacc, h.yacc, h.zacc],
