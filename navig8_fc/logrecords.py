@@ -78,11 +78,10 @@ def wire_truth_record(t: Any) -> dict[str, Any]:
     )
 
 
-def mavlink_record_json(name: str, fields: dict[str, Any]) -> bytes:
-    """A decoded message as the JSON of its /mavlink/... channel: the fields and mavpackettype = name (the
-    keys of pymavlink's to_dict). Adds the key to `fields` (the decoder's fresh dict) instead of copying it."""
-    fields["mavpackettype"] = name
-    return orjson.dumps(fields)
+def mavlink_record_json(msg: Any) -> bytes:
+    """A decoded message (codec.Message) as the JSON of its /mavlink/... channel: its fields and
+    mavpackettype = its name (the keys of pymavlink's to_dict)."""
+    return orjson.dumps(dict(zip(msg.keys, msg.values, strict=True), mavpackettype=msg.name))
 
 
 @functools.lru_cache(maxsize=512)

@@ -91,11 +91,16 @@ class ActuatorLimits:
     @staticmethod
     def from_vehicle(vehicle: Any) -> ActuatorLimits:
         """From a navig8_fc.core.vehicle.VehicleConfig (duck-typed: tilt_min/max_rad, *_speed_max)."""
-        return ActuatorLimits(
-            tilt_max_abs_rad=max(abs(float(vehicle.tilt_min_rad)), abs(float(vehicle.tilt_max_rad))),
-            duct_speed_max_rad_s=float(vehicle.duct_speed_max),
-            tail_speed_max_rad_s=max(abs(float(vehicle.tail_speed_max)), abs(float(vehicle.tail_speed_min))),
-        )
+        return _limits_from(float(vehicle.tilt_min_rad), float(vehicle.tilt_max_rad), float(vehicle.duct_speed_max),
+                            float(vehicle.tail_speed_min), float(vehicle.tail_speed_max))
+
+
+@functools.lru_cache(maxsize=16)
+def _limits_from(tilt_min: float, tilt_max: float, duct_max: float, tail_min: float, tail_max: float
+                 ) -> ActuatorLimits:
+    # memoised: the FC passes its VehicleConfig with every answer (validation would cost ~1 us of each step)
+    return ActuatorLimits(tilt_max_abs_rad=max(abs(tilt_min), abs(tilt_max)), duct_speed_max_rad_s=duct_max,
+                          tail_speed_max_rad_s=max(abs(tail_max), abs(tail_min)))
 
 
 def _limits(limits_or_vehicle: Any) -> ActuatorLimits:

@@ -112,6 +112,7 @@ class FlightControllerProcess:
         self._frame_queue: list[tuple[str, Any, str | None, int, int]] = []
         self._pending_tick: tuple[Any, ...] | None = None
         self._sim_channels: dict[tuple[str, str], int] = {}
+        self._raw_topics: dict[tuple[str, str], str] = {}  # (link, direction) -> /mavlink/<link>/<direction>
         self._spin_until = 0.0
         self._mk_links()
         self._cfg_generation = -1
@@ -192,7 +193,10 @@ class FlightControllerProcess:
         step's answer has gone out, so logging overlaps with the bridge's physics step instead of delaying the
         lockstep round trip."""
         if self.logger:
-            self._frame_queue.append((f"/mavlink/{link}/{direction}", raw, peer, self._sim_ns(), time.time_ns()))
+            topic = self._raw_topics.get((link, direction))
+            if topic is None:
+                topic = self._raw_topics[(link, direction)] = f"/mavlink/{link}/{direction}"
+            self._frame_queue.append((topic, raw, peer, self._sim_ns(), time.time_ns()))
 
     def _log_decoded(self, link: str, direction: str, raw: bytes, msg: Any, peer: tuple[str, int]) -> None:
         """Queue a decoded GCS/API message for its /mavlink/<link>/<dir>/<TYPE> channel."""
@@ -349,13 +353,11 @@ class FlightControllerProcess:
         if wire:
             for name, m in wire.items():  # codec.Message records (BundleAssembler.completed)
                 if name != "NAVIG8_TRUTH":
-                    self.logger.log_json_bytes(self._sim_channel("in", name), t_ns, mavlink_record_json(name, m.fields),
-                                               w)
+                    self.logger.log_json_bytes(self._sim_channel("in", name), t_ns, mavlink_record_json(m), w)
         if answer is not None:
             got = self.sim.codec.decode_frame(answer) if self.sim.codec is not None else None
             if got is not None:
-                self.logger.log_json_bytes(self._sim_channel("out", got.name), t_ns,
-                                           mavlink_record_json(got.name, got.fields), w)
+                self.logger.log_json_bytes(self._sim_channel("out", got.name), t_ns, mavlink_record_json(got), w)
         if tr is not None:
             self.logger.log("/truth", t_ns, wire_truth_record(tr), publish_ns=w)
             self.logger.log("/analysis/eig", t_ns, _eig_record(self.model, st, tr,

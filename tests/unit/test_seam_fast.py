@@ -150,7 +150,7 @@ def test_the_log_records_equal_pymavlink_to_dict(d) -> None:
     msgs = codec.seam_codec().parse(data, codec.ParseCounters())
     for m, ref in zip(msgs, dialect.new_mav(1, 1).parse_buffer(data), strict=True):
         want = ref.to_dict()
-        got = orjson.loads(mavlink_record_json(m.name, dict(m.fields)))
+        got = orjson.loads(mavlink_record_json(m))
         assert got.keys() == want.keys()
         assert got == orjson.loads(orjson.dumps(want))
 
