@@ -156,6 +156,7 @@ class FlightControllerProcess:
         sim_codec = codec.seam_codec()  # the sim link speaks only the seam's messages, decoded by the codec
         self.sim = UdpLink.open("sim", codec.Encoder(sim_codec, o.sysid, FC_COMPID), (o.host, o.port("sim")),
                                 [(o.host, o.port("bridge"))], codec=sim_codec)
+        self.sim.max_datagrams = 1  # one bundle per step; more stay readable for the run loop's next select
         self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
         self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
         if o.ports_file is not None:

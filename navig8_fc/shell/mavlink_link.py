@@ -116,6 +116,9 @@ class UdpLink:
     on_frame: Callable[[str, str, bytes, Any, tuple[str, int]], None] | None = None
     # The sim link: decode every datagram with this codec (codec.Message records) instead of pymavlink.
     codec: Codec | None = None
+    # -1: receive() drains the socket. The sim link takes one datagram per call: in lockstep one is due per step,
+    # and the drain's final, failing recvfrom (~1 us) would be paid on every step.
+    max_datagrams: int = -1
 
     @staticmethod
     def open(name: str, mav: Any, bind: tuple[str, int], targets: list[tuple[str, int]] | None = None,
@@ -134,10 +137,13 @@ class UdpLink:
         return self.peers if self.peers else self.targets
 
     def receive(self) -> list[Received]:
-        """Everything waiting on the socket (non-blocking), split and decoded."""
+        """What is waiting on the socket (non-blocking), split and decoded: every datagram, or at most
+        `max_datagrams` (the rest stays readable for the caller's next select)."""
         out: list[Received] = []
         c = self.counters
-        while True:
+        left = self.max_datagrams
+        while left != 0:
+            left -= 1
             try:
                 data, addr = self.sock.recvfrom(65535)
             except (BlockingIOError, InterruptedError):

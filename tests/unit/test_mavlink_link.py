@@ -156,3 +156,29 @@ def test_port_zero_binds_a_free_port_and_the_ports_file_is_written_whole(tmp_pat
     finally:
         for ln in links:
             ln.close()
+
+
+def test_max_datagrams_leaves_the_rest_readable() -> None:
+    c = codec.seam_codec()
+    link = UdpLink.open("sim", codec.Encoder(c, 1, 1), ("127.0.0.1", 0), codec=c)
+    link.max_datagrams = 1
+    status = [codec.Encoder(c, 1, 25).frame(*seam.encode_sim_status(seam.SimStatus(k, k, 1, 0.0, 1.0, 0)))
+              for k in range(3)]
+    try:
+        got = _send_and_receive(link, status[:1], 1)
+        assert [r.msg[0].fields["step"] for r in got] == [0]
+        tx = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            for s in status[1:]:
+                tx.sendto(s, ("127.0.0.1", link.local_port))
+        finally:
+            tx.close()
+        steps = []
+        deadline = time.monotonic() + 2.0
+        while len(steps) < 2 and time.monotonic() < deadline:
+            got = link.receive()
+            assert len(got) <= 1
+            steps += [r.msg[0].fields["step"] for r in got]
+        assert steps == [1, 2]
+    finally:
+        link.close()
