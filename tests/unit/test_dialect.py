@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import os
@@ -288,7 +287,7 @@ def test_assembler_never_mixes_steps(plant: Plant) -> None:
     asm = seam.BundleAssembler()
     for m in msgs[:-1]:
         assert asm.add(m) is None
-    hil_other = _messages(1, dataclasses.replace(sb, time_us=sb.time_us + 10_000), None)[-1]
+    hil_other = _messages(1, sb._replace(time_us=sb.time_us + 10_000), None)[-1]
     assert asm.add(hil_other) is None and asm.incomplete == 1
     for m in msgs:
         out = asm.add(m)
