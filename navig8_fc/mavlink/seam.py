@@ -2,7 +2,7 @@
 
 Both processes import this module, so the meaning of the wire lives in one place; the bytes are the codec's
 (`navig8_fc.mavlink.codec`). Messages go out as records `(name, values in field order)` and come back as
-`codec.Message` records (name, fields dict):
+`codec.Message` records (name, field names and values; `.fields` the dict):
 
 - bridge -> FC, once per step k: ONE UDP datagram holding, in this order, ODOMETRY, NAVIG8_ACTUATOR_STATE,
   NAVIG8_ARM_STATE, NAVIG8_TRUTH and HIL_SENSOR (last: the FC's trigger). `bundle_records` maps the plant's
