@@ -51,12 +51,9 @@ _STRUCT_CODES = {"float": "f", "double": "d", "char": "s", "int8_t": "b", "uint8
 _V2_HEADER = struct.Struct("<BBBBBBHB")  # the header after the magic byte (the part the CRC covers)
 
 
-try:  # the CRC pymavlink uses when fastcrc is installed (MCRF4XX = X.25 as MAVLink defines it)
-    from fastcrc.crc16 import mcrf4xx as _mcrf4xx
-
-    def crc16(data: bytes) -> int:
-        """MAVLink's X.25 CRC of data (seed 0xFFFF)."""
-        return _mcrf4xx(data, 0xFFFF)
+try:  # MAVLink's X.25 CRC (MCRF4XX, seed 0xFFFF by default) as pymavlink computes it when fastcrc is installed;
+    # the C function itself, called for every frame
+    from fastcrc.crc16 import mcrf4xx as crc16
 except ImportError:  # pragma: no cover - pymavlink's own (slower) CRC
     def crc16(data: bytes) -> int:
         """MAVLink's X.25 CRC of data (seed 0xFFFF)."""

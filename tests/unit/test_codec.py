@@ -219,3 +219,11 @@ def test_split_frames_handles_garbage_truncation_and_both_versions() -> None:
     signed[2] |= 0x01
     frames, _, truncated = codec.split_frames(bytes(signed) + bytes(13))
     assert len(frames) == 1 and len(frames[0]) == len(hb) + 13 and truncated == 0
+
+
+def test_crc_is_pymavlinks_x25(d) -> None:
+    rng = random.Random(11)
+    for n in (0, 1, 9, 100, 280):
+        data = bytes(rng.randrange(256) for _ in range(n))
+        assert codec.crc16(data) == d.x25crc(data).crc
+    assert codec.crc16(b"123456789") == 0x6F91  # the CRC-16/MCRF4XX check value
