@@ -2,14 +2,20 @@
 
     navig8-bridge [--scenario NAME|FILE] [--seed N] [--speed X] [--instance N] [--until-done] [--duration S]
                   [--bridge-port P] [--fc-port P] [--host H] [--dt S] [--step-timeout S] [--stall-abort S]
+                  [--ports-file PATH]
 
 The bridge is the time master (DESIGN §4). Each step k it sends ONE datagram with the sensor bundle
 stamped time_usec = round(k * dt * 1e6) + 1 (ODOMETRY, NAVIG8_ACTUATOR_STATE, NAVIG8_ARM_STATE, NAVIG8_TRUTH,
 HIL_SENSOR last) and waits for the FC's single HIL_ACTUATOR_CONTROLS echoing that stamp; it then holds that
 command for dt (zero-order hold), steps the plant and sends step k + 1. A thin I/O loop: no controller code.
 
-Exit codes: 0 done (--until-done) or stopped by SIGINT/SIGTERM; 1 cannot start (e.g. port in use);
-2 bad arguments; 3 navig8-fc stalled longer than --stall-abort; 4 the plant diverged.
+Ports: --bridge-port 0 binds a free port; --ports-file PATH then receives {"bridge": port} (JSON, written
+atomically after binding). The FC's address is --fc-port at --host until the FC talks: any valid frame from
+the FC (its HEARTBEAT announcement at start, its answers) sets the address its datagrams come from;
+--fc-port 0 sends nothing until the FC has announced itself.
+
+Exit codes: 0 done (--until-done) or stopped by SIGINT/SIGTERM; 1 cannot start; 2 bad arguments or the
+port in use; 3 navig8-fc stalled longer than --stall-abort; 4 the plant diverged.
 """
 
 from __future__ import annotations
@@ -18,7 +24,6 @@ import argparse
 import gc
 import math
 import signal
-import socket
 import sys
 import time
 from dataclasses import dataclass, field
@@ -28,7 +33,8 @@ from typing import Any
 import numpy as np
 
 from navig8_fc.core.vehicle import VehicleConfig
-from navig8_fc.mavlink import dialect, seam
+from navig8_fc.mavlink import codec, dialect, seam
+from navig8_fc.shell.mavlink_link import PortInUseError, bind_udp, write_ports_file
 from sim_bridge.messages import ActuatorCommand
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant, PlantDivergedError
@@ -44,8 +50,6 @@ MAX_DATAGRAM = 65535
 MAX_ACCEPTED_DATAGRAM = 4096  # the FC sends ~70-byte frames; anything this big is not it (parse nothing)
 
 EXIT_OK, EXIT_START, EXIT_USAGE, EXIT_STALL, EXIT_DIVERGED = 0, 1, 2, 3, 4
-
-_new = object.__new__
 
 
 class _Shutdown(BaseException):
@@ -76,6 +80,7 @@ class BridgeOptions:
     stall_abort_s: float = 20.0
     startup_timeout_s: float = 0.0  # 0: wait for the FC forever (reminding every 10 s)
     grab_mass_kg: float | None = None  # object mass a GRAB picks up (default: from the scenario)
+    ports_file: Path | None = None  # written after binding: {"bridge": port}
 
     @property
     def sysid(self) -> int:
@@ -99,7 +104,8 @@ class BridgeCounters:
     answers: int = 0  # HIL_ACTUATOR_CONTROLS accepted
     stale_answers: int = 0  # HIL_ACTUATOR_CONTROLS for another step (duplicates, late answers)
     arm_cmds: int = 0
-    bad_frames: int = 0  # malformed, bad CRC, unknown ids, truncated
+    bad_frames: int = 0  # malformed, bad CRC, unknown ids, truncated, signed (not verified here)
+    garbage_bytes: int = 0  # bytes between frames
     foreign_frames: int = 0  # from another system or component
     other_frames: int = 0  # valid FC frames the bridge does not use (HEARTBEAT, ...)
     datagrams_in: int = 0
@@ -145,22 +151,17 @@ class Bridge:
         self.n_steps = int(round(duration * 1e6 / self.dt_us))
         self.limits = seam.ActuatorLimits.from_vehicle(self.vehicle)
         self.grab_mass_kg = default_grab_mass(self.scenario) if opts.grab_mass_kg is None else opts.grab_mass_kg
-        self.d = dialect.load()
-        self.mav = dialect.new_mav(opts.sysid, dialect.COMPID_BRIDGE)
-        self.rx = dialect.new_mav(opts.sysid, dialect.COMPID_BRIDGE)
-        self._sysid = opts.sysid
-        hac = self.d.mavlink_map[self.d.MAVLINK_MSG_ID_HIL_ACTUATOR_CONTROLS]
-        if hac.id >= 256 or hac.unpacker.format != "<QQ16fB":
-            raise RuntimeError("HIL_ACTUATOR_CONTROLS layout changed: update Bridge._handle's fast path")
-        self._hac_id_lo = hac.id
-        self._hac_crc_extra = bytes((hac.crc_extra,))
-        self._hac_struct = hac.unpacker
+        self.codec = codec.seam_codec()
+        self.mav = codec.Encoder(self.codec, opts.sysid, dialect.COMPID_BRIDGE)
+        self._parse_counts = codec.ParseCounters()
         self.counters = BridgeCounters()
         self.arm = _ArmState()
-        self.fc_addr = (opts.host, opts.fc_port_resolved)
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
-        self.sock.bind((opts.host, opts.bridge_port_resolved))
+        # None: --fc-port 0, nothing is sent until the FC announces itself (see _handle)
+        self.fc_addr: tuple[str, int] | None = (opts.host, opts.fc_port_resolved) if opts.fc_port_resolved else None
+        self.sock = bind_udp("bridge", (opts.host, opts.bridge_port_resolved))
+        self.port = int(self.sock.getsockname()[1])
+        if opts.ports_file is not None:
+            write_ports_file(opts.ports_file, {"bridge": self.port})
         self.step = 0
         self._wall_start: float | None = None  # when stepping began (answer to step 0)
         self._pace_anchor: tuple[float, int] = (0.0, 0)  # (wall, step) pacing is measured from
@@ -172,7 +173,12 @@ class Bridge:
     def time_usec(self) -> int:
         return seam.time_usec_from_sim_us(self.plant.t_us)
 
+    def _fc_text(self) -> str:
+        return f"{self.fc_addr[0]}:{self.fc_addr[1]}" if self.fc_addr else "(port unknown until it announces itself)"
+
     def _send(self, data: bytes) -> None:
+        if self.fc_addr is None:
+            return  # the FC's address is not known yet (--fc-port 0): its announcement will tell
         try:
             self.sock.sendto(data, self.fc_addr)
         except OSError:
@@ -191,7 +197,7 @@ class Bridge:
     def _send_status(self, now: float, state: int | None = None) -> None:
         st = seam.SimStatus(self.time_usec, self.step, self.state if state is None else state,
                             self.opts.speed, self.rtf(now), self.counters.stalls)
-        self._send(seam.pack(self.mav, [seam.encode_sim_status(st)]))
+        self._send(self.mav.frame(*seam.encode_sim_status(st)))
         self._status_due = now + STATUS_PERIOD_S
 
     def _receive(self, timeout_s: float) -> seam.ActuatorControls | None:
@@ -205,96 +211,70 @@ class Bridge:
             spin_end = time.perf_counter() + min(SPIN_S, timeout_s)
             while data is None and time.perf_counter() < spin_end:
                 try:
-                    data, _addr = self.sock.recvfrom(MAX_DATAGRAM)
+                    data, addr = self.sock.recvfrom(MAX_DATAGRAM)
                 except (BlockingIOError, TimeoutError, ConnectionRefusedError):
                     data = None
         if data is None:
             self.sock.settimeout(max(timeout_s, 0.0))
             try:
-                data, _addr = self.sock.recvfrom(MAX_DATAGRAM)
+                data, addr = self.sock.recvfrom(MAX_DATAGRAM)
             except (TimeoutError, BlockingIOError, ConnectionRefusedError):
                 # ConnectionRefused: an ICMP port-unreachable from an earlier send (FC not up yet)
                 return None
-        answer = self._handle(data)
+        answer = self._handle(data, addr)
         # drain whatever else is already queued without waiting (keeps stale answers from piling up)
         self.sock.settimeout(0.0)
         while answer is None:
             try:
-                data, _addr = self.sock.recvfrom(MAX_DATAGRAM)
+                data, addr = self.sock.recvfrom(MAX_DATAGRAM)
             except (BlockingIOError, TimeoutError, ConnectionRefusedError):
                 break
-            answer = self._handle(data)
+            answer = self._handle(data, addr)
         return answer
 
-    def _handle(self, data: bytes) -> seam.ActuatorControls | None:
-        """Count and decode one datagram; the answer to the current step if it holds it (else None)."""
-        # fast path: the usual datagram, exactly one valid HIL_ACTUATOR_CONTROLS frame (unsigned MAVLink 2, CRC
-        # checked) from our FC; the same counters and answer as the general path below, which takes the rest
-        n = len(data)
-        if (n >= 12 and data[0] == 253 and data[2] == 0 and data[1] + 12 == n and data[7] == self._hac_id_lo
-                and data[8] == 0 and data[9] == 0 and data[5] == self._sysid and data[6] == dialect.COMPID_FC
-                and self.rx.signing.secret_key is None
-                and seam._crc16(data[1:-2] + self._hac_crc_extra) == data[-2] | (data[-1] << 8)):
-            c = self.counters
-            c.datagrams_in += 1
-            rx = self.rx
-            rx.total_packets_received += 1
-            rx.total_bytes_received += n
-            st = self._hac_struct
-            mlen = n - 12
-            if mlen >= st.size:
-                w = st.unpack_from(data, 10)
-            else:
-                w = st.unpack(data[10:-2] + bytes(st.size - mlen))
-            # wire order: time_usec, flags, controls[16], mode
-            if w[0] != self.plant.t_us + 1:  # seam.time_usec_from_sim_us
-                c.stale_answers += 1
-                return None
-            c.answers += 1
-            lim = self.limits
-            ans = _new(seam.ActuatorControls)
-            ans.__dict__.update({  # what seam.decode_actuator_controls gives, without the frozen __init__
-                "time_usec": w[0],
-                "tilt_rad": (w[2] * lim.tilt_max_abs_rad, w[3] * lim.tilt_max_abs_rad),
-                "speed_rad_s": (w[4] * lim.duct_speed_max_rad_s, w[5] * lim.tail_speed_max_rad_s,
-                                w[6] * lim.duct_speed_max_rad_s),
-                "armed": bool(w[18] & seam.MODE_FLAG_SAFETY_ARMED),
-            })
-            return ans
-        return self._handle_general(data)
+    def _handle(self, data: bytes, addr: tuple[str, int] | None = None) -> seam.ActuatorControls | None:
+        """Count and decode one datagram (from addr); the answer to the current step if it holds it (else None).
 
-    def _handle_general(self, data: bytes) -> seam.ActuatorControls | None:
+        Frames from our FC (sysid, COMPID_FC) set the FC's address to addr: the FC announces itself with a
+        HEARTBEAT at start, so a bridge that does not know the FC's port (or an FC restarted elsewhere) is found."""
         c = self.counters
         c.datagrams_in += 1
         if len(data) > MAX_ACCEPTED_DATAGRAM:
             c.oversize += 1
             return None
-        parsed = seam.parse_datagram(self.rx, data)
-        c.bad_frames += parsed.bad
+        pc = self._parse_counts
+        msgs = self.codec.parse(data, pc)
+        if pc.garbage_bytes or pc.bad_crc or pc.truncated or pc.unknown_id or pc.signed or pc.bad_flags:
+            c.garbage_bytes += pc.garbage_bytes
+            c.bad_frames += pc.bad_frames
+            self._parse_counts = codec.ParseCounters()
         answer = None
         want = self.time_usec
         sysid = self.opts.sysid
-        for m in parsed.messages:
-            h = m.get_header()
-            if h.srcSystem != sysid or h.srcComponent != dialect.COMPID_FC:
+        for m in msgs:
+            if m.sysid != sysid or m.compid != dialect.COMPID_FC:
                 c.foreign_frames += 1
                 continue
-            t = m.get_type()
-            if t == "HIL_ACTUATOR_CONTROLS":
-                if m.time_usec == want and answer is None:
-                    answer = seam.decode_actuator_controls(m, self.limits)
+            if addr is not None and addr != self.fc_addr:
+                self.fc_addr = addr
+                self._status_due = 0.0  # a new FC address hears the status first, then the (re-sent) bundle
+            name = m.name
+            if name == "HIL_ACTUATOR_CONTROLS":
+                fields = m.fields
+                if fields["time_usec"] == want and answer is None:
+                    answer = seam.decode_actuator_controls(fields, self.limits)
                     c.answers += 1
                 else:
                     c.stale_answers += 1
-            elif t == "NAVIG8_ARM_CMD":
-                self._on_arm_cmd(m)
+            elif name == "NAVIG8_ARM_CMD":
+                self._on_arm_cmd(m.fields)
             else:
                 c.other_frames += 1
         return answer
 
-    def _on_arm_cmd(self, m: Any) -> None:
+    def _on_arm_cmd(self, fields: dict[str, Any]) -> None:
         try:
-            cmd = seam.decode_arm_cmd(m)
+            cmd = seam.decode_arm_cmd(fields)
         except ValueError:
             self.counters.bad_frames += 1
             return
@@ -331,12 +311,12 @@ class Bridge:
                 waited = now - first_sent
                 if startup:
                     if o.startup_timeout_s > 0 and waited >= o.startup_timeout_s:
-                        raise _Stalled(f"navig8-bridge: no answer from navig8-fc at {self.fc_addr[0]}:"
-                                       f"{self.fc_addr[1]} within --startup-timeout {o.startup_timeout_s:g} s; "
+                        raise _Stalled(f"navig8-bridge: no answer from navig8-fc at {self._fc_text()}"
+                                       f" within --startup-timeout {o.startup_timeout_s:g} s; "
                                        "is navig8-fc running with the same --instance/ports?")
                     if now >= next_reminder:
                         next_reminder = now + 10.0
-                        print(f"navig8-bridge: still waiting for navig8-fc at {self.fc_addr[0]}:{self.fc_addr[1]} "
+                        print(f"navig8-bridge: still waiting for navig8-fc at {self._fc_text()} "
                               f"({waited:.0f} s)", file=sys.stderr, flush=True)
                 else:
                     self.counters.stalls += 1
@@ -374,7 +354,7 @@ class Bridge:
         c = self.counters
         print(f"navig8-bridge: scenario {self.scenario.name} (seed {o.seed}), sysid {o.sysid}, dt {o.dt_s:g} s, "
               f"speed {o.speed:g}{' (as fast as possible)' if o.speed == 0 else 'x'}, "
-              f"bound {o.host}:{o.bridge_port_resolved}, FC at {self.fc_addr[0]}:{self.fc_addr[1]}"
+              f"bound {o.host}:{self.port}, FC at {self._fc_text()}"
               + (f", until done at t={self.n_steps * self.dt_us * 1e-6:g} s" if o.until_done else ""),
               file=sys.stderr, flush=True)
         gc.collect()
@@ -392,16 +372,14 @@ class Bridge:
         self.state = seam.SIM_STATE_RUNNING
         self._send_status(now)
         dt_us = self.dt_us
-        plant, mav, arm, sock, fc_addr = self.plant, self.mav, self.arm, self.sock, self.fc_addr
+        plant, mav, arm, sock = self.plant, self.mav, self.arm, self.sock
         until_done, n_steps, paced, step_timeout_s = o.until_done, self.n_steps, o.speed > 0, o.step_timeout_s
         encode_bundle, perf_counter = seam.encode_bundle, time.perf_counter
         while True:
             if until_done and self.step >= n_steps:
                 break
             # zero-order hold of the answer for one control period
-            cmd = _new(ActuatorCommand)
-            cmd.__dict__.update({"tilt_rad": ans.tilt_rad, "speed_rad_s": ans.speed_rad_s,
-                                 "joint_targets_rad": arm.joint_targets_rad})
+            cmd = ActuatorCommand(ans.tilt_rad, ans.speed_rad_s, arm.joint_targets_rad)
             if arm.pending_gripper:
                 self._apply_arm()
             plant.step_us(cmd, dt_us)
@@ -411,8 +389,8 @@ class Bridge:
             if paced:
                 self._pace()
             now = perf_counter()
-            try:  # self._send(data)
-                sock.sendto(data, fc_addr)
+            try:  # self._send(data); fc_addr is known: the FC answered step 0
+                sock.sendto(data, self.fc_addr)
             except OSError:
                 pass
             c.bundles_sent += 1
@@ -445,8 +423,10 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--seed", type=int, default=1, help="sensor-noise seed")
     ap.add_argument("--speed", type=float, default=1.0, help="1 real time, N N x real time, 0 as fast as possible")
     ap.add_argument("--instance", type=int, default=0, help="vehicle N: sysid N+1, ports 4560+2N / 4561+2N")
-    ap.add_argument("--bridge-port", type=int, default=None, help="UDP port the bridge binds (default 4560+2N)")
-    ap.add_argument("--fc-port", type=int, default=None, help="UDP port navig8-fc listens on (default 4561+2N)")
+    ap.add_argument("--bridge-port", type=int, default=None,
+                    help="UDP port the bridge binds (default 4560+2N; 0: any free port, see --ports-file)")
+    ap.add_argument("--fc-port", type=int, default=None,
+                    help="UDP port navig8-fc listens on (default 4561+2N; 0: learn it from the FC's announcement)")
     ap.add_argument("--host", default="127.0.0.1", help="address to bind and of the FC")
     ap.add_argument("--until-done", action="store_true",
                     help="stop at the scenario's duration, send NAVIG8_SIM_STATUS done and exit 0")
@@ -459,6 +439,7 @@ def build_arg_parser() -> argparse.ArgumentParser:
                     help="wall s to wait for the FC's first answer (0: forever)")
     ap.add_argument("--grab-mass", type=float, default=None,
                     help="mass (kg) of the object a gripper GRAB picks up (default: the scenario's object)")
+    ap.add_argument("--ports-file", default=None, help='after binding, write {"bridge": port} here as JSON')
     return ap
 
 
@@ -467,7 +448,7 @@ def options_from_args(a: argparse.Namespace) -> BridgeOptions:
         scenario=a.scenario, seed=a.seed, speed=a.speed, instance=a.instance, bridge_port=a.bridge_port,
         fc_port=a.fc_port, host=a.host, until_done=a.until_done, duration_s=a.duration, dt_s=a.dt,
         step_timeout_s=a.step_timeout, stall_abort_s=a.stall_abort, startup_timeout_s=a.startup_timeout,
-        grab_mass_kg=a.grab_mass,
+        grab_mass_kg=a.grab_mass, ports_file=Path(a.ports_file) if a.ports_file else None,
     )
 
 
@@ -488,6 +469,10 @@ def main(argv: list[str] | None = None) -> int:
             bridge = Bridge(options_from_args(args))
         except (ValueError, FileNotFoundError) as e:
             print(f"navig8-bridge: {e}", file=sys.stderr)
+            return EXIT_USAGE
+        except PortInUseError as e:
+            print(f"navig8-bridge: UDP {e.host}:{e.port} is in use by another process; choose another with "
+                  "--bridge-port (0: any free port) or --instance", file=sys.stderr)
             return EXIT_USAGE
         except OSError as e:
             print(f"navig8-bridge: cannot bind {args.host}:{args.bridge_port or BASE_BRIDGE_PORT + 2 * args.instance}"

@@ -1,35 +1,21 @@
-"""Frozen messages at the plant's seams: the actuator command in, the sensor bundle and the truth out.
+"""Immutable messages at the plant's seams: the actuator command in, the sensor bundle and the truth out.
 
-Array fields are read-only numpy views (one fresh buffer per message), so a message cannot change
-after it was made. Units and frames are in the field names: body FRD, earth NED, SI, radians.
+NamedTuples (not frozen dataclasses: a frozen dataclass's __init__ pays one object.__setattr__ per field,
+~3.5 us for a Truth and ~1.3 us for a SensorBundle, a few percent of a closed-loop step; a NamedTuple is
+built in ~1 us and is as immutable). Array fields are read-only numpy views (one fresh buffer per message), so
+a message cannot change after it was made. Units and frames are in the field names: body FRD, earth NED, SI,
+radians.
 """
 
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
-from typing import Any, TypeVar
+from typing import NamedTuple
 
 import numpy as np
 
-_T = TypeVar("_T")
 
-
-def make_frozen(cls: type[_T], fields: dict[str, Any]) -> _T:
-    """Build a frozen dataclass instance without its generated __init__.
-
-    The generated __init__ of a frozen dataclass pays one object.__setattr__ per field (~0.3 us each:
-    ~4 us for a SensorBundle, ~10 us for a Truth), a large share of the plant's 100 Hz budget. fields
-    must hold exactly the dataclass's fields (tests/unit/test_plant_io.py checks the plant's uses);
-    the instance is as frozen as any other (assignment raises FrozenInstanceError).
-    """
-    obj = object.__new__(cls)
-    obj.__dict__.update(fields)
-    return obj
-
-
-@dataclass(frozen=True)
-class ActuatorCommand:
+class ActuatorCommand(NamedTuple):
     """Commanded actuator positions (what HIL_ACTUATOR_CONTROLS will carry, in SI units).
 
     tilt_rad: duct angles (alpha1 right, alpha3 left); speed_rad_s: propeller speeds (w1 right duct,
@@ -57,8 +43,7 @@ class SensorField(enum.IntFlag):
     ALL = 15
 
 
-@dataclass(frozen=True)
-class SensorBundle:
+class SensorBundle(NamedTuple):
     """One sensor sample at time_us (plant time). Groups not in `updated` repeat their last sample."""
 
     time_us: int
@@ -78,8 +63,7 @@ class SensorBundle:
         return bool(self.updated & field)
 
 
-@dataclass(frozen=True)
-class Truth:
+class Truth(NamedTuple):
     """Ground truth at time_us for logs and analysis.
 
     The arm's reaction wrench on the UAV is given about the mount (joint 1) and about O (the UAV's

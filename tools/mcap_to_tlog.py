@@ -14,7 +14,7 @@ import argparse
 import struct
 from pathlib import Path
 
-from navig8_fc.shell.mavlink_link import split_frames
+from navig8_fc.mavlink.codec import split_frames
 from navig8_fc.shell.mcap_log import read_mcap_records
 
 

@@ -25,24 +25,26 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import orjson
 
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FlightControllerCore, warm_up_kernels
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
+from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
+from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink import dialect as dialect_mod
-from navig8_fc.mavlink import seam
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import ParamStore, default_state_path
 from navig8_fc.shell.gcs_service import GcsService, Source
-from navig8_fc.shell.mavlink_link import UdpLink
-from navig8_fc.shell.mcap_log import McapLogger, mavlink_json_schema
+from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
+from navig8_fc.shell.mcap_log import McapLogger
 
 FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
 WALL_TICK_S = 0.001  # GCS services (telemetry schedule, paced parameter list) run at most this often
 _GRIPPER_CODES = {None: seam.GRIPPER_NONE, "grab": seam.GRIPPER_GRAB, "release": seam.GRIPPER_RELEASE}
+EXIT_USAGE = 2  # bad arguments, or a port in use
+_PORT_OPTIONS = {"sim": "--sim-port", "gcs": "--gcs-bind-port", "api": "--api-bind-port"}
 
 
 @dataclass(frozen=True)
@@ -61,6 +63,7 @@ class FcOptions:
     log_path: Path | None = None
     state_dir: Path | None = None
     defaults: bool = False
+    ports_file: Path | None = None  # written after binding: {"sim": p, "gcs": p, "api": p}
 
     @property
     def sysid(self) -> int:
@@ -82,12 +85,6 @@ def _eig_record(model: vm.UamModel, st: ControllerStatus, truth: Any, lam_min: f
                                    st.gc_uam)
 
 
-def _decode_step(data: bytes) -> tuple[tuple[seam.StepBundle, dict[str, dict[str, Any]]], int] | None:
-    """UdpLink.datagram_decoder of the sim link: ((bundle, decoded fields per message), frame count)."""
-    got = seam.decode_step_datagram(data)
-    return None if got is None else ((got[0], got[2]), got[1])
-
-
 class FlightControllerProcess:
     """Sockets, clocks and logs around the pure FlightStack (control, modes, failsafes) and the GCS service.
     It is the GCS service's Outbox (`broadcast`, `reply`) over the GCS and API links."""
@@ -103,6 +100,7 @@ class FlightControllerProcess:
         self._frame_queue: list[tuple[str, Any, str | None, int, int]] = []
         self._pending_tick: tuple[Any, ...] | None = None
         self._sim_channels: dict[tuple[str, str], int] = {}
+        self._raw_topics: dict[tuple[str, str], str] = {}  # (link, direction) -> /mavlink/<link>/<direction>
         self._spin_until = 0.0
         self._mk_links()
         script = load_flight_script(opts.scenario)  # the scenario's setpoint script (a scripted run: AUTO.MISSION)
@@ -141,12 +139,19 @@ class FlightControllerProcess:
         return m
 
     def _mk_links(self) -> None:
+        """Bind the three links (PortInUseError names a busy one; port 0: any free port), write the ports file,
+        and announce the FC to the bridge (DESIGN §4: a bridge that does not know our port learns it from this)."""
         o = self.opts
-        self.sim = UdpLink.open("sim", self._mav(), (o.host, o.port("sim")), [(o.host, o.port("bridge"))])
-        self.sim.fast_decode = seam.fast_decode  # the lockstep messages skip pymavlink (anything else falls back)
-        self.sim.datagram_decoder = _decode_step  # a clean step datagram straight to a StepBundle
+        sim_codec = codec.seam_codec()  # the sim link speaks only the seam's messages, decoded by the codec
+        self.sim = UdpLink.open("sim", codec.Encoder(sim_codec, o.sysid, FC_COMPID), (o.host, o.port("sim")),
+                                [(o.host, o.port("bridge"))], codec=sim_codec)
+        self.sim.max_datagrams = 1  # one bundle per step; more stay readable for the run loop's next select
         self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
         self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
+        if o.ports_file is not None:
+            write_ports_file(o.ports_file, {"sim": self.sim.local_port, "gcs": self.gcs.local_port,
+                                            "api": self.api.local_port})
+        self.sim.send(seam.announce_record())  # before the log hooks: nothing is set up to log it yet
         for link in (self.sim, self.gcs, self.api):
             link.on_datagram = self._log_datagram
         for link in (self.gcs, self.api):  # the sim link's messages are logged decoded as /truth, /fc/...
@@ -171,7 +176,10 @@ class FlightControllerProcess:
         step's answer has gone out, so logging overlaps with the bridge's physics step instead of delaying the
         lockstep round trip."""
         if self.logger:
-            self._frame_queue.append((f"/mavlink/{link}/{direction}", raw, peer, self._sim_ns(), time.time_ns()))
+            topic = self._raw_topics.get((link, direction))
+            if topic is None:
+                topic = self._raw_topics[(link, direction)] = f"/mavlink/{link}/{direction}"
+            self._frame_queue.append((topic, raw, peer, self._sim_ns(), time.time_ns()))
 
     def _log_decoded(self, link: str, direction: str, raw: bytes, msg: Any, peer: tuple[str, int]) -> None:
         """Queue a decoded GCS/API message for its /mavlink/<link>/<dir>/<TYPE> channel."""
@@ -186,7 +194,7 @@ class FlightControllerProcess:
         for topic, item, peer, t_ns, wall_ns in q:
             if peer is not None:  # a raw datagram
                 self.logger.log_raw(topic, t_ns, item, publish_ns=wall_ns, peer=peer)
-            else:  # a decoded message
+            else:  # a decoded GCS message (pymavlink)
                 self.logger.log(topic, t_ns, item.to_dict(), publish_ns=wall_ns, schema=mavlink_json_schema(type(item)))
 
     def _sim_ns(self) -> int:
@@ -194,20 +202,18 @@ class FlightControllerProcess:
 
     # --- lockstep --------------------------------------------------------------------------------
     def _on_sim(self, received: list[Any]) -> None:
+        """The sim link's datagrams (lists of codec.Message records): bundles to _on_step, the bridge's status kept."""
+        asm = self._asm
         for r in received:
-            m = r.msg
-            if type(m) is tuple:  # a whole step datagram (UdpLink.datagram_decoder): (bundle, fields)
-                self._asm.clear()
-                self._on_step(m[0], m[1])
-                continue
-            if m.get_type() == "NAVIG8_SIM_STATUS":
-                self.sim_status = seam.decode_sim_status(m)
-                if self.sim_status.state == seam.SIM_STATE_DONE:
-                    self.sim_done = True
-                continue
-            bundle = self._asm.add(m)
-            if bundle is not None:
-                self._on_step(bundle)
+            for m in r.msg:
+                if m.name == "NAVIG8_SIM_STATUS":
+                    self.sim_status = seam.decode_sim_status(m.fields)
+                    if self.sim_status.state == seam.SIM_STATE_DONE:
+                        self.sim_done = True
+                    continue
+                bundle = asm.add(m)
+                if bundle is not None:
+                    self._on_step(bundle, asm.completed)
 
     def _on_step(self, b: seam.StepBundle, wire: dict[str, dict[str, Any]] | None = None) -> None:
         """One lockstep step: control, answer, and queue the step's log records (written after the answer).
@@ -245,28 +251,26 @@ class FlightControllerProcess:
         if cid is None:
             assert self.logger is not None
             cid = self._sim_channels[(direction, name)] = self.logger.json_channel(
-                f"/mavlink/sim/{direction}/{name}", mavlink_json_schema(seam.wire_class(name)))
+                f"/mavlink/sim/{direction}/{name}", dialect_json_schema(name))
         return cid
 
     def _log_tick(self, t_us: int, tr: Any, st: ControllerStatus, cmd: ActuatorCommand, sp: Setpoint,
-                  wire: dict[str, dict[str, Any]] | None = None, answer: bytes | None = None) -> None:
+                  wire: dict[str, Any] | None = None, answer: bytes | None = None) -> None:
         assert self.logger is not None
         t_ns = seam.sim_us_from_time_usec(t_us) * 1000
         w = time.time_ns()
         # The sim link decoded, as the GCS links are: the FC's raw sensor inputs and its answer, plottable.
         # NAVIG8_TRUTH's decoded form is /truth. Lean path: channel ids cached, orjson straight to the writer.
         if wire:
-            for name, fields in wire.items():
+            for name, m in wire.items():  # codec.Message records (BundleAssembler.completed)
                 if name != "NAVIG8_TRUTH":
-                    fields["mavpackettype"] = name
-                    self.logger.log_json_bytes(self._sim_channel("in", name), t_ns, orjson.dumps(fields), w)
+                    self.logger.log_json_bytes(self._sim_channel("in", name), t_ns, mavlink_record_json(m), w)
         if answer is not None:
-            got = seam.frame_fields(answer)
+            got = self.sim.codec.decode_frame(answer) if self.sim.codec is not None else None
             if got is not None:
-                got[1]["mavpackettype"] = got[0]
-                self.logger.log_json_bytes(self._sim_channel("out", got[0]), t_ns, orjson.dumps(got[1]), w)
+                self.logger.log_json_bytes(self._sim_channel("out", got.name), t_ns, mavlink_record_json(got), w)
         if tr is not None:
-            self.logger.log("/truth", t_ns, seam.truth_record(tr), publish_ns=w)
+            self.logger.log("/truth", t_ns, wire_truth_record(tr), publish_ns=w)
             self.logger.log("/analysis/eig", t_ns, _eig_record(self.model, st, tr,
                                                                float(self.registry["INDI_LAMBDA_MIN"]),
                                                                self.lambda_crit), publish_ns=w)
@@ -439,6 +443,8 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--state-dir", default=None, help="directory for persisted parameters")
     ap.add_argument("--defaults", action="store_true", help="start from default parameters (ignore stored)")
     ap.add_argument("--until-done", action="store_true", help="exit when the bridge reports the scenario done")
+    ap.add_argument("--ports-file", default=None,
+                    help='after binding, write {"sim": p, "gcs": p, "api": p} here as JSON (for ports given as 0)')
     return ap
 
 
@@ -448,12 +454,18 @@ def options_from_args(a: argparse.Namespace) -> FcOptions:
         sim_port=a.sim_port, bridge_port=a.bridge_port, gcs_bind_port=a.gcs_bind_port, gcs_port=a.gcs_port,
         api_bind_port=a.api_bind_port, api_port=a.api_port, log_path=Path(a.log) if a.log else None,
         state_dir=Path(a.state_dir) if a.state_dir else None, defaults=a.defaults,
+        ports_file=Path(a.ports_file) if a.ports_file else None,
     )
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_arg_parser().parse_args(argv)
-    proc = FlightControllerProcess(options_from_args(args))
+    try:
+        proc = FlightControllerProcess(options_from_args(args))
+    except PortInUseError as e:
+        print(f"navig8-fc: {e.strerror}; choose another with {_PORT_OPTIONS[e.link]} (0: any free port)",
+              file=sys.stderr)
+        return EXIT_USAGE
     signal.signal(signal.SIGINT, proc.request_stop)
     signal.signal(signal.SIGTERM, proc.request_stop)
     rc = proc.run(until_done=args.until_done)

@@ -1,21 +1,61 @@
-"""UDP MAVLink endpoints for the shell: frame splitting, decoding with counters, peers, sending.
+"""UDP MAVLink endpoints for the shell: framing, decoding with counters, peers, sending.
 
-Each datagram is split into frames by their own length fields (MAVLink 1 0xFE and MAVLink 2 0xFD,
-signed or not), so a truncated or corrupt frame never poisons the next datagram, and every frame's
-raw bytes are available for the log. Bad input (garbage between frames, truncated frames, bad CRC,
-unknown ids, oversize datagrams) is counted and dropped; nothing here raises on input.
+Each datagram is split into frames by their own length fields (`codec.split_frames`: MAVLink 1 and 2, signed
+or not), so a truncated or corrupt frame never poisons the next datagram. The sim link decodes with the codec
+(`navig8_fc.mavlink.codec`: plain `codec.Message` records); the GCS links decode each frame with pymavlink (the
+gcs/ handlers use its message objects). Bad input (garbage between frames, truncated frames, bad CRC, unknown
+ids, oversize datagrams) is counted and dropped; nothing here raises on input.
+
+Binding: no SO_REUSEADDR (on UDP it would let a second process bind the same port and take datagrams meant
+for this one); a port in use raises `PortInUseError`, which names the link and its port. Port 0 binds a free
+port (`local_port` tells which).
 """
 
 from __future__ import annotations
 
+import errno
+import json
+import os
 import socket
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from navig8_fc.mavlink.codec import Codec, Message, split_frames
 
 MAX_DATAGRAM = 2048  # larger datagrams are counted as oversize and dropped
-V1_MAGIC, V2_MAGIC = 0xFE, 0xFD
-V1_OVERHEAD, V2_OVERHEAD, SIGNATURE_LEN = 8, 12, 13
+
+
+class PortInUseError(OSError):
+    """A UDP port another socket holds."""
+
+    def __init__(self, link: str, host: str, port: int) -> None:
+        super().__init__(errno.EADDRINUSE, f"{link} link: UDP {host}:{port} is in use by another process")
+        self.link, self.host, self.port = link, host, port
+
+
+def bind_udp(name: str, bind: tuple[str, int]) -> socket.socket:
+    """A UDP socket bound to `bind` (port 0: any free port), without SO_REUSEADDR; PortInUseError if taken."""
+    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    try:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        s.bind(bind)
+    except OSError as e:
+        s.close()
+        if e.errno == errno.EADDRINUSE:
+            raise PortInUseError(name, bind[0], bind[1]) from e
+        raise
+    return s
+
+
+def write_ports_file(path: Path, ports: dict[str, int]) -> None:
+    """The bound ports as JSON (e.g. {"sim": 40123, ...}), published atomically: a reader polling for the file
+    never sees a partial one."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(ports))
+    os.replace(tmp, path)
 
 
 @dataclass
@@ -29,37 +69,11 @@ class LinkCounters:
     truncated: int = 0
     bad_crc: int = 0  # includes unknown message ids (no CRC_EXTRA to check against)
     oversize: int = 0
-    unknown_id: int = 0  # CRC could not be checked: a message id outside our dialect
+    unknown_id: int = 0  # CRC could not be checked: a message id outside our dialect (or the sim link's codec)
     foreign: int = 0  # frames for another system id
     send_errors: int = 0
-
-
-def split_frames(data: bytes) -> tuple[list[bytes], int, int]:
-    """Frames found in a datagram, the count of garbage bytes skipped, and 1 if it ends truncated."""
-    frames: list[bytes] = []
-    i, n, garbage, truncated = 0, len(data), 0, 0
-    while i < n:
-        b = data[i]
-        if b == V2_MAGIC:
-            if i + 3 > n:
-                truncated = 1
-                break
-            length = V2_OVERHEAD + data[i + 1] + (SIGNATURE_LEN if data[i + 2] & 0x01 else 0)
-        elif b == V1_MAGIC:
-            if i + 2 > n:
-                truncated = 1
-                break
-            length = V1_OVERHEAD + data[i + 1]
-        else:
-            garbage += 1
-            i += 1
-            continue
-        if i + length > n:
-            truncated = 1
-            break
-        frames.append(bytes(data[i : i + length]))
-        i += length
-    return frames, garbage, truncated
+    signed: int = 0  # signed frames on the sim link (skipped: it does not verify signatures)
+    bad_flags: int = 0  # MAVLink 2 frames with an unknown incompat flag (the sim link)
 
 
 _peer_texts: dict[tuple[tuple[str, int], ...], str] = {}
@@ -74,10 +88,11 @@ def _peer_text(dests: list[tuple[str, int]]) -> str:
     return text
 
 
-@dataclass(frozen=True)
-class Received:
-    frame: bytes
-    msg: Any | None  # decoded pymavlink message (or the datagram_decoder's object for a whole datagram)
+class Received(NamedTuple):
+    """One received message, or a codec link's datagram of messages (a NamedTuple: made on every lockstep step)."""
+
+    frame: bytes  # the frame (GCS links) or the datagram (codec links)
+    msg: Any  # the pymavlink message (GCS links) or the datagram's codec.Message records, a list (codec links)
     addr: tuple[str, int]
 
 
@@ -87,7 +102,9 @@ class UdpLink:
 
     name: str
     sock: socket.socket
-    mav: Any  # pymavlink MAVLink object used for packing (owns our seq counter)
+    # packs what `send` is given and owns our sequence number: a pymavlink MAVLink object (GCS links), or the
+    # codec.Encoder of a codec link (its records are (name, values) tuples)
+    mav: Any
     targets: list[tuple[str, int]] = field(default_factory=list)
     peers: list[tuple[str, int]] = field(default_factory=list)
     sysid_filter: int | None = None  # drop frames not from... (kept None: we accept any source)
@@ -97,21 +114,20 @@ class UdpLink:
     # the link (a datagram holds one or more frames). on_frame: every frame that decoded (link, dir, raw, msg, peer).
     on_datagram: Callable[[str, str, bytes, str], None] | None = None  # (link, dir, raw, "host:port[,host:port]")
     on_frame: Callable[[str, str, bytes, Any, tuple[str, int]], None] | None = None
-    # Optional fast path tried before pymavlink (the sim link: navig8_fc.mavlink.seam.fast_decode): a decoded
-    # message, or None to let pymavlink decode (and count) the frame as usual.
-    fast_decode: Callable[[bytes], Any | None] | None = None
-    # Optional whole-datagram path tried first (the sim link: seam.decode_step_datagram): (object, frame count),
-    # delivered as one Received whose msg is that object, or None to split and decode frame by frame.
-    datagram_decoder: Callable[[bytes], tuple[Any, int] | None] | None = None
+    # The sim link: decode every datagram with this codec (codec.Message records) instead of pymavlink.
+    codec: Codec | None = None
+    # -1: receive() drains the socket. The sim link takes one datagram per call: in lockstep one is due per step,
+    # and the drain's final, failing recvfrom (~1 us) would be paid on every step.
+    max_datagrams: int = -1
 
     @staticmethod
-    def open(name: str, mav: Any, bind: tuple[str, int], targets: list[tuple[str, int]] | None = None) -> UdpLink:
-        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
-        s.bind(bind)
+    def open(name: str, mav: Any, bind: tuple[str, int], targets: list[tuple[str, int]] | None = None,
+             codec: Codec | None = None) -> UdpLink:
+        """Bind (PortInUseError if the port is taken; port 0: a free one). With `codec`, a codec link: `mav`
+        is that codec's Encoder and received datagrams decode to codec.Message records."""
+        s = bind_udp(name, bind)
         s.setblocking(False)
-        return UdpLink(name=name, sock=s, mav=mav, targets=list(targets or []))
+        return UdpLink(name=name, sock=s, mav=mav, targets=list(targets or []), codec=codec)
 
     @property
     def local_port(self) -> int:
@@ -121,10 +137,13 @@ class UdpLink:
         return self.peers if self.peers else self.targets
 
     def receive(self) -> list[Received]:
-        """Everything waiting on the socket (non-blocking), split and decoded."""
+        """What is waiting on the socket (non-blocking), split and decoded: every datagram, or at most
+        `max_datagrams` (the rest stays readable for the caller's next select)."""
         out: list[Received] = []
         c = self.counters
-        while True:
+        left = self.max_datagrams
+        while left != 0:
+            left -= 1
             try:
                 data, addr = self.sock.recvfrom(65535)
             except (BlockingIOError, InterruptedError):
@@ -138,34 +157,37 @@ class UdpLink:
                 continue
             if self.on_datagram:
                 self.on_datagram(self.name, "in", data, f"{addr[0]}:{addr[1]}")
-            if self.datagram_decoder is not None:
-                whole = self.datagram_decoder(data)
-                if whole is not None:
-                    c.frames_in += whole[1]
-                    self._note_peer(addr)
-                    out.append(Received(data, whole[0], addr))
-                    continue
+            if self.codec is not None:
+                self._receive_records(data, addr, out)
+                continue
             frames, garbage, truncated = split_frames(data)
             c.garbage_bytes += garbage
             c.truncated += truncated
-            fast = self.fast_decode
             for fr in frames:
-                msg = fast(fr) if fast is not None else None
-                if msg is None:
-                    try:
-                        msg = self.mav.decode(bytearray(fr))
-                    except Exception:  # noqa: BLE001 - any decode failure is bad input: count, drop
-                        c.bad_crc += 1
-                        continue
-                    if msg.get_type().startswith(("UNKNOWN_", "BAD_DATA")):
-                        c.unknown_id += 1  # pymavlink hands these back undecoded: not a peer, not an input
-                        continue
+                try:
+                    msg = self.mav.decode(bytearray(fr))
+                except Exception:  # noqa: BLE001 - any decode failure is bad input: count, drop
+                    c.bad_crc += 1
+                    continue
+                if msg.get_type().startswith(("UNKNOWN_", "BAD_DATA")):
+                    c.unknown_id += 1  # pymavlink hands these back undecoded: not a peer, not an input
+                    continue
                 c.frames_in += 1
                 self._note_peer(addr)
                 if self.on_frame:
                     self.on_frame(self.name, "in", fr, msg, addr)
                 out.append(Received(fr, msg, addr))
         return out
+
+    def _receive_records(self, data: bytes, addr: tuple[str, int], out: list[Received]) -> None:
+        """A codec link's datagram: ONE Received whose msg is the list of its codec.Message records (a lockstep
+        step is one datagram of five), the rest counted."""
+        assert self.codec is not None
+        msgs: list[Message] = self.codec.parse(data, self.counters)
+        if msgs:
+            self.counters.frames_in += len(msgs)
+            self._note_peer(addr)
+            out.append(Received(data, msgs, addr))
 
     def _note_peer(self, addr: tuple[str, int]) -> None:
         if addr not in self.peers:
@@ -174,8 +196,11 @@ class UdpLink:
             self.peers.append(addr)
 
     def send(self, msg: Any, dest: list[tuple[str, int]] | None = None) -> None:
-        buf = msg.pack(self.mav)
-        self.send_raw(buf, dest, msg)
+        """Send one message: a pymavlink message (GCS links) or a (name, values) record (codec links)."""
+        if type(msg) is tuple:
+            self.send_raw(self.mav.frame(*msg), dest)
+        else:
+            self.send_raw(msg.pack(self.mav), dest, msg)
 
     def send_raw(self, buf: bytes, dest: list[tuple[str, int]] | None = None, msg: Any = None) -> None:
         """Send one datagram; `msg` (the decoded form of a one-frame datagram) goes to on_frame for the log."""

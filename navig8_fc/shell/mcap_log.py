@@ -88,29 +88,6 @@ def json_schema_for(sample: Any) -> dict[str, Any]:
     return {}
 
 
-@functools.lru_cache(maxsize=512)
-def mavlink_json_schema(msg_cls: Any) -> dict[str, Any]:
-    """JSON schema of a pymavlink message class, from its definition (field names, C types, array
-    lengths, units, enums), so Foxglove knows every field of the decoded /mavlink/... channels."""
-    props: dict[str, Any] = {"mavpackettype": {"type": "string"}}
-    units = getattr(msg_cls, "fieldunits_by_name", {}) or {}
-    enums = getattr(msg_cls, "fieldenums_by_name", {}) or {}
-    for name, ctype, n in zip(msg_cls.fieldnames, msg_cls.fieldtypes, msg_cls.array_lengths, strict=True):
-        if ctype == "char":
-            item: dict[str, Any] = {"type": "string"}
-        elif ctype.startswith(("float", "double")):
-            item = {"type": ["number", "null"]}
-        else:
-            item = {"type": "integer"}
-        if name in units:
-            item["description"] = f"[{units[name]}]"
-        if name in enums:
-            item["description"] = (item.get("description", "") + f" enum {enums[name]}").strip()
-        props[name] = item if (n == 0 or ctype == "char") else {"type": "array", "items": item, "maxItems": n}
-    return {"type": "object", "title": msg_cls.msgname if hasattr(msg_cls, "msgname") else msg_cls.__name__,
-            "properties": props}
-
-
 class McapLogger:
     """Writes JSON messages; a channel (and its schema, from the first message) per topic."""
 

@@ -1,10 +1,14 @@
-"""Start navig8-fc and navig8-bridge as real processes on free loopback ports; a pymavlink GCS client.
+"""Start navig8-fc and navig8-bridge as real processes on loopback; a pymavlink GCS client.
 
-Every wait is bounded; `SitlRun.stop()` (called by the context manager) always ends both processes.
+The processes bind port 0 (a port the kernel picks, so no test races another for a port number) and report the
+ports they got in a --ports-file (`wait_ports_file`). The bridge starts first; the FC is given the bridge's port
+and announces itself, so the bridge learns the FC's address (it runs with --fc-port 0). Every wait is bounded;
+`SitlRun.stop()` (called by the context manager) always ends both processes.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import socket
@@ -21,8 +25,26 @@ os.environ.setdefault("MAVLINK20", "1")
 
 from pymavlink import mavutil  # noqa: E402
 
+PORTS_FILE_TIMEOUT_S = 60.0  # a first start may generate the dialect and compile numba kernels
+
+
+def wait_ports_file(path: Path, proc: subprocess.Popen, timeout_s: float = PORTS_FILE_TIMEOUT_S) -> dict[str, int]:
+    """The ports a child wrote to its --ports-file (written atomically after binding), waiting at most timeout_s;
+    fails at once, with the child's output, if the child exits first."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if path.is_file():
+            return {k: int(v) for k, v in json.loads(path.read_text()).items()}
+        if proc.poll() is not None:
+            out = proc.stdout.read() if proc.stdout is not None else ""
+            raise AssertionError(f"process exited ({proc.returncode}) before writing {path}: {out}")
+        time.sleep(0.02)
+    raise AssertionError(f"no ports file {path} within {timeout_s} s")
+
 
 def free_udp_ports(n: int) -> list[int]:
+    """Port numbers free right now (for sockets a test binds itself later: racy, so only where a child must be told
+    a number in advance, like where the test's GCS listens)."""
     socks = []
     try:
         for _ in range(n):
@@ -45,6 +67,7 @@ class SitlRun:
     log: Path
     state_dir: Path
     extra: dict[str, Any] = field(default_factory=dict)
+    ports: dict[str, int] = field(default_factory=dict)  # what the processes bound: sim, gcs, api (FC), bridge
 
     def stop(self, timeout_s: float = 10.0) -> tuple[int | None, int | None]:
         codes: list[int | None] = []
@@ -69,25 +92,39 @@ class SitlRun:
 def sitl(tmp: Path, scenario: str = "ground", speed: float = 1.0, fc_args: list[str] | None = None,
          bridge_args: list[str] | None = None, state_dir: Path | None = None, start_bridge: bool = True,
          log_name: str = "run.mcap") -> Iterator[SitlRun]:
-    sim, bridge, gcs, gcs_bind, api, api_bind = free_udp_ports(6)
+    gcs, api = free_udp_ports(2)  # where the test's GCS / API clients will listen (the FC sends there)
     log = tmp / log_name
     state = state_dir or (tmp / "state")
-    fc_cmd = [sys.executable, "-m", "navig8_fc.shell.fc_process", "--scenario", scenario, "--sim-port", str(sim),
-              "--bridge-port", str(bridge), "--gcs-port", str(gcs), "--gcs-bind-port", str(gcs_bind),
-              "--api-port", str(api), "--api-bind-port", str(api_bind), "--log", str(log),
-              "--state-dir", str(state), *(fc_args or [])]
-    fc = subprocess.Popen(fc_cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                          cwd=tmp)
+    ports: dict[str, int] = {}
     br = None
-    run = SitlRun(fc, None, gcs, api, gcs_bind, log, state)
+    fc = None
     try:
         if start_bridge:
-            time.sleep(0.3)
+            br_ports = tmp / f"{log_name}.bridge-ports.json"
             br_cmd = [sys.executable, "-m", "sim_bridge.bridge", "--scenario", scenario, "--speed", str(speed),
-                      "--bridge-port", str(bridge), "--fc-port", str(sim), *(bridge_args or [])]
+                      "--bridge-port", "0", "--fc-port", "0", "--ports-file", str(br_ports), *(bridge_args or [])]
             br = subprocess.Popen(br_cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                   stderr=subprocess.STDOUT, cwd=tmp)
-            run.bridge = br
+            ports.update(wait_ports_file(br_ports, br))
+        else:
+            (ports["bridge"],) = free_udp_ports(1)  # nobody there: the FC waits for bundles
+        fc_ports = tmp / f"{log_name}.fc-ports.json"
+        fc_cmd = [sys.executable, "-m", "navig8_fc.shell.fc_process", "--scenario", scenario, "--sim-port", "0",
+                  "--bridge-port", str(ports["bridge"]), "--gcs-port", str(gcs), "--gcs-bind-port", "0",
+                  "--api-port", str(api), "--api-bind-port", "0", "--log", str(log), "--state-dir", str(state),
+                  "--ports-file", str(fc_ports), *(fc_args or [])]
+        fc = subprocess.Popen(fc_cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                              cwd=tmp)
+        run = SitlRun(fc, br, gcs, api, 0, log, state, ports=ports)
+    except BaseException:
+        for p in (br, fc):
+            if p is not None and p.poll() is None:
+                p.kill()
+                p.wait(timeout=10)
+        raise
+    try:
+        ports.update(wait_ports_file(fc_ports, fc))
+        run.gcs_bind_port = ports["gcs"]
         yield run
     finally:
         run.stop()

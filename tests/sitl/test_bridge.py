@@ -2,7 +2,8 @@
 
 The fake FC answers each bundle with the hover trim (what the plant would hold at rest), so these tests
 check the bridge's lockstep mechanics, not a controller: stamps and step counters, duplicates ignored,
-stall reporting and abort, SIGTERM. Every wait is bounded; the process is always killed in a finally.
+stall reporting and abort, SIGTERM. The bridge binds port 0 and runs with --fc-port 0: it learns the fake FC's
+address from the FC's announcement (HEARTBEAT). Every wait is bounded; the process is always killed in a finally.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -19,10 +21,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from sitl_helpers import free_udp_ports
+from sitl_helpers import wait_ports_file
 
 from navig8_fc.core.vehicle import VehicleConfig
-from navig8_fc.mavlink import dialect, seam
+from navig8_fc.mavlink import codec, dialect, seam
 from sim_bridge import Plant, PlantParams, load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -31,14 +33,15 @@ DT_US = 10_000
 
 
 class FakeFc:
-    """Binds the FC's port, parses bundles with the seam, answers with HIL_ACTUATOR_CONTROLS."""
+    """Binds a free port, parses bundles with the codec and the seam, answers with HIL_ACTUATOR_CONTROLS."""
 
-    def __init__(self, port: int, bridge_port: int) -> None:
+    def __init__(self) -> None:
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", port))
-        self.bridge = ("127.0.0.1", bridge_port)
-        self.mav = dialect.new_mav(SYSID, dialect.COMPID_FC)
-        self.rx = dialect.new_mav(SYSID, dialect.COMPID_FC)
+        self.sock.bind(("127.0.0.1", 0))
+        self.bridge = ("127.0.0.1", 0)  # set once the bridge has written its ports file
+        self.codec = codec.seam_codec()
+        self.mav = codec.Encoder(self.codec, SYSID, dialect.COMPID_FC)
+        self.counts = codec.ParseCounters()
         self.vehicle = VehicleConfig.load()
         self.statuses: list[seam.SimStatus] = []
 
@@ -54,18 +57,20 @@ class FakeFc:
                 data, _ = self.sock.recvfrom(65535)
             except TimeoutError:
                 return None
-            parsed = seam.parse_datagram(self.rx, data)
-            for m in parsed.messages:
-                if m.get_type() == "NAVIG8_SIM_STATUS":
-                    self.statuses.append(seam.decode_sim_status(m))
-            b = seam.decode_bundle(parsed.messages)
+            msgs = self.codec.parse(data, self.counts)
+            for m in msgs:
+                if m.name == "NAVIG8_SIM_STATUS":
+                    self.statuses.append(seam.decode_sim_status(m.fields))
+            b = seam.decode_bundle(msgs)
             if b is not None:
                 return b
 
+    def announce(self) -> None:
+        self.send_raw(self.mav.frame(*seam.announce_record()))
+
     def answer(self, b: seam.StepBundle, cmd, *, time_usec: int | None = None) -> None:
-        msg = seam.encode_actuator_controls(b.time_usec if time_usec is None else time_usec, cmd, self.vehicle,
-                                            armed=True)
-        self.sock.sendto(seam.pack(self.mav, [msg]), self.bridge)
+        self.sock.sendto(seam.pack_actuator_controls(self.mav, b.time_usec if time_usec is None else time_usec, cmd,
+                                                     self.vehicle, armed=True), self.bridge)
 
     def send_raw(self, data: bytes) -> None:
         self.sock.sendto(data, self.bridge)
@@ -76,14 +81,22 @@ class FakeFc:
 
 @contextmanager
 def bridge_process(*args: str) -> Iterator[tuple[subprocess.Popen, FakeFc]]:
-    bridge_port, fc_port = free_udp_ports(2)
-    fc = FakeFc(fc_port, bridge_port)
-    env = dict(os.environ)
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "sim_bridge.bridge", "--bridge-port", str(bridge_port), "--fc-port", str(fc_port),
-         *args],
-        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-    )
+    fc = FakeFc()
+    with tempfile.TemporaryDirectory(prefix="navig8-bridge-test-") as tmp:
+        ports_file = Path(tmp) / "ports.json"
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "sim_bridge.bridge", "--bridge-port", "0", "--fc-port", "0", "--ports-file",
+             str(ports_file), *args],
+            cwd=ROOT, env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        )
+        try:
+            fc.bridge = ("127.0.0.1", wait_ports_file(ports_file, proc)["bridge"])
+        except BaseException:
+            proc.kill()
+            proc.wait(timeout=10)
+            fc.close()
+            raise
+    fc.announce()
     try:
         yield proc, fc
     finally:
@@ -154,8 +167,8 @@ def test_bad_datagrams_are_counted_and_dropped() -> None:
         fc.send_raw(b"\x00garbage\xfd\x09")  # garbage and a truncated frame
         fc.send_raw(os.urandom(300))
         fc.send_raw(b"\xfd" * 5000)  # oversize: dropped unparsed
-        other = dialect.new_mav(SYSID + 7, dialect.COMPID_FC)  # another vehicle's answer
-        fc.send_raw(seam.pack(other, [seam.encode_actuator_controls(b.time_usec, trim, fc.vehicle, armed=True)]))
+        other = codec.Encoder(codec.seam_codec(), SYSID + 7, dialect.COMPID_FC)  # another vehicle's answer
+        fc.send_raw(seam.pack_actuator_controls(other, b.time_usec, trim, fc.vehicle, armed=True))
         fc.answer(b, trim, time_usec=b.time_usec + 12345)  # an answer for no bundle
         for _ in range(20):
             fc.answer(b, trim)
@@ -251,9 +264,8 @@ def test_arm_command_moves_joints_and_releases_the_object() -> None:
     with bridge_process("--scenario", "hover", "--speed", "0") as (proc, fc):
         b = fc.recv_bundle(30.0)
         assert b is not None and b.gripper_closed and b.truth.object_mass == 1.0
-        mav = fc.mav
         arm = seam.encode_arm_cmd(seam.ArmCommand(b.time_usec, target, seam.GRIPPER_RELEASE))
-        fc.send_raw(seam.pack(mav, [arm]))
+        fc.send_raw(fc.mav.frame(*arm))
         fc.answer(b, trim)
         seen_release_at = None
         for _ in range(150):
@@ -272,3 +284,18 @@ def test_arm_command_moves_joints_and_releases_the_object() -> None:
     assert b.truth.object_mass == 0.0
     np.testing.assert_allclose(b.truth.joint_pos, target, atol=0.02)  # the servo got there within 1.5 s
     assert "arm_cmds 1" in err
+
+
+def test_a_busy_port_is_refused_clearly() -> None:
+    """No SO_REUSEADDR: a second bridge cannot bind the port and take the first one's datagrams."""
+    holder = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    holder.bind(("127.0.0.1", 0))
+    port = holder.getsockname()[1]
+    try:
+        out = subprocess.run([sys.executable, "-m", "sim_bridge.bridge", "--bridge-port", str(port)], cwd=ROOT,
+                             capture_output=True, text=True, timeout=60)
+    finally:
+        holder.close()
+    assert out.returncode == 2, out.stderr
+    assert f"127.0.0.1:{port} is in use" in out.stderr and "--bridge-port" in out.stderr
+    assert "Traceback" not in out.stderr

@@ -14,10 +14,10 @@ from navig8_fc.shell import fc_process as fp
 
 
 def test_accepted_parameters_reach_the_controller_at_the_next_step(tmp_path: Path) -> None:
-    sim, bridge, gcs_bind, api_bind, gcs, api = free_udp_ports(6)
+    bridge, gcs, api = free_udp_ports(3)  # where the FC sends; it binds port 0
     args = fp.build_arg_parser().parse_args([
-        "--sim-port", str(sim), "--bridge-port", str(bridge), "--gcs-bind-port", str(gcs_bind),
-        "--api-bind-port", str(api_bind), "--gcs-port", str(gcs), "--api-port", str(api),
+        "--sim-port", "0", "--bridge-port", str(bridge), "--gcs-bind-port", "0",
+        "--api-bind-port", "0", "--gcs-port", str(gcs), "--api-port", str(api),
         "--state-dir", str(tmp_path), "--defaults"])
     fc = fp.FlightControllerProcess(fp.options_from_args(args))
     try:

@@ -21,9 +21,9 @@ PREARM = M.MAV_SYS_STATUS_PREARM_CHECK
 
 
 def _fc_in_process(tmp_path: Path, log: Path | None = None) -> fp.FlightControllerProcess:
-    sim, bridge, gcs_bind, api_bind, gcs, api = free_udp_ports(6)
-    argv = ["--sim-port", str(sim), "--bridge-port", str(bridge), "--gcs-bind-port", str(gcs_bind),
-            "--api-bind-port", str(api_bind), "--gcs-port", str(gcs), "--api-port", str(api),
+    bridge, gcs, api = free_udp_ports(3)  # where the FC sends; it binds port 0
+    argv = ["--sim-port", "0", "--bridge-port", str(bridge), "--gcs-bind-port", "0",
+            "--api-bind-port", "0", "--gcs-port", str(gcs), "--api-port", str(api),
             "--state-dir", str(tmp_path), "--defaults"]
     if log is not None:
         argv += ["--log", str(log)]

@@ -1,4 +1,5 @@
-"""The bridge's per-step fast paths give the same bytes, answers and counters as the general ones."""
+"""The bridge's wire: the plant's plain-float views encode like sense()/truth(); one datagram handler whose
+answers and counters follow pymavlink's reading of the same bytes; the FC's address learnt from its frames."""
 
 from __future__ import annotations
 
@@ -8,8 +9,8 @@ import numpy as np
 import pytest
 
 from navig8_fc.core.vehicle import VehicleConfig
-from navig8_fc.mavlink import dialect, seam
-from sim_bridge.bridge import Bridge, BridgeOptions
+from navig8_fc.mavlink import codec, dialect, seam
+from sim_bridge.bridge import Bridge, BridgeCounters, BridgeOptions
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant
 from sim_bridge.scenario import load_scenario
@@ -19,8 +20,8 @@ def test_wire_views_encode_byte_identical_to_sense_and_truth() -> None:
     cfg, params, scn = VehicleConfig.load(), PlantParams.load(), load_scenario("paper")
     a = Plant(cfg, params, scn, np.random.default_rng(5))
     b = Plant(cfg, params, scn, np.random.default_rng(5))
-    ma = dialect.new_mav(1, dialect.COMPID_BRIDGE)
-    mb = dialect.new_mav(1, dialect.COMPID_BRIDGE)
+    ma = codec.Encoder(codec.seam_codec(), 1, dialect.COMPID_BRIDGE)
+    mb = codec.Encoder(codec.seam_codec(), 1, dialect.COMPID_BRIDGE)
     cmd = a.trim_command()
     for step in range(80):  # > 256 frames: seq wraps
         if step == 40:
@@ -28,12 +29,12 @@ def test_wire_views_encode_byte_identical_to_sense_and_truth() -> None:
             b.command_gripper(True, 1.5)
         want = seam.encode_bundle(ma, step, a.sense(), a.truth())
         sw, tw = b.sense_wire(), b.truth_wire()
-        assert seam._truth_args(step, tw) == seam._truth_args(step, a.truth())
+        assert seam.truth_message_record(step, tw) == seam.truth_message_record(step, a.truth())
         assert all(type(v) is float for v in sw.gyro_frd + tw.pos_ned_m + tw.inertia_com_kgm2[2])
         assert seam.encode_bundle(mb, step, sw, tw) == want, step
         a.step_us(cmd, 10_000)
         b.step_us(cmd, 10_000)
-    assert (ma.seq, ma.total_packets_sent, ma.total_bytes_sent) == (mb.seq, mb.total_packets_sent, mb.total_bytes_sent)
+    assert (ma.seq, ma.frames_out, ma.bytes_out) == (mb.seq, mb.frames_out, mb.bytes_out)
     assert np.array_equal(a._x, b._x)
 
 
@@ -44,52 +45,71 @@ def bridge():
     br.close()
 
 
-def _answers(br: Bridge) -> list[bytes]:
-    fc = dialect.new_mav(br.opts.sysid, dialect.COMPID_FC)
-    other = dialect.new_mav(br.opts.sysid + 1, dialect.COMPID_FC)
+def _answers(br: Bridge) -> dict[str, bytes]:
+    fc = codec.Encoder(codec.seam_codec(), br.opts.sysid, dialect.COMPID_FC)
+    other = codec.Encoder(codec.seam_codec(), br.opts.sysid + 1, dialect.COMPID_FC)
     cmd = br.plant.trim_command()
     tu = br.time_usec
     good = seam.pack_actuator_controls(fc, tu, cmd, br.limits, armed=True)
     zeros = seam.pack_actuator_controls(fc, tu, type(cmd)((0.0, 0.0), (0.0, 0.0, 0.0)), br.limits, armed=False)
     bad_crc = good[:-1] + bytes((good[-1] ^ 1,))
+    return {
+        "good": good,
+        "zeros": zeros,  # payload truncated to a few bytes
+        "stale": seam.pack_actuator_controls(fc, tu + 10_000, cmd, br.limits, armed=True),
+        "foreign": seam.pack_actuator_controls(other, tu, cmd, br.limits, armed=True),
+        "bad_crc": bad_crc,
+        "truncated": good[:-3],
+        "twice": good + good,
+        "status": fc.frame(*seam.encode_sim_status(seam.SimStatus(tu, 1, 1, 0.0, 1.0, 0))),
+        "heartbeat": fc.frame(*seam.announce_record()),
+        "garbage": b"\x00" * 5,
+        "arm": fc.frame(*seam.encode_arm_cmd(seam.ArmCommand(tu, (0.1, 0.2, 0.3), seam.GRIPPER_GRAB))),
+    }
+
+
+def test_handle_answers_and_counts_as_pymavlink_reads_the_bytes(bridge: Bridge) -> None:
     d = dialect.load()
-    status = seam.pack(fc, [seam.encode_sim_status(seam.SimStatus(tu, 1, 1, 0.0, 1.0, 0))])
-    return [
-        good,
-        zeros,  # payload truncated to a few bytes
-        seam.pack_actuator_controls(fc, tu + 10_000, cmd, br.limits, armed=True),  # stale
-        seam.pack_actuator_controls(other, tu, cmd, br.limits, armed=True),  # foreign
-        bad_crc,
-        good[:-3],
-        good + good,
-        status,
-        seam.pack(fc, [d.MAVLink_heartbeat_message(0, 0, 0, 0, 0, 3)]),
-        b"\x00" * 5,
-    ]
-
-
-def test_handle_fast_path_equals_the_general_path(bridge: Bridge) -> None:
-    for data in _answers(bridge):
-        rx = bridge.rx
-        bridge.counters = type(bridge.counters)()
-        before = (rx.total_packets_received, rx.total_bytes_received)
+    want_counts = {
+        "good": dict(answers=1), "zeros": dict(answers=1), "stale": dict(stale_answers=1),
+        "foreign": dict(foreign_frames=1), "bad_crc": dict(bad_frames=1), "truncated": dict(bad_frames=1),
+        "twice": dict(answers=1, stale_answers=1), "status": dict(other_frames=1), "heartbeat": dict(other_frames=1),
+        "garbage": dict(garbage_bytes=5), "arm": dict(arm_cmds=1),
+    }
+    for label, data in _answers(bridge).items():
+        bridge.counters = BridgeCounters()
         got = bridge._handle(data)
-        fast = (dataclasses.asdict(bridge.counters), rx.total_packets_received - before[0],
-                rx.total_bytes_received - before[1])
-        bridge.counters = type(bridge.counters)()
-        before = (rx.total_packets_received, rx.total_bytes_received)
-        want = bridge._handle_general(data)
-        general = (dataclasses.asdict(bridge.counters), rx.total_packets_received - before[0],
-                   rx.total_bytes_received - before[1])
-        assert got == want, data
-        assert fast == general, data
-    # the first three (ours, CRC good) never reach the general path
-    good, zeros, stale = _answers(bridge)[:3]
+        assert dataclasses.asdict(bridge.counters) == dataclasses.asdict(
+            BridgeCounters(datagrams_in=1, **want_counts[label])), label
+        ref = dialect.new_mav(1, 1).parse_buffer(data) or []
+        answers = [m for m in ref if m.get_type() == "HIL_ACTUATOR_CONTROLS" and m.get_srcSystem() == bridge.opts.sysid
+                   and m.time_usec == bridge.time_usec]
+        if not answers:
+            assert got is None, label
+            continue
+        m, lim = answers[0], bridge.limits
+        assert got == seam.ActuatorControls(  # pymavlink's decode, scaled by hand
+            m.time_usec, (m.controls[0] * lim.tilt_max_abs_rad, m.controls[1] * lim.tilt_max_abs_rad),
+            (m.controls[2] * lim.duct_speed_max_rad_s, m.controls[3] * lim.tail_speed_max_rad_s,
+             m.controls[4] * lim.duct_speed_max_rad_s), bool(m.mode & 128)), label
+    assert bridge.arm.pending_gripper == [seam.GRIPPER_GRAB]
+    assert bridge.arm.joint_targets_rad == pytest.approx((0.1, 0.2, 0.3), rel=1e-7)
+    assert d.MAVLINK_MSG_ID_HIL_ACTUATOR_CONTROLS == 93
 
-    def general(_data: bytes) -> None:
-        raise AssertionError("general path taken")
 
-    bridge._handle_general = general  # type: ignore[method-assign]
-    assert bridge._handle(good) is not None
-    assert bridge._handle(zeros).tilt_rad == (0.0, 0.0)
-    assert bridge._handle(stale) is None
+def test_the_fc_address_is_learnt_from_its_frames() -> None:
+    br = Bridge(BridgeOptions(scenario="ground", speed=0.0, bridge_port=0, fc_port=0))
+    try:
+        assert br.fc_addr is None
+        br._send(b"nothing to send to")  # no address: dropped quietly
+        data = _answers(br)
+        br._handle(data["foreign"], ("127.0.0.1", 40001))
+        assert br.fc_addr is None  # another system's frame does not redirect the bundles
+        br._handle(data["bad_crc"], ("127.0.0.1", 40002))
+        assert br.fc_addr is None
+        br._handle(data["heartbeat"], ("127.0.0.1", 40003))  # the FC's announcement
+        assert br.fc_addr == ("127.0.0.1", 40003)
+        br._handle(data["good"], ("127.0.0.1", 40004))  # a restarted FC elsewhere
+        assert br.fc_addr == ("127.0.0.1", 40004)
+    finally:
+        br.close()

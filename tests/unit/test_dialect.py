@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import os
@@ -14,7 +13,8 @@ import numpy as np
 import pytest
 
 from navig8_fc.core.vehicle import VehicleConfig
-from navig8_fc.mavlink import dialect, seam
+from navig8_fc.logrecords import wire_truth_record
+from navig8_fc.mavlink import codec, dialect, seam
 from sim_bridge import ActuatorCommand, Plant, PlantParams, load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -45,15 +45,25 @@ def _cls(d, name: str):
     return getattr(d, f"MAVLink_{name.lower()}_message")
 
 
-def _roundtrip(msg, sysid: int = 3, compid: int = 25):
-    tx = dialect.new_mav(sysid, compid)
-    rx = dialect.new_mav(200, 1)
-    parsed = seam.parse_datagram(rx, seam.pack(tx, [msg]))
-    assert parsed.bad == 0 and len(parsed.messages) == 1
-    out = parsed.messages[0]
-    h = out.get_header()
-    assert (h.srcSystem, h.srcComponent) == (sysid, compid)
-    return out
+def _roundtrip(rec, sysid: int = 3, compid: int = 25) -> dict:
+    """A (name, values) record packed by pymavlink, decoded by the codec: its fields."""
+    name, values = rec
+    frame = _cls(dialect.load(), name)(*values).pack(dialect.new_mav(sysid, compid))
+    counts = codec.ParseCounters()
+    msgs = codec.seam_codec().parse(frame, counts)
+    assert counts == codec.ParseCounters() and len(msgs) == 1
+    out = msgs[0]
+    assert (out.name, out.sysid, out.compid) == (name, sysid, compid)
+    return out.fields
+
+
+def _messages(step: int, sensors, truth, sysid: int = 1) -> list[codec.Message]:
+    """The bundle's messages as the FC receives them (encode_bundle, then the codec's parse)."""
+    data = seam.encode_bundle(codec.Encoder(codec.seam_codec(), sysid, 25), step, sensors, truth)
+    counts = codec.ParseCounters()
+    msgs = codec.seam_codec().parse(data, counts)
+    assert counts == codec.ParseCounters()
+    return msgs
 
 
 def _f32(v) -> np.ndarray:
@@ -80,8 +90,9 @@ def test_units_are_declared_on_si_fields(d) -> None:
 def test_common_is_included_and_mavlink2(d) -> None:
     assert d.WIRE_PROTOCOL_VERSION == "2.0"
     assert d.MAVLINK_MSG_ID_HIL_ACTUATOR_CONTROLS == 93 and d.MAVLINK_MSG_ID_ODOMETRY == 331
-    frame = seam.pack(dialect.new_mav(1, 25), [d.MAVLink_heartbeat_message(2, 8, 0, 0, 0, 3)])
+    frame = d.MAVLink_heartbeat_message(2, 8, 0, 0, 0, 3).pack(dialect.new_mav(1, 25))
     assert frame[0] == 0xFD
+    assert codec.Encoder(codec.seam_codec(), 1, 25).frame(*seam.announce_record())[0] == 0xFD
 
 
 def test_arm_joints_command_alias(d) -> None:
@@ -110,9 +121,9 @@ def test_messages_roundtrip_with_float32_precision(d) -> None:
         "NAVIG8_SIM_STATUS": dict(time_usec=tu, step=9, state=3, speed=0.0, rtf=41.25, stall_count=3),
     }
     for name, fields in cases.items():
-        out = _roundtrip(_cls(d, name)(**fields))
+        out = _roundtrip((name, [fields[k] for k in _cls(d, name).fieldnames]))
         for k, v in fields.items():
-            got = getattr(out, k)
+            got = out[k]
             if isinstance(v, list):
                 np.testing.assert_array_equal(got, _f32(v), err_msg=f"{name}.{k}")
             elif isinstance(v, float):
@@ -181,25 +192,27 @@ def test_actuator_controls_normalisation_and_roundtrip(d, vehicle: VehicleConfig
     assert lim.duct_speed_max_rad_s == vehicle.duct_speed_max
     assert lim.tail_speed_max_rad_s == vehicle.tail_speed_max
     cmd = ActuatorCommand((0.3, -0.2), (600.0, -123.0, 610.0))
-    msg = seam.encode_actuator_controls(10_001, cmd, vehicle, armed=True)
+    rec = seam.actuator_controls_record(10_001, cmd, vehicle, armed=True)
+    msg = d.MAVLink_hil_actuator_controls_message(*rec[1])
+    assert rec[0] == "HIL_ACTUATOR_CONTROLS"
     assert msg.time_usec == 10_001 and msg.flags == 0
     assert msg.mode == seam.MODE_FLAG_SAFETY_ARMED
     expected = [0.3 / lim.tilt_max_abs_rad, -0.2 / lim.tilt_max_abs_rad, 600.0 / lim.duct_speed_max_rad_s,
                 -123.0 / lim.tail_speed_max_rad_s, 610.0 / lim.duct_speed_max_rad_s]
     np.testing.assert_allclose(msg.controls[:5], expected, rtol=1e-15)
-    assert msg.controls[5:] == [0.0] * 11
-    out = seam.decode_actuator_controls(_roundtrip(msg, compid=1), lim)
+    assert list(msg.controls[5:]) == [0.0] * 11
+    out = seam.decode_actuator_controls(_roundtrip(rec, compid=1), lim)
     assert out.time_usec == 10_001 and out.armed
     np.testing.assert_allclose(out.tilt_rad, cmd.tilt_rad, rtol=1e-7)
     np.testing.assert_allclose(out.speed_rad_s, cmd.speed_rad_s, rtol=1e-7)
-    off = seam.decode_actuator_controls(seam.encode_actuator_controls(5, cmd, lim, armed=False), lim)
+    off = seam.decode_actuator_controls(_roundtrip(seam.actuator_controls_record(5, cmd, lim, armed=False)), lim)
     assert not off.armed
 
 
 def test_actuator_controls_not_clipped_and_nonfinite_pass(vehicle: VehicleConfig) -> None:
     """The plant clamps and counts; clipping in the encoder would hide a bad command from its counters."""
     cmd = ActuatorCommand((5.0, float("nan")), (2000.0, 0.0, float("inf")))
-    out = seam.decode_actuator_controls(_roundtrip(seam.encode_actuator_controls(1, cmd, vehicle, armed=True)),
+    out = seam.decode_actuator_controls(_roundtrip(seam.actuator_controls_record(1, cmd, vehicle, armed=True)),
                                         vehicle)
     assert out.tilt_rad[0] == pytest.approx(5.0) and math.isnan(out.tilt_rad[1])
     assert out.speed_rad_s[0] == pytest.approx(2000.0) and math.isinf(out.speed_rad_s[2])
@@ -222,13 +235,11 @@ def plant(vehicle: VehicleConfig) -> Plant:
 
 def test_bundle_roundtrip_from_the_plant(plant: Plant) -> None:
     sb, tr = plant.sense(), plant.truth()
-    data = seam.encode_bundle(dialect.new_mav(2, 25), 5, sb, tr)
-    parsed = seam.parse_datagram(dialect.new_mav(2, 1), data)
-    assert parsed.bad == 0
-    assert [m.get_type() for m in parsed.messages] == ["ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE",
-                                                         "NAVIG8_TRUTH", "HIL_SENSOR"]
-    assert len({m.get_header().seq for m in parsed.messages}) == 5  # pack() advanced the sequence
-    b = seam.decode_bundle(parsed.messages)
+    msgs = _messages(5, sb, tr, sysid=2)
+    assert [m.name for m in msgs] == ["ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH",
+                                      "HIL_SENSOR"]
+    assert len({m.seq for m in msgs}) == 5  # the encoder advanced the sequence
+    b = seam.decode_bundle(msgs)
     assert b is not None
     assert b.step == 5 and b.time_usec == sb.time_us + 1 == 50_001 and b.t_us == 50_000
     assert b.t_s == sb.time_us * 1e-6  # exactly what the in-process runner feeds the FC
@@ -238,12 +249,12 @@ def test_bundle_roundtrip_from_the_plant(plant: Plant) -> None:
                       (b.joint_rate_rad_s, sb.joint_rate_rad_s)]:
         np.testing.assert_array_equal(got, _f32(want))
     assert b.gripper_closed is True and b.imu_fresh
-    odom = parsed.messages[0]
-    assert odom.frame_id == odom.child_frame_id == 1  # MAV_FRAME_LOCAL_NED: velocity in NED
-    assert math.isnan(odom.pose_covariance[0]) and math.isnan(odom.velocity_covariance[0])
-    np.testing.assert_array_equal([odom.rollspeed, odom.pitchspeed, odom.yawspeed], _f32(sb.gyro_frd))
-    hil = parsed.messages[-1]
-    assert hil.fields_updated == 0b111111 and hil.id == 0
+    odom = msgs[0].fields
+    assert odom["frame_id"] == odom["child_frame_id"] == 1  # MAV_FRAME_LOCAL_NED: velocity in NED
+    assert math.isnan(odom["pose_covariance"][0]) and math.isnan(odom["velocity_covariance"][0])
+    np.testing.assert_array_equal([odom["rollspeed"], odom["pitchspeed"], odom["yawspeed"]], _f32(sb.gyro_frd))
+    hil = msgs[-1].fields
+    assert hil["fields_updated"] == 0b111111 and hil["id"] == 0
     t = b.truth
     np.testing.assert_array_equal(t.reaction_force, _f32(tr.reaction_force_frd_n))
     np.testing.assert_array_equal(t.actuators, _f32(tr.actuator_pos))
@@ -254,60 +265,65 @@ def test_bundle_roundtrip_from_the_plant(plant: Plant) -> None:
 
 def test_fc_sensors_and_truth_record(plant: Plant) -> None:
     sb, tr = plant.sense(), plant.truth()
-    msgs = seam.bundle_messages(9, sb, tr)
-    rx = dialect.new_mav(1, 1)
-    decoded = seam.parse_datagram(rx, seam.pack(dialect.new_mav(1, 25), msgs)).messages
-    # a name -> message dict in any order (the FC's collector) works as well as the datagram's list
-    by_name = {m.get_type(): m for m in reversed(decoded)}
-    s = seam.decode_sensors(by_name)
+    msgs = _messages(9, sb, tr)
+    # the parts in any order before the trigger (HIL_SENSOR) work as well as the datagram's order
+    b = seam.decode_bundle([*reversed(msgs[:-1]), msgs[-1]])
+    assert b is not None
+    s = b.fc_sensors()
     assert s.t_s == sb.time_us * 1e-6
     np.testing.assert_array_equal(s.pos_ned, _f32(sb.pos_ned))
     np.testing.assert_array_equal(s.tilt_rad, _f32(sb.duct_tilt_rad))
-    rec = seam.truth_record(by_name["NAVIG8_TRUTH"])
+    rec = wire_truth_record(b.truth)
     for key in ("pos_ned_m", "quat_wxyz", "euler_rad", "reaction_force_mount_n", "reaction_torque_mount_nm",
                 "joint_rate_rad_s", "joint_accel_rad_s2", "tilt_rad", "speed_rad_s", "inertia_diag_kgm2"):
         assert key in rec
     np.testing.assert_allclose(rec["euler_rad"], tr.euler_rad, atol=1e-6)
-    del by_name["NAVIG8_ARM_STATE"]
-    with pytest.raises(ValueError, match="incomplete"):
-        seam.decode_sensors(by_name)
+    assert seam.decode_bundle([m for m in msgs if m.name != "NAVIG8_ARM_STATE"]) is None  # incomplete
 
 
 def test_assembler_never_mixes_steps(plant: Plant) -> None:
     sb, tr = plant.sense(), plant.truth()
-    msgs = seam.bundle_messages(1, sb, tr)
+    msgs = _messages(1, sb, tr)
     asm = seam.BundleAssembler()
     for m in msgs[:-1]:
         assert asm.add(m) is None
-    hil_other = seam.bundle_messages(1, dataclasses.replace(sb, time_us=sb.time_us + 10_000), None)[-1]
+    hil_other = _messages(1, sb._replace(time_us=sb.time_us + 10_000), None)[-1]
     assert asm.add(hil_other) is None and asm.incomplete == 1
     for m in msgs:
         out = asm.add(m)
     assert out is not None and out.time_usec == sb.time_us + 1
+    assert list(asm.completed) == ["ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH",
+                                   "HIL_SENSOR"]
+    assert all(asm.completed[m.name] is m for m in msgs)
     assert seam.decode_bundle(msgs[1:]) is None  # ODOMETRY missing
-    no_truth = seam.decode_bundle([m for m in msgs if m.get_type() != "NAVIG8_TRUTH"])
+    no_truth = seam.decode_bundle([m for m in msgs if m.name != "NAVIG8_TRUTH"])
     assert no_truth is not None and no_truth.truth is None
 
 
-def test_parse_datagram_counts_bad_input_and_never_raises(plant: Plant, d) -> None:
-    tx, rx = dialect.new_mav(1, 25), dialect.new_mav(1, 1)
-    good = seam.pack(tx, [seam.encode_sim_status(seam.SimStatus(1, 0, 0, 1.0, 0.0, 0))])
-    assert seam.parse_datagram(rx, good).bad == 0
-    assert seam.parse_datagram(rx, b"\x00\x01garbage" + good).bad == 1
-    assert len(seam.parse_datagram(rx, b"\x00\x01garbage" + good).messages) == 1
+def test_parse_counts_bad_input_and_never_raises(plant: Plant, d) -> None:
+    c = codec.seam_codec()
+    good = codec.Encoder(c, 1, 25).frame(*seam.encode_sim_status(seam.SimStatus(1, 0, 0, 1.0, 0.0, 0)))
+
+    def parse(data: bytes) -> tuple[list, codec.ParseCounters]:
+        counts = codec.ParseCounters()
+        return c.parse(data, counts), counts
+
+    assert parse(good)[1] == codec.ParseCounters()
+    msgs, counts = parse(b"\x00\x01garbage" + good)
+    assert len(msgs) == 1 and counts == codec.ParseCounters(garbage_bytes=9)
     corrupt = bytearray(good)
     corrupt[12] ^= 0xFF  # payload byte: bad CRC
-    assert seam.parse_datagram(rx, bytes(corrupt)) == seam.ParsedDatagram([], 1)
+    assert parse(bytes(corrupt)) == ([], codec.ParseCounters(bad_crc=1))
     # a truncated frame at the end of one datagram must not swallow the next datagram
-    assert seam.parse_datagram(rx, good[:-5]).bad == 1
-    assert len(seam.parse_datagram(rx, good).messages) == 1
+    assert parse(good[:-5]) == ([], codec.ParseCounters(truncated=1))
+    assert len(parse(good)[0]) == 1
     unknown = bytearray(good)
     unknown[7:10] = (60999).to_bytes(3, "little")
-    assert seam.parse_datagram(rx, bytes(unknown)).bad == 1
+    assert parse(bytes(unknown)) == ([], codec.ParseCounters(unknown_id=1))
     rng = np.random.default_rng(0)
     for _ in range(300):
-        seam.parse_datagram(rx, rng.integers(0, 256, int(rng.integers(0, 600)), dtype=np.uint8).tobytes())
-    assert len(seam.parse_datagram(rx, good).messages) == 1
+        parse(rng.integers(0, 256, int(rng.integers(0, 600)), dtype=np.uint8).tobytes())
+    assert len(parse(good)[0]) == 1
 
 
 # ---- seam: arm command and status ---------------------------------------------------------------------

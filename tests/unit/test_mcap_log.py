@@ -59,7 +59,7 @@ def test_schema_describes_fields() -> None:
 def test_mavlink_schema_from_the_message_definition() -> None:
     from pymavlink.dialects.v20 import common as m
 
-    from navig8_fc.shell.mcap_log import mavlink_json_schema
+    from navig8_fc.logrecords import mavlink_json_schema
 
     s = mavlink_json_schema(m.MAVLink_attitude_quaternion_message)
     props = s["properties"]
@@ -68,6 +68,10 @@ def test_mavlink_schema_from_the_message_definition() -> None:
     assert props["repr_offset_q"]["type"] == "array" and props["repr_offset_q"]["maxItems"] == 4
     hb = mavlink_json_schema(m.MAVLink_heartbeat_message)["properties"]
     assert hb["custom_mode"]["type"] == "integer" and "MAV_TYPE" in hb["type"]["description"]
+    # array lengths belong to the right fields when the wire order differs from the declaration order
+    odom = mavlink_json_schema(m.MAVLink_odometry_message)["properties"]
+    assert odom["y"]["type"] == ["number", "null"] and odom["frame_id"]["type"] == "integer"
+    assert (odom["q"]["maxItems"], odom["pose_covariance"]["maxItems"]) == (4, 21)
 
 
 def test_raw_channels_carry_the_peer_in_channel_metadata(tmp_path) -> None:
@@ -91,3 +95,31 @@ def test_raw_channels_carry_the_peer_in_channel_metadata(tmp_path) -> None:
                      ("/mavlink/gcs/out", "127.0.0.1:14550,127.0.0.1:14551", "gcs", "out")]
     # One topic for readers that go by topic.
     assert [d for _, _, d in read_mcap(path, ["/mavlink/gcs/in"])] == [b"\xfd\x01", b"\xfd\x02", b"\xfd\x03"]
+
+
+def test_truth_records_in_process_and_over_the_wire_agree() -> None:
+    """/truth from the plant's Truth (navig8-sim) and from a decoded NAVIG8_TRUTH (navig8-fc): the same keys
+    (the wire lacks the four it does not carry) and the same values to float32 rounding."""
+    import numpy as np
+
+    from navig8_fc.core.vehicle import VehicleConfig
+    from navig8_fc.logrecords import truth_record, wire_truth_record
+    from navig8_fc.mavlink import codec, seam
+    from sim_bridge import Plant, PlantParams, load_scenario
+
+    plant = Plant(VehicleConfig.load(), PlantParams.load(), load_scenario("paper"), np.random.default_rng(2))
+    plant.step(plant.trim_command(), 0.5)
+    tr = plant.truth()
+    local = truth_record(tr)
+    c = codec.seam_codec()
+    msgs = c.parse(seam.encode_bundle(codec.Encoder(c, 1, 25), 50, plant.sense(), tr), codec.ParseCounters())
+    wire = wire_truth_record(seam.decode_bundle(msgs).truth)
+    extra = {"ang_accel_frd_rad_s2", "reaction_torque_o_nm", "reaction_force_nog_n", "reaction_torque_mount_nog_nm"}
+    assert set(local) - set(wire) == extra and set(wire) <= set(local)
+    assert [k for k in local if k not in extra] == list(wire)  # the same order too
+    for k, v in wire.items():
+        np.testing.assert_allclose(np.asarray(v, dtype=float), np.asarray(local[k], dtype=float), rtol=1e-6,
+                                   atol=1e-6, err_msg=k)
+    np.testing.assert_array_equal(local["inertia_diag_kgm2"], np.diag(tr.inertia_com_kgm2))
+    np.testing.assert_array_equal(local["tilt_rad"], tr.actuator_pos[:2])
+    assert local["reaction_torque_o_nm"] is tr.reaction_moment_o_frd_nm

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import FrozenInstanceError
 from importlib.resources import files
 
 import numpy as np
@@ -196,13 +195,17 @@ def test_hover_scenarios_start_at_trim(cfg, params):
 
 
 def test_messages_are_complete_and_frozen(cfg, params):
-    """sense() and truth() give complete frozen dataclasses: every field set, no array writable."""
+    """sense() and truth() build immutable messages: every field set, none writable, no field missing or extra."""
     plant = Plant(cfg, params, load_scenario("paper"), np.random.default_rng(0))
     for msg, cls in ((plant.sense(), SensorBundle), (plant.truth(), Truth)):
-        assert set(vars(msg)) == {f.name for f in dataclasses.fields(cls)}
-        with pytest.raises(FrozenInstanceError):
+        assert type(msg) is cls and set(msg._asdict()) == set(cls._fields) and all(v is not None for v in msg)
+        with pytest.raises(AttributeError):
             msg.time_us = 5  # type: ignore[misc]
-        for v in vars(msg).values():
+        with pytest.raises(TypeError):
+            cls(**{**msg._asdict(), "extra": 1})
+        with pytest.raises(TypeError):
+            cls(**{k: v for k, v in msg._asdict().items() if k != "time_us"})
+        for v in msg._asdict().values():
             if isinstance(v, np.ndarray):
                 assert not v.flags.writeable
 

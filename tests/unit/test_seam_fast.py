@@ -1,45 +1,23 @@
-"""The seam's fast frame codec agrees byte for byte (encode) and field for field (decode) with pymavlink."""
+"""The seam's per-step wire (bundle out, actuator answer back) against pymavlink: the same bytes as pymavlink packs
+from the same messages, and the same values as pymavlink decodes (the FC's one decode path: codec + assembler)."""
 
 from __future__ import annotations
 
 import math
 import random
-import struct
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from mavlink_oracle import same, same_fields
 
-from navig8_fc.mavlink import dialect, seam
-from navig8_fc.shell.mavlink_link import split_frames
-
-SEAM_MESSAGES = seam._FAST_MESSAGES
+from navig8_fc.logrecords import mavlink_record_json, wire_truth_record
+from navig8_fc.mavlink import codec, dialect, seam
 
 
 @pytest.fixture(scope="module")
 def d():
     return dialect.load()
-
-
-def _value(rng: random.Random, typ: str) -> float | int:
-    if rng.random() < 0.3:  # zeros everywhere, so payloads end in zeros and get truncated
-        return 0.0 if typ in ("float", "double") else 0
-    if typ == "float":
-        return rng.choice([rng.uniform(-1e3, 1e3), rng.uniform(-1e-3, 1e-3), math.inf, -math.inf, math.nan, 1e30])
-    if typ == "double":
-        return rng.uniform(-1e6, 1e6)
-    bits = int("".join(ch for ch in typ if ch.isdigit()))
-    if typ.startswith("u"):
-        return rng.randrange(0, 1 << bits)
-    return rng.randrange(-(1 << (bits - 1)), 1 << (bits - 1))
-
-
-def _random_args(rng: random.Random, cls) -> list:
-    args = []
-    for typ, fname in zip(cls.fieldtypes, cls.fieldnames, strict=True):
-        n = cls.array_lengths[cls.ordered_fieldnames.index(fname)]
-        args.append([_value(rng, typ) for _ in range(n)] if n else _value(rng, typ))
-    return args
 
 
 def _vec(rng: random.Random, n: int) -> np.ndarray:
@@ -69,114 +47,53 @@ def _truth(rng: random.Random, step: int) -> SimpleNamespace:
     )
 
 
-def test_encode_bundle_is_byte_identical_to_pymavlink_pack() -> None:
+def _pymavlink_bundle(d, ref, step: int, s, t) -> list:
+    """The bundle's messages built with pymavlink's constructors, field by field from the plant's names (an
+    independent spelling of seam.bundle_records' mapping)."""
+    tu = s.time_us + 1
+    cov = [math.nan] + [0.0] * 20
+    msgs = [
+        d.MAVLink_odometry_message(tu, d.MAV_FRAME_LOCAL_NED, d.MAV_FRAME_LOCAL_NED, *s.pos_ned, list(s.quat_wxyz),
+                                   *s.vel_ned, *s.gyro_frd, cov, cov, 0, d.MAV_ESTIMATOR_TYPE_MOCAP, 0),
+        d.MAVLink_navig8_actuator_state_message(tu, step, list(s.duct_tilt_rad), list(s.prop_speed_rad_s)),
+        d.MAVLink_navig8_arm_state_message(tu, step, list(s.joint_pos_rad), list(s.joint_rate_rad_s),
+                                           int(s.gripper_closed)),
+    ]
+    if t is not None:
+        j = t.inertia_com_kgm2
+        msgs.append(d.MAVLink_navig8_truth_message(
+            tu, step, list(t.pos_ned_m), list(t.vel_ned_m_s), list(t.quat_wxyz), list(t.rate_frd_rad_s),
+            list(t.accel_frd_m_s2), list(t.actuator_pos), list(t.joint_pos_rad), list(t.joint_rate_rad_s),
+            list(t.joint_accel_rad_s2), t.object_mass_kg, t.mass_kg, list(t.com_frd_m),
+            [j[0, 0], j[1, 1], j[2, 2], j[0, 1], j[0, 2], j[1, 2]], list(t.reaction_force_frd_n),
+            list(t.reaction_moment_mount_frd_nm), t.cmd_clamped_count & 0xFFFFFFFF, t.cmd_nonfinite_count))
+    msgs.append(d.MAVLink_hil_sensor_message(tu, *s.accel_frd, *s.gyro_frd, 0, 0, 0, 0, 0, 0, 0,
+                                             0b111111 if s.updated & 1 else 0, 0))
+    out = b""
+    for m in msgs:
+        out += m.pack(ref)
+        ref.seq = (ref.seq + 1) % 256
+    return out
+
+
+def test_encode_bundle_is_byte_identical_to_pymavlink(d) -> None:
     rng = random.Random(7)
-    fast = dialect.new_mav(1, dialect.COMPID_BRIDGE)
+    enc = codec.Encoder(codec.seam_codec(), 1, dialect.COMPID_BRIDGE)
     ref = dialect.new_mav(1, dialect.COMPID_BRIDGE)
     for step in range(300):  # > 256 frames: seq wraps
         sensors = _sensors(rng, step)
         truth = _truth(rng, step) if step % 7 else None
-        got = seam.encode_bundle(fast, step, sensors, truth)
-        want = seam.pack(ref, seam.bundle_messages(step, sensors, truth))
-        assert got == want, step
-    assert (fast.seq, fast.total_packets_sent, fast.total_bytes_sent) == (
-        ref.seq, ref.total_packets_sent, ref.total_bytes_sent)
+        assert seam.encode_bundle(enc, step, sensors, truth) == _pymavlink_bundle(d, ref, step, sensors, truth), step
+    assert enc.seq == ref.seq
 
 
-@pytest.mark.parametrize("name", SEAM_MESSAGES)
-def test_fast_pack_matches_pymavlink_for_random_messages(d, name: str) -> None:
-    rng = random.Random(name)
-    cls = d.mavlink_map[getattr(d, f"MAVLINK_MSG_ID_{name}")]
-    fast, ref = dialect.new_mav(9, 200), dialect.new_mav(9, 200)
-    for _ in range(200):
-        args = _random_args(rng, cls)
-        want = cls(*args).pack(ref)
-        ref.seq = (ref.seq + 1) % 256
-        assert seam.fast_pack(fast, name, args) == want
-
-
-def _same(a, b) -> bool:
-    if isinstance(a, list):
-        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b, strict=True))
-    if isinstance(a, float):
-        return isinstance(b, float) and struct.pack("<d", a) == struct.pack("<d", b)
-    return type(a) is type(b) and a == b
-
-
-@pytest.mark.parametrize("name", SEAM_MESSAGES)
-def test_fast_decode_equals_pymavlink_decode(d, name: str) -> None:
-    rng = random.Random(name + "decode")
-    cls = d.mavlink_map[getattr(d, f"MAVLINK_MSG_ID_{name}")]
-    tx, rx = dialect.new_mav(3, 25), dialect.new_mav(1, 1)
-    for i in range(200):
-        tx.seq = i % 256
-        frame = cls(*_random_args(rng, cls)).pack(tx)
-        got = seam.fast_decode(frame)
-        want = rx.decode(bytearray(frame))
-        assert got is not None and type(got) is type(want)
-        assert set(vars(got)) == set(vars(want))
-        for k, v in vars(want).items():
-            if k == "_header":
-                assert vars(got._header) == vars(v)
-            else:
-                assert _same(getattr(got, k), v) or getattr(got, k) == v, k
-        assert got == want or "nan" in str(want)  # pymavlink's __eq__: NaN != NaN
-        assert (got.get_type(), got.get_srcSystem(), got.get_srcComponent(), got.get_msgId(), got.get_seq()) == (
-            want.get_type(), want.get_srcSystem(), want.get_srcComponent(), want.get_msgId(), want.get_seq())
-        assert got.to_dict().keys() == want.to_dict().keys()
-
-
-def test_fast_decode_pads_truncated_payloads(d) -> None:
-    tx = dialect.new_mav(1, 1)
-    frame = d.MAVLink_hil_actuator_controls_message(5, [0.0] * 16, 0, 0).pack(tx)
-    assert frame[1] == 1  # only the low byte of time_usec survives the truncation
-    m = seam.fast_decode(frame)
-    assert m is not None and m.time_usec == 5 and m.controls == [0.0] * 16 and m.mode == 0 and m.flags == 0
-
-
-def test_fast_decode_declines_what_it_does_not_know(d) -> None:
-    tx = dialect.new_mav(1, 1)
-    frame = bytearray(d.MAVLink_navig8_sim_status_message(1, 2, 1, 1.0, 3.0, 0).pack(tx))
-    assert seam.fast_decode(bytes(frame)) is not None
-    for i in range(1, len(frame)):  # any corrupt byte: bad CRC or bad header, never a wrong message
-        bad = bytearray(frame)
-        bad[i] ^= 0x41
-        assert seam.fast_decode(bytes(bad)) is None, i
-    assert seam.fast_decode(bytes(frame[:-1])) is None  # truncated frame
-    assert seam.fast_decode(d.MAVLink_heartbeat_message(1, 2, 3, 4, 5, 3).pack(tx)) is None  # not a seam message
-    v1 = dialect.new_mav(1, 1)
-    assert seam.fast_decode(d.MAVLink_heartbeat_message(1, 2, 3, 4, 5, 3).pack(v1, force_mavlink1=True)) is None
-    signed = bytearray(frame)
-    signed[2] = 1
-    assert seam.fast_decode(bytes(signed)) is None
-
-
-def test_parse_datagram_fast_path_equals_pymavlink(d) -> None:
-    rng = random.Random(3)
-    tx = dialect.new_mav(1, 25)
-    data = seam.encode_bundle(tx, 4, _sensors(rng, 4), _truth(rng, 4))
-    data += d.MAVLink_hil_actuator_controls_message(5, [0.5] * 16, 128, 0).pack(tx)
-    fast = seam.parse_datagram(dialect.new_mav(1, 1), data)
-    ref = seam.ParsedDatagram([m for m in dialect.new_mav(1, 1).parse_buffer(data)], 0)
-    assert fast.bad == 0 and [m.get_type() for m in fast.messages] == [m.get_type() for m in ref.messages]
-    for a, b in zip(fast.messages, ref.messages, strict=True):
-        assert a.to_dict() == b.to_dict() or "nan" in str(b)
-    # a heartbeat in the datagram: the whole datagram goes through pymavlink (same messages)
-    mixed = data + d.MAVLink_heartbeat_message(1, 2, 3, 4, 5, 3).pack(tx)
-    assert [m.get_type() for m in seam.parse_datagram(dialect.new_mav(1, 1), mixed).messages][-1] == "HEARTBEAT"
-    # a corrupt frame still counts as bad
-    bad = bytearray(data)
-    bad[20] ^= 0xFF
-    assert seam.parse_datagram(dialect.new_mav(1, 1), bytes(bad)).bad >= 1
-
-
-def test_pack_actuator_controls_matches_pymavlink_pack() -> None:
-    # The FC's per-step answer: fast path vs the pymavlink message packed by pymavlink, byte for byte.
+def test_pack_actuator_controls_matches_pymavlink_pack(d) -> None:
     from navig8_fc.core.vehicle import VehicleConfig
 
     veh = VehicleConfig.load()
+    lim = seam.ActuatorLimits.from_vehicle(veh)
     rng = np.random.default_rng(3)
-    fast, ref = dialect.new_mav(2, 1), dialect.new_mav(2, 1)
+    enc, ref = codec.Encoder(codec.seam_codec(), 2, 1), dialect.new_mav(2, 1)
     for i in range(100):
         tilt = rng.uniform(-2, 2, 2).tolist()
         speed = rng.uniform(-900, 900, 3).tolist()
@@ -184,87 +101,81 @@ def test_pack_actuator_controls_matches_pymavlink_pack() -> None:
             speed[1] = math.nan
         cmd = SimpleNamespace(tilt_rad=tilt, speed_rad_s=speed)
         t_us = 1_700_000_000_000_000 + 10_000 * i
-        want = seam.encode_actuator_controls(t_us, cmd, veh, armed=bool(i % 2)).pack(ref)
+        controls = [tilt[0] / lim.tilt_max_abs_rad, tilt[1] / lim.tilt_max_abs_rad, speed[0] / lim.duct_speed_max_rad_s,
+                    speed[1] / lim.tail_speed_max_rad_s, speed[2] / lim.duct_speed_max_rad_s] + [0.0] * 11
+        want = d.MAVLink_hil_actuator_controls_message(t_us, controls, 128 if i % 2 else 0, 0).pack(ref)
         ref.seq = (ref.seq + 1) % 256
-        assert seam.pack_actuator_controls(fast, t_us, cmd, veh, armed=bool(i % 2)) == want
+        assert seam.pack_actuator_controls(enc, t_us, cmd, veh, armed=bool(i % 2)) == want
 
 
-def _assembled(d, data: bytes):
-    """The bundle the frame-by-frame path gives: pymavlink decode of each frame + BundleAssembler."""
-    mav = d.MAVLink(None)
-    asm, out = seam.BundleAssembler(), None
-    for fr in split_frames(data)[0]:
-        b = asm.add(mav.decode(bytearray(fr)))
-        out = b if b is not None else out
-    return out
-
-
-def test_decode_step_datagram_equals_the_frame_by_frame_path(d) -> None:
-    from dataclasses import replace
-
+def test_the_fc_decode_path_equals_pymavlink_decode(d) -> None:
+    """codec.parse + BundleAssembler (the FC's only path) against pymavlink's decode of the same datagram, mapped
+    to a StepBundle here by hand."""
     rng = random.Random(21)
-    tx = dialect.new_mav(1, dialect.COMPID_BRIDGE)
+    enc = codec.Encoder(codec.seam_codec(), 1, dialect.COMPID_BRIDGE)
+    asm = seam.BundleAssembler()
     for step in range(120):
         truth = _truth(rng, step) if step % 5 else None
-        data = seam.encode_bundle(tx, step, _sensors(rng, step), truth)
-        got = seam.decode_step_datagram(data)
-        want = _assembled(d, data)
-        assert got is not None and want is not None
-        bundle, n_frames, fields = got
-        assert n_frames == (5 if truth is not None else 4) == len(fields)
-        for m in (d.MAVLink(None).decode(bytearray(fr)) for fr in split_frames(data)[0]):  # pymavlink's decode
-            want_fields = m.to_dict()
-            assert want_fields.pop("mavpackettype") == m.get_type()
-            assert _same(list(fields[m.get_type()].values()), list(want_fields.values()))
-            assert list(fields[m.get_type()]) == list(want_fields)
-        assert _same(list(vars(replace(bundle, truth=None)).values()), list(vars(replace(want, truth=None)).values()))
+        data = seam.encode_bundle(enc, step, _sensors(rng, step), truth)
+        counts = codec.ParseCounters()
+        msgs = codec.seam_codec().parse(data, counts)
+        bundles = [b for b in (asm.add(m) for m in msgs) if b is not None]
+        ref = {m.get_type(): m for m in dialect.new_mav(1, 1).parse_buffer(data)}
+        assert counts == codec.ParseCounters() and len(bundles) == 1
+        assert [m.name for m in msgs] == list(ref) == list(asm.completed)
+        for name, m in asm.completed.items():
+            assert same_fields(m.fields, ref[name])
+        b = bundles[0]
+        o, a, r, h = ref["ODOMETRY"], ref["NAVIG8_ACTUATOR_STATE"], ref["NAVIG8_ARM_STATE"], ref["HIL_SENSOR"]
+        want = [a.step, h.time_usec, [h.xgyro, h.ygyro, h.zgyro], [h.xacc, h.yacc, h.zacc],
+                h.fields_updated == 0b111111, [o.x, o.y, o.z], [o.vx, o.vy, o.vz], o.q, a.duct_tilt, a.prop_speed,
+                r.joint_pos, r.joint_rate, bool(r.gripper_closed)]
+        got = [b.step, b.time_usec, b.gyro_frd, b.accel_frd, b.imu_fresh, b.pos_ned, b.vel_ned, b.quat_wxyz,
+               b.duct_tilt_rad, b.prop_speed_rad_s, b.joint_pos_rad, b.joint_rate_rad_s, b.gripper_closed]
+        assert all(same(x, y) for x, y in zip(got, want, strict=True)), step
         if truth is None:
-            assert bundle.truth is None and want.truth is None
+            assert b.truth is None
         else:
-            assert _same(list(seam.truth_record(bundle.truth).values()), list(seam.truth_record(want.truth).values()))
+            t = ref["NAVIG8_TRUTH"]
+            assert all(same(getattr(b.truth, k), v) for k, v in t.to_dict().items() if k != "mavpackettype")
+            assert same(list(wire_truth_record(b.truth).values()), list(wire_truth_record(t).values()))
 
 
-def test_decode_step_datagram_declines_anything_but_a_clean_bundle(d) -> None:
+def test_the_log_records_equal_pymavlink_to_dict(d) -> None:
+    """The /mavlink/sim/... records (codec fields + mavpackettype) serialise like pymavlink's to_dict."""
+    import orjson
+
+    rng = random.Random(4)
+    data = seam.encode_bundle(codec.Encoder(codec.seam_codec(), 1, 25), 3, _sensors(rng, 3), _truth(rng, 3))
+    msgs = codec.seam_codec().parse(data, codec.ParseCounters())
+    for m, ref in zip(msgs, dialect.new_mav(1, 1).parse_buffer(data), strict=True):
+        want = ref.to_dict()
+        got = orjson.loads(mavlink_record_json(m))
+        assert got.keys() == want.keys()
+        assert got == orjson.loads(orjson.dumps(want))
+
+
+def test_assembler_declines_anything_but_a_whole_bundle(d) -> None:
     rng = random.Random(22)
-    tx = dialect.new_mav(1, dialect.COMPID_BRIDGE)
-    data = seam.encode_bundle(tx, 3, _sensors(rng, 3), _truth(rng, 3))
-    frames = split_frames(data)[0]
-    assert seam.decode_step_datagram(data) is not None
-    bad_crc = bytearray(data)
-    bad_crc[20] ^= 0x01
-    other = seam.encode_bundle(tx, 4, _sensors(rng, 4), None)
-    status = seam.pack(tx, [seam.encode_sim_status(seam.SimStatus(1, 2, seam.SIM_STATE_RUNNING, 0.0, 1.0, 0))])
+    enc = codec.Encoder(codec.seam_codec(), 1, dialect.COMPID_BRIDGE)
+    c = codec.seam_codec()
+    msgs = c.parse(seam.encode_bundle(enc, 3, _sensors(rng, 3), _truth(rng, 3)), codec.ParseCounters())
+    other = c.parse(seam.encode_bundle(enc, 4, _sensors(rng, 4), None), codec.ParseCounters())
+    status = c.parse(enc.frame(*seam.encode_sim_status(seam.SimStatus(1, 2, seam.SIM_STATE_RUNNING, 0.0, 1.0, 0))),
+                     codec.ParseCounters())
+    assert seam.decode_bundle(msgs) is not None
     cases = {
-        "bad CRC": bytes(bad_crc),
-        "trailing garbage": data + b"\x01\x02",
-        "truncated": data[:-3],
-        "out of order": b"".join([frames[1], frames[0], *frames[2:]]),
-        "no HIL_SENSOR": b"".join(frames[:-1]),
-        "mixed steps": b"".join([split_frames(other)[0][0], *frames[1:]]),
+        "no HIL_SENSOR": msgs[:-1],
+        "HIL_SENSOR first": [msgs[-1], *msgs[:-1]],
+        "no ODOMETRY": msgs[1:],
+        "mixed steps": [other[0], *msgs[1:]],
         "a status message": status,
-        "status then bundle": status + data,
-        "two bundles": data + data,
-        "empty": b"",
+        "empty": [],
     }
-    for label, dgram in cases.items():
-        assert seam.decode_step_datagram(dgram) is None, label
-
-
-def test_frame_fields_equals_pymavlink_decode_and_declines_bad_frames(d) -> None:
-    from navig8_fc.core.vehicle import VehicleConfig
-
-    veh = VehicleConfig.load()
-    rng = np.random.default_rng(4)
-    tx, mav = dialect.new_mav(2, 1), d.MAVLink(None)
-    for i in range(50):
-        cmd = SimpleNamespace(tilt_rad=rng.uniform(-1, 1, 2).tolist(), speed_rad_s=rng.uniform(-900, 900, 3).tolist())
-        frame = seam.pack_actuator_controls(tx, 1_700_000_000_000_000 + 10_000 * i, cmd, veh, armed=i % 2 == 0)
-        name, fields = seam.frame_fields(frame)
-        want = mav.decode(bytearray(frame)).to_dict()
-        assert name == want.pop("mavpackettype") == "HIL_ACTUATOR_CONTROLS"
-        assert _same(list(fields.values()), list(want.values())) and list(fields) == list(want)
-    bad = bytearray(frame)
-    bad[15] ^= 0x10
-    assert seam.frame_fields(bytes(bad)) is None
-    assert seam.frame_fields(frame[:-1]) is None
-    assert seam.frame_fields(b"") is None
+    for label, seq in cases.items():
+        asm = seam.BundleAssembler()
+        assert [b for b in (asm.add(m) for m in seq) if b is not None] == [], label
+    asm = seam.BundleAssembler()
+    for m in [other[0], *msgs[1:]]:
+        asm.add(m)
+    assert asm.incomplete == 1
