@@ -23,6 +23,7 @@ import numpy as np
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import ControllerStatus, FcSensors, warm_up_kernels
 from navig8_fc.flight import FlightStack
+from navig8_fc.logrecords import truth_record
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.shell.mcap_log import McapLogger
 from navig8_tools.logdata import load_run
@@ -60,36 +61,6 @@ def _sensors_to_fc(sb: Any) -> FcSensors:
         joint_pos_rad=_floats(sb.joint_pos_rad),
         joint_rate_rad_s=_floats(sb.joint_rate_rad_s),
     )
-
-
-def _truth_record(tr: Any) -> dict[str, Any]:
-    act = np.asarray(tr.actuator_pos, dtype=float)
-    return {
-        "pos_ned_m": tr.pos_ned_m,
-        "vel_ned_m_s": tr.vel_ned_m_s,
-        "quat_wxyz": tr.quat_wxyz,
-        "euler_rad": tr.euler_rad,
-        "rate_frd_rad_s": tr.rate_frd_rad_s,
-        "accel_frd_m_s2": tr.accel_frd_m_s2,
-        "ang_accel_frd_rad_s2": tr.ang_accel_frd_rad_s2,
-        "tilt_rad": act[:2],
-        "speed_rad_s": act[2:],
-        "joint_pos_rad": tr.joint_pos_rad,
-        "joint_rate_rad_s": tr.joint_rate_rad_s,
-        "joint_accel_rad_s2": tr.joint_accel_rad_s2,
-        "object_mass_kg": tr.object_mass_kg,
-        "mass_kg": tr.mass_kg,
-        "com_frd_m": tr.com_frd_m,
-        "inertia_diag_kgm2": np.diag(np.asarray(tr.inertia_com_kgm2)),
-        # Headline reaction wrench (Fig. 10): about the mount, gravity included.
-        "reaction_force_mount_n": tr.reaction_force_frd_n,
-        "reaction_torque_mount_nm": tr.reaction_moment_mount_frd_nm,
-        "reaction_torque_o_nm": tr.reaction_moment_o_frd_nm,
-        "reaction_force_nog_n": tr.reaction_force_nog_frd_n,
-        "reaction_torque_mount_nog_nm": tr.reaction_moment_mount_nog_frd_nm,
-        "cmd_nonfinite_count": tr.cmd_nonfinite_count,
-        "cmd_clamped_count": tr.cmd_clamped_count,
-    }
 
 
 class EigenMonitor:
@@ -155,7 +126,7 @@ def run(
             if logger:
                 t_ns = int(sb.time_us) * 1000
                 tr = plant.truth()
-                logger.log("/truth", t_ns, _truth_record(tr))
+                logger.log("/truth", t_ns, truth_record(tr))
                 logger.log("/fc/status", t_ns, st)
                 logger.log("/fc/setpoint", t_ns, {"pos_ned": sp.pos_ned, "pitch_rad": sp.pitch_rad,
                                                   "yaw_rad": sp.yaw_rad})
