@@ -32,6 +32,27 @@ UO = layout("UO", mass=1, cx=1, cz=1, arm_ax=1, arm_az=1,
 
 
 @njit(cache=True)
+def pivot_rows(m, c, n):
+    """Partial pivoting for column c of the n-row matrix m: swap the row (of c..n-1) with the largest |m[r, c]|
+    into row c (all columns). False if that pivot is zero or not finite (m unchanged then)."""
+    p = c
+    big = abs(m[c, c])
+    for r in range(c + 1, n):
+        v = abs(m[r, c])
+        if v > big:
+            p = r
+            big = v
+    if big == 0.0 or not math.isfinite(big):
+        return False
+    if p != c:
+        for j in range(m.shape[1]):
+            t = m[c, j]
+            m[c, j] = m[p, j]
+            m[p, j] = t
+    return True
+
+
+@njit(cache=True)
 def inv_gauss_jordan(a: np.ndarray, out: np.ndarray) -> bool:
     """out = a^-1 for a small square matrix (Gauss-Jordan, partial pivoting). False if singular."""
     n = a.shape[0]
@@ -41,20 +62,8 @@ def inv_gauss_jordan(a: np.ndarray, out: np.ndarray) -> bool:
             m[i, j] = a[i, j]
             m[i, n + j] = 1.0 if i == j else 0.0
     for c in range(n):
-        p = c
-        big = abs(m[c, c])
-        for r in range(c + 1, n):
-            v = abs(m[r, c])
-            if v > big:
-                p = r
-                big = v
-        if big == 0.0 or not math.isfinite(big):
+        if not pivot_rows(m, c, n):
             return False
-        if p != c:
-            for j in range(2 * n):
-                t = m[c, j]
-                m[c, j] = m[p, j]
-                m[p, j] = t
         piv = m[c, c]
         for j in range(2 * n):
             m[c, j] /= piv
@@ -70,6 +79,30 @@ def inv_gauss_jordan(a: np.ndarray, out: np.ndarray) -> bool:
     return True
 
 
+_N_BODY_ACC = 14  # sum m x, m z, m xd, m zd, m xdd, m zdd; J11 J22 J33 J13 about O; their rates
+
+
+@njit(cache=True)
+def _add_body(acc, m, x, z, xd, zd, xdd, zdd, o11, o22, o33, o13, r11, r22, r33, r13):
+    """Add one arm body of mass m at (x, 0, z) FRD (with its velocity and acceleration) to the accumulators acc:
+    its first moments, its inertia about O (own inertia o.. about its CoM + parallel axis) and that inertia's
+    rate (own rate r.. + the moving point's)."""
+    acc[0] += m * x
+    acc[1] += m * z
+    acc[2] += m * xd
+    acc[3] += m * zd
+    acc[4] += m * xdd
+    acc[5] += m * zdd
+    acc[6] += o11 + m * z * z
+    acc[7] += o22 + m * (x * x + z * z)
+    acc[8] += o33 + m * x * x
+    acc[9] += o13 - m * x * z
+    acc[10] += r11 + 2.0 * m * z * zd
+    acc[11] += r22 + 2.0 * m * (x * xd + z * zd)
+    acc[12] += r33 + 2.0 * m * x * xd
+    acc[13] += r13 - m * (xd * z + x * zd)
+
+
 @njit(cache=True)
 def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
     """Composite mass properties of UAV + 3 links (+ the object) at the arm state (q, q-dot, q-ddot) (notes 3.1-3.2).
@@ -82,10 +115,7 @@ def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
     L, ml, ia = geo[GEO.LINK_LEN], geo[GEO.LINK_MASS], geo[GEO.LINK_INERTIA]
     th = thd = thdd = 0.0
     jx, jz, jvx, jvz, jax, jaz = geo[GEO.MOUNT_X], geo[GEO.MOUNT_Z], 0.0, 0.0, 0.0, 0.0
-    s1 = s1z = 0.0  # sum m x, sum m z
-    v1x = v1z = a1x = a1z = 0.0  # sum m xdot, sum m zdot, sum m xddot, sum m zddot
-    j11 = j22 = j33 = j13 = 0.0  # arm inertia about O
-    d11 = d22 = d33 = d13 = 0.0  # and its rate
+    acc = np.zeros(_N_BODY_ACC)  # first moments, inertia about O and its rate of the arm bodies (_BA_*)
     s = c = 0.0
     h = 0.5 * L
     for i in range(3):
@@ -99,21 +129,10 @@ def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
         x, z = jx + h * s, jz + h * c
         xd, zd = jvx + h * vx, jvz + h * vz
         xdd, zdd = jax + h * ax, jaz + h * az
-        s1 += ml * x
-        s1z += ml * z
-        v1x += ml * xd
-        v1z += ml * zd
-        a1x += ml * xdd
-        a1z += ml * zdd
-        j11 += ia * c * c + ml * z * z
-        j22 += ia + ml * (x * x + z * z)
-        j33 += ia * s * s + ml * x * x
-        j13 += -ia * s * c - ml * x * z
         s2, c2 = 2.0 * s * c, c * c - s * s
-        d11 += -ia * s2 * thd + 2.0 * ml * z * zd
-        d22 += 2.0 * ml * (x * xd + z * zd)
-        d33 += ia * s2 * thd + 2.0 * ml * x * xd
-        d13 += -ia * c2 * thd - ml * (xd * z + x * zd)
+        # own inertia of the rod (about its CoM, in the x-z plane) and its rate
+        _add_body(acc, ml, x, z, xd, zd, xdd, zdd, ia * c * c, ia, ia * s * s, -ia * s * c,
+                  -ia * s2 * thd, 0.0, ia * s2 * thd, -ia * c2 * thd)
         jx, jz = jx + L * s, jz + L * c
         jvx, jvz = jvx + L * vx, jvz + L * vz
         jax, jaz = jax + L * ax, jaz + L * az
@@ -125,21 +144,11 @@ def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
         x, z = jx + d * s, jz + d * c
         xd, zd = jvx + d * thd * c, jvz - d * thd * s
         xdd, zdd = jax + d * (thdd * c - thd * thd * s), jaz + d * (-thdd * s - thd * thd * c)
-        s1 += mo * x
-        s1z += mo * z
-        v1x += mo * xd
-        v1z += mo * zd
-        a1x += mo * xdd
-        a1z += mo * zdd
-        j11 += io + mo * z * z
-        j22 += io + mo * (x * x + z * z)
-        j33 += io + mo * x * x
-        j13 += -mo * x * z
-        d11 += 2.0 * mo * z * zd
-        d22 += 2.0 * mo * (x * xd + z * zd)
-        d33 += 2.0 * mo * x * xd
-        d13 += -mo * (xd * z + x * zd)
+        _add_body(acc, mo, x, z, xd, zd, xdd, zdd, io, io, io, 0.0, 0.0, 0.0, 0.0, 0.0)  # a sphere: isotropic
         m = m + mo
+    s1, s1z, v1x, v1z, a1x, a1z, j11, j22, j33, j13, d11, d22, d33, d13 = (
+        acc[0], acc[1], acc[2], acc[3], acc[4], acc[5], acc[6], acc[7], acc[8], acc[9], acc[10], acc[11], acc[12],
+        acc[13])
     cx, cz = s1 / m, s1z / m
     cxd, czd = v1x / m, v1z / m
     # Parallel-axis theorem from O to the CoM (c_y = 0): I_c = I_O - m (|c|^2 E - c c^T), and its rate.
