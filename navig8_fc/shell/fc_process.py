@@ -388,7 +388,8 @@ class FlightControllerProcess:
             link.send(m, dest)
 
     def on_wall_second(self, now: float) -> None:
-        pass
+        if self.n_ticks == 0:  # no bundle yet: announce again, for a bridge started after us (DESIGN §4)
+            self.sim.send(seam.announce_record())
 
     def on_wall_tick(self, now: float) -> None:
         self.gcs_service.poll(now)

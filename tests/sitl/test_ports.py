@@ -60,3 +60,29 @@ def test_port_zero_end_to_end(tmp_path: Path) -> None:
     assert "200 steps" in out, out
     steps = [rec["time_usec"] for _, _, rec in read_mcap(run.log, ["/mavlink/sim/in/HIL_SENSOR"])]
     assert len(steps) == 201 and steps[-1] == 2_000_001
+
+
+def test_bridge_started_after_the_fc_finds_it(tmp_path: Path) -> None:
+    """The FC comes up first and keeps announcing itself on the sim link (once a second until bundles flow); a
+    bridge started later with --fc-port 0 learns the FC's address from that announcement and the run completes."""
+    from sitl_helpers import free_udp_ports
+
+    (bridge_port,) = free_udp_ports(1)
+    fc = _fc(tmp_path, "--sim-port", "0", "--gcs-bind-port", "0", "--api-bind-port", "0", "--bridge-port",
+             str(bridge_port), "--scenario", "hover", "--until-done", "--ports-file", str(tmp_path / "fc.json"))
+    bridge = None
+    try:
+        wait_ports_file(tmp_path / "fc.json", fc)  # the FC is up (its first announcement already went nowhere)
+        bridge = subprocess.Popen([sys.executable, "-m", "sim_bridge.bridge", "--scenario", "hover", "--speed", "0",
+                                   "--bridge-port", str(bridge_port), "--fc-port", "0", "--until-done", "--duration",
+                                   "1"], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                  text=True, cwd=tmp_path)
+        out, _ = bridge.communicate(timeout=120)
+        assert bridge.returncode == 0, out
+        assert "100 steps" in out, out
+        assert fc.wait(timeout=60) == 0
+    finally:
+        for p in (bridge, fc):
+            if p is not None and p.poll() is None:
+                p.kill()
+                p.wait(timeout=20)
