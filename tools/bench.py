@@ -7,6 +7,7 @@
     navig8-bench --inprocess      # plant + FC in one process: real-time factor without and with the MCAP log
     navig8-bench --lockstep       # navig8-sitl at --speed 0 (two processes, MAVLink over UDP, MCAP on):
                                   # real-time factor, median of --repeat runs (5), and its ratio to in-process
+    navig8-bench --stability      # the K-bounds analysis and the workspace floor the registry checks: s per call
     navig8-bench --json           # one JSON object with every metric (plant_rtf, fc_tick_us_median,
                                   # inprocess_rtf, lockstep_rtf, lockstep_over_inprocess, ...)
 
@@ -254,12 +255,39 @@ def _lockstep_section(args: argparse.Namespace) -> SectionResult:
     )
 
 
+def _stability_section(args: argparse.Namespace) -> SectionResult:
+    """Section 3's K-bounds analysis over the workspace (navig8-stability) and the workspace floor the parameter
+    registry checks on every K-bound PARAM_SET: seconds per call (median of 3, after a warm-up call)."""
+    from navig8_fc.core import stability as st
+    from navig8_fc.core.vehicle import VehicleConfig
+
+    cfg = VehicleConfig.load()
+
+    def med_s(fn: Callable[[], Any]) -> float:
+        fn()
+        times = []
+        for _ in range(3):
+            t0 = time.perf_counter()
+            fn()
+            times.append(time.perf_counter() - t0)
+        return float(np.median(times))
+
+    full = med_s(lambda: st.k_bounds_analysis(cfg, 0.5, 1.0))
+    floor = med_s(lambda: st.min_eigenvalue_over_workspace(cfg, 0.5, 1.0))
+    return SectionResult(
+        {"stability_k_bounds_s": full, "stability_floor_s": floor},
+        [f"stability: K-bounds analysis {full:.2f} s (target < 2 s), workspace floor {floor * 1e3:.0f} ms "
+         f"(target < 1 s; run on every K-bound PARAM_SET)"],
+    )
+
+
 SECTIONS: list[Section] = [
     Section("plant", "plant alone: us per physics step with sensors, real-time factor", _plant_section),
     Section("plant-accuracy", "plant integration error vs a 10x finer step", _plant_accuracy_section),
     Section("fc", "flight-controller tick: median and p99 us", _fc_section),
     Section("inprocess", "closed loop in one process: real-time factor", _inprocess_section),
     Section("lockstep", "two processes over MAVLink at --speed 0: real-time factor", _lockstep_section),
+    Section("stability", "Section 3 K-bounds analysis and the workspace floor: seconds per call", _stability_section),
 ]
 
 

@@ -147,9 +147,8 @@ def test_second_load_hits_the_cache(tmp_path: Path) -> None:
         return json.loads(out.stdout.strip().splitlines()[-1])
 
     first, second = run(), run()
-    assert first["gen"] is not None and first["gen"] < 10.0
-    assert second["gen"] is None
-    assert second["load"] < 1.0
+    assert first["gen"] is not None  # generated once ...
+    assert second["gen"] is None  # ... then imported from the cache (no generation: the speed is in navig8-bench)
     assert Path(first["file"]).parent == tmp_path / "cache"
     assert Path(first["file"]).name == f"navig8_{dialect.cache_key()}.py"
     assert len(list((tmp_path / "cache").glob("navig8_*.code"))) == 1

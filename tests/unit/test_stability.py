@@ -14,7 +14,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import time
 
 import numpy as np
 import pytest
@@ -265,10 +264,7 @@ def test_k_bounds_without_object_is_k_min(cfg):
 
 
 def test_k_bounds_default_and_workspace_floor(cfg):
-    t0 = time.perf_counter()
-    r = st.k_bounds_analysis(cfg, 0.5, 1.0)
-    t_full = time.perf_counter() - t0
-    assert t_full < 4.0  # target < ~2 s; generous for slow CI machines
+    r = st.k_bounds_analysis(cfg, 0.5, 1.0)  # its speed: navig8-bench --stability (a timed test would flake)
     assert 0.45 < r.min_eigenvalue < 0.5  # notes 6.1 item 3: ~0.485 over +-90 deg poses
     assert r.max_xi_block_coupling < 1e-12
     # The reported worst case reproduces with the vehicle module's own Xi and eigen-solver.
@@ -279,9 +275,7 @@ def test_k_bounds_default_and_workspace_floor(cfg):
     assert r.max_abs_imag > 0.0 and 0.0 < r.complex_fraction < 0.2
     assert st.max_real_pole(r.max_imag_eigenvalue, *PAPER) < 0.0
 
-    t0 = time.perf_counter()
     floor = st.min_eigenvalue_over_workspace(cfg, 0.5, 1.0)
-    assert time.perf_counter() - t0 < 1.0
     assert r.min_eigenvalue - 0.02 <= floor <= 0.5
     with pytest.raises(ValueError):
         st.min_eigenvalue_over_workspace(cfg, 1.0, 0.5)
