@@ -1,6 +1,7 @@
-"""FlightControllerCore.step (the tick's fast path: packed inputs, views, AdaptiveLaw._step, IndiController._step,
-_outer_loop_arrays) equals the tick composed of the public APIs (AdaptiveLawInputs/AdaptiveLaw.step,
-outer_loop_step, IndiInputs/IndiController.step) bit for bit, status record included."""
+"""FlightControllerCore.step (the tick's fast path: packed inputs, views, the components' array entry points)
+equals the tick composed of the components' public APIs, built independently from the same config
+(AdaptiveLawInputs/AdaptiveLaw.step, outer_loop_step, IndiInputs/IndiController.step), bit for bit, status record
+included. No private field of the core is read."""
 
 from __future__ import annotations
 
@@ -11,8 +12,9 @@ import numpy as np
 import pytest
 
 from navig8_fc.core import _kernels as _k
-from navig8_fc.core.adaptive_law import AdaptiveLawInputs
+from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig, AdaptiveLawInputs
 from navig8_fc.core.controller import (
+    JOINT_OBS_TAU_S,
     MOTORS_OFF,
     ActuatorCommand,
     ControllerConfig,
@@ -20,60 +22,70 @@ from navig8_fc.core.controller import (
     FcSensors,
     FlightControllerCore,
 )
-from navig8_fc.core.indi import IndiInputs
+from navig8_fc.core.indi import IndiController, IndiInputs
 from navig8_fc.core.kalman import CkfMode
-from navig8_fc.core.outer_loop import Setpoint, outer_loop_step
-from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.core.outer_loop import Setpoint, outer_loop_config_array, outer_loop_step
+from navig8_fc.core.vehicle import UamModel, VehicleConfig
 from navig8_fc.params.registry import ParamRegistry
 
 
-def _reference_step(core: FlightControllerCore, s: FcSensors, sp: Setpoint,
-                    engaged: bool) -> tuple[ActuatorCommand, ControllerStatus]:
-    """The tick through the public APIs (the form FlightControllerCore.step had before its fast path)."""
-    cfg = core.config
-    m_obj_est = 0.0
-    m_hat = core._adapt.mass_estimate_kg
-    if m_hat is not None:
-        m_obj_est = max(m_hat - core.vehicle.uam_mass_kg, 0.0)
-    inertia, rate = np.empty((3, 3)), np.empty((3, 3))
-    gc, gc_inv = np.empty((5, 5)), np.empty((5, 5))
-    uo, fo = core._uo, core._fo
-    sens = _k.TIN.zeros()
-    t = _k.TIN.views(sens)
-    t.gyro[:], t.accel[:], t.tilt[:], t.speed[:] = s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s
-    t.jpos[:], t.jrate[:] = s.joint_pos_rad, s.joint_rate_rad_s
-    model = core._model
-    _k.fc_front(core._fst, cfg.dt_s, core._obs_gain, core._inv_dt, sens, float(m_obj_est), model.geometry,
-                model.force_per_input, model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
-    f = _k.FO.views(fo)
-    mass = uo[_k.UO.MASS]
-    gi_hat, adapt_status = core._adapt.step(AdaptiveLawInputs(
-        t_s=s.t_s, u_meas=f.u_meas.tolist(), acc_m=f.acc_m.tolist(), gc_uam_inv=gc_inv, inertia_uam=inertia,
-        mass_uam_kg=float(mass), inertia_rate_uam=rate,
-    ))
-    outer = indi_status = None
-    if engaged:
-        outer = outer_loop_step(core._outer_cfg, sp, s.pos_ned, s.vel_ned, s.quat_wxyz, s.gyro_frd)
-        out, indi_status = core._indi.step(IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s,
-                                                      outer.accel_cmd, gc, gi_hat, gc_inv))
-        cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
-    else:
-        core._indi.measure(IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))
-        cmd = MOTORS_OFF
-    j = inertia
-    return cmd, ControllerStatus(
-        t_s=s.t_s, engaged=engaged, q_est_rad=tuple(f.qest.tolist()), qdd_est_rad_s2=tuple(f.qdd.tolist()),
-        mass_uam_kg=float(mass), inertia_uam_diag=(float(j[0, 0]), float(j[1, 1]), float(j[2, 2])),
-        gi_hat=tuple(gi_hat.ravel().tolist()), gc_uam=tuple(gc.ravel().tolist()), outer=outer,
-        indi=indi_status, adapt=adapt_status,
-    )
+class _ReferenceTick:
+    """The tick composed of the components' public APIs, each built here from the same config (the form
+    FlightControllerCore.step had before its fast path): the front-end kernel (joint observer, UAM model, Acc_m,
+    U0) on state of its own, AdaptiveLaw.step, outer_loop_step, IndiController.step."""
+
+    def __init__(self, vehicle: VehicleConfig, config: ControllerConfig) -> None:
+        self.vehicle, self.config = vehicle, config
+        self.model = UamModel(vehicle)
+        self.adapt = AdaptiveLaw(AdaptiveLawConfig(config.ckf, config.k_min, config.k_max))
+        self.indi = IndiController(config.indi)
+        self.outer_cfg = outer_loop_config_array(config.outer)
+        self.front_state = _k.FST.zeros()
+        self.obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
+
+    def step(self, s: FcSensors, sp: Setpoint, engaged: bool) -> tuple[ActuatorCommand, ControllerStatus]:
+        cfg = self.config
+        m_hat = self.adapt.mass_estimate_kg
+        m_obj_est = 0.0 if m_hat is None else max(m_hat - self.vehicle.uam_mass_kg, 0.0)
+        inertia, rate = np.empty((3, 3)), np.empty((3, 3))
+        gc, gc_inv = np.empty((5, 5)), np.empty((5, 5))
+        uo, fo = _k.UO.zeros(), _k.FO.zeros()
+        sens = _k.TIN.zeros()
+        t = _k.TIN.views(sens)
+        t.gyro[:], t.accel[:], t.tilt[:], t.speed[:] = s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s
+        t.jpos[:], t.jrate[:] = s.joint_pos_rad, s.joint_rate_rad_s
+        m = self.model
+        _k.fc_front(self.front_state, cfg.dt_s, self.obs_gain, 1.0 / cfg.dt_s, sens, float(m_obj_est), m.geometry,
+                    m.force_per_input, m.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
+        f = _k.FO.views(fo)
+        mass = uo[_k.UO.MASS]
+        gi_hat, adapt_status = self.adapt.step(AdaptiveLawInputs(
+            t_s=s.t_s, u_meas=f.u_meas.tolist(), acc_m=f.acc_m.tolist(), gc_uam_inv=gc_inv, inertia_uam=inertia,
+            mass_uam_kg=float(mass), inertia_rate_uam=rate,
+        ))
+        outer = indi_status = None
+        if engaged:
+            outer = outer_loop_step(self.outer_cfg, sp, s.pos_ned, s.vel_ned, s.quat_wxyz, s.gyro_frd)
+            out, indi_status = self.indi.step(IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s,
+                                                         outer.accel_cmd, gc, gi_hat, gc_inv))
+            cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
+        else:
+            self.indi.measure(IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))
+            cmd = MOTORS_OFF
+        j = inertia
+        return cmd, ControllerStatus(
+            t_s=s.t_s, engaged=engaged, q_est_rad=tuple(f.qest.tolist()), qdd_est_rad_s2=tuple(f.qdd.tolist()),
+            mass_uam_kg=float(mass), inertia_uam_diag=(float(j[0, 0]), float(j[1, 1]), float(j[2, 2])),
+            gi_hat=tuple(gi_hat.ravel().tolist()), gc_uam=tuple(gc.ravel().tolist()), outer=outer,
+            indi=indi_status, adapt=adapt_status,
+        )
 
 
 @pytest.mark.parametrize("mode", [CkfMode.CONSTRAINED, CkfMode.UNCONSTRAINED, CkfMode.FIXED])
 def test_step_equals_public_api_tick_bit_for_bit(cfg: VehicleConfig, mode: CkfMode) -> None:
     base = ControllerConfig.from_params(ParamRegistry.from_defaults().as_dict(), cfg)
     config = replace(base, ckf=replace(base.ckf, mode=mode, start_delay_s=0.05))
-    fast, ref = FlightControllerCore(cfg, config), FlightControllerCore(cfg, config)
+    fast, ref = FlightControllerCore(cfg, config), _ReferenceTick(cfg, config)
     rng = np.random.default_rng(7)
     dt = config.dt_s
     n_projected = 0
@@ -92,7 +104,7 @@ def test_step_equals_public_api_tick_bit_for_bit(cfg: VehicleConfig, mode: CkfMo
         sp = Setpoint((0.0, 0.5, -2.0), 0.3, 0.1 * i * dt)
         engaged = not (i < 10 or 200 <= i < 205)  # disengaged ticks at the start and in between
         got = fast.step(s, sp, engaged=engaged)
-        want = _reference_step(ref, s, sp, engaged)
+        want = ref.step(s, sp, engaged)
         assert repr(got) == repr(want), f"tick {i}"
         n_projected += got[1].adapt.x_hat != got[1].adapt.x_unconstrained
     if mode == CkfMode.CONSTRAINED:
