@@ -22,6 +22,7 @@ import hashlib
 import itertools
 import json
 import os
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -204,6 +205,7 @@ def expand(c: Campaign) -> list[Row]:
 
 def replay_command(row: Row) -> str:
     """The command that flies this row alone."""
+    from navig8_tools.sim import CONTROLLERS
     from sim_bridge.world import world_args
 
     sets = [a for k, v in row.params.items() for a in ("--set", f"{k}={v!r}")]
@@ -212,12 +214,12 @@ def replay_command(row: Row) -> str:
         parts = ["navig8-sim", "--scenario", row.scenario, "--controller", row.controller, "--seed", str(row.seed),
                  *dur, *sets, *world_args(row.world), "--log", f"out/replay_{row.run_id}.mcap"]
     else:
+        ctrl = ["--set", f"CKF_MODE={CONTROLLERS[row.controller]}"]
         parts = ["navig8-sitl", "--scenario", row.scenario, "--speed", "0", "--until-done", "--seed", str(row.seed),
-                 *dur, "--instance", str(row.instance), "--log-dir", "out/replay", "--state-dir", "out/replay",
-                 *[f"--bridge-arg={a}" for a in world_args(row.world)], "--summary", f"out/replay_{row.run_id}.json"]
-        # navig8-fc takes its parameters from the state dir (as the campaign's _sitl writes them)
-        parts += ["#", "FC", "parameters:", f"CKF_MODE={row.controller}", *sets[1::2]]
-    return " ".join(parts)
+                 *dur, "--instance", str(row.instance), "--log-dir", f"out/replay_{row.run_id}", "--state-dir",
+                 f"out/replay_{row.run_id}", *ctrl, *sets, *[f"--bridge-arg={a}" for a in world_args(row.world)],
+                 "--summary", f"out/replay_{row.run_id}/summary.json"]
+    return shlex.join(parts)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -274,29 +276,19 @@ def _inprocess(row: Row, tmp: Path) -> dict[str, Any]:
 
 
 def _sitl(row: Row, tmp: Path) -> dict[str, Any]:
-    """navig8-sitl at --speed 0 on the row's own --instance: two processes over MAVLink/UDP. The controller and
-    --set parameters reach navig8-fc as its persisted parameter file (the state dir), as a GCS's PARAM_SET would."""
-    from navig8_fc.params.registry import ParamRegistry
-    from navig8_fc.params.store import ParamStore, default_state_path
-    from navig8_tools.sim import CONTROLLERS
-    from sim_bridge.world import world_args
-
-    fc_only = [k for k in row.world if k.startswith("fc_vehicle.")]
+    """navig8-sitl at --speed 0 on the row's own --instance: two processes over MAVLink/UDP, the command of
+    replay_command with this run's directories."""
+    # navig8-fc reads params/vehicle.yaml and the scenario's setpoint script itself; only the plant's side of the
+    # world travels (--bridge-arg=--world)
+    fc_only = [k for k in row.world if k.startswith(("fc_vehicle.", "vehicle.", "scenario.setpoints",
+                                                     "scenario.duration_s", "scenario.armed"))]
     if fc_only:
-        raise ValueError(f"the sitl kind cannot apply controller-model overrides {fc_only} (navig8-fc reads "
-                         "params/vehicle.yaml); use the inprocess kind")
-    reg = ParamRegistry.from_defaults()
-    for name, value in {"CKF_MODE": CONTROLLERS[row.controller], **row.params}.items():
-        res = reg.set(name, value)
-        if not res.accepted:
-            raise ValueError(res.reason)
-    ParamStore(default_state_path(tmp, row.instance)).save(reg.as_dict())
-    cmd = [sys.executable, "-m", "navig8_fc.shell.sitl", "--scenario", row.scenario, "--speed", "0",
-           "--until-done", "--seed", str(row.seed), "--instance", str(row.instance), "--log-dir", str(tmp),
-           "--state-dir", str(tmp), "--summary", str(tmp / "summary.json"),
-           *[f"--bridge-arg={a}" for a in world_args(row.world)]]
-    if row.duration_s is not None:
-        cmd += ["--duration", str(row.duration_s)]
+        raise ValueError(f"the sitl kind cannot apply {fc_only} (navig8-fc's side of the world); use inprocess")
+    argv = shlex.split(replay_command(row))
+    for opt in ("--log-dir", "--state-dir"):
+        argv[argv.index(opt) + 1] = str(tmp)
+    argv[argv.index("--summary") + 1] = str(tmp / "summary.json")
+    cmd = [sys.executable, "-m", "navig8_fc.shell.sitl", *argv[1:]]
     proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
                             start_new_session=True)
     try:
@@ -309,7 +301,7 @@ def _sitl(row: Row, tmp: Path) -> dict[str, Any]:
             os.killpg(proc.pid, 9)
             proc.communicate()
         raise RunTimeout(f"navig8-sitl did not finish within {row.timeout_s:.0f} s") from None
-    if proc.returncode not in (0, 2) or not (tmp / "summary.json").exists():
+    if not (tmp / "summary.json").exists():  # exit 1 with a summary: it lost control, which is a result
         tail = err.decode(errors="replace").strip().splitlines()[-3:]
         raise RuntimeError(f"navig8-sitl exited with {proc.returncode}: {' | '.join(tail)}")
     return json.loads((tmp / "summary.json").read_text())
