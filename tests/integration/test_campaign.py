@@ -66,7 +66,7 @@ def test_a_raising_and_a_timed_out_run_are_recorded_and_the_campaign_goes_on(tmp
     d = dict(SMALL, variants={"proposed": {"controller": "proposed"}}, seeds=[1])
     d["factors"] = {"arm_rate_rad_s": {"world": "plant.joint_servo.v_max_rad_s", "grid": [4.0, -1.0]}}
     d["report"] = {}
-    res = run_campaign(Campaign.from_dict(d), tmp_path, workers=2, progress=False)
+    res = run_campaign(Campaign.from_dict(d), tmp_path, workers=1, progress=False)
     t = res.table.set_index("arm_rate_rad_s")
     assert t.loc[4.0, "status"] == "ok" and bool(t.loc[4.0, "success"])
     assert t.loc[-1.0, "status"] == "error" and "joint servo limits must be > 0" in t.loc[-1.0, "error"]
@@ -89,17 +89,17 @@ def test_call_with_timeout_interrupts_a_python_loop_and_leaves_a_fast_call_alone
 
 def test_a_resumed_campaign_runs_only_the_missing_rows(tmp_path: Path) -> None:
     c = Campaign.from_dict(dict(SMALL, variants={"proposed": {"controller": "proposed"}}))
-    first = run_campaign(c, tmp_path, workers=2, limit=2, progress=False)
+    first = run_campaign(c, tmp_path, workers=1, limit=2, progress=False)
     assert first.ran == 2 and len(first.table) == 2
     before = read_stream(tmp_path)
-    second = run_campaign(c, tmp_path, workers=2, progress=False)
+    second = run_campaign(c, tmp_path, workers=1, progress=False)
     assert second.ran == 2 and len(second.table) == 4
     lines = [json.loads(x) for x in (tmp_path / STREAM_FILE).read_text().splitlines()]
     ids = [x["run_id"] for x in lines]
     assert len(ids) == len(set(ids)) == 4  # nothing ran twice
     after = read_stream(tmp_path)
     assert all(after[k] == v for k, v in before.items())  # the first records were kept as they were
-    third = run_campaign(c, tmp_path, workers=2, progress=False)
+    third = run_campaign(c, tmp_path, workers=1, progress=False)
     assert third.ran == 0 and len(third.table) == 4
 
 
