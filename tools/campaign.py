@@ -379,7 +379,8 @@ def _dask_results(rows: list[Row], cluster: str, workers: int) -> Iterator[tuple
 
     local = None
     if cluster == "local":
-        local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None)
+        local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                             dashboard_address=None)  # loopback only, no dashboard: a private cluster
         client = Client(local)
     else:
         client = Client(cluster)

@@ -89,7 +89,8 @@ def _heatmaps(df: Any, xy: tuple[str, str], fig_dir: Path) -> list[str]:
                                          att=lambda d: d["max_att_error_deg"].astype(float))
     for col, title, cmap in (("lost", "loss of control (fraction of runs)", "Reds"),
                              ("att", "max attitude error, median (deg)", "viridis")):
-        fig, axes = plt.subplots(1, len(variants), figsize=(4.2 * len(variants), 3.6), squeeze=False)
+        fig, axes = plt.subplots(1, len(variants), figsize=(4.2 * len(variants), 3.8), squeeze=False,
+                                 layout="constrained")
         piv = {v: ok[ok["variant"] == v].pivot_table(index=fy, columns=fx, values=col, aggfunc="median" if
                                                      col == "att" else "mean") for v in variants}
         vals = np.concatenate([p.to_numpy().ravel() for p in piv.values()]) if piv else np.zeros(1)
@@ -107,7 +108,7 @@ def _heatmaps(df: Any, xy: tuple[str, str], fig_dir: Path) -> list[str]:
                 if np.isfinite(z):
                     ax.text(j, i, f"{z:.2f}" if col == "lost" else f"{z:.0f}", ha="center", va="center", fontsize=7,
                             color="k" if z < 0.6 * vmax else "w")
-        fig.colorbar(im, ax=axes[0].tolist(), shrink=0.85)
+        fig.colorbar(im, ax=axes[0].tolist(), shrink=0.9)
         fig.suptitle(title)
         p = fig_dir / f"heatmap_{col}_{fx}_x_{fy}.png"
         fig.savefig(p, dpi=110)
@@ -121,21 +122,22 @@ def _distributions(df: Any, fig_dir: Path) -> str:
 
     variants = list(dict.fromkeys(df["variant"]))
     ok = df[df["status"] == "ok"]
-    fig, axes = plt.subplots(1, len(DIST_METRICS), figsize=(3.6 * len(DIST_METRICS), 3.4))
+    fig, axes = plt.subplots(1, len(DIST_METRICS), figsize=(3.6 * len(DIST_METRICS), 3.4), layout="constrained")
     for ax, (col, label) in zip(axes, DIST_METRICS, strict=True):
         data = [ok[ok["variant"] == v][col].astype(float).dropna().to_numpy() for v in variants]
         ax.boxplot([d if len(d) else np.array([np.nan]) for d in data], tick_labels=variants)
         ax.set_title(label, fontsize=9)
+        if col == "min_eigenvalue":  # a diverged estimate sends it to -1e6: symlog keeps 0..1 readable
+            ax.set_yscale("symlog", linthresh=1.0)
         ax.tick_params(axis="x", rotation=30)
         ax.grid(alpha=0.3)
-    fig.tight_layout()
     p = fig_dir / "distributions.png"
     fig.savefig(p, dpi=110)
     plt.close(fig)
     return p.name
 
 
-def write_report(campaign: Any, df: Any, out_dir: str | Path, command: str, n_worst: int = 10) -> Path:
+def write_report(campaign: Any, df: Any, out_dir: str | Path, command: str, n_worst: int = 4) -> Path:
     """DIR/report.md and DIR/figures/*.png; returns the report's path."""
     import matplotlib
 
@@ -162,8 +164,8 @@ def write_report(campaign: Any, df: Any, out_dir: str | Path, command: str, n_wo
         md += ["", "## Metric distributions per variant", "", f"![distributions](figures/{dist})"]
         ok = df[df["status"] == "ok"]
         worst = ok.assign(_lost=ok["lost_control"].astype(bool)).sort_values(
-            ["_lost", "max_att_error_deg"], ascending=[False, False]).head(n_worst)
-        md += ["", f"## Worst {len(worst)} runs (lost control first, then by max attitude error)", "",
+            ["_lost", "max_att_error_deg"], ascending=[False, False]).groupby("variant", sort=False).head(n_worst)
+        md += ["", f"## Worst {n_worst} runs per variant (lost control first, then by max attitude error)", "",
                "| run | variant | " + " | ".join(factors) + " | seed | lost | max att err ° | replay |",
                "|---|---|" + "---:|" * len(factors) + "---:|---|---:|---|"]
         for _, r in worst.iterrows():

@@ -5,6 +5,7 @@ replays alone through `navig8-sim` with the printed command."""
 from __future__ import annotations
 
 import json
+import re
 import shlex
 import time
 from pathlib import Path
@@ -60,6 +61,17 @@ def test_local_pool_and_dask_local_cluster_give_the_same_table(tmp_path: Path) -
     # Parquet and CSV hold the same rows
     csv = pd.read_csv(tmp_path / "pool" / "results.csv")
     np.testing.assert_allclose(csv["max_att_error_deg"], pool.table["max_att_error_deg"], rtol=1e-12)
+    # the report: its sections, and every figure it links exists as a PNG
+    from navig8_tools.campaign_report import write_report
+
+    md = write_report(c, pool.table, tmp_path / "pool", "navig8-campaign small.yaml").read_text()
+    for section in ("## Robustness per variant", "## Success rate by factor", "## Heat maps over object_mass_kg",
+                    "## Metric distributions per variant", "## Worst", "navig8-sim --scenario paper"):
+        assert section in md, section
+    links = re.findall(r"\(figures/([^)]+\.png)\)", md)
+    assert len(links) >= 5
+    for name in links:
+        assert (tmp_path / "pool" / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_a_raising_and_a_timed_out_run_are_recorded_and_the_campaign_goes_on(tmp_path: Path) -> None:
