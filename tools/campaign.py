@@ -380,7 +380,7 @@ def _dask_results(rows: list[Row], cluster: str, workers: int) -> Iterator[tuple
     local = None
     if cluster == "local":
         local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                             dashboard_address=None)  # loopback only, no dashboard: a private cluster
+                             dashboard_address="127.0.0.1:0")  # a private cluster: loopback, free ports
         client = Client(local)
     else:
         client = Client(cluster)
