@@ -23,6 +23,7 @@ import itertools
 import json
 import os
 import shlex
+import signal
 import subprocess
 import sys
 import tempfile
@@ -294,11 +295,11 @@ def _sitl(row: Row, tmp: Path) -> dict[str, Any]:
     try:
         _, err = proc.communicate(timeout=row.timeout_s)
     except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, 2)  # SIGINT: navig8-sitl stops both children
+        os.killpg(proc.pid, signal.SIGINT)  # navig8-sitl stops both children
         try:
             proc.communicate(timeout=15.0)
         except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, 9)
+            os.killpg(proc.pid, signal.SIGKILL)
             proc.communicate()
         raise RunTimeout(f"navig8-sitl did not finish within {row.timeout_s:.0f} s") from None
     if not (tmp / "summary.json").exists():  # exit 1 with a summary: it lost control, which is a result
