@@ -105,7 +105,8 @@ N_S = int(S.SIZE)
 NOISE = layout("NOISE", gyro=3, acc=3, pos=3, vel=3, att=3, duct=2, prop=3, jq=3, jqd=3)
 N_NOISE = int(NOISE.SIZE)
 # Standard deviations per sensor group (params.SensorParams)
-SIG = layout("SIG", gyro=1, acc=1, pos=1, vel=1, att=1, duct=1, prop=1, jq=1, jqd=1)
+# (gyro_bias, acc_bias: a constant offset on every body axis, the campaigns' sensor-bias factor)
+SIG = layout("SIG", gyro=1, acc=1, pos=1, vel=1, att=1, duct=1, prop=1, jq=1, jqd=1, gyro_bias=1, acc_bias=1)
 N_SIG = int(SIG.SIZE)
 # Sensor group bits (same values as messages.SensorField), bit i = group i of sense()'s schedule.
 G_IMU = 1
@@ -717,8 +718,8 @@ def sense(x, d, sig, noise, prev, t_us, due_us, period_us, out) -> int:
         out[i] = prev[i]
     if groups & G_IMU:
         for i in range(3):
-            out[S.GYRO + i] = x[X.RATE + i] + sig[SIG.GYRO] * noise[NOISE.GYRO + i]
-            out[S.ACC + i] = d[D.SPF + i] + sig[SIG.ACC] * noise[NOISE.ACC + i]
+            out[S.GYRO + i] = x[X.RATE + i] + sig[SIG.GYRO_BIAS] + sig[SIG.GYRO] * noise[NOISE.GYRO + i]
+            out[S.ACC + i] = d[D.SPF + i] + sig[SIG.ACC_BIAS] + sig[SIG.ACC] * noise[NOISE.ACC + i]
     if groups & G_MOCAP:
         for i in range(3):
             out[S.POS + i] = x[X.POS + i] + sig[SIG.POS] * noise[NOISE.POS + i]

@@ -32,13 +32,12 @@ from typing import Any
 
 import numpy as np
 
-from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.mavlink import codec, dialect, seam
 from navig8_fc.shell.mavlink_link import PortInUseError, bind_udp, write_ports_file
 from sim_bridge.messages import ActuatorCommand
-from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant, PlantDivergedError
-from sim_bridge.scenario import Scenario, load_scenario
+from sim_bridge.scenario import Scenario
+from sim_bridge.world import load_world, parse_world_items
 
 BASE_BRIDGE_PORT = 4560  # + 2 N: the bridge binds here (PX4's simulator port)
 BASE_FC_PORT = 4561  # + 2 N: the FC's sim link
@@ -81,6 +80,7 @@ class BridgeOptions:
     startup_timeout_s: float = 0.0  # 0: wait for the FC forever (reminding every 10 s)
     grab_mass_kg: float | None = None  # object mass a GRAB picks up (default: from the scenario)
     ports_file: Path | None = None  # written after binding: {"bridge": port}
+    world: tuple[tuple[str, float], ...] = ()  # world overrides (sim_bridge.world), as navig8-sim --world
 
     @property
     def sysid(self) -> int:
@@ -140,9 +140,10 @@ class Bridge:
         if not (opts.step_timeout_s > 0 and opts.stall_abort_s > 0):
             raise ValueError("--step-timeout and --stall-abort must be > 0")
         self.opts = opts
-        self.scenario = load_scenario(opts.scenario)
-        self.vehicle = VehicleConfig.load()
-        self.plant = Plant(self.vehicle, PlantParams.load(), self.scenario, np.random.default_rng(opts.seed))
+        w = load_world(opts.scenario, dict(opts.world))
+        self.scenario = w.scenario
+        self.vehicle = w.vehicle
+        self.plant = Plant(self.vehicle, w.plant, self.scenario, np.random.default_rng(opts.seed))
         self.dt_us = round(opts.dt_s * 1e6)
         if self.dt_us <= 0 or abs(self.dt_us - opts.dt_s * 1e6) > 1e-3 or self.dt_us % self.plant.physics_step_us:
             raise ValueError(f"--dt {opts.dt_s} s must be a positive multiple of the physics step "
@@ -440,6 +441,8 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--grab-mass", type=float, default=None,
                     help="mass (kg) of the object a gripper GRAB picks up (default: the scenario's object)")
     ap.add_argument("--ports-file", default=None, help='after binding, write {"bridge": port} here as JSON')
+    ap.add_argument("--world", action="append", default=[], metavar="NAME=VALUE",
+                    help="override the plant/scenario/vehicle (NAME*=VALUE scales; names: sim_bridge/world.py)")
     return ap
 
 
@@ -449,6 +452,7 @@ def options_from_args(a: argparse.Namespace) -> BridgeOptions:
         fc_port=a.fc_port, host=a.host, until_done=a.until_done, duration_s=a.duration, dt_s=a.dt,
         step_timeout_s=a.step_timeout, stall_abort_s=a.stall_abort, startup_timeout_s=a.startup_timeout,
         grab_mass_kg=a.grab_mass, ports_file=Path(a.ports_file) if a.ports_file else None,
+        world=tuple(parse_world_items(a.world).items()),
     )
 
 

@@ -25,7 +25,8 @@ class ActuatorDynamics:
 
 @dataclass(frozen=True)
 class SensorParams:
-    """Sample rates (Hz) and white-noise standard deviations per sample."""
+    """Sample rates (Hz), white-noise standard deviations per sample, and constant biases (the same offset on
+    every body axis; 0 in plant.yaml, set by a campaign's sensor-bias factor)."""
 
     imu_rate_hz: float = 100.0
     mocap_rate_hz: float = 100.0
@@ -40,11 +41,14 @@ class SensorParams:
     mocap_pos_sigma_m: float = 0.001
     mocap_vel_sigma_m_s: float = 0.01
     mocap_att_sigma_rad: float = 0.002
+    gyro_bias_rad_s: float = 0.0
+    accel_bias_m_s2: float = 0.0
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
-            if not math.isfinite(v) or v < 0.0 or (f.name.endswith("_hz") and v <= 0.0):
+            negative_ok = "_bias_" in f.name
+            if not math.isfinite(v) or (v < 0.0 and not negative_ok) or (f.name.endswith("_hz") and v <= 0.0):
                 raise ValueError(f"sensor parameter {f.name} = {v} is invalid")
 
 

@@ -187,7 +187,8 @@ class Plant:
         s = params.sensors
         self._sig = K.SIG.pack(gyro=s.gyro_sigma_rad_s, acc=s.accel_sigma_m_s2, pos=s.mocap_pos_sigma_m,
                                vel=s.mocap_vel_sigma_m_s, att=s.mocap_att_sigma_rad, duct=s.duct_tilt_sigma_rad,
-                               prop=s.prop_speed_sigma_rad_s, jq=s.joint_pos_sigma_rad, jqd=s.joint_rate_sigma_rad_s)
+                               prop=s.prop_speed_sigma_rad_s, jq=s.joint_pos_sigma_rad, jqd=s.joint_rate_sigma_rad_s,
+                               gyro_bias=s.gyro_bias_rad_s, acc_bias=s.accel_bias_m_s2)
         # per group, in SensorField bit order (IMU, MOCAP, ACTUATORS, JOINTS): period and next due time (us)
         self._sensor_period_us = np.array([round(1e6 / r) for r in (s.imu_rate_hz, s.mocap_rate_hz,
                                                                      s.actuator_rate_hz, s.joint_rate_hz)],

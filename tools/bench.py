@@ -8,6 +8,7 @@
     navig8-bench --lockstep       # navig8-sitl at --speed 0 (two processes, MAVLink over UDP, MCAP on):
                                   # real-time factor, median of --repeat runs (5), and its ratio to in-process
     navig8-bench --stability      # the K-bounds analysis and the workspace floor the registry checks: s per call
+    navig8-bench --campaign       # navig8-campaign runs/min: one process, the local pool, a Dask LocalCluster
     navig8-bench --json           # one JSON object with every metric (plant_rtf, fc_tick_us_median,
                                   # inprocess_rtf, lockstep_rtf, lockstep_over_inprocess, ...)
 
@@ -279,6 +280,64 @@ def _stability_section(args: argparse.Namespace) -> SectionResult:
         [f"stability: K-bounds analysis {full:.2f} s (target < 2 s), workspace floor {floor * 1e3:.0f} ms "
          f"(target < 1 s; run on every K-bound PARAM_SET)"],
     )
+# ---------------------------------------------------------------------------------------------
+# --campaign
+# ---------------------------------------------------------------------------------------------
+
+
+def _campaign_rate(arrivals_s: list[float], warm: int) -> float:
+    """Runs per minute in steady state: the results after the first `warm` (which carry the pool's or the
+    cluster's start-up: process spawn, imports, numba cache load) over the time they took to arrive."""
+    if len(arrivals_s) <= warm:
+        return float("nan")
+    return 60.0 * (len(arrivals_s) - warm) / (arrivals_s[-1] - arrivals_s[warm - 1])
+
+
+def _campaign_section(args: argparse.Namespace) -> SectionResult:
+    """navig8-campaign throughput, in-process kind: a campaign of 3 controllers x seeds on the paper scenario
+    (10 s each, MCAP log + summary as every campaign run), run serially in this process, on the local process
+    pool and on a Dask LocalCluster, both with --workers (default 2). Rates are steady state (start-up excluded,
+    reported apart); ratios are to the single process."""
+    import os
+
+    from navig8_tools.campaign import Campaign, _dask_results, _pool_results, execute_row, expand
+
+    workers = args.workers or os.cpu_count() or 1
+    n_seeds = max(2, args.campaign_runs // 3)
+    rows = expand(Campaign.from_dict({
+        "name": "bench", "scenario": "paper", "duration_s": 10.0, "seeds": list(range(1, n_seeds + 1)),
+        "variants": {c: {"controller": c} for c in ("proposed", "unconstrained", "fixed")}}))
+    execute_row(rows[0])  # warm-up: imports, numba cache load
+    t0 = time.perf_counter()
+    serial = []
+    for r in rows:
+        assert execute_row(r)["status"] == "ok"
+        serial.append(time.perf_counter() - t0)
+    single = 60.0 * len(rows) / serial[-1]
+    metrics: dict[str, Any] = {"campaign_runs": len(rows), "campaign_workers": workers,
+                               "campaign_single_runs_per_min": single}
+    lines = [f"campaign: {len(rows)} runs (paper 10 s, MCAP + summary), single process {single:.1f} runs/min"]
+    for name, source in (("pool", lambda: _pool_results(rows, workers)),
+                         ("dask_local", lambda: _dask_results(rows, "local", workers))):
+        t0 = time.perf_counter()
+        arrivals = []
+        for _row, rec in source():
+            assert rec["status"] == "ok", rec
+            arrivals.append(time.perf_counter() - t0)
+        rate = _campaign_rate(arrivals, workers)
+        metrics[f"campaign_{name}_runs_per_min"] = rate
+        metrics[f"campaign_{name}_over_single"] = rate / single
+        metrics[f"campaign_{name}_startup_s"] = arrivals[workers - 1] if len(arrivals) >= workers else float("nan")
+        metrics[f"campaign_{name}_end_to_end_runs_per_min"] = 60.0 * len(rows) / arrivals[-1]
+        lines.append(f"campaign: {name} x{workers}: {rate:.1f} runs/min steady ({rate / single:.2f}x the single "
+                     f"process; target >= 1.7x on 2 idle cores), {60.0 * len(rows) / arrivals[-1]:.1f} runs/min "
+                     f"end to end with its {metrics[f'campaign_{name}_startup_s']:.1f} s start-up")
+    try:
+        lines.append(f"campaign: load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores while measuring")
+        metrics["campaign_loadavg_1min"] = os.getloadavg()[0]
+    except OSError:
+        pass
+    return SectionResult(metrics, lines)
 
 
 SECTIONS: list[Section] = [
@@ -288,6 +347,7 @@ SECTIONS: list[Section] = [
     Section("inprocess", "closed loop in one process: real-time factor", _inprocess_section),
     Section("lockstep", "two processes over MAVLink at --speed 0: real-time factor", _lockstep_section),
     Section("stability", "Section 3 K-bounds analysis and the workspace floor: seconds per call", _stability_section),
+    Section("campaign", "navig8-campaign runs/min: single process, local pool, Dask LocalCluster", _campaign_section),
 ]
 
 
@@ -298,6 +358,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="print one JSON object with every metric")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--repeat", type=int, default=5, help="lockstep runs to take the median of (--lockstep)")
+    ap.add_argument("--workers", type=int, default=2, help="pool / LocalCluster workers for --campaign")
+    ap.add_argument("--campaign-runs", type=int, default=12, help="runs per backend for --campaign")
     ap.add_argument("--plant-dt", type=float, default=0.01, help="control period for --plant (s)")
     args = ap.parse_args(argv)
     chosen = [s for s in SECTIONS if getattr(args, s.flag.replace("-", "_"))] or SECTIONS

@@ -2,6 +2,10 @@
 
     navig8-sim --scenario paper --controller proposed|unconstrained|fixed [--seed N] [--duration S]
                [--log run.mcap] [--summary summary.json] [--plots DIR] [--set NAME=VALUE ...]
+               [--world NAME=VALUE ...] [--world NAME*=VALUE ...]
+
+--set changes a flight-controller parameter (params/fc_params.yaml); --world changes the world the run flies
+in: the plant, the scenario, the vehicle, or the controller's model of it (sim_bridge/world.py lists the names).
 
 The flight controller is the same `FlightStack` navig8-fc runs (mode manager, failsafes, controller core),
 stepped at INDI_RATE_HZ on the sensor bundle's time; the plant integrates in between with the command held
@@ -29,9 +33,8 @@ from navig8_fc.shell.mcap_log import McapLogger
 from navig8_tools.logdata import load_run
 from navig8_tools.summary import summarize
 from sim_bridge.messages import ActuatorCommand as PlantCommand
-from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant
-from sim_bridge.scenario import load_scenario
+from sim_bridge.world import load_world, parse_world_items
 
 CONTROLLERS = {"fixed": 0, "unconstrained": 1, "proposed": 2}
 
@@ -85,27 +88,29 @@ def run(
     overrides: dict[str, float] | None = None,
     progress: bool = False,
     tick_times_s: list[float] | None = None,
+    world: dict[str, float] | None = None,
 ) -> RunResult:
-    """Fly `scenario` in one process. With `tick_times_s`, the wall time of every FC tick is appended."""
+    """Fly `scenario` in one process. With `tick_times_s`, the wall time of every FC tick is appended.
+    `world`: overrides of the plant, scenario and vehicle ({NAME: VALUE} or {NAME*: factor}, sim_bridge.world)."""
     reg = ParamRegistry.from_defaults()
     reg.set("CKF_MODE", CONTROLLERS[controller])
     for name, value in (overrides or {}).items():
         res = reg.set(name, value)
         if not res.accepted:
             raise ValueError(res.reason)
-    vehicle = vm.VehicleConfig.load()
-    sc = load_scenario(scenario)
+    w = load_world(scenario, world)
+    vehicle, sc = w.fc_vehicle, w.scenario  # the FC's constants (model errors, if any, live here)
     duration = sc.duration_s if duration_s is None else float(duration_s)
     rng = np.random.default_rng(seed)
-    plant = Plant(vehicle, PlantParams.load(), sc, rng)
+    plant = Plant(w.vehicle, w.plant, sc, rng)
     stack = FlightStack(vehicle, reg, sc.script)
     cfg = stack.core.config
     warm_up_kernels(vehicle, cfg)  # numba's cache loads now, not inside the timed loop
-    eigmon = EigenMonitor(vehicle, float(reg["INDI_LAMBDA_MIN"]), stack.lambda_crit)
+    eigmon = EigenMonitor(w.vehicle, float(reg["INDI_LAMBDA_MIN"]), stack.lambda_crit)
     logger = McapLogger(log_path) if log_path else None
     if logger:
         logger.metadata("run", {"scenario": sc.name, "controller": controller, "seed": seed,
-                                "duration_s": duration})
+                                "duration_s": duration, "world": dict(world or {})})
         logger.metadata("params", reg.as_dict())
     n_steps = int(round(duration / cfg.dt_s))
     cmd = plant.trim_command()
@@ -173,9 +178,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--summary", default=None)
     ap.add_argument("--plots", default=None, help="also write Figures 10-16 here")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a parameter")
+    ap.add_argument("--world", action="append", default=[], metavar="NAME=VALUE",
+                    help="override the world (NAME*=VALUE scales; names: sim_bridge/world.py)")
     args = ap.parse_args(argv)
     res = run(args.scenario, args.controller, args.seed, args.duration, args.log, _parse_set(args.set),
-              progress=True)
+              progress=True, world=parse_world_items(args.world))
     text = json.dumps(res.summary, indent=2, allow_nan=True)
     print(text)
     if args.summary:

@@ -1,11 +1,14 @@
 """navig8-sitl: starts navig8-bridge and navig8-fc as two processes, forwards SIGINT/SIGTERM, stops both.
 
     navig8-sitl [--scenario NAME|FILE] [--speed X] [--until-done] [--summary FILE] [--log-dir DIR]
-                [--state-dir DIR] [--instance N] [--seed N] [--defaults]
+                [--state-dir DIR] [--instance N] [--seed N] [--defaults] [--set NAME=VALUE ...]
 
 Default: the `ground` scenario (on the ground, disarmed, waiting for a GCS) in real time. With
 --until-done the scenario runs to its end, both processes exit, and the summary (the same keys as
-navig8-sim) is computed from the flight controller's MCAP log.
+navig8-sim) is computed from the flight controller's MCAP log. --set NAME=VALUE writes a parameter into the
+instance's parameter file in --state-dir before navig8-fc starts (checked as a GCS's PARAM_SET is; a refused
+value stops here with the reason), so a campaign run is one command; world overrides reach the plant with
+--bridge-arg=--world --bridge-arg=NAME=VALUE.
 """
 
 from __future__ import annotations
@@ -53,6 +56,8 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--duration", type=float, default=None)
     ap.add_argument("--defaults", action="store_true", help="start from default parameters")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="store a parameter for this instance before the FC starts (not with --defaults)")
     ap.add_argument("--bind-host", default="127.0.0.1", help="GCS/API bind address (0.0.0.0 in a container)")
     ap.add_argument("--gcs-host", default="127.0.0.1", help="where GCS/API traffic goes before a GCS talks")
     ap.add_argument("--fc-arg", action="append", default=[], help="extra argument for navig8-fc (repeatable)")
@@ -60,8 +65,37 @@ def build_arg_parser() -> argparse.ArgumentParser:
     return ap
 
 
+def _store_params(state_dir: str, instance: int, items: list[str]) -> str | None:
+    """Merge NAME=VALUE items into the instance's stored parameters; the reason of the first refusal, else None."""
+    from navig8_fc.params.registry import ParamRegistry
+    from navig8_fc.params.store import ParamStore, default_state_path
+
+    store = ParamStore(default_state_path(state_dir, instance))
+    reg = ParamRegistry.from_defaults()
+    reg.load_values(store.load().values)
+    for it in items:
+        name, sep, value = it.partition("=")
+        try:
+            res = reg.set(name.strip(), float(value)) if sep else None
+        except ValueError:
+            res = None
+        if res is None:
+            return f"--set expects NAME=VALUE with a number, got {it!r}"
+        if not res.accepted:
+            return str(res.reason)
+    Path(state_dir).mkdir(parents=True, exist_ok=True)
+    store.save(reg.as_dict())
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     a = build_arg_parser().parse_args(argv)
+    if a.set:
+        err = "--set and --defaults exclude each other" if a.defaults else _store_params(a.state_dir, a.instance,
+                                                                                           a.set)
+        if err:
+            print(f"navig8-sitl: {err}", file=sys.stderr)
+            return 2
     stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     log_dir = Path(a.log_dir)
     log_dir.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,129 @@
+"""navig8-campaign: the same rows give the same table on the local pool and on a real Dask LocalCluster; a run
+that raises or times out is recorded, not fatal; a resumed campaign runs only the missing rows; every row
+replays alone through `navig8-sim` with the printed command."""
+
+from __future__ import annotations
+
+import json
+import re
+import shlex
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from navig8_tools.campaign import (
+    STREAM_FILE,
+    Campaign,
+    RunTimeout,
+    call_with_timeout,
+    comparable,
+    expand,
+    read_stream,
+    run_campaign,
+)
+from navig8_tools.sim import main as sim_main
+
+SMALL = {
+    "name": "small", "scenario": "paper", "duration_s": 0.6, "timeout_s": 120, "seeds": [1, 2],
+    "variants": {"proposed": {"controller": "proposed"}, "fixed": {"controller": "fixed"}},
+    "factors": {
+        "object_mass_kg": {"world": "scenario.object.mass_kg", "grid": [0.0, 3.0]},
+        "noise": {"world": "sensor_noise_scale", "uniform": [0.5, 2.0]},
+    },
+    "report": {"heatmap": ["object_mass_kg", "noise"]},
+}
+
+
+def test_rows_are_the_crossed_grid_with_shared_draws_and_stable_ids() -> None:
+    c = Campaign.from_dict(SMALL)
+    rows = expand(c)
+    assert len(rows) == 2 * 2 * 2  # variants x mass grid x seeds (one sample of the drawn factor)
+    assert len({r.run_id for r in rows}) == len(rows)
+    assert len({r.factors["noise"] for r in rows}) == 1  # common random numbers across variants and cells
+    assert [r.run_id for r in expand(Campaign.from_dict(SMALL))] == [r.run_id for r in rows]
+    assert rows[0].world == {"scenario.object.mass_kg": 0.0, "sensor_noise_scale": rows[0].factors["noise"]}
+
+
+def test_local_pool_and_dask_local_cluster_give_the_same_table(tmp_path: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    c = Campaign.from_dict(SMALL)
+    pool = run_campaign(c, tmp_path / "pool", workers=2, progress=False)
+    dask = run_campaign(c, tmp_path / "dask", workers=2, cluster="local", progress=False)
+    assert pool.failed == dask.failed == 0 and len(pool.table) == 8
+    pd.testing.assert_frame_equal(comparable(pool.table), comparable(dask.table))
+    assert pool.table["worker"].nunique() >= 1 and dask.table["worker"].nunique() >= 1
+    # the LocalCluster was stopped with the campaign: no scheduler or worker of it is left in this process
+    assert not distributed.client._global_clients or all(cl.status == "closed"
+                                                         for cl in distributed.client._global_clients.values())
+    # Parquet and CSV hold the same rows
+    csv = pd.read_csv(tmp_path / "pool" / "results.csv")
+    np.testing.assert_allclose(csv["max_att_error_deg"], pool.table["max_att_error_deg"], rtol=1e-12)
+    # the report: its sections, and every figure it links exists as a PNG
+    from navig8_tools.campaign_report import write_report
+
+    md = write_report(c, pool.table, tmp_path / "pool", "navig8-campaign small.yaml").read_text()
+    for section in ("## Robustness per variant", "## Success rate by factor", "## Heat maps over object_mass_kg",
+                    "## Metric distributions per variant", "## Worst", "navig8-sim --scenario paper"):
+        assert section in md, section
+    links = re.findall(r"\(figures/([^)]+\.png)\)", md)
+    assert len(links) >= 5
+    for name in links:
+        assert (tmp_path / "pool" / "figures" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_a_raising_and_a_timed_out_run_are_recorded_and_the_campaign_goes_on(tmp_path: Path) -> None:
+    d = dict(SMALL, variants={"proposed": {"controller": "proposed"}}, seeds=[1])
+    d["factors"] = {"arm_rate_rad_s": {"world": "plant.joint_servo.v_max_rad_s", "grid": [4.0, -1.0]}}
+    d["report"] = {}
+    res = run_campaign(Campaign.from_dict(d), tmp_path, workers=1, progress=False)
+    t = res.table.set_index("arm_rate_rad_s")
+    assert t.loc[4.0, "status"] == "ok" and bool(t.loc[4.0, "success"])
+    assert t.loc[-1.0, "status"] == "error" and "joint servo limits must be > 0" in t.loc[-1.0, "error"]
+    assert res.failed == 1
+    # a timeout: the same row with a 0.3 s budget for a 30 s flight
+    slow = dict(d, duration_s=30.0, timeout_s=0.3)
+    slow["factors"] = {"arm_rate_rad_s": {"world": "plant.joint_servo.v_max_rad_s", "grid": [4.0]}}
+    res = run_campaign(Campaign.from_dict(slow), tmp_path / "slow", workers=1, progress=False)
+    assert res.table["status"].tolist() == ["timeout"] and "0 s" in res.table["error"][0]
+
+
+def test_call_with_timeout_interrupts_a_python_loop_and_leaves_a_fast_call_alone() -> None:
+    t0 = time.perf_counter()
+    with pytest.raises(RunTimeout):
+        call_with_timeout(lambda: [i for i in iter(int, 1)], 0.2)  # an endless loop
+    assert time.perf_counter() - t0 < 5.0
+    assert call_with_timeout(lambda: 42, 0.2) == 42
+    time.sleep(0.3)  # the cancelled timer must not fire into this thread later
+
+
+def test_a_resumed_campaign_runs_only_the_missing_rows(tmp_path: Path) -> None:
+    c = Campaign.from_dict(dict(SMALL, variants={"proposed": {"controller": "proposed"}}))
+    first = run_campaign(c, tmp_path, workers=1, limit=2, progress=False)
+    assert first.ran == 2 and len(first.table) == 2
+    before = read_stream(tmp_path)
+    second = run_campaign(c, tmp_path, workers=1, progress=False)
+    assert second.ran == 2 and len(second.table) == 4
+    lines = [json.loads(x) for x in (tmp_path / STREAM_FILE).read_text().splitlines()]
+    ids = [x["run_id"] for x in lines]
+    assert len(ids) == len(set(ids)) == 4  # nothing ran twice
+    after = read_stream(tmp_path)
+    assert all(after[k] == v for k, v in before.items())  # the first records were kept as they were
+    third = run_campaign(c, tmp_path, workers=1, progress=False)
+    assert third.ran == 0 and len(third.table) == 4
+
+
+def test_the_printed_replay_command_reproduces_the_row(tmp_path: Path) -> None:
+    c = Campaign.from_dict(dict(SMALL, variants={"fixed": {"controller": "fixed"}}, seeds=[2]))
+    res = run_campaign(c, tmp_path, workers=1, limit=1, progress=False)
+    row = res.table.iloc[0]
+    argv = shlex.split(row["replay"])
+    assert argv[0] == "navig8-sim"
+    argv[argv.index("--log") + 1] = str(tmp_path / "replay.mcap")
+    summary = tmp_path / "replay.json"
+    assert sim_main([*argv[1:], "--summary", str(summary)]) == 0
+    s = json.loads(summary.read_text())
+    for k in ("max_att_error_deg", "max_pos_error_m", "min_eigenvalue", "peak_reaction_force_n"):
+        assert s[k] == row[k], k  # bit for bit: the row determines the run

@@ -1,0 +1,534 @@
+"""navig8-campaign: Monte-Carlo and test campaigns, the world varied, on a process pool or a Dask cluster.
+
+    navig8-campaign CAMPAIGN.yaml [--out DIR] [--workers N] [--cluster local|ADDRESS] [--retry-failed]
+                    [--limit N] [--no-progress] [--no-report]
+
+A campaign file (docs/campaigns.md; params/campaigns/) names a base scenario, the controller variants and the
+factors to vary (grids crossed, distributions drawn); every row is one run, fully determined by the row
+(variant, factor values, seed) and reproducible alone with the `navig8-sim` / `navig8-sitl` command in its
+`replay` column. Runs go to a local process pool (default, one worker per core) or, with --cluster, to Dask
+distributed (`--cluster local` starts a LocalCluster for the campaign; `--cluster tcp://host:8786` uses a
+running scheduler). Results stream to DIR/runs.jsonl as runs finish; a run that raises or times out is recorded
+with its error and the campaign goes on; running again with the same DIR skips the rows already recorded.
+At the end: DIR/results.parquet + results.csv (every factor and summary metric per run) and DIR/report.md
+with PNG figures (tools/campaign_report.py).
+"""
+
+from __future__ import annotations
+
+import argparse
+import ctypes
+import hashlib
+import itertools
+import json
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+import traceback
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+KINDS = ("inprocess", "sitl")
+DISTRIBUTIONS = ("grid", "value", "uniform", "normal", "loguniform", "choice")
+TABLE_FILE = "results.parquet"
+STREAM_FILE = "runs.jsonl"
+# Scalar summary keys of navig8_tools.summary.summarize kept per run (settle is folded to two counts).
+METRICS = ("sim_time_s", "wall_time_s", "real_time_factor", "lost_control", "lost_control_t_s", "min_eigenvalue",
+           "max_eigenvalue", "bound_violations", "max_pos_error_m", "pos_rms_error_m", "max_att_error_deg",
+           "peak_reaction_force_n", "peak_reaction_torque_nm", "max_joint_rate_rad_s", "max_joint_accel_rad_s2",
+           "steps_settled", "steps_total")
+# Columns that depend on where and when a run ran, not on its row (left out when comparing two tables).
+RUN_ENV_COLUMNS = ("wall_time_s", "real_time_factor", "run_wall_s", "worker")
+
+
+# ---------------------------------------------------------------------------------------------
+# The campaign file and its rows
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Factor:
+    name: str  # the table's column
+    target: str  # "world" (sim_bridge.world name) or "set" (flight-controller parameter)
+    key: str  # the world override name (NAME or NAME*) or the parameter name
+    dist: str  # one of DISTRIBUTIONS
+    args: tuple[float, ...]
+
+    @property
+    def random(self) -> bool:
+        return self.dist in ("uniform", "normal", "loguniform", "choice")
+
+    def draw(self, rng: np.random.Generator) -> float:
+        if self.dist == "uniform":
+            return float(rng.uniform(self.args[0], self.args[1]))
+        if self.dist == "normal":
+            return float(rng.normal(self.args[0], self.args[1]))
+        if self.dist == "loguniform":
+            return float(np.exp(rng.uniform(np.log(self.args[0]), np.log(self.args[1]))))
+        return float(self.args[int(rng.integers(len(self.args)))])  # choice
+
+
+@dataclass(frozen=True)
+class Variant:
+    name: str
+    controller: str  # navig8_tools.sim.CONTROLLERS
+    params: tuple[tuple[str, float], ...] = ()  # FC parameters (params/fc_params.yaml), e.g. an allocation option
+
+
+@dataclass(frozen=True)
+class Campaign:
+    name: str
+    description: str
+    kind: str
+    scenario: str  # name (params/scenarios) or path
+    duration_s: float | None
+    timeout_s: float
+    variants: tuple[Variant, ...]
+    factors: tuple[Factor, ...]
+    seeds: tuple[int, ...]
+    samples: int  # draws of the random factors, each crossed with every grid cell, variant and seed
+    sample_seed: int
+    heatmap: tuple[str, str] | None  # two factor names for the report's heat maps
+    world: tuple[tuple[str, float], ...] = ()  # fixed world overrides of every run
+
+    @staticmethod
+    def from_dict(d: Mapping[str, Any], base_dir: Path | None = None) -> Campaign:
+        kind = str(d.get("kind", "inprocess"))
+        if kind not in KINDS:
+            raise ValueError(f"campaign kind must be one of {KINDS}, got {kind!r}")
+        from navig8_tools.sim import CONTROLLERS
+
+        variants = []
+        for vname, v in (d.get("variants") or {}).items():
+            ctrl = str((v or {}).get("controller", vname))
+            if ctrl not in CONTROLLERS:
+                raise ValueError(f"variant {vname!r}: controller must be one of {sorted(CONTROLLERS)}, got {ctrl!r}")
+            params = tuple((str(k), float(x)) for k, x in ((v or {}).get("set") or {}).items())
+            variants.append(Variant(str(vname), ctrl, params))
+        if not variants:
+            raise ValueError("a campaign needs at least one variant")
+        factors = []
+        for fname, f in (d.get("factors") or {}).items():
+            targets = [t for t in ("world", "set") if t in f]
+            dists = [k for k in DISTRIBUTIONS if k in f]
+            if len(targets) != 1 or len(dists) != 1:
+                raise ValueError(f"factor {fname!r} needs exactly one of world:/set: and one of {DISTRIBUTIONS}")
+            raw = f[dists[0]]
+            args = tuple(float(x) for x in (raw if isinstance(raw, list) else [raw]))
+            if dists[0] in ("uniform", "normal", "loguniform") and len(args) != 2:
+                raise ValueError(f"factor {fname!r}: {dists[0]} takes [a, b]")
+            if not args:
+                raise ValueError(f"factor {fname!r}: empty {dists[0]}")
+            factors.append(Factor(str(fname), targets[0], str(f[targets[0]]), dists[0], args))
+        names = [f.name for f in factors]
+        hm = d.get("report", {}).get("heatmap")
+        if hm is not None and (len(hm) != 2 or any(h not in names for h in hm)):
+            raise ValueError(f"report.heatmap must name two factors of {names}")
+        scenario = str(d.get("scenario", "paper"))
+        if base_dir is not None and (scenario.endswith((".yaml", ".yml"))) and not Path(scenario).is_absolute():
+            scenario = str((base_dir / scenario).resolve())
+        seeds = d.get("seeds", [1])
+        seeds = list(range(1, int(seeds) + 1)) if isinstance(seeds, int) else [int(s) for s in seeds]
+        return Campaign(
+            name=str(d.get("name", "campaign")), description=str(d.get("description", "")), kind=kind,
+            scenario=scenario, duration_s=None if d.get("duration_s") is None else float(d["duration_s"]),
+            timeout_s=float(d.get("timeout_s", 300.0)), variants=tuple(variants), factors=tuple(factors),
+            seeds=tuple(seeds), samples=int(d.get("samples", 1)), sample_seed=int(d.get("sample_seed", 0)),
+            heatmap=tuple(hm) if hm else None,
+            world=tuple((str(k), float(v)) for k, v in (d.get("world") or {}).items()))
+
+    @staticmethod
+    def load(path: str | Path) -> Campaign:
+        p = Path(path)
+        return Campaign.from_dict(yaml.safe_load(p.read_text()), p.parent)
+
+
+@dataclass(frozen=True)
+class Row:
+    """One run, everything it depends on; `run_id` is a hash of exactly that, so resuming is by content."""
+
+    index: int
+    run_id: str
+    kind: str
+    scenario: str
+    duration_s: float | None
+    variant: str
+    controller: str
+    seed: int
+    sample: int
+    factors: dict[str, float]
+    world: dict[str, float]
+    params: dict[str, float]
+    timeout_s: float
+    instance: int = field(default=0)  # SITL only: ports 4560 + 2N... (navig8-sitl --instance)
+
+
+def _run_id(variant: str, content: Mapping[str, Any]) -> str:
+    h = hashlib.sha256(json.dumps(content, sort_keys=True).encode()).hexdigest()[:12]
+    return f"{variant}-{h}"
+
+
+def expand(c: Campaign) -> list[Row]:
+    """The campaign's rows in a fixed order: variant x grid cells x samples x seeds. The random factors are
+    drawn once per sample (Generator(sample_seed)), so every variant meets the same worlds."""
+    grid = [f for f in c.factors if not f.random]
+    rand = [f for f in c.factors if f.random]
+    rng = np.random.default_rng(c.sample_seed)
+    draws = [{f.name: f.draw(rng) for f in rand} for _ in range(c.samples if rand else 1)]
+    rows: list[Row] = []
+    cells = list(itertools.product(*[f.args for f in grid]))
+    for v in c.variants:
+        for cell in cells:
+            for s, draw in enumerate(draws):
+                for seed in c.seeds:
+                    values = {f.name: float(x) for f, x in zip(grid, cell, strict=True)} | draw
+                    world = dict(c.world)
+                    params = dict(v.params)
+                    for f in c.factors:
+                        (world if f.target == "world" else params)[f.key] = values[f.name]
+                    content = {"kind": c.kind, "scenario": c.scenario, "duration_s": c.duration_s,
+                               "controller": v.controller, "seed": seed, "world": world, "params": params}
+                    rows.append(Row(len(rows), _run_id(v.name, content), c.kind, c.scenario, c.duration_s, v.name,
+                                    v.controller, seed, s, values, world, params, c.timeout_s,
+                                    instance=1 + len(rows) % 500))
+    return rows
+
+
+def replay_command(row: Row) -> str:
+    """The command that flies this row alone."""
+    from navig8_tools.sim import CONTROLLERS
+    from sim_bridge.world import world_args
+
+    sets = [a for k, v in row.params.items() for a in ("--set", f"{k}={v!r}")]
+    dur = ["--duration", f"{row.duration_s!r}"] if row.duration_s is not None else []
+    if row.kind == "inprocess":
+        parts = ["navig8-sim", "--scenario", row.scenario, "--controller", row.controller, "--seed", str(row.seed),
+                 *dur, *sets, *world_args(row.world), "--log", f"out/replay_{row.run_id}.mcap"]
+    else:
+        ctrl = ["--set", f"CKF_MODE={CONTROLLERS[row.controller]}"]
+        parts = ["navig8-sitl", "--scenario", row.scenario, "--speed", "0", "--until-done", "--seed", str(row.seed),
+                 *dur, "--instance", str(row.instance), "--log-dir", f"out/replay_{row.run_id}", "--state-dir",
+                 f"out/replay_{row.run_id}", *ctrl, *sets, *[f"--bridge-arg={a}" for a in world_args(row.world)],
+                 "--summary", f"out/replay_{row.run_id}/summary.json"]
+    return shlex.join(parts)
+
+
+# ---------------------------------------------------------------------------------------------
+# One run (executes in a worker: a pool process or a Dask worker)
+# ---------------------------------------------------------------------------------------------
+
+
+class RunTimeout(Exception):
+    pass
+
+
+def call_with_timeout(fn: Callable[[], Any], timeout_s: float) -> Any:
+    """fn() in this thread, interrupted with RunTimeout after timeout_s of wall time. The exception is raised
+    asynchronously in this thread (PyThreadState_SetAsyncExc) at its next Python bytecode, so it works in a pool
+    process's main thread and in a Dask worker's thread alike; a run spends its time in a Python loop calling
+    short numba kernels, so it is interrupted within a tick."""
+    tid = threading.get_ident()
+    lock = threading.Lock()
+    state = {"done": False, "fired": False}
+
+    def _fire() -> None:
+        with lock:
+            if not state["done"]:
+                state["fired"] = True
+                ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(tid), ctypes.py_object(RunTimeout))
+
+    timer = threading.Timer(timeout_s, _fire)
+    timer.daemon = True
+    timer.start()
+    try:
+        out = fn()
+        with lock:
+            state["done"] = True
+        return out
+    finally:
+        timer.cancel()
+        with lock:
+            state["done"] = True
+
+
+def _flatten_summary(s: Mapping[str, Any]) -> dict[str, Any]:
+    out = {k: s.get(k) for k in METRICS if k in s}
+    settle = s.get("settle") or []
+    out["steps_settled"] = sum(1 for x in settle if x.get("settle_s") is not None)
+    out["steps_total"] = len(settle)
+    return out
+
+
+def _inprocess(row: Row, tmp: Path) -> dict[str, Any]:
+    from navig8_tools.sim import run
+
+    return run(row.scenario, row.controller, row.seed, row.duration_s, tmp / "run.mcap", dict(row.params),
+               world=dict(row.world)).summary
+
+
+def _sitl(row: Row, tmp: Path) -> dict[str, Any]:
+    """navig8-sitl at --speed 0 on the row's own --instance: two processes over MAVLink/UDP, the command of
+    replay_command with this run's directories."""
+    # navig8-fc reads params/vehicle.yaml and the scenario's setpoint script itself; only the plant's side of the
+    # world travels (--bridge-arg=--world)
+    fc_only = [k for k in row.world if k.startswith(("fc_vehicle.", "vehicle.", "scenario.setpoints",
+                                                     "scenario.duration_s", "scenario.armed"))]
+    if fc_only:
+        raise ValueError(f"the sitl kind cannot apply {fc_only} (navig8-fc's side of the world); use inprocess")
+    argv = shlex.split(replay_command(row))
+    for opt in ("--log-dir", "--state-dir"):
+        argv[argv.index(opt) + 1] = str(tmp)
+    argv[argv.index("--summary") + 1] = str(tmp / "summary.json")
+    cmd = [sys.executable, "-m", "navig8_fc.shell.sitl", *argv[1:]]
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            start_new_session=True)
+    try:
+        _, err = proc.communicate(timeout=row.timeout_s)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGINT)  # navig8-sitl stops both children
+        try:
+            proc.communicate(timeout=15.0)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+        raise RunTimeout(f"navig8-sitl did not finish within {row.timeout_s:.0f} s") from None
+    if not (tmp / "summary.json").exists():  # exit 1 with a summary: it lost control, which is a result
+        tail = err.decode(errors="replace").strip().splitlines()[-3:]
+        raise RuntimeError(f"navig8-sitl exited with {proc.returncode}: {' | '.join(tail)}")
+    return json.loads((tmp / "summary.json").read_text())
+
+
+RUNNERS: dict[str, Callable[[Row, Path], dict[str, Any]]] = {"inprocess": _inprocess, "sitl": _sitl}
+
+
+def execute_row(row: Row) -> dict[str, Any]:
+    """Fly one row; never raises: the record says ok / error / timeout (with the error) and the metrics."""
+    rec: dict[str, Any] = {"run_id": row.run_id, "status": "ok", "error": None,
+                           "worker": f"{os.uname().nodename}:{os.getpid()}"}
+    t0 = time.perf_counter()
+    try:
+        with tempfile.TemporaryDirectory(prefix="navig8_campaign_") as tmp:
+            if row.kind == "sitl":  # the subprocess has its own timeout and is killed by it
+                summary = RUNNERS[row.kind](row, Path(tmp))
+            else:
+                summary = call_with_timeout(lambda: RUNNERS[row.kind](row, Path(tmp)), row.timeout_s)
+        rec.update(_flatten_summary(summary))
+    except RunTimeout as exc:
+        rec.update(status="timeout", error=str(exc) or f"no result within {row.timeout_s:.0f} s")
+    except Exception as exc:  # noqa: BLE001 - a run's failure is data, recorded with its traceback's last line
+        tb = traceback.extract_tb(exc.__traceback__)
+        where = f" ({Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
+        rec.update(status="error", error=f"{type(exc).__name__}: {exc}{where}")
+    rec["run_wall_s"] = time.perf_counter() - t0
+    return rec
+
+
+# ---------------------------------------------------------------------------------------------
+# Backends: a local process pool, or Dask distributed
+# ---------------------------------------------------------------------------------------------
+
+
+def _pool_results(rows: list[Row], workers: int) -> Iterator[tuple[Row, dict[str, Any]]]:
+    """concurrent.futures' process pool (spawn: workers start clean, without the parent's threads). At most
+    2 x workers runs are in flight, so a worker that dies (BrokenProcessPool) costs only the runs in flight:
+    they are recorded as crashed and a new pool takes the rest."""
+    import multiprocessing
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    todo = list(rows)
+    todo.reverse()
+    ctx = multiprocessing.get_context("spawn")
+    while todo:
+        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+            inflight: dict[Any, Row] = {}
+            broken = False
+            while (todo or inflight) and not broken:
+                while todo and len(inflight) < 2 * workers:
+                    r = todo.pop()
+                    inflight[pool.submit(execute_row, r)] = r
+                done, _ = wait(inflight, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    r = inflight.pop(fut)
+                    try:
+                        yield r, fut.result()
+                    except BrokenProcessPool as exc:
+                        broken = True
+                        yield r, {"run_id": r.run_id, "status": "crashed", "worker": "",
+                                  "error": f"worker process died while this run was in flight ({exc})"}
+            if broken:
+                for r in inflight.values():
+                    yield r, {"run_id": r.run_id, "status": "crashed", "worker": "",
+                              "error": "worker process died while this run was in flight"}
+
+
+def _dask_results(rows: list[Row], cluster: str, workers: int) -> Iterator[tuple[Row, dict[str, Any]]]:
+    """Dask distributed as its users drive it: a Client on the scheduler's address (or on a LocalCluster this
+    campaign starts and stops), submit, as_completed. A worker that dies is the engine's business (the nanny
+    restarts it, the scheduler reschedules; after allowed-failures the task raises KilledWorker, recorded here)."""
+    from distributed import Client, LocalCluster, as_completed
+
+    local = None
+    if cluster == "local":
+        local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                             dashboard_address="127.0.0.1:0")  # a private cluster: loopback, free ports
+        client = Client(local)
+    else:
+        client = Client(cluster)
+    try:
+        futs = {client.submit(execute_row, r, key=f"navig8-run-{r.run_id}", pure=False): r for r in rows}
+        for fut in as_completed(futs):
+            r = futs[fut]
+            try:
+                yield r, fut.result()
+            except Exception as exc:  # noqa: BLE001 - KilledWorker, a lost scheduler: recorded per run
+                yield r, {"run_id": r.run_id, "status": "crashed", "worker": "",
+                          "error": f"{type(exc).__name__}: {exc}"}
+    finally:
+        client.close()
+        if local is not None:
+            local.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# The campaign: stream, resume, table
+# ---------------------------------------------------------------------------------------------
+
+
+def read_stream(out_dir: Path) -> dict[str, dict[str, Any]]:
+    """Records of DIR/runs.jsonl by run_id (the last one wins); a torn last line (a killed campaign) is skipped."""
+    recs: dict[str, dict[str, Any]] = {}
+    p = out_dir / STREAM_FILE
+    if not p.exists():
+        return recs
+    for line in p.read_text().splitlines():
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        recs[rec["run_id"]] = rec
+    return recs
+
+
+def row_record(row: Row, rec: Mapping[str, Any]) -> dict[str, Any]:
+    """One table row: the row's identity and factors, then the run's record."""
+    out: dict[str, Any] = {"index": row.index, "run_id": row.run_id, "variant": row.variant,
+                           "controller": row.controller, "seed": row.seed, "sample": row.sample, **row.factors}
+    for k in ("status", "error", "run_wall_s", "worker"):
+        out[k] = rec.get(k)
+    for k in METRICS:
+        out[k] = rec.get(k)
+    out["success"] = bool(rec.get("status") == "ok" and rec.get("lost_control") is False)
+    out["replay"] = replay_command(row)
+    return out
+
+
+def build_table(rows: list[Row], recs: Mapping[str, Mapping[str, Any]]) -> Any:
+    """The campaign's table (pandas DataFrame, campaign order) of the rows that have a record."""
+    import pandas as pd
+
+    data = [row_record(r, recs[r.run_id]) for r in rows if r.run_id in recs]
+    return pd.DataFrame(data)
+
+
+def write_table(df: Any, out_dir: Path) -> tuple[Path, Path]:
+    pq, csv = out_dir / TABLE_FILE, out_dir / "results.csv"
+    df.to_parquet(pq, index=False)
+    df.to_csv(csv, index=False)
+    return pq, csv
+
+
+@dataclass(frozen=True)
+class CampaignResult:
+    out_dir: Path
+    table: Any  # pandas DataFrame
+    ran: int  # runs executed now (the others were recorded by an earlier, resumed campaign)
+    failed: int  # of those, status != ok
+    wall_s: float
+
+
+def run_campaign(campaign: Campaign, out_dir: str | Path, workers: int | None = None, cluster: str | None = None,
+                 retry_failed: bool = False, limit: int | None = None, progress: bool = True) -> CampaignResult:
+    """Run the rows not yet in out_dir/runs.jsonl (also the failed ones with retry_failed), stream each record as
+    it arrives, then write the table. `limit`: run at most that many of the missing rows."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = expand(campaign)
+    recs = read_stream(out)
+    todo = [r for r in rows if r.run_id not in recs or (retry_failed and recs[r.run_id]["status"] != "ok")]
+    if limit is not None:
+        todo = todo[:limit]
+    workers = workers or os.cpu_count() or 1
+    source = _pool_results(todo, workers) if cluster is None else _dask_results(todo, cluster, workers)
+    bar = None
+    if progress and todo:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(todo), unit="run", file=sys.stderr, dynamic_ncols=True, smoothing=0.1)
+    failed = 0
+    t0 = time.perf_counter()
+    with open(out / STREAM_FILE, "a") as stream:
+        for i, (row, rec) in enumerate(source, start=1):
+            stream.write(json.dumps(rec, allow_nan=True) + "\n")
+            stream.flush()
+            recs[row.run_id] = rec
+            failed += rec["status"] != "ok"
+            if bar is not None:
+                rate = 60.0 * i / max(time.perf_counter() - t0, 1e-9)
+                bar.set_postfix_str(f"failed {failed}, {rate:.1f} runs/min", refresh=False)
+                bar.update(1)
+    if bar is not None:
+        bar.close()
+    wall = time.perf_counter() - t0
+    df = build_table(rows, recs)
+    write_table(df, out)
+    return CampaignResult(out, df, len(todo), failed, wall)
+
+
+def comparable(df: Any) -> Any:
+    """The table without the columns that depend on where and when runs ran (for comparing backends)."""
+    return df.drop(columns=[c for c in RUN_ENV_COLUMNS if c in df.columns]).reset_index(drop=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="navig8-campaign", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("campaign", help="campaign YAML (params/campaigns/)")
+    ap.add_argument("--out", default=None, help="output directory (default out/campaigns/<name>)")
+    ap.add_argument("--workers", type=int, default=None, help="pool size / LocalCluster workers (default: cores)")
+    ap.add_argument("--cluster", default=None, help="'local' (a Dask LocalCluster) or a scheduler address")
+    ap.add_argument("--retry-failed", action="store_true", help="also rerun recorded rows that failed")
+    ap.add_argument("--limit", type=int, default=None, help="run at most N of the missing rows")
+    ap.add_argument("--no-progress", action="store_true")
+    ap.add_argument("--no-report", action="store_true")
+    a = ap.parse_args(argv)
+    c = Campaign.load(a.campaign)
+    out = Path(a.out or f"out/campaigns/{c.name}")
+    res = run_campaign(c, out, a.workers, a.cluster, a.retry_failed, a.limit, progress=not a.no_progress)
+    backend = "dask " + a.cluster if a.cluster else f"local pool of {a.workers or os.cpu_count()}"
+    print(f"{res.ran} runs now ({res.failed} failed) in {res.wall_s:.1f} s on {backend}; "
+          f"table: {len(res.table)} rows -> {out / TABLE_FILE}, {out / 'results.csv'}", file=sys.stderr)
+    if not a.no_report:
+        from navig8_tools.campaign_report import write_report
+
+        cmd = "navig8-campaign " + " ".join(argv if argv is not None else sys.argv[1:])
+        print(f"report: {write_report(c, res.table, out, cmd)}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
+
+__all__ = ["Campaign", "Factor", "Variant", "Row", "expand", "execute_row", "run_campaign", "build_table",
+           "read_stream", "replay_command", "comparable", "call_with_timeout", "main"]
