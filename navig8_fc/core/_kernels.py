@@ -24,10 +24,12 @@ GEO = layout("GEO", link_len=1, link_mass=1, link_inertia=1, mount_x=1, mount_z=
 MP = layout("MP", mass=1, cx=1, cz=1,
             ma_x=1, ma_z=1,  # sum_k m_k r''_k over the arm bodies (first moment's second derivative)
             tip_ax=1, tip_az=1,  # acceleration of the arm's tip (link 3's end)
+            obj_x=1, obj_z=1,  # position of the object's centre (tip + offset along link 3), relative to O
             jo=4)  # inertia about O: xx, yy, zz, xz
 _N_MP = int(MP.SIZE)  # np.empty takes an int, not an IntEnum member
 # UAM model + G_C^-1 (uam_model), the controller's per-tick view
 UO = layout("UO", mass=1, cx=1, cz=1, arm_ax=1, arm_az=1,
+            cex=1, cez=1,  # CoM of the UAM with a point object of the estimated mass at the tip (the reference point)
             singular=1)  # 1.0 when G_C could not be inverted (the caller then falls back to numpy)
 
 
@@ -164,6 +166,8 @@ def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
     mp[MP.MA_Z] = a1z
     mp[MP.TIP_AX] = jax
     mp[MP.TIP_AZ] = jaz
+    mp[MP.OBJ_X] = jx + geo[GEO.OBJ_OFFSET] * s
+    mp[MP.OBJ_Z] = jz + geo[GEO.OBJ_OFFSET] * c
     mp[MP.JO] = geo[GEO.J11] + j11
     mp[MP.JO + 1] = geo[GEO.J22] + j22
     mp[MP.JO + 2] = geo[GEO.J33] + j33
@@ -197,6 +201,8 @@ def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv,
     uo[UO.CZ] = cz
     uo[UO.ARM_AX] = (mp[MP.MA_X] + mo * mp[MP.TIP_AX]) / m_tot
     uo[UO.ARM_AZ] = (mp[MP.MA_Z] + mo * mp[MP.TIP_AZ]) / m_tot
+    uo[UO.CEX] = (m * cx + mo * mp[MP.OBJ_X]) / m_tot
+    uo[UO.CEZ] = (m * cz + mo * mp[MP.OBJ_Z]) / m_tot
     gc_about(f, m0, cx, cz, gc)
     uo[UO.SINGULAR] = 0.0 if inv_gauss_jordan(gc, gc_inv) else 1.0
 
@@ -534,11 +540,17 @@ FO = layout("FO", qest=3, qdd=3,
 
 
 @njit(cache=True)
-def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo, fo):
+def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo, fo,
+             acc_ref=0.0):
     """FlightControllerCore's per-tick front end: the complementary joint observer (q_est), backward
     differences of the joint rates (q-ddot) and of the gyro (omega-dot), uam_model at (q_est, q-dot, q-ddot),
     Acc_m (Eq. 23) and U0 = actuators_to_u(measured). All state in fst; first sample: q_est = q, zeros out of
-    the differences. sens: TIN (only its sensor part is read)."""
+    the differences. sens: TIN (only its sensor part is read).
+
+    acc_ref = 0 (the paper): Acc_m's force rows are the specific force at O plus the arm's c-ddot_rel.
+    acc_ref = 1 (INDI_ACC_REF, issue 10): they are the acceleration of the estimated composite CoM c
+    (uo CEX, CEZ): a_c = f_O + omega-dot x c + omega x (omega x c) + c-ddot_rel (the Coriolis term
+    2 omega x c-dot_rel is left out), the point G_C's force rows and the flown loop refer to."""
     q = np.empty(3)
     qd = sens[TIN.JRATE:TIN.JRATE + 3]
     qdd = np.empty(3)
@@ -563,6 +575,15 @@ def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inerti
     uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo)
     fo[FO.ACC_M + 3] = sens[TIN.ACCEL] + uo[UO.ARM_AX]
     fo[FO.ACC_M + 4] = sens[TIN.ACCEL + 2] + uo[UO.ARM_AZ]
+    if acc_ref != 0.0:
+        cx, cz = uo[UO.CEX], uo[UO.CEZ]  # c_y = 0
+        p, qr, r = sens[TIN.GYRO], sens[TIN.GYRO + 1], sens[TIN.GYRO + 2]
+        qdot = fo[FO.ACC_M + 1]
+        wc = p * cx + r * cz  # omega . c
+        w2 = p * p + qr * qr + r * r
+        # (omega-dot x c)_x = Qdot c_z, _z = -Qdot c_x; omega x (omega x c) = omega (omega . c) - c |omega|^2
+        fo[FO.ACC_M + 3] += qdot * cz + p * wc - cx * w2
+        fo[FO.ACC_M + 4] += -qdot * cx + r * wc - cz * w2
     actuators_to_u(sens[TIN.TILT], sens[TIN.TILT + 1], sens[TIN.SPEED], sens[TIN.SPEED + 1], sens[TIN.SPEED + 2],
                    fo, FO.U_MEAS)
 
