@@ -25,10 +25,12 @@ MP = layout("MP", mass=1, cx=1, cz=1,
             ma_x=1, ma_z=1,  # sum_k m_k r''_k over the arm bodies (first moment's second derivative)
             tip_ax=1, tip_az=1,  # acceleration of the arm's tip (link 3's end)
             obj_x=1, obj_z=1,  # position of the object's centre (tip + offset along link 3), relative to O
+            hdc=1,  # d/dt of the bodies' pitch angular momentum relative to the body, about the composite CoM
             jo=4)  # inertia about O: xx, yy, zz, xz
 _N_MP = int(MP.SIZE)  # np.empty takes an int, not an IntEnum member
 # UAM model + G_C^-1 (uam_model), the controller's per-tick view
 UO = layout("UO", mass=1, cx=1, cz=1, arm_ax=1, arm_az=1,
+            hdc=1,  # MP.HDC with the estimated object: the arm's reaction pitch moment about the CoM is -hdc
             cex=1, cez=1,  # CoM of the UAM with a point object of the estimated mass at the tip (the reference point)
             singular=1)  # 1.0 when G_C could not be inverted (the caller then falls back to numpy)
 
@@ -85,6 +87,7 @@ def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
     th = thd = thdd = 0.0
     jx, jz, jvx, jvz, jax, jaz = geo[GEO.MOUNT_X], geo[GEO.MOUNT_Z], 0.0, 0.0, 0.0, 0.0
     s1 = s1z = 0.0  # sum m x, sum m z
+    hd = 0.0  # sum m (r x r'')_y + I theta'': d/dt of the pitch angular momentum about O (body not rotating)
     v1x = v1z = a1x = a1z = 0.0  # sum m xdot, sum m zdot, sum m xddot, sum m zddot
     j11 = j22 = j33 = j13 = 0.0  # arm inertia about O
     d11 = d22 = d33 = d13 = 0.0  # and its rate
@@ -107,6 +110,7 @@ def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
         v1z += ml * zd
         a1x += ml * xdd
         a1z += ml * zdd
+        hd += ml * (z * xdd - x * zdd) + ia * thdd  # (r x r'')_y = z x'' - x z''
         j11 += ia * c * c + ml * z * z
         j22 += ia + ml * (x * x + z * z)
         j33 += ia * s * s + ml * x * x
@@ -133,6 +137,7 @@ def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
         v1z += mo * zd
         a1x += mo * xdd
         a1z += mo * zdd
+        hd += mo * (z * xdd - x * zdd) + io * thdd
         j11 += io + mo * z * z
         j22 += io + mo * (x * x + z * z)
         j33 += io + mo * x * x
@@ -167,6 +172,8 @@ def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
     mp[MP.TIP_AX] = jax
     mp[MP.TIP_AZ] = jaz
     mp[MP.OBJ_X] = jx + geo[GEO.OBJ_OFFSET] * s
+    # about the CoM: sum m (r - c) x (r'' - c'') = sum m r x r'' - m c x c''
+    mp[MP.HDC] = hd - (s1z * a1x - s1 * a1z) / m
     mp[MP.OBJ_Z] = jz + geo[GEO.OBJ_OFFSET] * c
     mp[MP.JO] = geo[GEO.J11] + j11
     mp[MP.JO + 1] = geo[GEO.J22] + j22
@@ -202,6 +209,12 @@ def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv,
     uo[UO.ARM_AX] = (mp[MP.MA_X] + mo * mp[MP.TIP_AX]) / m_tot
     uo[UO.ARM_AZ] = (mp[MP.MA_Z] + mo * mp[MP.TIP_AZ]) / m_tot
     uo[UO.CEX] = (m * cx + mo * mp[MP.OBJ_X]) / m_tot
+    if mo > 0.0:  # the reaction with the estimated object (G_C, G_I above stay those without it)
+        mp2 = np.empty(_N_MP)
+        mass_props(q, qd, qdd, mo, geo, np.empty((3, 3)), np.empty((3, 3)), mp2)
+        uo[UO.HDC] = mp2[MP.HDC]
+    else:
+        uo[UO.HDC] = mp[MP.HDC]
     uo[UO.CEZ] = (m * cz + mo * mp[MP.OBJ_Z]) / m_tot
     gc_about(f, m0, cx, cz, gc)
     uo[UO.SINGULAR] = 0.0 if inv_gauss_jordan(gc, gc_inv) else 1.0
@@ -536,6 +549,7 @@ FST = layout("FST", qest=3,  # joint-angle estimate
              init=1)  # 1.0 after the first sample
 FO = layout("FO", qest=3, qdd=3,
             acc_m=5,  # [P_dot, Q_dot, R_dot, a_x + arm, a_z + arm] (Eq. 23)
+            arm_hdc=1,  # UO.HDC: minus the arm's reaction pitch moment about the CoM (issue 10, CKF_ARM_WRENCH)
             u_meas=5)  # U0 from the measured actuators
 
 
@@ -573,6 +587,7 @@ def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inerti
         fo[FO.QEST + i] = q[i]
         fo[FO.QDD + i] = qdd[i]
     uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo)
+    fo[FO.ARM_HDC] = uo[UO.HDC]
     fo[FO.ACC_M + 3] = sens[TIN.ACCEL] + uo[UO.ARM_AX]
     fo[FO.ACC_M + 4] = sens[TIN.ACCEL + 2] + uo[UO.ARM_AZ]
     if acc_ref != 0.0:

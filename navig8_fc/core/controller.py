@@ -52,6 +52,7 @@ _PACK_SENSORS = struct.Struct(f"={int(_k.TIN.POS)}d").pack_into
 _PACK_ENGAGED = struct.Struct(f"={int(_k.TIN.SIZE)}d").pack_into
 _IN_ACCEL, _IN_TILT, _IN_SPEED = int(_k.TIN.ACCEL), int(_k.TIN.TILT), int(_k.TIN.SPEED)
 _FO_QEST, _FO_QDD, _OO_ACCEL = _k.FO.QEST.sl, _k.FO.QDD.sl, _k.OO.ACCEL_CMD.sl
+_FO_ARM_HDC = int(_k.FO.ARM_HDC)
 
 JOINT_OBS_TAU_S = 1.0  # complementary-filter time constant for the joint angles (docs/model.md)
 
@@ -60,7 +61,7 @@ PARAMS_USED = (
     "OL_POS_K", "OL_VEL_K", "OL_VEL_MAX", "OL_ACC_MAX", "OL_ATT_K", "OL_RATE_K", "OL_RATE_MAX",
     "CKF_MODE", "CKF_LPF_TAU", "CKF_START_DLY", "CKF_Q_IXX", "CKF_Q_IYY", "CKF_Q_IZZ", "CKF_Q_M",
     "CKF_R_U1", "CKF_R_U2", "CKF_R_U3", "CKF_R_U4", "CKF_R_U5", "CKF_P0_SCALE", "CKF_PROJ_W",
-    "INDI_ACC_REF",
+    "INDI_ACC_REF", "CKF_ARM_WRENCH",
 )
 
 
@@ -98,6 +99,7 @@ class ControllerConfig:
     outer: OuterLoopConfig
     ckf: CkfConfig
     acc_ref: int = 0  # INDI_ACC_REF: 0 specific force at O (the paper), 1 acceleration of the estimated CoM
+    arm_wrench: bool = False  # CKF_ARM_WRENCH: the arm's reaction moment in the adaptive law's measurement
 
     @staticmethod
     def from_params(values: Mapping[str, float | int], vehicle: VehicleConfig) -> ControllerConfig:
@@ -113,6 +115,7 @@ class ControllerConfig:
             outer=OuterLoopConfig.from_params(values, vehicle.gravity_m_s2),  # type: ignore[arg-type]
             ckf=CkfConfig.from_params(values, dt),
             acc_ref=int(values["INDI_ACC_REF"]),
+            arm_wrench=bool(int(values["CKF_ARM_WRENCH"])),
         )
 
 
@@ -144,7 +147,7 @@ class FlightControllerCore:
         self.config = config
         self._model = UamModel(vehicle)
         self._indi = IndiController(config.indi)
-        self._adapt = AdaptiveLaw(AdaptiveLawConfig(config.ckf, config.k_min, config.k_max))
+        self._adapt = AdaptiveLaw(AdaptiveLawConfig(config.ckf, config.k_min, config.k_max, config.arm_wrench))
         self._obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
         self._outer_cfg = outer_loop_config_array(config.outer)
         self._uo = _k.UO.zeros()
@@ -206,7 +209,8 @@ class FlightControllerCore:
         if ul[_UO_SINGULAR]:
             gc_inv = np.linalg.inv(gc)  # raises LinAlgError as before
         mass = ul[_UO_MASS]
-        gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_m, gc_inv, inertia, mass, rate)
+        gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_m, gc_inv, inertia, mass, rate,
+                                                          fo.item(_FO_ARM_HDC))
         outer: OuterLoopStatus | None = None
         indi_status: IndiStatus | None = None
         ref: tuple[float, float, float] | None = None
