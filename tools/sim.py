@@ -76,7 +76,7 @@ class EigenMonitor:
 
     def __call__(self, st: ControllerStatus, tr: Any) -> dict[str, Any]:
         return vm.ghat_ginv_eig_record(self.model, st.q_est_rad, st.gi_hat, tr.com_frd_m, tr.inertia_com_kgm2,
-                                       tr.mass_kg, self.lambda_min, self.lambda_crit, st.gc_uam)
+                                       tr.mass_kg, self.lambda_min, self.lambda_crit, st.gc_uam, st.ref_frd_m)
 
 
 def run(

@@ -117,7 +117,19 @@ def analyse(inp: Inputs, cfg: VehicleConfig) -> dict[str, Any]:
         "stable_margin_ok": kb.min_eigenvalue > lam_crit,
         "above_lambda_min": kb.min_eigenvalue >= inp.lambda_min,
     }
+    # issue 10: the same worst case for the matrix the paper's loop flies (INDI feedback at O: K Xi T^-1)
+    kb_o = st.k_bounds_analysis(cfg, inp.k_min, inp.k_max, reference="o")
+    k_bounds_flown_o = {
+        "min_eigenvalue": kb_o.min_eigenvalue,
+        "pose_deg": [math.degrees(v) for v in kb_o.pose_rad],
+        "object_mass_kg": kb_o.object_mass_kg,
+        "k": list(kb_o.k),
+        "max_eigenvalue": kb_o.max_eigenvalue,
+        "max_abs_imag": kb_o.max_abs_imag,
+        "stable_margin_ok": kb_o.min_eigenvalue > lam_crit,
+    }
     return {
+        "k_bounds_flown_o": k_bounds_flown_o,
         "inputs": {
             "wn_rad_s": inp.wn_rad_s,
             "zeta": inp.zeta,
@@ -203,6 +215,14 @@ def render_text(r: dict[str, Any]) -> str:
         f"  min eigenvalue > lambda_crit: {'yes' if kb['stable_margin_ok'] else 'NO'};  "
         f">= lambda_min: {'yes' if kb['above_lambda_min'] else 'no'}",
     ]
+    ko = r.get("k_bounds_flown_o")
+    if ko is not None:
+        pose_o = "/".join(f"{v:.0f}" for v in ko["pose_deg"])
+        lines += [
+            "The matrix the paper's loop flies (INDI force feedback at O, INDI_ACC_REF = 0): K Xi T^-1 (issue 10)",
+            f"  min Re(eig)   = {ko['min_eigenvalue']:.4f} at q = {pose_o} deg, m_o = {ko['object_mass_kg']:g} kg;"
+            f"  max Re(eig) = {ko['max_eigenvalue']:.4f};  > lambda_crit: {'yes' if ko['stable_margin_ok'] else 'NO'}",
+        ]
     return "\n".join(lines)
 
 

@@ -24,10 +24,14 @@ GEO = layout("GEO", link_len=1, link_mass=1, link_inertia=1, mount_x=1, mount_z=
 MP = layout("MP", mass=1, cx=1, cz=1,
             ma_x=1, ma_z=1,  # sum_k m_k r''_k over the arm bodies (first moment's second derivative)
             tip_ax=1, tip_az=1,  # acceleration of the arm's tip (link 3's end)
+            obj_x=1, obj_z=1,  # position of the object's centre (tip + offset along link 3), relative to O
+            hdc=1,  # d/dt of the bodies' pitch angular momentum relative to the body, about the composite CoM
             jo=4)  # inertia about O: xx, yy, zz, xz
 _N_MP = int(MP.SIZE)  # np.empty takes an int, not an IntEnum member
 # UAM model + G_C^-1 (uam_model), the controller's per-tick view
 UO = layout("UO", mass=1, cx=1, cz=1, arm_ax=1, arm_az=1,
+            hdc=1,  # MP.HDC with the estimated object: the arm's reaction pitch moment about the CoM is -hdc
+            cex=1, cez=1,  # CoM of the UAM with a point object of the estimated mass at the tip (the reference point)
             singular=1)  # 1.0 when G_C could not be inverted (the caller then falls back to numpy)
 
 
@@ -79,14 +83,15 @@ def inv_gauss_jordan(a: np.ndarray, out: np.ndarray) -> bool:
     return True
 
 
-_N_BODY_ACC = 14  # sum m x, m z, m xd, m zd, m xdd, m zdd; J11 J22 J33 J13 about O; their rates
+_N_BODY_ACC = 15  # sum m x, m z, m xd, m zd, m xdd, m zdd; J11 J22 J33 J13 about O; their rates; h' about O
 
 
 @njit(cache=True)
-def _add_body(acc, m, x, z, xd, zd, xdd, zdd, o11, o22, o33, o13, r11, r22, r33, r13):
+def _add_body(acc, m, x, z, xd, zd, xdd, zdd, o11, o22, o33, o13, r11, r22, r33, r13, oh):
     """Add one arm body of mass m at (x, 0, z) FRD (with its velocity and acceleration) to the accumulators acc:
     its first moments, its inertia about O (own inertia o.. about its CoM + parallel axis) and that inertia's
-    rate (own rate r.. + the moving point's)."""
+    rate (own rate r.. + the moving point's), and its share of d/dt of the pitch angular momentum about O with
+    the body not rotating: m (r x r'')_y + oh (oh = own I_yy theta'')."""
     acc[0] += m * x
     acc[1] += m * z
     acc[2] += m * xd
@@ -101,6 +106,7 @@ def _add_body(acc, m, x, z, xd, zd, xdd, zdd, o11, o22, o33, o13, r11, r22, r33,
     acc[11] += r22 + 2.0 * m * (x * xd + z * zd)
     acc[12] += r33 + 2.0 * m * x * xd
     acc[13] += r13 - m * (xd * z + x * zd)
+    acc[14] += m * (z * xdd - x * zdd) + oh  # (r x r'')_y = z x'' - x z''
 
 
 @njit(cache=True)
@@ -132,7 +138,7 @@ def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
         s2, c2 = 2.0 * s * c, c * c - s * s
         # own inertia of the rod (about its CoM, in the x-z plane) and its rate
         _add_body(acc, ml, x, z, xd, zd, xdd, zdd, ia * c * c, ia, ia * s * s, -ia * s * c,
-                  -ia * s2 * thd, 0.0, ia * s2 * thd, -ia * c2 * thd)
+                  -ia * s2 * thd, 0.0, ia * s2 * thd, -ia * c2 * thd, ia * thdd)
         jx, jz = jx + L * s, jz + L * c
         jvx, jvz = jvx + L * vx, jvz + L * vz
         jax, jaz = jax + L * ax, jaz + L * az
@@ -144,11 +150,11 @@ def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
         x, z = jx + d * s, jz + d * c
         xd, zd = jvx + d * thd * c, jvz - d * thd * s
         xdd, zdd = jax + d * (thdd * c - thd * thd * s), jaz + d * (-thdd * s - thd * thd * c)
-        _add_body(acc, mo, x, z, xd, zd, xdd, zdd, io, io, io, 0.0, 0.0, 0.0, 0.0, 0.0)  # a sphere: isotropic
+        _add_body(acc, mo, x, z, xd, zd, xdd, zdd, io, io, io, 0.0, 0.0, 0.0, 0.0, 0.0, io * thdd)  # isotropic
         m = m + mo
-    s1, s1z, v1x, v1z, a1x, a1z, j11, j22, j33, j13, d11, d22, d33, d13 = (
+    s1, s1z, v1x, v1z, a1x, a1z, j11, j22, j33, j13, d11, d22, d33, d13, hd = (
         acc[0], acc[1], acc[2], acc[3], acc[4], acc[5], acc[6], acc[7], acc[8], acc[9], acc[10], acc[11], acc[12],
-        acc[13])
+        acc[13], acc[14])
     cx, cz = s1 / m, s1z / m
     cxd, czd = v1x / m, v1z / m
     # Parallel-axis theorem from O to the CoM (c_y = 0): I_c = I_O - m (|c|^2 E - c c^T), and its rate.
@@ -173,6 +179,10 @@ def mass_props(q, qd, qdd, object_mass_kg, geo, inertia, rate, mp):
     mp[MP.MA_Z] = a1z
     mp[MP.TIP_AX] = jax
     mp[MP.TIP_AZ] = jaz
+    mp[MP.OBJ_X] = jx + geo[GEO.OBJ_OFFSET] * s
+    # about the CoM: sum m (r - c) x (r'' - c'') = sum m r x r'' - m c x c''
+    mp[MP.HDC] = hd - (s1z * a1x - s1 * a1z) / m
+    mp[MP.OBJ_Z] = jz + geo[GEO.OBJ_OFFSET] * c
     mp[MP.JO] = geo[GEO.J11] + j11
     mp[MP.JO + 1] = geo[GEO.J22] + j22
     mp[MP.JO + 2] = geo[GEO.J33] + j33
@@ -206,6 +216,14 @@ def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv,
     uo[UO.CZ] = cz
     uo[UO.ARM_AX] = (mp[MP.MA_X] + mo * mp[MP.TIP_AX]) / m_tot
     uo[UO.ARM_AZ] = (mp[MP.MA_Z] + mo * mp[MP.TIP_AZ]) / m_tot
+    uo[UO.CEX] = (m * cx + mo * mp[MP.OBJ_X]) / m_tot
+    if mo > 0.0:  # the reaction with the estimated object (G_C, G_I above stay those without it)
+        mp2 = np.empty(_N_MP)
+        mass_props(q, qd, qdd, mo, geo, np.empty((3, 3)), np.empty((3, 3)), mp2)
+        uo[UO.HDC] = mp2[MP.HDC]
+    else:
+        uo[UO.HDC] = mp[MP.HDC]
+    uo[UO.CEZ] = (m * cz + mo * mp[MP.OBJ_Z]) / m_tot
     gc_about(f, m0, cx, cz, gc)
     uo[UO.SINGULAR] = 0.0 if inv_gauss_jordan(gc, gc_inv) else 1.0
 
@@ -539,15 +557,22 @@ FST = layout("FST", qest=3,  # joint-angle estimate
              init=1)  # 1.0 after the first sample
 FO = layout("FO", qest=3, qdd=3,
             acc_m=5,  # [P_dot, Q_dot, R_dot, a_x + arm, a_z + arm] (Eq. 23)
+            arm_hdc=1,  # UO.HDC: minus the arm's reaction pitch moment about the CoM (issue 10, CKF_ARM_WRENCH)
             u_meas=5)  # U0 from the measured actuators
 
 
 @njit(cache=True)
-def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo, fo):
+def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo, fo,
+             acc_ref=0.0):
     """FlightControllerCore's per-tick front end: the complementary joint observer (q_est), backward
     differences of the joint rates (q-ddot) and of the gyro (omega-dot), uam_model at (q_est, q-dot, q-ddot),
     Acc_m (Eq. 23) and U0 = actuators_to_u(measured). All state in fst; first sample: q_est = q, zeros out of
-    the differences. sens: TIN (only its sensor part is read)."""
+    the differences. sens: TIN (only its sensor part is read).
+
+    acc_ref = 0 (the paper): Acc_m's force rows are the specific force at O plus the arm's c-ddot_rel.
+    acc_ref = 1 (INDI_ACC_REF, issue 10): they are the acceleration of the estimated composite CoM c
+    (uo CEX, CEZ): a_c = f_O + omega-dot x c + omega x (omega x c) + c-ddot_rel (the Coriolis term
+    2 omega x c-dot_rel is left out), the point G_C's force rows and the flown loop refer to."""
     q = np.empty(3)
     qd = sens[TIN.JRATE:TIN.JRATE + 3]
     qdd = np.empty(3)
@@ -570,8 +595,18 @@ def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inerti
         fo[FO.QEST + i] = q[i]
         fo[FO.QDD + i] = qdd[i]
     uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo)
+    fo[FO.ARM_HDC] = uo[UO.HDC]
     fo[FO.ACC_M + 3] = sens[TIN.ACCEL] + uo[UO.ARM_AX]
     fo[FO.ACC_M + 4] = sens[TIN.ACCEL + 2] + uo[UO.ARM_AZ]
+    if acc_ref != 0.0:
+        cx, cz = uo[UO.CEX], uo[UO.CEZ]  # c_y = 0
+        p, qr, r = sens[TIN.GYRO], sens[TIN.GYRO + 1], sens[TIN.GYRO + 2]
+        qdot = fo[FO.ACC_M + 1]
+        wc = p * cx + r * cz  # omega . c
+        w2 = p * p + qr * qr + r * r
+        # (omega-dot x c)_x = Qdot c_z, _z = -Qdot c_x; omega x (omega x c) = omega (omega . c) - c |omega|^2
+        fo[FO.ACC_M + 3] += qdot * cz + p * wc - cx * w2
+        fo[FO.ACC_M + 4] += -qdot * cx + r * wc - cz * w2
     actuators_to_u(sens[TIN.TILT], sens[TIN.TILT + 1], sens[TIN.SPEED], sens[TIN.SPEED + 1], sens[TIN.SPEED + 2],
                    fo, FO.U_MEAS)
 

@@ -57,6 +57,11 @@ class AdaptiveLawConfig:
     ckf: CkfConfig = field(default_factory=CkfConfig)
     k_min: float = 0.5
     k_max: float = 1.0
+    # CKF_ARM_WRENCH (issue 10): take the arm's reaction pitch moment out of the measurement. The body's pitch
+    # equation about the CoM is G_C U = G_I Acc + [0, h', 0, 0, 0] (h' = arm_hdc, the rate of the bodies'
+    # angular momentum relative to the body); the paper's Eq. 24 drops h', which then acts as equation
+    # error correlated with Delta Q-dot. With it: z = Delta U - G_C^-1[:, M] Delta h'. False: the paper.
+    arm_wrench: bool = False
 
     def __post_init__(self) -> None:
         k_min, k_max = float(self.k_min), float(self.k_max)
@@ -153,6 +158,7 @@ class AdaptiveLaw:
         self._kf = ConstrainedKalmanFilter(ckf)
         self._alpha = lpf_alpha(ckf.lpf_tau_s, ckf.dt_s)
         self._st = LAW_STATE.zeros()
+        self._hd_f: float | None = None  # low-passed arm_hdc (the same filter as U and Acc_m)
         self._inc = LAW_OUT.zeros()
         inc = LAW_OUT.views(self._inc)
         self._du, self._da = inc.delta_u, inc.delta_acc  # what the KF step reads
@@ -173,6 +179,7 @@ class AdaptiveLaw:
 
     def reset(self) -> None:
         self._st[:] = 0.0
+        self._hd_f = None
         self._t0: float | None = None
         self._running = False
         self._mass_hat: float | None = None
@@ -194,7 +201,7 @@ class AdaptiveLaw:
 
     def step_arrays(
         self, t_s: float, u_meas: np.ndarray, acc_m: np.ndarray, gc_inv: np.ndarray, inertia: np.ndarray,
-        m: float, inertia_rate: np.ndarray,
+        m: float, inertia_rate: np.ndarray, arm_hdc: float = 0.0,
     ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
         """step() on float64 arrays (u_meas, acc_m (5,), gc_inv (5, 5) C-contiguous, inertia and inertia_rate
         (3, 3)), m a float; also returns G_hat_I row-major as a tuple (the same floats). The controller's tick.
@@ -214,6 +221,11 @@ class AdaptiveLaw:
         # 1e-9 s guards the comparison against time accumulated in floating point.
         started = self._adaptive and (t_s - self._t0) >= self._start_delay_tol
         lpf_increments(self._st, self._alpha, u_meas, acc_m, self._inc)
+        dhd = 0.0
+        if self.config.arm_wrench:  # the same first-order filter and one-step increment as lpf_increments
+            y = self._hd_f
+            self._hd_f = arm_hdc if y is None else y + self._alpha * (arm_hdc - y)
+            dhd = 0.0 if y is None else self._hd_f - y
         inc = self._inc.tolist()
         du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
         if not started:
@@ -232,7 +244,10 @@ class AdaptiveLaw:
             kf.initialise(base)  # K = 1 at the start (Sec. 4)
             self._running = True
         rho_x, rho_z = inertia_ratios(j11, j13, j33)
-        r = kf.step(self._du, self._da, gc_inv, rho_x, rho_z, idot, lower, upper)
+        du_kf = self._du
+        if dhd != 0.0:
+            du_kf = self._du - gc_inv[:, 1] * dhd  # z = Delta U - G_C^-1 [0, Delta h', 0, 0, 0]
+        r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper)
         x = r.x_hat
         x0, x1, x2, x3 = x
         self._mass_hat = x3

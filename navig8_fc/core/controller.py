@@ -44,6 +44,7 @@ from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig, ghat_ginv_e
 
 # Slots of the front-end kernel's outputs the tick reads (module constants: no enum lookups per tick).
 _UO_MASS, _UO_SINGULAR = int(_k.UO.MASS), int(_k.UO.SINGULAR)
+_UO_CEX, _UO_CEZ = int(_k.UO.CEX), int(_k.UO.CEZ)
 # The tick's input vector (_kernels.TIN): the sensors, then pos_ned, vel_ned, quat_wxyz and the setpoint
 # (the outer loops' inputs, packed only when engaged). struct packs float64 exactly as np.array(..., dtype=float)
 # converts, into a persistent array (no per-tick allocation).
@@ -51,6 +52,7 @@ _PACK_SENSORS = struct.Struct(f"={int(_k.TIN.POS)}d").pack_into
 _PACK_ENGAGED = struct.Struct(f"={int(_k.TIN.SIZE)}d").pack_into
 _IN_ACCEL, _IN_TILT, _IN_SPEED = int(_k.TIN.ACCEL), int(_k.TIN.TILT), int(_k.TIN.SPEED)
 _FO_QEST, _FO_QDD, _OO_ACCEL = _k.FO.QEST.sl, _k.FO.QDD.sl, _k.OO.ACCEL_CMD.sl
+_FO_ARM_HDC = int(_k.FO.ARM_HDC)
 
 JOINT_OBS_TAU_S = 1.0  # complementary-filter time constant for the joint angles (docs/model.md)
 
@@ -59,6 +61,7 @@ PARAMS_USED = (
     "OL_POS_K", "OL_VEL_K", "OL_VEL_MAX", "OL_ACC_MAX", "OL_ATT_K", "OL_RATE_K", "OL_RATE_MAX",
     "CKF_MODE", "CKF_LPF_TAU", "CKF_START_DLY", "CKF_Q_IXX", "CKF_Q_IYY", "CKF_Q_IZZ", "CKF_Q_M",
     "CKF_R_U1", "CKF_R_U2", "CKF_R_U3", "CKF_R_U4", "CKF_R_U5", "CKF_P0_SCALE", "CKF_PROJ_W",
+    "INDI_ACC_REF", "CKF_ARM_WRENCH",
 )
 
 
@@ -95,6 +98,8 @@ class ControllerConfig:
     indi: IndiConfig
     outer: OuterLoopConfig
     ckf: CkfConfig
+    acc_ref: int = 0  # INDI_ACC_REF: 0 specific force at O (the paper), 1 acceleration of the estimated CoM
+    arm_wrench: bool = False  # CKF_ARM_WRENCH: the arm's reaction moment in the adaptive law's measurement
 
     @staticmethod
     def from_params(values: Mapping[str, float | int], vehicle: VehicleConfig) -> ControllerConfig:
@@ -109,6 +114,8 @@ class ControllerConfig:
             indi=IndiConfig(dt, float(values["INDI_LPF_TAU"]), ActuatorLimits.from_vehicle(vehicle)),
             outer=OuterLoopConfig.from_params(values, vehicle.gravity_m_s2),  # type: ignore[arg-type]
             ckf=CkfConfig.from_params(values, dt),
+            acc_ref=int(values["INDI_ACC_REF"]),
+            arm_wrench=bool(int(values["CKF_ARM_WRENCH"])),
         )
 
 
@@ -125,6 +132,9 @@ class ControllerStatus:
     outer: OuterLoopStatus | None
     indi: IndiStatus | None
     adapt: AdaptiveLawStatus
+    # the point (FRD, m) whose acceleration the INDI force rows and Acc_m refer to when INDI_ACC_REF = 1 (the
+    # estimated composite CoM); None: the paper's specific force at O
+    ref_frd_m: tuple[float, float, float] | None = None
 
 
 class FlightControllerCore:
@@ -137,7 +147,7 @@ class FlightControllerCore:
         self.config = config
         self._model = UamModel(vehicle)
         self._indi = IndiController(config.indi)
-        self._adapt = AdaptiveLaw(AdaptiveLawConfig(config.ckf, config.k_min, config.k_max))
+        self._adapt = AdaptiveLaw(AdaptiveLawConfig(config.ckf, config.k_min, config.k_max, config.arm_wrench))
         self._obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
         self._outer_cfg = outer_loop_config_array(config.outer)
         self._uo = _k.UO.zeros()
@@ -191,27 +201,37 @@ class FlightControllerCore:
             _PACK_SENSORS(sens, 0, *s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
                           *s.joint_rate_rad_s)
         model = self._model
+        acc_ref = cfg.acc_ref
         _k.fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, m_obj_est, model.geometry,
-                    model.force_per_input, model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
+                    model.force_per_input, model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo,
+                    float(acc_ref))
         ul = uo.tolist()
         if ul[_UO_SINGULAR]:
             gc_inv = np.linalg.inv(gc)  # raises LinAlgError as before
         mass = ul[_UO_MASS]
-        gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_m, gc_inv, inertia, mass, rate)
+        gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_m, gc_inv, inertia, mass, rate,
+                                                          fo.item(_FO_ARM_HDC))
         outer: OuterLoopStatus | None = None
         indi_status: IndiStatus | None = None
+        ref: tuple[float, float, float] | None = None
+        if acc_ref:
+            # the INDI force rows feed back the CoM's acceleration (Acc_m's, before its low-pass) instead of f_O
+            ref = (ul[_UO_CEX], 0.0, ul[_UO_CEZ])
+            am = acc_m.tolist()
+            sf_x, sf_z = am[3], am[4]
         if engaged:
             sl = sens.tolist()
+            if not acc_ref:
+                sf_x, sf_z = sl[_IN_ACCEL], sl[_IN_ACCEL + 2]
             outer, ol_out = _outer_loop_arrays(self._outer_cfg, spv, pos, vel, quat, gyro)
-            out, indi_status = self._indi._step(gyro, sl[_IN_ACCEL], sl[_IN_ACCEL + 2], sl[_IN_TILT],
+            out, indi_status = self._indi._step(gyro, sf_x, sf_z, sl[_IN_TILT],
                                                 sl[_IN_TILT + 1], sl[_IN_SPEED], sl[_IN_SPEED + 1],
                                                 sl[_IN_SPEED + 2], ol_out[_OO_ACCEL], gc_inv, gi_hat)
             cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
         else:
             # Keep the INDI filters warm so engaging does not start from a transient.
-            self._indi.measure(
-                IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat)
-            )
+            acc = s.accel_frd if not acc_ref else (sf_x, s.accel_frd[1], sf_z)
+            self._indi.measure(IndiInputs(s.gyro_frd, acc, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))
             cmd = MOTORS_OFF
         ft = tuple(fo.tolist())
         status = ControllerStatus(
@@ -226,6 +246,7 @@ class FlightControllerCore:
             outer=outer,
             indi=indi_status,
             adapt=adapt_status,
+            ref_frd_m=ref,
         )
         return cmd, status
 

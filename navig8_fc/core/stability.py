@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, signal
 
-from navig8_fc.core.vehicle import VehicleConfig, effectiveness_pair
+from navig8_fc.core.vehicle import VehicleConfig, effectiveness_pair, mass_properties, reference_transform
 
 # Paper Fig. 7 poses (deg): arm stretched forward and curled, both holding a 2 kg object.
 POSE_STRETCHED_DEG: tuple[float, float, float] = (80.0, 10.0, 10.0)
@@ -322,14 +322,27 @@ def step_metrics(lam: float, wn: float, zeta: float, ts: float, tl: float) -> St
 # ======================================================================================
 
 
-def xi_batch(cfg: VehicleConfig, poses_rad: np.ndarray, object_masses_kg: np.ndarray) -> np.ndarray:
-    """Xi (Eq. 14) for every (pose, mass): array (n_poses, n_masses, 5, 5) (vehicle.effectiveness_pair)."""
+REFERENCES = ("com", "o")
+
+
+def xi_batch(cfg: VehicleConfig, poses_rad: np.ndarray, object_masses_kg: np.ndarray,
+             reference: str = "com") -> np.ndarray:
+    """Xi (Eq. 14) for every (pose, mass): array (n_poses, n_masses, 5, 5) (vehicle.effectiveness_pair).
+
+    reference: the point whose acceleration the INDI force rows feed back. "com" (the true composite CoM):
+    Eq. 14 as printed. "o" (the paper's specific force at O, INDI_ACC_REF = 0): the loop flies T(O - c) G, so
+    G_hat G_flown^-1 = K Xi T^-1 (vehicle.reference_transform; T^-1 = 2 I - T); issue 10."""
+    if reference not in REFERENCES:
+        raise ValueError(f"reference must be one of {REFERENCES}, got {reference!r}")
     poses = np.atleast_2d(np.asarray(poses_rad, dtype=float))
     masses = np.atleast_1d(np.asarray(object_masses_kg, dtype=float))
     out = np.empty((poses.shape[0], masses.size, 5, 5))
     for i, q in enumerate(poses):
         for j, m_o in enumerate(masses):
             out[i, j] = effectiveness_pair(cfg, q, float(m_o)).xi
+            if reference == "o":
+                c = mass_properties(cfg, q, float(m_o)).com_frd_m
+                out[i, j] = out[i, j] @ (2.0 * np.eye(5) - reference_transform(-c))
     return out
 
 
@@ -465,12 +478,14 @@ def k_bounds_analysis(
     poses_rad: np.ndarray | None = None,
     object_masses_kg: Sequence[float] | np.ndarray | None = None,
     n_k: int = 9,
+    reference: str = "com",
 ) -> KBoundsResult:
     """Fig. 7 / Sec. 3.2 worst case: min Re(eig(K Xi)) over poses, object masses and K in [k_min, k_max]^4.
 
     Defaults: every joint on a 7-point grid over +-90 deg (30 deg steps, 343 poses) plus the two Fig. 7
     poses; object masses 0, 0.5, 1, 1.5, 2 kg; (K1, K3) on an n_k x n_k grid at K2 = K4 = k_min plus the 16
     corners of the 4-D box. Every case is a full 5x5 eigenproblem (batched numpy.linalg.eigvals).
+    reference "o": the matrix the paper's loop flies (xi_batch).
     """
     _check_k_range(k_min, k_max)
     if n_k < 2:
@@ -484,7 +499,7 @@ def k_bounds_analysis(
         masses = np.linspace(0.0, 2.0, 5)
     else:
         masses = np.atleast_1d(np.asarray(object_masses_kg, dtype=float))
-    xi = xi_batch(cfg, poses, masses)
+    xi = xi_batch(cfg, poses, masses, reference)
     return _worst_case(xi, _k_set(k_min, k_max, n_k), poses, masses, k_min, k_max)
 
 

@@ -409,6 +409,21 @@ class UamModel:
         )
 
 
+def reference_transform(ref_minus_com_frd_m: Sequence3) -> np.ndarray:
+    """T (5x5) with [omega-dot, a_p,x, a_p,z] = T [omega-dot, a_c,x, a_c,z] for a point p = c + d of the rigid body:
+    a_p = a_c + omega-dot x d + (terms without U), and with d_y = 0 (omega-dot x d)_x = Qdot d_z,
+    (omega-dot x d)_z = -Qdot d_x. The loop that feeds back the acceleration of p flies T G (issue 10)."""
+    t = np.eye(5)
+    t[3, 1] = float(ref_minus_com_frd_m[2])
+    t[4, 1] = -float(ref_minus_com_frd_m[0])
+    return t
+
+
+def flown_effectiveness(gc_true: np.ndarray, gi_true: np.ndarray, ref_minus_com_frd_m: Sequence3) -> np.ndarray:
+    """G of the loop actually flown: U -> [omega-dot, a_p,x, a_p,z] = T(p - c) G_I^-1 G_C (Eq. 1-2, issue 10)."""
+    return reference_transform(ref_minus_com_frd_m) @ np.linalg.solve(gi_true, gc_true)
+
+
 def ghat_ginv_eig_record(
     model: UamModel,
     q_est_rad: Sequence3,
@@ -419,6 +434,7 @@ def ghat_ginv_eig_record(
     lambda_min: float,
     lambda_crit: float,
     gc_uam_flat: Sequence[float] | None = None,
+    ref_frd_m: Sequence3 | None = None,
 ) -> dict[str, Any]:
     """Eigenvalues of G_hat G^-1 (Eq. 14) with G from the plant's truth, as the /analysis/eig log record.
 
@@ -426,14 +442,22 @@ def ghat_ginv_eig_record(
     G_hat G^-1 = (G_hat_I^-1 G_C,UAM)(G_C,true^-1 G_I,true). gc_uam_flat: the G_C,UAM(q_est) the controller
     used this tick (ControllerStatus.gc_uam), else it is evaluated here. The linear algebra runs in a numba
     kernel (_kernels.ghat_ginv_eigs: every logged tick needs it). Used by the in-process runner and the SITL FC.
+
+    ref_frd_m: the point whose acceleration the loop feeds back (ControllerStatus.ref_frd_m, INDI_ACC_REF = 1);
+    then G is the flown T(p - c) G (flown_effectiveness) and G^-1 = G_C,true^-1 G_I,true T^-1, T^-1 = 2 I - T
+    (T - I is nilpotent). None: the paper's Eq. 14 matrix.
     """
     gc_uam = (model.evaluate(q_est_rad, (0.0, 0.0, 0.0)).gc if gc_uam_flat is None
               else np.array(gc_uam_flat, dtype=float).reshape(5, 5))
     gi_hat = np.array(gi_hat_flat, dtype=float).reshape(5, 5)
     gc_true = model.gc_about(float(com_true_frd_m[0]), float(com_true_frd_m[2]))
     gi_true = inertia_matrix_gi(np.asarray(inertia_true, dtype=float), float(mass_true_kg))
+    gi_flown = gi_true
+    if ref_frd_m is not None:
+        d = np.asarray(ref_frd_m, dtype=float) - np.asarray(com_true_frd_m, dtype=float)
+        gi_flown = gi_true @ (2.0 * np.eye(5) - reference_transform(d))
     re, im = np.empty(5), np.empty(5)
-    _k.ghat_ginv_eigs(gi_hat, gc_uam, gc_true, gi_true, re, im)
+    _k.ghat_ginv_eigs(gi_hat, gc_uam, gc_true, gi_flown, re, im)
     return {
         "eig_real": re.tolist(),
         "eig_imag": im.tolist(),

@@ -120,7 +120,8 @@ class FlightStack:
             return False
         cfg = ControllerConfig.from_params(reg.as_dict(), self.vehicle)
         core = self._core
-        if core is None or cfg.indi != core.config.indi or cfg.ckf != core.config.ckf:
+        if (core is None or cfg.indi != core.config.indi or cfg.ckf != core.config.ckf
+                or cfg.acc_ref != core.config.acc_ref or cfg.arm_wrench != core.config.arm_wrench):
             self._core = FlightControllerCore(self.vehicle, cfg)
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)

@@ -82,7 +82,7 @@ def _eig_record(model: vm.UamModel, st: ControllerStatus, truth: Any, lam_min: f
     i = truth.inertia  # NAVIG8_TRUTH: xx, yy, zz, xy, xz, yz about the composite CoM
     j = np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]], dtype=float)
     return vm.ghat_ginv_eig_record(model, st.q_est_rad, st.gi_hat, truth.com_frd, j, truth.mass, lam_min, lam_crit,
-                                   st.gc_uam)
+                                   st.gc_uam, st.ref_frd_m)
 
 
 class FlightControllerProcess:
