@@ -25,7 +25,8 @@ above home from p7 (COMMAND_LONG) or z (COMMAND_INT, frame GLOBAL_RELATIVE_ALT[_
 NAV_LAND here; DO_SET_MODE p1 base_mode with CUSTOM_MODE_ENABLED, p2 PX4 main mode, p3 sub mode;
 REQUEST_MESSAGE p1 message id; SET/GET_MESSAGE_INTERVAL; DO_GRIPPER p1 instance (0 or 1), p2 0 release /
 1 grab; MAV_CMD_USER_1 (31010, MAV_CMD_NAVIG8_ARM_JOINTS in navig8.xml) p1..p3 joint targets in degrees, p4
-must be 1; PREFLIGHT_STORAGE p1 0 read / 1 write / 2 reset.
+must be 1; PREFLIGHT_STORAGE p1 0 read / 1 write / 2 reset; DO_SET_MISSION_CURRENT p1 item (-1 = keep), p2 1 =
+reset the mission's progress.
 """
 
 from __future__ import annotations
@@ -74,6 +75,10 @@ class CommandTarget(VehicleCommands, Protocol):
 
     def message_interval_us(self, msg_id: int) -> int:
         """Current interval (MESSAGE_INTERVAL semantics: -1 disabled, 0 not available)."""
+        ...
+
+    def set_mission_current(self, seq: int, reset: bool) -> tuple[bool, str]:
+        """MAV_CMD_DO_SET_MISSION_CURRENT: fly item `seq` next (-1: keep it; reset: forget what was reached)."""
         ...
 
     def storage(self, action: int) -> tuple[int, list[Any]]:
@@ -156,6 +161,7 @@ class CommandHandler:
             CMD.MAV_CMD_DO_GRIPPER: self._gripper,
             MAV_CMD_NAVIG8_ARM_JOINTS: self._arm_joints,
             CMD.MAV_CMD_PREFLIGHT_STORAGE: self._storage,
+            CMD.MAV_CMD_DO_SET_MISSION_CURRENT: self._set_mission_current,
         }
 
     @property
@@ -316,6 +322,11 @@ class CommandHandler:
         q_rad = (math.radians(q_deg[0]), math.radians(q_deg[1]), math.radians(q_deg[2]))
         info = "Arm joints: target " + " ".join(f"{q:.1f}" for q in q_deg[:3]) + " deg"
         return self._verdict(self._vehicle.arm_joints(q_rad), info)
+
+    def _set_mission_current(self, req: CommandRequest) -> _Outcome:
+        seq = _int_param(req.params[0], "param1 (item)", -1, 65535)
+        reset = math.isfinite(req.params[1]) and int(round(req.params[1])) == 1
+        return self._verdict(self._vehicle.set_mission_current(seq, reset))
 
     def _storage(self, req: CommandRequest) -> _Outcome:
         action = _int_param(req.params[0], "param1 (storage action)")

@@ -33,6 +33,7 @@ from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
 from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
 from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink import dialect as dialect_mod
+from navig8_fc.mission.store import MissionStore
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import ParamStore, default_state_path
 from navig8_fc.shell.gcs_service import GcsService, Source
@@ -115,8 +116,16 @@ class FlightControllerProcess:
         self.last_bundle_wall = time.monotonic()
         self.sim_done = False
         store = ParamStore(default_state_path(opts.state_dir, opts.instance)) if opts.state_dir else None
+        missions = MissionStore(default_state_path(opts.state_dir, opts.instance, "fc_mission")) if opts.state_dir \
+            else None
         self.gcs_service = GcsService(self._mav(), opts.sysid, self.stack.state, self.stack, self, self.registry,
-                                      self.vehicle, store)
+                                      self.vehicle, store, missions)
+        if missions is not None:
+            reason = self.gcs_service.mission.load_stored()
+            n = len(self.gcs_service.mission.plan().items)
+            self.log_event(f"mission plan loaded from {missions.path} ({n} items)" if n else "no stored mission plan")
+            if reason:
+                self.log_event(reason)
         if store is not None and not opts.defaults:
             loaded = self.gcs_service.load_stored_params()
             if loaded.ok:

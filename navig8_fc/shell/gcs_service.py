@@ -8,10 +8,11 @@ passed on, message requests and intervals from the telemetry scheduler, paramete
 GCS/API messages and sends telemetry on the wall clock. It never reads the process.
 
 Routing (PX4 and ArduPilot behave the same): a reply to a request (COMMAND_ACK and the messages a command
-produces, PARAM_VALUE answering PARAM_REQUEST_READ, the paced PARAM_REQUEST_LIST download, mission, FTP and
-TIMESYNC answers) goes only to the link and the peer the request came from. Broadcasts go to both GCS-facing
-links (every peer of each): telemetry streams and HEARTBEAT, STATUSTEXT (events and refusal reasons), and the
-PARAM_VALUE announcing the value in force after a PARAM_SET (accepted or refused) or a PREFLIGHT_STORAGE
+produces, PARAM_VALUE answering PARAM_REQUEST_READ, the paced PARAM_REQUEST_LIST download, mission transfers
+and their re-requests, FTP and TIMESYNC answers) goes only to the link and the peer the request came from.
+Broadcasts go to both GCS-facing links (every peer of each): telemetry streams and HEARTBEAT, MISSION_CURRENT
+and MISSION_ITEM_REACHED, STATUSTEXT (events and refusal reasons), and the PARAM_VALUE announcing the value in
+force after a PARAM_SET (accepted or refused) or a PREFLIGHT_STORAGE
 load/reset, so every connected GCS stays in sync.
 """
 
@@ -35,6 +36,8 @@ from navig8_fc.gcs.telemetry import (
     eig_margin_lower_bound,
     sensor_bits,
 )
+from navig8_fc.mission.protocol import MissionProtocol
+from navig8_fc.mission.store import MissionStore
 from navig8_fc.params.registry import ParamRegistry, SetResult
 from navig8_fc.params.store import ParamStore
 
@@ -67,7 +70,7 @@ def is_broadcast_reply(request_type: str, reply_type: str) -> bool:
 class GcsService:
     def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], vehicle: VehicleCommands,
                  outbox: Outbox, registry: ParamRegistry, vehicle_config: VehicleConfig,
-                 store: ParamStore | None = None) -> None:
+                 store: ParamStore | None = None, mission_store: MissionStore | None = None) -> None:
         """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them)."""
         self.mav = mav
         self.sysid = int(sysid)
@@ -78,6 +81,7 @@ class GcsService:
         self.params = ParamProtocol(registry, mav, store, statustext=self.text)
         self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text)
         self.misc = MiscProtocols(mav, statustext=self.text)
+        self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text)
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
         self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config)
@@ -104,6 +108,7 @@ class GcsService:
             out = self.params.handle(m, now_wall, source)
             out += self.commands.handle(m, now_wall)
             out += self.misc.handle(m, now_wall)
+            out += self.mission.handle(m, now_wall, source)
             out += self._set_mode_message(m)
             for r in out:
                 if source is None or is_broadcast_reply(kind, r.get_type()):
@@ -121,7 +126,7 @@ class GcsService:
         return [] if ok else self.text.warning(reason or f"SET_MODE {int(m.custom_mode):#x} refused")
 
     def poll(self, now_wall: float) -> None:
-        for source, m in self.params.poll_routed(now_wall):
+        for source, m in self.params.poll_routed(now_wall) + self.mission.poll(now_wall):
             if source is None:
                 self._outbox.broadcast([m])
             else:
@@ -165,6 +170,9 @@ class GcsService:
 
     def message_interval_us(self, msg_id: int) -> int:
         return self.telemetry.scheduler.interval_us(msg_id)
+
+    def set_mission_current(self, seq: int, reset: bool) -> tuple[bool, str]:
+        return self.mission.set_current(seq, reset)
 
     def storage(self, action: int) -> tuple[int, list[Any]]:
         return self.params.storage_command(action, armed=self._state().armed)

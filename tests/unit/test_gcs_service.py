@@ -152,3 +152,28 @@ def test_gcs_silence_lands_through_the_stack_failsafe_input() -> None:
     assert rig.stack.check_links(0.0, (last + tout + 0.5) - last)[0].statustext == "GCS link lost: landing"
     rig.step(1)
     assert rig.stack.state().flight_mode is FlightMode.LAND
+
+
+def test_mission_transfer_is_routed_to_the_uploader_and_set_current_by_command() -> None:
+    """The mission protocol inside the service: requests (and their 250 ms repeats) go to the uploading peer only,
+    MISSION_CURRENT is broadcast, DO_SET_MISSION_CURRENT moves the current item (ACK) like MISSION_SET_CURRENT."""
+    rig = Rig()
+    wp = (M.MAV_FRAME_LOCAL_NED, M.MAV_CMD_NAV_WAYPOINT, 0, 1, 0.0, 0.5, 0.0, 0.0, 0, 0, -2.0)
+    rig.send(rig.client.mission_count_encode(1, 1, 2, 0), API, 0.0)
+    assert [(d, m.seq) for d, m in rig.outbox.pop("MISSION_REQUEST_INT")] == [(API, 0)]
+    rig.gcs.poll(0.3)
+    assert [(d, m.seq) for d, m in rig.outbox.pop("MISSION_REQUEST_INT")] == [(API, 0)]  # repeated, to API only
+    assert [(d, m.total) for d, m in rig.outbox.pop("MISSION_CURRENT")] == [("all", 65535)]  # no plan yet
+    for seq in (0, 1):
+        rig.send(rig.client.mission_item_int_encode(1, 1, seq, *wp, 0), API, 0.4)
+    (ack,) = rig.outbox.pop("MISSION_ACK")
+    assert ack == (API, ack[1]) and ack[1].type == M.MAV_MISSION_ACCEPTED
+    rig.gcs.poll(0.5)
+    cur = rig.outbox.pop("MISSION_CURRENT")
+    assert [(d, m.seq, m.total) for d, m in cur] == [("all", 0, 2)]
+    rig.send(rig.client.command_long_encode(1, 1, M.MAV_CMD_DO_SET_MISSION_CURRENT, 0, 1, 0, 0, 0, 0, 0, 0), GCS)
+    (ack,) = rig.outbox.pop("COMMAND_ACK")
+    assert ack[1].result == M.MAV_RESULT_ACCEPTED and rig.gcs.mission.plan().current == 1
+    rig.send(rig.client.command_long_encode(1, 1, M.MAV_CMD_DO_SET_MISSION_CURRENT, 0, 5, 0, 0, 0, 0, 0, 0), GCS)
+    (ack,) = rig.outbox.pop("COMMAND_ACK")
+    assert ack[1].result == M.MAV_RESULT_DENIED and rig.gcs.mission.plan().current == 1
