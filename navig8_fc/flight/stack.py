@@ -49,6 +49,8 @@ from navig8_fc.flight.state import (
     VehicleState,
 )
 from navig8_fc.gcs.battery import BatteryState, battery_initial, battery_step
+from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.plan import Plan
 from navig8_fc.modes.manager import ModeConfig, ModeInputs, ModeManager, ModeOutput, Verdict
 from navig8_fc.modes.px4 import FlightMode
 from navig8_fc.params.registry import ParamRegistry
@@ -160,6 +162,10 @@ class FlightStack:
         notices = self._notices
         if out.events:
             notices += [Notice(SEVERITY_INFO, ev) for ev in out.events]
+        for kind, value in out.actions:  # plan items acting on the arm: checked and applied as the commands are
+            ok, reason = self.gripper(value) if kind == "gripper" else self.arm_joints(value)  # type: ignore[arg-type]
+            if not ok:
+                notices.append(Notice(SEVERITY_WARNING, f"Mission item refused: {reason}"))
         if notices:
             self._notices = []
         req, self._arm_request = self._arm_request, None
@@ -278,6 +284,9 @@ class FlightStack:
         self._queue(ArmRequest(joint_target_rad=(float(q_rad[0]), float(q_rad[1]), float(q_rad[2]))))
         return Verdict(True)
 
+    def load_mission(self, plan: Plan, origin: GeoOrigin) -> None:
+        self._modes.load_plan(plan, origin)
+
     def _queue(self, req: ArmRequest) -> None:
         p = self._arm_request
         if p is not None:  # merge: keep both a joint target and a gripper action queued before the next step
@@ -314,4 +323,5 @@ class FlightStack:
             pending_arm_request=self._arm_request,
             lambda_crit=self.lambda_crit,
             n_steps=self._n_steps,
+            mission=mo.mission if mo is not None else m.mission_progress,
         )

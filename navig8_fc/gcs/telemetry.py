@@ -62,12 +62,12 @@ from pymavlink.dialects.v20 import common as mavlink2
 from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.gcs.battery import BatteryState, battery_initial
 from navig8_fc.gcs.params import PARAM_ENCODING_CAPABILITY
+from navig8_fc.mission.geo import EARTH_RADIUS_M, GeoOrigin  # noqa: F401 - GeoOrigin is part of this API
 
 M = mavlink2
 Vec3 = tuple[float, float, float]
 Vec4 = tuple[float, float, float, float]
 
-EARTH_RADIUS_M = 6_371_000.0  # PX4 CONSTANTS_RADIUS_OF_EARTH
 UINT16_MAX = 65535
 INT16_MAX = 32767
 
@@ -152,22 +152,6 @@ def sensor_bits(
         if ok:
             health |= bits
     return SensorBits(present, present, health)
-
-
-@dataclass(frozen=True)
-class GeoOrigin:
-    """WGS-84 position of the NED origin (default: Calgary, 1100 m AMSL)."""
-
-    lat_deg: float = 51.0789
-    lon_deg: float = -114.1339
-    alt_amsl_m: float = 1100.0
-
-    def to_global(self, pos_ned: Sequence[float]) -> tuple[float, float, float]:
-        """(lat deg, lon deg, alt AMSL m) of a NED point, flat earth (module docstring)."""
-        n, e, d = pos_ned
-        lat = self.lat_deg + math.degrees(n / EARTH_RADIUS_M)
-        lon = self.lon_deg + math.degrees(e / (EARTH_RADIUS_M * math.cos(math.radians(self.lat_deg))))
-        return lat, lon, self.alt_amsl_m - d
 
 
 _NAN4: Vec4 = (math.nan, math.nan, math.nan, math.nan)

@@ -148,6 +148,20 @@ class Plan:
 
 
 @dataclass(frozen=True)
+class Progress:
+    """What the mission executor reports: the item being flown, the last item reached (-1: none yet), whether the
+    vehicle is in Mission mode, whether the plan has been flown to its end, and the last reached items as
+    (running count, seq) so that every one is announced (MISSION_ITEM_REACHED) even when several complete
+    between two polls."""
+
+    current: int = 0
+    reached: int = -1
+    active: bool = False
+    finished: bool = False
+    reached_log: tuple[tuple[int, int], ...] = ()
+
+
+@dataclass(frozen=True)
 class Problem:
     """Why an item (or a plan) is refused: the MAV_MISSION_RESULT and the STATUSTEXT."""
 

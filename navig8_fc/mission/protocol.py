@@ -47,6 +47,7 @@ from navig8_fc.mission.plan import (
     MissionType,
     Plan,
     Problem,
+    Progress,
     Result,
     check_item,
     check_plan,
@@ -65,17 +66,6 @@ class MissionState:
     """MISSION_STATE (common.xml)."""
 
     UNKNOWN, NO_MISSION, NOT_STARTED, ACTIVE, PAUSED, COMPLETE = range(6)
-
-
-@dataclass(frozen=True)
-class Progress:
-    """What the mission executor reports: the item being flown, the last item reached (-1: none yet), whether the
-    vehicle is in Mission mode, and whether the plan has been flown to its end."""
-
-    current: int = 0
-    reached: int = -1
-    active: bool = False
-    finished: bool = False
 
 
 @dataclass
@@ -125,6 +115,8 @@ class MissionProtocol:
         self._reached_seq = -1
         self._reached_left = 0
         self._reached_t = -math.inf
+        self._reached_n = 0  # the executor's reached counter already announced
+        self._now = -math.inf  # the last poll's time
 
     # --- the plans ---------------------------------------------------------------------------------------
     def plan(self, mission_type: int = MissionType.MISSION) -> Plan:
@@ -160,15 +152,19 @@ class MissionProtocol:
             self._reached_seq, self._reached_left = -1, 0
         self.generation += 1
         self._current_sent = None  # MISSION_CURRENT at once
-        self._progress = Progress(seq, self._progress.reached if not reset else -1, self._progress.active, False)
+        self._progress = Progress(seq, self._progress.reached if not reset else -1, self._progress.active, False,
+                                  self._progress.reached_log)
         self._save()
         return True, ""
 
     def report(self, progress: Progress) -> None:
         """The executor's progress (each service poll): MISSION_CURRENT follows it, a newly reached item is
         announced with MISSION_ITEM_REACHED."""
-        if progress.reached >= 0 and progress.reached != self._progress.reached:
-            self._reached_seq, self._reached_left, self._reached_t = progress.reached, REACHED_REPEATS + 1, -math.inf
+        fresh = [seq for n, seq in progress.reached_log if n > self._reached_n]
+        if fresh:
+            self._outbox += [(None, self._mav.mission_item_reached_encode(seq)) for seq in fresh]
+            self._reached_n = progress.reached_log[-1][0]
+            self._reached_seq, self._reached_left, self._reached_t = fresh[-1], REACHED_REPEATS, self._now
         self._progress = progress
 
     # --- inbound ------------------------------------------------------------------------------------------
@@ -196,6 +192,7 @@ class MissionProtocol:
     def poll(self, now_s: float) -> list[tuple[Any, Any]]:
         """Re-requests and timeouts of a running transfer, MISSION_CURRENT and MISSION_ITEM_REACHED (module
         docstring); source None = broadcast."""
+        self._now = now_s
         out, self._outbox = self._outbox, []
         up = self._upload
         if up is not None:
@@ -330,7 +327,7 @@ class MissionProtocol:
         self.generation += 1
         if plan.mission_type == MissionType.MISSION:
             self._reached_seq, self._reached_left = -1, 0
-            self._progress = Progress(plan.current)
+            self._progress = Progress(plan.current, reached_log=self._progress.reached_log)
             self._current_sent = None
         return self._save()
 

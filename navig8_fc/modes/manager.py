@@ -41,6 +41,9 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.mission.executor import ExecConfig, MissionExecutor
+from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.plan import Plan, Progress
 from navig8_fc.modes.px4 import FlightMode, MavLandedState, MavModeFlag, MavState, Px4MainMode
 
 Vec3 = tuple[float, float, float]
@@ -126,6 +129,8 @@ class ModeOutput:
     home_yaw_rad: float
     mission_time_s: float | None  # None outside MISSION
     events: tuple[str, ...] = field(default_factory=tuple)  # for STATUSTEXT (INFO)
+    mission: Progress = Progress()  # the uploaded plan's progress (navig8_fc.mission.executor)
+    actions: tuple[tuple[str, object], ...] = ()  # arm/gripper actions of plan items (MissionExecutor.step)
 
 
 class LandDetector:
@@ -195,6 +200,14 @@ class ModeManager:
         self._mission_elapsed_s = 0.0
         # Faults reported from outside the step (the FlightStack's link checks, rate check): name -> reason.
         self._faults: dict[str, str] = {}
+        # An uploaded plan (flown in MISSION when there is no script) and its executor.
+        self._plan: Plan | None = None
+        self._origin = GeoOrigin()
+        self._exec: MissionExecutor | None = None
+        self._progress = Progress()
+        self._reached_count = 0
+        self._land_xy: tuple[float, float] | None = None  # where a mission's landing goes down (else: here)
+        self._actions: list[tuple[str, object]] = []
 
     # --- read access ---------------------------------------------------------------------------------
     @property
@@ -288,8 +301,12 @@ class ModeManager:
         self._armed = True
         self._home = inp.pos_ned
         self._home_yaw_rad = inp.yaw_rad
-        # A forced arm in the air must not leave the controller idle: hold where the vehicle is.
-        self._switch(FlightMode.READY if self._detector.landed else FlightMode.HOLD)
+        # Armed in Mission: the mission starts. A forced arm in the air must not leave the controller idle: hold
+        # where the vehicle is.
+        if self._mode is FlightMode.MISSION:
+            self._switch(FlightMode.MISSION)
+        else:
+            self._switch(FlightMode.READY if self._detector.landed else FlightMode.HOLD)
         self._events.append("Armed" + (" (forced)" if force else ""))
         return Verdict(True)
 
@@ -344,15 +361,14 @@ class ModeManager:
             if self._mode is not FlightMode.READY:
                 self._switch(FlightMode.READY)
             return Verdict(True)
-        if not self._armed:
-            return Verdict(False, f"Mode {mode.label} denied: not armed")
+        # Hold and Mission can be selected while disarmed, as on PX4 (arming then starts the mission).
         if mode is FlightMode.HOLD:
             if self._mode is not FlightMode.HOLD:
                 self._switch(FlightMode.HOLD)
                 self._events.append("Hold")
             return Verdict(True)
         # MISSION
-        if self._script is None:
+        if self._script is None and self._plan is None:
             return Verdict(False, "Mode Mission denied: no mission loaded")
         if self._mode is not FlightMode.MISSION:
             self._switch(FlightMode.MISSION)
@@ -361,6 +377,24 @@ class ModeManager:
     def set_custom_mode(self, custom_mode: int) -> Verdict:
         """Same as set_mode, from a PX4-encoded custom_mode."""
         return self.set_mode((custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF)
+
+    def load_plan(self, plan: Plan, origin: GeoOrigin) -> None:
+        """An uploaded mission plan (or a new start item): flown in MISSION when there is no script. A mission
+        in flight continues on the new plan from its start item at the next step."""
+        self._plan = plan if plan.items else None
+        self._origin = origin
+        self._exec = None
+        self._progress = Progress(plan.current, reached_log=self._progress.reached_log)
+        if self._mode is FlightMode.MISSION and self._script is None:
+            if self._plan is None:
+                self._switch(FlightMode.HOLD)
+                self._events.append("Mission cleared: holding")
+            else:
+                self._entry_pending = True
+
+    @property
+    def mission_progress(self) -> Progress:
+        return self._progress
 
     # --- the step ------------------------------------------------------------------------------------
     def step(self, inp: ModeInputs) -> ModeOutput:
@@ -383,7 +417,7 @@ class ModeManager:
             self._home_yaw_rad = inp.yaw_rad
         landed = self._detector.step(inp, home[2])
         self._last = inp
-        if not self._armed and self._mode is not FlightMode.READY:
+        if not self._armed and self._mode is not FlightMode.READY and self._mode not in _SELECTABLE_DISARMED:
             self._switch(FlightMode.READY)
         if self._entry_pending:
             self._enter(inp)
@@ -406,9 +440,13 @@ class ModeManager:
             self._home_yaw_rad,
             mission_time,
             tuple(events) if events else (),
+            self._mission_progress_now(),
+            tuple(self._actions) if self._actions else (),
         )
         if events:
             events.clear()
+        if self._actions:
+            self._actions.clear()
         self._last_output = out
         return out
 
@@ -462,10 +500,28 @@ class ModeManager:
             self._ramp_z = z
             self._target_z = self._home_z() - self._takeoff_alt_m
         elif mode is FlightMode.LAND:
+            if self._land_xy is not None:
+                x, y = self._land_xy
+                self._land_xy = None
             self._sp = Setpoint((x, y, z), 0.0, inp.yaw_rad)
             self._ramp_z = z
             self._target_z = max(self._home_z(), z) + self._cfg.land_setpoint_floor_m
             self._touchdown_t_s = None
+        elif mode is FlightMode.MISSION and self._script is None:
+            if not self._armed:
+                return  # selected on the ground: starts when armed
+            out = self._last_output
+            start = out.setpoint if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad)
+            assert self._plan is not None
+            if self._exec is None or self._exec.finished:
+                cfg = self._cfg
+                self._exec = MissionExecutor(self._plan, self._origin, self._home or inp.pos_ned, start,
+                                             ExecConfig(cfg.takeoff_climb_rate_m_s, cfg.takeoff_reached_tol_m,
+                                                        rtl_alt_m=cfg.takeoff_default_alt_m),
+                                             self._reached_count)
+                self._events.append(f"Mission started at item {self._exec.progress.current}")
+            else:
+                self._events.append(f"Mission resumed at item {self._exec.progress.current}")
         elif mode is FlightMode.MISSION:
             assert self._script is not None
             duration = self._script.duration_s
@@ -483,6 +539,8 @@ class ModeManager:
     def _run(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
         mode = self._mode
         if mode is FlightMode.MISSION and self._armed:
+            if self._script is None:
+                return self._run_plan(inp, dt)
             return self._run_mission(inp.t_s)
         if not self._armed or mode is FlightMode.READY:
             return _idle(inp), False, None
@@ -540,6 +598,30 @@ class ModeManager:
             return final, True, None
         return script.setpoint_at(mission_t), True, mission_t
 
+    def _run_plan(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
+        ex = self._exec
+        assert ex is not None
+        st = ex.step(inp.t_s, inp.pos_ned, inp.yaw_rad, dt)
+        self._reached_count = ex.reached_count
+        self._progress = ex.progress
+        self._actions += st.actions
+        self._events += st.events
+        if st.land:
+            self._land_xy = (st.setpoint.pos_ned[0], st.setpoint.pos_ned[1])
+            self._switch(FlightMode.LAND)
+            self._events.append("Mission: landing")
+        elif ex.finished:
+            self._switch(FlightMode.HOLD)
+            self._entry_pending = False
+            self._hold_on_ground = self._detector.landed
+            self._sp = st.setpoint
+        return st.setpoint, True, None
+
+    def _mission_progress_now(self) -> Progress:
+        p = self._progress
+        active = self._mode is FlightMode.MISSION and self._script is None
+        return p if p.active == active else Progress(p.current, p.reached, active, p.finished, p.reached_log)
+
     def _landed_state(self) -> int:
         """MAV_LANDED_STATE (as a plain int, the way ModeOutput carries it)."""
         mode = self._mode
@@ -563,6 +645,7 @@ class ModeManager:
 
 
 _isfinite = math.isfinite
+_SELECTABLE_DISARMED = (FlightMode.HOLD, FlightMode.MISSION)
 _BASE_MODE_DISARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED)
 _BASE_MODE_ARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED) | int(MavModeFlag.SAFETY_ARMED)
 _ON_GROUND = int(MavLandedState.ON_GROUND)

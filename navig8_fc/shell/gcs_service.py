@@ -36,6 +36,7 @@ from navig8_fc.gcs.telemetry import (
     eig_margin_lower_bound,
     sensor_bits,
 )
+from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.protocol import MissionProtocol
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.params.registry import ParamRegistry, SetResult
@@ -82,6 +83,8 @@ class GcsService:
         self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text)
         self.misc = MiscProtocols(mav, statustext=self.text)
         self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text)
+        self.origin = GeoOrigin()
+        self._plan_generation = -1  # the mission plan generation the vehicle has
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
         self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config)
@@ -126,6 +129,10 @@ class GcsService:
         return [] if ok else self.text.warning(reason or f"SET_MODE {int(m.custom_mode):#x} refused")
 
     def poll(self, now_wall: float) -> None:
+        if self.mission.generation != self._plan_generation:  # a new plan, clear or start item: to the vehicle
+            self._plan_generation = self.mission.generation
+            self._vehicle.load_mission(self.mission.plan(), self.origin)
+        self.mission.report(self._state().mission)
         for source, m in self.params.poll_routed(now_wall) + self.mission.poll(now_wall):
             if source is None:
                 self._outbox.broadcast([m])

@@ -268,12 +268,12 @@ def test_mission_current_streams_and_follows_set_current_and_progress() -> None:
     assert [c.seq for c in cur] == [3] and rig.proto.plan().current == 3
     out = rig.send(rig.gcs.mission_set_current_encode(1, 1, 8), 1.0)
     assert out[0].get_type() == "STATUSTEXT" and rig.proto.plan().current == 3
-    rig.proto.report(Progress(current=4, reached=3, active=True))
+    rig.proto.report(Progress(current=4, reached=3, active=True, reached_log=((1, 2), (2, 3))))
     msgs = [m for _, m in rig.poll(1.1)]
     cur = [m for m in msgs if m.get_type() == "MISSION_CURRENT"]
     assert [(c.seq, c.mission_state, c.mission_mode) for c in cur] == [(4, M.MISSION_STATE_ACTIVE, 1)]
     reached = [m.seq for m in msgs if m.get_type() == "MISSION_ITEM_REACHED"]
-    assert reached == [3]
+    assert reached == [2, 3]  # every reached item, in order, even two between polls
     n_repeats = sum(m.get_type() == "MISSION_ITEM_REACHED" for t in range(2, 20) for _, m in rig.poll(float(t)))
     assert n_repeats == 10  # then once a second, 10 more times (PX4)
     rig.proto.report(Progress(current=7, reached=7, active=False, finished=True))

@@ -250,8 +250,10 @@ def test_set_mode_hold_and_denials() -> None:
     mm = ModeManager()
     body = PointMass()
     mm.step(body.inputs(0.0))
-    ok, reason = mm.set_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER)
-    assert not ok and "not armed" in reason
+    # Hold can be selected while disarmed (PX4): the controller stays idle, the mode is reported.
+    assert mm.set_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER).ok
+    out = mm.step(body.inputs(0.005))
+    assert out.flight_mode is FlightMode.HOLD and not out.engaged and not out.armed
     ok, reason = mm.set_mode(Px4MainMode.POSCTL, 0)
     assert not ok and "POSCTL" in reason
     mm.arm()
