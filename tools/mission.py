@@ -3,6 +3,8 @@
     navig8-mission upload PLAN [--connect udpin:127.0.0.1:14550]    # .plan (QGroundControl JSON) or waypoint text
     navig8-mission download OUT.waypoints [--connect ...]
     navig8-mission clear [--connect ...]
+    navig8-mission fly PLAN [--connect ...] [--timeout S]      # upload, Mission, arm, progress, summary
+    navig8-mission from-scenario paper OUT.waypoints           # a scenario's script + arm schedule as a plan
 
 Plan files:
 - QGroundControl `.plan` JSON (fileType "Plan"): `mission.items` SimpleItems (command, frame, params[7],
@@ -12,6 +14,19 @@ Plan files:
 - MAVLink waypoint text ("QGC WPL 110"): one item per line, `seq current frame command p1 p2 p3 p4 x y z
   autocontinue`, tab-separated; every line is an item (no home line is skipped: this vehicle does not take
   item 0 as home, like PX4).
+
+`fly` uploads the plan, selects Mission (SET_MODE, custom_mode AUTO.MISSION), arms unless the vehicle is armed
+already (an air-started scenario), prints the progress (current item, distance from home, wall time) and
+ends with a summary line (items reached, wall time, path length, distance from home at the end) when the
+mission is complete (MISSION_CURRENT COMPLETE), the vehicle disarmed after flying, or the timeout passed.
+
+`from-scenario` turns a scenario's flight-controller script (Eq. 25 steps) and arm schedule (Eq. 26 square
+wave, its initial ramp as 0.25 s joint-target steps) into a plan: one NAV_WAYPOINT (LOCAL_NED, acceptance
+radius 1000 m, so it is done the step it is commanded, as a step setpoint is) per setpoint step,
+NAVIG8_PITCH_HOLD for pitch steps, NAVIG8_ARM_JOINTS for arm targets, CONDITION_DELAY between events and up to
+the scenario's duration (a command at the very end is left out: the scripted run ends there). Flown on the
+`paper_plan` world (the paper's world without a script: the FC starts hovering and the plan commands
+everything), it reproduces the paper run (docs/gcs.md).
 
 The client side of the mission protocol lives here (`upload`, `download`), used by the SITL tests too: the vehicle
 requests each item; the client answers whatever seq is requested (a repeated request gets the item again) and
@@ -192,6 +207,124 @@ def download(conn: Any, mission_type: int = MissionType.MISSION, timeout_s: floa
     return tuple(items), current
 
 
+# --- a scenario as a plan ---------------------------------------------------------------------------------
+RAMP_STEP_S = 0.25  # the arm's initial ramp, as joint-target steps this far apart
+
+
+def plan_from_scenario(name_or_path: str) -> tuple[MissionItem, ...]:
+    from navig8_fc.flight.script import load_flight_script
+    from sim_bridge.scenario import load_scenario
+
+    script = load_flight_script(name_or_path)
+    world = load_scenario(name_or_path)
+    events: list[tuple[float, int, MissionItem]] = []  # (t, order, item)
+
+    def waypoint(t: float) -> MissionItem:
+        sp = script.setpoint_at(t)
+        x, y = round(sp.pos_ned[0] * 1e4), round(sp.pos_ned[1] * 1e4)
+        return MissionItem(Frame.LOCAL_NED, Cmd.NAV_WAYPOINT, 1, 0.0, 1000.0, 0.0, math.degrees(sp.yaw_rad), x, y,
+                           sp.pos_ned[2])
+
+    def pitch(t: float) -> MissionItem:
+        return MissionItem(Frame.MISSION, Cmd.NAVIG8_PITCH_HOLD, 1, math.degrees(script.setpoint_at(t).pitch_rad),
+                           0.0, 0.0, 0.0, 0, 0, 0.0)
+
+    def joints(q: tuple[float, float, float]) -> MissionItem:
+        d = [round(math.degrees(v), 6) for v in q]
+        return MissionItem(Frame.MISSION, Cmd.NAVIG8_ARM_JOINTS, 1, d[0], d[1], d[2], 1.0, 0, 0, 0.0)
+
+    events.append((0.0, 0, waypoint(0.0)))
+    events.append((0.0, 1, pitch(0.0)))
+    for t, ch, _v in script.steps:
+        events.append((t, 2, pitch(t) if ch == "pitch_deg" else waypoint(t)))
+    for seg in world.arm_segments:
+        if seg.t1_s > seg.t0_s:
+            n = max(1, math.ceil((seg.t1_s - seg.t0_s) / RAMP_STEP_S))
+            for k in range(1, n + 1):
+                f = k / n
+                q = tuple(a + f * (b - a) for a, b in zip(seg.q_start_rad, seg.q_end_rad, strict=True))
+                events.append((seg.t0_s + f * (seg.t1_s - seg.t0_s), 3, joints(q)))  # type: ignore[arg-type]
+        else:
+            events.append((seg.t0_s, 3, joints(seg.q_end_rad)))
+    # Commands at the very end act on nothing in the scripted run (it stops there): leave them out, and end the
+    # plan with a delay up to the duration.
+    events = [e for e in events if e[0] < script.duration_s - 1e-9]
+    events.sort(key=lambda e: (e[0], e[1]))
+    items: list[MissionItem] = []
+    t_now = 0.0
+    for t, _, item in events:
+        if t > t_now + 1e-9:
+            items.append(MissionItem(Frame.MISSION, Cmd.CONDITION_DELAY, 1, round(t - t_now, 6), 0, 0, 0, 0, 0, 0.0))
+            t_now = t
+        items.append(item)
+    if script.duration_s > t_now + 1e-9:
+        items.append(MissionItem(Frame.MISSION, Cmd.CONDITION_DELAY, 1, round(script.duration_s - t_now, 6), 0, 0, 0,
+                                 0, 0, 0.0))
+    return tuple(items)
+
+
+def fly(conn: Any, items: tuple[MissionItem, ...], timeout_s: float, out: Any = sys.stdout) -> dict[str, Any]:
+    """Upload, Mission, arm if needed, progress until the end; the summary (module docstring)."""
+    result = upload(conn, items)
+    if result != 0:
+        raise RuntimeError(f"upload refused: MISSION_ACK {result}")
+    ts = conn.target_system
+    conn.mav.set_mode_send(ts, 1, 0x04040000)  # MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, PX4 AUTO.MISSION
+    t0 = time.monotonic()
+    deadline = t0 + timeout_s
+    armed = False
+    flew = False
+    reached: list[int] = []
+    home = None
+    path_m = 0.0
+    last_pos = None
+    state = None
+    next_arm_try = 0.0
+    last_print = -1.0
+    while time.monotonic() < deadline:
+        m = conn.recv_match(type=["HEARTBEAT", "MISSION_CURRENT", "MISSION_ITEM_REACHED", "LOCAL_POSITION_NED",
+                                  "HOME_POSITION", "STATUSTEXT"], blocking=True, timeout=0.5)
+        now = time.monotonic()
+        if not armed and now >= next_arm_try:
+            conn.mav.command_long_send(ts, 1, 400, 0, 1, 0, 0, 0, 0, 0, 0)  # COMPONENT_ARM_DISARM
+            next_arm_try = now + 1.0
+        if m is None or m.get_srcSystem() != ts or m.get_srcComponent() != 1:
+            continue
+        kind = m.get_type()
+        if kind == "HEARTBEAT":
+            was = armed
+            armed = bool(m.base_mode & 128)
+            flew = flew or armed
+            if was and not armed and reached:
+                break  # landed and disarmed at the end
+        elif kind == "HOME_POSITION":
+            home = (m.x, m.y, m.z)
+        elif kind == "MISSION_ITEM_REACHED":
+            if not reached or reached[-1] != m.seq:
+                reached.append(m.seq)
+        elif kind == "LOCAL_POSITION_NED":
+            pos = (m.x, m.y, m.z)
+            if last_pos is not None:
+                path_m += math.dist(pos, last_pos)
+            last_pos = pos
+        elif kind == "STATUSTEXT":
+            out.write(f"  [{m.text}]\n")
+        elif kind == "MISSION_CURRENT":
+            state = m.mission_state
+            if now - last_print >= 1.0:
+                last_print = now
+                d = math.dist(last_pos, home) if last_pos and home else math.nan
+                out.write(f"t {now - t0:6.1f} s  item {m.seq}/{m.total}  state {m.mission_state}  "
+                          f"from home {d:5.2f} m\n")
+            if m.mission_state == 5 and reached:  # MISSION_STATE_COMPLETE
+                break
+    summary = {"items": len(items), "reached": reached, "complete": state == 5 or (flew and not armed),
+               "wall_time_s": round(time.monotonic() - t0, 2), "path_m": round(path_m, 3),
+               "from_home_m": round(math.dist(last_pos, home), 3) if last_pos and home else None}
+    out.write(f"summary: {json.dumps(summary)}\n")
+    return summary
+
+
 def connect(url: str, timeout_s: float = 15.0) -> Any:
     conn = mavutil.mavlink_connection(url, source_system=255, source_component=190, dialect="common")
     hb = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=timeout_s,
@@ -204,11 +337,25 @@ def connect(url: str, timeout_s: float = 15.0) -> Any:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="navig8-mission", description=__doc__.split("\n\n")[0])
-    ap.add_argument("action", choices=["upload", "download", "clear"])
+    ap.add_argument("action", choices=["upload", "download", "clear", "fly", "from-scenario"])
     ap.add_argument("file", nargs="?", help="plan file to upload (.plan JSON or waypoint text) / to write")
     ap.add_argument("--connect", default="udpin:127.0.0.1:14550", help="pymavlink connection string")
+    ap.add_argument("--scenario", default="paper", help="from-scenario: the scenario (name or YAML path)")
+    ap.add_argument("--timeout", type=float, default=300.0, help="fly: give up after this many seconds")
     a = ap.parse_args(argv)
+    if a.action == "from-scenario":
+        text = write_wpl(plan_from_scenario(a.scenario))
+        if a.file:
+            Path(a.file).write_text(text, encoding="utf-8")
+        else:
+            sys.stdout.write(text)
+        return 0
     conn = connect(a.connect)
+    if a.action == "fly":
+        if not a.file:
+            ap.error("fly needs a plan file")
+        summary = fly(conn, read_plan(a.file).mission, a.timeout)
+        return 0 if summary["complete"] else 1
     if a.action == "clear":
         conn.mav.mission_clear_all_send(conn.target_system, 1, MissionType.ALL)
         ack = _from_vehicle(conn, ["MISSION_ACK"], _TIMEOUT_S)

@@ -44,6 +44,7 @@ from navig8_fc.mission.plan import (
 
 Vec3 = tuple[float, float, float]
 REACHED_LOG_LEN = 32
+EPS_S = 1e-6  # timers compare sim times that are sums of 10 ms steps: 2.5 s must not read 2.4999999 s
 
 
 @dataclass(frozen=True)
@@ -223,7 +224,7 @@ class MissionExecutor:
                 self._hold_since = t_s
             if cmd == Cmd.NAV_LOITER_UNLIM:
                 return False, False
-            return t_s - self._hold_since >= it.param1, False
+            return t_s - self._hold_since >= it.param1 - EPS_S, False
         if cmd == Cmd.NAV_LAND:
             self._move(self._target, dt)
             return self._pos == self._target and math.dist(here[:2], self._target[:2]) <= cfg.acceptance_m, True
@@ -249,9 +250,9 @@ class MissionExecutor:
         if cmd == Cmd.DO_JUMP:
             return True, False
         if cmd == Cmd.CONDITION_DELAY:
-            return t_s - self._t_start >= it.param1, False
+            return t_s - self._t_start >= it.param1 - EPS_S, False
         if cmd == Cmd.CONDITION_YAW:
             return abs(_wrap(yaw_rad - self._yaw)) < cfg.yaw_tol_rad or t_s - self._t_start >= cfg.yaw_timeout_s, False
         if cmd == Cmd.NAVIG8_PITCH_HOLD:
-            return t_s - self._t_start >= it.param2, False
+            return t_s - self._t_start >= it.param2 - EPS_S, False
         return True, False  # a command the plan checks let through but nothing to do here

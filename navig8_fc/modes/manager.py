@@ -98,6 +98,7 @@ class MissionScript:
     starts_armed_in_air: bool = False
     duration_s: float | None = None  # after this the manager holds at setpoint_at(duration_s)
     start_t_s: float = 0.0  # sim time at which an air-started mission's clock reads 0
+    yields_to_plan: bool = False  # only an air start holding its initial setpoint: an uploaded plan replaces it
 
 
 @dataclass(frozen=True)
@@ -383,6 +384,9 @@ class ModeManager:
         in flight continues on the new plan from its start item at the next step."""
         self._plan = plan if plan.items else None
         self._origin = origin
+        if self._plan is not None and self._script is not None and self._script.yields_to_plan:
+            self._script = None  # the air start's hold gives way to the plan (flown from where the vehicle is)
+            self._mission_t0_s = None
         self._exec = None
         self._progress = Progress(plan.current, reached_log=self._progress.reached_log)
         if self._mode is FlightMode.MISSION and self._script is None:
