@@ -11,6 +11,8 @@ Failsafes and faults (STATUSTEXT texts are part of the interface: docs/gcs.md):
 - sensor data stale: no bundle for FS_SENS_TOUT (the shell's wall clock: lockstep has no sim time without
   bundles) -> CRITICAL notice once per outage, pre-arm fails, an armed vehicle reports MAV_STATE_CRITICAL;
   cleared (INFO notice) when bundles arrive again. The vehicle cannot be commanded without bundles;
+- offboard setpoints lost: none for FS_OFFB_TOUT (wall clock) -> Offboard can no longer be entered, and a
+  vehicle in Offboard holds where it is (WARNING notice; PX4's COM_OF_LOSS_T with the Hold action);
 - GCS link lost: a ground station that sent heartbeats goes silent for FS_GCS_TOUT while the vehicle is armed
   in the air in a GCS-commanded mode (not a scripted mission) -> land (PX4's data-link-loss failsafe); a GCS
   that never sent a heartbeat is never lost;
@@ -34,6 +36,7 @@ from navig8_fc.core.controller import (
     FcSensors,
     FlightControllerCore,
 )
+from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.script import FlightScript
@@ -107,6 +110,7 @@ class FlightStack:
         self._sensors_stale = False
         self._stale_age_s = 0.0  # the longest sensor age seen in the current outage
         self._gcs_lost = False
+        self._offboard_live = False  # offboard setpoints are arriving (newer than FS_OFFB_TOUT)
 
     # --- configuration ---------------------------------------------------------------------------------
     @property
@@ -218,11 +222,19 @@ class FlightStack:
         self._dt_bad_n = 0
 
     # --- failsafe inputs -------------------------------------------------------------------------------
-    def check_links(self, sensor_age_s: float | None, gcs_heartbeat_age_s: float | None) -> tuple[Notice, ...]:
+    def check_links(self, sensor_age_s: float | None, gcs_heartbeat_age_s: float | None,
+                    offboard_age_s: float | None = None) -> tuple[Notice, ...]:
         """The failsafes (module docstring) from link ages measured on the caller's clock: the time since the
-        last sensor bundle (None before the first) and since the last GCS heartbeat (None: no GCS ever sent
-        one). Returns the notices to announce now; call it often (every loop of the shell)."""
+        last sensor bundle (None before the first), since the last GCS heartbeat (None: no GCS ever sent
+        one) and since the last offboard setpoint (None: none yet). Returns the notices to announce now; call it
+        often (every loop of the shell)."""
         notices: list[Notice] = []
+        if self._offboard_live and offboard_age_s is not None and offboard_age_s > float(self.registry["FS_OFFB_TOUT"]):
+            self._offboard_live = False
+            in_offboard = self._modes.flight_mode is FlightMode.OFFBOARD
+            self._modes.offboard_setpoint(None)
+            if in_offboard:
+                notices.append(Notice(SEVERITY_WARNING, f"Offboard setpoints lost for {offboard_age_s:.1f} s: holding"))
         if sensor_age_s is not None:
             tout = float(self.registry["FS_SENS_TOUT"])
             if sensor_age_s > tout:
@@ -283,6 +295,16 @@ class FlightStack:
             return Verdict(False, f"arm joints: targets beyond +-{math.degrees(lim):.0f} deg")
         self._queue(ArmRequest(joint_target_rad=(float(q_rad[0]), float(q_rad[1]), float(q_rad[2]))))
         return Verdict(True)
+
+    def offboard_setpoint(self, sp: Setpoint) -> Verdict:
+        if not all(math.isfinite(v) for v in (*sp.pos_ned, sp.pitch_rad, sp.yaw_rad)):
+            return Verdict(False, "Offboard setpoint must be finite")
+        self._modes.offboard_setpoint(sp)
+        self._offboard_live = True
+        return Verdict(True)
+
+    def reposition(self, pos_ned: tuple[float, float, float], yaw_rad: float) -> Verdict:
+        return self._modes.reposition(pos_ned, yaw_rad)
 
     def load_mission(self, plan: Plan, origin: GeoOrigin) -> None:
         self._modes.load_plan(plan, origin)

@@ -44,6 +44,14 @@ class VehicleCommands(Protocol):
 
     def arm_joints(self, q_rad: tuple[float, float, float]) -> tuple[bool, str]: ...
 
+    def offboard_setpoint(self, sp: Setpoint) -> tuple[bool, str]:
+        """A streamed offboard setpoint (NED, rad); Offboard mode flies the latest."""
+        ...
+
+    def reposition(self, pos_ned: Vec3, yaw_rad: float) -> tuple[bool, str]:
+        """DO_REPOSITION: hold at pos_ned (NaN components: keep), yaw_rad (NaN: keep)."""
+        ...
+
     def load_mission(self, plan: Plan, origin: GeoOrigin) -> None:
         """The uploaded mission plan in force (or its new start item), flown in Mission mode."""
         ...

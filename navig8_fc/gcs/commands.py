@@ -25,8 +25,10 @@ above home from p7 (COMMAND_LONG) or z (COMMAND_INT, frame GLOBAL_RELATIVE_ALT[_
 NAV_LAND here; DO_SET_MODE p1 base_mode with CUSTOM_MODE_ENABLED, p2 PX4 main mode, p3 sub mode;
 REQUEST_MESSAGE p1 message id; SET/GET_MESSAGE_INTERVAL; DO_GRIPPER p1 instance (0 or 1), p2 0 release /
 1 grab; MAV_CMD_USER_1 (31010, MAV_CMD_NAVIG8_ARM_JOINTS in navig8.xml) p1..p3 joint targets in degrees, p4
-must be 1; PREFLIGHT_STORAGE p1 0 read / 1 write / 2 reset; DO_SET_MISSION_CURRENT p1 item (-1 = keep), p2 1 =
-reset the mission's progress.
+must be 1; PREFLIGHT_STORAGE p1 0 read / 1 write / 2 reset; DO_REPOSITION p4 yaw rad, p5/p6 (x/y) latitude/
+longitude (COMMAND_LONG degrees, COMMAND_INT degE7; NaN, 0 or INT32_MAX = keep), p7 altitude AMSL (frames
+GLOBAL[_INT]) or above home (GLOBAL_RELATIVE_ALT[_INT]), NaN keep: Hold there; DO_SET_MISSION_CURRENT p1 item
+(-1 = keep), p2 1 = reset the mission's progress.
 """
 
 from __future__ import annotations
@@ -55,6 +57,7 @@ _READ_ONLY = frozenset({
     CMD.MAV_CMD_GET_HOME_POSITION, CMD.MAV_CMD_REQUEST_PROTOCOL_VERSION,
 })  # fmt: skip
 _RELATIVE_ALT_FRAMES = frozenset({CMD.MAV_FRAME_GLOBAL_RELATIVE_ALT, CMD.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
+_REPOSITION_FRAMES = _RELATIVE_ALT_FRAMES | {CMD.MAV_FRAME_GLOBAL, CMD.MAV_FRAME_GLOBAL_INT}
 
 
 class CommandTarget(VehicleCommands, Protocol):
@@ -75,6 +78,12 @@ class CommandTarget(VehicleCommands, Protocol):
 
     def message_interval_us(self, msg_id: int) -> int:
         """Current interval (MESSAGE_INTERVAL semantics: -1 disabled, 0 not available)."""
+        ...
+
+    def reposition_global(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool,
+                          yaw_rad: float) -> tuple[bool, str]:
+        """MAV_CMD_DO_REPOSITION: hold at a WGS-84 point (NaN: keep that coordinate); alt AMSL, or above home
+        when relative_alt."""
         ...
 
     def set_mission_current(self, seq: int, reset: bool) -> tuple[bool, str]:
@@ -162,6 +171,7 @@ class CommandHandler:
             MAV_CMD_NAVIG8_ARM_JOINTS: self._arm_joints,
             CMD.MAV_CMD_PREFLIGHT_STORAGE: self._storage,
             CMD.MAV_CMD_DO_SET_MISSION_CURRENT: self._set_mission_current,
+            CMD.MAV_CMD_DO_REPOSITION: self._reposition,
         }
 
     @property
@@ -322,6 +332,24 @@ class CommandHandler:
         q_rad = (math.radians(q_deg[0]), math.radians(q_deg[1]), math.radians(q_deg[2]))
         info = "Arm joints: target " + " ".join(f"{q:.1f}" for q in q_deg[:3]) + " deg"
         return self._verdict(self._vehicle.arm_joints(q_rad), info)
+
+    def _reposition(self, req: CommandRequest) -> _Outcome:
+        p = req.params
+        if req.is_int:
+            if req.frame not in _REPOSITION_FRAMES:
+                raise _BadParam(f"frame {req.frame} unsupported (GLOBAL[_INT], GLOBAL_RELATIVE_ALT[_INT])")
+            unset = (0.0, float(2**31 - 1))  # x/y 0 or INT32_MAX: not given
+            lat = math.nan if p[4] in unset else p[4] * 1e-7
+            lon = math.nan if p[5] in unset else p[5] * 1e-7
+            relative = req.frame in _RELATIVE_ALT_FRAMES
+        else:
+            lat, lon, relative = p[4], p[5], False
+        for v, what in ((lat, "latitude"), (lon, "longitude"), (p[6], "altitude"), (p[3], "yaw")):
+            if math.isinf(v):
+                raise _BadParam(f"{what} must be a number or NaN (keep)")
+        if (math.isfinite(lat) and abs(lat) > 90) or (math.isfinite(lon) and abs(lon) > 180):
+            raise _BadParam(f"position {lat:g}, {lon:g} is not on Earth")
+        return self._verdict(self._vehicle.reposition_global(lat, lon, p[6], relative, p[3]))
 
     def _set_mission_current(self, req: CommandRequest) -> _Outcome:
         seq = _int_param(req.params[0], "param1 (item)", -1, 65535)

@@ -43,7 +43,7 @@ from typing import NamedTuple
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.mission.executor import ExecConfig, MissionExecutor
 from navig8_fc.mission.geo import GeoOrigin
-from navig8_fc.mission.plan import Plan, Progress
+from navig8_fc.mission.plan import Cmd, MissionItem, Plan, Progress
 from navig8_fc.modes.px4 import FlightMode, MavLandedState, MavModeFlag, MavState, Px4MainMode
 
 Vec3 = tuple[float, float, float]
@@ -71,6 +71,7 @@ class ModeConfig:
     landed_max_height_m: float = 0.3  # fallback cue when the thrust is unknown
     landed_hold_s: float = 0.5
     air_start_home_z_ned_m: float = 0.0  # ground under an air-started vehicle (the plant's ground plane)
+    rtl_alt_m: float = 2.5  # Return (mode and plan item): climb to this height above home first if lower
 
     def __post_init__(self) -> None:
         positive = (
@@ -209,6 +210,9 @@ class ModeManager:
         self._reached_count = 0
         self._land_xy: tuple[float, float] | None = None  # where a mission's landing goes down (else: here)
         self._actions: list[tuple[str, object]] = []
+        self._rtl: MissionExecutor | None = None  # Return mode flies a one-item plan (NAV_RETURN_TO_LAUNCH)
+        self._offboard_sp: Setpoint | None = None  # the last streamed setpoint while it is fresh (None: lost)
+        self._reposition: tuple[Vec3, float] | None = None  # DO_REPOSITION target for Hold's entry
 
     # --- read access ---------------------------------------------------------------------------------
     @property
@@ -362,6 +366,22 @@ class ModeManager:
             if self._mode is not FlightMode.READY:
                 self._switch(FlightMode.READY)
             return Verdict(True)
+        if mode is FlightMode.RTL:
+            if not self._armed or self._detector.landed:
+                return Verdict(False, "Return denied: not flying")
+            if self._mode is not FlightMode.RTL:
+                self._switch(FlightMode.RTL)
+                self._events.append("Returning to launch")
+            return Verdict(True)
+        if mode is FlightMode.OFFBOARD:
+            if self._offboard_sp is None:
+                return Verdict(False, "Offboard denied: no setpoint stream (send SET_POSITION_TARGET_* first)")
+            if not self._armed:
+                return Verdict(False, "Offboard denied: not armed")
+            if self._mode is not FlightMode.OFFBOARD:
+                self._switch(FlightMode.OFFBOARD)
+                self._events.append("Offboard")
+            return Verdict(True)
         # Hold and Mission can be selected while disarmed, as on PX4 (arming then starts the mission).
         if mode is FlightMode.HOLD:
             if self._mode is not FlightMode.HOLD:
@@ -395,6 +415,35 @@ class ModeManager:
                 self._events.append("Mission cleared: holding")
             else:
                 self._entry_pending = True
+
+    def offboard_setpoint(self, sp: Setpoint | None) -> None:
+        """The latest streamed offboard setpoint (None: the stream is lost; the FlightStack decides on timeouts).
+        Offboard mode flies it; losing it in Offboard switches to Hold where the vehicle is."""
+        self._offboard_sp = sp
+        if sp is None and self._mode is FlightMode.OFFBOARD:
+            self._switch(FlightMode.HOLD)
+
+    def reposition(self, pos_ned: Vec3, yaw_rad: float = math.nan) -> Verdict:
+        """DO_REPOSITION (MAVSDK goto_location, QGC Go to / Pause): Hold at pos_ned (a NaN component: where the
+        vehicle is), yaw_rad (NaN: keep)."""
+        if not self._armed or self._detector.landed:
+            return Verdict(False, "Reposition denied: not flying")
+        self._reposition = (pos_ned, yaw_rad)
+        if self._mode is FlightMode.HOLD and not self._entry_pending:
+            self._apply_reposition()
+        else:
+            self._switch(FlightMode.HOLD)
+        return Verdict(True)
+
+    def _apply_reposition(self) -> None:
+        assert self._sp is not None and self._reposition is not None
+        (n, e, d), yaw = self._reposition
+        self._reposition = None
+        x, y, z = self._sp.pos_ned
+        pos = (x if math.isnan(n) else n, y if math.isnan(e) else e, z if math.isnan(d) else d)
+        self._sp = Setpoint(pos, self._sp.pitch_rad, self._sp.yaw_rad if math.isnan(yaw) else yaw)
+        self._hold_on_ground = False
+        self._events.append(f"Reposition to N {pos[0]:.2f} E {pos[1]:.2f} D {pos[2]:.2f} m")
 
     @property
     def mission_progress(self) -> Progress:
@@ -499,6 +548,13 @@ class ModeManager:
         if mode is FlightMode.HOLD:
             self._hold_on_ground = self._detector.landed
             self._sp = Setpoint((x, y, z), self._current_pitch(), inp.yaw_rad)
+            if self._reposition is not None:
+                self._apply_reposition()
+        elif mode is FlightMode.RTL:
+            out = self._last_output
+            start = out.setpoint if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad)
+            self._rtl = MissionExecutor(_RTL_PLAN, self._origin, self._home or inp.pos_ned,
+                                        Setpoint(start.pos_ned, 0.0, start.yaw_rad), self._exec_config())
         elif mode is FlightMode.TAKEOFF:
             self._sp = Setpoint((x, y, z), 0.0, inp.yaw_rad)
             self._ramp_z = z
@@ -518,11 +574,8 @@ class ModeManager:
             start = out.setpoint if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad)
             assert self._plan is not None
             if self._exec is None or self._exec.finished:
-                cfg = self._cfg
                 self._exec = MissionExecutor(self._plan, self._origin, self._home or inp.pos_ned, start,
-                                             ExecConfig(cfg.takeoff_climb_rate_m_s, cfg.takeoff_reached_tol_m,
-                                                        rtl_alt_m=cfg.takeoff_default_alt_m),
-                                             self._reached_count)
+                                             self._exec_config(), self._reached_count)
                 self._events.append(f"Mission started at item {self._exec.progress.current}")
             else:
                 self._events.append(f"Mission resumed at item {self._exec.progress.current}")
@@ -553,6 +606,13 @@ class ModeManager:
             if self._hold_on_ground:
                 return _idle(inp), False, None
             return self._sp, True, None
+        if mode is FlightMode.RTL:
+            return self._run_rtl(inp, dt)
+        if mode is FlightMode.OFFBOARD:
+            if self._offboard_sp is None:  # lost between the stack's check and this step
+                self._switch(FlightMode.HOLD)
+                return self._last_output.setpoint if self._last_output else _idle(inp), True, None
+            return self._offboard_sp, True, None
         if mode is FlightMode.TAKEOFF:
             assert self._sp is not None
             self._ramp_z = _approach(self._ramp_z, self._target_z, self._cfg.takeoff_climb_rate_m_s * dt)
@@ -602,6 +662,20 @@ class ModeManager:
             return final, True, None
         return script.setpoint_at(mission_t), True, mission_t
 
+    def _exec_config(self) -> ExecConfig:
+        cfg = self._cfg
+        return ExecConfig(cfg.takeoff_climb_rate_m_s, cfg.takeoff_reached_tol_m, rtl_alt_m=cfg.rtl_alt_m)
+
+    def _run_rtl(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
+        ex = self._rtl
+        assert ex is not None
+        st = ex.step(inp.t_s, inp.pos_ned, inp.yaw_rad, dt)
+        if st.land:
+            self._land_xy = (st.setpoint.pos_ned[0], st.setpoint.pos_ned[1])
+            self._switch(FlightMode.LAND)
+            self._events.append("Return: landing at home")
+        return st.setpoint, True, None
+
     def _run_plan(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
         ex = self._exec
         assert ex is not None
@@ -650,6 +724,7 @@ class ModeManager:
 
 _isfinite = math.isfinite
 _SELECTABLE_DISARMED = (FlightMode.HOLD, FlightMode.MISSION)
+_RTL_PLAN = Plan(0, (MissionItem(2, int(Cmd.NAV_RETURN_TO_LAUNCH), 1, 0.0, 0.0, 0.0, 0.0, 0, 0, 0.0),))
 _BASE_MODE_DISARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED)
 _BASE_MODE_ARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED) | int(MavModeFlag.SAFETY_ARMED)
 _ON_GROUND = int(MavLandedState.ON_GROUND)

@@ -59,7 +59,9 @@ class FlightMode(Enum):
     TAKEOFF = (Px4MainMode.AUTO, Px4AutoSubMode.TAKEOFF)
     HOLD = (Px4MainMode.AUTO, Px4AutoSubMode.LOITER)  # position hold
     LAND = (Px4MainMode.AUTO, Px4AutoSubMode.LAND)
-    MISSION = (Px4MainMode.AUTO, Px4AutoSubMode.MISSION)  # a scripted scenario (e.g. the paper's)
+    MISSION = (Px4MainMode.AUTO, Px4AutoSubMode.MISSION)  # an uploaded plan or a scripted scenario
+    RTL = (Px4MainMode.AUTO, Px4AutoSubMode.RTL)  # Return: climb, fly home, land, disarm
+    OFFBOARD = (Px4MainMode.OFFBOARD, 0)  # follows the setpoints a client streams
 
     def __init__(self, main: Px4MainMode, sub: Px4AutoSubMode) -> None:
         # Encoded once: the mode manager reports custom_mode on every control step.
@@ -89,7 +91,8 @@ class FlightMode(Enum):
         return None
 
 
-_LABELS = {"READY": "Ready", "TAKEOFF": "Takeoff", "HOLD": "Hold", "LAND": "Land", "MISSION": "Mission"}
+_LABELS = {"READY": "Ready", "TAKEOFF": "Takeoff", "HOLD": "Hold", "LAND": "Land", "MISSION": "Mission",
+           "RTL": "Return", "OFFBOARD": "Offboard"}
 
 
 # --- MAVLink enum values (common.xml / minimal.xml) the mode manager reports ---------------------------

@@ -355,8 +355,10 @@ class FlightControllerProcess:
         the last sensor bundle (once one has arrived) and of the last GCS heartbeat (once a GCS has sent one).
         The stack decides (sensor-stale fault, GCS-loss landing: navig8_fc.flight.stack); this announces."""
         last_hb = self.gcs_service.last_gcs_heartbeat
+        last_sp = self.gcs_service.last_offboard_setpoint
         notices = self.stack.check_links(now - self.last_bundle_wall if self.n_ticks > 0 else None,
-                                         None if last_hb is None else now - last_hb)
+                                         None if last_hb is None else now - last_hb,
+                                         None if last_sp is None else now - last_sp)
         if notices:
             self.announce(notices)
 

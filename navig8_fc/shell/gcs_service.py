@@ -23,6 +23,7 @@ import time
 from collections.abc import Callable, Hashable
 from typing import Any, Protocol
 
+from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.state import GripperAction, VehicleCommands, VehicleState
 from navig8_fc.gcs.commands import CommandHandler
@@ -43,6 +44,9 @@ from navig8_fc.params.registry import ParamRegistry, SetResult
 from navig8_fc.params.store import ParamStore
 
 MAV_TYPE_GCS = 6
+MAV_FRAME_LOCAL_NED, MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 1, 5, 6
+_IGNORE_POSITION = 0b111  # POSITION_TARGET_TYPEMASK X/Y/Z_IGNORE
+_IGNORE_YAW = 1024  # POSITION_TARGET_TYPEMASK_YAW_IGNORE
 
 Source = Hashable  # who sent a message, as the Outbox knows how to answer it (the process: (link name, address))
 _BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
@@ -85,6 +89,7 @@ class GcsService:
         self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text)
         self.origin = GeoOrigin()
         self._plan_generation = -1  # the mission plan generation the vehicle has
+        self.last_offboard_setpoint: float | None = None  # wall time of the last accepted offboard setpoint
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
         self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config)
@@ -113,6 +118,7 @@ class GcsService:
             out += self.misc.handle(m, now_wall)
             out += self.mission.handle(m, now_wall, source)
             out += self._set_mode_message(m)
+            out += self._offboard(m, now_wall)
             for r in out:
                 if source is None or is_broadcast_reply(kind, r.get_type()):
                     self._outbox.broadcast([r])
@@ -127,6 +133,50 @@ class GcsService:
             return []
         ok, reason = self.set_mode(int(m.base_mode), int(m.custom_mode))
         return [] if ok else self.text.warning(reason or f"SET_MODE {int(m.custom_mode):#x} refused")
+
+    def _offboard(self, m: Any, now_wall: float) -> list[Any]:
+        """SET_POSITION_TARGET_LOCAL_NED (frame LOCAL_NED) / _GLOBAL_INT (GLOBAL_INT, GLOBAL_RELATIVE_ALT_INT):
+        position (+ yaw unless its ignore bit is set) -> the vehicle's offboard setpoint. Velocity/acceleration-only
+        targets are not supported: refused by STATUSTEXT (no ACK in this protocol)."""
+        kind = m.get_type()
+        if kind not in ("SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT"):
+            return []
+        if m.target_system not in (0, self.sysid) or m.target_component not in (0, 1):
+            return []
+        mask = int(m.type_mask)
+        if mask & _IGNORE_POSITION:
+            return self.text.warning(f"{kind}: only position targets are supported (type_mask {mask})")
+        st = self._state()
+        yaw = st.setpoint.yaw_rad if st.setpoint is not None else st.home_yaw_rad
+        if not mask & _IGNORE_YAW:
+            yaw = float(m.yaw)
+        if kind == "SET_POSITION_TARGET_LOCAL_NED":
+            if int(m.coordinate_frame) != MAV_FRAME_LOCAL_NED:
+                return self.text.warning(f"{kind}: frame {int(m.coordinate_frame)} unsupported (LOCAL_NED)")
+            pos = (float(m.x), float(m.y), float(m.z))
+        else:
+            frame = int(m.coordinate_frame)
+            if frame not in (MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
+                return self.text.warning(f"{kind}: frame {frame} unsupported (GLOBAL_INT, GLOBAL_RELATIVE_ALT_INT)")
+            pos = self._to_ned(m.lat_int * 1e-7, m.lon_int * 1e-7, float(m.alt), frame != MAV_FRAME_GLOBAL_INT)
+        pitch = st.setpoint.pitch_rad if st.setpoint is not None else 0.0
+        ok, reason = self._vehicle.offboard_setpoint(Setpoint(pos, pitch, yaw))
+        if not ok:
+            return self.text.warning(reason)
+        self.last_offboard_setpoint = now_wall
+        return []
+
+    def _to_ned(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool) -> tuple[float, float, float]:
+        """A WGS-84 point around the global origin (NaN stays NaN); alt AMSL, or above home when relative_alt."""
+        n, e = self.origin.to_ned_xy(lat_deg, lon_deg)
+        home = self._state().home_ned
+        home_z = home[2] if home is not None else 0.0
+        d = home_z - alt_m if relative_alt else self.origin.alt_amsl_m - alt_m
+        return n, e, d
+
+    def reposition_global(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool,
+                          yaw_rad: float) -> tuple[bool, str]:
+        return self._vehicle.reposition(self._to_ned(lat_deg, lon_deg, alt_m, relative_alt), yaw_rad)
 
     def poll(self, now_wall: float) -> None:
         if self.mission.generation != self._plan_generation:  # a new plan, clear or start item: to the vehicle
