@@ -354,7 +354,8 @@ class ModeManager:
         mode = FlightMode.from_px4(int(custom_main), int(custom_sub))
         if mode is None:
             return Verdict(
-                False, f"Mode {_px4_name(custom_main, custom_sub)} not supported (Ready, Takeoff, Hold, Land, Mission)"
+                False, f"Mode {_px4_name(custom_main, custom_sub)} not supported "
+                "(Ready, Takeoff, Hold, Land, Mission, Return, Offboard)"
             )
         if mode is FlightMode.TAKEOFF:
             return self.takeoff()

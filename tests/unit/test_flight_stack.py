@@ -230,3 +230,24 @@ def test_stack_flies_the_script_as_the_scripted_core_did(vehicle) -> None:
         texts += [n.statustext for n in res.notices]
         plant.step(ActuatorCommand(tilt_rad=cmd.tilt_rad, speed_rad_s=cmd.speed_rad_s), 0.01)
     assert texts == ["Mission paper started (armed in the air)"]
+
+
+def test_offboard_setpoint_loss_holds_after_fs_offb_tout(vehicle) -> None:
+    from navig8_fc.core.outer_loop import Setpoint
+    from navig8_fc.modes.px4 import px4_custom_mode
+
+    stack, feed = _hovering_in_hold(vehicle)
+    here = stack.state().setpoint
+    assert not stack.set_mode(1, px4_custom_mode(6, 0)).ok  # no stream yet
+    assert stack.offboard_setpoint(Setpoint(here.pos_ned, 0.0, here.yaw_rad)).ok
+    assert not stack.offboard_setpoint(Setpoint((math.nan, 0.0, 0.0), 0.0, 0.0)).ok
+    assert stack.set_mode(1, px4_custom_mode(6, 0)).ok
+    feed.run(1)
+    assert stack.state().flight_mode is FlightMode.OFFBOARD
+    tout = float(stack.registry["FS_OFFB_TOUT"])
+    assert stack.check_links(0.0, None, tout - 0.01) == ()
+    (lost,) = stack.check_links(0.0, None, tout + 0.1)
+    assert lost.severity == SEVERITY_WARNING and "Offboard setpoints lost" in lost.statustext
+    feed.run(1)
+    assert stack.state().flight_mode is FlightMode.HOLD
+    assert stack.check_links(0.0, None, tout + 1.0) == ()  # once per loss

@@ -10,9 +10,11 @@ import math
 import pytest
 from test_modes import DT, PointMass, fly
 
+from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Cmd, Frame, MissionItem, Plan
 from navig8_fc.modes import FlightMode, ModeManager
+from navig8_fc.modes.manager import ModeConfig
 from navig8_fc.modes.px4 import Px4AutoSubMode, Px4MainMode
 
 ORIGIN = GeoOrigin()
@@ -98,3 +100,54 @@ def test_a_plan_ending_without_land_holds_and_reports_finished() -> None:
     assert outs[-1].flight_mode is FlightMode.HOLD and outs[-1].armed and outs[-1].engaged
     assert outs[-1].mission.finished and not outs[-1].mission.active
     assert body.pos == pytest.approx([1.0, 0.0, -2.0], abs=0.05)
+
+
+def _flying() -> tuple[ModeManager, PointMass, float]:
+    mm = ModeManager()
+    body = PointMass()
+    mm.step(body.inputs(0.0))
+    mm.arm()
+    mm.takeoff(1.5)
+    _, t = fly(mm, body, DT, 5.0)
+    return mm, body, t
+
+
+def test_return_mode_climbs_flies_home_lands_and_disarms() -> None:
+    mm, body, t = _flying()
+    assert mm.reposition((2.0, -1.0, -1.5)).ok
+    _, t = fly(mm, body, t, 5.0)
+    assert body.pos == pytest.approx([2.0, -1.0, -1.5], abs=0.05)
+    assert mm.set_mode(Px4MainMode.AUTO, Px4AutoSubMode.RTL).ok
+    outs, t = fly(mm, body, t, 20.0)
+    modes = [o.flight_mode for o in outs]
+    i_home = modes.index(FlightMode.LAND)
+    assert modes[0] is FlightMode.RTL and outs[0].custom_mode == 0x05040000
+    zs = [o.setpoint.pos_ned[2] for o in outs[:i_home]]
+    assert min(zs) == pytest.approx(-ModeConfig().rtl_alt_m)  # climbed to the return altitude first
+    assert not outs[-1].armed and math.hypot(body.pos[0], body.pos[1]) < 0.25 and body.pos[2] == 0.0
+
+
+def test_offboard_needs_a_stream_follows_it_and_holds_when_it_stops() -> None:
+    mm, body, t = _flying()
+    ok, reason = mm.set_mode(Px4MainMode.OFFBOARD, 0)
+    assert not ok and "setpoint" in reason
+    mm.offboard_setpoint(Setpoint((1.0, 1.0, -2.0), 0.0, 0.5))
+    assert mm.set_mode(Px4MainMode.OFFBOARD, 0).ok
+    outs, t = fly(mm, body, t, 4.0)
+    assert outs[-1].flight_mode is FlightMode.OFFBOARD and outs[-1].setpoint.yaw_rad == 0.5
+    assert body.pos == pytest.approx([1.0, 1.0, -2.0], abs=0.05)
+    mm.offboard_setpoint(None)  # the stack's FS_OFFB_TOUT check: lost
+    outs, t = fly(mm, body, t, 1.0)
+    assert outs[-1].flight_mode is FlightMode.HOLD and body.pos == pytest.approx([1.0, 1.0, -2.0], abs=0.05)
+    assert not mm.set_mode(Px4MainMode.OFFBOARD, 0).ok
+
+
+def test_reposition_denied_on_the_ground_and_nan_keeps_coordinates() -> None:
+    mm = ModeManager()
+    body = PointMass()
+    mm.step(body.inputs(0.0))
+    assert not mm.reposition((1.0, 1.0, -1.0)).ok
+    mm, body, t = _flying()
+    assert mm.reposition((math.nan, 1.0, math.nan), math.nan).ok
+    outs, t = fly(mm, body, t, 3.0)
+    assert outs[-1].flight_mode is FlightMode.HOLD and outs[-1].setpoint.pos_ned == pytest.approx((0.0, 1.0, -1.5))
