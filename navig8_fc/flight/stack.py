@@ -303,6 +303,9 @@ class FlightStack:
         self._offboard_live = True
         return Verdict(True)
 
+    def manual_input(self, x: float, y: float, z: float, r: float) -> None:
+        self._modes.manual_input(x, y, z, r)
+
     def reposition(self, pos_ned: tuple[float, float, float], yaw_rad: float) -> Verdict:
         return self._modes.reposition(pos_ned, yaw_rad)
 

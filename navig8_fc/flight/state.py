@@ -48,6 +48,10 @@ class VehicleCommands(Protocol):
         """A streamed offboard setpoint (NED, rad); Offboard mode flies the latest."""
         ...
 
+    def manual_input(self, x: float, y: float, z: float, r: float) -> None:
+        """MANUAL_CONTROL sticks, normalised (x, y, r in [-1, 1], z in [0, 1], 0.5 = hold altitude)."""
+        ...
+
     def reposition(self, pos_ned: Vec3, yaw_rad: float) -> tuple[bool, str]:
         """DO_REPOSITION: hold at pos_ned (NaN components: keep), yaw_rad (NaN: keep)."""
         ...

@@ -72,6 +72,11 @@ class ModeConfig:
     landed_hold_s: float = 0.5
     air_start_home_z_ned_m: float = 0.0  # ground under an air-started vehicle (the plant's ground plane)
     rtl_alt_m: float = 2.5  # Return (mode and plan item): climb to this height above home first if lower
+    manual_speed_m_s: float = 1.0  # Position mode: full stick = this horizontal speed
+    manual_climb_m_s: float = 0.5  # full throttle travel = this vertical speed
+    manual_yaw_rate_rad_s: float = 0.8  # full yaw stick
+    manual_deadband: float = 0.05  # of full stick travel
+    manual_lead_m: float = 1.0  # the setpoint runs at most this far ahead of the vehicle (no wind-up)
 
     def __post_init__(self) -> None:
         positive = (
@@ -213,6 +218,7 @@ class ModeManager:
         self._rtl: MissionExecutor | None = None  # Return mode flies a one-item plan (NAV_RETURN_TO_LAUNCH)
         self._offboard_sp: Setpoint | None = None  # the last streamed setpoint while it is fresh (None: lost)
         self._reposition: tuple[Vec3, float] | None = None  # DO_REPOSITION target for Hold's entry
+        self._sticks: tuple[float, float, float, float] = (0.0, 0.0, 0.5, 0.0)  # x fwd, y right, z 0..1, r
 
     # --- read access ---------------------------------------------------------------------------------
     @property
@@ -355,7 +361,7 @@ class ModeManager:
         if mode is None:
             return Verdict(
                 False, f"Mode {_px4_name(custom_main, custom_sub)} not supported "
-                "(Ready, Takeoff, Hold, Land, Mission, Return, Offboard)"
+                "(Ready, Takeoff, Hold, Land, Mission, Return, Offboard, Position)"
             )
         if mode is FlightMode.TAKEOFF:
             return self.takeoff()
@@ -373,6 +379,13 @@ class ModeManager:
             if self._mode is not FlightMode.RTL:
                 self._switch(FlightMode.RTL)
                 self._events.append("Returning to launch")
+            return Verdict(True)
+        if mode is FlightMode.POSCTL:
+            if not self._armed or self._detector.landed:
+                return Verdict(False, "Position denied: not flying (take off first)")
+            if self._mode is not FlightMode.POSCTL:
+                self._switch(FlightMode.POSCTL)
+                self._events.append("Position")
             return Verdict(True)
         if mode is FlightMode.OFFBOARD:
             if self._offboard_sp is None:
@@ -423,6 +436,14 @@ class ModeManager:
         self._offboard_sp = sp
         if sp is None and self._mode is FlightMode.OFFBOARD:
             self._switch(FlightMode.HOLD)
+
+    def manual_input(self, x: float, y: float, z: float, r: float) -> None:
+        """MANUAL_CONTROL sticks, normalised: x forward, y right, r yaw right in [-1, 1], z throttle in [0, 1]
+        (0.5 = hold altitude). Position mode flies them; centred sticks hold."""
+        def clip(v: float, lo: float) -> float:
+            return 0.0 if not math.isfinite(v) else min(1.0, max(lo, v))
+
+        self._sticks = (clip(x, -1.0), clip(y, -1.0), clip(z, 0.0) if math.isfinite(z) else 0.5, clip(r, -1.0))
 
     def reposition(self, pos_ned: Vec3, yaw_rad: float = math.nan) -> Verdict:
         """DO_REPOSITION (MAVSDK goto_location, QGC Go to / Pause): Hold at pos_ned (a NaN component: where the
@@ -551,6 +572,8 @@ class ModeManager:
             self._sp = Setpoint((x, y, z), self._current_pitch(), inp.yaw_rad)
             if self._reposition is not None:
                 self._apply_reposition()
+        elif mode is FlightMode.POSCTL:
+            self._sp = Setpoint((x, y, z), self._current_pitch(), inp.yaw_rad)
         elif mode is FlightMode.RTL:
             out = self._last_output
             start = out.setpoint if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad)
@@ -609,6 +632,8 @@ class ModeManager:
             return self._sp, True, None
         if mode is FlightMode.RTL:
             return self._run_rtl(inp, dt)
+        if mode is FlightMode.POSCTL:
+            return self._run_position(inp, dt), True, None
         if mode is FlightMode.OFFBOARD:
             if self._offboard_sp is None:  # lost between the stack's check and this step
                 self._switch(FlightMode.HOLD)
@@ -662,6 +687,25 @@ class ModeManager:
             self._events.append(f"Mission {script.name} complete: holding")
             return final, True, None
         return script.setpoint_at(mission_t), True, mission_t
+
+    def _run_position(self, inp: ModeInputs, dt: float) -> Setpoint:
+        """Sticks -> velocities in the heading frame, integrated into the position setpoint (PX4's Position mode:
+        centred sticks hold), the setpoint kept within manual_lead_m of the vehicle."""
+        assert self._sp is not None
+        cfg = self._cfg
+        db = cfg.manual_deadband
+        x, y, z, r = (0.0 if abs(v) < db else v for v in self._sticks[:2] + (self._sticks[2] - 0.5,) + self._sticks[3:])
+        sp = self._sp
+        yaw = _wrap_pi(sp.yaw_rad + r * cfg.manual_yaw_rate_rad_s * dt)
+        c, s_ = math.cos(yaw), math.sin(yaw)
+        v = cfg.manual_speed_m_s
+        vn, ve, vd = (c * x - s_ * y) * v, (s_ * x + c * y) * v, -2.0 * z * cfg.manual_climb_m_s
+        p = inp.pos_ned
+        lead = cfg.manual_lead_m
+        pos = tuple(min(pi + lead, max(pi - lead, si + vi * dt))
+                    for si, vi, pi in zip(sp.pos_ned, (vn, ve, vd), p, strict=True))
+        self._sp = Setpoint(pos, sp.pitch_rad, yaw)  # type: ignore[arg-type]
+        return self._sp
 
     def _exec_config(self) -> ExecConfig:
         cfg = self._cfg
@@ -724,6 +768,11 @@ class ModeManager:
 
 
 _isfinite = math.isfinite
+
+
+def _wrap_pi(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
 _SELECTABLE_DISARMED = (FlightMode.HOLD, FlightMode.MISSION)
 _RTL_PLAN = Plan(0, (MissionItem(2, int(Cmd.NAV_RETURN_TO_LAUNCH), 1, 0.0, 0.0, 0.0, 0.0, 0, 0, 0.0),))
 _BASE_MODE_DISARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED)

@@ -62,6 +62,7 @@ class FlightMode(Enum):
     MISSION = (Px4MainMode.AUTO, Px4AutoSubMode.MISSION)  # an uploaded plan or a scripted scenario
     RTL = (Px4MainMode.AUTO, Px4AutoSubMode.RTL)  # Return: climb, fly home, land, disarm
     OFFBOARD = (Px4MainMode.OFFBOARD, 0)  # follows the setpoints a client streams
+    POSCTL = (Px4MainMode.POSCTL, 0)  # Position: MANUAL_CONTROL sticks move the position setpoint
 
     def __init__(self, main: Px4MainMode, sub: Px4AutoSubMode) -> None:
         # Encoded once: the mode manager reports custom_mode on every control step.
@@ -92,7 +93,7 @@ class FlightMode(Enum):
 
 
 _LABELS = {"READY": "Ready", "TAKEOFF": "Takeoff", "HOLD": "Hold", "LAND": "Land", "MISSION": "Mission",
-           "RTL": "Return", "OFFBOARD": "Offboard"}
+           "RTL": "Return", "OFFBOARD": "Offboard", "POSCTL": "Position"}
 
 
 # --- MAVLink enum values (common.xml / minimal.xml) the mode manager reports ---------------------------

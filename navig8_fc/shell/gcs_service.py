@@ -47,6 +47,7 @@ MAV_TYPE_GCS = 6
 MAV_FRAME_LOCAL_NED, MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 1, 5, 6
 _IGNORE_POSITION = 0b111  # POSITION_TARGET_TYPEMASK X/Y/Z_IGNORE
 _IGNORE_YAW = 1024  # POSITION_TARGET_TYPEMASK_YAW_IGNORE
+MANUAL_CONTROL_TIMEOUT_S = 0.5  # MANUAL_CONTROL older than this: sticks centred (Position mode holds)
 
 Source = Hashable  # who sent a message, as the Outbox knows how to answer it (the process: (link name, address))
 _BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
@@ -90,6 +91,7 @@ class GcsService:
         self.origin = GeoOrigin()
         self._plan_generation = -1  # the mission plan generation the vehicle has
         self.last_offboard_setpoint: float | None = None  # wall time of the last accepted offboard setpoint
+        self._last_manual: float | None = None  # wall time of the last MANUAL_CONTROL
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
         self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config)
@@ -119,6 +121,10 @@ class GcsService:
             out += self.mission.handle(m, now_wall, source)
             out += self._set_mode_message(m)
             out += self._offboard(m, now_wall)
+            if kind == "MANUAL_CONTROL" and m.target in (0, self.sysid):
+                # PX4's scaling: x/y/r -1000..1000, z 0..1000 (500 = hold altitude); missing sticks are centred.
+                self._vehicle.manual_input(m.x / 1000.0, m.y / 1000.0, m.z / 1000.0, m.r / 1000.0)
+                self._last_manual = now_wall
             for r in out:
                 if source is None or is_broadcast_reply(kind, r.get_type()):
                     self._outbox.broadcast([r])
@@ -179,6 +185,9 @@ class GcsService:
         return self._vehicle.reposition(self._to_ned(lat_deg, lon_deg, alt_m, relative_alt), yaw_rad)
 
     def poll(self, now_wall: float) -> None:
+        if self._last_manual is not None and now_wall - self._last_manual > MANUAL_CONTROL_TIMEOUT_S:
+            self._last_manual = None
+            self._vehicle.manual_input(0.0, 0.0, 0.5, 0.0)  # sticks no longer received: centred (hold)
         if self.mission.generation != self._plan_generation:  # a new plan, clear or start item: to the vehicle
             self._plan_generation = self.mission.generation
             self._vehicle.load_mission(self.mission.plan(), self.origin)

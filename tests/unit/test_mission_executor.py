@@ -151,3 +151,20 @@ def test_reposition_denied_on_the_ground_and_nan_keeps_coordinates() -> None:
     assert mm.reposition((math.nan, 1.0, math.nan), math.nan).ok
     outs, t = fly(mm, body, t, 3.0)
     assert outs[-1].flight_mode is FlightMode.HOLD and outs[-1].setpoint.pos_ned == pytest.approx((0.0, 1.0, -1.5))
+
+
+def test_position_mode_sticks_move_the_setpoint_and_centred_sticks_hold() -> None:
+    mm, body, t = _flying()
+    assert mm.set_mode(Px4MainMode.POSCTL, 0).ok
+    mm.manual_input(1.0, 0.0, 0.5, 0.0)  # full forward; heading 0 = north
+    outs, t = fly(mm, body, t, 2.0)
+    assert outs[-1].flight_mode is FlightMode.POSCTL and outs[-1].custom_mode == 0x00030000
+    assert body.pos[0] > 1.5 and abs(body.pos[1]) < 0.05  # ~1 m/s north for 2 s
+    mm.manual_input(0.0, 0.0, 0.5, 0.0)
+    _, t = fly(mm, body, t, 2.0)
+    held = list(body.pos)
+    _, t = fly(mm, body, t, 2.0)
+    assert body.pos == pytest.approx(held, abs=0.01)
+    mm.manual_input(0.0, 0.0, 1.0, 0.0)  # full throttle: climb 0.5 m/s
+    outs, t = fly(mm, body, t, 1.0)
+    assert outs[-1].setpoint.pos_ned[2] == pytest.approx(held[2] - 0.5, abs=0.02)  # the body lags (v / 2 m)
