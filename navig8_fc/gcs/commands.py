@@ -23,12 +23,12 @@ confirmation field, so every COMMAND_INT executes; all commands here are idempot
 Parameters (docs/gcs.md has the table): COMPONENT_ARM_DISARM p1 1/0, p2 21196 = force; NAV_TAKEOFF altitude
 above home from p7 (COMMAND_LONG) or z (COMMAND_INT, frame GLOBAL_RELATIVE_ALT[_INT]), NaN = default;
 NAV_LAND here; DO_SET_MODE p1 base_mode with CUSTOM_MODE_ENABLED, p2 PX4 main mode, p3 sub mode;
-REQUEST_MESSAGE p1 message id; SET/GET_MESSAGE_INTERVAL; DO_GRIPPER p1 instance (0 or 1), p2 0 release /
-1 grab; MAV_CMD_USER_1 (31010, MAV_CMD_NAVIG8_ARM_JOINTS in navig8.xml) p1..p3 joint targets in degrees, p4
-must be 1; PREFLIGHT_STORAGE p1 0 read / 1 write / 2 reset; DO_REPOSITION p4 yaw rad, p5/p6 (x/y) latitude/
-longitude (COMMAND_LONG degrees, COMMAND_INT degE7; NaN, 0 or INT32_MAX = keep), p7 altitude AMSL (frames
-GLOBAL[_INT]) or above home (GLOBAL_RELATIVE_ALT[_INT]), NaN keep: Hold there; DO_SET_MISSION_CURRENT p1 item
-(-1 = keep), p2 1 = reset the mission's progress.
+DO_SET_STANDARD_MODE p1 MAV_STANDARD_MODE; REQUEST_MESSAGE p1 message id; SET/GET_MESSAGE_INTERVAL; DO_GRIPPER
+p1 instance (0 or 1), p2 0 release / 1 grab; MAV_CMD_USER_1 (31010, MAV_CMD_NAVIG8_ARM_JOINTS in navig8.xml)
+p1..p3 joint targets in degrees, p4 must be 1; PREFLIGHT_STORAGE p1 0 read / 1 write / 2 reset; DO_REPOSITION
+p4 yaw rad, p5/p6 (x/y) latitude/longitude (COMMAND_LONG degrees, COMMAND_INT degE7; NaN, 0 or INT32_MAX =
+keep), p7 altitude AMSL (frames GLOBAL[_INT]) or above home (GLOBAL_RELATIVE_ALT[_INT]), NaN keep: Hold there;
+DO_SET_MISSION_CURRENT p1 item (-1 = keep), p2 1 = reset the mission's progress.
 """
 
 from __future__ import annotations
@@ -50,6 +50,7 @@ MSG_ID_AUTOPILOT_VERSION = 148
 MSG_ID_HOME_POSITION = 242
 MSG_ID_MESSAGE_INTERVAL = 244
 MSG_ID_PROTOCOL_VERSION = 300
+MAV_CMD_DO_SET_STANDARD_MODE = 262
 
 CMD = mavlink2  # MAV_CMD_* / MAV_RESULT_* values are the same in every dialect that includes common.xml
 _READ_ONLY = frozenset({
@@ -78,6 +79,10 @@ class CommandTarget(VehicleCommands, Protocol):
 
     def message_interval_us(self, msg_id: int) -> int:
         """Current interval (MESSAGE_INTERVAL semantics: -1 disabled, 0 not available)."""
+        ...
+
+    def set_standard_mode(self, standard_mode: int) -> tuple[bool, str]:
+        """MAV_CMD_DO_SET_STANDARD_MODE: the mode that implements a MAV_STANDARD_MODE."""
         ...
 
     def reposition_global(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool,
@@ -172,6 +177,8 @@ class CommandHandler:
             CMD.MAV_CMD_PREFLIGHT_STORAGE: self._storage,
             CMD.MAV_CMD_DO_SET_MISSION_CURRENT: self._set_mission_current,
             CMD.MAV_CMD_DO_REPOSITION: self._reposition,
+            MAV_CMD_DO_SET_STANDARD_MODE: lambda r: self._verdict(
+                self._vehicle.set_standard_mode(_int_param(r.params[0], "param1 (standard mode)", 0, 255))),
         }
 
     @property

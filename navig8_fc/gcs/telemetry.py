@@ -278,8 +278,10 @@ class TelemetryBuilder:
         sw_version_type: int = M.FIRMWARE_VERSION_TYPE_DEV,
         custom_version: bytes = b"",
         approach_height_m: float = 2.5,
+        autopilot: int = M.MAV_AUTOPILOT_GENERIC,
     ) -> None:
         self._mav = mav
+        self.autopilot = int(autopilot)  # HEARTBEAT.autopilot: GENERIC, or PX4 as an option (docs/gcs.md)
         self._sysid = int(sysid)
         self._compid = int(compid)
         major, minor, patch = sw_version
@@ -334,7 +336,7 @@ class TelemetryBuilder:
         base = (snap.base_mode & ~M.MAV_MODE_FLAG_SAFETY_ARMED & 0xFF) | M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | armed_bit
         return [
             self._mav.heartbeat_encode(
-                M.MAV_TYPE_TRICOPTER, M.MAV_AUTOPILOT_GENERIC, base, snap.custom_mode & 0xFFFFFFFF,
+                M.MAV_TYPE_TRICOPTER, self.autopilot, base, snap.custom_mode & 0xFFFFFFFF,
                 snap.system_status, 3,
             )
         ]  # fmt: skip

@@ -40,10 +40,15 @@ from navig8_fc.gcs.telemetry import (
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.protocol import MissionProtocol
 from navig8_fc.mission.store import MissionStore
+from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
 from navig8_fc.params.registry import ParamRegistry, SetResult
 from navig8_fc.params.store import ParamStore
 
 MAV_TYPE_GCS = 6
+MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4 = 0, 12
+MSG_AVAILABLE_MODES, MSG_CURRENT_MODE, MSG_AVAILABLE_MODES_MONITOR = 435, 436, 437
+AVAILABLE_MODES_SEQ = 1  # AVAILABLE_MODES_MONITOR.seq: the set of modes never changes at run time
+CURRENT_MODE_PERIOD_S = 2.0
 MAV_FRAME_LOCAL_NED, MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 1, 5, 6
 _IGNORE_POSITION = 0b111  # POSITION_TARGET_TYPEMASK X/Y/Z_IGNORE
 _IGNORE_YAW = 1024  # POSITION_TARGET_TYPEMASK_YAW_IGNORE
@@ -76,7 +81,8 @@ def is_broadcast_reply(request_type: str, reply_type: str) -> bool:
 class GcsService:
     def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], vehicle: VehicleCommands,
                  outbox: Outbox, registry: ParamRegistry, vehicle_config: VehicleConfig,
-                 store: ParamStore | None = None, mission_store: MissionStore | None = None) -> None:
+                 store: ParamStore | None = None, mission_store: MissionStore | None = None,
+                 autopilot: int = MAV_AUTOPILOT_GENERIC) -> None:
         """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them)."""
         self.mav = mav
         self.sysid = int(sysid)
@@ -94,7 +100,11 @@ class GcsService:
         self._last_manual: float | None = None  # wall time of the last MANUAL_CONTROL
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
-        self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config)
+        self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config, autopilot)
+        self._intended_custom_mode = 0  # the last mode a ground station asked for (CURRENT_MODE); 0 unknown
+        self._current_mode_sent: tuple[int, int] | None = None
+        self._current_mode_t = -math.inf
+        self._std_modes = hasattr(mav, "current_mode_encode")  # navig8.xml includes development.xml: it has them
 
     @property
     def last_gcs_heartbeat(self) -> float | None:
@@ -198,6 +208,12 @@ class GcsService:
             else:
                 self._outbox.reply(source, [m])
         msgs = self.telemetry.due_messages(now_wall)
+        custom = self._state().custom_mode
+        key = (custom, self._intended_custom_mode)
+        if self._std_modes and (key != self._current_mode_sent
+                                or now_wall - self._current_mode_t >= CURRENT_MODE_PERIOD_S):
+            self._current_mode_sent, self._current_mode_t = key, now_wall  # 0.5 Hz and at once on a change
+            msgs.append(self._current_mode())
         if msgs:
             self._outbox.broadcast(msgs)
 
@@ -219,7 +235,14 @@ class GcsService:
         return self._vehicle.land()
 
     def set_mode(self, base_mode: int, custom_mode: int) -> tuple[bool, str]:
+        self._intended_custom_mode = int(custom_mode)
         return self._vehicle.set_mode(base_mode, custom_mode)
+
+    def set_standard_mode(self, standard_mode: int) -> tuple[bool, str]:
+        mode = mode_for_standard(standard_mode)
+        if mode is None:
+            return False, f"Standard mode {standard_mode} not supported"
+        return self.set_mode(1, mode.custom_mode)
 
     def gripper(self, action: GripperAction) -> tuple[bool, str]:
         return self._vehicle.gripper(action)
@@ -229,7 +252,34 @@ class GcsService:
 
     # --- CommandTarget: the GCS service's own ------------------------------------------------------
     def request_message(self, msg_id: int, params: tuple[float, ...]) -> list[Any] | None:
+        if msg_id in (MSG_AVAILABLE_MODES, MSG_CURRENT_MODE, MSG_AVAILABLE_MODES_MONITOR) and not self._std_modes:
+            return None  # a dialect without the standard-modes messages (pymavlink's common.xml)
+        if msg_id == MSG_AVAILABLE_MODES:
+            return self._available_modes(params[0] if params else 0.0)
+        if msg_id == MSG_CURRENT_MODE:
+            return [self._current_mode()]
+        if msg_id == MSG_AVAILABLE_MODES_MONITOR:
+            return [self.mav.available_modes_monitor_encode(AVAILABLE_MODES_SEQ)]
         return self.telemetry.build_now(msg_id, time.monotonic())
+
+    # --- standard modes ----------------------------------------------------------------------------------
+    def _available_modes(self, index_param: float) -> list[Any] | None:
+        """REQUEST_MESSAGE(AVAILABLE_MODES) param2: 0 (or NaN) = every mode, 1..N = that one, else DENIED."""
+        n = len(AVAILABLE_MODES)
+        index = 0 if math.isnan(index_param) else int(round(index_param))
+        if not 0 <= index <= n:
+            return None
+        picked = range(1, n + 1) if index == 0 else (index,)
+        out = []
+        for i in picked:
+            mode, std, props = AVAILABLE_MODES[i - 1]
+            name = mode.label.encode() if std == 0 else b""  # standard modes are named by the ground station
+            out.append(self.mav.available_modes_encode(n, i, int(std), mode.custom_mode, props, name))
+        return out
+
+    def _current_mode(self) -> Any:
+        custom = self._state().custom_mode
+        return self.mav.current_mode_encode(standard_mode_of(custom), custom, self._intended_custom_mode)
 
     def set_message_interval(self, msg_id: int, interval_us: int) -> bool:
         return self.telemetry.scheduler.set_interval(msg_id, interval_us)
@@ -250,12 +300,15 @@ class Telemetry:
     EIG_MARGIN_PERIOD_S = 0.5  # the bound-based margin costs ~1.4 ms: refresh it at 2 Hz
 
     def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], registry: ParamRegistry,
-                 vehicle_config: VehicleConfig) -> None:
+                 vehicle_config: VehicleConfig, autopilot: int = MAV_AUTOPILOT_GENERIC) -> None:
         self._state = state
         self._registry = registry
         self._vehicle = vehicle_config
         self.scheduler = TelemetryScheduler()
-        self.builder = TelemetryBuilder(mav, sysid, 1)
+        # Announced as PX4 (option), QGroundControl's PX4 plugin wants flight_sw_version >= 1.4.1 and warns about
+        # an old release when the type is OFFICIAL: 1.15.0 DEV (docs/gcs.md, "Autopilot identity").
+        sw = (1, 15, 0) if autopilot == MAV_AUTOPILOT_PX4 else (0, 1, 0)
+        self.builder = TelemetryBuilder(mav, sysid, 1, autopilot=autopilot, sw_version=sw)
         self.boot_wall = time.monotonic()
         self._eig_margin = math.nan
         self._eig_t = -1e9
