@@ -56,6 +56,10 @@ class VehicleCommands(Protocol):
         """DO_REPOSITION: hold at pos_ned (NaN components: keep), yaw_rad (NaN: keep)."""
         ...
 
+    def load_fence(self, plan: Plan, origin: GeoOrigin) -> None:
+        """The uploaded FENCE plan, checked in flight."""
+        ...
+
     def load_mission(self, plan: Plan, origin: GeoOrigin) -> None:
         """The uploaded mission plan in force (or its new start item), flown in Mission mode."""
         ...
@@ -125,3 +129,4 @@ class VehicleState:
     lambda_crit: float  # critical eigenvalue of H(s) for the parameters in force (Eq. 9-13)
     n_steps: int
     mission: Progress = Progress()  # the uploaded plan's progress (MISSION_CURRENT, MISSION_ITEM_REACHED)
+    failsafes: tuple[str, ...] = ()  # failsafes in force (HEARTBEAT system_status CRITICAL while armed)

@@ -106,15 +106,16 @@ DEFAULT_RATES_HZ: dict[int, float] = {
 
 # Capabilities this flight controller really has (AUTOPILOT_VERSION). MISSION_INT: the mission protocol is
 # answered with the *_INT messages (and MAVSDK refuses mission upload without it); COMMAND_INT: handled;
-# SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT: position targets fly Offboard (gcs_service); MAVLINK2: always;
-# PARAM_ENCODE_BYTEWISE: how INT32 parameters are encoded (navig8_fc.gcs.params).
-# Not set: FTP (answered with NAK only), MISSION_FENCE (fence plans are stored but not enforced in flight),
-# MISSION_RALLY, SET_ATTITUDE_TARGET, GRIPPER (WIP bit).
+# SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT: position targets fly Offboard (gcs_service); MISSION_FENCE: fence
+# plans (inclusion circles and polygons) are uploaded, stored and enforced (navig8_fc.mission.fence); MAVLINK2:
+# always; PARAM_ENCODE_BYTEWISE: how INT32 parameters are encoded (navig8_fc.gcs.params).
+# Not set: FTP (answered with NAK only), MISSION_RALLY, SET_ATTITUDE_TARGET, GRIPPER (WIP bit).
 CAPABILITIES = (
     M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
     | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
     | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
     | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+    | M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
     | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     | PARAM_ENCODING_CAPABILITY
 )

@@ -38,6 +38,7 @@ from navig8_fc.gcs.telemetry import (
     sensor_bits,
 )
 from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.plan import MissionType
 from navig8_fc.mission.protocol import MissionProtocol
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
@@ -201,6 +202,7 @@ class GcsService:
         if self.mission.generation != self._plan_generation:  # a new plan, clear or start item: to the vehicle
             self._plan_generation = self.mission.generation
             self._vehicle.load_mission(self.mission.plan(), self.origin)
+            self._vehicle.load_fence(self.mission.plan(MissionType.FENCE), self.origin)
         self.mission.report(self._state().mission)
         for source, m in self.params.poll_routed(now_wall) + self.mission.poll(now_wall):
             if source is None:
@@ -324,6 +326,7 @@ class Telemetry:
                                                       float(reg["INDI_K_MAX"]), v.lambda_crit)
         zero3 = (0.0, 0.0, 0.0)
         ok = v.sensors_ok
+        bat_low_pct = float(self._registry["FS_BAT_LOW_PCT"])  # below it: unhealthy (the low-battery failsafe)
         return VehicleSnapshot(
             armed=v.armed,
             base_mode=v.base_mode,
@@ -342,7 +345,7 @@ class Telemetry:
             speed_rad_s=s.speed_rad_s if s else zero3,
             joint_pos_rad=s.joint_pos_rad if s else zero3,
             sensors=sensor_bits(imu_ok=ok, pose_ok=ok, actuators_ok=ok, estimator_ok=st is not None,
-                                battery_ok=v.battery.remaining_pct > 10, prearm_ok=bool(v.prearm.ok)),
+                                battery_ok=v.battery.remaining_pct > bat_low_pct, prearm_ok=bool(v.prearm.ok)),
             ckf_x_hat=st.adapt.x_hat if st else (math.nan,) * 4,  # type: ignore[arg-type]
             ckf_k=st.adapt.k if st else (math.nan,) * 4,  # type: ignore[arg-type]
             eig_margin=self._eig_margin,
