@@ -14,8 +14,8 @@ same session, seq + 1, opcode NAK (129), req_opcode = the request's opcode, size
 The mission protocol has its own module (navig8_fc.mission.protocol).
 
 TIMESYNC: a request (tc1 == 0) is answered with tc1 = now_s in ns and ts1 echoed (TIMESYNC v2: addressed
-to the requester when the dialect has the target fields). The shell chooses the clock: in SITL our "now"
-is sim time (mavlink_notes §2.8).
+to the requester when the dialect has the target fields). The shell chooses the clock: navig8-fc passes the
+host's monotonic clock, the one time_boot_ms counts on (sim time stands still between lockstep steps).
 """
 
 from __future__ import annotations

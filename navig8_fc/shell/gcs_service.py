@@ -59,6 +59,11 @@ Source = Hashable  # who sent a message, as the Outbox knows how to answer it (t
 _BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
 
 
+def origin_from_params(reg: ParamRegistry) -> GeoOrigin:
+    """The global origin from ORIGIN_LAT_E7 / ORIGIN_LON_E7 / ORIGIN_ALT."""
+    return GeoOrigin(int(reg["ORIGIN_LAT_E7"]) * 1e-7, int(reg["ORIGIN_LON_E7"]) * 1e-7, float(reg["ORIGIN_ALT"]))
+
+
 class Outbox(Protocol):
     """Where GcsService's messages go (the process implements it over its GCS-facing links)."""
 
@@ -91,11 +96,12 @@ class GcsService:
         self._vehicle = vehicle
         self._outbox = outbox
         self.text = StatusTextEncoder(mav)
+        self._registry = registry
         self.params = ParamProtocol(registry, mav, store, statustext=self.text)
         self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text)
         self.misc = MiscProtocols(mav, statustext=self.text)
         self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text)
-        self.origin = GeoOrigin()
+        self.origin = origin_from_params(registry)
         self._plan_generation = -1  # the mission plan generation the vehicle has
         self.last_offboard_setpoint: float | None = None  # wall time of the last accepted offboard setpoint
         self._last_manual: float | None = None  # wall time of the last MANUAL_CONTROL
@@ -132,6 +138,8 @@ class GcsService:
             out += self.mission.handle(m, now_wall, source)
             out += self._set_mode_message(m)
             out += self._offboard(m, now_wall)
+            if kind == "SET_GPS_GLOBAL_ORIGIN" and m.target_system in (0, self.sysid):
+                out += self._set_origin(m)
             if kind == "MANUAL_CONTROL" and m.target in (0, self.sysid):
                 # PX4's scaling: x/y/r -1000..1000, z 0..1000 (500 = hold altitude); missing sticks are centred.
                 self._vehicle.manual_input(m.x / 1000.0, m.y / 1000.0, m.z / 1000.0, m.r / 1000.0)
@@ -182,6 +190,33 @@ class GcsService:
             return self.text.warning(reason)
         self.last_offboard_setpoint = now_wall
         return []
+
+    def _set_origin(self, m: Any) -> list[Any]:
+        """SET_GPS_GLOBAL_ORIGIN -> the ORIGIN_* parameters (validated and saved as any PARAM_SET), then
+        GPS_GLOBAL_ORIGIN and the new PARAM_VALUEs to everyone. Refused while armed (the plan in flight and home
+        would jump)."""
+        if self._state().armed:
+            return self.text.warning("SET_GPS_GLOBAL_ORIGIN denied: vehicle armed")
+        reg = self._registry
+        names = ("ORIGIN_LAT_E7", "ORIGIN_LON_E7", "ORIGIN_ALT")
+        before = {n: reg[n] for n in names}
+        results = [reg.set(n, v) for n, v in zip(names, (int(m.latitude), int(m.longitude), m.altitude / 1000.0),
+                                                  strict=True)]
+        refused = [r for r in results if not r.accepted]
+        if refused:  # all or nothing: put back what was set
+            for n, v in before.items():
+                reg.set(n, v)
+            return [self.params.param_value(n) for n in names] + self.text.warning(
+                f"SET_GPS_GLOBAL_ORIGIN refused: {refused[0].reason or refused[0].name}")
+        out: list[Any] = [self.params.param_value(n) for n in names]
+        err = self.params.save()
+        if err:
+            out += self.text.warning(err)
+        self.origin = origin_from_params(reg)
+        self._plan_generation = -1  # global plan items move with the origin: reload them
+        return out + [self.mav.gps_global_origin_encode(round(self.origin.lat_deg * 1e7),
+                                                        round(self.origin.lon_deg * 1e7),
+                                                        round(self.origin.alt_amsl_m * 1000.0))]
 
     def _to_ned(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool) -> tuple[float, float, float]:
         """A WGS-84 point around the global origin (NaN stays NaN); alt AMSL, or above home when relative_alt."""
@@ -344,6 +379,7 @@ class Telemetry:
             tilt_rad=s.tilt_rad if s else (0.0, 0.0),
             speed_rad_s=s.speed_rad_s if s else zero3,
             joint_pos_rad=s.joint_pos_rad if s else zero3,
+            origin=origin_from_params(self._registry),
             sensors=sensor_bits(imu_ok=ok, pose_ok=ok, actuators_ok=ok, estimator_ok=st is not None,
                                 battery_ok=v.battery.remaining_pct > bat_low_pct, prearm_ok=bool(v.prearm.ok)),
             ckf_x_hat=st.adapt.x_hat if st else (math.nan,) * 4,  # type: ignore[arg-type]

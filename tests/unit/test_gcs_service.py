@@ -189,3 +189,18 @@ def test_manual_control_reaches_position_mode_and_stale_sticks_centre() -> None:
     assert rig.stack._modes._sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
     rig.gcs.poll(1.6)  # > 0.5 s without MANUAL_CONTROL: centred
     assert rig.stack._modes._sticks == (0.0, 0.0, 0.5, 0.0)
+
+
+def test_set_gps_global_origin_sets_the_origin_parameters() -> None:
+    rig = Rig()
+    rig.step(5)
+    rig.send(rig.client.set_gps_global_origin_encode(1, 473977420, 85455940, 488000), GCS)
+    (o,) = rig.outbox.pop("GPS_GLOBAL_ORIGIN")
+    assert (o[1].latitude, o[1].longitude, o[1].altitude) == (473977420, 85455940, 488000)
+    assert (rig.registry["ORIGIN_LAT_E7"], rig.registry["ORIGIN_LON_E7"]) == (473977420, 85455940)
+    assert rig.registry["ORIGIN_ALT"] == pytest.approx(488.0)
+    assert {m.param_id for _, m in rig.outbox.pop("PARAM_VALUE")} == {"ORIGIN_LAT_E7", "ORIGIN_LON_E7", "ORIGIN_ALT"}
+    assert rig.gcs.origin.lat_deg == pytest.approx(47.397742)
+    rig.send(rig.client.set_gps_global_origin_encode(1, 95 * 10**7, 0, 0), GCS)  # refused whole: nothing changes
+    assert (rig.registry["ORIGIN_LAT_E7"], rig.registry["ORIGIN_LON_E7"]) == (473977420, 85455940)
+    assert rig.registry["ORIGIN_ALT"] == pytest.approx(488.0) and rig.outbox.pop("STATUSTEXT")
