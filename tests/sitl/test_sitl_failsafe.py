@@ -47,15 +47,8 @@ def test_gcs_heartbeat_loss_lands_the_vehicle(tmp_path: Path) -> None:
         try:
             wait_heartbeat(gcs, 15.0)
             _beat(gcs)
-            gcs.mav.param_set_send(gcs.target_system, 1, b"FS_GCS_TOUT", 1.0, M.MAV_PARAM_TYPE_REAL32)
-            assert wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == "FS_GCS_TOUT") is not None
-            deadline = time.monotonic() + 15.0
-            while _cmd(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) != M.MAV_RESULT_ACCEPTED:
-                assert time.monotonic() < deadline, "arming never accepted"
-                _beat(gcs)
-                time.sleep(0.3)
-            assert _cmd(gcs, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 1.5) == \
-                M.MAV_RESULT_ACCEPTED
+            _set_param(gcs, "FS_GCS_TOUT", 1.0)
+            _arm_and_take_off(gcs, 1.5, beat=True)
             assert _until(gcs, lambda m: m.custom_mode == hold, 30.0, beat=True), "no Hold after takeoff"
             # the GCS goes silent: the FC lands and disarms by itself
             assert _until(gcs, lambda m: m.custom_mode == land, 10.0, beat=False), "no Land after GCS loss"
@@ -77,10 +70,12 @@ def _set_param(gcs, name: str, value: float, int32: bool = False) -> None:
     assert wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == name) is not None
 
 
-def _arm_and_take_off(gcs, alt_m: float) -> None:
+def _arm_and_take_off(gcs, alt_m: float, beat: bool = False) -> None:
     deadline = time.monotonic() + 15.0
     while _cmd(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) != M.MAV_RESULT_ACCEPTED:
         assert time.monotonic() < deadline, "arming never accepted"
+        if beat:
+            _beat(gcs)
         time.sleep(0.3)
     assert _cmd(gcs, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, alt_m) == M.MAV_RESULT_ACCEPTED
 
