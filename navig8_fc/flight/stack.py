@@ -123,6 +123,7 @@ class FlightStack:
         self._offboard_live = False  # offboard setpoints are arriving (newer than FS_OFFB_TOUT)
         self._failsafes: set[str] = set()  # failsafes in force (battery, fence, link losses)
         self._fence = Fence()
+        self._battery_checked: BatteryState | None = None  # the pack state the battery failsafe last looked at
 
     # --- configuration ---------------------------------------------------------------------------------
     @property
@@ -143,6 +144,9 @@ class FlightStack:
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
         self._cfg_generation = reg.generation
+        # The step's failsafe limits, read once per registry change (a lookup per step would cost ~1 us each).
+        self._fs_limits = (float(reg["FS_BAT_LOW_PCT"]), float(reg["FS_BAT_CRIT_PCT"]), float(reg["FENCE_RADIUS"]),
+                           float(reg["FENCE_ALT_MAX"]))
         step_us = 1e6 / float(reg["INDI_RATE_HZ"])  # the bundle spacing this rate needs
         self._dt_lo_us, self._dt_hi_us = math.floor(step_us), math.ceil(step_us)
         self.lambda_crit = stability.lambda_crit(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), cfg.dt_s,
@@ -250,8 +254,8 @@ class FlightStack:
             in_offboard = self._modes.flight_mode is FlightMode.OFFBOARD
             self._modes.offboard_setpoint(None)  # Offboard holds at once; then the configured action
             if in_offboard:
-                notices.append(self._failsafe(f"Offboard setpoints lost for {offboard_age_s:.1f} s",
-                                              int(self.registry["FS_OFFB_ACT"]), none_verb="holding"))
+                notices.append(self._failsafe("Offboard setpoints lost", int(self.registry["FS_OFFB_ACT"]),
+                                              f" for {offboard_age_s:.1f} s", none_verb="holding"))
         if sensor_age_s is not None:
             tout = float(self.registry["FS_SENS_TOUT"])
             if sensor_age_s > tout:
@@ -285,9 +289,10 @@ class FlightStack:
         return tuple(notices)
 
     # --- failsafe actions ------------------------------------------------------------------------------
-    def _failsafe(self, what: str, action: int, none_verb: str = "no action") -> Notice:
+    def _failsafe(self, name: str, action: int, detail: str = "", none_verb: str = "no action") -> Notice:
         """Run a failsafe action (0 none, 1 hold, 2 land, 3 return; PX4's numbering of NAV_DLL_ACT's useful
-        subset) and say so (STATUSTEXT WARNING, `what: verb`). Return falls back to Land when refused."""
+        subset) and say so (STATUSTEXT WARNING, `<name><detail>: <verb>`); `name` is in force from now on (HEARTBEAT
+        CRITICAL while armed). Return falls back to Land when refused."""
         m = self._modes
         verb = none_verb
         if action == FS_HOLD:
@@ -296,34 +301,34 @@ class FlightStack:
             verb = "landing" if m.land().ok else verb
         elif action == FS_RETURN:
             verb = "returning" if m.set_mode(4, 5).ok else ("landing" if m.land().ok else verb)
-        self._failsafes.add(what.split(" for ")[0])
-        return Notice(SEVERITY_WARNING, f"{what}: {verb}")
+        self._failsafes.add(name)
+        return Notice(SEVERITY_WARNING, f"{name}{detail}: {verb}")
 
     def _check_battery_and_fence(self, pos_ned: tuple[float, float, float]) -> None:
-        """Battery low/critical and fence breach while armed and flying; each acts once per occurrence."""
+        """Battery low/critical and fence breach while armed and flying; each acts once per occurrence. Runs every
+        step: the thresholds are read from the registry only when it changed (reconfigure), the battery only when
+        the pack model advanced."""
         m = self._modes
-        if not m.armed or m.landed:
+        if m.landed:
             return
-        reg = self.registry
-        pct = self._battery.remaining_pct
-        for name, limit, act in (("Battery critical", "FS_BAT_CRIT_PCT", "FS_BAT_CRIT_ACT"),
-                                 ("Battery low", "FS_BAT_LOW_PCT", "FS_BAT_LOW_ACT")):
-            if pct <= float(reg[limit]):
-                if name not in self._failsafes:
-                    self._failsafes.add(name)
-                    if name == "Battery low" and "Battery critical" in self._failsafes:
-                        break  # critical already acted
-                    self._notices.append(self._failsafe(f"{name} ({pct}% left)", int(reg[act])))
-                break
+        bat_low, bat_crit, fence_radius, fence_alt = self._fs_limits
+        if self._battery is not self._battery_checked:
+            self._battery_checked = self._battery
+            pct = self._battery.remaining_pct
+            reg = self.registry
+            if pct <= bat_crit and "Battery critical" not in self._failsafes:
+                self._failsafes.add("Battery low")  # critical acts; low has nothing left to add
+                self._notices.append(self._failsafe("Battery critical", int(reg["FS_BAT_CRIT_ACT"]), f" ({pct}% left)"))
+            elif pct <= bat_low and "Battery low" not in self._failsafes:
+                self._notices.append(self._failsafe("Battery low", int(reg["FS_BAT_LOW_ACT"]), f" ({pct}% left)"))
         home = m.home_ned
-        if home is None:
+        if home is None or not (fence_radius > 0.0 or fence_alt > 0.0 or self._fence.circles or self._fence.polygons):
             return
-        why = self._fence.breach(pos_ned, home, float(reg["FENCE_RADIUS"]), float(reg["FENCE_ALT_MAX"]))
+        why = self._fence.breach(pos_ned, home, fence_radius, fence_alt)
         if why is None:
             self._failsafes.discard("Fence breach")
         elif "Fence breach" not in self._failsafes:
-            self._notices.append(self._failsafe(f"Fence breach: {why}", int(reg["FS_FENCE_ACT"])))
-            self._failsafes.add("Fence breach")
+            self._notices.append(self._failsafe("Fence breach", int(self.registry["FS_FENCE_ACT"]), f": {why}"))
 
     @property
     def failsafes(self) -> tuple[str, ...]:
@@ -368,6 +373,7 @@ class FlightStack:
             return Verdict(False, "Offboard setpoint must be finite")
         self._modes.offboard_setpoint(sp)
         self._offboard_live = True
+        self._failsafes.discard("Offboard setpoints lost")
         return Verdict(True)
 
     def manual_input(self, x: float, y: float, z: float, r: float) -> None:

@@ -271,7 +271,7 @@ def test_battery_critical_runs_the_configured_action_once(vehicle, action: int, 
     stack.registry.set("FS_BAT_CRIT_ACT", action)
     stack.registry.set("FS_BAT_LOW_PCT", 100.0)
     stack.registry.set("FS_BAT_CRIT_PCT", 100.0)  # the full pack is at 100 %: at or below
-    notices = [n for _ in range(3) for n in feed.run(1)]
+    notices = [n for _ in range(50) for n in feed.run(1)]  # 0.5 s: five battery updates
     texts = [n.statustext for n in notices if n.statustext and "Battery" in n.statustext]
     assert len(texts) == 1 and texts[0].startswith("Battery critical") and stack.state().flight_mode is mode
 
