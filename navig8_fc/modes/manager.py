@@ -373,29 +373,17 @@ class ModeManager:
             if self._mode is not FlightMode.READY:
                 self._switch(FlightMode.READY)
             return Verdict(True)
+        flying = self._armed and not self._detector.landed
         if mode is FlightMode.RTL:
-            if not self._armed or self._detector.landed:
-                return Verdict(False, "Return denied: not flying")
-            if self._mode is not FlightMode.RTL:
-                self._switch(FlightMode.RTL)
-                self._events.append("Returning to launch")
-            return Verdict(True)
+            return self._enter_mode(mode, "Returning to launch") if flying else Verdict(
+                False, "Return denied: not flying")
         if mode is FlightMode.POSCTL:
-            if not self._armed or self._detector.landed:
-                return Verdict(False, "Position denied: not flying (take off first)")
-            if self._mode is not FlightMode.POSCTL:
-                self._switch(FlightMode.POSCTL)
-                self._events.append("Position")
-            return Verdict(True)
+            return self._enter_mode(mode, "Position") if flying else Verdict(
+                False, "Position denied: not flying (take off first)")
         if mode is FlightMode.OFFBOARD:
             if self._offboard_sp is None:
                 return Verdict(False, "Offboard denied: no setpoint stream (send SET_POSITION_TARGET_* first)")
-            if not self._armed:
-                return Verdict(False, "Offboard denied: not armed")
-            if self._mode is not FlightMode.OFFBOARD:
-                self._switch(FlightMode.OFFBOARD)
-                self._events.append("Offboard")
-            return Verdict(True)
+            return self._enter_mode(mode, "Offboard") if self._armed else Verdict(False, "Offboard denied: not armed")
         # Hold and Mission can be selected while disarmed, as on PX4 (arming then starts the mission).
         if mode is FlightMode.HOLD:
             if self._mode is not FlightMode.HOLD:
@@ -407,6 +395,13 @@ class ModeManager:
             return Verdict(False, "Mode Mission denied: no mission loaded")
         if self._mode is not FlightMode.MISSION:
             self._switch(FlightMode.MISSION)
+        return Verdict(True)
+
+    def _enter_mode(self, mode: FlightMode, event: str) -> Verdict:
+        """Switch to `mode` (announcing `event`) unless already in it."""
+        if self._mode is not mode:
+            self._switch(mode)
+            self._events.append(event)
         return Verdict(True)
 
     def set_custom_mode(self, custom_mode: int) -> Verdict:
