@@ -69,7 +69,7 @@ class FlightScript:
         if not self.scripted:
             return None
         return MissionScript(self.name, self.setpoint_at, starts_armed_in_air=self.starts_armed_in_air,
-                             duration_s=self.duration_s)
+                             duration_s=self.duration_s, yields_to_plan=not self.steps)
 
 
 def vec3(v: Any, deg: bool = False) -> Vec3:

@@ -11,8 +11,17 @@ Failsafes and faults (STATUSTEXT texts are part of the interface: docs/gcs.md):
 - sensor data stale: no bundle for FS_SENS_TOUT (the shell's wall clock: lockstep has no sim time without
   bundles) -> CRITICAL notice once per outage, pre-arm fails, an armed vehicle reports MAV_STATE_CRITICAL;
   cleared (INFO notice) when bundles arrive again. The vehicle cannot be commanded without bundles;
+- failsafe actions (parameters FS_*_ACT: 0 none, 1 hold, 2 land, 3 return, Return falling back to Land): each
+  says `<what>: <holding|landing|returning|no action>` (STATUSTEXT WARNING) and, while in force, HEARTBEAT
+  system_status is CRITICAL (armed) and SYS_STATUS's battery bit is unhealthy below FS_BAT_LOW_PCT;
+- offboard setpoints lost: none for FS_OFFB_TOUT (wall clock) -> Offboard can no longer be entered, a vehicle in
+  Offboard holds where it is, then FS_OFFB_ACT (PX4's COM_OF_LOSS_T / COM_OBL_RC_ACT);
+- battery low / critical: remaining below FS_BAT_LOW_PCT / FS_BAT_CRIT_PCT while flying -> FS_BAT_LOW_ACT /
+  FS_BAT_CRIT_ACT, once each;
+- fence breach: outside an uploaded inclusion circle/polygon, beyond FENCE_RADIUS or above FENCE_ALT_MAX from
+  home while flying -> FS_FENCE_ACT, once per breach (navig8_fc.mission.fence);
 - GCS link lost: a ground station that sent heartbeats goes silent for FS_GCS_TOUT while the vehicle is armed
-  in the air in a GCS-commanded mode (not a scripted mission) -> land (PX4's data-link-loss failsafe); a GCS
+  in the air in a GCS-commanded mode (not a mission) -> FS_GCS_ACT (default land; PX4's data-link-loss failsafe); a GCS
   that never sent a heartbeat is never lost;
 - control-rate mismatch: RATE_MISMATCH_STEPS bundle spacings in a row that are not 1/INDI_RATE_HZ -> ERROR
   notice once, pre-arm fails until the spacings agree again (the filters, rate limits and the stability
@@ -34,6 +43,7 @@ from navig8_fc.core.controller import (
     FcSensors,
     FlightControllerCore,
 )
+from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.script import FlightScript
@@ -49,10 +59,15 @@ from navig8_fc.flight.state import (
     VehicleState,
 )
 from navig8_fc.gcs.battery import BatteryState, battery_initial, battery_step
+from navig8_fc.mission.fence import Fence
+from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.plan import Plan
 from navig8_fc.modes.manager import ModeConfig, ModeInputs, ModeManager, ModeOutput, Verdict
 from navig8_fc.modes.px4 import FlightMode
 from navig8_fc.params.registry import ParamRegistry
 
+SYSTEM_STATUS_CRITICAL = 5  # MAV_STATE_CRITICAL: a failsafe is in force (PX4 reports the same)
+FS_NONE, FS_HOLD, FS_LAND, FS_RETURN = 0, 1, 2, 3  # failsafe actions (FS_*_ACT parameters)
 ESTIMATOR_WARMUP_S = 0.5  # 5 time constants of the INDI feedback filter before arming is allowed
 RATE_MISMATCH_STEPS = 3  # consecutive bundle spacings != 1/INDI_RATE_HZ before it is reported (not a glitch)
 FAULT_SENSORS = "sensors"  # ModeManager fault names
@@ -105,6 +120,10 @@ class FlightStack:
         self._sensors_stale = False
         self._stale_age_s = 0.0  # the longest sensor age seen in the current outage
         self._gcs_lost = False
+        self._offboard_live = False  # offboard setpoints are arriving (newer than FS_OFFB_TOUT)
+        self._failsafes: set[str] = set()  # failsafes in force (battery, fence, link losses)
+        self._fence = Fence()
+        self._battery_checked: BatteryState | None = None  # the pack state the battery failsafe last looked at
 
     # --- configuration ---------------------------------------------------------------------------------
     @property
@@ -126,6 +145,9 @@ class FlightStack:
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
         self._cfg_generation = reg.generation
+        # The step's failsafe limits, read once per registry change (a lookup per step would cost ~1 us each).
+        self._fs_limits = (float(reg["FS_BAT_LOW_PCT"]), float(reg["FS_BAT_CRIT_PCT"]), float(reg["FENCE_RADIUS"]),
+                           float(reg["FENCE_ALT_MAX"]))
         step_us = 1e6 / float(reg["INDI_RATE_HZ"])  # the bundle spacing this rate needs
         self._dt_lo_us, self._dt_hi_us = math.floor(step_us), math.ceil(step_us)
         self.lambda_crit = stability.lambda_crit(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), cfg.dt_s,
@@ -156,11 +178,19 @@ class FlightStack:
             core.reset()  # the estimator's start delay counts from arming
         cmd, st = core.step(sensors, out.setpoint, engaged=out.engaged)
         self._discharge(sensors.t_s, t1, t2, t3)
+        if out.armed:
+            self._check_battery_and_fence(sensors.pos_ned)
+        elif self._failsafes:
+            self._failsafes.clear()  # disarmed: a new flight starts clean (the battery re-triggers if still low)
         self._sensors, self._status, self._command, self._mode_out = sensors, st, cmd, out
         self._n_steps += 1
         notices = self._notices
         if out.events:
             notices += [Notice(SEVERITY_INFO, ev) for ev in out.events]
+        for kind, value in out.actions:  # plan items acting on the arm: checked and applied as the commands are
+            ok, reason = self.gripper(value) if kind == "gripper" else self.arm_joints(value)  # type: ignore[arg-type]
+            if not ok:
+                notices.append(Notice(SEVERITY_WARNING, f"Mission item refused: {reason}"))
         if notices:
             self._notices = []
         req, self._arm_request = self._arm_request, None
@@ -213,11 +243,20 @@ class FlightStack:
         self._dt_bad_n = 0
 
     # --- failsafe inputs -------------------------------------------------------------------------------
-    def check_links(self, sensor_age_s: float | None, gcs_heartbeat_age_s: float | None) -> tuple[Notice, ...]:
+    def check_links(self, sensor_age_s: float | None, gcs_heartbeat_age_s: float | None,
+                    offboard_age_s: float | None = None) -> tuple[Notice, ...]:
         """The failsafes (module docstring) from link ages measured on the caller's clock: the time since the
-        last sensor bundle (None before the first) and since the last GCS heartbeat (None: no GCS ever sent
-        one). Returns the notices to announce now; call it often (every loop of the shell)."""
+        last sensor bundle (None before the first), since the last GCS heartbeat (None: no GCS ever sent
+        one) and since the last offboard setpoint (None: none yet). Returns the notices to announce now; call it
+        often (every loop of the shell)."""
         notices: list[Notice] = []
+        if self._offboard_live and offboard_age_s is not None and offboard_age_s > float(self.registry["FS_OFFB_TOUT"]):
+            self._offboard_live = False
+            in_offboard = self._modes.flight_mode is FlightMode.OFFBOARD
+            self._modes.offboard_setpoint(None)  # Offboard holds at once; then the configured action
+            if in_offboard:
+                notices.append(self._failsafe("Offboard setpoints lost", int(self.registry["FS_OFFB_ACT"]),
+                                              f" for {offboard_age_s:.1f} s", none_verb="holding"))
         if sensor_age_s is not None:
             tout = float(self.registry["FS_SENS_TOUT"])
             if sensor_age_s > tout:
@@ -241,14 +280,65 @@ class FlightStack:
                     self._gcs_lost = True
                     m = self._modes
                     if m.armed and m.flight_mode is not FlightMode.MISSION and not m.landed:
-                        m.land()
-                        notices.append(Notice(SEVERITY_WARNING, "GCS link lost: landing"))
+                        notices.append(self._failsafe("GCS link lost", int(self.registry["FS_GCS_ACT"])))
                     else:
                         notices.append(Notice(SEVERITY_WARNING, None, "GCS link lost"))
             elif self._gcs_lost:
                 self._gcs_lost = False
+                self._failsafes.discard("GCS link lost")
                 notices.append(Notice(SEVERITY_INFO, None, "GCS link regained"))
         return tuple(notices)
+
+    # --- failsafe actions ------------------------------------------------------------------------------
+    def _failsafe(self, name: str, action: int, detail: str = "", none_verb: str = "no action") -> Notice:
+        """Run a failsafe action (0 none, 1 hold, 2 land, 3 return; PX4's numbering of NAV_DLL_ACT's useful
+        subset) and say so (STATUSTEXT WARNING, `<name><detail>: <verb>`); `name` is in force from now on (HEARTBEAT
+        CRITICAL while armed). Return falls back to Land when refused."""
+        m = self._modes
+        verb = none_verb
+        if action == FS_HOLD:
+            verb = "holding" if m.set_mode(4, 3).ok else verb
+        elif action == FS_LAND:
+            verb = "landing" if m.land().ok else verb
+        elif action == FS_RETURN:
+            verb = "returning" if m.set_mode(4, 5).ok else ("landing" if m.land().ok else verb)
+        self._failsafes.add(name)
+        return Notice(SEVERITY_WARNING, f"{name}{detail}: {verb}")
+
+    def _check_battery_and_fence(self, pos_ned: tuple[float, float, float]) -> None:
+        """Battery low/critical and fence breach while armed and flying; each acts once per occurrence. Runs every
+        step: the thresholds are read from the registry only when it changed (reconfigure), the battery only when
+        the pack model advanced."""
+        m = self._modes
+        if m.landed:
+            return
+        bat_low, bat_crit, fence_radius, fence_alt = self._fs_limits
+        if self._battery is not self._battery_checked:
+            self._battery_checked = self._battery
+            pct = self._battery.remaining_pct
+            reg = self.registry
+            if pct <= bat_crit and "Battery critical" not in self._failsafes:
+                self._failsafes.add("Battery low")  # critical acts; low has nothing left to add
+                self._notices.append(self._failsafe("Battery critical", int(reg["FS_BAT_CRIT_ACT"]), f" ({pct}% left)"))
+            elif pct <= bat_low and "Battery low" not in self._failsafes:
+                self._notices.append(self._failsafe("Battery low", int(reg["FS_BAT_LOW_ACT"]), f" ({pct}% left)"))
+        home = m.home_ned
+        if home is None or not (fence_radius > 0.0 or fence_alt > 0.0 or self._fence.circles or self._fence.polygons):
+            return
+        why = self._fence.breach(pos_ned, home, fence_radius, fence_alt)
+        if why is None:
+            self._failsafes.discard("Fence breach")
+        elif "Fence breach" not in self._failsafes:
+            self._notices.append(self._failsafe("Fence breach", int(self.registry["FS_FENCE_ACT"]), f": {why}"))
+
+    @property
+    def failsafes(self) -> tuple[str, ...]:
+        """The failsafes in force (names), for HEARTBEAT/SYS_STATUS."""
+        return tuple(sorted(self._failsafes))
+
+    def load_fence(self, plan: Plan, origin: GeoOrigin) -> None:
+        """The uploaded FENCE plan (inclusion circles and polygons), checked in flight with FS_FENCE_ACT."""
+        self._fence = Fence.from_plan(plan, origin)
 
     # --- VehicleCommands -------------------------------------------------------------------------------
     def arm(self, force: bool = False) -> Verdict:
@@ -279,6 +369,23 @@ class FlightStack:
         self._queue(ArmRequest(joint_target_rad=(float(q_rad[0]), float(q_rad[1]), float(q_rad[2]))))
         return Verdict(True)
 
+    def offboard_setpoint(self, sp: Setpoint) -> Verdict:
+        if not all(math.isfinite(v) for v in (*sp.pos_ned, sp.pitch_rad, sp.yaw_rad)):
+            return Verdict(False, "Offboard setpoint must be finite")
+        self._modes.offboard_setpoint(sp)
+        self._offboard_live = True
+        self._failsafes.discard("Offboard setpoints lost")
+        return Verdict(True)
+
+    def manual_input(self, x: float, y: float, z: float, r: float) -> None:
+        self._modes.manual_input(x, y, z, r)
+
+    def reposition(self, pos_ned: tuple[float, float, float], yaw_rad: float) -> Verdict:
+        return self._modes.reposition(pos_ned, yaw_rad)
+
+    def load_mission(self, plan: Plan, origin: GeoOrigin) -> None:
+        self._modes.load_plan(plan, origin)
+
     def _queue(self, req: ArmRequest) -> None:
         p = self._arm_request
         if p is not None:  # merge: keep both a joint target and a gripper action queued before the next step
@@ -296,7 +403,7 @@ class FlightStack:
             base_mode=mo.base_mode if mo is not None else m.base_mode,
             custom_mode=mo.custom_mode if mo is not None else m.custom_mode,
             flight_mode=mo.flight_mode if mo is not None else m.flight_mode,
-            system_status=m.system_status,
+            system_status=SYSTEM_STATUS_CRITICAL if m.armed and self._failsafes else m.system_status,
             landed_state=mo.landed_state if mo is not None else 0,
             landed=m.landed,
             home_ned=mo.home_ned if mo is not None else None,
@@ -315,4 +422,6 @@ class FlightStack:
             pending_arm_request=self._arm_request,
             lambda_crit=self.lambda_crit,
             n_steps=self._n_steps,
+            mission=mo.mission if mo is not None else m.mission_progress,
+            failsafes=self.failsafes,
         )

@@ -9,6 +9,8 @@ from typing import Literal, NamedTuple, Protocol
 from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FcSensors
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.gcs.battery import BatteryState
+from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.plan import Plan, Progress
 from navig8_fc.modes.manager import Verdict
 from navig8_fc.modes.px4 import FlightMode
 
@@ -41,6 +43,26 @@ class VehicleCommands(Protocol):
     def gripper(self, action: GripperAction) -> tuple[bool, str]: ...
 
     def arm_joints(self, q_rad: tuple[float, float, float]) -> tuple[bool, str]: ...
+
+    def offboard_setpoint(self, sp: Setpoint) -> tuple[bool, str]:
+        """A streamed offboard setpoint (NED, rad); Offboard mode flies the latest."""
+        ...
+
+    def manual_input(self, x: float, y: float, z: float, r: float) -> None:
+        """MANUAL_CONTROL sticks, normalised (x, y, r in [-1, 1], z in [0, 1], 0.5 = hold altitude)."""
+        ...
+
+    def reposition(self, pos_ned: Vec3, yaw_rad: float) -> tuple[bool, str]:
+        """DO_REPOSITION: hold at pos_ned (NaN components: keep), yaw_rad (NaN: keep)."""
+        ...
+
+    def load_fence(self, plan: Plan, origin: GeoOrigin) -> None:
+        """The uploaded FENCE plan, checked in flight."""
+        ...
+
+    def load_mission(self, plan: Plan, origin: GeoOrigin) -> None:
+        """The uploaded mission plan in force (or its new start item), flown in Mission mode."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -106,3 +128,5 @@ class VehicleState:
     pending_arm_request: ArmRequest | None
     lambda_crit: float  # critical eigenvalue of H(s) for the parameters in force (Eq. 9-13)
     n_steps: int
+    mission: Progress = Progress()  # the uploaded plan's progress (MISSION_CURRENT, MISSION_ITEM_REACHED)
+    failsafes: tuple[str, ...] = ()  # failsafes in force (HEARTBEAT system_status CRITICAL while armed)

@@ -23,9 +23,12 @@ confirmation field, so every COMMAND_INT executes; all commands here are idempot
 Parameters (docs/gcs.md has the table): COMPONENT_ARM_DISARM p1 1/0, p2 21196 = force; NAV_TAKEOFF altitude
 above home from p7 (COMMAND_LONG) or z (COMMAND_INT, frame GLOBAL_RELATIVE_ALT[_INT]), NaN = default;
 NAV_LAND here; DO_SET_MODE p1 base_mode with CUSTOM_MODE_ENABLED, p2 PX4 main mode, p3 sub mode;
-REQUEST_MESSAGE p1 message id; SET/GET_MESSAGE_INTERVAL; DO_GRIPPER p1 instance (0 or 1), p2 0 release /
-1 grab; MAV_CMD_USER_1 (31010, MAV_CMD_NAVIG8_ARM_JOINTS in navig8.xml) p1..p3 joint targets in degrees, p4
-must be 1; PREFLIGHT_STORAGE p1 0 read / 1 write / 2 reset.
+DO_SET_STANDARD_MODE p1 MAV_STANDARD_MODE; REQUEST_MESSAGE p1 message id; SET/GET_MESSAGE_INTERVAL; DO_GRIPPER
+p1 instance (0 or 1), p2 0 release / 1 grab; MAV_CMD_USER_1 (31010, MAV_CMD_NAVIG8_ARM_JOINTS in navig8.xml)
+p1..p3 joint targets in degrees, p4 must be 1; PREFLIGHT_STORAGE p1 0 read / 1 write / 2 reset; DO_REPOSITION
+p4 yaw rad, p5/p6 (x/y) latitude/longitude (COMMAND_LONG degrees, COMMAND_INT degE7; NaN, 0 or INT32_MAX =
+keep), p7 altitude AMSL (frames GLOBAL[_INT]) or above home (GLOBAL_RELATIVE_ALT[_INT]), NaN keep: Hold there;
+DO_SET_MISSION_CURRENT p1 item (-1 = keep), p2 1 = reset the mission's progress.
 """
 
 from __future__ import annotations
@@ -47,6 +50,7 @@ MSG_ID_AUTOPILOT_VERSION = 148
 MSG_ID_HOME_POSITION = 242
 MSG_ID_MESSAGE_INTERVAL = 244
 MSG_ID_PROTOCOL_VERSION = 300
+MAV_CMD_DO_SET_STANDARD_MODE = 262
 
 CMD = mavlink2  # MAV_CMD_* / MAV_RESULT_* values are the same in every dialect that includes common.xml
 _READ_ONLY = frozenset({
@@ -54,6 +58,7 @@ _READ_ONLY = frozenset({
     CMD.MAV_CMD_GET_HOME_POSITION, CMD.MAV_CMD_REQUEST_PROTOCOL_VERSION,
 })  # fmt: skip
 _RELATIVE_ALT_FRAMES = frozenset({CMD.MAV_FRAME_GLOBAL_RELATIVE_ALT, CMD.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
+_REPOSITION_FRAMES = _RELATIVE_ALT_FRAMES | {CMD.MAV_FRAME_GLOBAL, CMD.MAV_FRAME_GLOBAL_INT}
 
 
 class CommandTarget(VehicleCommands, Protocol):
@@ -74,6 +79,20 @@ class CommandTarget(VehicleCommands, Protocol):
 
     def message_interval_us(self, msg_id: int) -> int:
         """Current interval (MESSAGE_INTERVAL semantics: -1 disabled, 0 not available)."""
+        ...
+
+    def set_standard_mode(self, standard_mode: int) -> tuple[bool, str]:
+        """MAV_CMD_DO_SET_STANDARD_MODE: the mode that implements a MAV_STANDARD_MODE."""
+        ...
+
+    def reposition_global(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool,
+                          yaw_rad: float) -> tuple[bool, str]:
+        """MAV_CMD_DO_REPOSITION: hold at a WGS-84 point (NaN: keep that coordinate); alt AMSL, or above home
+        when relative_alt."""
+        ...
+
+    def set_mission_current(self, seq: int, reset: bool) -> tuple[bool, str]:
+        """MAV_CMD_DO_SET_MISSION_CURRENT: fly item `seq` next (-1: keep it; reset: forget what was reached)."""
         ...
 
     def storage(self, action: int) -> tuple[int, list[Any]]:
@@ -156,6 +175,10 @@ class CommandHandler:
             CMD.MAV_CMD_DO_GRIPPER: self._gripper,
             MAV_CMD_NAVIG8_ARM_JOINTS: self._arm_joints,
             CMD.MAV_CMD_PREFLIGHT_STORAGE: self._storage,
+            CMD.MAV_CMD_DO_SET_MISSION_CURRENT: self._set_mission_current,
+            CMD.MAV_CMD_DO_REPOSITION: self._reposition,
+            MAV_CMD_DO_SET_STANDARD_MODE: lambda r: self._verdict(
+                self._vehicle.set_standard_mode(_int_param(r.params[0], "param1 (standard mode)", 0, 255))),
         }
 
     @property
@@ -316,6 +339,29 @@ class CommandHandler:
         q_rad = (math.radians(q_deg[0]), math.radians(q_deg[1]), math.radians(q_deg[2]))
         info = "Arm joints: target " + " ".join(f"{q:.1f}" for q in q_deg[:3]) + " deg"
         return self._verdict(self._vehicle.arm_joints(q_rad), info)
+
+    def _reposition(self, req: CommandRequest) -> _Outcome:
+        p = req.params
+        if req.is_int:
+            if req.frame not in _REPOSITION_FRAMES:
+                raise _BadParam(f"frame {req.frame} unsupported (GLOBAL[_INT], GLOBAL_RELATIVE_ALT[_INT])")
+            unset = (0.0, float(2**31 - 1))  # x/y 0 or INT32_MAX: not given
+            lat = math.nan if p[4] in unset else p[4] * 1e-7
+            lon = math.nan if p[5] in unset else p[5] * 1e-7
+            relative = req.frame in _RELATIVE_ALT_FRAMES
+        else:
+            lat, lon, relative = p[4], p[5], False
+        for v, what in ((lat, "latitude"), (lon, "longitude"), (p[6], "altitude"), (p[3], "yaw")):
+            if math.isinf(v):
+                raise _BadParam(f"{what} must be a number or NaN (keep)")
+        if (math.isfinite(lat) and abs(lat) > 90) or (math.isfinite(lon) and abs(lon) > 180):
+            raise _BadParam(f"position {lat:g}, {lon:g} is not on Earth")
+        return self._verdict(self._vehicle.reposition_global(lat, lon, p[6], relative, p[3]))
+
+    def _set_mission_current(self, req: CommandRequest) -> _Outcome:
+        seq = _int_param(req.params[0], "param1 (item)", -1, 65535)
+        reset = math.isfinite(req.params[1]) and int(round(req.params[1])) == 1
+        return self._verdict(self._vehicle.set_mission_current(seq, reset))
 
     def _storage(self, req: CommandRequest) -> _Outcome:
         action = _int_param(req.params[0], "param1 (storage action)")

@@ -1,4 +1,4 @@
-"""Small GCS-facing services: MAVFTP answered with NAK, an empty mission, TIMESYNC.
+"""Small GCS-facing services: MAVFTP answered with NAK, TIMESYNC.
 
 MAVFTP (FILE_TRANSFER_PROTOCOL): we advertise no FTP capability and serve no files, but QGC and MAVSDK may
 still try FTP (component metadata, parameter download via @PARAM/param.pck). Silence would cost them a
@@ -11,20 +11,11 @@ same session, seq + 1, opcode NAK (129), req_opcode = the request's opcode, size
 - TerminateSession and ResetSessions: ACK (there is nothing to close, so "closed" is true);
 - any other opcode: UnknownCommand. Our own replies (opcodes ACK/NAK) are never answered.
 
-Mission protocol (mavlink_notes §2.5; full missions come later):
-- MISSION_REQUEST_LIST -> MISSION_COUNT(count 0, the request's mission_type): an empty mission, so QGC's
-  connect sequence and MAVSDK's download finish at once.
-- MISSION_COUNT(0) from a GCS (an upload of nothing, i.e. a clear) -> MISSION_ACK(ACCEPTED);
-  MISSION_COUNT(n > 0) -> MISSION_ACK(MAV_MISSION_UNSUPPORTED) + STATUSTEXT: upload is not implemented yet,
-  and UNSUPPORTED tells the user exactly that (MAVSDK reports Result::Unsupported) without pretending a
-  storage limit (NO_SPACE) or a permission problem (DENIED).
-- MISSION_CLEAR_ALL -> MISSION_ACK(ACCEPTED) (the mission is empty afterwards, trivially).
-- MISSION_REQUEST_INT / MISSION_REQUEST for any seq -> MISSION_ACK(INVALID_SEQUENCE): there is no item.
-All replies echo mission_type and are addressed to the requester.
+The mission protocol has its own module (navig8_fc.mission.protocol).
 
 TIMESYNC: a request (tc1 == 0) is answered with tc1 = now_s in ns and ts1 echoed (TIMESYNC v2: addressed
-to the requester when the dialect has the target fields). The shell chooses the clock: in SITL our "now"
-is sim time (mavlink_notes §2.8).
+to the requester when the dialect has the target fields). The shell chooses the clock: navig8-fc passes the
+host's monotonic clock, the one time_boot_ms counts on (sim time stands still between lockstep steps).
 """
 
 from __future__ import annotations
@@ -82,7 +73,7 @@ def ftp_reply_payload(request_payload: bytes | list[int]) -> bytes | None:
 
 
 class MiscProtocols:
-    """MAVFTP NAK, the empty mission and TIMESYNC for one component (module docstring)."""
+    """MAVFTP NAK and TIMESYNC for one component (module docstring)."""
 
     def __init__(
         self,
@@ -111,19 +102,7 @@ class MiscProtocols:
                 return []
             src_sys, src_comp = msg.get_srcSystem(), msg.get_srcComponent()
             return [self._mav.file_transfer_protocol_encode(0, src_sys, src_comp, list(payload))]
-        mission_type = int(getattr(msg, "mission_type", M.MAV_MISSION_TYPE_MISSION))
-        src_sys, src_comp = msg.get_srcSystem(), msg.get_srcComponent()
-        if kind == "MISSION_REQUEST_LIST":
-            return [self._mav.mission_count_encode(src_sys, src_comp, 0, mission_type)]
-        if kind == "MISSION_COUNT":
-            if int(msg.count) == 0:
-                return [self._mav.mission_ack_encode(src_sys, src_comp, M.MAV_MISSION_ACCEPTED, mission_type)]
-            ack = self._mav.mission_ack_encode(src_sys, src_comp, M.MAV_MISSION_UNSUPPORTED, mission_type)
-            return [ack, *self._text.warning("Mission upload not supported yet")]
-        if kind == "MISSION_CLEAR_ALL":
-            return [self._mav.mission_ack_encode(src_sys, src_comp, M.MAV_MISSION_ACCEPTED, mission_type)]
-        # MISSION_REQUEST_INT / MISSION_REQUEST: there is no item to send.
-        return [self._mav.mission_ack_encode(src_sys, src_comp, M.MAV_MISSION_INVALID_SEQUENCE, mission_type)]
+        return []
 
     def _timesync(self, msg: Any, now_s: float) -> list[Any]:
         if int(msg.tc1) != 0:
@@ -138,7 +117,4 @@ class MiscProtocols:
         return [reply]
 
 
-_HANDLED = frozenset({
-    "FILE_TRANSFER_PROTOCOL", "MISSION_REQUEST_LIST", "MISSION_COUNT", "MISSION_CLEAR_ALL",
-    "MISSION_REQUEST_INT", "MISSION_REQUEST",
-})  # fmt: skip
+_HANDLED = frozenset({"FILE_TRANSFER_PROTOCOL"})

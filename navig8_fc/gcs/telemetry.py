@@ -62,12 +62,12 @@ from pymavlink.dialects.v20 import common as mavlink2
 from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.gcs.battery import BatteryState, battery_initial
 from navig8_fc.gcs.params import PARAM_ENCODING_CAPABILITY
+from navig8_fc.mission.geo import EARTH_RADIUS_M, GeoOrigin  # noqa: F401 - GeoOrigin is part of this API
 
 M = mavlink2
 Vec3 = tuple[float, float, float]
 Vec4 = tuple[float, float, float, float]
 
-EARTH_RADIUS_M = 6_371_000.0  # PX4 CONSTANTS_RADIUS_OF_EARTH
 UINT16_MAX = 65535
 INT16_MAX = 32767
 
@@ -86,6 +86,8 @@ MSG_EXTENDED_SYS_STATE = M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE
 MSG_NAMED_VALUE_FLOAT = M.MAVLINK_MSG_ID_NAMED_VALUE_FLOAT
 MSG_ACTUATOR_OUTPUT_STATUS = M.MAVLINK_MSG_ID_ACTUATOR_OUTPUT_STATUS
 MSG_PROTOCOL_VERSION = 300  # not in every common.xml; built only when the dialect has it
+MSG_GPS_RAW_INT = M.MAVLINK_MSG_ID_GPS_RAW_INT
+MSG_GPS_GLOBAL_ORIGIN = M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN
 
 DEFAULT_RATES_HZ: dict[int, float] = {
     MSG_HEARTBEAT: 1.0,
@@ -102,15 +104,22 @@ DEFAULT_RATES_HZ: dict[int, float] = {
     MSG_HOME_POSITION: 0.5,
     MSG_EXTENDED_SYS_STATE: 2.0,
     MSG_ACTUATOR_OUTPUT_STATUS: 5.0,
+    MSG_GPS_RAW_INT: 5.0,
+    MSG_GPS_GLOBAL_ORIGIN: 0.2,
 }
 
 # Capabilities this flight controller really has (AUTOPILOT_VERSION). MISSION_INT: the mission protocol is
 # answered with the *_INT messages (and MAVSDK refuses mission upload without it); COMMAND_INT: handled;
-# MAVLINK2: always; PARAM_ENCODE_BYTEWISE: how INT32 parameters are encoded (navig8_fc.gcs.params).
-# Not set: FTP (answered with NAK only), MISSION_FENCE/RALLY, offboard setpoints, GRIPPER (WIP bit).
+# SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT: position targets fly Offboard (gcs_service); MISSION_FENCE: fence
+# plans (inclusion circles and polygons) are uploaded, stored and enforced (navig8_fc.mission.fence); MAVLINK2:
+# always; PARAM_ENCODE_BYTEWISE: how INT32 parameters are encoded (navig8_fc.gcs.params).
+# Not set: FTP (answered with NAK only), MISSION_RALLY, SET_ATTITUDE_TARGET, GRIPPER (WIP bit).
 CAPABILITIES = (
     M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
     | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+    | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+    | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+    | M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
     | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     | PARAM_ENCODING_CAPABILITY
 )
@@ -152,22 +161,6 @@ def sensor_bits(
         if ok:
             health |= bits
     return SensorBits(present, present, health)
-
-
-@dataclass(frozen=True)
-class GeoOrigin:
-    """WGS-84 position of the NED origin (default: Calgary, 1100 m AMSL)."""
-
-    lat_deg: float = 51.0789
-    lon_deg: float = -114.1339
-    alt_amsl_m: float = 1100.0
-
-    def to_global(self, pos_ned: Sequence[float]) -> tuple[float, float, float]:
-        """(lat deg, lon deg, alt AMSL m) of a NED point, flat earth (module docstring)."""
-        n, e, d = pos_ned
-        lat = self.lat_deg + math.degrees(n / EARTH_RADIUS_M)
-        lon = self.lon_deg + math.degrees(e / (EARTH_RADIUS_M * math.cos(math.radians(self.lat_deg))))
-        return lat, lon, self.alt_amsl_m - d
 
 
 _NAN4: Vec4 = (math.nan, math.nan, math.nan, math.nan)
@@ -290,8 +283,10 @@ class TelemetryBuilder:
         sw_version_type: int = M.FIRMWARE_VERSION_TYPE_DEV,
         custom_version: bytes = b"",
         approach_height_m: float = 2.5,
+        autopilot: int = M.MAV_AUTOPILOT_GENERIC,
     ) -> None:
         self._mav = mav
+        self.autopilot = int(autopilot)  # HEARTBEAT.autopilot: GENERIC, or PX4 as an option (docs/gcs.md)
         self._sysid = int(sysid)
         self._compid = int(compid)
         major, minor, patch = sw_version
@@ -312,6 +307,8 @@ class TelemetryBuilder:
             MSG_BATTERY_STATUS: self.battery_status,
             MSG_AUTOPILOT_VERSION: lambda snap, now_boot_ms: self.autopilot_version(),
             MSG_HOME_POSITION: self.home_position,
+            MSG_GPS_RAW_INT: self.gps_raw_int,
+            MSG_GPS_GLOBAL_ORIGIN: self.gps_global_origin,
             MSG_EXTENDED_SYS_STATE: self.extended_sys_state,
             MSG_NAMED_VALUE_FLOAT: self.stability_values,
             MSG_ACTUATOR_OUTPUT_STATUS: self.actuator_output_status,
@@ -346,7 +343,7 @@ class TelemetryBuilder:
         base = (snap.base_mode & ~M.MAV_MODE_FLAG_SAFETY_ARMED & 0xFF) | M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | armed_bit
         return [
             self._mav.heartbeat_encode(
-                M.MAV_TYPE_TRICOPTER, M.MAV_AUTOPILOT_GENERIC, base, snap.custom_mode & 0xFFFFFFFF,
+                M.MAV_TYPE_TRICOPTER, self.autopilot, base, snap.custom_mode & 0xFFFFFFFF,
                 snap.system_status, 3,
             )
         ]  # fmt: skip
@@ -416,6 +413,24 @@ class TelemetryBuilder:
                 _i(ve * 100.0, -INT16_MAX, INT16_MAX, 0), _i(vd * 100.0, -INT16_MAX, INT16_MAX, 0), heading_cdeg(yaw),
             )
         ]  # fmt: skip
+
+    def gps_raw_int(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        """The global position source as a GPS: motion capture + the origin is an RTK-grade fix (3D_FIX... RTK
+        would claim a receiver; 3D fix, 1 cm accuracy figures from the pose noise), so GPS widgets work."""
+        if not snap.state_valid:
+            return []
+        lat, lon, alt = snap.origin.to_global(snap.pos_ned)
+        vn, ve, _ = snap.vel_ned
+        i32 = (-(2**31), 2**31 - 1)
+        cog = _i(math.degrees(math.atan2(ve, vn)) % 360.0 * 100.0, 0, 35999, 0) if math.hypot(vn, ve) > 0.1 else 65535
+        return [self._mav.gps_raw_int_encode(
+            now_boot_ms * 1000, M.GPS_FIX_TYPE_3D_FIX, _i(lat * 1e7, *i32, 0), _i(lon * 1e7, *i32, 0),
+            _i(alt * 1000.0, *i32, 0), 100, 100, _i(math.hypot(vn, ve) * 100.0, 0, 65534, 0), cog, 255)]
+
+    def gps_global_origin(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        o = snap.origin
+        return [self._mav.gps_global_origin_encode(round(o.lat_deg * 1e7), round(o.lon_deg * 1e7),
+                                                   round(o.alt_amsl_m * 1000.0))]
 
     def vfr_hud(self, snap: VehicleSnapshot, now_boot_ms: int = 0) -> list[Any]:
         if not snap.state_valid:

@@ -13,7 +13,7 @@ writable. Generation writes into a private temporary directory and publishes wit
 concurrent processes (the bridge and the FC start together) never see a half-written module; the
 worst case is that both generate the same file once.
 
-mavgen resolves `<include>` relative to the dialect file, so common.xml, standard.xml and minimal.xml
+mavgen resolves `<include>` relative to the dialect file, so development.xml, common.xml, standard.xml and minimal.xml
 are copied from pymavlink's package (pymavlink/dialects/v20/) beside navig8.xml in the build
 directory.
 """
@@ -35,7 +35,7 @@ from types import ModuleType
 from typing import Any
 
 DIALECT_XML = Path(__file__).with_name("navig8.xml")
-INCLUDED_XMLS = ("common.xml", "standard.xml", "minimal.xml")
+INCLUDED_XMLS = ("development.xml", "common.xml", "standard.xml", "minimal.xml")
 
 # Component ids on the bridge link: the FC is the autopilot, the bridge a user component.
 COMPID_FC = 1  # MAV_COMP_ID_AUTOPILOT1

@@ -41,6 +41,9 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.mission.executor import ExecConfig, MissionExecutor
+from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.plan import Cmd, MissionItem, Plan, Progress
 from navig8_fc.modes.px4 import FlightMode, MavLandedState, MavModeFlag, MavState, Px4MainMode
 
 Vec3 = tuple[float, float, float]
@@ -68,6 +71,12 @@ class ModeConfig:
     landed_max_height_m: float = 0.3  # fallback cue when the thrust is unknown
     landed_hold_s: float = 0.5
     air_start_home_z_ned_m: float = 0.0  # ground under an air-started vehicle (the plant's ground plane)
+    rtl_alt_m: float = 2.5  # Return (mode and plan item): climb to this height above home first if lower
+    manual_speed_m_s: float = 1.0  # Position mode: full stick = this horizontal speed
+    manual_climb_m_s: float = 0.5  # full throttle travel = this vertical speed
+    manual_yaw_rate_rad_s: float = 0.8  # full yaw stick
+    manual_deadband: float = 0.05  # of full stick travel
+    manual_lead_m: float = 1.0  # the setpoint runs at most this far ahead of the vehicle (no wind-up)
 
     def __post_init__(self) -> None:
         positive = (
@@ -95,6 +104,7 @@ class MissionScript:
     starts_armed_in_air: bool = False
     duration_s: float | None = None  # after this the manager holds at setpoint_at(duration_s)
     start_t_s: float = 0.0  # sim time at which an air-started mission's clock reads 0
+    yields_to_plan: bool = False  # only an air start holding its initial setpoint: an uploaded plan replaces it
 
 
 @dataclass(frozen=True)
@@ -126,6 +136,8 @@ class ModeOutput:
     home_yaw_rad: float
     mission_time_s: float | None  # None outside MISSION
     events: tuple[str, ...] = field(default_factory=tuple)  # for STATUSTEXT (INFO)
+    mission: Progress = Progress()  # the uploaded plan's progress (navig8_fc.mission.executor)
+    actions: tuple[tuple[str, object], ...] = ()  # arm/gripper actions of plan items (MissionExecutor.step)
 
 
 class LandDetector:
@@ -195,6 +207,18 @@ class ModeManager:
         self._mission_elapsed_s = 0.0
         # Faults reported from outside the step (the FlightStack's link checks, rate check): name -> reason.
         self._faults: dict[str, str] = {}
+        # An uploaded plan (flown in MISSION when there is no script) and its executor.
+        self._plan: Plan | None = None
+        self._origin = GeoOrigin()
+        self._exec: MissionExecutor | None = None
+        self._progress = Progress()
+        self._reached_count = 0
+        self._land_xy: tuple[float, float] | None = None  # where a mission's landing goes down (else: here)
+        self._actions: list[tuple[str, object]] = []
+        self._rtl: MissionExecutor | None = None  # Return mode flies a one-item plan (NAV_RETURN_TO_LAUNCH)
+        self._offboard_sp: Setpoint | None = None  # the last streamed setpoint while it is fresh (None: lost)
+        self._reposition: tuple[Vec3, float] | None = None  # DO_REPOSITION target for Hold's entry
+        self._sticks: tuple[float, float, float, float] = (0.0, 0.0, 0.5, 0.0)  # x fwd, y right, z 0..1, r
 
     # --- read access ---------------------------------------------------------------------------------
     @property
@@ -288,8 +312,12 @@ class ModeManager:
         self._armed = True
         self._home = inp.pos_ned
         self._home_yaw_rad = inp.yaw_rad
-        # A forced arm in the air must not leave the controller idle: hold where the vehicle is.
-        self._switch(FlightMode.READY if self._detector.landed else FlightMode.HOLD)
+        # Armed in Mission: the mission starts. A forced arm in the air must not leave the controller idle: hold
+        # where the vehicle is.
+        if self._mode is FlightMode.MISSION:
+            self._switch(FlightMode.MISSION)
+        else:
+            self._switch(FlightMode.READY if self._detector.landed else FlightMode.HOLD)
         self._events.append("Armed" + (" (forced)" if force else ""))
         return Verdict(True)
 
@@ -332,7 +360,8 @@ class ModeManager:
         mode = FlightMode.from_px4(int(custom_main), int(custom_sub))
         if mode is None:
             return Verdict(
-                False, f"Mode {_px4_name(custom_main, custom_sub)} not supported (Ready, Takeoff, Hold, Land, Mission)"
+                False, f"Mode {_px4_name(custom_main, custom_sub)} not supported "
+                "(Ready, Takeoff, Hold, Land, Mission, Return, Offboard, Position)"
             )
         if mode is FlightMode.TAKEOFF:
             return self.takeoff()
@@ -344,23 +373,98 @@ class ModeManager:
             if self._mode is not FlightMode.READY:
                 self._switch(FlightMode.READY)
             return Verdict(True)
-        if not self._armed:
-            return Verdict(False, f"Mode {mode.label} denied: not armed")
+        flying = self._armed and not self._detector.landed
+        if mode is FlightMode.RTL:
+            return self._enter_mode(mode, "Returning to launch") if flying else Verdict(
+                False, "Return denied: not flying")
+        if mode is FlightMode.POSCTL:
+            return self._enter_mode(mode, "Position") if flying else Verdict(
+                False, "Position denied: not flying (take off first)")
+        if mode is FlightMode.OFFBOARD:
+            if self._offboard_sp is None:
+                return Verdict(False, "Offboard denied: no setpoint stream (send SET_POSITION_TARGET_* first)")
+            return self._enter_mode(mode, "Offboard") if self._armed else Verdict(False, "Offboard denied: not armed")
+        # Hold and Mission can be selected while disarmed, as on PX4 (arming then starts the mission).
         if mode is FlightMode.HOLD:
             if self._mode is not FlightMode.HOLD:
                 self._switch(FlightMode.HOLD)
                 self._events.append("Hold")
             return Verdict(True)
         # MISSION
-        if self._script is None:
+        if self._script is None and self._plan is None:
             return Verdict(False, "Mode Mission denied: no mission loaded")
         if self._mode is not FlightMode.MISSION:
             self._switch(FlightMode.MISSION)
         return Verdict(True)
 
+    def _enter_mode(self, mode: FlightMode, event: str) -> Verdict:
+        """Switch to `mode` (announcing `event`) unless already in it."""
+        if self._mode is not mode:
+            self._switch(mode)
+            self._events.append(event)
+        return Verdict(True)
+
     def set_custom_mode(self, custom_mode: int) -> Verdict:
         """Same as set_mode, from a PX4-encoded custom_mode."""
         return self.set_mode((custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF)
+
+    def load_plan(self, plan: Plan, origin: GeoOrigin) -> None:
+        """An uploaded mission plan (or a new start item): flown in MISSION when there is no script. A mission
+        in flight continues on the new plan from its start item at the next step."""
+        self._plan = plan if plan.items else None
+        self._origin = origin
+        if self._plan is not None and self._script is not None and self._script.yields_to_plan:
+            self._script = None  # the air start's hold gives way to the plan (flown from where the vehicle is)
+            self._mission_t0_s = None
+        self._exec = None
+        self._progress = Progress(plan.current, reached_log=self._progress.reached_log)
+        if self._mode is FlightMode.MISSION and self._script is None:
+            if self._plan is None:
+                self._switch(FlightMode.HOLD)
+                self._events.append("Mission cleared: holding")
+            else:
+                self._entry_pending = True
+
+    def offboard_setpoint(self, sp: Setpoint | None) -> None:
+        """The latest streamed offboard setpoint (None: the stream is lost; the FlightStack decides on timeouts).
+        Offboard mode flies it; losing it in Offboard switches to Hold where the vehicle is."""
+        self._offboard_sp = sp
+        if sp is None and self._mode is FlightMode.OFFBOARD:
+            self._switch(FlightMode.HOLD)
+
+    def manual_input(self, x: float, y: float, z: float, r: float) -> None:
+        """MANUAL_CONTROL sticks, normalised: x forward, y right, r yaw right in [-1, 1], z throttle in [0, 1]
+        (0.5 = hold altitude). Position mode flies them; centred sticks hold."""
+        def clip(v: float, lo: float) -> float:
+            return 0.0 if not math.isfinite(v) else min(1.0, max(lo, v))
+
+        self._sticks = (clip(x, -1.0), clip(y, -1.0), clip(z, 0.0) if math.isfinite(z) else 0.5, clip(r, -1.0))
+
+    def reposition(self, pos_ned: Vec3, yaw_rad: float = math.nan) -> Verdict:
+        """DO_REPOSITION (MAVSDK goto_location, QGC Go to / Pause): Hold at pos_ned (a NaN component: where the
+        vehicle is), yaw_rad (NaN: keep)."""
+        if not self._armed or self._detector.landed:
+            return Verdict(False, "Reposition denied: not flying")
+        self._reposition = (pos_ned, yaw_rad)
+        if self._mode is FlightMode.HOLD and not self._entry_pending:
+            self._apply_reposition()
+        else:
+            self._switch(FlightMode.HOLD)
+        return Verdict(True)
+
+    def _apply_reposition(self) -> None:
+        assert self._sp is not None and self._reposition is not None
+        (n, e, d), yaw = self._reposition
+        self._reposition = None
+        x, y, z = self._sp.pos_ned
+        pos = (x if math.isnan(n) else n, y if math.isnan(e) else e, z if math.isnan(d) else d)
+        self._sp = Setpoint(pos, self._sp.pitch_rad, self._sp.yaw_rad if math.isnan(yaw) else yaw)
+        self._hold_on_ground = False
+        self._events.append(f"Reposition to N {pos[0]:.2f} E {pos[1]:.2f} D {pos[2]:.2f} m")
+
+    @property
+    def mission_progress(self) -> Progress:
+        return self._progress
 
     # --- the step ------------------------------------------------------------------------------------
     def step(self, inp: ModeInputs) -> ModeOutput:
@@ -383,7 +487,7 @@ class ModeManager:
             self._home_yaw_rad = inp.yaw_rad
         landed = self._detector.step(inp, home[2])
         self._last = inp
-        if not self._armed and self._mode is not FlightMode.READY:
+        if not self._armed and self._mode is not FlightMode.READY and self._mode not in _SELECTABLE_DISARMED:
             self._switch(FlightMode.READY)
         if self._entry_pending:
             self._enter(inp)
@@ -406,9 +510,13 @@ class ModeManager:
             self._home_yaw_rad,
             mission_time,
             tuple(events) if events else (),
+            self._mission_progress_now(),
+            tuple(self._actions) if self._actions else (),
         )
         if events:
             events.clear()
+        if self._actions:
+            self._actions.clear()
         self._last_output = out
         return out
 
@@ -457,15 +565,39 @@ class ModeManager:
         if mode is FlightMode.HOLD:
             self._hold_on_ground = self._detector.landed
             self._sp = Setpoint((x, y, z), self._current_pitch(), inp.yaw_rad)
+            if self._reposition is not None:
+                self._apply_reposition()
+        elif mode is FlightMode.POSCTL:
+            self._sp = Setpoint((x, y, z), self._current_pitch(), inp.yaw_rad)
+        elif mode is FlightMode.RTL:
+            out = self._last_output
+            start = out.setpoint if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad)
+            self._rtl = MissionExecutor(_RTL_PLAN, self._origin, self._home or inp.pos_ned,
+                                        Setpoint(start.pos_ned, 0.0, start.yaw_rad), self._exec_config())
         elif mode is FlightMode.TAKEOFF:
             self._sp = Setpoint((x, y, z), 0.0, inp.yaw_rad)
             self._ramp_z = z
             self._target_z = self._home_z() - self._takeoff_alt_m
         elif mode is FlightMode.LAND:
+            if self._land_xy is not None:
+                x, y = self._land_xy
+                self._land_xy = None
             self._sp = Setpoint((x, y, z), 0.0, inp.yaw_rad)
             self._ramp_z = z
             self._target_z = max(self._home_z(), z) + self._cfg.land_setpoint_floor_m
             self._touchdown_t_s = None
+        elif mode is FlightMode.MISSION and self._script is None:
+            if not self._armed:
+                return  # selected on the ground: starts when armed
+            out = self._last_output
+            start = out.setpoint if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad)
+            assert self._plan is not None
+            if self._exec is None or self._exec.finished:
+                self._exec = MissionExecutor(self._plan, self._origin, self._home or inp.pos_ned, start,
+                                             self._exec_config(), self._reached_count)
+                self._events.append(f"Mission started at item {self._exec.progress.current}")
+            else:
+                self._events.append(f"Mission resumed at item {self._exec.progress.current}")
         elif mode is FlightMode.MISSION:
             assert self._script is not None
             duration = self._script.duration_s
@@ -483,6 +615,8 @@ class ModeManager:
     def _run(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
         mode = self._mode
         if mode is FlightMode.MISSION and self._armed:
+            if self._script is None:
+                return self._run_plan(inp, dt)
             return self._run_mission(inp.t_s)
         if not self._armed or mode is FlightMode.READY:
             return _idle(inp), False, None
@@ -491,6 +625,15 @@ class ModeManager:
             if self._hold_on_ground:
                 return _idle(inp), False, None
             return self._sp, True, None
+        if mode is FlightMode.RTL:
+            return self._run_rtl(inp, dt)
+        if mode is FlightMode.POSCTL:
+            return self._run_position(inp, dt), True, None
+        if mode is FlightMode.OFFBOARD:
+            if self._offboard_sp is None:  # lost between the stack's check and this step
+                self._switch(FlightMode.HOLD)
+                return self._last_output.setpoint if self._last_output else _idle(inp), True, None
+            return self._offboard_sp, True, None
         if mode is FlightMode.TAKEOFF:
             assert self._sp is not None
             self._ramp_z = _approach(self._ramp_z, self._target_z, self._cfg.takeoff_climb_rate_m_s * dt)
@@ -540,6 +683,63 @@ class ModeManager:
             return final, True, None
         return script.setpoint_at(mission_t), True, mission_t
 
+    def _run_position(self, inp: ModeInputs, dt: float) -> Setpoint:
+        """Sticks -> velocities in the heading frame, integrated into the position setpoint (PX4's Position mode:
+        centred sticks hold), the setpoint kept within manual_lead_m of the vehicle."""
+        assert self._sp is not None
+        cfg = self._cfg
+        db = cfg.manual_deadband
+        x, y, z, r = (0.0 if abs(v) < db else v for v in self._sticks[:2] + (self._sticks[2] - 0.5,) + self._sticks[3:])
+        sp = self._sp
+        yaw = _wrap_pi(sp.yaw_rad + r * cfg.manual_yaw_rate_rad_s * dt)
+        c, s_ = math.cos(yaw), math.sin(yaw)
+        v = cfg.manual_speed_m_s
+        vn, ve, vd = (c * x - s_ * y) * v, (s_ * x + c * y) * v, -2.0 * z * cfg.manual_climb_m_s
+        p = inp.pos_ned
+        lead = cfg.manual_lead_m
+        pos = tuple(min(pi + lead, max(pi - lead, si + vi * dt))
+                    for si, vi, pi in zip(sp.pos_ned, (vn, ve, vd), p, strict=True))
+        self._sp = Setpoint(pos, sp.pitch_rad, yaw)  # type: ignore[arg-type]
+        return self._sp
+
+    def _exec_config(self) -> ExecConfig:
+        cfg = self._cfg
+        return ExecConfig(cfg.takeoff_climb_rate_m_s, cfg.takeoff_reached_tol_m, rtl_alt_m=cfg.rtl_alt_m)
+
+    def _run_rtl(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
+        ex = self._rtl
+        assert ex is not None
+        st = ex.step(inp.t_s, inp.pos_ned, inp.yaw_rad, dt)
+        if st.land:
+            self._land_xy = (st.setpoint.pos_ned[0], st.setpoint.pos_ned[1])
+            self._switch(FlightMode.LAND)
+            self._events.append("Return: landing at home")
+        return st.setpoint, True, None
+
+    def _run_plan(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
+        ex = self._exec
+        assert ex is not None
+        st = ex.step(inp.t_s, inp.pos_ned, inp.yaw_rad, dt)
+        self._reached_count = ex.reached_count
+        self._progress = ex.progress
+        self._actions += st.actions
+        self._events += st.events
+        if st.land:
+            self._land_xy = (st.setpoint.pos_ned[0], st.setpoint.pos_ned[1])
+            self._switch(FlightMode.LAND)
+            self._events.append("Mission: landing")
+        elif ex.finished:
+            self._switch(FlightMode.HOLD)
+            self._entry_pending = False
+            self._hold_on_ground = self._detector.landed
+            self._sp = st.setpoint
+        return st.setpoint, True, None
+
+    def _mission_progress_now(self) -> Progress:
+        p = self._progress
+        active = self._mode is FlightMode.MISSION and self._script is None
+        return p if p.active == active else Progress(p.current, p.reached, active, p.finished, p.reached_log)
+
     def _landed_state(self) -> int:
         """MAV_LANDED_STATE (as a plain int, the way ModeOutput carries it)."""
         mode = self._mode
@@ -563,6 +763,13 @@ class ModeManager:
 
 
 _isfinite = math.isfinite
+
+
+def _wrap_pi(a: float) -> float:
+    return (a + math.pi) % (2.0 * math.pi) - math.pi
+
+_SELECTABLE_DISARMED = (FlightMode.HOLD, FlightMode.MISSION)
+_RTL_PLAN = Plan(0, (MissionItem(2, int(Cmd.NAV_RETURN_TO_LAUNCH), 1, 0.0, 0.0, 0.0, 0.0, 0, 0, 0.0),))
 _BASE_MODE_DISARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED)
 _BASE_MODE_ARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED) | int(MavModeFlag.SAFETY_ARMED)
 _ON_GROUND = int(MavLandedState.ON_GROUND)

@@ -59,7 +59,10 @@ class FlightMode(Enum):
     TAKEOFF = (Px4MainMode.AUTO, Px4AutoSubMode.TAKEOFF)
     HOLD = (Px4MainMode.AUTO, Px4AutoSubMode.LOITER)  # position hold
     LAND = (Px4MainMode.AUTO, Px4AutoSubMode.LAND)
-    MISSION = (Px4MainMode.AUTO, Px4AutoSubMode.MISSION)  # a scripted scenario (e.g. the paper's)
+    MISSION = (Px4MainMode.AUTO, Px4AutoSubMode.MISSION)  # an uploaded plan or a scripted scenario
+    RTL = (Px4MainMode.AUTO, Px4AutoSubMode.RTL)  # Return: climb, fly home, land, disarm
+    OFFBOARD = (Px4MainMode.OFFBOARD, 0)  # follows the setpoints a client streams
+    POSCTL = (Px4MainMode.POSCTL, 0)  # Position: MANUAL_CONTROL sticks move the position setpoint
 
     def __init__(self, main: Px4MainMode, sub: Px4AutoSubMode) -> None:
         # Encoded once: the mode manager reports custom_mode on every control step.
@@ -89,7 +92,8 @@ class FlightMode(Enum):
         return None
 
 
-_LABELS = {"READY": "Ready", "TAKEOFF": "Takeoff", "HOLD": "Hold", "LAND": "Land", "MISSION": "Mission"}
+_LABELS = {"READY": "Ready", "TAKEOFF": "Takeoff", "HOLD": "Hold", "LAND": "Land", "MISSION": "Mission",
+           "RTL": "Return", "OFFBOARD": "Offboard", "POSCTL": "Position"}
 
 
 # --- MAVLink enum values (common.xml / minimal.xml) the mode manager reports ---------------------------
@@ -114,3 +118,50 @@ class MavLandedState(IntEnum):
     IN_AIR = 2
     TAKEOFF = 3
     LANDING = 4
+
+
+# --- MAVLink standard modes (AVAILABLE_MODES / CURRENT_MODE / MAV_CMD_DO_SET_STANDARD_MODE) --------------
+class StandardMode(IntEnum):
+    """MAV_STANDARD_MODE (common.xml numbering, the one QGroundControl compiles against)."""
+
+    NON_STANDARD = 0
+    POSITION_HOLD = 1
+    SAFE_RECOVERY = 5  # PX4 maps AUTO_RTL here
+    MISSION = 6
+    LAND = 7
+    TAKEOFF = 8
+
+
+MODE_PROPERTY_ADVANCED = 1  # MAV_MODE_PROPERTY
+MODE_PROPERTY_NOT_USER_SELECTABLE = 2
+
+# Every mode this vehicle flies, announced in this order (AVAILABLE_MODES mode_index 1..N): the standard mode where
+# it is exact (PX4's table: POSCTL -> POSITION_HOLD, AUTO_RTL -> SAFE_RECOVERY, AUTO_MISSION -> MISSION,
+# AUTO_LAND -> LAND, AUTO_TAKEOFF -> TAKEOFF), the properties QGroundControl reads (Offboard needs a setpoint
+# stream: advanced; Ready is where the vehicle rests, not something to select).
+AVAILABLE_MODES: tuple[tuple[FlightMode, StandardMode, int], ...] = (
+    (FlightMode.POSCTL, StandardMode.POSITION_HOLD, 0),
+    (FlightMode.HOLD, StandardMode.NON_STANDARD, 0),
+    (FlightMode.MISSION, StandardMode.MISSION, 0),
+    (FlightMode.RTL, StandardMode.SAFE_RECOVERY, 0),
+    (FlightMode.LAND, StandardMode.LAND, 0),
+    (FlightMode.TAKEOFF, StandardMode.TAKEOFF, 0),
+    (FlightMode.OFFBOARD, StandardMode.NON_STANDARD, MODE_PROPERTY_ADVANCED),
+    (FlightMode.READY, StandardMode.NON_STANDARD, MODE_PROPERTY_NOT_USER_SELECTABLE),
+)
+
+
+def standard_mode_of(custom_mode: int) -> int:
+    """The MAV_STANDARD_MODE of a PX4 custom_mode (NON_STANDARD when none is exact)."""
+    for mode, std, _ in AVAILABLE_MODES:
+        if mode.custom_mode == custom_mode:
+            return int(std)
+    return int(StandardMode.NON_STANDARD)
+
+
+def mode_for_standard(standard_mode: int) -> FlightMode | None:
+    """The mode that implements a MAV_STANDARD_MODE (None: not supported here; NON_STANDARD is not selectable)."""
+    for mode, std, _ in AVAILABLE_MODES:
+        if std == standard_mode and std != StandardMode.NON_STANDARD:
+            return mode
+    return None

@@ -41,11 +41,12 @@ class LoadResult(NamedTuple):
     reason: str | None
 
 
-def default_state_path(state_dir: str | Path, instance: int) -> Path:
-    """Where instance N keeps its parameters: `<state_dir>/fc_params_<N>.json` (one file per vehicle)."""
+def default_state_path(state_dir: str | Path, instance: int, stem: str = "fc_params") -> Path:
+    """Where instance N keeps its parameters: `<state_dir>/fc_params_<N>.json` (one file per vehicle); other
+    per-instance state (the mission plans: stem "fc_mission") sits beside it."""
     if instance < 0:
         raise ValueError(f"instance must be >= 0, got {instance}")
-    return Path(state_dir) / f"fc_params_{int(instance)}.json"
+    return Path(state_dir) / f"{stem}_{int(instance)}.json"
 
 
 class ParamStore:
@@ -103,23 +104,28 @@ class ParamStore:
                 raise ValueError(f"{name}: refusing to store non-finite value {v}")
             clean[str(name)] = v
         doc = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "params": dict(sorted(clean.items()))}
-        data = (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode("utf-8")
-        directory = self._path.parent
-        directory.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{self._path.name}.", suffix=".tmp", dir=directory)
+        write_atomic(self._path, (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode("utf-8"))
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Replace `path` with `data` atomically (module docstring: temp file + fsync + os.replace + directory
+    fsync). The parameter and mission stores both write this way. Raises OSError on failure."""
+    directory = path.parent
+    directory.mkdir(parents=True, exist_ok=True)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp_name, path)
+    except BaseException:
         try:
-            with os.fdopen(fd, "wb") as f:
-                f.write(data)
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp_name, self._path)
-        except BaseException:
-            try:
-                os.unlink(tmp_name)
-            except FileNotFoundError:
-                pass
-            raise
-        _fsync_dir(directory)
+            os.unlink(tmp_name)
+        except FileNotFoundError:
+            pass
+        raise
+    _fsync_dir(directory)
 
 
 def _fsync_dir(directory: Path) -> None:

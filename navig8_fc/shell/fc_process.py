@@ -33,9 +33,10 @@ from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
 from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
 from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink import dialect as dialect_mod
+from navig8_fc.mission.store import MissionStore
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import ParamStore, default_state_path
-from navig8_fc.shell.gcs_service import GcsService, Source
+from navig8_fc.shell.gcs_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4, GcsService, Source
 from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.shell.mcap_log import McapLogger
 
@@ -64,6 +65,7 @@ class FcOptions:
     state_dir: Path | None = None
     defaults: bool = False
     ports_file: Path | None = None  # written after binding: {"sim": p, "gcs": p, "api": p}
+    autopilot: str = "generic"  # HEARTBEAT.autopilot: "generic" or "px4" (docs/gcs.md, "Autopilot identity")
 
     @property
     def sysid(self) -> int:
@@ -115,8 +117,17 @@ class FlightControllerProcess:
         self.last_bundle_wall = time.monotonic()
         self.sim_done = False
         store = ParamStore(default_state_path(opts.state_dir, opts.instance)) if opts.state_dir else None
+        missions = MissionStore(default_state_path(opts.state_dir, opts.instance, "fc_mission")) if opts.state_dir \
+            else None
         self.gcs_service = GcsService(self._mav(), opts.sysid, self.stack.state, self.stack, self, self.registry,
-                                      self.vehicle, store)
+                                      self.vehicle, store, missions,
+                                      autopilot=MAV_AUTOPILOT_PX4 if opts.autopilot == "px4" else MAV_AUTOPILOT_GENERIC)
+        if missions is not None:
+            reason = self.gcs_service.mission.load_stored()
+            n = len(self.gcs_service.mission.plan().items)
+            self.log_event(f"mission plan loaded from {missions.path} ({n} items)" if n else "no stored mission plan")
+            if reason:
+                self.log_event(reason)
         if store is not None and not opts.defaults:
             loaded = self.gcs_service.load_stored_params()
             if loaded.ok:
@@ -346,8 +357,10 @@ class FlightControllerProcess:
         the last sensor bundle (once one has arrived) and of the last GCS heartbeat (once a GCS has sent one).
         The stack decides (sensor-stale fault, GCS-loss landing: navig8_fc.flight.stack); this announces."""
         last_hb = self.gcs_service.last_gcs_heartbeat
+        last_sp = self.gcs_service.last_offboard_setpoint
         notices = self.stack.check_links(now - self.last_bundle_wall if self.n_ticks > 0 else None,
-                                         None if last_hb is None else now - last_hb)
+                                         None if last_hb is None else now - last_hb,
+                                         None if last_sp is None else now - last_sp)
         if notices:
             self.announce(notices)
 
@@ -443,6 +456,8 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--log", default=None, help="MCAP log path")
     ap.add_argument("--state-dir", default=None, help="directory for persisted parameters")
     ap.add_argument("--defaults", action="store_true", help="start from default parameters (ignore stored)")
+    ap.add_argument("--autopilot", choices=["generic", "px4"], default="generic",
+                    help="HEARTBEAT.autopilot: generic (default) or px4 (QGroundControl's mode menu; docs/gcs.md)")
     ap.add_argument("--until-done", action="store_true", help="exit when the bridge reports the scenario done")
     ap.add_argument("--ports-file", default=None,
                     help='after binding, write {"sim": p, "gcs": p, "api": p} here as JSON (for ports given as 0)')
@@ -455,7 +470,7 @@ def options_from_args(a: argparse.Namespace) -> FcOptions:
         sim_port=a.sim_port, bridge_port=a.bridge_port, gcs_bind_port=a.gcs_bind_port, gcs_port=a.gcs_port,
         api_bind_port=a.api_bind_port, api_port=a.api_port, log_path=Path(a.log) if a.log else None,
         state_dir=Path(a.state_dir) if a.state_dir else None, defaults=a.defaults,
-        ports_file=Path(a.ports_file) if a.ports_file else None,
+        ports_file=Path(a.ports_file) if a.ports_file else None, autopilot=a.autopilot,
     )
 
 

@@ -8,10 +8,11 @@ passed on, message requests and intervals from the telemetry scheduler, paramete
 GCS/API messages and sends telemetry on the wall clock. It never reads the process.
 
 Routing (PX4 and ArduPilot behave the same): a reply to a request (COMMAND_ACK and the messages a command
-produces, PARAM_VALUE answering PARAM_REQUEST_READ, the paced PARAM_REQUEST_LIST download, mission, FTP and
-TIMESYNC answers) goes only to the link and the peer the request came from. Broadcasts go to both GCS-facing
-links (every peer of each): telemetry streams and HEARTBEAT, STATUSTEXT (events and refusal reasons), and the
-PARAM_VALUE announcing the value in force after a PARAM_SET (accepted or refused) or a PREFLIGHT_STORAGE
+produces, PARAM_VALUE answering PARAM_REQUEST_READ, the paced PARAM_REQUEST_LIST download, mission transfers
+and their re-requests, FTP and TIMESYNC answers) goes only to the link and the peer the request came from.
+Broadcasts go to both GCS-facing links (every peer of each): telemetry streams and HEARTBEAT, MISSION_CURRENT
+and MISSION_ITEM_REACHED, STATUSTEXT (events and refusal reasons), and the PARAM_VALUE announcing the value in
+force after a PARAM_SET (accepted or refused) or a PREFLIGHT_STORAGE
 load/reset, so every connected GCS stays in sync.
 """
 
@@ -22,6 +23,7 @@ import time
 from collections.abc import Callable, Hashable
 from typing import Any, Protocol
 
+from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.state import GripperAction, VehicleCommands, VehicleState
 from navig8_fc.gcs.commands import CommandHandler
@@ -35,13 +37,31 @@ from navig8_fc.gcs.telemetry import (
     eig_margin_lower_bound,
     sensor_bits,
 )
+from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.plan import MissionType
+from navig8_fc.mission.protocol import MissionProtocol
+from navig8_fc.mission.store import MissionStore
+from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
 from navig8_fc.params.registry import ParamRegistry, SetResult
 from navig8_fc.params.store import ParamStore
 
 MAV_TYPE_GCS = 6
+MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4 = 0, 12
+MSG_AVAILABLE_MODES, MSG_CURRENT_MODE, MSG_AVAILABLE_MODES_MONITOR = 435, 436, 437
+AVAILABLE_MODES_SEQ = 1  # AVAILABLE_MODES_MONITOR.seq: the set of modes never changes at run time
+CURRENT_MODE_PERIOD_S = 2.0
+MAV_FRAME_LOCAL_NED, MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 1, 5, 6
+_IGNORE_POSITION = 0b111  # POSITION_TARGET_TYPEMASK X/Y/Z_IGNORE
+_IGNORE_YAW = 1024  # POSITION_TARGET_TYPEMASK_YAW_IGNORE
+MANUAL_CONTROL_TIMEOUT_S = 0.5  # MANUAL_CONTROL older than this: sticks centred (Position mode holds)
 
 Source = Hashable  # who sent a message, as the Outbox knows how to answer it (the process: (link name, address))
 _BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
+
+
+def origin_from_params(reg: ParamRegistry) -> GeoOrigin:
+    """The global origin from ORIGIN_LAT_E7 / ORIGIN_LON_E7 / ORIGIN_ALT."""
+    return GeoOrigin(int(reg["ORIGIN_LAT_E7"]) * 1e-7, int(reg["ORIGIN_LON_E7"]) * 1e-7, float(reg["ORIGIN_ALT"]))
 
 
 class Outbox(Protocol):
@@ -67,7 +87,8 @@ def is_broadcast_reply(request_type: str, reply_type: str) -> bool:
 class GcsService:
     def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], vehicle: VehicleCommands,
                  outbox: Outbox, registry: ParamRegistry, vehicle_config: VehicleConfig,
-                 store: ParamStore | None = None) -> None:
+                 store: ParamStore | None = None, mission_store: MissionStore | None = None,
+                 autopilot: int = MAV_AUTOPILOT_GENERIC) -> None:
         """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them)."""
         self.mav = mav
         self.sysid = int(sysid)
@@ -75,12 +96,22 @@ class GcsService:
         self._vehicle = vehicle
         self._outbox = outbox
         self.text = StatusTextEncoder(mav)
+        self._registry = registry
         self.params = ParamProtocol(registry, mav, store, statustext=self.text)
         self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text)
         self.misc = MiscProtocols(mav, statustext=self.text)
+        self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text)
+        self.origin = origin_from_params(registry)
+        self._plan_generation = -1  # the mission plan generation the vehicle has
+        self.last_offboard_setpoint: float | None = None  # wall time of the last accepted offboard setpoint
+        self._last_manual: float | None = None  # wall time of the last MANUAL_CONTROL
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
-        self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config)
+        self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config, autopilot)
+        self._intended_custom_mode = 0  # the last mode a ground station asked for (CURRENT_MODE); 0 unknown
+        self._current_mode_sent: tuple[int, int] | None = None
+        self._current_mode_t = -math.inf
+        self._std_modes = hasattr(mav, "current_mode_encode")  # navig8.xml includes development.xml: it has them
 
     @property
     def last_gcs_heartbeat(self) -> float | None:
@@ -104,7 +135,15 @@ class GcsService:
             out = self.params.handle(m, now_wall, source)
             out += self.commands.handle(m, now_wall)
             out += self.misc.handle(m, now_wall)
+            out += self.mission.handle(m, now_wall, source)
             out += self._set_mode_message(m)
+            out += self._offboard(m, now_wall)
+            if kind == "SET_GPS_GLOBAL_ORIGIN" and m.target_system in (0, self.sysid):
+                out += self._set_origin(m)
+            if kind == "MANUAL_CONTROL" and m.target in (0, self.sysid):
+                # PX4's scaling: x/y/r -1000..1000, z 0..1000 (500 = hold altitude); missing sticks are centred.
+                self._vehicle.manual_input(m.x / 1000.0, m.y / 1000.0, m.z / 1000.0, m.r / 1000.0)
+                self._last_manual = now_wall
             for r in out:
                 if source is None or is_broadcast_reply(kind, r.get_type()):
                     self._outbox.broadcast([r])
@@ -120,13 +159,98 @@ class GcsService:
         ok, reason = self.set_mode(int(m.base_mode), int(m.custom_mode))
         return [] if ok else self.text.warning(reason or f"SET_MODE {int(m.custom_mode):#x} refused")
 
+    def _offboard(self, m: Any, now_wall: float) -> list[Any]:
+        """SET_POSITION_TARGET_LOCAL_NED (frame LOCAL_NED) / _GLOBAL_INT (GLOBAL_INT, GLOBAL_RELATIVE_ALT_INT):
+        position (+ yaw unless its ignore bit is set) -> the vehicle's offboard setpoint. Velocity/acceleration-only
+        targets are not supported: refused by STATUSTEXT (no ACK in this protocol)."""
+        kind = m.get_type()
+        if kind not in ("SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT"):
+            return []
+        if m.target_system not in (0, self.sysid) or m.target_component not in (0, 1):
+            return []
+        mask = int(m.type_mask)
+        if mask & _IGNORE_POSITION:
+            return self.text.warning(f"{kind}: only position targets are supported (type_mask {mask})")
+        st = self._state()
+        yaw = st.setpoint.yaw_rad if st.setpoint is not None else st.home_yaw_rad
+        if not mask & _IGNORE_YAW:
+            yaw = float(m.yaw)
+        if kind == "SET_POSITION_TARGET_LOCAL_NED":
+            if int(m.coordinate_frame) != MAV_FRAME_LOCAL_NED:
+                return self.text.warning(f"{kind}: frame {int(m.coordinate_frame)} unsupported (LOCAL_NED)")
+            pos = (float(m.x), float(m.y), float(m.z))
+        else:
+            frame = int(m.coordinate_frame)
+            if frame not in (MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
+                return self.text.warning(f"{kind}: frame {frame} unsupported (GLOBAL_INT, GLOBAL_RELATIVE_ALT_INT)")
+            pos = self._to_ned(m.lat_int * 1e-7, m.lon_int * 1e-7, float(m.alt), frame != MAV_FRAME_GLOBAL_INT)
+        pitch = st.setpoint.pitch_rad if st.setpoint is not None else 0.0
+        ok, reason = self._vehicle.offboard_setpoint(Setpoint(pos, pitch, yaw))
+        if not ok:
+            return self.text.warning(reason)
+        self.last_offboard_setpoint = now_wall
+        return []
+
+    def _set_origin(self, m: Any) -> list[Any]:
+        """SET_GPS_GLOBAL_ORIGIN -> the ORIGIN_* parameters (validated and saved as any PARAM_SET), then
+        GPS_GLOBAL_ORIGIN and the new PARAM_VALUEs to everyone. Refused while armed (the plan in flight and home
+        would jump)."""
+        if self._state().armed:
+            return self.text.warning("SET_GPS_GLOBAL_ORIGIN denied: vehicle armed")
+        reg = self._registry
+        names = ("ORIGIN_LAT_E7", "ORIGIN_LON_E7", "ORIGIN_ALT")
+        before = {n: reg[n] for n in names}
+        results = [reg.set(n, v) for n, v in zip(names, (int(m.latitude), int(m.longitude), m.altitude / 1000.0),
+                                                  strict=True)]
+        refused = [r for r in results if not r.accepted]
+        if refused:  # all or nothing: put back what was set
+            for n, v in before.items():
+                reg.set(n, v)
+            return [self.params.param_value(n) for n in names] + self.text.warning(
+                f"SET_GPS_GLOBAL_ORIGIN refused: {refused[0].reason or refused[0].name}")
+        out: list[Any] = [self.params.param_value(n) for n in names]
+        err = self.params.save()
+        if err:
+            out += self.text.warning(err)
+        self.origin = origin_from_params(reg)
+        self._plan_generation = -1  # global plan items move with the origin: reload them
+        return out + [self.mav.gps_global_origin_encode(round(self.origin.lat_deg * 1e7),
+                                                        round(self.origin.lon_deg * 1e7),
+                                                        round(self.origin.alt_amsl_m * 1000.0))]
+
+    def _to_ned(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool) -> tuple[float, float, float]:
+        """A WGS-84 point around the global origin (NaN stays NaN); alt AMSL, or above home when relative_alt."""
+        n, e = self.origin.to_ned_xy(lat_deg, lon_deg)
+        home = self._state().home_ned
+        home_z = home[2] if home is not None else 0.0
+        d = home_z - alt_m if relative_alt else self.origin.alt_amsl_m - alt_m
+        return n, e, d
+
+    def reposition_global(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool,
+                          yaw_rad: float) -> tuple[bool, str]:
+        return self._vehicle.reposition(self._to_ned(lat_deg, lon_deg, alt_m, relative_alt), yaw_rad)
+
     def poll(self, now_wall: float) -> None:
-        for source, m in self.params.poll_routed(now_wall):
+        if self._last_manual is not None and now_wall - self._last_manual > MANUAL_CONTROL_TIMEOUT_S:
+            self._last_manual = None
+            self._vehicle.manual_input(0.0, 0.0, 0.5, 0.0)  # sticks no longer received: centred (hold)
+        if self.mission.generation != self._plan_generation:  # a new plan, clear or start item: to the vehicle
+            self._plan_generation = self.mission.generation
+            self._vehicle.load_mission(self.mission.plan(), self.origin)
+            self._vehicle.load_fence(self.mission.plan(MissionType.FENCE), self.origin)
+        self.mission.report(self._state().mission)
+        for source, m in self.params.poll_routed(now_wall) + self.mission.poll(now_wall):
             if source is None:
                 self._outbox.broadcast([m])
             else:
                 self._outbox.reply(source, [m])
         msgs = self.telemetry.due_messages(now_wall)
+        custom = self._state().custom_mode
+        key = (custom, self._intended_custom_mode)
+        if self._std_modes and (key != self._current_mode_sent
+                                or now_wall - self._current_mode_t >= CURRENT_MODE_PERIOD_S):
+            self._current_mode_sent, self._current_mode_t = key, now_wall  # 0.5 Hz and at once on a change
+            msgs.append(self._current_mode())
         if msgs:
             self._outbox.broadcast(msgs)
 
@@ -148,7 +272,14 @@ class GcsService:
         return self._vehicle.land()
 
     def set_mode(self, base_mode: int, custom_mode: int) -> tuple[bool, str]:
+        self._intended_custom_mode = int(custom_mode)
         return self._vehicle.set_mode(base_mode, custom_mode)
+
+    def set_standard_mode(self, standard_mode: int) -> tuple[bool, str]:
+        mode = mode_for_standard(standard_mode)
+        if mode is None:
+            return False, f"Standard mode {standard_mode} not supported"
+        return self.set_mode(1, mode.custom_mode)
 
     def gripper(self, action: GripperAction) -> tuple[bool, str]:
         return self._vehicle.gripper(action)
@@ -158,13 +289,43 @@ class GcsService:
 
     # --- CommandTarget: the GCS service's own ------------------------------------------------------
     def request_message(self, msg_id: int, params: tuple[float, ...]) -> list[Any] | None:
+        if msg_id in (MSG_AVAILABLE_MODES, MSG_CURRENT_MODE, MSG_AVAILABLE_MODES_MONITOR) and not self._std_modes:
+            return None  # a dialect without the standard-modes messages (pymavlink's common.xml)
+        if msg_id == MSG_AVAILABLE_MODES:
+            return self._available_modes(params[0] if params else 0.0)
+        if msg_id == MSG_CURRENT_MODE:
+            return [self._current_mode()]
+        if msg_id == MSG_AVAILABLE_MODES_MONITOR:
+            return [self.mav.available_modes_monitor_encode(AVAILABLE_MODES_SEQ)]
         return self.telemetry.build_now(msg_id, time.monotonic())
+
+    # --- standard modes ----------------------------------------------------------------------------------
+    def _available_modes(self, index_param: float) -> list[Any] | None:
+        """REQUEST_MESSAGE(AVAILABLE_MODES) param2: 0 (or NaN) = every mode, 1..N = that one, else DENIED."""
+        n = len(AVAILABLE_MODES)
+        index = 0 if math.isnan(index_param) else int(round(index_param))
+        if not 0 <= index <= n:
+            return None
+        picked = range(1, n + 1) if index == 0 else (index,)
+        out = []
+        for i in picked:
+            mode, std, props = AVAILABLE_MODES[i - 1]
+            name = mode.label.encode() if std == 0 else b""  # standard modes are named by the ground station
+            out.append(self.mav.available_modes_encode(n, i, int(std), mode.custom_mode, props, name))
+        return out
+
+    def _current_mode(self) -> Any:
+        custom = self._state().custom_mode
+        return self.mav.current_mode_encode(standard_mode_of(custom), custom, self._intended_custom_mode)
 
     def set_message_interval(self, msg_id: int, interval_us: int) -> bool:
         return self.telemetry.scheduler.set_interval(msg_id, interval_us)
 
     def message_interval_us(self, msg_id: int) -> int:
         return self.telemetry.scheduler.interval_us(msg_id)
+
+    def set_mission_current(self, seq: int, reset: bool) -> tuple[bool, str]:
+        return self.mission.set_current(seq, reset)
 
     def storage(self, action: int) -> tuple[int, list[Any]]:
         return self.params.storage_command(action, armed=self._state().armed)
@@ -176,12 +337,15 @@ class Telemetry:
     EIG_MARGIN_PERIOD_S = 0.5  # the bound-based margin costs ~1.4 ms: refresh it at 2 Hz
 
     def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], registry: ParamRegistry,
-                 vehicle_config: VehicleConfig) -> None:
+                 vehicle_config: VehicleConfig, autopilot: int = MAV_AUTOPILOT_GENERIC) -> None:
         self._state = state
         self._registry = registry
         self._vehicle = vehicle_config
         self.scheduler = TelemetryScheduler()
-        self.builder = TelemetryBuilder(mav, sysid, 1)
+        # Announced as PX4 (option), QGroundControl's PX4 plugin wants flight_sw_version >= 1.4.1 and warns about
+        # an old release when the type is OFFICIAL: 1.15.0 DEV (docs/gcs.md, "Autopilot identity").
+        sw = (1, 15, 0) if autopilot == MAV_AUTOPILOT_PX4 else (0, 1, 0)
+        self.builder = TelemetryBuilder(mav, sysid, 1, autopilot=autopilot, sw_version=sw)
         self.boot_wall = time.monotonic()
         self._eig_margin = math.nan
         self._eig_t = -1e9
@@ -197,6 +361,7 @@ class Telemetry:
                                                       float(reg["INDI_K_MAX"]), v.lambda_crit)
         zero3 = (0.0, 0.0, 0.0)
         ok = v.sensors_ok
+        bat_low_pct = float(self._registry["FS_BAT_LOW_PCT"])  # below it: unhealthy (the low-battery failsafe)
         return VehicleSnapshot(
             armed=v.armed,
             base_mode=v.base_mode,
@@ -214,8 +379,9 @@ class Telemetry:
             tilt_rad=s.tilt_rad if s else (0.0, 0.0),
             speed_rad_s=s.speed_rad_s if s else zero3,
             joint_pos_rad=s.joint_pos_rad if s else zero3,
+            origin=origin_from_params(self._registry),
             sensors=sensor_bits(imu_ok=ok, pose_ok=ok, actuators_ok=ok, estimator_ok=st is not None,
-                                battery_ok=v.battery.remaining_pct > 10, prearm_ok=bool(v.prearm.ok)),
+                                battery_ok=v.battery.remaining_pct > bat_low_pct, prearm_ok=bool(v.prearm.ok)),
             ckf_x_hat=st.adapt.x_hat if st else (math.nan,) * 4,  # type: ignore[arg-type]
             ckf_k=st.adapt.k if st else (math.nan,) * 4,  # type: ignore[arg-type]
             eig_margin=self._eig_margin,

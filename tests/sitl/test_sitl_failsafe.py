@@ -1,4 +1,4 @@
-"""GCS-loss failsafe: a ground station that stops sending heartbeats makes a hovering vehicle land."""
+"""Failsafes over SITL: GCS loss (the default action, Land), battery critical (Return) and a fence breach (Land)."""
 
 from __future__ import annotations
 
@@ -47,15 +47,8 @@ def test_gcs_heartbeat_loss_lands_the_vehicle(tmp_path: Path) -> None:
         try:
             wait_heartbeat(gcs, 15.0)
             _beat(gcs)
-            gcs.mav.param_set_send(gcs.target_system, 1, b"FS_GCS_TOUT", 1.0, M.MAV_PARAM_TYPE_REAL32)
-            assert wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == "FS_GCS_TOUT") is not None
-            deadline = time.monotonic() + 15.0
-            while _cmd(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) != M.MAV_RESULT_ACCEPTED:
-                assert time.monotonic() < deadline, "arming never accepted"
-                _beat(gcs)
-                time.sleep(0.3)
-            assert _cmd(gcs, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 1.5) == \
-                M.MAV_RESULT_ACCEPTED
+            _set_param(gcs, "FS_GCS_TOUT", 1.0)
+            _arm_and_take_off(gcs, 1.5, beat=True)
             assert _until(gcs, lambda m: m.custom_mode == hold, 30.0, beat=True), "no Hold after takeoff"
             # the GCS goes silent: the FC lands and disarms by itself
             assert _until(gcs, lambda m: m.custom_mode == land, 10.0, beat=False), "no Land after GCS loss"
@@ -64,3 +57,54 @@ def test_gcs_heartbeat_loss_lands_the_vehicle(tmp_path: Path) -> None:
             gcs.close()
     texts = [d["text"] for _, _, d in read_mcap(run.log, ["/fc/statustext"])]
     assert "GCS link lost: landing" in texts, texts
+
+
+def _set_param(gcs, name: str, value: float, int32: bool = False) -> None:
+    if int32:
+        from navig8_fc.gcs.params import encode_param_value
+
+        wire = encode_param_value(int(value), M.MAV_PARAM_TYPE_INT32)
+        gcs.mav.param_set_send(gcs.target_system, 1, name.encode(), wire, M.MAV_PARAM_TYPE_INT32)
+    else:
+        gcs.mav.param_set_send(gcs.target_system, 1, name.encode(), value, M.MAV_PARAM_TYPE_REAL32)
+    assert wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == name) is not None
+
+
+def _arm_and_take_off(gcs, alt_m: float, beat: bool = False) -> None:
+    deadline = time.monotonic() + 15.0
+    while _cmd(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) != M.MAV_RESULT_ACCEPTED:
+        assert time.monotonic() < deadline, "arming never accepted"
+        if beat:
+            _beat(gcs)
+        time.sleep(0.3)
+    assert _cmd(gcs, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, alt_m) == M.MAV_RESULT_ACCEPTED
+
+
+def test_battery_critical_returns_and_fence_breach_lands(tmp_path: Path) -> None:
+    """Battery critical -> FS_BAT_CRIT_ACT = 3 (Return: home, land, disarm); then a fence breach (FENCE_ALT_MAX)
+    -> FS_FENCE_ACT = 2 (Land). Both announced by STATUSTEXT; HEARTBEAT CRITICAL while in force."""
+    rtl = px4_custom_mode(Px4MainMode.AUTO, Px4AutoSubMode.RTL)
+    land = px4_custom_mode(Px4MainMode.AUTO, Px4AutoSubMode.LAND)
+    with sitl(tmp_path, scenario="ground", speed=2.0) as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            wait_heartbeat(gcs, 15.0)
+            _set_param(gcs, "FS_BAT_CRIT_ACT", 3, int32=True)
+            _set_param(gcs, "FS_BAT_CRIT_PCT", 100.0)  # the full pack is at the threshold: critical at takeoff
+            _arm_and_take_off(gcs, 1.5)
+            st = wait_for(gcs, "STATUSTEXT", 20.0, lambda m: m.text.startswith("Battery critical"))
+            assert st is not None and st.text.endswith("returning"), st
+            hb = wait_for(gcs, "HEARTBEAT", 5.0, lambda m: m.get_srcComponent() == 1 and m.custom_mode == rtl)
+            assert hb is not None and hb.system_status == M.MAV_STATE_CRITICAL
+            assert _until(gcs, lambda m: not m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED, 40.0, beat=False)
+            # Fence: 1 m above home at most, landing as the action.
+            _set_param(gcs, "FS_BAT_CRIT_PCT", 0.0)
+            _set_param(gcs, "FENCE_ALT_MAX", 1.0)
+            _set_param(gcs, "FS_FENCE_ACT", 2, int32=True)
+            _arm_and_take_off(gcs, 2.0)
+            st = wait_for(gcs, "STATUSTEXT", 20.0, lambda m: m.text.startswith("Fence breach"))
+            assert st is not None and "above home" in st.text and st.text.endswith("landing"), st
+            assert _until(gcs, lambda m: m.custom_mode == land, 5.0, beat=False)
+            assert _until(gcs, lambda m: not m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED, 40.0, beat=False)
+        finally:
+            gcs.close()

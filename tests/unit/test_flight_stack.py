@@ -230,3 +230,69 @@ def test_stack_flies_the_script_as_the_scripted_core_did(vehicle) -> None:
         texts += [n.statustext for n in res.notices]
         plant.step(ActuatorCommand(tilt_rad=cmd.tilt_rad, speed_rad_s=cmd.speed_rad_s), 0.01)
     assert texts == ["Mission paper started (armed in the air)"]
+
+
+def test_offboard_setpoint_loss_holds_after_fs_offb_tout(vehicle) -> None:
+    from navig8_fc.core.outer_loop import Setpoint
+    from navig8_fc.modes.px4 import px4_custom_mode
+
+    stack, feed = _hovering_in_hold(vehicle)
+    here = stack.state().setpoint
+    assert not stack.set_mode(1, px4_custom_mode(6, 0)).ok  # no stream yet
+    assert stack.offboard_setpoint(Setpoint(here.pos_ned, 0.0, here.yaw_rad)).ok
+    assert not stack.offboard_setpoint(Setpoint((math.nan, 0.0, 0.0), 0.0, 0.0)).ok
+    assert stack.set_mode(1, px4_custom_mode(6, 0)).ok
+    feed.run(1)
+    assert stack.state().flight_mode is FlightMode.OFFBOARD
+    tout = float(stack.registry["FS_OFFB_TOUT"])
+    assert stack.check_links(0.0, None, tout - 0.01) == ()
+    (lost,) = stack.check_links(0.0, None, tout + 0.1)
+    assert lost.severity == SEVERITY_WARNING and "Offboard setpoints lost" in lost.statustext
+    feed.run(1)
+    assert stack.state().flight_mode is FlightMode.HOLD
+    assert stack.check_links(0.0, None, tout + 1.0) == ()  # once per loss
+
+
+@pytest.mark.parametrize("action, mode, verb", [(0, FlightMode.HOLD, "no action"), (1, FlightMode.HOLD, "holding"),
+                                                (2, FlightMode.LAND, "landing"), (3, FlightMode.RTL, "returning")])
+def test_gcs_loss_runs_the_configured_action(vehicle, action: int, mode: FlightMode, verb: str) -> None:
+    stack, feed = _hovering_in_hold(vehicle)
+    stack.registry.set("FS_GCS_ACT", action)
+    (n,) = stack.check_links(0.0, float(stack.registry["FS_GCS_TOUT"]) + 0.1)
+    assert n == Notice(SEVERITY_WARNING, f"GCS link lost: {verb}")
+    feed.run(1)
+    st = stack.state()
+    assert st.flight_mode is mode and st.failsafes == ("GCS link lost",) and st.system_status == 5  # CRITICAL
+
+
+@pytest.mark.parametrize("action, mode", [(1, FlightMode.HOLD), (2, FlightMode.LAND), (3, FlightMode.RTL)])
+def test_battery_critical_runs_the_configured_action_once(vehicle, action: int, mode: FlightMode) -> None:
+    stack, feed = _hovering_in_hold(vehicle)
+    stack.registry.set("FS_BAT_CRIT_ACT", action)
+    stack.registry.set("FS_BAT_LOW_PCT", 100.0)
+    stack.registry.set("FS_BAT_CRIT_PCT", 100.0)  # the full pack is at 100 %: at or below
+    notices = [n for _ in range(50) for n in feed.run(1)]  # 0.5 s: five battery updates
+    texts = [n.statustext for n in notices if n.statustext and "Battery" in n.statustext]
+    assert len(texts) == 1 and texts[0].startswith("Battery critical") and stack.state().flight_mode is mode
+
+
+def test_fence_breach_radius_altitude_and_uploaded_circle(vehicle) -> None:
+    from navig8_fc.mission.geo import GeoOrigin
+    from navig8_fc.mission.plan import Cmd, Frame, MissionItem, Plan
+
+    stack, feed = _hovering_in_hold(vehicle)
+    home = stack.state().home_ned
+    stack.registry.set("FS_FENCE_ACT", 2)
+    stack.registry.set("FENCE_ALT_MAX", 0.5)
+    feed.z -= 1.0  # 1 m above home (armed where it hovered)
+    texts = [n.statustext for _ in range(2) for n in feed.run(1) if n.statustext]
+    assert any(t.startswith("Fence breach") and "above home" in t and t.endswith("landing") for t in texts), texts
+    assert stack.state().flight_mode is FlightMode.LAND
+    # An uploaded inclusion circle that does not contain the vehicle.
+    stack2, feed2 = _hovering_in_hold(vehicle)
+    origin = GeoOrigin()
+    lat, lon, _ = origin.to_global((home[0] + 50.0, home[1], 0.0))
+    stack2.load_fence(Plan(1, (MissionItem(Frame.GLOBAL_INT, Cmd.NAV_FENCE_CIRCLE_INCLUSION, 1, 10.0, 0, 0, 0,
+                                           round(lat * 1e7), round(lon * 1e7), 0.0),)), origin)
+    texts = [n.statustext for n in feed2.run(1) if n.statustext]
+    assert any("inclusion circle" in t and t.endswith("holding") for t in texts), texts

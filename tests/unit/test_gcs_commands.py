@@ -185,8 +185,8 @@ def test_land_and_set_mode_px4(rig) -> None:
     assert vehicle.calls[-1] == ("set_mode", base, 0x03040000)
     out = cmd_long(rig, M.MAV_CMD_DO_SET_MODE, 0, 4, 3)
     assert the_ack(out, M.MAV_CMD_DO_SET_MODE).result == M.MAV_RESULT_DENIED and "CUSTOM_MODE_ENABLED" in texts(out)
-    out = cmd_long(rig, M.MAV_CMD_DO_SET_MODE, 1, 3, 0)  # POSCTL
-    assert the_ack(out, M.MAV_CMD_DO_SET_MODE).result == M.MAV_RESULT_DENIED and "POSCTL" in texts(out)
+    out = cmd_long(rig, M.MAV_CMD_DO_SET_MODE, 1, 2, 0)  # ALTCTL
+    assert the_ack(out, M.MAV_CMD_DO_SET_MODE).result == M.MAV_RESULT_DENIED and "ALTCTL" in texts(out)
     out = cmd_long(rig, M.MAV_CMD_DO_SET_MODE, 1, 4, 4)  # Mission without a script
     assert the_ack(out, M.MAV_CMD_DO_SET_MODE).result == M.MAV_RESULT_DENIED and "mission" in texts(out)
     out = cmd_long(rig, M.MAV_CMD_NAV_LAND, 0, 0, 0, NAN, 0, 0, 0)

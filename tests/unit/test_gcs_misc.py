@@ -1,4 +1,4 @@
-"""MAVFTP NAK, the empty mission, TIMESYNC."""
+"""MAVFTP NAK, TIMESYNC (the mission protocol: test_mission_protocol.py)."""
 
 from __future__ import annotations
 
@@ -68,28 +68,6 @@ def test_ftp_reset_and_terminate_are_acked_and_replies_ignored(rig) -> None:
         assert send(rig, gcs.file_transfer_protocol_encode(0, 1, 1, ftp_request(1, 0, opcode))) == []
     assert send(rig, gcs.file_transfer_protocol_encode(0, 7, 1, ftp_request(1, 0, 4))) == []  # other system
     assert ftp_reply_payload(b"\x01\x02") is None
-
-
-def test_mission_download_is_empty(rig) -> None:
-    _, _, gcs = rig
-    for mission_type in (M.MAV_MISSION_TYPE_MISSION, M.MAV_MISSION_TYPE_FENCE, M.MAV_MISSION_TYPE_RALLY):
-        (count,) = send(rig, gcs.mission_request_list_encode(1, 1, mission_type))
-        assert count.get_type() == "MISSION_COUNT" and count.count == 0 and count.mission_type == mission_type
-        assert (count.target_system, count.target_component) == (255, 190)
-    (ack,) = send(rig, gcs.mission_request_int_encode(1, 1, 0))
-    assert ack.get_type() == "MISSION_ACK" and ack.type == M.MAV_MISSION_INVALID_SEQUENCE
-
-
-def test_mission_upload_and_clear(rig) -> None:
-    _, _, gcs = rig
-    (ack,) = send(rig, gcs.mission_count_encode(1, 1, 0, 0))
-    assert ack.type == M.MAV_MISSION_ACCEPTED
-    out = send(rig, gcs.mission_count_encode(1, 1, 3, 0))
-    assert out[0].get_type() == "MISSION_ACK" and out[0].type == M.MAV_MISSION_UNSUPPORTED
-    assert out[1].get_type() == "STATUSTEXT"
-    (ack,) = send(rig, gcs.mission_clear_all_encode(1, 1, M.MAV_MISSION_TYPE_ALL))
-    assert ack.type == M.MAV_MISSION_ACCEPTED and ack.mission_type == M.MAV_MISSION_TYPE_ALL
-    assert send(rig, gcs.mission_request_list_encode(9, 1, 0)) == []  # not for us
 
 
 def test_timesync_request_answered(rig) -> None:

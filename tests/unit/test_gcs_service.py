@@ -152,3 +152,55 @@ def test_gcs_silence_lands_through_the_stack_failsafe_input() -> None:
     assert rig.stack.check_links(0.0, (last + tout + 0.5) - last)[0].statustext == "GCS link lost: landing"
     rig.step(1)
     assert rig.stack.state().flight_mode is FlightMode.LAND
+
+
+def test_mission_transfer_is_routed_to_the_uploader_and_set_current_by_command() -> None:
+    """The mission protocol inside the service: requests (and their 250 ms repeats) go to the uploading peer only,
+    MISSION_CURRENT is broadcast, DO_SET_MISSION_CURRENT moves the current item (ACK) like MISSION_SET_CURRENT."""
+    rig = Rig()
+    wp = (M.MAV_FRAME_LOCAL_NED, M.MAV_CMD_NAV_WAYPOINT, 0, 1, 0.0, 0.5, 0.0, 0.0, 0, 0, -2.0)
+    rig.send(rig.client.mission_count_encode(1, 1, 2, 0), API, 0.0)
+    assert [(d, m.seq) for d, m in rig.outbox.pop("MISSION_REQUEST_INT")] == [(API, 0)]
+    rig.gcs.poll(0.3)
+    assert [(d, m.seq) for d, m in rig.outbox.pop("MISSION_REQUEST_INT")] == [(API, 0)]  # repeated, to API only
+    assert [(d, m.total) for d, m in rig.outbox.pop("MISSION_CURRENT")] == [("all", 65535)]  # no plan yet
+    for seq in (0, 1):
+        rig.send(rig.client.mission_item_int_encode(1, 1, seq, *wp, 0), API, 0.4)
+    (ack,) = rig.outbox.pop("MISSION_ACK")
+    assert ack == (API, ack[1]) and ack[1].type == M.MAV_MISSION_ACCEPTED
+    rig.gcs.poll(0.5)
+    cur = rig.outbox.pop("MISSION_CURRENT")
+    assert [(d, m.seq, m.total) for d, m in cur] == [("all", 0, 2)]
+    rig.send(rig.client.command_long_encode(1, 1, M.MAV_CMD_DO_SET_MISSION_CURRENT, 0, 1, 0, 0, 0, 0, 0, 0), GCS)
+    (ack,) = rig.outbox.pop("COMMAND_ACK")
+    assert ack[1].result == M.MAV_RESULT_ACCEPTED and rig.gcs.mission.plan().current == 1
+    rig.send(rig.client.command_long_encode(1, 1, M.MAV_CMD_DO_SET_MISSION_CURRENT, 0, 5, 0, 0, 0, 0, 0, 0), GCS)
+    (ack,) = rig.outbox.pop("COMMAND_ACK")
+    assert ack[1].result == M.MAV_RESULT_DENIED and rig.gcs.mission.plan().current == 1
+
+
+def test_manual_control_reaches_position_mode_and_stale_sticks_centre() -> None:
+    rig = Rig()
+    rig.step(60)
+    assert rig.command(API, M.MAV_CMD_COMPONENT_ARM_DISARM, 1, 21196).result == M.MAV_RESULT_ACCEPTED
+    rig.send(rig.client.manual_control_encode(1, 500, -250, 1000, 0, 0), GCS, 1.0)
+    assert rig.stack._modes._sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
+    rig.gcs.poll(1.2)
+    assert rig.stack._modes._sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
+    rig.gcs.poll(1.6)  # > 0.5 s without MANUAL_CONTROL: centred
+    assert rig.stack._modes._sticks == (0.0, 0.0, 0.5, 0.0)
+
+
+def test_set_gps_global_origin_sets_the_origin_parameters() -> None:
+    rig = Rig()
+    rig.step(5)
+    rig.send(rig.client.set_gps_global_origin_encode(1, 473977420, 85455940, 488000), GCS)
+    (o,) = rig.outbox.pop("GPS_GLOBAL_ORIGIN")
+    assert (o[1].latitude, o[1].longitude, o[1].altitude) == (473977420, 85455940, 488000)
+    assert (rig.registry["ORIGIN_LAT_E7"], rig.registry["ORIGIN_LON_E7"]) == (473977420, 85455940)
+    assert rig.registry["ORIGIN_ALT"] == pytest.approx(488.0)
+    assert {m.param_id for _, m in rig.outbox.pop("PARAM_VALUE")} == {"ORIGIN_LAT_E7", "ORIGIN_LON_E7", "ORIGIN_ALT"}
+    assert rig.gcs.origin.lat_deg == pytest.approx(47.397742)
+    rig.send(rig.client.set_gps_global_origin_encode(1, 95 * 10**7, 0, 0), GCS)  # refused whole: nothing changes
+    assert (rig.registry["ORIGIN_LAT_E7"], rig.registry["ORIGIN_LON_E7"]) == (473977420, 85455940)
+    assert rig.registry["ORIGIN_ALT"] == pytest.approx(488.0) and rig.outbox.pop("STATUSTEXT")

@@ -132,7 +132,7 @@ def test_every_supported_message_packs(mavs) -> None:
 def test_no_state_streams_before_the_first_sensor_data(mavs) -> None:
     tb = TelemetryBuilder(mavs[0], 1, 1)
     state_ids = {M.MAVLINK_MSG_ID_ATTITUDE, M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION, M.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
-                 M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_VFR_HUD}
+                 M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_VFR_HUD, M.MAVLINK_MSG_ID_GPS_RAW_INT}
     snap = snapshot(state_valid=False)
     for msg_id in sorted(tb.supported_ids):
         got = tb.build(msg_id, snap, 0)
@@ -166,10 +166,12 @@ def test_autopilot_version(mavs) -> None:
     (av,) = roundtrip(tb.autopilot_version(), mavs)
     caps = av.capabilities
     for bit in (M.MAV_PROTOCOL_CAPABILITY_MISSION_INT, M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT,
-                M.MAV_PROTOCOL_CAPABILITY_MAVLINK2, M.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE):
+                M.MAV_PROTOCOL_CAPABILITY_MAVLINK2, M.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE,
+                M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED,
+                M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT, M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE):
         assert caps & bit
     for bit in (M.MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST, M.MAV_PROTOCOL_CAPABILITY_FTP,
-                M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE, M.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY,
+                M.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY,
                 M.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET):
         assert not caps & bit
     assert caps == CAPABILITIES
@@ -277,3 +279,15 @@ def test_battery_discharges_and_sags() -> None:
     assert empty.soc == 0.0 and empty.remaining_pct == 0
     overload = battery_step(b0, 1e9, 0.001, cfg)  # beyond maximum power: bounded, finite
     assert math.isfinite(overload.current_a) and overload.voltage_v == pytest.approx(25.2 / 2, rel=1e-3)
+
+
+def test_gps_raw_int_and_origin_follow_the_origin(mavs) -> None:
+    origin = GeoOrigin(47.0, 8.0, 500.0)
+    tb = TelemetryBuilder(mavs[0], 1, 1)
+    snap = snapshot(pos_ned=(10.0, -5.0, -2.0), vel_ned=(0.0, 1.0, 0.0), origin=origin)
+    (gps,) = roundtrip(tb.build(M.MAVLINK_MSG_ID_GPS_RAW_INT, snap, 1000), mavs)
+    lat, lon, alt = origin.to_global((10.0, -5.0, -2.0))
+    assert (gps.lat, gps.lon, gps.alt) == (round(lat * 1e7), round(lon * 1e7), round(alt * 1000))
+    assert gps.fix_type == M.GPS_FIX_TYPE_3D_FIX and gps.vel == 100 and gps.cog == 9000
+    (o,) = roundtrip(tb.build(M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, snap, 0), mavs)
+    assert (o.latitude, o.longitude, o.altitude) == (470000000, 80000000, 500000)

@@ -79,7 +79,7 @@ def test_px4_custom_mode_encoding() -> None:
     for mode in FlightMode:
         assert decode_px4_custom_mode(mode.custom_mode) == (mode.main, mode.sub)
         assert FlightMode.from_px4(mode.main, mode.sub) is mode
-    assert FlightMode.from_px4(Px4MainMode.POSCTL, 0) is None
+    assert FlightMode.from_px4(Px4MainMode.ALTCTL, 0) is None
     with pytest.raises(ValueError):
         px4_custom_mode(256, 0)
 
@@ -250,10 +250,14 @@ def test_set_mode_hold_and_denials() -> None:
     mm = ModeManager()
     body = PointMass()
     mm.step(body.inputs(0.0))
-    ok, reason = mm.set_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER)
-    assert not ok and "not armed" in reason
+    # Hold can be selected while disarmed (PX4): the controller stays idle, the mode is reported.
+    assert mm.set_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER).ok
+    out = mm.step(body.inputs(0.005))
+    assert out.flight_mode is FlightMode.HOLD and not out.engaged and not out.armed
+    ok, reason = mm.set_mode(Px4MainMode.ALTCTL, 0)
+    assert not ok and "ALTCTL" in reason
     ok, reason = mm.set_mode(Px4MainMode.POSCTL, 0)
-    assert not ok and "POSCTL" in reason
+    assert not ok and "not flying" in reason
     mm.arm()
     ok, reason = mm.set_mode(Px4MainMode.AUTO, Px4AutoSubMode.MISSION)
     assert not ok and "no mission" in reason

@@ -1,0 +1,2 @@
+"""Missions: plans and their validation (plan), the MAVLink mission microservice (protocol) and the plans'
+persistence (store)."""

@@ -1,0 +1,62 @@
+"""The paper run flown as an uploaded plan: `navig8-mission from-scenario --scenario paper` writes Eq. 25/26 as
+mission items, `navig8-mission fly` uploads and flies it on the `paper_plan` world (the paper's world without a
+flight script; the bridge keeps only the object's mass event), and the log's summary meets the paper criteria of
+the scripted run (tests/sitl/test_sitl_paper.py) and is close to it (tolerances below, docs/gcs.md)."""
+
+from __future__ import annotations
+
+import io
+import time
+from pathlib import Path
+
+import pytest
+from sitl_helpers import gcs_client, sitl, wait_heartbeat
+
+from navig8_tools.logdata import load_run
+from navig8_tools.mission import fly, plan_from_scenario, read_plan, write_wpl
+from navig8_tools.summary import summarize
+
+
+def test_paper_plan_flown_by_navig8_mission_meets_the_paper_criteria(tmp_path: Path) -> None:
+    plan_file = tmp_path / "paper.waypoints"
+    plan_file.write_text(write_wpl(plan_from_scenario("paper")))
+    items = read_plan(plan_file).mission
+    with sitl(tmp_path, scenario="paper_plan", speed=1.0, fc_args=["--until-done"],
+              bridge_args=["--until-done"]) as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            wait_heartbeat(gcs, 15.0)
+            out = io.StringIO()
+            summary = fly(gcs, items, timeout_s=60.0, out=out)
+            assert summary["complete"], out.getvalue()[-2000:]
+            assert summary["reached"] == list(range(len(items))), summary
+        finally:
+            gcs.close()
+        deadline = time.monotonic() + 30.0
+        while run.fc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.2)
+    s = summarize(load_run(run.log), 0.0)
+    assert s["lost_control"] is False and s["bound_violations"] == 0 and s["min_eigenvalue"] >= 0.45
+    assert len(s["settle"]) == 5 and all(x["settle_s"] is not None for x in s["settle"]), s["settle"]
+
+    # Close to the scripted run (the in-process reference; test_sitl_paper.py shows SITL == in-process to float32
+    # rounding). Differences: the plan starts when its upload completes (~0.04 s of sim time after the start, so
+    # every step and arm command comes that much later relative to the 6 s mass event), the arm's initial 2 s
+    # ramp is 0.25 s joint-target steps, and the run lasts 32 s (holding after the plan ends) instead of 30 s.
+    ref = run_reference(tmp_path)
+    for key, rel in (("min_eigenvalue", 0.05), ("max_eigenvalue", 0.02), ("max_pos_error_m", 0.02),
+                     ("pos_rms_error_m", 0.05), ("max_att_error_deg", 0.05), ("peak_reaction_force_n", 0.05),
+                     ("peak_reaction_torque_nm", 0.1)):
+        assert s[key] == pytest.approx(ref[key], rel=rel), key
+    # Settling: the first four steps within 0.15 s of the scripted run's. The yaw step's window runs to the end of
+    # the log (32 s here, 30 s there): with the arm resting in Pose 2 the yaw error crosses 5 deg again at ~30.3 s,
+    # after the scripted run's end, so its settle time is later here by construction; it must settle all the same.
+    for a, b in zip(s["settle"][:4], ref["settle"][:4], strict=True):
+        assert a["axis"] == b["axis"] and a["settle_s"] == pytest.approx(b["settle_s"], abs=0.15), (a, b)
+    assert s["settle"][4]["axis"] == "yaw" and s["settle"][4]["settle_s"] >= ref["settle"][4]["settle_s"] - 0.15
+
+
+def run_reference(tmp_path: Path) -> dict:
+    from navig8_tools.sim import run
+
+    return run("paper", "proposed", seed=1, log_path=tmp_path / "ref.mcap").summary

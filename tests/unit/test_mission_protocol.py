@@ -1,0 +1,310 @@
+"""Mission microservice (navig8_fc.mission) against the devguide's sequences, pymavlink building and parsing every
+message on the wire: upload with retries and timeout, atomic replace, refusal codes, download equal to the
+upload, legacy MISSION_ITEM, clear, set current, MISSION_CURRENT / MISSION_ITEM_REACHED, persistence."""
+
+from __future__ import annotations
+
+import json
+import math
+from io import BytesIO
+from typing import Any
+
+import pytest
+from pymavlink.dialects.v20 import common as mavlink2
+
+from navig8_fc.mission import plan as P
+from navig8_fc.mission.plan import Cmd, Frame, MissionItem, MissionType, Result, plan_crc
+from navig8_fc.mission.protocol import MissionProtocol, MissionState, Progress
+from navig8_fc.mission.store import MissionStore
+
+M = mavlink2
+
+
+def test_plan_constants_are_mavlinks() -> None:
+    """plan.py carries MAVLink numbers without importing pymavlink: they must equal common.xml's."""
+    for c in Cmd:
+        if not c.name.startswith("NAVIG8"):
+            assert getattr(M, f"MAV_CMD_{c.name}") == c.value
+    assert Cmd.NAVIG8_ARM_JOINTS == M.MAV_CMD_USER_1 and Cmd.NAVIG8_PITCH_HOLD == M.MAV_CMD_USER_2
+    for r in Result:
+        assert getattr(M, f"MAV_MISSION_{r.name}") == r.value
+    for f in Frame:
+        assert getattr(M, f"MAV_FRAME_{f.name}") == f.value
+    for t in MissionType:
+        assert getattr(M, f"MAV_MISSION_TYPE_{t.name}") == t.value
+    assert (MissionState.NO_MISSION, MissionState.COMPLETE) == (M.MISSION_STATE_NO_MISSION, M.MISSION_STATE_COMPLETE)
+
+
+class Rig:
+    def __init__(self, store: MissionStore | None = None) -> None:
+        self.veh = M.MAVLink(BytesIO(), srcSystem=1, srcComponent=1)
+        self.gcs = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
+        self.other = M.MAVLink(BytesIO(), srcSystem=254, srcComponent=0)
+        self.proto = MissionProtocol(self.veh, 1, 1, store)
+
+    def wire(self, m: Any, src: Any) -> Any:
+        return self.veh.decode(bytearray(m.pack(src)))
+
+    def send(self, msg: Any, now_s: float = 0.0, src: Any = None) -> list[Any]:
+        src = src or self.gcs
+        return [self.wire(m, self.veh) for m in self.proto.handle(self.wire(msg, src), now_s, source="gcs")]
+
+    def poll(self, now_s: float) -> list[tuple[Any, Any]]:
+        return [(s, self.wire(m, self.veh)) for s, m in self.proto.poll(now_s)]
+
+
+def item_msg(gcs: Any, seq: int, it: MissionItem, current: int = 0, mission_type: int = 0) -> Any:
+    return gcs.mission_item_int_encode(1, 1, seq, it.frame, it.command, current, it.autocontinue, it.param1,
+                                       it.param2, it.param3, it.param4, it.x, it.y, it.z, mission_type)
+
+
+LAT0, LON0 = 473977420, 85455940
+EIGHT = (
+    MissionItem(Frame.GLOBAL_RELATIVE_ALT_INT, Cmd.NAV_TAKEOFF, 1, 0, 0, 0, math.nan, LAT0, LON0, 2.0),
+    MissionItem(Frame.LOCAL_NED, Cmd.NAV_WAYPOINT, 1, 1.0, 0.25, 0, 90.0, 20000, 10000, -2.0),
+    MissionItem(Frame.GLOBAL_RELATIVE_ALT_INT, Cmd.NAV_WAYPOINT, 1, 0, 0.5, 0, math.nan, LAT0 + 90, LON0, 2.5),
+    MissionItem(Frame.MISSION, Cmd.DO_GRIPPER, 1, 1, 0, 0, 0, 0, 0, 0),
+    MissionItem(Frame.MISSION, Cmd.NAVIG8_ARM_JOINTS, 1, 20, 20, 20, 1, 0, 0, 0),
+    MissionItem(Frame.MISSION, Cmd.NAVIG8_PITCH_HOLD, 1, 45, 3, 0, 0, 0, 0, 0),
+    MissionItem(Frame.GLOBAL_RELATIVE_ALT_INT, Cmd.NAV_LOITER_TIME, 1, 2, 0, 0, math.nan, LAT0, LON0, 2.0),
+    MissionItem(Frame.MISSION, Cmd.NAV_RETURN_TO_LAUNCH, 1, 0, 0, 0, 0, 0, 0, 0),
+)
+
+
+def upload(rig: Rig, items: tuple[MissionItem, ...], t0: float = 0.0, mission_type: int = 0) -> list[Any]:
+    """Client side of an upload; returns the final answer (MISSION_ACK and any STATUSTEXT)."""
+    out = rig.send(rig.gcs.mission_count_encode(1, 1, len(items), mission_type), t0)
+    for k in range(len(items)):
+        req = out[0]
+        if req.get_type() == "MISSION_ACK":
+            return out  # refused
+        assert req.get_type() == "MISSION_REQUEST_INT" and req.seq == k and req.mission_type == mission_type
+        assert (req.target_system, req.target_component) == (255, 190)
+        out = rig.send(item_msg(rig.gcs, k, items[k], int(k == 0), mission_type), t0 + 0.01 * (k + 1))
+    return out
+
+
+def download(rig: Rig, mission_type: int = 0, legacy: bool = False) -> list[Any]:
+    (count,) = rig.send(rig.gcs.mission_request_list_encode(1, 1, mission_type))
+    assert count.get_type() == "MISSION_COUNT"
+    got = []
+    for k in range(count.count):
+        enc = rig.gcs.mission_request_encode if legacy else rig.gcs.mission_request_int_encode
+        (it,) = rig.send(enc(1, 1, k, mission_type))
+        assert it.get_type() == ("MISSION_ITEM" if legacy else "MISSION_ITEM_INT") and it.seq == k
+        got.append(it)
+    rig.send(rig.gcs.mission_ack_encode(1, 1, 0, mission_type))
+    return got
+
+
+def as_item(m: Any) -> MissionItem:
+    return MissionItem(m.frame, m.command, m.autocontinue, m.param1, m.param2, m.param3, m.param4, m.x, m.y, m.z)
+
+
+def same(a: MissionItem, b: MissionItem) -> bool:
+    """Equal, NaN equal to NaN (float32 on the wire: the test values are exact in float32)."""
+    fa = (a.param1, a.param2, a.param3, a.param4, a.z)
+    fb = (b.param1, b.param2, b.param3, b.param4, b.z)
+    return (a.frame, a.command, a.autocontinue, a.x, a.y) == (b.frame, b.command, b.autocontinue, b.x, b.y) and all(
+        (math.isnan(u) and math.isnan(v)) or u == v for u, v in zip(fa, fb, strict=True))
+
+
+def test_upload_then_download_equals_upload() -> None:
+    rig = Rig()
+    (ack,) = upload(rig, EIGHT)
+    assert ack.get_type() == "MISSION_ACK" and ack.type == M.MAV_MISSION_ACCEPTED
+    assert (ack.target_system, ack.target_component) == (255, 190)
+    assert rig.proto.opaque_id() == plan_crc(EIGHT) != 0
+    got = download(rig)
+    assert len(got) == 8 and all(same(as_item(g), e) for g, e in zip(got, EIGHT, strict=True))
+    assert [g.current for g in got] == [1, 0, 0, 0, 0, 0, 0, 0]
+
+
+def test_legacy_mission_item_upload_and_download_convert_xy() -> None:
+    rig = Rig()
+    wp = MissionItem(Frame.LOCAL_NED, Cmd.NAV_WAYPOINT, 1, 0, 0.2, 0, 0, 0, 0, -2.0)
+    (req,) = rig.send(rig.gcs.mission_count_encode(1, 1, 1, 0))
+    assert req.get_type() == "MISSION_REQUEST_INT"
+    (ack,) = rig.send(rig.gcs.mission_item_encode(1, 1, 0, wp.frame, wp.command, 1, 1, 0, 0.2, 0, 0, 1.5, -2.25,
+                                                   -2.0, 0))
+    assert ack.type == M.MAV_MISSION_ACCEPTED
+    assert (rig.proto.plan().items[0].x, rig.proto.plan().items[0].y) == (15000, -22500)  # metres * 1e4
+    (it,) = download(rig, legacy=True)
+    assert (it.x, it.y) == (1.5, -2.25)
+
+
+def test_unsupported_ack_switches_the_upload_to_mission_request() -> None:
+    rig = Rig()
+    rig.send(rig.gcs.mission_count_encode(1, 1, 1, 0))
+    (req,) = rig.send(rig.gcs.mission_ack_encode(1, 1, M.MAV_MISSION_UNSUPPORTED, 0))
+    assert req.get_type() == "MISSION_REQUEST" and req.seq == 0
+
+
+def test_lost_request_is_repeated_every_250_ms_and_upload_times_out_after_5_s() -> None:
+    rig = Rig()
+    upload(rig, EIGHT[:2])
+    before = rig.proto.plan()
+    rig.send(rig.gcs.mission_count_encode(1, 1, 3, 0), 10.0)
+    rig.send(item_msg(rig.gcs, 0, EIGHT[0], 1), 10.1)  # -> request 1, which the "radio" loses
+    assert not [m for _, m in rig.poll(10.2) if m.get_type() == "MISSION_REQUEST_INT"]  # < 250 ms: nothing
+    again = [(s, m) for s, m in rig.poll(10.36) if m.get_type() == "MISSION_REQUEST_INT"]
+    assert [(s, m.seq) for s, m in again] == [("gcs", 1)]  # repeated, to the uploader
+    # The uploader vanishes: 5 s after its last message the upload ends, the old plan stays in force.
+    assert rig.proto.busy
+    rig.poll(15.05)
+    assert rig.proto.busy
+    texts = [m.text for _, m in rig.poll(15.11) if m.get_type() == "STATUSTEXT"]
+    assert not rig.proto.busy and any("timed out" in t for t in texts)
+    assert rig.proto.plan() == before and len(download(rig)) == 2
+
+
+def test_out_of_order_and_duplicate_items_are_ignored_and_the_request_repeated() -> None:
+    rig = Rig()
+    rig.send(rig.gcs.mission_count_encode(1, 1, 2, 0))
+    (req,) = rig.send(item_msg(rig.gcs, 0, EIGHT[0], 1))
+    assert req.seq == 1
+    assert rig.send(item_msg(rig.gcs, 0, EIGHT[0], 1)) == []  # duplicate
+    assert rig.send(item_msg(rig.gcs, 5, EIGHT[1])) == []  # ahead
+    (ack,) = rig.send(item_msg(rig.gcs, 1, EIGHT[1]))
+    assert ack.type == M.MAV_MISSION_ACCEPTED
+    # The ground station lost that ACK and sends the last item again: the same ACK again.
+    (ack2,) = rig.send(item_msg(rig.gcs, 1, EIGHT[1]))
+    assert ack2.get_type() == "MISSION_ACK" and ack2.type == M.MAV_MISSION_ACCEPTED
+
+
+@pytest.mark.parametrize("bad, result, word", [
+    (MissionItem(Frame.MISSION, 183, 1, 0, 0, 0, 0, 0, 0, 0), Result.UNSUPPORTED, "command 183"),  # DO_SET_SERVO
+    (MissionItem(Frame.MISSION, Cmd.NAV_WAYPOINT, 1, 0, 0, 0, 0, 0, 0, 0), Result.UNSUPPORTED_FRAME, "frame"),
+    (MissionItem(Frame.LOCAL_NED, Cmd.NAV_WAYPOINT, 1, -1, 0, 0, 0, 0, 0, 0), Result.INVALID_PARAM1, "hold"),
+    (MissionItem(Frame.LOCAL_NED, Cmd.NAV_WAYPOINT, 1, math.nan, 0, 0, 0, 0, 0, 0), Result.INVALID_PARAM1, "param1"),
+    (MissionItem(Frame.LOCAL_NED, Cmd.NAV_WAYPOINT, 1, 0, 0, 0, 0, 0, 0, math.inf), Result.INVALID_PARAM7, "z"),
+    (MissionItem(Frame.GLOBAL_INT, Cmd.NAV_WAYPOINT, 1, 0, 0, 0, 0, 95 * 10**7, 0, 5), Result.INVALID_PARAM5_X,
+     "latitude"),
+    (MissionItem(Frame.MISSION, Cmd.DO_JUMP, 1, 9, 1, 0, 0, 0, 0, 0), Result.INVALID_PARAM1, "target"),
+    (MissionItem(Frame.MISSION, Cmd.DO_GRIPPER, 1, 1, 3, 0, 0, 0, 0, 0), Result.INVALID_PARAM2, "action"),
+    (MissionItem(Frame.MISSION, Cmd.NAVIG8_PITCH_HOLD, 1, 75, 3, 0, 0, 0, 0, 0), Result.INVALID_PARAM1, "pitch"),
+    (MissionItem(Frame.MISSION, Cmd.NAVIG8_ARM_JOINTS, 1, 0, 0, 0, 0, 0, 0, 0), Result.INVALID_PARAM4, "apply"),
+])  # fmt: skip
+def test_a_bad_item_refuses_the_whole_upload_with_the_result_that_names_it(bad, result, word) -> None:
+    rig = Rig()
+    upload(rig, EIGHT)
+    old_id = rig.proto.opaque_id()
+    out = upload(rig, (*EIGHT[:3], bad, *EIGHT[4:]))
+    ack, *texts = out
+    assert ack.get_type() == "MISSION_ACK" and ack.type == result
+    assert texts and texts[0].get_type() == "STATUSTEXT" and word in texts[0].text and "Item 3" in texts[0].text
+    assert not rig.proto.busy and rig.proto.opaque_id() == old_id  # the old plan is in force
+    assert len(download(rig)) == 8
+
+
+def test_upload_limits_types_and_busy() -> None:
+    rig = Rig()
+    (ack,) = rig.send(rig.gcs.mission_count_encode(1, 1, 10_000, 0))[:1]
+    assert ack.type == M.MAV_MISSION_NO_SPACE
+    (ack,) = rig.send(rig.gcs.mission_count_encode(1, 1, 1, M.MAV_MISSION_TYPE_RALLY))[:1]
+    assert ack.type == M.MAV_MISSION_UNSUPPORTED
+    rig.send(rig.gcs.mission_count_encode(1, 1, 2, 0))
+    ack = rig.send(rig.other.mission_count_encode(1, 1, 2, 0), src=rig.other)[0]
+    assert ack.type == M.MAV_MISSION_ERROR and ack.target_system == 254  # another GCS: busy
+    assert rig.send(item_msg(rig.other, 0, EIGHT[0], 1), src=rig.other) == []  # not the uploader's
+    (req,) = rig.send(rig.gcs.mission_count_encode(1, 1, 1, 0), 0.1)  # the uploader restarts
+    assert req.seq == 0
+    assert rig.send(rig.gcs.mission_count_encode(2, 1, 1, 0)) == []  # another vehicle's
+
+
+def test_mission_item_in_wrong_mission_type_during_upload_is_an_error() -> None:
+    rig = Rig()
+    rig.send(rig.gcs.mission_count_encode(1, 1, 1, 0))
+    ack = rig.send(item_msg(rig.gcs, 0, EIGHT[0], 1, mission_type=1))[0]
+    assert ack.type == M.MAV_MISSION_ERROR and not rig.proto.busy
+
+
+def test_fence_upload_is_separate_and_polygons_are_checked() -> None:
+    rig = Rig()
+    upload(rig, EIGHT)
+    circle = MissionItem(Frame.GLOBAL_INT, Cmd.NAV_FENCE_CIRCLE_INCLUSION, 1, 10.0, 0, 0, 0, LAT0, LON0, 0)
+    vertex = MissionItem(Frame.GLOBAL_INT, Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, 1, 3, 0, 0, 0, LAT0, LON0, 0)
+    (ack,) = upload(rig, (circle, vertex, vertex, vertex), mission_type=1)
+    assert ack.type == M.MAV_MISSION_ACCEPTED and ack.mission_type == 1
+    assert len(download(rig, 1)) == 4 and len(download(rig, 0)) == 8
+    ack = upload(rig, (vertex, vertex), mission_type=1)[0]
+    assert ack.type == M.MAV_MISSION_INVALID_PARAM1
+    ack = upload(rig, (EIGHT[0],), mission_type=1)[0]  # a mission command in a fence
+    assert ack.type == M.MAV_MISSION_UNSUPPORTED
+    assert len(rig.proto.plan(1).items) == 4
+
+
+def test_clear_all_and_count_zero() -> None:
+    rig = Rig()
+    upload(rig, EIGHT)
+    upload(rig, (MissionItem(Frame.GLOBAL_INT, Cmd.NAV_FENCE_CIRCLE_INCLUSION, 1, 10.0, 0, 0, 0, 1, 1, 0),), 0, 1)
+    (ack,) = rig.send(rig.gcs.mission_clear_all_encode(1, 1, 0))
+    assert ack.type == M.MAV_MISSION_ACCEPTED and not rig.proto.plan().items and rig.proto.plan(1).items
+    (ack,) = rig.send(rig.gcs.mission_clear_all_encode(1, 1, M.MAV_MISSION_TYPE_ALL))
+    assert ack.type == M.MAV_MISSION_ACCEPTED and not rig.proto.plan(1).items
+    upload(rig, EIGHT)
+    (ack,) = rig.send(rig.gcs.mission_count_encode(1, 1, 0, 0))
+    assert ack.type == M.MAV_MISSION_ACCEPTED and rig.proto.opaque_id() == 0
+    assert rig.send(rig.gcs.mission_request_list_encode(1, 1, 0))[0].count == 0
+
+
+def test_download_of_a_missing_seq_is_invalid_sequence() -> None:
+    rig = Rig()
+    upload(rig, EIGHT[:2])
+    (ack,) = rig.send(rig.gcs.mission_request_int_encode(1, 1, 2, 0))
+    assert ack.get_type() == "MISSION_ACK" and ack.type == M.MAV_MISSION_INVALID_SEQUENCE
+
+
+def test_mission_current_streams_and_follows_set_current_and_progress() -> None:
+    rig = Rig()
+    cur = [m for _, m in rig.poll(0.0) if m.get_type() == "MISSION_CURRENT"]
+    assert [(c.seq, c.total, c.mission_state) for c in cur] == [(0, 65535, M.MISSION_STATE_NO_MISSION)]
+    assert not [m for _, m in rig.poll(0.5) if m.get_type() == "MISSION_CURRENT"]  # 1 Hz
+    upload(rig, EIGHT, 0.6)
+    cur = [m for _, m in rig.poll(0.7) if m.get_type() == "MISSION_CURRENT"]  # changed: at once
+    assert [(c.seq, c.total, c.mission_state, c.mission_mode) for c in cur] == [(0, 8, M.MISSION_STATE_NOT_STARTED, 2)]
+    rig.send(rig.gcs.mission_set_current_encode(1, 1, 3), 0.8)
+    cur = [m for s, m in rig.poll(0.9) if m.get_type() == "MISSION_CURRENT" and s is None]
+    assert [c.seq for c in cur] == [3] and rig.proto.plan().current == 3
+    out = rig.send(rig.gcs.mission_set_current_encode(1, 1, 8), 1.0)
+    assert out[0].get_type() == "STATUSTEXT" and rig.proto.plan().current == 3
+    rig.proto.report(Progress(current=4, reached=3, active=True, reached_log=((1, 2), (2, 3))))
+    msgs = [m for _, m in rig.poll(1.1)]
+    cur = [m for m in msgs if m.get_type() == "MISSION_CURRENT"]
+    assert [(c.seq, c.mission_state, c.mission_mode) for c in cur] == [(4, M.MISSION_STATE_ACTIVE, 1)]
+    reached = [m.seq for m in msgs if m.get_type() == "MISSION_ITEM_REACHED"]
+    assert reached == [2, 3]  # every reached item, in order, even two between polls
+    n_repeats = sum(m.get_type() == "MISSION_ITEM_REACHED" for t in range(2, 20) for _, m in rig.poll(float(t)))
+    assert n_repeats == 10  # then once a second, 10 more times (PX4)
+    rig.proto.report(Progress(current=7, reached=7, active=False, finished=True))
+    cur = [m for _, m in rig.poll(30.0) if m.get_type() == "MISSION_CURRENT"]
+    assert cur[0].mission_state == M.MISSION_STATE_COMPLETE
+
+
+def test_plans_persist_atomically_and_reload(tmp_path) -> None:
+    path = tmp_path / "fc_mission_0.json"
+    rig = Rig(MissionStore(path))
+    upload(rig, EIGHT)
+    rig.send(rig.gcs.mission_set_current_encode(1, 1, 2))
+    doc = json.loads(path.read_text())
+    assert doc["format"] == "navig8-fc-mission" and len(doc["plans"]["0"]["items"]) == 8
+    assert [p.name for p in tmp_path.iterdir()] == ["fc_mission_0.json"]  # no temporary file left
+    again = Rig(MissionStore(path))
+    assert again.proto.load_stored() is None
+    assert again.proto.plan().current == 2 and again.proto.opaque_id() == plan_crc(EIGHT)
+    assert all(same(a, b) for a, b in zip(again.proto.plan().items, EIGHT, strict=True))
+
+
+def test_a_stored_plan_the_rules_refuse_is_not_loaded(tmp_path) -> None:
+    path = tmp_path / "m.json"
+    path.write_text(json.dumps({"format": "navig8-fc-mission", "version": 1, "plans": {
+        "0": {"current": 0, "items": [[2, 183, 1, 0, 0, 0, 0, 0, 0, 0]]}}}))
+    rig = Rig(MissionStore(path))
+    reason = rig.proto.load_stored()
+    assert reason and "not supported" in reason and not rig.proto.plan().items
+    path.write_text("{not json")
+    assert "unreadable" in (Rig(MissionStore(path)).proto.load_stored() or "")
+
+
+def test_check_item_accepts_every_item_of_the_eight_item_plan() -> None:
+    assert all(P.check_item(it, 0, 8) is None for it in EIGHT)
