@@ -23,7 +23,7 @@ from typing import Any
 
 import yaml
 
-from navig8_fc.core.rotation import euler_to_quat, quat_mul, quat_normalize
+from navig8_fc.core.rotation import euler_to_quat
 from navig8_fc.core.vehicle import N_LINKS, VehicleConfig
 
 Quat = tuple[float, float, float, float]  # (w, x, y, z)
@@ -121,9 +121,15 @@ def _color(r: float, g: float, b: float, a: float = 1.0) -> dict[str, float]:
 
 
 def enu_pose(pos_ned_m: Sequence[float], quat_wxyz: Sequence[float]) -> tuple[Vec3, Quat]:
-    """The FRD body's pose in the ENU world: (east, north, up) and q_ENU<-NED (x) q_NED<-FRD (docs/urdf.md)."""
-    return ((_f(pos_ned_m[1]), _f(pos_ned_m[0]), -_f(pos_ned_m[2])),
-            quat_mul(Q_ENU_FROM_NED, quat_normalize(tuple(_f(x) for x in quat_wxyz))))  # a float32 wire quat
+    """The FRD body's pose in the ENU world: (east, north, up) and q_ENU<-NED (x) q_NED<-FRD (docs/urdf.md).
+
+    The product with q_ENU<-NED = (0, h, h, 0), h = sqrt(1/2), written out: h (-x - y, w + z, w - z, y - x)
+    (this runs 100 times a second of sim time; quat_mul is a numba kernel, whose call costs more than this).
+    The input is normalised (the wire's quaternion is float32)."""
+    w, x, y, z = (float(c) for c in quat_wxyz)
+    k = _H / math.sqrt(w * w + x * x + y * y + z * z)
+    return ((float(pos_ned_m[1]), float(pos_ned_m[0]), -float(pos_ned_m[2])),
+            (k * (-x - y), k * (w + z), k * (w - z), k * (y - x)))
 
 
 class VehicleViz:
@@ -135,8 +141,20 @@ class VehicleViz:
         self.d = DisplaySizes() if display is None else display
         right = tuple(_f(x) for x in cfg.duct_right_frd_m)
         self._duct_pos = (right, (right[0], -right[1], right[2]))
-        self._duct_roll = (_qx(-cfg.dihedral_rad), _qx(cfg.dihedral_rad))  # R_x(-/+ gamma): thrust canted inboard
+        # R_x(-/+ gamma): thrust canted inboard; (cos, sin) of the half angle of each duct's roll
+        self._duct_half_roll = tuple((math.cos(0.5 * r), math.sin(0.5 * r))
+                                     for r in (-cfg.dihedral_rad, cfg.dihedral_rad))
         self._L = _f(cfg.link_length_m)
+        # The fixed joints, (parent, child, translation, rotation) without the prefix: built once.
+        self._fixed = (
+            ("base_link", "base_link_flu", _vec(_ZERO), _quat(_qx(math.pi))),
+            ("base_link", "tail", _vec(cfg.tail_frd_m), _quat(_IDENTITY)),
+            ("base_link", "arm_mount", _vec(cfg.mount_frd_m), _quat(_IDENTITY)),
+            (f"link_{N_LINKS}", "gripper", _vec((0.0, 0.0, self._L)), _quat(_IDENTITY)),
+            ("gripper", "object", _vec((0.0, 0.0, _f(cfg.object_offset_m))), _quat(_IDENTITY)),
+        )
+        self._link_xyz = tuple(_vec(_ZERO if i == 0 else (0.0, 0.0, self._L)) for i in range(N_LINKS))
+        self._duct_xyz = tuple(_vec(p) for p in self._duct_pos)
 
     # --- transforms ------------------------------------------------------------------------------
     def transform_list(self, t_ns: int, pose: VehiclePose, prefix: str = "") -> list[dict[str, Any]]:
@@ -145,30 +163,28 @@ class VehicleViz:
         Each movable joint is its URDF origin followed by the rotation by the joint position about its axis:
         duct_i: R_x(-/+gamma) R_y(-alpha_i) (axis (0, -1, 0)); link_i: R_y(q_i) (axis (0, 1, 0))."""
         ts = stamp(t_ns)
-        b = prefix + "base_link"
 
-        def tf(parent: str, child: str, p: Sequence[float], q: Sequence[float]) -> dict[str, Any]:
-            return {"timestamp": ts, "parent_frame_id": parent, "child_frame_id": child,
-                    "translation": _vec(p), "rotation": _quat(q)}
+        def tf(parent: str, child: str, p: dict[str, float], q: dict[str, float]) -> dict[str, Any]:
+            return {"timestamp": ts, "parent_frame_id": parent, "child_frame_id": child, "translation": p,
+                    "rotation": q}
 
         p_enu, q_enu = enu_pose(pose.pos_ned_m, pose.quat_wxyz)
-        cfg = self.cfg
-        out = [
-            tf(WORLD_FRAME, b, p_enu, q_enu),
-            tf(b, prefix + "base_link_flu", _ZERO, _qx(math.pi)),
-            tf(b, prefix + "tail", cfg.tail_frd_m, _IDENTITY),
-            tf(b, prefix + "arm_mount", cfg.mount_frd_m, _IDENTITY),
-        ]
+        out = [tf(WORLD_FRAME, prefix + "base_link", _vec(p_enu), _quat(q_enu))]
+        out.extend(tf(prefix + a, prefix + c, p, q) for a, c, p, q in self._fixed)
         for i, name in enumerate(("duct_1", "duct_3")):
-            q = quat_mul(self._duct_roll[i], _qy(-_f(pose.tilt_rad[i])))
-            out.append(tf(b, prefix + name, self._duct_pos[i], q))
-        parent, xyz = prefix + "arm_mount", _ZERO
+            # q_x(roll) (x) q_y(-alpha) written out: (cr cb, sr cb, cr sb, sr sb) with b = -alpha / 2
+            cr, sr = self._duct_half_roll[i]
+            half = -0.5 * float(pose.tilt_rad[i])
+            cb, sb = math.cos(half), math.sin(half)
+            out.append(tf(prefix + "base_link", prefix + name, self._duct_xyz[i],
+                          {"x": sr * cb, "y": cr * sb, "z": sr * sb, "w": cr * cb}))
+        parent = prefix + "arm_mount"
         for i in range(N_LINKS):
             child = f"{prefix}link_{i + 1}"
-            out.append(tf(parent, child, xyz, _qy(_f(pose.joint_pos_rad[i]))))
-            parent, xyz = child, (0.0, 0.0, self._L)
-        out.append(tf(parent, prefix + "gripper", xyz, _IDENTITY))
-        out.append(tf(prefix + "gripper", prefix + "object", (0.0, 0.0, _f(cfg.object_offset_m)), _IDENTITY))
+            half = 0.5 * float(pose.joint_pos_rad[i])  # R_y(q_i)
+            out.append(tf(parent, child, self._link_xyz[i],
+                          {"x": 0.0, "y": math.sin(half), "z": 0.0, "w": math.cos(half)}))
+            parent = child
         return out
 
     def frame_transforms(self, t_ns: int, trees: Sequence[tuple[str, VehiclePose]]) -> dict[str, Any]:
@@ -259,8 +275,17 @@ class VehicleViz:
     @staticmethod
     def poses_in_frame(t_ns: int, poses: Sequence[tuple[Sequence[float], Sequence[float]]]) -> dict[str, Any]:
         """foxglove.PosesInFrame of (pos NED, q_NED<-FRD) poses in the ENU world: a path, or a mission's waypoints."""
-        return {"timestamp": stamp(t_ns), "frame_id": WORLD_FRAME,
-                "poses": [_pose(*enu_pose(p, q)) for p, q in poses]}
+        return poses_record(t_ns, [world_pose(p, q) for p, q in poses])
+
+
+def world_pose(pos_ned_m: Sequence[float], quat_wxyz: Sequence[float]) -> dict[str, Any]:
+    """A foxglove.Pose in the ENU world of a body pose (NED position, q_NED<-FRD)."""
+    return _pose(*enu_pose(pos_ned_m, quat_wxyz))
+
+
+def poses_record(t_ns: int, world_poses: list[dict[str, Any]]) -> dict[str, Any]:
+    """foxglove.PosesInFrame of poses already in the world frame (world_pose): a path keeps them built."""
+    return {"timestamp": stamp(t_ns), "frame_id": WORLD_FRAME, "poses": world_poses}
 
 
 def log_record(t_ns: int, severity: int, text: str, name: str) -> dict[str, Any]:
@@ -317,4 +342,5 @@ def channel_schema(name: str) -> dict[str, Any]:
 
 __all__ = ["DisplaySizes", "ESTIMATE_PREFIX", "FRAME_TRANSFORMS", "LOG", "POSES_IN_FRAME", "POSE_IN_FRAME",
            "Q_ENU_FROM_NED", "SCENE_UPDATE", "VehiclePose", "VehicleViz", "WORLD_FRAME", "channel_schema",
-           "enu_pose", "log_record", "packaged_uav_size_m", "stamp", "uav_size_m", "waypoint_poses"]
+           "enu_pose", "log_record", "packaged_uav_size_m", "poses_record", "stamp", "uav_size_m", "waypoint_poses",
+           "world_pose"]

@@ -77,7 +77,7 @@ class FoxgloveOutput:
                 self._cid[topic] = logger.channel(topic, None, schema_name=schema, schema=viz.channel_schema(schema))
         self._due = dict.fromkeys(TOPICS, -1)
         self.next_due_ns = -1  # the earliest time any periodic channel is due (one compare per step)
-        self._path: deque[tuple[Sequence[float], Sequence[float]]] = deque(maxlen=PATH_LENGTH)
+        self._path: deque[dict[str, Any]] = deque(maxlen=PATH_LENGTH)  # world poses, built once each
         self._mission: list[tuple[Sequence[float], Sequence[float]]] | None = None
 
     def set_mission(self, poses: list[tuple[Sequence[float], Sequence[float]]] | None) -> None:
@@ -124,8 +124,8 @@ class FoxgloveOutput:
             self._emit("/foxglove/pose", t_ns, lambda: v.pose_in_frame(t_ns, truth.pos_ned_m, truth.quat_wxyz),
                        wall_ns)
         if self._take("/foxglove/path", t_ns):
-            self._path.append((truth.pos_ned_m, truth.quat_wxyz))
-            self._emit("/foxglove/path", t_ns, lambda: v.poses_in_frame(t_ns, list(self._path)), wall_ns)
+            self._path.append(viz.world_pose(truth.pos_ned_m, truth.quat_wxyz))
+            self._emit("/foxglove/path", t_ns, lambda: viz.poses_record(t_ns, list(self._path)), wall_ns)
         if self._take("/foxglove/mission", t_ns) and self._mission is not None:
             mission = self._mission
             self._emit("/foxglove/mission", t_ns, lambda: v.poses_in_frame(t_ns, mission), wall_ns)

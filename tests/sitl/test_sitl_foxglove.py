@@ -4,14 +4,23 @@ streams the same channels live to a WebSocket client speaking Foxglove's protoco
 
 from __future__ import annotations
 
+import json
+import os
+import signal
+import socket
+import struct
+import subprocess
 import sys
+import time
 from pathlib import Path
 
-from sitl_helpers import sitl
+import pytest
+from sitl_helpers import free_udp_ports, sitl, wait_ports_file
+from websockets.sync.client import connect
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "unit"))  # the oracles beside the unit tests
 
-from foxglove_oracle import check_log  # noqa: E402
+from foxglove_oracle import check_log, validate  # noqa: E402
 
 from navig8_fc.core.vehicle import VehicleConfig  # noqa: E402
 
@@ -23,3 +32,80 @@ def test_sitl_log_foxglove_channels_validate_and_transforms_match_kinematics(tmp
     counts = check_log(run.log, VehicleConfig.load(), {"/foxglove/tf": 90, "/foxglove/scene": 18,
                                                         "/foxglove/path": 4, "/foxglove/mission": 4})
     assert counts["/foxglove/tf"] <= 102  # 50 Hz of sim time, not every 2 ms step
+
+
+FOXGLOVE_SUBPROTOCOL = "foxglove.sdk.v1"  # what foxglove-sdk's server speaks (Foxglove app >= 2.x)
+MESSAGE_DATA = 0x01  # binary opcode: u8 op, u32 subscription id, u64 log time (ns), payload
+
+
+def _instance_ports_free(n: int) -> bool:
+    for port in (4560 + 2 * n, 4561 + 2 * n, 18570 + n, 14580 + n):
+        s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+        finally:
+            s.close()
+    return True
+
+
+def test_navig8_sitl_foxglove_streams_transforms_live(tmp_path: Path) -> None:
+    instance = 14  # navig8-sitl's own ports are per instance (test_sitl_launcher uses 11, 12)
+    assert _instance_ports_free(instance)
+    (gcs,) = free_udp_ports(1)
+    ports_file = tmp_path / "fc-ports.json"
+    cmd = [sys.executable, "-m", "navig8_fc.shell.sitl", "--scenario", "hover", "--speed", "1", "--instance",
+           str(instance), "--log-dir", str(tmp_path / "logs"), "--state-dir", str(tmp_path / "state"), "--defaults",
+           "--foxglove", "0", f"--fc-arg=--gcs-port={gcs}", f"--fc-arg=--ports-file={ports_file}"]
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    try:
+        port = wait_ports_file(ports_file, proc)["foxglove"]
+        assert port > 0
+        with connect(f"ws://127.0.0.1:{port}", subprotocols=[FOXGLOVE_SUBPROTOCOL], open_timeout=10) as ws:
+            assert ws.subprotocol == FOXGLOVE_SUBPROTOCOL
+            channels: dict[str, dict] = {}
+            deadline = time.monotonic() + 10.0
+            while "/foxglove/tf" not in channels and time.monotonic() < deadline:
+                msg = ws.recv(timeout=max(deadline - time.monotonic(), 0.01))
+                if isinstance(msg, str):
+                    m = json.loads(msg)
+                    if m["op"] == "advertise":
+                        channels.update({c["topic"]: c for c in m["channels"]})
+            tf = channels["/foxglove/tf"]
+            assert (tf["schemaName"], tf["encoding"]) == ("foxglove.FrameTransforms", "json")
+            assert {"/foxglove/scene", "/foxglove/path", "/foxglove/log"} <= set(channels)
+            assert channels["/foxglove/scene"]["schemaName"] == "foxglove.SceneUpdate"
+            ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": 7, "channelId": tf["id"]}]}))
+            log_times, records = [], []
+            t_first = None
+            deadline = time.monotonic() + 15.0
+            while len(log_times) < 100 and time.monotonic() < deadline:
+                msg = ws.recv(timeout=max(deadline - time.monotonic(), 0.01))
+                if isinstance(msg, bytes) and msg[0] == MESSAGE_DATA:
+                    sub_id, t_ns = struct.unpack_from("<IQ", msg, 1)
+                    assert sub_id == 7
+                    if t_first is None:
+                        t_first = time.monotonic()
+                    log_times.append(t_ns)
+                    records.append(json.loads(msg[13:]))
+            wall = time.monotonic() - t_first
+        assert len(log_times) == 100, len(log_times)
+        # 50 Hz of sim time, every record on the 20 ms grid, none skipped; at --speed 1 that is 50 Hz of wall time
+        steps = {b - a for a, b in zip(log_times, log_times[1:], strict=False)}
+        assert steps == {20_000_000}, steps
+        assert 99 / wall == pytest.approx(50.0, rel=0.25), 99 / wall
+        for rec in records[:: 10]:
+            validate("foxglove.FrameTransforms", rec)
+            frames = {t["child_frame_id"] for t in rec["transforms"]}
+            assert {"base_link", "gripper", "est/base_link", "est/gripper"} <= frames
+    finally:
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGINT)
+            try:
+                proc.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait(timeout=10)
+    assert proc.returncode == 0, proc.stderr.read()[-2000:] if proc.stderr else ""

@@ -54,3 +54,16 @@ def test_log_record_levels_and_object_sphere_volume() -> None:
     assert np.isclose(x_axis_z, 1.0)
     assert np.isclose(arrow["shaft_length"] + arrow["head_length"],
                       v.cfg.k_thrust_tail * 200.0**2 * v.d.thrust_arrow_m_per_n)
+
+
+def test_enu_pose_is_the_product_with_q_enu_from_ned() -> None:
+    # the written-out product equals quat_mul (the project's quaternion product) of the normalised input
+    from navig8_fc.core.rotation import quat_mul
+    from navig8_fc.viz import Q_ENU_FROM_NED, enu_pose
+
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        q = rng.normal(size=4)
+        p, q_enu = enu_pose((1.0, 2.0, -3.0), tuple(q * 1.001))
+        assert p == (2.0, 1.0, 3.0)
+        assert np.allclose(q_enu, quat_mul(Q_ENU_FROM_NED, tuple(q / np.linalg.norm(q))), atol=1e-12)
