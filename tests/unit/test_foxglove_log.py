@@ -67,3 +67,35 @@ def test_enu_pose_is_the_product_with_q_enu_from_ned() -> None:
         p, q_enu = enu_pose((1.0, 2.0, -3.0), tuple(q * 1.001))
         assert p == (2.0, 1.0, 3.0)
         assert np.allclose(q_enu, quat_mul(Q_ENU_FROM_NED, tuple(q / np.linalg.norm(q))), atol=1e-12)
+
+
+def _resolve(rec: object, path: str) -> object:
+    """A Foxglove message path's value in a record: fields by name, [i] by index."""
+    import re
+
+    for name, index in re.findall(r"\.?([A-Za-z_0-9]+)|\[(\d+)\]", path):
+        rec = rec[int(index)] if index else rec[name]  # type: ignore[index]
+    return rec
+
+
+def test_layout_is_current_and_every_plot_path_resolves_in_a_log(sim_log: Path) -> None:
+    from foxglove_oracle import read_log
+
+    from navig8_tools.foxglove_layout import LAYOUT_PATH, layout, main
+
+    assert main(["--check"]) == 0, f"{LAYOUT_PATH} is stale"
+    cfg = layout()["configById"]
+    _, msgs = read_log(sim_log)
+    last = {topic: rec for topic, _t, rec in msgs}
+    n = 0
+    for panel_id, panel in cfg.items():
+        if panel_id.startswith("Plot!"):
+            for p in panel["paths"]:
+                topic, _, field = p["value"].partition(".")
+                value = _resolve(last[topic], field)
+                assert isinstance(value, (int, float)) and not isinstance(value, bool), (p["value"], value)
+                n += 1
+    assert n >= 40
+    three_d = cfg["3D!navig8"]
+    assert set(three_d["topics"]) <= set(last)  # the 3D panel's topics are in the log
+    assert cfg["RosOut!log"]["topicToRender"] == "/foxglove/log"
