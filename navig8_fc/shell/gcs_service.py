@@ -25,6 +25,8 @@ from typing import Any, Protocol
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.state import GripperAction, VehicleCommands, VehicleState
 from navig8_fc.gcs.commands import CommandHandler
+from navig8_fc.gcs.ftp import FtpServer, FtpService
+from navig8_fc.gcs.metadata import build_metadata, component_metadata_message
 from navig8_fc.gcs.misc import MiscProtocols
 from navig8_fc.gcs.params import ParamProtocol, StoredLoad
 from navig8_fc.gcs.statustext import StatusTextEncoder
@@ -78,6 +80,8 @@ class GcsService:
         self.params = ParamProtocol(registry, mav, store, statustext=self.text)
         self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text)
         self.misc = MiscProtocols(mav, statustext=self.text)
+        self.metadata = build_metadata(registry.definitions)  # QGC's parameter metadata, served read-only over FTP
+        self.ftp = FtpService(mav, FtpServer(self.metadata.files), sysid, 1)
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
         self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config)
@@ -104,6 +108,7 @@ class GcsService:
             out = self.params.handle(m, now_wall, source)
             out += self.commands.handle(m, now_wall)
             out += self.misc.handle(m, now_wall)
+            out += self.ftp.handle(m)
             out += self._set_mode_message(m)
             for r in out:
                 if source is None or is_broadcast_reply(kind, r.get_type()):
@@ -158,7 +163,9 @@ class GcsService:
 
     # --- CommandTarget: the GCS service's own ------------------------------------------------------
     def request_message(self, msg_id: int, params: tuple[float, ...]) -> list[Any] | None:
-        return self.telemetry.build_now(msg_id, time.monotonic())
+        now = time.monotonic()
+        meta = component_metadata_message(self.mav, msg_id, self.metadata, self.telemetry._boot_ms(now))
+        return meta if meta is not None else self.telemetry.build_now(msg_id, now)
 
     def set_message_interval(self, msg_id: int, interval_us: int) -> bool:
         return self.telemetry.scheduler.set_interval(msg_id, interval_us)
