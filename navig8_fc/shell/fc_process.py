@@ -36,7 +36,7 @@ from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import ParamStore, default_state_path
 from navig8_fc.shell.foxglove_out import DEFAULT_PORT as FOXGLOVE_DEFAULT_PORT
-from navig8_fc.shell.foxglove_out import FoxgloveOutput, LiveServer, script_waypoints
+from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, LiveServer, script_waypoints
 from navig8_fc.shell.gcs_service import GcsService, Source
 from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.shell.mcap_log import McapLogger
@@ -506,6 +506,9 @@ def main(argv: list[str] | None = None) -> int:
     except PortInUseError as e:
         print(f"navig8-fc: {e.strerror}; choose another with {_PORT_OPTIONS[e.link]} (0: any free port)",
               file=sys.stderr)
+        return EXIT_USAGE
+    except FoxglovePortError as e:
+        print(f"navig8-fc: {e}; choose another with --foxglove=PORT (0: any free port)", file=sys.stderr)
         return EXIT_USAGE
     signal.signal(signal.SIGINT, proc.request_stop)
     signal.signal(signal.SIGTERM, proc.request_stop)

@@ -34,6 +34,14 @@ PATH_LENGTH = 600  # path poses kept (5 min at 2 Hz): the path record stays a fe
 DEFAULT_PORT = 8765  # Foxglove's default WebSocket port
 
 
+class FoxglovePortError(OSError):
+    """The Foxglove WebSocket server could not start on the port asked for."""
+
+    def __init__(self, port: int, reason: str) -> None:
+        super().__init__(f"Foxglove WebSocket port {port}: {reason}")
+        self.port = port
+
+
 class LiveServer:
     """A foxglove-sdk WebSocket server with one JSON channel per TOPICS entry (its own Context: no globals)."""
 
@@ -47,7 +55,10 @@ class LiveServer:
             self.channels[topic] = foxglove.Channel(
                 topic, schema=foxglove.Schema(name=schema, encoding="jsonschema", data=data),
                 message_encoding="json", context=self._ctx)
-        self.server = foxglove.start_server(name=name, host=host, port=port, context=self._ctx)
+        try:
+            self.server = foxglove.start_server(name=name, host=host, port=port, context=self._ctx)
+        except RuntimeError as e:  # foxglove-sdk's FoxgloveError, e.g. "Failed to bind port: Address already in use"
+            raise FoxglovePortError(port, str(e)) from e
 
     @property
     def port(self) -> int:
@@ -156,4 +167,4 @@ def script_waypoints(script: Any) -> list[tuple[Sequence[float], Sequence[float]
     return viz.waypoint_poses(pts)
 
 
-__all__ = ["DEFAULT_PORT", "FoxgloveOutput", "LiveServer", "TOPICS", "script_waypoints"]
+__all__ = ["DEFAULT_PORT", "FoxgloveOutput", "FoxglovePortError", "LiveServer", "TOPICS", "script_waypoints"]

@@ -109,3 +109,19 @@ def test_navig8_sitl_foxglove_streams_transforms_live(tmp_path: Path) -> None:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait(timeout=10)
     assert proc.returncode == 0, proc.stderr.read()[-2000:] if proc.stderr else ""
+
+
+def test_busy_foxglove_port_is_refused_with_a_clear_error(tmp_path: Path) -> None:
+    from navig8_fc.shell.foxglove_out import LiveServer
+
+    holder = LiveServer("127.0.0.1", 0, "holder")  # the port is taken
+    port = holder.port
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "navig8_fc.shell.fc_process", "--sim-port", "0", "--gcs-bind-port", "0",
+             "--api-bind-port", "0", f"--foxglove={port}"],
+            stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    finally:
+        holder.close()
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert f"Foxglove WebSocket port {port}" in proc.stderr and "--foxglove=PORT" in proc.stderr
