@@ -242,7 +242,7 @@ def _lockstep_section(args: argparse.Namespace) -> SectionResult:
         def one(i: int, extra: list[str]) -> float:
             logs = Path(tmp) / f"l{i}"
             subprocess.run([sys.executable, "-m", "navig8_fc.shell.sitl", "--scenario", "paper", "--speed", "0",
-                            "--until-done", "--instance", "9", "--log-dir", str(logs), "--state-dir",
+                            "--until-done", "--instance", str(args.instance), "--log-dir", str(logs), "--state-dir",
                             str(Path(tmp) / "state"), "--defaults", *extra], check=True, capture_output=True,
                            timeout=600)
             meta = read_metadata(next(logs.glob("*.mcap")))
@@ -288,6 +288,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="print one JSON object with every metric")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--repeat", type=int, default=5, help="lockstep runs to take the median of (--lockstep)")
+    ap.add_argument("--instance", type=int, default=9,
+                    help="navig8-sitl instance for --lockstep (its ports: 4560+2N, ...; two benches need two)")
     ap.add_argument("--foxglove", action="store_true",
                     help="--lockstep also with navig8-sitl --foxglove (nobody connected), runs alternated")
     ap.add_argument("--plant-dt", type=float, default=0.01, help="control period for --plant (s)")
