@@ -266,8 +266,7 @@ class FlightControllerProcess:
         if self.logger:
             self.logger.log("/fc/statustext", self._sim_ns(), {"severity": severity, "text": text},
                             publish_ns=time.time_ns())
-        if self.fox:
-            self.fox.statustext(self._sim_ns(), severity, text, time.time_ns())
+
 
     def _sim_channel(self, direction: str, name: str) -> int:
         """The decoded /mavlink/sim/<direction>/<NAME> channel (schema from the message definition)."""
@@ -406,10 +405,16 @@ class FlightControllerProcess:
 
     # --- Outbox (GcsService) ---------------------------------------------------------------------
     def broadcast(self, msgs: list[Any]) -> None:
-        """To every peer of both GCS-facing links (telemetry, HEARTBEAT, STATUSTEXT, PARAM_VALUE announcements)."""
+        """To every peer of both GCS-facing links (telemetry, HEARTBEAT, STATUSTEXT, PARAM_VALUE announcements).
+        Every STATUSTEXT (the FC's events and the GCS service's refusal reasons alike) also goes to /foxglove/log."""
         for link in (self.gcs, self.api):
             for m in msgs:
                 link.send(m)
+        if self.fox is not None:
+            for m in msgs:
+                if m.get_type() == "STATUSTEXT":
+                    text = m.text.decode(errors="replace") if isinstance(m.text, bytes) else str(m.text)
+                    self.fox.statustext(self._sim_ns(), int(m.severity), text.rstrip("\0"), time.time_ns())
 
     def reply(self, source: Source, msgs: list[Any]) -> None:
         """To the one peer a request came from, on its link: source = (link name, sender address)."""

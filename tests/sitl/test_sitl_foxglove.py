@@ -20,7 +20,7 @@ from websockets.sync.client import connect
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "unit"))  # the oracles beside the unit tests
 
-from foxglove_oracle import check_log, validate  # noqa: E402
+from foxglove_oracle import check_log, read_log, validate  # noqa: E402
 
 from navig8_fc.core.vehicle import VehicleConfig  # noqa: E402
 
@@ -32,6 +32,10 @@ def test_sitl_log_foxglove_channels_validate_and_transforms_match_kinematics(tmp
     counts = check_log(run.log, VehicleConfig.load(), {"/foxglove/tf": 45, "/foxglove/scene": 18,
                                                         "/foxglove/path": 4, "/foxglove/mission": 4})
     assert counts["/foxglove/tf"] <= 52  # 25 Hz of sim time, not every control step
+    _, msgs = read_log(run.log)
+    texts = [rec["text"] for topic, _t, rec in msgs if topic == "/fc/statustext"]
+    logged = [rec["message"] for topic, _t, rec in msgs if topic == "/foxglove/log"]
+    assert texts and all(t in logged for t in texts), (texts, logged)  # every STATUSTEXT as a foxglove.Log
 
 
 FOXGLOVE_SUBPROTOCOL = "foxglove.sdk.v1"  # what foxglove-sdk's server speaks (Foxglove app >= 2.x)
