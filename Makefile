@@ -37,6 +37,7 @@ bench: $(STAMP)
 docs: $(STAMP)
 	$(VENV)/bin/navig8-params-doc --write docs/params.md
 	$(VENV)/bin/navig8-urdf --write
+	$(VENV)/bin/navig8-foxglove-layout --write
 
 clean:
 	rm -rf $(VENV) out build *.egg-info

@@ -9,6 +9,8 @@
                                   # real-time factor, median of --repeat runs (5), and its ratio to in-process
     navig8-bench --stability      # the K-bounds analysis and the workspace floor the registry checks: s per call
     navig8-bench --campaign       # navig8-campaign runs/min: one process, the local pool, a Dask LocalCluster
+    navig8-bench --lockstep --foxglove  # also with navig8-sitl --foxglove 0 (server up, nobody connected),
+                                  # runs alternated with the plain ones: lockstep_foxglove_rtf and its ratio
     navig8-bench --json           # one JSON object with every metric (plant_rtf, fc_tick_us_median,
                                   # inprocess_rtf, lockstep_rtf, lockstep_over_inprocess, ...)
 
@@ -235,24 +237,40 @@ def _lockstep_section(args: argparse.Namespace) -> SectionResult:
     run("paper", "proposed", args.seed, 2.0)  # warm-up: imports, numba cache load
     inproc = float(np.median([run("paper", "proposed", args.seed, 30.0).summary["real_time_factor"]
                               for _ in range(3)]))
-    rtfs = []
+    rtfs: list[float] = []
+    fox_rtfs: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
-        for i in range(args.repeat):
+
+        def one(i: int, extra: list[str]) -> float:
             logs = Path(tmp) / f"l{i}"
             subprocess.run([sys.executable, "-m", "navig8_fc.shell.sitl", "--scenario", "paper", "--speed", "0",
-                            "--until-done", "--instance", "9", "--log-dir", str(logs), "--state-dir",
-                            str(Path(tmp) / "state"), "--defaults"], check=True, capture_output=True, timeout=600)
+                            "--until-done", "--instance", str(args.instance), "--log-dir", str(logs), "--state-dir",
+                            str(Path(tmp) / "state"), "--defaults", *extra], check=True, capture_output=True,
+                           timeout=600)
             meta = read_metadata(next(logs.glob("*.mcap")))
-            rtfs.append(float(meta.get("bridge_status", {}).get("rtf", float("nan"))))
+            return float(meta.get("bridge_status", {}).get("rtf", float("nan")))
+
+        for i in range(args.repeat):
+            rtfs.append(one(2 * i, []))
+            if args.foxglove:  # alternated with the plain runs, so the VM's drift hits both alike
+                fox_rtfs.append(one(2 * i + 1, ["--foxglove", "0"]))
     # Median of several runs: this 2-core VM's speed drifts by tens of percent from one run to the next.
     rtf = float(np.median(rtfs))
+    fox: dict[str, Any] = {}
+    fox_lines: list[str] = []
+    if fox_rtfs:
+        frtf = float(np.median(fox_rtfs))
+        fox = {"lockstep_foxglove_rtf": frtf, "lockstep_foxglove_ratio": frtf / rtf}
+        fox_lines = [f"lockstep --foxglove (server up, nobody connected): {frtf:.1f}x real time (median of "
+                     f"{len(fox_rtfs)}, range {min(fox_rtfs):.1f}-{max(fox_rtfs):.1f}), {frtf / rtf:.3f} of without "
+                     "(target within 5 %)"]
     return SectionResult(
         {"lockstep_rtf": rtf, "lockstep_over_inprocess": rtf / inproc if inproc else float("nan"),
          "lockstep_rtf_min": float(np.min(rtfs)), "lockstep_rtf_max": float(np.max(rtfs)),
-         "lockstep_runs": len(rtfs)},
+         "lockstep_runs": len(rtfs), **fox},
         [f"lockstep: {rtf:.1f}x real time over MAVLink (median of {len(rtfs)}, range {min(rtfs):.1f}-"
          f"{max(rtfs):.1f}; MCAP on; target >= 20x), {rtf / inproc:.2f} of the in-process closed loop "
-         f"({inproc:.1f}x, median of 3, no log)"],
+         f"({inproc:.1f}x, median of 3, no log)", *fox_lines],
     )
 
 
@@ -360,6 +378,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--repeat", type=int, default=5, help="lockstep runs to take the median of (--lockstep)")
     ap.add_argument("--workers", type=int, default=2, help="pool / LocalCluster workers for --campaign")
     ap.add_argument("--campaign-runs", type=int, default=12, help="runs per backend for --campaign")
+    ap.add_argument("--instance", type=int, default=9,
+                    help="navig8-sitl instance for --lockstep (its ports: 4560+2N, ...; two benches need two)")
+    ap.add_argument("--foxglove", action="store_true",
+                    help="--lockstep also with navig8-sitl --foxglove (nobody connected), runs alternated")
     ap.add_argument("--plant-dt", type=float, default=0.01, help="control period for --plant (s)")
     args = ap.parse_args(argv)
     chosen = [s for s in SECTIONS if getattr(args, s.flag.replace("-", "_"))] or SECTIONS

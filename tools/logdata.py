@@ -69,7 +69,8 @@ class RunLog:
 def load_run(path: str | Path, topics: list[str] | None = None) -> RunLog:
     t: dict[str, list[float]] = defaultdict(list)
     m: dict[str, list[dict[str, Any]]] = defaultdict(list)
-    for topic, t_ns, data in read_mcap(path, topics):
+    # the Foxglove 3D channels (docs/foxglove.md) are for viewers: no plot or summary reads them
+    for topic, t_ns, data in read_mcap(path, topics, skip_prefix=None if topics else "/foxglove/"):
         if isinstance(data, dict):
             t[topic].append(t_ns * 1e-9)
             m[topic].append(data)

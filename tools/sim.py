@@ -29,7 +29,9 @@ from navig8_fc.core.controller import ControllerStatus, FcSensors, warm_up_kerne
 from navig8_fc.flight import FlightStack
 from navig8_fc.logrecords import truth_record
 from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.shell.foxglove_out import FoxgloveOutput, script_waypoints
 from navig8_fc.shell.mcap_log import McapLogger
+from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m
 from navig8_tools.logdata import load_run
 from navig8_tools.summary import summarize
 from sim_bridge.messages import ActuatorCommand as PlantCommand
@@ -112,6 +114,9 @@ def run(
         logger.metadata("run", {"scenario": sc.name, "controller": controller, "seed": seed,
                                 "duration_s": duration, "world": dict(world or {})})
         logger.metadata("params", reg.as_dict())
+    fox = FoxgloveOutput(VehicleViz(vehicle, packaged_uav_size_m()), logger, None, "navig8-sim") if logger else None
+    if fox:
+        fox.set_mission(script_waypoints(sc.script))
     n_steps = int(round(duration / cfg.dt_s))
     cmd = plant.trim_command()
     wall0 = time.perf_counter()
@@ -140,6 +145,11 @@ def run(
                 for n in res.notices:  # as navig8-fc logs what it announces (mode events, failsafes)
                     if n.statustext:
                         logger.log("/fc/statustext", t_ns, {"severity": n.severity, "text": n.statustext})
+                        fox.statustext(t_ns, n.severity, n.statustext)
+                if t_ns >= fox.next_due_ns:  # the Foxglove 3D channels, rate-limited (docs/foxglove.md)
+                    act = tr.actuator_pos
+                    fox.step(t_ns, VehiclePose(tr.pos_ned_m, tr.quat_wxyz, act[:2], tr.joint_pos_rad), act[2:],
+                             tr.object_mass_kg, VehiclePose(s.pos_ned, s.quat_wxyz, s.tilt_rad, st.q_est_rad), sp)
             if k == n_steps:
                 break
             plant.step(cmd, cfg.dt_s)

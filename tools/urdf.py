@@ -17,7 +17,8 @@ Joint positions are the project's own variables: duct tilts alpha1, alpha3 (rad,
 and arm angles q1..q3 (rad, q = 0 points down, > 0 swings forward; the arm kinematics of docs/model.md).
 Masses: the UAV of Table 1 (ducts and tail included) on base_link, one slender rod per link; the frames
 duct_*, tail, arm_mount, gripper and object carry no mass, so the URDF's total equals the model's m_UAM.
-Sizes used only for drawing (duct and propeller radii, rod thickness) are DisplaySizes below.
+Sizes used only for drawing (duct and propeller radii, rod thickness) are navig8_fc.viz.DisplaySizes
+(the Foxglove scene draws with them too).
 """
 
 from __future__ import annotations
@@ -31,26 +32,11 @@ from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
 
-import yaml
-
 from navig8_fc.core.vehicle import N_LINKS, VehicleConfig
+from navig8_fc.viz import DisplaySizes, uav_size_m  # one copy: the Foxglove scene draws the same sizes
 
 URDF_FILE_NAME = "navig8_uam.urdf"
 ROBOT_NAME = "navig8_uam"
-
-
-@dataclass(frozen=True)
-class DisplaySizes:
-    """Drawing-only dimensions [A] (no model uses them), in m, chosen to look like the paper's Fig. 1."""
-
-    duct_radius_m: float = 0.10  # fits between the body's centre line and its 0.4 m half width
-    duct_length_m: float = 0.12  # along the thrust axis
-    tail_prop_radius_m: float = 0.10
-    tail_prop_thickness_m: float = 0.01
-    link_radius_m: float = 0.015
-    mount_size_m: float = 0.04  # cube under the body at joint 1
-    gripper_size_m: tuple[float, float, float] = (0.03, 0.08, 0.04)  # jaws: x, y (opening), z (along link 3)
-    body_alpha: float = 0.35  # the body box is see-through: the ducts sit inside Table 1's envelope
 
 
 def default_urdf_path() -> Path:
@@ -62,12 +48,6 @@ def _vehicle_text(vehicle_path: Path | None) -> str:
     if vehicle_path is None:
         return (files("navig8_params") / "vehicle.yaml").read_text()
     return vehicle_path.read_text()
-
-
-def uav_size_m(vehicle_text: str) -> tuple[float, float, float]:
-    """Table 1's body envelope (length x, width y, height z; m). VehicleConfig does not carry it."""
-    size = yaml.safe_load(vehicle_text)["uav"]["size_m"]
-    return float(size["length"]), float(size["width"]), float(size["height"])
 
 
 def _num(x: float) -> str:

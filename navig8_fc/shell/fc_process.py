@@ -36,9 +36,12 @@ from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import ParamStore, default_state_path
+from navig8_fc.shell.foxglove_out import DEFAULT_PORT as FOXGLOVE_DEFAULT_PORT
+from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, LiveServer, script_waypoints
 from navig8_fc.shell.gcs_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4, GcsService, Source
 from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.shell.mcap_log import McapLogger
+from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m
 
 FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
@@ -66,6 +69,8 @@ class FcOptions:
     defaults: bool = False
     ports_file: Path | None = None  # written after binding: {"sim": p, "gcs": p, "api": p}
     autopilot: str = "generic"  # HEARTBEAT.autopilot: "generic" or "px4" (docs/gcs.md, "Autopilot identity")
+    foxglove_port: int | None = None  # --foxglove[=PORT]: serve the Foxglove channels live (0: any free port)
+    foxglove_host: str = "127.0.0.1"
 
     @property
     def sysid(self) -> int:
@@ -104,8 +109,9 @@ class FlightControllerProcess:
         self._sim_channels: dict[tuple[str, str], int] = {}
         self._raw_topics: dict[tuple[str, str], str] = {}  # (link, direction) -> /mavlink/<link>/<direction>
         self._spin_until = 0.0
-        self._mk_links()
         script = load_flight_script(opts.scenario)  # the scenario's setpoint script (a scripted run: AUTO.MISSION)
+        self.fox = self._mk_foxglove(script)  # before the links: the ports file names its port
+        self._mk_links()
         self.stack = FlightStack(self.vehicle, self.registry, script)
         self.model = vm.UamModel(self.vehicle)
         self._asm = seam.BundleAssembler()
@@ -149,6 +155,19 @@ class FlightControllerProcess:
         m.robust_parsing = True
         return m
 
+    def _mk_foxglove(self, script: Any) -> FoxgloveOutput | None:
+        """The Foxglove 3D channels: into the log, and live with --foxglove (docs/foxglove.md)."""
+        o = self.opts
+        live = None
+        if o.foxglove_port is not None:
+            live = LiveServer(o.foxglove_host, o.foxglove_port, f"navig8-fc sysid {o.sysid}")
+            print(f"navig8-fc: Foxglove WebSocket ws://{o.foxglove_host}:{live.port}", file=sys.stderr)
+        if self.logger is None and live is None:
+            return None
+        fox = FoxgloveOutput(VehicleViz(self.vehicle, packaged_uav_size_m()), self.logger, live, "navig8-fc")
+        fox.set_mission(script_waypoints(script))
+        return fox
+
     def _mk_links(self) -> None:
         """Bind the three links (PortInUseError names a busy one; port 0: any free port), write the ports file,
         and announce the FC to the bridge (DESIGN §4: a bridge that does not know our port learns it from this)."""
@@ -160,8 +179,10 @@ class FlightControllerProcess:
         self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
         self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
         if o.ports_file is not None:
-            write_ports_file(o.ports_file, {"sim": self.sim.local_port, "gcs": self.gcs.local_port,
-                                            "api": self.api.local_port})
+            ports = {"sim": self.sim.local_port, "gcs": self.gcs.local_port, "api": self.api.local_port}
+            if self.fox is not None and self.fox.live is not None:
+                ports["foxglove"] = self.fox.live.port
+            write_ports_file(o.ports_file, ports)
         self.sim.send(seam.announce_record())  # before the log hooks: nothing is set up to log it yet
         for link in (self.sim, self.gcs, self.api):
             link.on_datagram = self._log_datagram
@@ -237,7 +258,8 @@ class FlightControllerProcess:
             self.sim.send_raw(self._last_answer)
             return
         self._last_step_time_us = t_us
-        res = self.stack.step(b.fc_sensors(), b.imu_fresh, t_us)
+        sensors = b.fc_sensors()
+        res = self.stack.step(sensors, b.imu_fresh, t_us)
         cmd = res.command
         out = seam.pack_actuator_controls(self.sim.mav, t_us, cmd, self.vehicle, armed=res.armed)
         self._last_answer = out
@@ -246,8 +268,8 @@ class FlightControllerProcess:
         self.sim.send_raw(out)
         self.n_ticks += 1
         self.announce(res.notices)
-        if self.logger:
-            self._pending_tick = (t_us, b.truth, res.status, cmd, res.setpoint, wire, out)
+        if self.logger or self.fox:
+            self._pending_tick = (t_us, b.truth, res.status, cmd, res.setpoint, wire, out, sensors)
 
     def statustext(self, text: str, severity: int = 6) -> None:
         """STATUSTEXT to every GCS (and the log keeps it)."""
@@ -255,6 +277,7 @@ class FlightControllerProcess:
         if self.logger:
             self.logger.log("/fc/statustext", self._sim_ns(), {"severity": severity, "text": text},
                             publish_ns=time.time_ns())
+
 
     def _sim_channel(self, direction: str, name: str) -> int:
         """The decoded /mavlink/sim/<direction>/<NAME> channel (schema from the message definition)."""
@@ -266,10 +289,18 @@ class FlightControllerProcess:
         return cid
 
     def _log_tick(self, t_us: int, tr: Any, st: ControllerStatus, cmd: ActuatorCommand, sp: Setpoint,
-                  wire: dict[str, Any] | None = None, answer: bytes | None = None) -> None:
-        assert self.logger is not None
+                  wire: dict[str, Any] | None = None, answer: bytes | None = None, sensors: Any = None) -> None:
         t_ns = seam.sim_us_from_time_usec(t_us) * 1000
         w = time.time_ns()
+        fox = self.fox
+        if fox is not None and tr is not None and t_ns >= fox.next_due_ns:  # the Foxglove 3D channels, rate-limited
+            act = tr.actuators  # NAVIG8_TRUTH: alpha1, alpha3, w1, w2, w3
+            est = None if sensors is None else VehiclePose(sensors.pos_ned, sensors.quat_wxyz, sensors.tilt_rad,
+                                                           st.q_est_rad)
+            fox.step(t_ns, VehiclePose(tr.pos_ned, tr.quat, act[:2], tr.joint_pos), act[2:], tr.object_mass, est,
+                     sp, w)
+        if self.logger is None:
+            return
         # The sim link decoded, as the GCS links are: the FC's raw sensor inputs and its answer, plottable.
         # NAVIG8_TRUTH's decoded form is /truth. Lean path: channel ids cached, orjson straight to the writer.
         if wire:
@@ -387,10 +418,16 @@ class FlightControllerProcess:
 
     # --- Outbox (GcsService) ---------------------------------------------------------------------
     def broadcast(self, msgs: list[Any]) -> None:
-        """To every peer of both GCS-facing links (telemetry, HEARTBEAT, STATUSTEXT, PARAM_VALUE announcements)."""
+        """To every peer of both GCS-facing links (telemetry, HEARTBEAT, STATUSTEXT, PARAM_VALUE announcements).
+        Every STATUSTEXT (the FC's events and the GCS service's refusal reasons alike) also goes to /foxglove/log."""
         for link in (self.gcs, self.api):
             for m in msgs:
                 link.send(m)
+        if self.fox is not None:
+            for m in msgs:
+                if m.get_type() == "STATUSTEXT":
+                    text = m.text.decode(errors="replace") if isinstance(m.text, bytes) else str(m.text)
+                    self.fox.statustext(self._sim_ns(), int(m.severity), text.rstrip("\0"), time.time_ns())
 
     def reply(self, source: Source, msgs: list[Any]) -> None:
         """To the one peer a request came from, on its link: source = (link name, sender address)."""
@@ -417,7 +454,7 @@ class FlightControllerProcess:
             self.logger.log("/fc/param_change", self._sim_ns(), change, publish_ns=time.time_ns())
 
     def close(self) -> None:
-        if self._pending_tick is not None and self.logger:
+        if self._pending_tick is not None and (self.logger or self.fox):
             tick, self._pending_tick = self._pending_tick, None
             self._log_tick(*tick)
         self._flush_frames()
@@ -431,6 +468,9 @@ class FlightControllerProcess:
             self.logger.metadata("params_final", self.registry.as_dict())
             self.logger.close()
             self.logger = None
+        if self.fox is not None:
+            self.fox.close()
+            self.fox = None
         for link in self.links:
             link.close()
 
@@ -460,7 +500,12 @@ def build_arg_parser() -> argparse.ArgumentParser:
                     help="HEARTBEAT.autopilot: generic (default) or px4 (QGroundControl's mode menu; docs/gcs.md)")
     ap.add_argument("--until-done", action="store_true", help="exit when the bridge reports the scenario done")
     ap.add_argument("--ports-file", default=None,
-                    help='after binding, write {"sim": p, "gcs": p, "api": p} here as JSON (for ports given as 0)')
+                    help='after binding, write {"sim": p, "gcs": p, "api": p} here as JSON (for ports given as 0; '
+                         'with --foxglove also "foxglove")')
+    ap.add_argument("--foxglove", nargs="?", type=int, const=FOXGLOVE_DEFAULT_PORT, default=None, metavar="PORT",
+                    help=f"serve the Foxglove 3D channels live over WebSocket (default port {FOXGLOVE_DEFAULT_PORT}; "
+                         "0: any free port)")
+    ap.add_argument("--foxglove-host", default="127.0.0.1", help="address the Foxglove server binds")
     return ap
 
 
@@ -470,7 +515,8 @@ def options_from_args(a: argparse.Namespace) -> FcOptions:
         sim_port=a.sim_port, bridge_port=a.bridge_port, gcs_bind_port=a.gcs_bind_port, gcs_port=a.gcs_port,
         api_bind_port=a.api_bind_port, api_port=a.api_port, log_path=Path(a.log) if a.log else None,
         state_dir=Path(a.state_dir) if a.state_dir else None, defaults=a.defaults,
-        ports_file=Path(a.ports_file) if a.ports_file else None, autopilot=a.autopilot,
+        ports_file=Path(a.ports_file) if a.ports_file else None, autopilot=a.autopilot, foxglove_port=a.foxglove,
+        foxglove_host=a.foxglove_host,
     )
 
 
@@ -481,6 +527,9 @@ def main(argv: list[str] | None = None) -> int:
     except PortInUseError as e:
         print(f"navig8-fc: {e.strerror}; choose another with {_PORT_OPTIONS[e.link]} (0: any free port)",
               file=sys.stderr)
+        return EXIT_USAGE
+    except FoxglovePortError as e:
+        print(f"navig8-fc: {e}; choose another with --foxglove=PORT (0: any free port)", file=sys.stderr)
         return EXIT_USAGE
     signal.signal(signal.SIGINT, proc.request_stop)
     signal.signal(signal.SIGTERM, proc.request_stop)

@@ -27,6 +27,8 @@ from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.state import GripperAction, VehicleCommands, VehicleState
 from navig8_fc.gcs.commands import CommandHandler
+from navig8_fc.gcs.ftp import FtpServer, FtpService
+from navig8_fc.gcs.metadata import build_metadata, component_metadata_message
 from navig8_fc.gcs.misc import MiscProtocols
 from navig8_fc.gcs.params import ParamProtocol, StoredLoad
 from navig8_fc.gcs.statustext import StatusTextEncoder
@@ -105,6 +107,8 @@ class GcsService:
         self._plan_generation = -1  # the mission plan generation the vehicle has
         self.last_offboard_setpoint: float | None = None  # wall time of the last accepted offboard setpoint
         self._last_manual: float | None = None  # wall time of the last MANUAL_CONTROL
+        self.metadata = build_metadata(registry.definitions)  # QGC's parameter metadata, served read-only over FTP
+        self.ftp = FtpService(mav, FtpServer(self.metadata.files), sysid, 1)
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
         self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config, autopilot)
@@ -136,6 +140,7 @@ class GcsService:
             out += self.commands.handle(m, now_wall)
             out += self.misc.handle(m, now_wall)
             out += self.mission.handle(m, now_wall, source)
+            out += self.ftp.handle(m)
             out += self._set_mode_message(m)
             out += self._offboard(m, now_wall)
             if kind == "SET_GPS_GLOBAL_ORIGIN" and m.target_system in (0, self.sysid):
@@ -297,7 +302,9 @@ class GcsService:
             return [self._current_mode()]
         if msg_id == MSG_AVAILABLE_MODES_MONITOR:
             return [self.mav.available_modes_monitor_encode(AVAILABLE_MODES_SEQ)]
-        return self.telemetry.build_now(msg_id, time.monotonic())
+        now = time.monotonic()
+        meta = component_metadata_message(self.mav, msg_id, self.metadata, self.telemetry.boot_ms(now))
+        return meta if meta is not None else self.telemetry.build_now(msg_id, now)
 
     # --- standard modes ----------------------------------------------------------------------------------
     def _available_modes(self, index_param: float) -> list[Any] | None:
@@ -389,16 +396,16 @@ class Telemetry:
             throttle_pct=0.0,
         )
 
-    def _boot_ms(self, now_wall: float) -> int:
+    def boot_ms(self, now_wall: float) -> int:
         return int((now_wall - self.boot_wall) * 1000)
 
     def due_messages(self, now_wall: float) -> list[Any]:
         due = self.scheduler.due(now_wall)
         if not due:
             return []
-        return self.builder.build_many(due, self.snapshot(now_wall), self._boot_ms(now_wall))
+        return self.builder.build_many(due, self.snapshot(now_wall), self.boot_ms(now_wall))
 
     def build_now(self, msg_id: int, now_wall: float) -> list[Any] | None:
         if msg_id not in self.builder.supported_ids:
             return None
-        return self.builder.build(msg_id, self.snapshot(now_wall), self._boot_ms(now_wall))
+        return self.builder.build(msg_id, self.snapshot(now_wall), self.boot_ms(now_wall))

@@ -176,14 +176,16 @@ class McapLogger:
         self.close()
 
 
-def read_mcap(path: str | Path, topics: list[str] | None = None) -> Iterator[tuple[str, int, Any]]:
+def read_mcap(path: str | Path, topics: list[str] | None = None,
+              skip_prefix: str | None = None) -> Iterator[tuple[str, int, Any]]:
     """(topic, log_time_ns, decoded JSON or raw bytes) in file order; a truncated file yields what its
-    complete chunks hold and stops quietly."""
-    for topic, t_ns, _pub, data in read_mcap_records(path, topics):
+    complete chunks hold and stops quietly. skip_prefix: topics starting with it are not decoded nor yielded."""
+    for topic, t_ns, _pub, data in read_mcap_records(path, topics, skip_prefix):
         yield topic, t_ns, data
 
 
-def read_mcap_records(path: str | Path, topics: list[str] | None = None) -> Iterator[tuple[str, int, int, Any]]:
+def read_mcap_records(path: str | Path, topics: list[str] | None = None,
+                      skip_prefix: str | None = None) -> Iterator[tuple[str, int, int, Any]]:
     """Like read_mcap, with the publish time (the writer's wall clock, ns) as well."""
     with open(path, "rb") as fh:
         reader = NonSeekingReader(fh, validate_crcs=False)
@@ -195,6 +197,8 @@ def read_mcap_records(path: str | Path, topics: list[str] | None = None) -> Iter
                 return
             except Exception:  # noqa: BLE001 - truncated or corrupt tail: stop at the last good record
                 return
+            if skip_prefix is not None and channel.topic.startswith(skip_prefix):
+                continue
             if channel.message_encoding == "json":
                 yield channel.topic, msg.log_time, msg.publish_time, json.loads(msg.data)
             else:

@@ -1,7 +1,7 @@
 """navig8-sitl: starts navig8-bridge and navig8-fc as two processes, forwards SIGINT/SIGTERM, stops both.
 
     navig8-sitl [--scenario NAME|FILE] [--speed X] [--until-done] [--summary FILE] [--log-dir DIR]
-                [--state-dir DIR] [--instance N] [--seed N] [--defaults] [--set NAME=VALUE ...]
+                [--state-dir DIR] [--instance N] [--seed N] [--defaults] [--set NAME=VALUE ...] [--foxglove[=PORT]]
 
 Default: the `ground` scenario (on the ground, disarmed, waiting for a GCS) in real time. With
 --until-done the scenario runs to its end, both processes exit, and the summary (the same keys as
@@ -60,6 +60,8 @@ def build_arg_parser() -> argparse.ArgumentParser:
                     help="store a parameter for this instance before the FC starts (not with --defaults)")
     ap.add_argument("--bind-host", default="127.0.0.1", help="GCS/API bind address (0.0.0.0 in a container)")
     ap.add_argument("--gcs-host", default="127.0.0.1", help="where GCS/API traffic goes before a GCS talks")
+    ap.add_argument("--foxglove", nargs="?", type=int, const=8765, default=None, metavar="PORT",
+                    help="navig8-fc serves the Foxglove 3D channels live over WebSocket (default 8765; 0: any free)")
     ap.add_argument("--fc-arg", action="append", default=[], help="extra argument for navig8-fc (repeatable)")
     ap.add_argument("--bridge-arg", action="append", default=[], help="extra argument for navig8-bridge")
     return ap
@@ -105,6 +107,8 @@ def main(argv: list[str] | None = None) -> int:
                "--state-dir", a.state_dir, "--bind-host", a.bind_host, "--gcs-host", a.gcs_host, *a.fc_arg]
     if a.defaults:
         fc_args.append("--defaults")
+    if a.foxglove is not None:
+        fc_args.append(f"--foxglove={a.foxglove}")
     if a.until_done:
         fc_args.append("--until-done")
     br_args = ["--instance", str(a.instance), "--scenario", a.scenario, "--speed", str(a.speed),
