@@ -68,6 +68,49 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
+def item_position(it: MissionItem, origin: GeoOrigin, home_ned: Vec3, here: Vec3) -> Vec3:
+    """An item's position in local NED (m): LOCAL_NED as is; a global frame around the origin, x = y = 0 meaning
+    `here`, the altitude above home (RELATIVE_ALT frames) or AMSL."""
+    if it.frame == Frame.LOCAL_NED:
+        return it.x / LOCAL_XY_SCALE, it.y / LOCAL_XY_SCALE, it.z
+    if it.x == 0 and it.y == 0:
+        n, e = here[0], here[1]  # no position given: here
+    else:
+        n, e = origin.to_ned_xy(it.x * 1e-7, it.y * 1e-7)
+    if it.frame in RELATIVE_ALT_FRAMES:
+        d = home_ned[2] - it.z
+    else:
+        d = origin.alt_amsl_m - it.z
+    return n, e, d
+
+
+_AT_POSITION = (Cmd.NAV_WAYPOINT, Cmd.NAV_LOITER_TIME, Cmd.NAV_LOITER_UNLIM)
+
+
+def planned_path(plan: Plan, origin: GeoOrigin, home_ned: Vec3) -> list[Vec3]:
+    """The positions a plan flies through in item order, starting at home (for display: the executor's targets
+    without its timing, DO_JUMP loops shown once): takeoff climbs where the vehicle is, waypoints and loiters go to
+    their position, a landing descends at its x/y, return to launch ends at home."""
+    here = home_ned
+    path = [here]
+    for it in plan.items:
+        cmd = it.command
+        if cmd == Cmd.NAV_TAKEOFF:
+            here = (here[0], here[1], item_position(it, origin, home_ned, here)[2])
+        elif cmd in _AT_POSITION:
+            here = item_position(it, origin, home_ned, here)
+        elif cmd == Cmd.NAV_LAND:
+            p = item_position(it, origin, home_ned, here)
+            path.append((p[0], p[1], here[2]))
+            here = (p[0], p[1], home_ned[2])
+        elif cmd == Cmd.NAV_RETURN_TO_LAUNCH:
+            here = home_ned
+        else:
+            continue
+        path.append(here)
+    return path
+
+
 class MissionExecutor:
     def __init__(self, plan: Plan, origin: GeoOrigin, home_ned: Vec3, start_sp: Setpoint,
                  config: ExecConfig | None = None, reached_count: int = 0) -> None:
@@ -106,17 +149,7 @@ class MissionExecutor:
 
     # --- positions ---------------------------------------------------------------------------------------
     def _item_pos(self, it: MissionItem, here: Vec3) -> Vec3:
-        if it.frame == Frame.LOCAL_NED:
-            return it.x / LOCAL_XY_SCALE, it.y / LOCAL_XY_SCALE, it.z
-        if it.x == 0 and it.y == 0:
-            n, e = here[0], here[1]  # no position given: here
-        else:
-            n, e = self._origin.to_ned_xy(it.x * 1e-7, it.y * 1e-7)
-        if it.frame in RELATIVE_ALT_FRAMES:
-            d = self._home[2] - it.z
-        else:
-            d = self._origin.alt_amsl_m - it.z
-        return n, e, d
+        return item_position(it, self._origin, self._home, here)
 
     def _setpoint(self) -> Setpoint:
         return Setpoint(self._pos, self._pitch, self._yaw)

@@ -33,6 +33,7 @@ from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
 from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
 from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink import dialect as dialect_mod
+from navig8_fc.mission.executor import planned_path
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import ParamStore, default_state_path
@@ -41,7 +42,7 @@ from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, Live
 from navig8_fc.shell.gcs_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4, GcsService, Source
 from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.shell.mcap_log import McapLogger
-from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m
+from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m, waypoint_poses
 
 FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
@@ -165,8 +166,24 @@ class FlightControllerProcess:
         if self.logger is None and live is None:
             return None
         fox = FoxgloveOutput(VehicleViz(self.vehicle, packaged_uav_size_m()), self.logger, live, "navig8-fc")
-        fox.set_mission(script_waypoints(script))
+        self._script_waypoints = script_waypoints(script)
+        self._fox_plan_generation: int | None = None  # the uploaded plan last drawn on /foxglove/mission
+        fox.set_mission(self._script_waypoints)
         return fox
+
+    def _show_plan(self) -> None:
+        """/foxglove/mission follows the uploaded plan (its planned path from home), or the script without one."""
+        mission = self.gcs_service.mission
+        if self.fox is None or mission.generation == self._fox_plan_generation:
+            return
+        self._fox_plan_generation = mission.generation
+        plan = mission.plan()
+        if not plan.items:
+            self.fox.set_mission(self._script_waypoints)
+            return
+        home = self.stack.state().home_ned or (0.0, 0.0, 0.0)
+        path = planned_path(plan, self.gcs_service.origin, home)
+        self.fox.set_mission(waypoint_poses([(p, 0.0, 0.0) for p in path]))
 
     def _mk_links(self) -> None:
         """Bind the three links (PortInUseError names a busy one; port 0: any free port), write the ports file,
@@ -443,6 +460,7 @@ class FlightControllerProcess:
 
     def on_wall_tick(self, now: float) -> None:
         self.gcs_service.poll(now)
+        self._show_plan()
 
     def log_event(self, text: str) -> None:
         print(f"navig8-fc: {text}", file=sys.stderr)

@@ -14,6 +14,7 @@ from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Cmd, Frame, MissionItem
+from navig8_fc.shell.mcap_log import read_mcap
 from navig8_tools.mission import download, upload
 
 M = mavlink2
@@ -116,3 +117,13 @@ def test_eight_item_plan_flown_reached_in_order_lands_at_home_and_disarms(tmp_pa
             assert math.hypot(pos.x - hx, pos.y - hy) < HOME_TOL_M and abs(pos.z - home.z) < HOME_TOL_M
         finally:
             gcs.close()
+    # Foxglove's 3D view draws the uploaded plan (/foxglove/mission, ENU world): home, the five position items
+    # in order (takeoff over home, the local waypoint 1 m north at 2 m, ...), back home.
+    records = [rec for _, _, rec in read_mcap(run.log, ["/foxglove/mission"])]
+    assert records, "no /foxglove/mission record"
+    poses = [p["position"] for p in records[-1]["poses"]]
+    assert len(poses) == 6, poses
+    enu = [(p["x"], p["y"], p["z"]) for p in poses]
+    home_enu = (home.y, home.x, -home.z)
+    for got, want in ((enu[0], home_enu), (enu[2], (0.0, 1.0, 2.0)), (enu[-1], home_enu)):
+        assert all(abs(a - b) < 1e-6 for a, b in zip(got, want, strict=True)), (got, want)

@@ -168,3 +168,18 @@ def test_position_mode_sticks_move_the_setpoint_and_centred_sticks_hold() -> Non
     mm.manual_input(0.0, 0.0, 1.0, 0.0)  # full throttle: climb 0.5 m/s
     outs, t = fly(mm, body, t, 1.0)
     assert outs[-1].setpoint.pos_ned[2] == pytest.approx(held[2] - 0.5, abs=0.02)  # the body lags (v / 2 m)
+
+
+def test_planned_path_for_display() -> None:
+    """The path drawn on /foxglove/mission: home, then each position item's target in order (the takeoff climbs
+    over home, the global waypoint through the origin's inverse projection, the loiter where the vehicle is, the
+    return at home); non-position items and DO_JUMP add nothing."""
+    from navig8_fc.mission.executor import planned_path
+
+    home = (0.5, -0.5, -0.1)
+    path = planned_path(_plan(), ORIGIN, home)
+    want = [home, (0.5, -0.5, -2.1), (1.0, 0.0, -2.0), (0.0, 1.0, -2.6), (0.0, 1.0, -2.1), home]
+    assert len(path) == len(want)
+    for got, exp in zip(path, want, strict=True):
+        # the global point is stored as int32 1e-7 deg: 1e-7 deg of longitude is 7 mm here (1.1 cm of latitude)
+        assert got == pytest.approx(exp, abs=0.012)
