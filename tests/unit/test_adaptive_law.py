@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from test_kalman import Pose  # the model quantities at a fixed arm pose (one helper for both filter tests)
 
 from navig8_fc.core import vehicle as veh
 from navig8_fc.core.adaptive_law import (
@@ -26,22 +27,6 @@ from navig8_fc.core.filters import LowPass1
 from navig8_fc.core.kalman import CkfConfig, CkfMode, ConstrainedKalmanFilter
 
 DT = 0.01
-
-
-class Pose:
-    """UAM (no object) model quantities at a fixed arm pose."""
-
-    def __init__(self, q_deg: tuple[float, float, float] = (20.0, 20.0, 20.0)) -> None:
-        self.cfg = veh.VehicleConfig.load()
-        self.q = np.radians(q_deg)
-        uam = veh.mass_properties(self.cfg, self.q, 0.0)
-        self.j = uam.inertia_com
-        self.m = uam.mass_kg
-        self.gc = veh.control_effectiveness_gc(self.cfg, uam.com_frd_m)
-        self.gci = np.linalg.inv(self.gc)
-        self.base = np.array([self.j[0, 0], self.j[1, 1], self.j[2, 2], self.m])
-        self.lower, self.upper = veh.estimate_bounds(self.j, self.m, 0.5, 1.0)
-        self.rho_x, self.rho_z = self.j[0, 2] / self.j[0, 0], self.j[0, 2] / self.j[2, 2]
 
 
 @pytest.fixture(scope="module")
