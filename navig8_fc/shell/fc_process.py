@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import argparse
 import gc
-import math
-import os
 import select
 import signal
 import sys
@@ -561,4 +559,4 @@ if __name__ == "__main__":
     raise SystemExit(main())
 
 
-__all__ = ["FcOptions", "FlightControllerProcess", "main", "math", "os"]
+__all__ = ["FcOptions", "FlightControllerProcess", "main"]
