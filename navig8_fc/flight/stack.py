@@ -89,6 +89,13 @@ def rotor_thrusts_n(vehicle: VehicleConfig, speed_rad_s: tuple[float, float, flo
     return kd * w1 * w1, vehicle.k_thrust_tail * w2 * abs(w2), kd * w3 * w3
 
 
+def throttle_pct(vehicle: VehicleConfig, speed_rad_s: tuple[float, float, float]) -> float:
+    """Collective thrust (duct 1 + tail + duct 3, N) as a percentage of the most the actuators can give at their
+    speed limits (VFR_HUD throttle); a reversed tail counts against it, as it does against the lift."""
+    t_max = sum(rotor_thrusts_n(vehicle, (vehicle.duct_speed_max, vehicle.tail_speed_max, vehicle.duct_speed_max)))
+    return 100.0 * sum(rotor_thrusts_n(vehicle, speed_rad_s)) / t_max
+
+
 class FlightStack:
     """Mode manager + failsafes + controller core (module docstring). One owner calls everything."""
 

@@ -25,6 +25,7 @@ from typing import Any, Protocol
 
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.flight.stack import throttle_pct
 from navig8_fc.flight.state import GripperAction, VehicleCommands, VehicleState
 from navig8_fc.gcs.commands import CommandHandler
 from navig8_fc.gcs.ftp import FtpServer, FtpService
@@ -393,7 +394,7 @@ class Telemetry:
             ckf_k=st.adapt.k if st else (math.nan,) * 4,  # type: ignore[arg-type]
             eig_margin=self._eig_margin,
             time_unix_usec=time.time_ns() // 1000,
-            throttle_pct=0.0,
+            throttle_pct=throttle_pct(self._vehicle, s.speed_rad_s) if s else 0.0,
         )
 
     def boot_ms(self, now_wall: float) -> int:

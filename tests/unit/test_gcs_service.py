@@ -204,3 +204,18 @@ def test_set_gps_global_origin_sets_the_origin_parameters() -> None:
     rig.send(rig.client.set_gps_global_origin_encode(1, 95 * 10**7, 0, 0), GCS)  # refused whole: nothing changes
     assert (rig.registry["ORIGIN_LAT_E7"], rig.registry["ORIGIN_LON_E7"]) == (473977420, 85455940)
     assert rig.registry["ORIGIN_ALT"] == pytest.approx(488.0) and rig.outbox.pop("STATUSTEXT")
+
+
+def test_vfr_hud_throttle_is_the_collective_thrust_over_the_most_the_rotors_give() -> None:
+    rig = Rig()
+    v = rig.vehicle
+    rig.w = 0.5 * v.duct_speed_max  # both ducts at half speed, tail still: T = k (w/2)^2 per duct
+    rig.step(3)
+    rig.gcs.poll(10.0)
+    (_, hud), = rig.outbox.pop("VFR_HUD")
+    # By hand: 2 kd (wmax/2)^2 / (2 kd wmax^2 + kt wtail_max^2), the tail's maximum counted with its sign.
+    kd, kt = v.k_thrust_duct, v.k_thrust_tail
+    expected = 100.0 * 2 * kd * (0.5 * v.duct_speed_max) ** 2 / (
+        2 * kd * v.duct_speed_max ** 2 + kt * v.tail_speed_max * abs(v.tail_speed_max))
+    assert 0.0 < expected < 100.0
+    assert hud.throttle == round(expected)  # VFR_HUD carries an integer percentage
