@@ -65,6 +65,7 @@ def _sensors_to_fc(sb: Any) -> FcSensors:
         speed_rad_s=_floats(sb.prop_speed_rad_s),
         joint_pos_rad=_floats(sb.joint_pos_rad),
         joint_rate_rad_s=_floats(sb.joint_rate_rad_s),
+        gripper_closed=bool(sb.gripper_closed),
     )
 
 

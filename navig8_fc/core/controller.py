@@ -79,6 +79,7 @@ class FcSensors:
     speed_rad_s: tuple[float, float, float]  # measured w1, w2 (signed), w3
     joint_pos_rad: tuple[float, float, float]
     joint_rate_rad_s: tuple[float, float, float]
+    gripper_closed: bool = False  # the gripper's reported state (NAVIG8_ARM_STATE); telemetry only, not control
 
 
 @dataclass(frozen=True)

@@ -211,6 +211,7 @@ class StepBundle(NamedTuple):
             speed_rad_s=self.prop_speed_rad_s,
             joint_pos_rad=self.joint_pos_rad,
             joint_rate_rad_s=self.joint_rate_rad_s,
+            gripper_closed=self.gripper_closed,
         )
 
 

@@ -387,6 +387,7 @@ class Telemetry:
             tilt_rad=s.tilt_rad if s else (0.0, 0.0),
             speed_rad_s=s.speed_rad_s if s else zero3,
             joint_pos_rad=s.joint_pos_rad if s else zero3,
+            gripper_closed=s.gripper_closed if s else False,
             origin=origin_from_params(self._registry),
             sensors=sensor_bits(imu_ok=ok, pose_ok=ok, actuators_ok=ok, estimator_ok=st is not None,
                                 battery_ok=v.battery.remaining_pct > bat_low_pct, prearm_ok=bool(v.prearm.ok)),

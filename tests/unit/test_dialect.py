@@ -272,6 +272,7 @@ def test_fc_sensors_and_truth_record(plant: Plant) -> None:
     assert s.t_s == sb.time_us * 1e-6
     np.testing.assert_array_equal(s.pos_ned, _f32(sb.pos_ned))
     np.testing.assert_array_equal(s.tilt_rad, _f32(sb.duct_tilt_rad))
+    assert s.gripper_closed == sb.gripper_closed  # NAVIG8_ARM_STATE's gripper reaches the FC (telemetry)
     rec = wire_truth_record(b.truth)
     for key in ("pos_ned_m", "quat_wxyz", "euler_rad", "reaction_force_mount_n", "reaction_torque_mount_nm",
                 "joint_rate_rad_s", "joint_accel_rad_s2", "tilt_rad", "speed_rad_s", "inertia_diag_kgm2"):

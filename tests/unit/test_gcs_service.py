@@ -46,10 +46,11 @@ class Outbox:
         return got
 
 
-def _sensors(t_us: int, z: float, w: float) -> FcSensors:
+def _sensors(t_us: int, z: float, w: float, gripper_closed: bool = False) -> FcSensors:
     return FcSensors(t_s=t_us * 1e-6, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -9.81), pos_ned=(0.0, 0.0, z),
                      vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0), tilt_rad=(0.0, 0.0),
-                     speed_rad_s=(w, 0.0, w), joint_pos_rad=(0.0, 0.0, 0.0), joint_rate_rad_s=(0.0, 0.0, 0.0))
+                     speed_rad_s=(w, 0.0, w), joint_pos_rad=(0.0, 0.0, 0.0), joint_rate_rad_s=(0.0, 0.0, 0.0),
+                     gripper_closed=gripper_closed)
 
 
 class Rig:
@@ -68,10 +69,12 @@ class Rig:
         self.client = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
         self.t_us = 0
         self.z, self.w = 0.0, 0.0
+        self.gripper_closed = False
 
     def step(self, n: int = 1) -> None:
         for _ in range(n):
-            for notice in self.stack.step(_sensors(self.t_us, self.z, self.w), True, self.t_us).notices:
+            sensors = _sensors(self.t_us, self.z, self.w, self.gripper_closed)
+            for notice in self.stack.step(sensors, True, self.t_us).notices:
                 if notice.statustext:
                     self.gcs.statustext(notice.statustext, notice.severity)
             self.t_us += 10_000
@@ -219,3 +222,14 @@ def test_vfr_hud_throttle_is_the_collective_thrust_over_the_most_the_rotors_give
         2 * kd * v.duct_speed_max ** 2 + kt * v.tail_speed_max * abs(v.tail_speed_max))
     assert 0.0 < expected < 100.0
     assert hud.throttle == round(expected)  # VFR_HUD carries an integer percentage
+
+
+
+def test_actuator_output_status_channel_8_is_the_reported_gripper_state() -> None:
+    rig = Rig()
+    for k, closed in enumerate((False, True, False)):
+        rig.gripper_closed = closed  # as NAVIG8_ARM_STATE reports it in the sensor bundle
+        rig.step(1)
+        rig.gcs.poll(10.0 + k)  # 1 s apart: every stream is due
+        *_, (_, act) = rig.outbox.pop("ACTUATOR_OUTPUT_STATUS")
+        assert act.actuator[8] == (1.0 if closed else 0.0)  # channel 8 (from 0): 1 closed, 0 open
