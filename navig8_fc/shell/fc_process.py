@@ -126,7 +126,12 @@ class FlightControllerProcess:
             else None
         self.gcs_service = GcsService(self._mav(), opts.sysid, self.stack.state, self.stack, self, self.registry,
                                       self.vehicle, store, missions,
-                                      autopilot=MAV_AUTOPILOT_PX4 if opts.autopilot == "px4" else MAV_AUTOPILOT_GENERIC)
+                                      autopilot=MAV_AUTOPILOT_PX4 if opts.autopilot == "px4" else MAV_AUTOPILOT_GENERIC,
+                                      trusted_sources=[(link.name, t) for link in (self.gcs, self.api)
+                                                       for t in link.targets],
+                                      background_params=True)
+        for link in (self.gcs, self.api):  # telemetry only to confirmed peers (docs/security.md)
+            link.admit_peer = self.gcs_service.admits_peer
         if missions is not None:
             reason = self.gcs_service.mission.load_stored()
             n = len(self.gcs_service.mission.plan().items)
@@ -137,8 +142,8 @@ class FlightControllerProcess:
             loaded = self.gcs_service.load_stored_params()
             if loaded.ok:
                 self.log_event(f"parameters loaded from {store.path} ({loaded.applied} values)")
-            for r in loaded.refused:
-                self.log_event(f"stored value refused: {r.reason}")
+            for line in loaded.report():  # also STATUSTEXT at the first ground-station contact
+                self.log_event(line)
         elif opts.defaults:
             self.log_event("starting from default parameters (--defaults)")
         self.stack.reconfigure()
@@ -470,6 +475,7 @@ class FlightControllerProcess:
             self.logger.log("/fc/param_change", self._sim_ns(), change, publish_ns=time.time_ns())
 
     def close(self) -> None:
+        self.gcs_service.close()
         if self._pending_tick is not None and (self.logger or self.fox):
             tick, self._pending_tick = self._pending_tick, None
             self._log_tick(*tick)

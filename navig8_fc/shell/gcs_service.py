@@ -14,13 +14,29 @@ Broadcasts go to both GCS-facing links (every peer of each): telemetry streams a
 and MISSION_ITEM_REACHED, STATUSTEXT (events and refusal reasons), and the PARAM_VALUE announcing the value in
 force after a PARAM_SET (accepted or refused) or a PREFLIGHT_STORAGE
 load/reset, so every connected GCS stays in sync.
+
+Who may command (docs/security.md): the sender's system id must lie in GCS_SYSID..GCS_SYSID_HI (ArduPilot's
+SYSID_MYGCS/SYSID_ENFORCE, as a range) unless GCS_ENFORCE is 0. A sender outside it is refused: COMMAND_LONG/INT
+get COMMAND_ACK DENIED, PARAM_SET gets the value in force, a STATUSTEXT (at most one a second) tells the
+operator; everything else it sends is dropped and counted (`n_unauthorised`), and its HEARTBEAT neither arms
+the GCS-loss failsafe nor makes it a peer. A source is *confirmed* when it is one of the links' configured
+targets (`trusted_sources`) or has sent a HEARTBEAT from an allowed id (`admits_peer`, which the links ask
+before adding a peer, so telemetry goes only to confirmed peers); from an unconfirmed source only commands and
+PARAM_SETs are answered (one refusal each), so a spoofed source gets no more bytes than it sends (reflection).
+
+GCS work off the control path: a PARAM_SET whose stability floor is not cached (a ~0.1-0.3 s workspace sweep)
+waits in a bounded queue while a worker thread computes the floor; `poll` (the main loop, between control steps)
+applies it when ready, in arrival order. PARAM_SETs are rate-limited per source (PARAM_SET_RATE), saves are
+written by the same worker. Without `background_params` (in-process callers) everything runs inline.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Hashable
+from collections import deque
+from collections.abc import Callable, Hashable, Iterable
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, Protocol
 
 from navig8_fc.core.outer_loop import Setpoint
@@ -58,6 +74,10 @@ _IGNORE_POSITION = 0b111  # POSITION_TARGET_TYPEMASK X/Y/Z_IGNORE
 _IGNORE_YAW = 1024  # POSITION_TARGET_TYPEMASK_YAW_IGNORE
 MANUAL_CONTROL_TIMEOUT_S = 0.5  # MANUAL_CONTROL older than this: sticks centred (Position mode holds)
 
+PARAM_QUEUE_MAX = 32  # PARAM_SETs waiting for a stability floor; more are refused (busy) at once
+REFUSAL_TEXT_PERIOD_S = 1.0  # at most one "not authorised" STATUSTEXT a second
+_COMMANDS = frozenset({"COMMAND_LONG", "COMMAND_INT"})
+
 Source = Hashable  # who sent a message, as the Outbox knows how to answer it (the process: (link name, address))
 _BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
 
@@ -91,8 +111,11 @@ class GcsService:
     def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], vehicle: VehicleCommands,
                  outbox: Outbox, registry: ParamRegistry, vehicle_config: VehicleConfig,
                  store: ParamStore | None = None, mission_store: MissionStore | None = None,
-                 autopilot: int = MAV_AUTOPILOT_GENERIC) -> None:
-        """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them)."""
+                 autopilot: int = MAV_AUTOPILOT_GENERIC, trusted_sources: Iterable[Source] = (),
+                 background_params: bool = False) -> None:
+        """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them).
+        trusted_sources: sources confirmed without a HEARTBEAT (the links' configured targets).
+        background_params: stability floors and saves on a worker thread (the process); else inline."""
         self.mav = mav
         self.sysid = int(sysid)
         self._state = state
@@ -100,7 +123,8 @@ class GcsService:
         self._outbox = outbox
         self.text = StatusTextEncoder(mav)
         self._registry = registry
-        self.params = ParamProtocol(registry, mav, store, statustext=self.text)
+        self.params = ParamProtocol(registry, mav, store, statustext=self.text, armed=lambda: self._state().armed,
+                                    defer_saves=background_params)
         self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text)
         self.misc = MiscProtocols(mav, statustext=self.text)
         self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text)
@@ -117,6 +141,17 @@ class GcsService:
         self._current_mode_sent: tuple[int, int] | None = None
         self._current_mode_t = -math.inf
         self._std_modes = hasattr(mav, "current_mode_encode")  # navig8.xml includes development.xml: it has them
+        self._trusted = set(trusted_sources)
+        self._confirmed: set[Source] = set()  # sources that sent a HEARTBEAT from an allowed system id
+        self.n_unauthorised = 0  # messages dropped or refused: sender not allowed, or source unconfirmed
+        self._refusal_text_t = -math.inf
+        self._now = 0.0
+        self._operator_reports: list[str] = []  # told at the first ground-station contact
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="navig8-params") if background_params else None
+        self._param_queue: deque[tuple[Any, Source | None]] = deque()
+        self._floor_job: tuple[dict[str, float | int], Future[Any]] | None = None
+        self._save_job: Future[str | None] | None = None
+        self._param_tokens: dict[Source | None, tuple[float, float]] = {}  # source -> (tokens, last time)
 
     @property
     def last_gcs_heartbeat(self) -> float | None:
@@ -124,19 +159,71 @@ class GcsService:
         return self._last_gcs_heartbeat
 
     def load_stored_params(self) -> StoredLoad:
-        """The persisted parameter values (startup); the caller logs the outcome."""
-        return self.params.load_stored()
+        """The persisted parameter values (startup); the caller logs the outcome. What went wrong is also told
+        to the first ground station that makes contact (STATUSTEXT)."""
+        loaded = self.params.load_stored()
+        self._operator_reports = loaded.report()
+        return loaded
+
+    # --- authorisation ---------------------------------------------------------------------------
+    def authorised(self, sysid: int) -> bool:
+        """Whether a sender with this system id may command (GCS_SYSID..GCS_SYSID_HI, unless GCS_ENFORCE 0)."""
+        reg = self._registry
+        if int(reg["GCS_ENFORCE"]) == 0:
+            return True
+        lo = int(reg["GCS_SYSID"])
+        return lo <= int(sysid) <= max(lo, int(reg["GCS_SYSID_HI"]))
+
+    def admits_peer(self, msg: Any, addr: Any = None) -> bool:
+        """Whether a link may start sending telemetry to the sender of `msg`: a HEARTBEAT from an allowed id."""
+        return msg.get_type() == "HEARTBEAT" and self.authorised(msg.get_srcSystem())
+
+    def confirmed(self, source: Source | None) -> bool:
+        return source is None or source in self._trusted or source in self._confirmed
+
+    def _refuse(self, m: Any, why: str) -> list[Any]:
+        """A message from a sender that may not command: one answer for a command or PARAM_SET, else nothing."""
+        self.n_unauthorised += 1
+        kind = m.get_type()
+        out: list[Any] = []
+        if kind in _COMMANDS and m.target_system in (0, self.sysid) and m.target_component in (0, 1):
+            out.append(self.mav.command_ack_encode(int(m.command), 2, 0, 0, m.get_srcSystem(),  # MAV_RESULT_DENIED
+                                                   m.get_srcComponent()))
+        elif kind == "PARAM_SET":
+            out += [r for r in self.params.refuse_set(m, why) if r.get_type() == "PARAM_VALUE"]
+        if out and self._now - self._refusal_text_t >= REFUSAL_TEXT_PERIOD_S:
+            self._refusal_text_t = self._now
+            out += self.text.warning(f"{kind} from system {m.get_srcSystem()} refused: {why}")
+        return out
 
     # --- routing ---------------------------------------------------------------------------------
     def handle(self, received: list[tuple[Any, Source | None]], now_wall: float) -> list[SetResult]:
         """Inbound messages (msg, source); replies go back to the source through the outbox (module docstring).
         Without a source (in-process callers), replies are broadcast. Returns the parameter changes (set, load,
         reset outcomes) the messages caused, for the caller's log."""
+        self._now = now_wall
         for m, source in received:
             self.n_gcs_msgs += 1
             kind = m.get_type()
-            if kind == "HEARTBEAT" and m.type == MAV_TYPE_GCS:
-                self._last_gcs_heartbeat = now_wall
+            src_sys = m.get_srcSystem()
+            if not self.authorised(src_sys):
+                self._route(kind, source, self._refuse(m, f"system {src_sys} is not an allowed ground station"))
+                continue
+            if kind == "HEARTBEAT":
+                if source is not None:
+                    self._confirmed.add(source)
+                if m.type == MAV_TYPE_GCS:
+                    self._last_gcs_heartbeat = now_wall
+            elif not self.confirmed(source):
+                self._route(kind, source, self._refuse(m, "send a HEARTBEAT first"))
+                continue
+            if self._operator_reports:  # the first contact: what the operator must know (a bad parameter file)
+                for line in self._operator_reports:
+                    self._outbox.broadcast(self.text.encode(2, line))  # MAV_SEVERITY_CRITICAL
+                self._operator_reports = []
+            if kind == "PARAM_SET":
+                self._route(kind, source, self._param_set(m, source, now_wall))
+                continue
             out = self.params.handle(m, now_wall, source)
             out += self.commands.handle(m, now_wall)
             out += self.misc.handle(m, now_wall)
@@ -150,12 +237,76 @@ class GcsService:
                 # PX4's scaling: x/y/r -1000..1000, z 0..1000 (500 = hold altitude); missing sticks are centred.
                 self._vehicle.manual_input(m.x / 1000.0, m.y / 1000.0, m.z / 1000.0, m.r / 1000.0)
                 self._last_manual = now_wall
-            for r in out:
-                if source is None or is_broadcast_reply(kind, r.get_type()):
-                    self._outbox.broadcast([r])
-                else:
-                    self._outbox.reply(source, [r])
+            self._route(kind, source, out)
         return self.params.drain_changes()
+
+    def _route(self, kind: str, source: Source | None, out: list[Any]) -> None:
+        for r in out:
+            if source is None or is_broadcast_reply(kind, r.get_type()):
+                self._outbox.broadcast([r])
+            else:
+                self._outbox.reply(source, [r])
+
+    # --- PARAM_SET off the control path -----------------------------------------------------------
+    def _param_set(self, m: Any, source: Source | None, now_wall: float) -> list[Any]:
+        """Rate limit, then at once when nothing is queued and no stability sweep is needed; else queued."""
+        rate = float(self._registry["PARAM_SET_RATE"])
+        tokens, last = self._param_tokens.get(source, (rate, now_wall))
+        tokens = min(rate, tokens + (now_wall - last) * rate)
+        if tokens < 1.0:
+            self._param_tokens[source] = (tokens, now_wall)
+            return self.params.refuse_set(m, f"refused: more than {rate:g} PARAM_SET/s, retry")
+        self._param_tokens[source] = (tokens - 1.0, now_wall)
+        if len(self._param_tokens) > 64:  # forget idle sources (bounded memory under spoofed floods)
+            self._param_tokens = {k: v for k, v in self._param_tokens.items() if now_wall - v[1] < 2.0}
+        if self._pool is None or (not self._param_queue and self.params.floor_needed(m) is None):
+            return self.params.handle(m, now_wall, source)
+        if len(self._param_queue) >= PARAM_QUEUE_MAX:
+            return self.params.refuse_set(m, "refused: busy checking the stability floor, retry")
+        self._param_queue.append((m, source))
+        return []
+
+    def _run_param_queue(self, now_wall: float) -> None:
+        """Queued PARAM_SETs in order, each once its floor is computed (the worker); called between steps."""
+        while self._param_queue:
+            m, source = self._param_queue[0]
+            if self._floor_job is not None:
+                values, job = self._floor_job
+                if not job.done():
+                    return
+                self._floor_job = None
+                self._registry.store_floor(values, job.result())
+            need = self.params.floor_needed(m)
+            if need is not None and self._pool is not None:
+                self._floor_job = (need, self._pool.submit(self._registry.compute_floor, need))
+                return
+            self._param_queue.popleft()
+            self._route("PARAM_SET", source, self.params.handle(m, now_wall, source))
+
+    def _save_params(self) -> None:
+        """A due save on the worker (its outcome reported when done); one at a time, the latest values."""
+        if self._save_job is not None:
+            if not self._save_job.done():
+                return
+            err, self._save_job = self._save_job.result(), None
+            if err:
+                self.statustext(err, 4)  # MAV_SEVERITY_WARNING
+        values = self.params.take_save()
+        if values is not None and self._pool is not None:
+            self._save_job = self._pool.submit(self.params.write_values, values)
+
+    @property
+    def params_busy(self) -> bool:
+        """PARAM_SETs queued or a save being written (tests wait on this, bounded)."""
+        return bool(self._param_queue) or self._save_job is not None or self.params.save_due
+
+    def close(self) -> None:
+        """Finish the queue's last save and stop the worker."""
+        if self._pool is not None:
+            values = self.params.take_save()
+            if values is not None:
+                self._pool.submit(self.params.write_values, values)
+            self._pool.shutdown(wait=True)
 
     def _set_mode_message(self, m: Any) -> list[Any]:
         """The legacy SET_MODE message (what `mode X` in MAVProxy sends), read in PX4's custom_mode encoding
@@ -237,6 +388,9 @@ class GcsService:
         return self._vehicle.reposition(self._to_ned(lat_deg, lon_deg, alt_m, relative_alt), yaw_rad)
 
     def poll(self, now_wall: float) -> None:
+        self._now = now_wall
+        self._run_param_queue(now_wall)
+        self._save_params()
         if self._last_manual is not None and now_wall - self._last_manual > MANUAL_CONTROL_TIMEOUT_S:
             self._last_manual = None
             self._vehicle.manual_input(0.0, 0.0, 0.5, 0.0)  # sticks no longer received: centred (hold)
@@ -327,6 +481,9 @@ class GcsService:
         return self.mav.current_mode_encode(standard_mode_of(custom), custom, self._intended_custom_mode)
 
     def set_message_interval(self, msg_id: int, interval_us: int) -> bool:
+        """Clamped to GCS_RATE_MAX (a floor on the interval: one request cannot ask for 500 Hz streams)."""
+        if interval_us > 0:
+            interval_us = max(int(interval_us), int(math.ceil(1e6 / float(self._registry["GCS_RATE_MAX"]))))
         return self.telemetry.scheduler.set_interval(msg_id, interval_us)
 
     def message_interval_us(self, msg_id: int) -> int:

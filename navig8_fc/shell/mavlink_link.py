@@ -108,6 +108,9 @@ class UdpLink:
     targets: list[tuple[str, int]] = field(default_factory=list)
     peers: list[tuple[str, int]] = field(default_factory=list)
     sysid_filter: int | None = None  # drop frames not from... (kept None: we accept any source)
+    # Which senders become peers (telemetry goes to them): None = any decoded frame; else asked (msg, addr),
+    # so a spoofed source gets no stream until the GCS service confirms it (docs/security.md).
+    admit_peer: Callable[[Any, tuple[str, int]], bool] | None = None
     counters: LinkCounters = field(default_factory=LinkCounters)
     max_peers: int = 8
     # Logging hooks. on_datagram: every datagram in (up to MAX_DATAGRAM bytes) and out, raw, once, as it crossed
@@ -173,7 +176,8 @@ class UdpLink:
                     c.unknown_id += 1  # pymavlink hands these back undecoded: not a peer, not an input
                     continue
                 c.frames_in += 1
-                self._note_peer(addr)
+                if self.admit_peer is None or self.admit_peer(msg, addr):
+                    self._note_peer(addr)
                 if self.on_frame:
                     self.on_frame(self.name, "in", fr, msg, addr)
                 out.append(Received(fr, msg, addr))

@@ -65,7 +65,8 @@ class Rig:
             s = self.stack.state()
             return replace(s, **state_override) if state_override else s
 
-        self.gcs = GcsService(self.mav, 1, state, self.stack, self.outbox, self.registry, self.vehicle)
+        self.gcs = GcsService(self.mav, 1, state, self.stack, self.outbox, self.registry, self.vehicle,
+                              trusted_sources=[API, GCS])  # the links' configured targets, as the process gives
         self.client = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
         self.t_us = 0
         self.z, self.w = 0.0, 0.0
