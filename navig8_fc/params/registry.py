@@ -308,6 +308,10 @@ class ParamRegistry:
             return None
         return candidate
 
+    def floor_inputs_checked(self) -> bool:
+        """Whether sets of the stability parameters run the floor check at all."""
+        return self._stability_check is not None
+
     def compute_floor(self, values: Mapping[str, float | int]) -> StabilityFloor:
         """The floor for `values` (pure; safe on a worker thread: reads nothing mutable here). Parameters the
         analysis itself refuses give a floor that refuses."""

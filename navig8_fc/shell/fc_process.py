@@ -44,6 +44,7 @@ from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m, waypoint
 
 FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
+GCS_DATAGRAMS_PER_PASS = 16  # ~2-5 ms of GCS work at most between two looks at the sim link
 WALL_TICK_S = 0.001  # GCS services (telemetry schedule, paced parameter list) run at most this often
 _GRIPPER_CODES = {None: seam.GRIPPER_NONE, "grab": seam.GRIPPER_GRAB, "release": seam.GRIPPER_RELEASE}
 EXIT_USAGE = 2  # bad arguments, or a port in use
@@ -198,6 +199,8 @@ class FlightControllerProcess:
         self.sim.max_datagrams = 1  # one bundle per step; more stay readable for the run loop's next select
         self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
         self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
+        for link in (self.gcs, self.api):  # a GCS flood is handled a slice per loop pass, between control steps
+            link.max_datagrams = GCS_DATAGRAMS_PER_PASS
         if o.ports_file is not None:
             ports = {"sim": self.sim.local_port, "gcs": self.gcs.local_port, "api": self.api.local_port}
             if self.fox is not None and self.fox.live is not None:
@@ -462,7 +465,8 @@ class FlightControllerProcess:
             self.sim.send(seam.announce_record())
 
     def on_wall_tick(self, now: float) -> None:
-        self.gcs_service.poll(now)
+        for change in self.gcs_service.poll(now):  # PARAM_SETs that waited for their stability floor
+            self.log_param_change(change)
         self._show_plan()
 
     def log_event(self, text: str) -> None:

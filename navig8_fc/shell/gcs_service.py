@@ -152,6 +152,10 @@ class GcsService:
         self._floor_job: tuple[dict[str, float | int], Future[Any]] | None = None
         self._save_job: Future[str | None] | None = None
         self._param_tokens: dict[Source | None, tuple[float, float]] = {}  # source -> (tokens, last time)
+        if self._pool is not None and registry.floor_inputs_checked():
+            # Imports and the vehicle model load on the worker now, not under the first PARAM_SET in flight.
+            values = registry.as_dict()
+            self._floor_job = (values, self._pool.submit(registry.compute_floor, values))
 
     @property
     def last_gcs_heartbeat(self) -> float | None:
@@ -190,11 +194,20 @@ class GcsService:
             out.append(self.mav.command_ack_encode(int(m.command), 2, 0, 0, m.get_srcSystem(),  # MAV_RESULT_DENIED
                                                    m.get_srcComponent()))
         elif kind == "PARAM_SET":
-            out += [r for r in self.params.refuse_set(m, why) if r.get_type() == "PARAM_VALUE"]
-        if out and self._now - self._refusal_text_t >= REFUSAL_TEXT_PERIOD_S:
-            self._refusal_text_t = self._now
-            out += self.text.warning(f"{kind} from system {m.get_srcSystem()} refused: {why}")
-        return out
+            out += [r for r in self.params.refuse_set(m, why) if r.get_type() == "PARAM_VALUE"]  # text below
+        return out + (self._throttled_text(f"{kind} from system {m.get_srcSystem()} refused: {why}") if out else [])
+
+    def _throttled_text(self, text: str) -> list[Any]:
+        """A refusal STATUSTEXT, at most one a second: a flood of refused requests is not a flood of texts."""
+        if self._now - self._refusal_text_t < REFUSAL_TEXT_PERIOD_S:
+            return []
+        self._refusal_text_t = self._now
+        return self.text.warning(text)
+
+    def _refuse_set(self, m: Any, why: str) -> list[Any]:
+        out = self.params.refuse_set(m, why)
+        values = [r for r in out if r.get_type() == "PARAM_VALUE"]
+        return values + (self._throttled_text(f"PARAM_SET {why}") if values else [])
 
     # --- routing ---------------------------------------------------------------------------------
     def handle(self, received: list[tuple[Any, Source | None]], now_wall: float) -> list[SetResult]:
@@ -255,14 +268,14 @@ class GcsService:
         tokens = min(rate, tokens + (now_wall - last) * rate)
         if tokens < 1.0:
             self._param_tokens[source] = (tokens, now_wall)
-            return self.params.refuse_set(m, f"refused: more than {rate:g} PARAM_SET/s, retry")
+            return self._refuse_set(m, f"refused: more than {rate:g} PARAM_SET/s, retry")
         self._param_tokens[source] = (tokens - 1.0, now_wall)
         if len(self._param_tokens) > 64:  # forget idle sources (bounded memory under spoofed floods)
             self._param_tokens = {k: v for k, v in self._param_tokens.items() if now_wall - v[1] < 2.0}
         if self._pool is None or (not self._param_queue and self.params.floor_needed(m) is None):
             return self.params.handle(m, now_wall, source)
         if len(self._param_queue) >= PARAM_QUEUE_MAX:
-            return self.params.refuse_set(m, "refused: busy checking the stability floor, retry")
+            return self._refuse_set(m, "refused: busy checking the stability floor, retry")
         self._param_queue.append((m, source))
         return []
 
@@ -387,7 +400,9 @@ class GcsService:
                           yaw_rad: float) -> tuple[bool, str]:
         return self._vehicle.reposition(self._to_ned(lat_deg, lon_deg, alt_m, relative_alt), yaw_rad)
 
-    def poll(self, now_wall: float) -> None:
+    def poll(self, now_wall: float) -> list[SetResult]:
+        """Wall-clock work (telemetry, paced downloads, queued PARAM_SETs); returns the parameter changes the
+        queued PARAM_SETs made, for the caller's log."""
         self._now = now_wall
         self._run_param_queue(now_wall)
         self._save_params()
@@ -413,6 +428,7 @@ class GcsService:
             msgs.append(self._current_mode())
         if msgs:
             self._outbox.broadcast(msgs)
+        return self.params.drain_changes()
 
     def statustext(self, text: str, severity: int) -> None:
         """STATUSTEXT to every GCS (chunked when longer than one message)."""
