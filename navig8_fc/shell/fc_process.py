@@ -40,6 +40,7 @@ from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, Live
 from navig8_fc.shell.gcs_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4, GcsService, Source
 from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.shell.mcap_log import McapLogger
+from navig8_fc.shell.signing import KeyFile, LinkSigning
 from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m, waypoint_poses
 
 FC_COMPID = 1
@@ -123,6 +124,8 @@ class FlightControllerProcess:
         self.last_bundle_wall = time.monotonic()
         self.sim_done = False
         store = ParamStore(default_state_path(opts.state_dir, opts.instance)) if opts.state_dir else None
+        self.signing = LinkSigning((self.gcs.mav, self.api.mav), KeyFile(default_state_path(
+            opts.state_dir, opts.instance, "fc_signing")) if opts.state_dir else None)  # docs/security.md
         missions = MissionStore(default_state_path(opts.state_dir, opts.instance, "fc_mission")) if opts.state_dir \
             else None
         self.gcs_service = GcsService(self._mav(), opts.sysid, self.stack.state, self.stack, self, self.registry,
@@ -130,9 +133,11 @@ class FlightControllerProcess:
                                       autopilot=MAV_AUTOPILOT_PX4 if opts.autopilot == "px4" else MAV_AUTOPILOT_GENERIC,
                                       trusted_sources=[(link.name, t) for link in (self.gcs, self.api)
                                                        for t in link.targets],
-                                      background_params=True)
+                                      background_params=True, signing=self.signing)
         for link in (self.gcs, self.api):  # telemetry only to confirmed peers (docs/security.md)
             link.admit_peer = self.gcs_service.admits_peer
+        for line in self.signing.load():
+            self.log_event(line)
         if missions is not None:
             reason = self.gcs_service.mission.load_stored()
             n = len(self.gcs_service.mission.plan().items)
@@ -480,6 +485,7 @@ class FlightControllerProcess:
 
     def close(self) -> None:
         self.gcs_service.close()
+        self.signing.save_timestamp()
         if self._pending_tick is not None and (self.logger or self.fox):
             tick, self._pending_tick = self._pending_tick, None
             self._log_tick(*tick)

@@ -77,6 +77,7 @@ MANUAL_CONTROL_TIMEOUT_S = 0.5  # MANUAL_CONTROL older than this: sticks centred
 PARAM_QUEUE_MAX = 32  # PARAM_SETs waiting for a stability floor; more are refused (busy) at once
 REFUSAL_TEXT_PERIOD_S = 1.0  # at most one "not authorised" STATUSTEXT a second
 _COMMANDS = frozenset({"COMMAND_LONG", "COMMAND_INT"})
+_WITHOUT_SIGNING = frozenset({"HEARTBEAT", "SETUP_SIGNING", "RADIO_STATUS"})  # what GCS_SIGN_REQ lets through
 
 Source = Hashable  # who sent a message, as the Outbox knows how to answer it (the process: (link name, address))
 _BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
@@ -112,10 +113,11 @@ class GcsService:
                  outbox: Outbox, registry: ParamRegistry, vehicle_config: VehicleConfig,
                  store: ParamStore | None = None, mission_store: MissionStore | None = None,
                  autopilot: int = MAV_AUTOPILOT_GENERIC, trusted_sources: Iterable[Source] = (),
-                 background_params: bool = False) -> None:
+                 background_params: bool = False, signing: Any = None) -> None:
         """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them).
         trusted_sources: sources confirmed without a HEARTBEAT (the links' configured targets).
-        background_params: stability floors and saves on a worker thread (the process); else inline."""
+        background_params: stability floors and saves on a worker thread (the process); else inline.
+        signing: the links' signing (shell.signing.LinkSigning: `set_key`, `active`); None: SETUP_SIGNING refused."""
         self.mav = mav
         self.sysid = int(sysid)
         self._state = state
@@ -142,6 +144,7 @@ class GcsService:
         self._current_mode_t = -math.inf
         self._std_modes = hasattr(mav, "current_mode_encode")  # navig8.xml includes development.xml: it has them
         self._trusted = set(trusted_sources)
+        self._signing = signing
         self._confirmed: set[Source] = set()  # sources that sent a HEARTBEAT from an allowed system id
         self.n_unauthorised = 0  # messages dropped or refused: sender not allowed, or source unconfirmed
         self._refusal_text_t = -math.inf
@@ -230,6 +233,13 @@ class GcsService:
             elif not self.confirmed(source):
                 self._route(kind, source, self._refuse(m, "send a HEARTBEAT first"))
                 continue
+            if (int(self._registry["GCS_SIGN_REQ"]) and not (self._signing is not None and self._signing.active)
+                    and kind not in _WITHOUT_SIGNING):
+                self._route(kind, source, self._refuse(m, "signing required: set a key with SETUP_SIGNING"))
+                continue
+            if kind == "SETUP_SIGNING":
+                self._route(kind, source, self._setup_signing(m))
+                continue
             if self._operator_reports:  # the first contact: what the operator must know (a bad parameter file)
                 for line in self._operator_reports:
                     self._outbox.broadcast(self.text.encode(2, line))  # MAV_SEVERITY_CRITICAL
@@ -259,6 +269,15 @@ class GcsService:
                 self._outbox.broadcast([r])
             else:
                 self._outbox.reply(source, [r])
+
+    def _setup_signing(self, m: Any) -> list[Any]:
+        """SETUP_SIGNING for us: the key to the links (never to a message or the log; module docstring of
+        shell.signing for who may send it)."""
+        if m.target_system not in (0, self.sysid):
+            return []
+        if self._signing is None:
+            return self.text.warning("SETUP_SIGNING refused: signing not available on this link")
+        return self.text.info(self._signing.set_key(bytes(m.secret_key), int(m.initial_timestamp)))
 
     # --- PARAM_SET off the control path -----------------------------------------------------------
     def _param_set(self, m: Any, source: Source | None, now_wall: float) -> list[Any]:
