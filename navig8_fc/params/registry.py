@@ -139,6 +139,15 @@ def _flag(raw: Mapping[str, Any], key: str) -> bool:
     return v
 
 
+def run_floor(check: StabilityCheck, values: Mapping[str, float | int]) -> StabilityFloor:
+    """`check(values)`; parameters the analysis itself refuses give a floor that refuses. Module-level, so a
+    worker process can run it (the check and the values pickle)."""
+    try:
+        return check(values)
+    except (ValueError, ArithmeticError):
+        return StabilityFloor(math.inf, -math.inf)
+
+
 def floor_key(values: Mapping[str, float | int]) -> tuple[float, ...]:
     """The values the stability floor depends on, as a cache key."""
     return tuple(float(values[n]) for n in FLOOR_INPUTS)
@@ -308,18 +317,15 @@ class ParamRegistry:
             return None
         return candidate
 
-    def floor_inputs_checked(self) -> bool:
-        """Whether sets of the stability parameters run the floor check at all."""
-        return self._stability_check is not None
-
     def compute_floor(self, values: Mapping[str, float | int]) -> StabilityFloor:
-        """The floor for `values` (pure; safe on a worker thread: reads nothing mutable here). Parameters the
-        analysis itself refuses give a floor that refuses."""
+        """The floor for `values` (pure; see `run_floor`)."""
         assert self._stability_check is not None
-        try:
-            return self._stability_check(values)
-        except (ValueError, ArithmeticError):
-            return StabilityFloor(math.inf, -math.inf)
+        return run_floor(self._stability_check, values)
+
+    @property
+    def stability_check(self) -> StabilityCheck | None:
+        """The check itself, for a caller that runs it elsewhere (`run_floor` in a worker process)."""
+        return self._stability_check
 
     def store_floor(self, values: Mapping[str, float | int], floor: StabilityFloor) -> None:
         self._floors[floor_key(values)] = floor

@@ -38,6 +38,7 @@ from navig8_fc.params.store import ParamStore, default_state_path
 from navig8_fc.shell.foxglove_out import DEFAULT_PORT as FOXGLOVE_DEFAULT_PORT
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, LiveServer, script_waypoints
 from navig8_fc.shell.gcs_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4, GcsService, Source
+from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.shell.mcap_log import McapLogger
 from navig8_fc.shell.signing import KeyFile, LinkSigning
@@ -120,6 +121,7 @@ class FlightControllerProcess:
         self._last_step_time_us: int | None = None
         self._last_answer: bytes | None = None  # the frame answering the last step (re-sent on duplicates)
         self.n_ticks = 0
+        self.watchdog = LoopWatchdog()
         self.n_duplicates = 0
         self.last_bundle_wall = time.monotonic()
         self.sim_done = False
@@ -296,8 +298,17 @@ class FlightControllerProcess:
         self.sim.send_raw(out)
         self.n_ticks += 1
         self.announce(res.notices)
+        paced = self.sim_status is not None and self.sim_status.speed > 0.0
+        late = self.watchdog.step(self.last_bundle_wall, paced)
+        if late is not None:  # counted and logged; a loaded host causes these too, so not a STATUSTEXT
+            self.log_event(late)
         if self.logger or self.fox:
             self._pending_tick = (t_us, b.truth, res.status, cmd, res.setpoint, wire, out, sensors)
+
+    def _watch(self, note: str | None) -> None:
+        """A GCS-work overrun (the watchdog's rate-limited report): the operator hears of it."""
+        if note is not None:
+            self.statustext(note, 4)  # MAV_SEVERITY_WARNING
 
     def statustext(self, text: str, severity: int = 6) -> None:
         """STATUSTEXT to every GCS (and the log keeps it)."""
@@ -389,7 +400,9 @@ class FlightControllerProcess:
                     if link is self.sim:
                         self._on_sim(got)
                     else:
+                        t0 = time.monotonic()
                         self.on_gcs(link, got)
+                        self._watch(self.watchdog.gcs_work(time.monotonic() - t0, t0))
                 # The step's answer is out: now log (this overlaps with the bridge's physics step).
                 if self._pending_tick is not None:
                     tick, self._pending_tick = self._pending_tick, None
@@ -404,6 +417,7 @@ class FlightControllerProcess:
                 if now >= wall_tick_due:  # not on every lockstep step: at --speed 0 steps come every ~0.3 ms
                     wall_tick_due = now + WALL_TICK_S
                     self.on_wall_tick(now)
+                    self._watch(self.watchdog.gcs_work(time.monotonic() - now, now))
                 if until_done and self.sim_done:
                     break
                 self._check_timeouts(now)
@@ -496,7 +510,8 @@ class FlightControllerProcess:
             if self.sim_status is not None:
                 self.logger.metadata("bridge_status", self.sim_status)
             self.logger.metadata("fc_stats", {"ticks": self.n_ticks, "duplicates": self.n_duplicates,
-                                              "incomplete_bundles": self._asm.incomplete})
+                                              "incomplete_bundles": self._asm.incomplete,
+                                              **self.watchdog.stats()})
             self.logger.metadata("params_final", self.registry.as_dict())
             self.logger.close()
             self.logger = None

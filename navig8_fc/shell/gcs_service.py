@@ -25,18 +25,21 @@ before adding a peer, so telemetry goes only to confirmed peers); from an unconf
 PARAM_SETs are answered (one refusal each), so a spoofed source gets no more bytes than it sends (reflection).
 
 GCS work off the control path: a PARAM_SET whose stability floor is not cached (a ~0.1-0.3 s workspace sweep)
-waits in a bounded queue while a worker thread computes the floor; `poll` (the main loop, between control steps)
-applies it when ready, in arrival order. PARAM_SETs are rate-limited per source (PARAM_SET_RATE), saves are
-written by the same worker. Without `background_params` (in-process callers) everything runs inline.
+waits in a bounded queue while a worker *process* computes the floor (a thread would not do: numpy's batched
+eigenvalue call holds the GIL for tens of ms, measured 48 ms worst vs 13 ms idle on this host); `poll` (the main
+loop, between control steps) applies it when ready, in arrival order. PARAM_SETs are rate-limited per source
+(PARAM_SET_RATE); saves are written by a worker thread. Without `background_params` (in-process callers)
+everything runs inline.
 """
 
 from __future__ import annotations
 
 import math
+import multiprocessing
 import time
 from collections import deque
 from collections.abc import Callable, Hashable, Iterable
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Any, Protocol
 
 from navig8_fc.core.outer_loop import Setpoint
@@ -61,7 +64,7 @@ from navig8_fc.mission.plan import MissionType
 from navig8_fc.mission.protocol import MissionProtocol
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
-from navig8_fc.params.registry import ParamRegistry, SetResult
+from navig8_fc.params.registry import ParamRegistry, SetResult, run_floor
 from navig8_fc.params.store import ParamStore
 
 MAV_TYPE_GCS = 6
@@ -155,10 +158,18 @@ class GcsService:
         self._floor_job: tuple[dict[str, float | int], Future[Any]] | None = None
         self._save_job: Future[str | None] | None = None
         self._param_tokens: dict[Source | None, tuple[float, float]] = {}  # source -> (tokens, last time)
-        if self._pool is not None and registry.floor_inputs_checked():
-            # Imports and the vehicle model load on the worker now, not under the first PARAM_SET in flight.
-            values = registry.as_dict()
-            self._floor_job = (values, self._pool.submit(registry.compute_floor, values))
+        self._floor_pool: Executor | None = None
+        if self._pool is not None and registry.stability_check is not None:
+            try:  # a spawned process: nothing of this one (threads, sockets) is inherited
+                self._floor_pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+            except (OSError, ValueError):
+                self._floor_pool = self._pool  # no processes here: a thread still keeps the sweep off the loop
+            # Imports and the vehicle model load in the worker now, not under the first PARAM_SET in flight.
+            self._submit_floor(registry.as_dict())
+
+    def _submit_floor(self, values: dict[str, float | int]) -> None:
+        assert self._floor_pool is not None
+        self._floor_job = (values, self._floor_pool.submit(run_floor, self._registry.stability_check, values))
 
     @property
     def last_gcs_heartbeat(self) -> float | None:
@@ -307,10 +318,13 @@ class GcsService:
                 if not job.done():
                     return
                 self._floor_job = None
-                self._registry.store_floor(values, job.result())
+                try:
+                    self._registry.store_floor(values, job.result())
+                except Exception:  # noqa: BLE001 - a dead worker: the set below computes inline, once
+                    self._floor_pool = None
             need = self.params.floor_needed(m)
-            if need is not None and self._pool is not None:
-                self._floor_job = (need, self._pool.submit(self._registry.compute_floor, need))
+            if need is not None and self._floor_pool is not None:
+                self._submit_floor(need)
                 return
             self._param_queue.popleft()
             self._route("PARAM_SET", source, self.params.handle(m, now_wall, source))
@@ -339,6 +353,10 @@ class GcsService:
             if values is not None:
                 self._pool.submit(self.params.write_values, values)
             self._pool.shutdown(wait=True)
+            self._pool = None
+        if self._floor_pool is not None:
+            self._floor_pool.shutdown(wait=False, cancel_futures=True)
+            self._floor_pool = None
 
     def _set_mode_message(self, m: Any) -> list[Any]:
         """The legacy SET_MODE message (what `mode X` in MAVProxy sends), read in PX4's custom_mode encoding

@@ -6,10 +6,12 @@ VehicleState; messages cross a pymavlink encode/decode as on the wire."""
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
 from io import BytesIO
 from typing import Any
 
+import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
@@ -291,3 +293,36 @@ def test_message_interval_has_a_floor() -> None:
     rig.command(GCS, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 2000)
     floor_us = 1e6 / float(rig.registry["GCS_RATE_MAX"])
     assert rig.gcs.message_interval_us(M.MAVLINK_MSG_ID_ATTITUDE) >= floor_us
+
+
+def test_param_sets_needing_a_stability_sweep_wait_on_the_worker_and_every_one_is_answered(tmp_path) -> None:
+    """The process's mode: floors on a worker thread, applied by poll in arrival order; the queue is bounded and
+    PARAM_SET rate-limited, and every PARAM_SET gets a PARAM_VALUE (accepted, refused, or busy/rate refusals)."""
+    from navig8_fc.params.store import ParamStore
+
+    rig = Rig()
+    store = ParamStore(tmp_path / "p.json")
+    svc = GcsService(rig.mav, 1, rig.stack.state, rig.stack, rig.outbox, rig.registry, rig.vehicle, store,
+                     trusted_sources=[GCS], background_params=True)
+    try:
+        n = 120
+        values = [0.5 + 0.002 * (i % 20) for i in range(n)]
+        for i, v in enumerate(values):
+            msg = rig.client.param_set_encode(1, 1, b"INDI_K_MIN", v, M.MAV_PARAM_TYPE_REAL32)
+            svc.handle([(rig.mav.decode(bytearray(msg.pack(rig.client))), GCS)], 1.0 + i * 1e-4)
+        t = 2.0
+        deadline = time.monotonic() + 60.0
+        while svc.params_busy and time.monotonic() < deadline:
+            t += 0.01
+            svc.poll(t)
+            time.sleep(0.005)
+        assert not svc.params_busy, "queued PARAM_SETs never finished"
+        answers = [m for _, m in rig.outbox.pop("PARAM_VALUE") if m.param_id == "INDI_K_MIN"]
+        assert len(answers) == n
+        final = float(rig.registry["INDI_K_MIN"])
+        assert abs(answers[-1].param_value - final) < 1e-6  # the last answer is the value in force
+        assert final in {float(np.float32(v)) for v in values}
+        svc.close()
+        assert store.load().values["INDI_K_MIN"] == final  # saved by the worker
+    finally:
+        svc.close()
