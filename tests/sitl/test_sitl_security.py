@@ -104,6 +104,8 @@ def test_strangers_reflection_corrupt_file_and_a_thousand_param_sets_in_flight(t
             acks = [m for m in stranger.got if m.get_type() == "COMMAND_ACK"]
             assert [a.result for a in acks] == [M.MAV_RESULT_DENIED] * 2, acks
             # (its PARAM_SET's echo, the value in force, went to the confirmed ground stations: checked below)
+            print(f"\nreflection: stranger {stranger.bytes_in}/{stranger.bytes_out} B, unconfirmed id 255 "
+                  f"{spoof.bytes_in}/{spoof.bytes_out} B")
             assert stranger.bytes_in <= 2 * stranger.bytes_out, (stranger.bytes_in, stranger.bytes_out)
             assert spoof.bytes_in <= 2 * spoof.bytes_out, (spoof.bytes_in, spoof.bytes_out)
             assert not [m for m in spoof.got if m.get_type() in ("PARAM_VALUE", "AVAILABLE_MODES")]
