@@ -23,12 +23,13 @@ import copy
 import hashlib
 import json
 import os
-import tempfile
 import time
 import types
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
+
+from navig8_fc.params.store import write_atomic
 
 MSG_ID_SETUP_SIGNING = 256
 MSG_ID_RADIO_STATUS = 109
@@ -119,21 +120,9 @@ class KeyFile:
         return key, ts, problem
 
     def save(self, key: bytes, timestamp: int) -> None:
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", dir=self.path.parent)  # mkstemp: mode 0600
-        try:
-            with os.fdopen(fd, "w", encoding="ascii") as f:
-                json.dump({"key": key.hex(), "timestamp": int(timestamp)}, f)
-                f.flush()
-                os.fsync(f.fileno())
-            os.chmod(tmp, 0o600)
-            os.replace(tmp, self.path)
-        except BaseException:
-            try:
-                os.unlink(tmp)
-            except FileNotFoundError:
-                pass
-            raise
+        # params.store.write_atomic: mkstemp creates the temp file 0600, and the rename keeps that mode
+        write_atomic(self.path, json.dumps({"key": key.hex(), "timestamp": int(timestamp)}).encode("ascii"))
+        os.chmod(self.path, 0o600)
 
     def remove(self) -> None:
         try:
