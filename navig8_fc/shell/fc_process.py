@@ -299,16 +299,14 @@ class FlightControllerProcess:
         self.n_ticks += 1
         self.announce(res.notices)
         paced = self.sim_status is not None and self.sim_status.speed > 0.0
-        late = self.watchdog.step(self.last_bundle_wall, paced)
-        if late is not None:  # counted and logged; a loaded host causes these too, so not a STATUSTEXT
-            self.log_event(late)
+        self._watch(self.watchdog.step(self.last_bundle_wall, paced))
         if self.logger or self.fox:
             self._pending_tick = (t_us, b.truth, res.status, cmd, res.setpoint, wire, out, sensors)
 
     def _watch(self, note: str | None) -> None:
-        """A GCS-work overrun (the watchdog's rate-limited report): the operator hears of it."""
+        """The watchdog's rate-limited report: /fc/event and stderr (a loaded host overruns too: not a STATUSTEXT)."""
         if note is not None:
-            self.statustext(note, 4)  # MAV_SEVERITY_WARNING
+            self.log_event(note)
 
     def statustext(self, text: str, severity: int = 6) -> None:
         """STATUSTEXT to every GCS (and the log keeps it)."""

@@ -158,16 +158,15 @@ class GcsService:
         self._floor_job: tuple[dict[str, float | int], Future[Any]] | None = None
         self._save_job: Future[str | None] | None = None
         self._param_tokens: dict[Source | None, tuple[float, float]] = {}  # source -> (tokens, last time)
-        self._floor_pool: Executor | None = None
-        if self._pool is not None and registry.stability_check is not None:
+        self._floor_pool: Executor | None = None  # started at the first floor to compute (no cost otherwise)
+        self._floor_pool_failed = False
+
+    def _submit_floor(self, values: dict[str, float | int]) -> None:
+        if self._floor_pool is None:
             try:  # a spawned process: nothing of this one (threads, sockets) is inherited
                 self._floor_pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
             except (OSError, ValueError):
                 self._floor_pool = self._pool  # no processes here: a thread still keeps the sweep off the loop
-            # Imports and the vehicle model load in the worker now, not under the first PARAM_SET in flight.
-            self._submit_floor(registry.as_dict())
-
-    def _submit_floor(self, values: dict[str, float | int]) -> None:
         assert self._floor_pool is not None
         self._floor_job = (values, self._floor_pool.submit(run_floor, self._registry.stability_check, values))
 
@@ -320,10 +319,10 @@ class GcsService:
                 self._floor_job = None
                 try:
                     self._registry.store_floor(values, job.result())
-                except Exception:  # noqa: BLE001 - a dead worker: the set below computes inline, once
-                    self._floor_pool = None
+                except Exception:  # noqa: BLE001 - a dead worker: from now on floors are computed inline
+                    self._floor_pool_failed = True
             need = self.params.floor_needed(m)
-            if need is not None and self._floor_pool is not None:
+            if need is not None and self._pool is not None and not self._floor_pool_failed:
                 self._submit_floor(need)
                 return
             self._param_queue.popleft()

@@ -4,9 +4,9 @@ Ground-station work runs on the control thread between two looks at the sim link
 `GCS_DATAGRAMS_PER_PASS` per pass) and the wall-clock services (telemetry, paced downloads, queued PARAM_SETs; a
 stability sweep runs on a worker, never here). The watchdog times each slice of that work against
 `GCS_WORK_BUDGET_S` and the wall gap between control steps against `STEP_DEADLINE_S`; overruns are counted (the
-log's `fc_stats`) and reported, at most once per `REPORT_PERIOD_S` each (a GCS overrun by STATUSTEXT, a late step
-in the log and on stderr, since a loaded host delays steps too), so a regression that puts slow
-work back on the control path is seen in flight rather than as a mysterious stall.
+log's `fc_stats`) and reported in `/fc/event` and on stderr, at most once per `REPORT_PERIOD_S` each (not by
+STATUSTEXT: a loaded host overruns too, and the operator should not learn to ignore warnings), so a regression
+that puts slow work back on the control path is seen rather than felt as a mysterious stall.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ class LoopWatchdog:
     _last_report: dict[str, float] | None = None
 
     def gcs_work(self, duration_s: float, now_wall: float) -> str | None:
-        """One slice of GCS work took `duration_s`: the STATUSTEXT to send when it overran (rate-limited)."""
+        """One slice of GCS work took `duration_s`: the report when it overran (rate-limited)."""
         self.gcs_work_max_s = max(self.gcs_work_max_s, duration_s)
         if duration_s <= GCS_WORK_BUDGET_S:
             return None
@@ -37,7 +37,7 @@ class LoopWatchdog:
                                       f"({self.gcs_overruns} overruns)")
 
     def step(self, now_wall: float, paced: bool) -> str | None:
-        """A control step ran: the STATUSTEXT to send when it came late after the previous one (paced runs)."""
+        """A control step ran: the report when it came late after the previous one (paced runs)."""
         last, self._last_step_wall = self._last_step_wall, now_wall
         if last is None or not paced:
             return None
