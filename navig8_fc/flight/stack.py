@@ -62,7 +62,7 @@ from navig8_fc.gcs.battery import BatteryState, battery_initial, battery_step
 from navig8_fc.mission.fence import Fence
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan
-from navig8_fc.modes.manager import ModeConfig, ModeInputs, ModeManager, ModeOutput, Verdict
+from navig8_fc.modes.manager import ModeConfig, ModeInputs, ModeManager, ModeOutput, OffboardTarget, Verdict
 from navig8_fc.modes.px4 import FlightMode
 from navig8_fc.params.registry import ParamRegistry
 
@@ -110,6 +110,7 @@ class FlightStack:
         self.lambda_crit = math.nan
         self.reconfigure()
         self._modes = ModeManager(mode_config or ModeConfig(), script.mission() if script is not None else None)
+        self._modes.set_position_gain(self.core.config.outer.pos_k)
         self._weight_n = vehicle.uam_mass_kg * vehicle.gravity_m_s2
         self._n_steps = 0
         self._last_time_us: int | None = None
@@ -151,6 +152,8 @@ class FlightStack:
             self._core = FlightControllerCore(self.vehicle, cfg)
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
+        if hasattr(self, "_modes"):  # offboard velocity feed-forward goes through the position gain
+            self._modes.set_position_gain(cfg.outer.pos_k)
         self._cfg_generation = reg.generation
         # The step's failsafe limits, read once per registry change (a lookup per step would cost ~1 us each).
         self._fs_limits = (float(reg["FS_BAT_LOW_PCT"]), float(reg["FS_BAT_CRIT_PCT"]), float(reg["FENCE_RADIUS"]),
@@ -376,9 +379,12 @@ class FlightStack:
         self._queue(ArmRequest(joint_target_rad=(float(q_rad[0]), float(q_rad[1]), float(q_rad[2]))))
         return Verdict(True)
 
-    def offboard_setpoint(self, sp: Setpoint) -> Verdict:
-        if not all(math.isfinite(v) for v in (*sp.pos_ned, sp.pitch_rad, sp.yaw_rad)):
-            return Verdict(False, "Offboard setpoint must be finite")
+    def offboard_setpoint(self, sp: Setpoint | OffboardTarget) -> Verdict:
+        if isinstance(sp, Setpoint):
+            if not all(math.isfinite(v) for v in (*sp.pos_ned, sp.pitch_rad, sp.yaw_rad)):
+                return Verdict(False, "Offboard setpoint must be finite")
+        elif sp.problem():
+            return Verdict(False, sp.problem())
         self._modes.offboard_setpoint(sp)
         self._offboard_live = True
         self._failsafes.discard("Offboard setpoints lost")

@@ -11,7 +11,7 @@ from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.gcs.battery import BatteryState
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan, Progress
-from navig8_fc.modes.manager import Verdict
+from navig8_fc.modes.manager import OffboardTarget, Verdict
 from navig8_fc.modes.px4 import FlightMode
 
 Vec3 = tuple[float, float, float]
@@ -44,8 +44,9 @@ class VehicleCommands(Protocol):
 
     def arm_joints(self, q_rad: tuple[float, float, float]) -> tuple[bool, str]: ...
 
-    def offboard_setpoint(self, sp: Setpoint) -> tuple[bool, str]:
-        """A streamed offboard setpoint (NED, rad); Offboard mode flies the latest."""
+    def offboard_setpoint(self, sp: Setpoint | OffboardTarget) -> tuple[bool, str]:
+        """A streamed offboard setpoint or target (NED, rad; OffboardTarget: NaN parts not given); Offboard mode
+        flies the latest."""
         ...
 
     def manual_input(self, x: float, y: float, z: float, r: float) -> None:
