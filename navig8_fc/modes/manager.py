@@ -44,7 +44,7 @@ from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.mission.executor import ExecConfig, MissionExecutor
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Cmd, MissionItem, Plan, Progress
-from navig8_fc.modes.px4 import FlightMode, MavLandedState, MavModeFlag, MavState, Px4MainMode
+from navig8_fc.modes.px4 import FlightMode, MavLandedState, MavModeFlag, MavState, Px4AutoSubMode, Px4MainMode
 
 Vec3 = tuple[float, float, float]
 
@@ -54,6 +54,28 @@ class Verdict(NamedTuple):
 
     ok: bool
     reason: str = ""
+
+
+TASK_RUNNING, TASK_DONE, TASK_FAILED, TASK_CANCELLED = 0, 1, 2, 3  # TaskStatus.state
+
+
+@dataclass(frozen=True)
+class TaskStatus:
+    """A long-running command's progress (COMMAND_ACK IN_PROGRESS, then its final result; docs/gcs.md).
+
+    task_id grows with every task started; kind names the command ("takeoff", "land", "return", "reposition",
+    "arm_joints"); progress_pct 0..100, never decreasing. A task ends DONE (it got there), CANCELLED (COMMAND_CANCEL,
+    or another command took over) or FAILED (a failsafe took over, or it could not complete)."""
+
+    task_id: int
+    kind: str
+    state: int = TASK_RUNNING
+    progress_pct: float = 0.0
+    reason: str = ""
+
+    @property
+    def running(self) -> bool:
+        return self.state == TASK_RUNNING
 
 
 @dataclass(frozen=True)
@@ -77,6 +99,8 @@ class ModeConfig:
     manual_yaw_rate_rad_s: float = 0.8  # full yaw stick
     manual_deadband: float = 0.05  # of full stick travel
     manual_lead_m: float = 1.0  # velocity-driven setpoints (sticks, offboard velocity) stay this close to the vehicle
+    reposition_reached_tol_m: float = 0.3  # DO_REPOSITION is complete within this distance ...
+    reposition_reached_speed_m_s: float = 0.3  # ... and below this speed
 
     def __post_init__(self) -> None:
         positive = (
@@ -256,6 +280,11 @@ class ModeManager:
         self._pos_gain_1_s = 1.0  # the outer loop's OL_POS_K: velocity feed-forward as a position offset v / K_p
         self._reposition: tuple[Vec3, float] | None = None  # DO_REPOSITION target for Hold's entry
         self._sticks: tuple[float, float, float, float] = (0.0, 0.0, 0.5, 0.0)  # x fwd, y right, z 0..1, r
+        # The long-running flight command in progress (takeoff, land, return, reposition) and its geometry.
+        self._task: TaskStatus | None = None
+        self._task_n = 0
+        self._task_from: Vec3 = (0.0, 0.0, 0.0)
+        self._task_to: Vec3 = (0.0, 0.0, 0.0)
 
     # --- read access ---------------------------------------------------------------------------------
     @property
@@ -381,15 +410,23 @@ class ModeManager:
             self._target_z = self._home_z() - alt  # retarget; the ramp carries on from where it is
         else:
             self._switch(FlightMode.TAKEOFF)
+        here = self._here()
+        self._start_task("takeoff", (here[0], here[1], self._home_z() - alt))
         self._events.append(f"Takeoff to {alt:.1f} m above home")
         return Verdict(True)
 
     def land(self) -> Verdict:
         if not self._armed:
             return Verdict(False, "Land denied: not armed")
+        if self._mode is FlightMode.RTL and self._task is not None and self._task.running:
+            self._end_task(TASK_CANCELLED, "replaced by land")  # land here, not at home
         if self._mode is not FlightMode.LAND:
             self._switch(FlightMode.LAND)
             self._events.append("Landing")
+        if not self._detector.landed and not (self._task is not None and self._task.running
+                                                and self._task.kind in ("land", "return")):
+            here = self._here()
+            self._start_task("land", (here[0], here[1], self._home_z()))
         return Verdict(True)
 
     def set_mode(self, custom_main: int, custom_sub: int) -> Verdict:
@@ -488,7 +525,76 @@ class ModeManager:
             self._apply_reposition()
         else:
             self._switch(FlightMode.HOLD)
+        here = self._here()
+        self._start_task("reposition", tuple(h if math.isnan(p) else p  # type: ignore[arg-type]
+                                             for p, h in zip(pos_ned, here, strict=True)))
         return Verdict(True)
+
+    def return_to_launch(self) -> Verdict:
+        """MAV_CMD_NAV_RETURN_TO_LAUNCH: Return mode, reported as a long command (done at touchdown at home)."""
+        verdict = self.set_mode(int(Px4MainMode.AUTO), int(Px4AutoSubMode.RTL))
+        if verdict.ok and not (self._task is not None and self._task.running and self._task.kind == "return"):
+            self._start_task("return", self._home or self._here())
+        return verdict
+
+    # --- long-running commands -----------------------------------------------------------------------------
+    @property
+    def task(self) -> TaskStatus | None:
+        """The last long-running flight command (running or how it ended); None before the first."""
+        return self._task
+
+    def cancel_task(self) -> bool:
+        """COMMAND_CANCEL: stop the running flight command and hold where the vehicle is; False when none runs."""
+        tk = self._task
+        if tk is None or not tk.running:
+            return False
+        self._end_task(TASK_CANCELLED, "cancelled")
+        self._reposition = None
+        self._switch(FlightMode.HOLD)  # entry: hold here (on the ground: stays idle)
+        self._events.append(f"{tk.kind.capitalize()} cancelled: holding")
+        return True
+
+    def fail_task(self, reason: str) -> None:
+        """A failsafe takes over: the running flight command ends FAILED (before the failsafe changes the mode)."""
+        if self._task is not None and self._task.running:
+            self._end_task(TASK_FAILED, reason)
+
+    def _here(self) -> Vec3:
+        return self._last.pos_ned if self._last is not None else (0.0, 0.0, 0.0)
+
+    def _start_task(self, kind: str, to: Vec3) -> None:
+        if self._task is not None and self._task.running:
+            self._end_task(TASK_CANCELLED, f"replaced by {kind}")
+        self._task_n += 1
+        self._task = TaskStatus(self._task_n, kind)
+        self._task_from, self._task_to = self._here(), to
+
+    def _end_task(self, state: int, reason: str = "") -> None:
+        tk = self._task
+        assert tk is not None
+        self._task = TaskStatus(tk.task_id, tk.kind, state, 100.0 if state == TASK_DONE else tk.progress_pct, reason)
+
+    def _update_task(self, inp: ModeInputs) -> None:
+        """Progress (the share of the start-to-target distance covered, never decreasing) and the end of the running
+        task when its mode was left (a command's own ending is set where it happens: touchdown, takeoff done)."""
+        tk = self._task
+        if tk is None or not tk.running:
+            return
+        mode = self._mode
+        own = {"takeoff": (FlightMode.TAKEOFF,), "land": (FlightMode.LAND,), "reposition": (FlightMode.HOLD,),
+               "return": (FlightMode.RTL, FlightMode.LAND)}[tk.kind]
+        if mode not in own or not self._armed:
+            self._end_task(TASK_FAILED, f"mode changed to {mode.label}")
+            return
+        d = math.dist(inp.pos_ned, self._task_to)
+        if tk.kind == "reposition" and d < self._cfg.reposition_reached_tol_m and math.hypot(
+                *inp.vel_ned) < self._cfg.reposition_reached_speed_m_s:
+            self._end_task(TASK_DONE)
+            return
+        d0 = math.dist(self._task_from, self._task_to)
+        pct = 100.0 * min(1.0, max(0.0, 1.0 - d / d0)) if d0 > 1e-6 else 0.0
+        if pct > tk.progress_pct:
+            self._task = TaskStatus(tk.task_id, tk.kind, TASK_RUNNING, pct)
 
     def _apply_reposition(self) -> None:
         assert self._sp is not None and self._reposition is not None
@@ -530,6 +636,7 @@ class ModeManager:
         if self._entry_pending:
             self._enter(inp)
         setpoint, engaged, mission_time = self._run(inp, dt)
+        self._update_task(inp)
         armed = self._armed
         mode = self._mode
         events = self._events
@@ -579,6 +686,10 @@ class ModeManager:
         return self._last.pos_ned[2] if self._last is not None else 0.0
 
     def _switch(self, mode: FlightMode) -> None:
+        tk = self._task
+        if tk is not None and tk.running and mode is not self._mode and not (
+                tk.kind == "return" and mode is FlightMode.LAND):
+            self._end_task(TASK_CANCELLED, f"mode changed to {mode.label}")
         if self._mode is FlightMode.MISSION and mode is not FlightMode.MISSION and self._mission_t0_s is not None:
             if self._last is not None:
                 self._mission_elapsed_s = max(self._last.t_s - self._mission_t0_s, 0.0)
@@ -685,6 +796,8 @@ class ModeManager:
                 self._ramp_z == self._target_z
                 and abs(inp.pos_ned[2] - self._target_z) < self._cfg.takeoff_reached_tol_m
             ):
+                if self._task is not None and self._task.running and self._task.kind == "takeoff":
+                    self._end_task(TASK_DONE)
                 self._switch(FlightMode.HOLD)
                 self._entry_pending = False
                 self._hold_on_ground = False
@@ -697,6 +810,8 @@ class ModeManager:
                 if self._detector.landed:
                     self._touchdown_t_s = inp.t_s
                     self._events.append("Landed")
+                    if self._task is not None and self._task.running and self._task.kind in ("land", "return"):
+                        self._end_task(TASK_DONE)
                     return _idle(inp), False, None
                 self._ramp_z = _approach(self._ramp_z, self._target_z, self._cfg.land_descent_rate_m_s * dt)
                 return (

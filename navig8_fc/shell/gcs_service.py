@@ -45,6 +45,7 @@ from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import MissionType
 from navig8_fc.mission.protocol import MissionProtocol
 from navig8_fc.mission.store import MissionStore
+from navig8_fc.modes.manager import TaskStatus
 from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
 from navig8_fc.params.registry import ParamRegistry, SetResult
 from navig8_fc.params.store import ParamStore
@@ -139,7 +140,7 @@ class GcsService:
             if kind == "HEARTBEAT" and m.type == MAV_TYPE_GCS:
                 self._last_gcs_heartbeat = now_wall
             out = self.params.handle(m, now_wall, source)
-            out += self.commands.handle(m, now_wall)
+            out += self.commands.handle(m, now_wall, source)
             out += self.misc.handle(m, now_wall)
             out += self.mission.handle(m, now_wall, source)
             out += self.ftp.handle(m)
@@ -250,7 +251,7 @@ class GcsService:
             self._vehicle.load_mission(self.mission.plan(), self.origin)
             self._vehicle.load_fence(self.mission.plan(MissionType.FENCE), self.origin)
         self.mission.report(self._state().mission)
-        for source, m in self.params.poll_routed(now_wall) + self.mission.poll(now_wall):
+        for source, m in self.params.poll_routed(now_wall) + self.mission.poll(now_wall) + self.commands.poll(now_wall):
             if source is None:
                 self._outbox.broadcast([m])
             else:
@@ -281,6 +282,15 @@ class GcsService:
 
     def land(self) -> tuple[bool, str]:
         return self._vehicle.land()
+
+    def return_to_launch(self) -> tuple[bool, str]:
+        return self._vehicle.return_to_launch()
+
+    def task_status(self, channel: str) -> TaskStatus | None:
+        return self._vehicle.task_status(channel)
+
+    def cancel_task(self, channel: str) -> bool:
+        return self._vehicle.cancel_task(channel)
 
     def set_mode(self, base_mode: int, custom_mode: int) -> tuple[bool, str]:
         self._intended_custom_mode = int(custom_mode)
