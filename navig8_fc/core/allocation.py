@@ -14,14 +14,16 @@ speeds, so the speed limits are exact box bounds, and linear in U, so only the t
 with M = G_C^-1 G_hat_I (the INDI's own inverse model, Eq. 5: Delta Acc = M^-1 Delta U) and J = dU/dx at the
 actuators of the (low-passed) U0. The box is the actuator position limits intersected, for the tilts, with
 a per-tick step INDI_ALLOC_DTILT (a rate limit, and the trust region of the tilt linearisation). The weights
-w = [W_RP, W_RP, W_YAW, W_AX, W_AZ] set the priorities roll/pitch >> vertical force >> yaw >> forward force
-(the weighted-LS form of a prioritised allocation, as Haerkegaard's WLS allocator and PX4's control
-allocator weight their axes); the small regulariser keeps the problem strictly convex when a column of A
-vanishes (a duct at zero thrust has no tilt effect).
+w = [W_RP, W_RP, W_YAW, W_AX, W_AZ] set the priorities roll/pitch >> vertical force >> yaw >> forward force:
+the weighted-LS form of a prioritised allocation, as Paparazzi's rotorcraft INDI does it (stabilization_indi.c
+calling sw/airborne/math/wls/wls_alloc.h, Haerkegaard's active-set WLS; Smeur, Hoeppener & De Wagter, IMAV
+2017); its default Wv = {1000, 1000, 1, 100} for roll, pitch, yaw, thrust has our roll/pitch : thrust ratio.
+The small regulariser keeps the problem strictly convex when a column of A vanishes (a duct at zero thrust
+has no tilt effect). The tilt linearisation is refined by GN_PASSES damped Gauss-Newton passes.
 
-The quadratic in dx is H = A^T W^2 A + EPS_REG I, so the problem is the box projection of the unconstrained
-minimiser dx* = H^-1 A^T W^2 Delta Acc in the H-norm: box_qp's active-set solver with its exact enumeration
-fallback (3^5 = 243 faces) answers it. tests/unit/test_allocation.py checks it against scipy.optimize.lsq_linear.
+wls_box solves each pass with a primal active-set method on the residual form (its docstring);
+tests/unit/test_allocation.py checks it against scipy.optimize.lsq_linear (BVLS). box_qp's projection in the
+H-norm (the KF's solver) was tried first and certified wrong faces on ill-conditioned problems.
 """
 
 from __future__ import annotations
@@ -52,8 +54,8 @@ AL = layout("AL", w_acc=5, tilt_step=1)
 # Return codes of wls_box
 WLS_INTERIOR = 0  # the unconstrained minimiser is inside the box
 WLS_ACTIVE_SET = 1  # the optimum holds some bounds (KKT certified)
-WLS_FAILED = 2  # no certificate within WLS_MAX_ITER (x feasible, maybe not optimal); never seen with EPS_REG > 0
-WLS_MAX_ITER = 40  # active-set iterations (each adds or releases one bound; typical: 1-6)
+WLS_FAILED = 2  # no certificate within WLS_MAX_ITER (x feasible, maybe not optimal); not seen in the tests
+WLS_MAX_ITER = 40  # active-set iterations (each adds or releases one bound)
 WLS_KKT_TOL = 1e-9  # multiplier sign test, relative to the rounding scale of the gradient component
 
 
