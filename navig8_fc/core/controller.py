@@ -106,7 +106,6 @@ class ControllerConfig:
     ckf: CkfConfig
     acc_ref: int = 0  # INDI_ACC_REF: 0 specific force at O (the paper), 1 acceleration of the estimated CoM
     arm_wrench: bool = False  # CKF_ARM_WRENCH: the arm's reaction moment in the adaptive law's measurement
-    arm_ff: bool = False  # INDI_ARM_FF: the unfiltered change of the arm's reaction moment fed forward to the INDI
 
     @staticmethod
     def from_params(values: Mapping[str, float | int], vehicle: VehicleConfig) -> ControllerConfig:
@@ -121,12 +120,12 @@ class ControllerConfig:
             indi=IndiConfig(dt, float(values["INDI_LPF_TAU"]), ActuatorLimits.from_vehicle(vehicle),
                             AllocationConfig(int(values["INDI_ALLOC"]), float(values["INDI_ALLOC_W_RP"]),
                                              float(values["INDI_ALLOC_W_AZ"]), float(values["INDI_ALLOC_W_YAW"]),
-                                             float(values["INDI_ALLOC_W_AX"]), float(values["INDI_ALLOC_DTILT"]))),
+                                             float(values["INDI_ALLOC_W_AX"]), float(values["INDI_ALLOC_DTILT"])),
+                            bool(int(values["INDI_ARM_FF"]))),
             outer=OuterLoopConfig.from_params(values, vehicle.gravity_m_s2),  # type: ignore[arg-type]
             ckf=CkfConfig.from_params(values, dt),
             acc_ref=int(values["INDI_ACC_REF"]),
             arm_wrench=bool(int(values["CKF_ARM_WRENCH"])),
-            arm_ff=bool(int(values["INDI_ARM_FF"])),
         )
 
 
@@ -235,7 +234,7 @@ class FlightControllerCore:
             am = acc_m.tolist()
             sf_x, sf_z = am[3], am[4]
         ff_q = 0.0
-        if cfg.arm_ff:
+        if cfg.indi.arm_ff:
             # The INDI feeds back the low-passed Q-dot, which carries the arm's reaction -h'/I_yy with the filter's
             # lag; the part of h' the filter has not passed yet is fed forward: Delta Q-dot += (h' - h'_f) / I_yy
             # (pitch row of G_C U = G_I Acc + [0, h', 0, 0, 0], adaptive_law.py), with I_yy = G_hat_I[1, 1].

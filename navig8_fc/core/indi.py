@@ -56,6 +56,8 @@ class IndiConfig:
     lpf_tau_s: float
     limits: ActuatorLimits
     alloc: AllocationConfig = AllocationConfig()  # INDI_ALLOC and its weights (default: the paper's scaling)
+    # INDI_ARM_FF: the arm's reaction not yet through the filter fed forward (FlightControllerCore applies it)
+    arm_ff: bool = False
 
 
 @dataclass(frozen=True)
