@@ -31,6 +31,7 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -48,7 +49,15 @@ METRICS = ("sim_time_s", "wall_time_s", "real_time_factor", "lost_control", "los
            "peak_reaction_force_n", "peak_reaction_torque_nm", "max_joint_rate_rad_s", "max_joint_accel_rad_s2",
            "steps_settled", "steps_total")
 # Columns that depend on where and when a run ran, not on its row (left out when comparing two tables).
-RUN_ENV_COLUMNS = ("wall_time_s", "real_time_factor", "run_wall_s", "worker")
+RUN_ENV_COLUMNS = ("wall_time_s", "real_time_factor", "run_wall_s", "run_cpu_s", "worker")
+# Thread counts of a worker process: the ones Dask's nanny gives its workers (distributed.nanny.pre-spawn-environ).
+# A run's linear algebra is on matrices of 3x3 to 12x12, where OpenBLAS's second thread only spins: in one process
+# it burns the idle core (+30 % CPU per run, docs/results.md), in a pool of one process per core it takes the
+# other worker's core.
+WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+# Dask configuration of the LocalCluster's workers (docs/campaigns.md: the same for a cluster's workers).
+DASK_WORKER_CONFIG = {"distributed.worker.profile.enabled": False,
+                      "distributed.admin.system-monitor.gil.enabled": False}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -312,10 +321,12 @@ RUNNERS: dict[str, Callable[[Row, Path], dict[str, Any]]] = {"inprocess": _inpro
 
 
 def execute_row(row: Row) -> dict[str, Any]:
-    """Fly one row; never raises: the record says ok / error / timeout (with the error) and the metrics."""
+    """Fly one row; never raises: the record says ok / error / timeout (with the error) and the metrics, and the
+    run's wall and CPU time in its worker (`run_cpu_s`: the whole worker process, its other threads included)."""
     rec: dict[str, Any] = {"run_id": row.run_id, "status": "ok", "error": None,
                            "worker": f"{os.uname().nodename}:{os.getpid()}"}
     t0 = time.perf_counter()
+    cpu0 = time.process_time()
     try:
         with tempfile.TemporaryDirectory(prefix="navig8_campaign_") as tmp:
             if row.kind == "sitl":  # the subprocess has its own timeout and is killed by it
@@ -330,7 +341,46 @@ def execute_row(row: Row) -> dict[str, Any]:
         where = f" ({Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
         rec.update(status="error", error=f"{type(exc).__name__}: {exc}{where}")
     rec["run_wall_s"] = time.perf_counter() - t0
+    rec["run_cpu_s"] = time.process_time() - cpu0
     return rec
+
+
+def warm_worker(kind: str) -> None:
+    """Load once per worker process what every in-process run needs (the imports, numba's on-disk cache of the
+    plant's and the controller's kernels, the MCAP writer/reader and the summary) by flying 0.1 s of the hover
+    scenario with a log: the first row's run then costs what every other row costs, and its timeout_s counts
+    the run, not the worker's start. Never raises: a broken installation shows as each row's error instead."""
+    if kind != "inprocess":  # a sitl run is two new processes: nothing to keep warm here
+        return
+    try:
+        from navig8_tools.sim import run
+
+        with tempfile.TemporaryDirectory(prefix="navig8_warm_") as tmp:
+            run("hover", "proposed", 1, 0.1, Path(tmp) / "warm.mcap")
+    except Exception:  # noqa: BLE001, S110 - see the docstring
+        pass
+
+
+@contextmanager
+def worker_pool(workers: int, kind: str) -> Iterator[Any]:
+    """A concurrent.futures process pool of `workers` spawned processes (spawn: they start clean, without the
+    parent's threads), each started with WORKER_ENV and warmed once (warm_worker). WORKER_ENV is in os.environ
+    while the pool lives (its processes are spawned on demand and load numpy with it; the parent's own thread
+    pools, loaded already, are unaffected) and restored after."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    old = {k: os.environ.get(k) for k in WORKER_ENV}
+    os.environ.update(WORKER_ENV)
+    try:
+        with ProcessPoolExecutor(workers, multiprocessing.get_context("spawn"), warm_worker, (kind,)) as pool:
+            yield pool
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 # ---------------------------------------------------------------------------------------------
@@ -339,18 +389,16 @@ def execute_row(row: Row) -> dict[str, Any]:
 
 
 def _pool_results(rows: list[Row], workers: int) -> Iterator[tuple[Row, dict[str, Any]]]:
-    """concurrent.futures' process pool (spawn: workers start clean, without the parent's threads). At most
-    2 x workers runs are in flight, so a worker that dies (BrokenProcessPool) costs only the runs in flight:
-    they are recorded as crashed and a new pool takes the rest."""
-    import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    """A local process pool (worker_pool). At most 2 x workers runs are in flight, so a worker that dies
+    (BrokenProcessPool) costs only the runs in flight: they are recorded as crashed and a new pool takes the rest."""
+    from concurrent.futures import FIRST_COMPLETED, wait
     from concurrent.futures.process import BrokenProcessPool
 
     todo = list(rows)
     todo.reverse()
-    ctx = multiprocessing.get_context("spawn")
+    kind = rows[0].kind if rows else "inprocess"
     while todo:
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        with worker_pool(workers, kind) as pool:
             inflight: dict[Any, Row] = {}
             broken = False
             while (todo or inflight) and not broken:
@@ -375,17 +423,34 @@ def _pool_results(rows: list[Row], workers: int) -> Iterator[tuple[Row, dict[str
 def _dask_results(rows: list[Row], cluster: str, workers: int) -> Iterator[tuple[Row, dict[str, Any]]]:
     """Dask distributed as its users drive it: a Client on the scheduler's address (or on a LocalCluster this
     campaign starts and stops), submit, as_completed. A worker that dies is the engine's business (the nanny
-    restarts it, the scheduler reschedules; after allowed-failures the task raises KilledWorker, recorded here)."""
+    restarts it, the scheduler reschedules; after allowed-failures the task raises KilledWorker, recorded here).
+    Every worker, also one that joins or restarts later, is warmed once by a worker plugin (warm_worker); its
+    thread counts are WORKER_ENV already (the nanny's pre-spawn-environ)."""
+    import dask
     from distributed import Client, LocalCluster, as_completed
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class WarmWorker(WorkerPlugin):
+        name = "navig8-warm-worker"
+
+        def __init__(self, kind: str) -> None:
+            self.kind = kind
+
+        def setup(self, worker: Any) -> None:
+            warm_worker(self.kind)
 
     local = None
     if cluster == "local":
-        local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                             dashboard_address="127.0.0.1:0")  # a private cluster: loopback, free ports
+        # the workers' own sampling profiler walks the running task's stack every 10 ms (and a GIL monitor, when
+        # gilknocker is installed, every 1 ms): CPU and GIL taken from the runs, for a dashboard nobody reads here.
+        with dask.config.set(DASK_WORKER_CONFIG):
+            local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                 dashboard_address="127.0.0.1:0")  # a private cluster: loopback, free ports
         client = Client(local)
     else:
         client = Client(cluster)
     try:
+        client.register_plugin(WarmWorker(rows[0].kind if rows else "inprocess"))
         futs = {client.submit(execute_row, r, key=f"navig8-run-{r.run_id}", pure=False): r for r in rows}
         for fut in as_completed(futs):
             r = futs[fut]
@@ -424,7 +489,7 @@ def row_record(row: Row, rec: Mapping[str, Any]) -> dict[str, Any]:
     """One table row: the row's identity and factors, then the run's record."""
     out: dict[str, Any] = {"index": row.index, "run_id": row.run_id, "variant": row.variant,
                            "controller": row.controller, "seed": row.seed, "sample": row.sample, **row.factors}
-    for k in ("status", "error", "run_wall_s", "worker"):
+    for k in ("status", "error", "run_wall_s", "run_cpu_s", "worker"):
         out[k] = rec.get(k)
     for k in METRICS:
         out[k] = rec.get(k)
@@ -531,4 +596,4 @@ if __name__ == "__main__":
 
 
 __all__ = ["Campaign", "Factor", "Variant", "Row", "expand", "execute_row", "run_campaign", "build_table",
-           "read_stream", "replay_command", "comparable", "call_with_timeout", "main"]
+           "read_stream", "replay_command", "comparable", "call_with_timeout", "worker_pool", "warm_worker", "main"]

@@ -5,6 +5,7 @@ replays alone through `navig8-sim` with the printed command."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import shlex
 import time
@@ -23,6 +24,7 @@ from navig8_tools.campaign import (
     expand,
     read_stream,
     run_campaign,
+    worker_pool,
 )
 from navig8_tools.sim import main as sim_main
 
@@ -88,6 +90,20 @@ def test_a_raising_and_a_timed_out_run_are_recorded_and_the_campaign_goes_on(tmp
     slow["factors"] = {"arm_rate_rad_s": {"world": "plant.joint_servo.v_max_rad_s", "grid": [4.0]}}
     res = run_campaign(Campaign.from_dict(slow), tmp_path / "slow", workers=1, progress=False)
     assert res.table["status"].tolist() == ["timeout"] and "0 s" in res.table["error"][0]
+
+
+def test_a_pool_worker_is_warmed_once_and_runs_one_thread() -> None:
+    """worker_pool's processes start with WORKER_ENV and are warmed before their first row: the flight loop's modules
+    are loaded, and the process runs one OS thread (OpenBLAS would otherwise start one per core, which spins
+    in each worker on the core the other worker needs: docs/results.md, "Campaign throughput"). The parent's
+    environment is as it was."""
+    env = dict(os.environ)
+    with worker_pool(1, "inprocess") as pool:
+        warm = pool.submit(eval, "[m in __import__('sys').modules for m in ('navig8_tools.sim', 'mcap.reader')]")
+        threads = pool.submit(eval, "len(__import__('os').listdir('/proc/self/task'))")
+        assert warm.result() == [True, True]
+        assert threads.result() == 1
+    assert dict(os.environ) == env
 
 
 def test_call_with_timeout_interrupts_a_python_loop_and_leaves_a_fast_call_alone() -> None:
