@@ -23,9 +23,11 @@ from navig8_tools.campaign import (
     comparable,
     expand,
     read_stream,
+    replay_command,
     run_campaign,
     worker_pool,
 )
+from navig8_tools.mission import plan_from_scenario
 from navig8_tools.sim import main as sim_main
 
 SMALL = {
@@ -143,3 +145,22 @@ def test_the_printed_replay_command_reproduces_the_row(tmp_path: Path) -> None:
     s = json.loads(summary.read_text())
     for k in ("max_att_error_deg", "max_pos_error_m", "min_eigenvalue", "peak_reaction_force_n"):
         assert s[k] == row[k], k  # bit for bit: the row determines the run
+
+
+def test_a_sitl_campaign_with_a_plan_names_it_in_every_row_and_replay() -> None:
+    d = {"name": "plan", "kind": "sitl", "scenario": "paper_plan", "speed": 1.0, "seeds": [1, 2],
+         "plan": {"from_scenario": "paper"}, "variants": {"proposed": {"controller": "proposed"}}}
+    rows = expand(Campaign.from_dict(d))
+    assert all(r.plan == plan_from_scenario("paper") for r in rows) and len(rows) == 2
+    # the replay: the plan written by navig8-mission, navig8-sitl on the row's instance, navig8-mission fly on the
+    # port navig8-fc sends to before a GCS talks
+    cmd = replay_command(rows[1])
+    assert cmd.startswith("navig8-mission from-scenario --scenario paper out/replay_")
+    assert f"--instance {rows[1].instance} " in cmd and "--speed 1 " in cmd
+    assert "navig8-mission fly out/replay_" in cmd and "udpin:127.0.0.1:14550" in cmd
+    # the plan is part of a row's identity; a campaign without one keeps the ids it had
+    other = expand(Campaign.from_dict(dict(d, plan={"from_scenario": "hover"})))
+    assert {r.run_id for r in other}.isdisjoint(r.run_id for r in rows)
+    assert expand(Campaign.from_dict(SMALL))[0].run_id == "proposed-723407c1233c"  # as before plans existed
+    with pytest.raises(ValueError, match="kind: sitl"):
+        Campaign.from_dict(dict(d, kind="inprocess"))
