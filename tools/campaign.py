@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import ctypes
 import dataclasses
+import gc
 import hashlib
 import io
 import itertools
@@ -496,7 +497,11 @@ def warm_worker(kind: str) -> None:
     """Load once per worker process what every in-process run needs (the imports, numba's on-disk cache of the
     plant's and the controller's kernels, the MCAP writer/reader and the summary) by flying 0.1 s of the hover
     scenario with a log: the first row's run then costs what every other row costs, and its timeout_s counts
-    the run, not the worker's start. Never raises: a broken installation shows as each row's error instead."""
+    the run, not the worker's start. Then gc.freeze(): the ~150,000 objects alive now (modules, functions,
+    numba's dispatchers; ~185,000 in a Dask worker) live as long as the worker, and without the freeze the
+    cyclic garbage collector walks them all at each full collection a run's allocations trigger: ~20 % of a
+    run's CPU, and more the bigger the worker's heap (docs/campaigns.md, "Throughput"). Never raises: a broken
+    installation shows as each row's error instead."""
     if kind != "inprocess":  # a sitl run is two new processes: nothing to keep warm here
         return
     try:
@@ -506,6 +511,8 @@ def warm_worker(kind: str) -> None:
             run("hover", "proposed", 1, 0.1, Path(tmp) / "warm.mcap")
     except Exception:  # noqa: BLE001, S110 - see the docstring
         pass
+    gc.collect()
+    gc.freeze()
 
 
 @contextmanager

@@ -96,14 +96,16 @@ def test_a_raising_and_a_timed_out_run_are_recorded_and_the_campaign_goes_on(tmp
 
 def test_a_pool_worker_is_warmed_once_and_runs_one_thread() -> None:
     """worker_pool's processes start with WORKER_ENV and are warmed before their first row: the flight loop's modules
-    are loaded, and the process runs one OS thread (OpenBLAS would otherwise start one per core, which spins
-    in each worker on the core the other worker needs: docs/results.md, "Campaign throughput"). The parent's
-    environment is as it was."""
+    are loaded, the objects alive then are frozen out of the garbage collector's walks, and the process runs one
+    OS thread (OpenBLAS would otherwise start one per core, which spins in each worker on the core the other
+    worker needs: docs/campaigns.md, "Throughput"). The parent's environment is as it was."""
     env = dict(os.environ)
     with worker_pool(1, "inprocess") as pool:
         warm = pool.submit(eval, "[m in __import__('sys').modules for m in ('navig8_tools.sim', 'mcap.reader')]")
+        frozen = pool.submit(eval, "__import__('gc').get_freeze_count()")
         threads = pool.submit(eval, "len(__import__('os').listdir('/proc/self/task'))")
         assert warm.result() == [True, True]
+        assert frozen.result() > 10_000
         assert threads.result() == 1
     assert dict(os.environ) == env
 
