@@ -345,22 +345,31 @@ def _campaign_round(rows: list[Any], workers: int) -> dict[str, float]:
         parent_cpu0 = time.process_time()
         arrivals: list[tuple[str, float]] = []
         cpu: list[float] = []
+        parent_cpu_at: list[float] = []
         for _row, rec in source():
             assert rec["status"] == "ok", rec
             arrivals.append((rec["worker"], time.perf_counter() - t0))
+            parent_cpu_at.append(time.process_time())
             cpu.append(rec["run_cpu_s"])
         first: dict[str, float] = {}
         for w, t in arrivals:
             first.setdefault(w, t)
         rate = _campaign_rate(arrivals)
         run_cpu = float(np.median(cpu))
+        # the parent's CPU per run between the first result and the last (the driver, Dask's scheduler): steady
+        parent_steady = (parent_cpu_at[-1] - parent_cpu_at[0]) / max(1, len(rows) - 1)
         m.update({
             f"{name}_runs_per_min": rate, f"{name}_over_single": rate / single,
             f"{name}_startup_s": max(first.values()) if len(first) == workers else float("nan"),
             f"{name}_end_to_end_runs_per_min": 60.0 * len(rows) / arrivals[-1][1],
             f"{name}_cpu_s_per_run": run_cpu, f"{name}_cpu_over_single": run_cpu / single_cpu,
             # the driver's CPU per run (with Dask's scheduler, which runs in it; start-up and imports included)
-            f"{name}_parent_cpu_s_per_run": (time.process_time() - parent_cpu0) / len(rows)})
+            f"{name}_parent_cpu_s_per_run": (time.process_time() - parent_cpu0) / len(rows),
+            f"{name}_parent_steady_cpu_s_per_run": parent_steady,
+            # the ratio on idle cores when CPU is what limits: `workers` cores' worth of runs at the workers' and the
+            # parent's CPU per run, over one core's worth at the single process's (a machine-independent estimate;
+            # the nannies' CPU, a few ms per second, is left out)
+            f"{name}_cpu_bound_ratio": workers * single_cpu / (run_cpu + parent_steady)})
     return m
 
 
@@ -374,6 +383,7 @@ def _campaign_section(args: argparse.Namespace) -> SectionResult:
     are steady state (start-up reported apart); the machine-independent figure is each backend's median CPU
     seconds per run (time.process_time of the worker process around each run) against the single process's."""
     import os
+    from pathlib import Path
 
     from navig8_tools.campaign import Campaign, expand
 
@@ -394,12 +404,20 @@ def _campaign_section(args: argparse.Namespace) -> SectionResult:
             f"campaign: {name} x{workers}: {med[f'{name}_runs_per_min']:.1f} runs/min steady = "
             f"{med[f'{name}_over_single']:.2f}x the single process (target >= 1.7x on 2 idle cores); "
             f"{med[f'{name}_cpu_s_per_run']:.3f} s CPU per run = {med[f'{name}_cpu_over_single']:.2f}x the single "
-            f"process's, {med[f'{name}_parent_cpu_s_per_run'] * 1e3:.0f} ms in the parent; "
+            f"process's, {med[f'{name}_parent_steady_cpu_s_per_run'] * 1e3:.0f} ms in the parent (steady; "
+            f"{med[f'{name}_parent_cpu_s_per_run'] * 1e3:.0f} ms with start-up) -> CPU-bound ratio "
+            f"{med[f'{name}_cpu_bound_ratio']:.2f}x; "
             f"{med[f'{name}_end_to_end_runs_per_min']:.1f} runs/min end to end with the workers' start-up "
             f"({med[f'{name}_startup_s']:.1f} s to every worker's first result)")
     try:
         lines.append(f"campaign: load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores while measuring")
         metrics["campaign_loadavg_1min"] = os.getloadavg()[0]
+        autogroup = Path("/proc/sys/kernel/sched_autogroup_enabled")
+        if autogroup.exists() and autogroup.read_text().strip() == "1":
+            # Linux's CFS autogroup shares the CPU between sessions, not processes: this bench and its workers
+            # are one session, so while any other session keeps a core busy the workers split one session's
+            # share and the wall ratios tend to 1x; the CPU-bound ratios do not depend on it
+            lines.append("campaign: CFS autogroup is on: the wall ratios hold only with no other busy session")
     except OSError:
         pass
     return SectionResult(metrics, lines)
