@@ -187,16 +187,6 @@ class McapLogger:
             # the id it would have had: the caller's cached ids stay consistent (nothing more is written anyway)
             return sum(1 for k, _ in self._replay if k == kind)
 
-    def _add(self, cid: int, t_ns: int, data: bytes, publish_ns: int) -> None:
-        if self.error is not None:
-            self.dropped += 1
-            return
-        try:
-            self._w.add_message(cid, t_ns, data, publish_ns)
-        except OSError as e:
-            self.dropped += 1
-            self.fail(e.strerror or str(e))
-
     def _raw_channel(self, topic: str, encoding: str, peer: str) -> int:
         """A raw channel per (topic, peer): the peer rides in the channel's metadata, so each datagram keeps
         where it came from or went to at no cost per message (MCAP allows several channels on one topic)."""
@@ -233,6 +223,8 @@ class McapLogger:
         except OSError as e:
             self.dropped += 1
             self.fail(e.strerror or str(e))
+
+    _add = log_json_bytes  # every message goes through here: dropped and counted once the log has stopped
 
     def log_raw(self, topic: str, t_ns: int, payload: bytes, publish_ns: int | None = None,
                 encoding: str = "application/octet-stream", peer: str = "") -> None:
