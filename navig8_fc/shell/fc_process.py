@@ -546,10 +546,10 @@ class FlightControllerProcess:
         try:
             if tick is not None:
                 self._log_tick(*tick)
+                if self.logger is not None:
+                    self.logger.maybe_rotate()  # once per step: the size check is a syscall
             else:
                 self._flush_frames()
-                if self.logger is not None:
-                    self.logger.maybe_rotate()
         except Exception as e:  # noqa: BLE001 - logging must never end the flight
             self.n_log_errors += 1
             self._frame_queue.clear()

@@ -51,8 +51,9 @@ ACTUATOR_MARGIN = 1.2  # measured tilt / speed up to 20 % beyond the command lim
 JOINT_MARGIN_RAD = 0.5  # beyond the joint limit
 JOINT_RATE_MAX_RAD_S = 50.0
 
-_BUNDLE_NAMES = ("ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH", "HIL_SENSOR")
-_BUNDLE_NAMES_NO_TRUTH = ("ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "HIL_SENSOR")
+_QUAT_N2_LO, _QUAT_N2_HI = (1.0 - QUAT_NORM_TOL) ** 2, (1.0 + QUAT_NORM_TOL) ** 2
+_BUNDLE_NAMES = ["ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH", "HIL_SENSOR"]
+_BUNDLE_NAMES_NO_TRUTH = ["ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "HIL_SENSOR"]
 GROUPS = ("imu", "mocap", "actuators", "arm")
 
 
@@ -107,25 +108,23 @@ class SensorLimits:
                             + JOINT_MARGIN_RAD)
 
 
-def _within(v: Sequence[float], bound: float) -> bool:
-    """Every entry finite and |x| <= bound (a NaN fails every comparison, so it fails here too)."""
-    for x in v:
-        if not -bound <= x <= bound:
-            return False
-    return True
+def _within3(v: Sequence[float], bound: float) -> bool:
+    """The 3 entries finite and |x| <= bound (a NaN fails every comparison, so it fails here too). Unrolled: it runs
+    several times on every lockstep step."""
+    return -bound <= v[0] <= bound and -bound <= v[1] <= bound and -bound <= v[2] <= bound
 
 
-def _finite_fields(ns: Any) -> bool:
-    for x in vars(ns).values():
-        if type(x) is tuple:
-            s = sum(x)
-        elif type(x) is float:
-            s = x
-        else:
-            continue
-        if s - s != 0.0:  # inf - inf and NaN - NaN are NaN
-            return False
-    return True
+def _finite_values(values: Sequence[Any]) -> bool:
+    """Every float in a message's values (arrays as tuples) finite: a NaN or an infinity makes the sum non-finite
+    (a sum that overflows would need values near 1e308, not finite measurements either)."""
+    total = 0.0
+    for x in values:
+        t = type(x)
+        if t is tuple:
+            total += sum(x)
+        elif t is float:
+            total += x
+    return total - total == 0.0
 
 
 @dataclass
@@ -145,6 +144,7 @@ class SimGuard:
     _good: seam.StepBundle | None = None  # the last bundle's accepted values, per group
     _pos_good_us: int = 0  # time_usec of the last accepted motion-capture sample (the jump check's dt)
     _bad_since_us: int | None = None  # sim time the current run of invalid bundles began
+    _asm: seam.BundleAssembler = field(default_factory=seam.BundleAssembler)  # one per guard: building one costs
     _notices: dict[str, tuple[str, int]] = field(default_factory=dict)  # kind -> (latest text, count unreported)
     _reported_s: dict[str, float] = field(default_factory=dict)  # kind -> wall time of its last report
 
@@ -204,15 +204,17 @@ class SimGuard:
         name0 = m0.name
         single = n == 1 and name0 in ("HEARTBEAT", "NAVIG8_SIM_STATUS")
         if not single:
-            names = tuple(m.name for m in msgs)
+            names = [m.name for m in msgs]
             if names != _BUNDLE_NAMES and names != _BUNDLE_NAMES_NO_TRUTH:
                 c.malformed += 1  # whoever sent it: parts never join across datagrams
                 self._notice("malformed", f"Sim link: partial bundle from {addr[0]}:{addr[1]}")
                 return _NONE, None
-        if any(m.sysid != self.sysid or m.compid != COMPID_BRIDGE for m in msgs):
-            c.wrong_sender += 1
-            self._notice("wrong_sender", f"Sim link: dropped {addr[0]}:{addr[1]} (ids)")
-            return _NONE, None
+        sysid = self.sysid
+        for m in msgs:
+            if m.sysid != sysid or m.compid != COMPID_BRIDGE:
+                c.wrong_sender += 1
+                self._notice("wrong_sender", f"Sim link: dropped {addr[0]}:{addr[1]} (ids)")
+                return _NONE, None
         if name0 == "HEARTBEAT":
             return _NONE, self._on_heartbeat(m0, addr, now_s)
         if addr != self.peer:
@@ -226,14 +228,17 @@ class SimGuard:
             self.last_heard_s = now_s
             return SimInput("status", status=seam.decode_sim_status(m0.fields)), None
         self.last_heard_s = now_s
-        b = seam.decode_bundle(msgs)
+        asm = self._asm
+        asm.clear()
+        for m in msgs:
+            b = asm.add(m)
         if b is None:  # parts of different stamps
             c.malformed += 1
             self._notice("malformed", "Sim link: bundle parts disagree on the time")
             return _NONE, None
-        return self._sequence(b, msgs), None
+        return self._sequence(b, asm.completed), None
 
-    def _sequence(self, b: seam.StepBundle, msgs: list[Message]) -> SimInput:
+    def _sequence(self, b: seam.StepBundle, wire: dict[str, Message]) -> SimInput:
         c = self.counters
         step, tu = b.step, b.time_usec
         if self._step is not None:
@@ -248,9 +253,8 @@ class SimGuard:
             self._dt_us = tu - self._time_usec
         self._step, self._time_usec = step, tu
         good, bad = self._validate(b)
-        wire = {m.name: m for m in msgs}
-        truth = b.truth
-        if truth is not None and not _finite_fields(truth):
+        truth = wire.get("NAVIG8_TRUTH")
+        if truth is not None and not _finite_values(truth.values):
             c.invalid_truth += 1
             self._notice("invalid_truth", "Sim link: non-finite truth, not logged")
             good = good._replace(truth=None)
@@ -279,12 +283,12 @@ class SimGuard:
         lim = self.limits
         prev = self._good
         bad: list[str] = []
-        if not (_within(b.gyro_frd, GYRO_MAX_RAD_S) and _within(b.accel_frd, ACCEL_MAX_M_S2)):
+        if not (_within3(b.gyro_frd, GYRO_MAX_RAD_S) and _within3(b.accel_frd, ACCEL_MAX_M_S2)):
             bad.append("imu")
         q = b.quat_wxyz
-        ok = _within(b.pos_ned, POS_MAX_M) and _within(b.vel_ned, VEL_MAX_M_S) and _within(q, 1.0 + QUAT_NORM_TOL)
-        if ok:
-            ok = abs(math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]) - 1.0) <= QUAT_NORM_TOL
+        n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]  # NaN fails the comparison, inf the bound
+        ok = (_within3(b.pos_ned, POS_MAX_M) and _within3(b.vel_ned, VEL_MAX_M_S)
+              and _QUAT_N2_LO <= n2 <= _QUAT_N2_HI)
         if ok and prev is not None:
             dt_s = (b.time_usec - self._pos_good_us) * 1e-6
             jump = MAX_SPEED_M_S * dt_s + MOCAP_JUMP_M
@@ -294,11 +298,12 @@ class SimGuard:
             self._pos_good_us = b.time_usec
         else:
             bad.append("mocap")
-        sp = b.prop_speed_rad_s
-        if not (_within(b.duct_tilt_rad, lim.tilt_max_rad) and _within((sp[0], sp[2]), lim.duct_speed_max_rad_s)
-                and _within((sp[1],), lim.tail_speed_max_rad_s)):
+        sp, tilt = b.prop_speed_rad_s, b.duct_tilt_rad
+        tb, db, tlb = lim.tilt_max_rad, lim.duct_speed_max_rad_s, lim.tail_speed_max_rad_s
+        if not (-tb <= tilt[0] <= tb and -tb <= tilt[1] <= tb and -db <= sp[0] <= db and -tlb <= sp[1] <= tlb
+                and -db <= sp[2] <= db):
             bad.append("actuators")
-        if not (_within(b.joint_pos_rad, lim.joint_limit_rad) and _within(b.joint_rate_rad_s, JOINT_RATE_MAX_RAD_S)):
+        if not (_within3(b.joint_pos_rad, lim.joint_limit_rad) and _within3(b.joint_rate_rad_s, JOINT_RATE_MAX_RAD_S)):
             bad.append("arm")
         if not bad:
             self._good = b
