@@ -10,9 +10,9 @@ HIL_SENSOR last) and waits for the FC's single HIL_ACTUATOR_CONTROLS echoing tha
 command for dt (zero-order hold), steps the plant and sends step k + 1. A thin I/O loop: no controller code.
 
 Ports: --bridge-port 0 binds a free port; --ports-file PATH then receives {"bridge": port} (JSON, written
-atomically after binding). The FC's address is --fc-port at --host until the FC talks: any valid frame from
-the FC (its HEARTBEAT announcement at start, its answers) sets the address its datagrams come from;
---fc-port 0 sends nothing until the FC has announced itself.
+atomically after binding). Pairing (docs/bridge.md, "Pairing and sequencing"): until paired the bridge sends pair
+requests to --fc-port at --host (none with --fc-port 0); the FC's announcement carries a session nonce, the bridge
+echoes it and from then on talks only to that address and takes answers only from it.
 
 Exit codes: 0 done (--until-done) or stopped by SIGINT/SIGTERM; 1 cannot start; 2 bad arguments or the
 port in use; 3 navig8-fc stalled longer than --stall-abort; 4 the plant diverged.
