@@ -10,9 +10,9 @@ HIL_SENSOR last) and waits for the FC's single HIL_ACTUATOR_CONTROLS echoing tha
 command for dt (zero-order hold), steps the plant and sends step k + 1. A thin I/O loop: no controller code.
 
 Ports: --bridge-port 0 binds a free port; --ports-file PATH then receives {"bridge": port} (JSON, written
-atomically after binding). The FC's address is --fc-port at --host until the FC talks: any valid frame from
-the FC (its HEARTBEAT announcement at start, its answers) sets the address its datagrams come from;
---fc-port 0 sends nothing until the FC has announced itself.
+atomically after binding). Pairing (docs/bridge.md, "Pairing and sequencing"): until paired the bridge sends pair
+requests to --fc-port at --host (none with --fc-port 0); the FC's announcement carries a session nonce, the bridge
+echoes it and from then on talks only to that address and takes answers only from it.
 
 Exit codes: 0 done (--until-done) or stopped by SIGINT/SIGTERM; 1 cannot start; 2 bad arguments or the
 port in use; 3 navig8-fc stalled longer than --stall-abort; 4 the plant diverged.
@@ -34,6 +34,7 @@ import numpy as np
 
 from navig8_fc.mavlink import codec, dialect, seam
 from navig8_fc.shell.mavlink_link import PortInUseError, bind_udp, write_ports_file
+from navig8_fc.shell.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat
 from sim_bridge.messages import ActuatorCommand
 from sim_bridge.plant import Plant, PlantDivergedError
 from sim_bridge.scenario import Scenario
@@ -107,6 +108,9 @@ class BridgeCounters:
     bad_frames: int = 0  # malformed, bad CRC, unknown ids, truncated, signed (not verified here)
     garbage_bytes: int = 0  # bytes between frames
     foreign_frames: int = 0  # from another system or component
+    wrong_sender: int = 0  # FC frames from an address other than the paired FC's (or before pairing)
+    pair_refused: int = 0  # FC announcements from another address while the paired FC is live
+    sessions: int = 0  # pairings with an FC (docs/bridge.md, "Pairing and sequencing")
     other_frames: int = 0  # valid FC frames the bridge does not use (HEARTBEAT, ...)
     datagrams_in: int = 0
     oversize: int = 0
@@ -159,6 +163,9 @@ class Bridge:
         self.arm = _ArmState()
         # None: --fc-port 0, nothing is sent until the FC announces itself (see _handle)
         self.fc_addr: tuple[str, int] | None = (opts.host, opts.fc_port_resolved) if opts.fc_port_resolved else None
+        self.fc_nonce: int | None = None  # the paired FC's session nonce (None: not paired)
+        self._fc_heard = -math.inf  # wall time of the paired FC's last frame
+        self._resend_due = False  # a new pairing: send the current bundle at once
         self.sock = bind_udp("bridge", (opts.host, opts.bridge_port_resolved))
         self.port = int(self.sock.getsockname()[1])
         if opts.ports_file is not None:
@@ -178,6 +185,9 @@ class Bridge:
         return f"{self.fc_addr[0]}:{self.fc_addr[1]}" if self.fc_addr else "(port unknown until it announces itself)"
 
     def _send(self, data: bytes) -> None:
+        """To the paired FC; before pairing, a pair request instead (to --fc-port, if known)."""
+        if self.fc_nonce is None:
+            data = self.mav.frame(*pairing_heartbeat(0))
         if self.fc_addr is None:
             return  # the FC's address is not known yet (--fc-port 0): its announcement will tell
         try:
@@ -236,8 +246,9 @@ class Bridge:
     def _handle(self, data: bytes, addr: tuple[str, int] | None = None) -> seam.ActuatorControls | None:
         """Count and decode one datagram (from addr); the answer to the current step if it holds it (else None).
 
-        Frames from our FC (sysid, COMPID_FC) set the FC's address to addr: the FC announces itself with a
-        HEARTBEAT at start, so a bridge that does not know the FC's port (or an FC restarted elsewhere) is found."""
+        Pairing: the FC's HEARTBEAT carries its session nonce; the bridge pairs with that address (while unpaired,
+        from the paired address itself, or once the paired FC has been silent REPAIR_SILENCE_S) and echoes the
+        nonce. Answers and arm commands count only from the paired FC's address."""
         c = self.counters
         c.datagrams_in += 1
         if len(data) > MAX_ACCEPTED_DATAGRAM:
@@ -256,10 +267,14 @@ class Bridge:
             if m.sysid != sysid or m.compid != dialect.COMPID_FC:
                 c.foreign_frames += 1
                 continue
-            if addr is not None and addr != self.fc_addr:
-                self.fc_addr = addr
-                self._status_due = 0.0  # a new FC address hears the status first, then the (re-sent) bundle
             name = m.name
+            if name == "HEARTBEAT":
+                self._on_fc_heartbeat(int(m.fields["custom_mode"]), addr)
+                continue
+            if self.fc_nonce is None or addr != self.fc_addr:
+                c.wrong_sender += 1
+                continue
+            self._fc_heard = time.perf_counter()
             if name == "HIL_ACTUATOR_CONTROLS":
                 fields = m.fields
                 if fields["time_usec"] == want and answer is None:
@@ -272,6 +287,24 @@ class Bridge:
             else:
                 c.other_frames += 1
         return answer
+
+    def _on_fc_heartbeat(self, nonce: int, addr: tuple[str, int] | None) -> None:
+        """The FC's announcement: pair (echo its nonce), or refuse while another live FC is paired."""
+        c = self.counters
+        if nonce == 0 or addr is None:
+            c.other_frames += 1
+            return
+        if addr == self.fc_addr and nonce == self.fc_nonce:
+            return  # the same announcement again: already paired
+        now = time.perf_counter()
+        if self.fc_nonce is not None and addr != self.fc_addr and now - self._fc_heard < REPAIR_SILENCE_S:
+            c.pair_refused += 1
+            return
+        self.fc_addr, self.fc_nonce, self._fc_heard = addr, nonce, now
+        c.sessions += 1
+        self._send(self.mav.frame(*pairing_heartbeat(nonce)))
+        self._send_status(now)  # the new FC hears the status first, then the current bundle, at once
+        self._resend_due = True
 
     def _on_arm_cmd(self, fields: dict[str, Any]) -> None:
         try:
@@ -307,6 +340,9 @@ class Bridge:
             ans = self._receive(timeout)
             if ans is not None:
                 return ans
+            if self._resend_due:
+                self._resend_due = False
+                self._send(data)
             now = time.perf_counter()
             if now >= next_resend:
                 waited = now - first_sent
@@ -501,9 +537,10 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if bridge is not None:
             bridge.close()
-        # a second signal during shutdown must not print a traceback
-        signal.signal(signal.SIGINT, signal.SIG_DFL)
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        # a second signal during shutdown (the terminal's Ctrl-C and navig8-sitl's forward) must neither print a
+        # traceback nor kill us on the way out
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 if __name__ == "__main__":
