@@ -34,6 +34,8 @@ import numpy as np
 
 from navig8_fc.mavlink import codec, dialect, seam
 from navig8_fc.shell.mavlink_link import PortInUseError, bind_udp, write_ports_file
+from navig8_fc.shell.transport import StreamTransport, open_endpoint, parse_connection
+from sim_bridge.link_budget import LinkBudget, link_budget
 from sim_bridge.messages import ActuatorCommand
 from sim_bridge.plant import Plant, PlantDivergedError
 from sim_bridge.scenario import Scenario
@@ -42,6 +44,7 @@ from sim_bridge.world import load_world, parse_world_items
 BASE_BRIDGE_PORT = 4560  # + 2 N: the bridge binds here (PX4's simulator port)
 BASE_FC_PORT = 4561  # + 2 N: the FC's sim link
 STARTUP_RESEND_S = 0.1  # re-send step 0 this often until the FC answers
+STREAM_STARTUP_RESEND_S = 1.0  # on TCP/serial: re-sent bundles queue in the stream, and the FC answers every one
 STATUS_PERIOD_S = 1.0  # NAVIG8_SIM_STATUS period (wall)
 REANCHOR_LAG_S = 0.5  # paced runs that fall this far behind (a stall) restart pacing instead of bursting
 SPIN_S = 0.002  # busy-poll window at --speed 0 (see _receive)
@@ -81,6 +84,7 @@ class BridgeOptions:
     grab_mass_kg: float | None = None  # object mass a GRAB picks up (default: from the scenario)
     ports_file: Path | None = None  # written after binding: {"bridge": port}
     world: tuple[tuple[str, float], ...] = ()  # world overrides (sim_bridge.world), as navig8-sim --world
+    link: str | None = None  # connection string of the FC link (udpin:, udpout:, tcpin:, tcp:, serial:); None: UDP
 
     @property
     def sysid(self) -> int:
@@ -159,7 +163,14 @@ class Bridge:
         self.arm = _ArmState()
         # None: --fc-port 0, nothing is sent until the FC announces itself (see _handle)
         self.fc_addr: tuple[str, int] | None = (opts.host, opts.fc_port_resolved) if opts.fc_port_resolved else None
-        self.sock = bind_udp("bridge", (opts.host, opts.bridge_port_resolved))
+        self.budget: LinkBudget | None = None
+        if opts.link is None:
+            self.sock = bind_udp("bridge", (opts.host, opts.bridge_port_resolved))
+        else:  # a connection string: UDP, TCP or serial (navig8_fc/shell/transport.py); a serial line's budget first
+            conn = parse_connection(opts.link)
+            self.budget = link_budget(self.codec, conn, 1e6 / self.dt_us)  # ValueError: the rate does not fit
+            ep = open_endpoint("bridge", conn)
+            self.sock, self.fc_addr = ep.sock, (ep.targets[0] if ep.targets else None)
         self.port = int(self.sock.getsockname()[1])
         if opts.ports_file is not None:
             write_ports_file(opts.ports_file, {"bridge": self.port})
@@ -355,7 +366,8 @@ class Bridge:
         c = self.counters
         print(f"navig8-bridge: scenario {self.scenario.name} (seed {o.seed}), sysid {o.sysid}, dt {o.dt_s:g} s, "
               f"speed {o.speed:g}{' (as fast as possible)' if o.speed == 0 else 'x'}, "
-              f"bound {o.host}:{self.port}, FC at {self._fc_text()}"
+              + (f"bound {o.host}:{self.port}" if o.link is None else f"link {o.link}") + f", FC at {self._fc_text()}"
+              + (f", {self.budget.line()}" if self.budget is not None else "")
               + (f", until done at t={self.n_steps * self.dt_us * 1e-6:g} s" if o.until_done else ""),
               file=sys.stderr, flush=True)
         gc.collect()
@@ -366,7 +378,8 @@ class Bridge:
         self._send_status(now)
         self._send(data)
         c.bundles_sent += 1
-        ans = self._wait_answer(data, now, STARTUP_RESEND_S, startup=True)
+        ans = self._wait_answer(data, now, STREAM_STARTUP_RESEND_S if isinstance(self.sock, StreamTransport)
+                                else STARTUP_RESEND_S, startup=True)
         now = time.perf_counter()
         self._wall_start = now
         self._pace_anchor = (now, 0)
@@ -429,6 +442,10 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--fc-port", type=int, default=None,
                     help="UDP port navig8-fc listens on (default 4561+2N; 0: learn it from the FC's announcement)")
     ap.add_argument("--host", default="127.0.0.1", help="address to bind and of the FC")
+    ap.add_argument("--link", default=None, metavar="CONN",
+                    help="the FC link as a connection string instead of --bridge-port/--fc-port: udpin:H:P, "
+                         "udpout:H:P, tcpin:H:P (PX4's simulator side, 4560), tcp:H:P, serial:DEVICE:BAUD "
+                         "(the bundle must fit the line: docs/hil.md)")
     ap.add_argument("--until-done", action="store_true",
                     help="stop at the scenario's duration, send NAVIG8_SIM_STATUS done and exit 0")
     ap.add_argument("--duration", type=float, default=None, help="override the scenario's duration (s)")
@@ -452,7 +469,7 @@ def options_from_args(a: argparse.Namespace) -> BridgeOptions:
         fc_port=a.fc_port, host=a.host, until_done=a.until_done, duration_s=a.duration, dt_s=a.dt,
         step_timeout_s=a.step_timeout, stall_abort_s=a.stall_abort, startup_timeout_s=a.startup_timeout,
         grab_mass_kg=a.grab_mass, ports_file=Path(a.ports_file) if a.ports_file else None,
-        world=tuple(parse_world_items(a.world).items()),
+        world=tuple(parse_world_items(a.world).items()), link=a.link,
     )
 
 
@@ -465,6 +482,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.scenario.endswith((".yaml", ".yml")) and not Path(args.scenario).is_file():
         ap.error(f"no scenario file {args.scenario}")
+    if args.link:
+        try:
+            parse_connection(args.link)
+        except ValueError as e:
+            ap.error(str(e))
     signal.signal(signal.SIGINT, _raise_shutdown)
     signal.signal(signal.SIGTERM, _raise_shutdown)
     bridge: Bridge | None = None
@@ -475,12 +497,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"navig8-bridge: {e}", file=sys.stderr)
             return EXIT_USAGE
         except PortInUseError as e:
-            print(f"navig8-bridge: UDP {e.host}:{e.port} is in use by another process; choose another with "
-                  "--bridge-port (0: any free port) or --instance", file=sys.stderr)
+            print(f"navig8-bridge: {e.proto} {e.host}:{e.port} is in use by another process; choose another with "
+                  + ("--link" if args.link else "--bridge-port (0: any free port) or --instance"), file=sys.stderr)
             return EXIT_USAGE
         except OSError as e:
-            print(f"navig8-bridge: cannot bind {args.host}:{args.bridge_port or BASE_BRIDGE_PORT + 2 * args.instance}"
-                  f": {e}", file=sys.stderr)
+            where = args.link or f"{args.host}:{args.bridge_port or BASE_BRIDGE_PORT + 2 * args.instance}"
+            print(f"navig8-bridge: cannot open {where}: {e}", file=sys.stderr)
             return EXIT_START
         rc = bridge.run()
         print(bridge.summary_line(), file=sys.stderr)

@@ -40,6 +40,7 @@ from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, Live
 from navig8_fc.shell.gcs_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4, GcsService, Source
 from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.shell.mcap_log import McapLogger
+from navig8_fc.shell.transport import parse_connection
 from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m, waypoint_poses
 
 FC_COMPID = 1
@@ -70,6 +71,11 @@ class FcOptions:
     autopilot: str = "generic"  # HEARTBEAT.autopilot: "generic" or "px4" (docs/gcs.md, "Autopilot identity")
     foxglove_port: int | None = None  # --foxglove[=PORT]: serve the Foxglove channels live (0: any free port)
     foxglove_host: str = "127.0.0.1"
+    # connection strings (navig8_fc/shell/transport.py: udpin:, udpout:, tcp:, tcpin:, serial:) replacing a link's
+    # host/port options; None: UDP as the port options say
+    sim_link: str | None = None
+    gcs_link: str | None = None
+    api_link: str | None = None
 
     @property
     def sysid(self) -> int:
@@ -188,11 +194,18 @@ class FlightControllerProcess:
         and announce the FC to the bridge (DESIGN §4: a bridge that does not know our port learns it from this)."""
         o = self.opts
         sim_codec = codec.seam_codec()  # the sim link speaks only the seam's messages, decoded by the codec
-        self.sim = UdpLink.open("sim", codec.Encoder(sim_codec, o.sysid, FC_COMPID), (o.host, o.port("sim")),
-                                [(o.host, o.port("bridge"))], codec=sim_codec)
-        self.sim.max_datagrams = 1  # one bundle per step; more stay readable for the run loop's next select
-        self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
-        self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
+        sim_enc = codec.Encoder(sim_codec, o.sysid, FC_COMPID)
+        if o.sim_link:
+            self.sim = UdpLink.connect("sim", sim_enc, parse_connection(o.sim_link), codec=sim_codec)
+        else:
+            self.sim = UdpLink.open("sim", sim_enc, (o.host, o.port("sim")), [(o.host, o.port("bridge"))],
+                                    codec=sim_codec)
+            self.sim.max_datagrams = 1  # one bundle per step; more stay readable for the run loop's next select
+        self.gcs = (UdpLink.connect("gcs", self._mav(), parse_connection(o.gcs_link)) if o.gcs_link else
+                    UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)]))
+        self.api = (UdpLink.connect("api", self._mav(), parse_connection(o.api_link)) if o.api_link else
+                    UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")),
+                                 [(o.gcs_host, o.port("api"))]))
         if o.ports_file is not None:
             ports = {"sim": self.sim.local_port, "gcs": self.gcs.local_port, "api": self.api.local_port}
             if self.fox is not None and self.fox.live is not None:
@@ -522,6 +535,12 @@ def build_arg_parser() -> argparse.ArgumentParser:
                     help=f"serve the Foxglove 3D channels live over WebSocket (default port {FOXGLOVE_DEFAULT_PORT}; "
                          "0: any free port)")
     ap.add_argument("--foxglove-host", default="127.0.0.1", help="address the Foxglove server binds")
+    conn = ("a connection string instead of the port options: udpin:H:P, udpout:H:P, tcp:H:P, tcpin:H:P, "
+            "serial:DEVICE:BAUD (docs/hil.md)")
+    ap.add_argument("--sim-link", default=None, metavar="CONN", help=f"the bridge/simulator link as {conn}; PX4's "
+                    "simulator interface is tcp:127.0.0.1:4560")
+    ap.add_argument("--gcs-link", default=None, metavar="CONN", help=f"the GCS link as {conn}")
+    ap.add_argument("--api-link", default=None, metavar="CONN", help=f"the API link as {conn}")
     return ap
 
 
@@ -532,18 +551,28 @@ def options_from_args(a: argparse.Namespace) -> FcOptions:
         api_bind_port=a.api_bind_port, api_port=a.api_port, log_path=Path(a.log) if a.log else None,
         state_dir=Path(a.state_dir) if a.state_dir else None, defaults=a.defaults,
         ports_file=Path(a.ports_file) if a.ports_file else None, autopilot=a.autopilot, foxglove_port=a.foxglove,
-        foxglove_host=a.foxglove_host,
+        foxglove_host=a.foxglove_host, sim_link=a.sim_link, gcs_link=a.gcs_link, api_link=a.api_link,
     )
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_arg_parser().parse_args(argv)
+    ap = build_arg_parser()
+    args = ap.parse_args(argv)
+    for text in (args.sim_link, args.gcs_link, args.api_link):
+        if text:
+            try:
+                parse_connection(text)
+            except ValueError as e:
+                ap.error(str(e))
     try:
         proc = FlightControllerProcess(options_from_args(args))
     except PortInUseError as e:
-        print(f"navig8-fc: {e.strerror}; choose another with {_PORT_OPTIONS[e.link]} (0: any free port)",
-              file=sys.stderr)
+        print(f"navig8-fc: {e.strerror}; choose another with {_PORT_OPTIONS[e.link]} or --{e.link}-link "
+              "(port 0: any free port)", file=sys.stderr)
         return EXIT_USAGE
+    except OSError as e:  # a serial device that cannot be opened
+        print(f"navig8-fc: {e.strerror or e}", file=sys.stderr)
+        return 1
     except FoxglovePortError as e:
         print(f"navig8-fc: {e}; choose another with --foxglove=PORT (0: any free port)", file=sys.stderr)
         return EXIT_USAGE

@@ -9,6 +9,7 @@ and announces itself, so the bridge learns the FC's address (it runs with --fc-p
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import socket
@@ -91,26 +92,35 @@ class SitlRun:
 @contextmanager
 def sitl(tmp: Path, scenario: str = "ground", speed: float = 1.0, fc_args: list[str] | None = None,
          bridge_args: list[str] | None = None, state_dir: Path | None = None, start_bridge: bool = True,
-         log_name: str = "run.mcap") -> Iterator[SitlRun]:
+         log_name: str = "run.mcap", link: str = "udp", serial_paths: tuple[str, str] | None = None
+         ) -> Iterator[SitlRun]:
+    """link: the sim link's transport, "udp" (ports 0), "tcp" (the bridge listens on a free port as PX4's
+    simulator does on 4560, the FC connects) or "serial" (serial_paths: the bridge's and the FC's ends of a
+    line, e.g. navig8_tools.nullmodem.NullModem(921600).paths)."""
     gcs, api = free_udp_ports(2)  # where the test's GCS / API clients will listen (the FC sends there)
     log = tmp / log_name
     state = state_dir or (tmp / "state")
     ports: dict[str, int] = {}
     br = None
     fc = None
+    br_link = {"udp": ["--bridge-port", "0", "--fc-port", "0"], "tcp": ["--link", "tcpin:127.0.0.1:0"],
+               "serial": ["--link", f"serial:{serial_paths[0]}:921600"] if serial_paths else []}[link]
     try:
         if start_bridge:
             br_ports = tmp / f"{log_name}.bridge-ports.json"
             br_cmd = [sys.executable, "-m", "sim_bridge.bridge", "--scenario", scenario, "--speed", str(speed),
-                      "--bridge-port", "0", "--fc-port", "0", "--ports-file", str(br_ports), *(bridge_args or [])]
+                      *br_link, "--ports-file", str(br_ports), *(bridge_args or [])]
             br = subprocess.Popen(br_cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                   stderr=subprocess.STDOUT, cwd=tmp)
             ports.update(wait_ports_file(br_ports, br))
         else:
             (ports["bridge"],) = free_udp_ports(1)  # nobody there: the FC waits for bundles
+        fc_link = {"udp": ["--sim-port", "0", "--bridge-port", str(ports["bridge"])],
+                   "tcp": ["--sim-link", f"tcp:127.0.0.1:{ports['bridge']}"],
+                   "serial": ["--sim-link", f"serial:{serial_paths[1]}:921600"] if serial_paths else []}[link]
         fc_ports = tmp / f"{log_name}.fc-ports.json"
-        fc_cmd = [sys.executable, "-m", "navig8_fc.shell.fc_process", "--scenario", scenario, "--sim-port", "0",
-                  "--bridge-port", str(ports["bridge"]), "--gcs-port", str(gcs), "--gcs-bind-port", "0",
+        fc_cmd = [sys.executable, "-m", "navig8_fc.shell.fc_process", "--scenario", scenario, *fc_link,
+                  "--gcs-port", str(gcs), "--gcs-bind-port", "0",
                   "--api-port", str(api), "--api-bind-port", "0", "--log", str(log), "--state-dir", str(state),
                   "--ports-file", str(fc_ports), *(fc_args or [])]
         fc = subprocess.Popen(fc_cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -154,3 +164,49 @@ def wait_heartbeat(conn: Any, timeout_s: float = 10.0) -> Any:
     assert hb is not None, "no HEARTBEAT from the FC (compid 1)"
     conn.target_system, conn.target_component = hb.get_srcSystem(), 1
     return hb
+
+
+def command(gcs: Any, cmd: int, *params: float, timeout_s: float = 5.0) -> Any:
+    """COMMAND_LONG to the FC; its COMMAND_ACK (asserted to come)."""
+    p = list(params) + [0.0] * (7 - len(params))
+    gcs.mav.command_long_send(gcs.target_system, 1, cmd, 0, *p)
+    ack = wait_for(gcs, "COMMAND_ACK", timeout_s, lambda m: m.command == cmd)
+    assert ack is not None, f"no COMMAND_ACK for {cmd}"
+    return ack
+
+
+def takeoff_hover_land(gcs: Any, alt_m: float = 2.0, hover_samples: int = 30, arm_timeout_s: float = 30.0
+                       ) -> dict[str, float]:
+    """Arm, take off to alt_m, hold, land, disarm, through the GCS link only (what crosses it: ACKs, HEARTBEAT,
+    LOCAL_POSITION_NED, EXTENDED_SYS_STATE). Returns the hover's worst errors over hover_samples positions."""
+    from pymavlink.dialects.v20 import common as m2
+
+    from navig8_fc.modes import px4_custom_mode
+    from navig8_fc.modes.px4 import Px4AutoSubMode, Px4MainMode
+
+    def fc_hb(pred: Callable[[Any], bool]) -> Callable[[Any], bool]:
+        return lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1 and pred(m)
+
+    deadline = time.monotonic() + arm_timeout_s
+    while True:
+        ack = command(gcs, m2.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+        if ack.result == m2.MAV_RESULT_ACCEPTED or time.monotonic() > deadline:
+            break
+        wait_for(gcs, "HEARTBEAT", 0.5)  # pre-arm checks may need the first sensor data
+    assert ack.result == m2.MAV_RESULT_ACCEPTED, ack
+    assert command(gcs, m2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, alt_m).result == \
+        m2.MAV_RESULT_ACCEPTED
+    hold = px4_custom_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER)
+    assert wait_for(gcs, "HEARTBEAT", 40.0, fc_hb(lambda m: m.custom_mode == hold)) is not None, "no Hold after takeoff"
+    err_z = err_xy = 0.0
+    for _ in range(hover_samples):
+        lp = wait_for(gcs, "LOCAL_POSITION_NED", 5.0)
+        assert lp is not None, "no LOCAL_POSITION_NED while hovering"
+        err_z = max(err_z, abs(-lp.z - alt_m))
+        err_xy = max(err_xy, math.hypot(lp.x, lp.y))
+    assert command(gcs, m2.MAV_CMD_NAV_LAND).result == m2.MAV_RESULT_ACCEPTED
+    assert wait_for(gcs, "HEARTBEAT", 60.0, fc_hb(lambda m: not m.base_mode & m2.MAV_MODE_FLAG_SAFETY_ARMED)) \
+        is not None, "no disarm after landing"
+    es = wait_for(gcs, "EXTENDED_SYS_STATE", 5.0)
+    assert es is not None and es.landed_state == m2.MAV_LANDED_STATE_ON_GROUND
+    return {"err_z_m": err_z, "err_xy_m": err_xy}
