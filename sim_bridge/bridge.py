@@ -84,6 +84,7 @@ class BridgeOptions:
     grab_mass_kg: float | None = None  # object mass a GRAB picks up (default: from the scenario)
     ports_file: Path | None = None  # written after binding: {"bridge": port}
     world: tuple[tuple[str, float], ...] = ()  # world overrides (sim_bridge.world), as navig8-sim --world
+    free_run: bool = False  # real time: step on the wall clock with the newest answer, never wait (docs/hil.md)
     link: str | None = None  # connection string of the FC link (udpin:, udpout:, tcpin:, tcp:, serial:); None: UDP
 
     @property
@@ -141,6 +142,8 @@ class Bridge:
     def __init__(self, opts: BridgeOptions) -> None:
         if opts.speed < 0 or not math.isfinite(opts.speed):
             raise ValueError("--speed must be >= 0 (0: as fast as possible)")
+        if opts.free_run and opts.speed <= 0:
+            raise ValueError("--free-run needs a wall-clock pace: --speed > 0")
         if not (opts.step_timeout_s > 0 and opts.stall_abort_s > 0):
             raise ValueError("--step-timeout and --stall-abort must be > 0")
         self.opts = opts
@@ -175,6 +178,7 @@ class Bridge:
         if opts.ports_file is not None:
             write_ports_file(opts.ports_file, {"bridge": self.port})
         self.step = 0
+        self._newest_answer_us = 0
         self._wall_start: float | None = None  # when stepping began (answer to step 0)
         self._pace_anchor: tuple[float, int] = (0.0, 0)  # (wall, step) pacing is measured from
         self._status_due = 0.0
@@ -273,8 +277,10 @@ class Bridge:
             name = m.name
             if name == "HIL_ACTUATOR_CONTROLS":
                 fields = m.fields
-                if fields["time_usec"] == want and answer is None:
+                t_ans = fields["time_usec"]
+                if answer is None and (t_ans == want or self.opts.free_run and self._newest_answer_us < t_ans <= want):
                     answer = seam.decode_actuator_controls(fields, self.limits)
+                    self._newest_answer_us = t_ans  # free run: the newest answer to any bundle sent so far
                     c.answers += 1
                 else:
                     c.stale_answers += 1
@@ -389,6 +395,8 @@ class Bridge:
         plant, mav, arm, sock = self.plant, self.mav, self.arm, self.sock
         until_done, n_steps, paced, step_timeout_s = o.until_done, self.n_steps, o.speed > 0, o.step_timeout_s
         encode_bundle, perf_counter = seam.encode_bundle, time.perf_counter
+        if o.free_run:
+            return self._run_free(ans)
         while True:
             if until_done and self.step >= n_steps:
                 break
@@ -420,6 +428,39 @@ class Bridge:
             self._send_status(now)
         return EXIT_OK
 
+    def _run_free(self, ans: seam.ActuatorControls) -> int:
+        """Real time (--free-run): step k is released at anchor + t_k / speed whatever the FC does; the plant holds
+        the newest answer (zero-order hold), answers to older bundles are counted stale. No answer for
+        --stall-abort s: exit 3, as in lockstep."""
+        o, c, plant, arm = self.opts, self.counters, self.plant, self.arm
+        period = self.dt_us * 1e-6 / o.speed
+        last_answer = anchor = time.perf_counter()
+        k0 = 0
+        while not (o.until_done and self.step >= self.n_steps):
+            release = anchor + (self.step + 1 - k0) * period
+            while (now := time.perf_counter()) < release:
+                if now >= self._status_due:
+                    self._send_status(now)
+                got = self._receive(release - now)
+                if got is not None:
+                    ans, last_answer = got, time.perf_counter()
+            if now - release > REANCHOR_LAG_S:  # fell behind (a stall): continue from here, no burst
+                anchor, k0 = now, self.step
+            if now - last_answer > o.stall_abort_s:
+                raise _Stalled(f"navig8-bridge: navig8-fc stalled: no actuator answer for {now - last_answer:.1f} s "
+                               f"(--stall-abort {o.stall_abort_s:g} s, free run); stopping")
+            if arm.pending_gripper:
+                self._apply_arm()
+            plant.step_us(ActuatorCommand(ans.tilt_rad, ans.speed_rad_s, arm.joint_targets_rad), self.dt_us)
+            self.step += 1
+            c.steps += 1
+            self._send(self._bundle())
+            c.bundles_sent += 1
+        self.state = seam.SIM_STATE_DONE
+        for _ in range(3):
+            self._send_status(time.perf_counter())
+        return EXIT_OK
+
     def summary_line(self) -> str:
         now = time.perf_counter()
         wall = now - self._wall_start if self._wall_start is not None else 0.0
@@ -442,6 +483,9 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--fc-port", type=int, default=None,
                     help="UDP port navig8-fc listens on (default 4561+2N; 0: learn it from the FC's announcement)")
     ap.add_argument("--host", default="127.0.0.1", help="address to bind and of the FC")
+    ap.add_argument("--free-run", action="store_true",
+                    help="real time: step on the wall clock at --speed with the newest answer, never wait for the FC "
+                         "(for navig8-fc --timing realtime or a board; docs/hil.md)")
     ap.add_argument("--link", default=None, metavar="CONN",
                     help="the FC link as a connection string instead of --bridge-port/--fc-port: udpin:H:P, "
                          "udpout:H:P, tcpin:H:P (PX4's simulator side, 4560), tcp:H:P, serial:DEVICE:BAUD "
@@ -469,7 +513,7 @@ def options_from_args(a: argparse.Namespace) -> BridgeOptions:
         fc_port=a.fc_port, host=a.host, until_done=a.until_done, duration_s=a.duration, dt_s=a.dt,
         step_timeout_s=a.step_timeout, stall_abort_s=a.stall_abort, startup_timeout_s=a.startup_timeout,
         grab_mass_kg=a.grab_mass, ports_file=Path(a.ports_file) if a.ports_file else None,
-        world=tuple(parse_world_items(a.world).items()), link=a.link,
+        world=tuple(parse_world_items(a.world).items()), link=a.link, free_run=a.free_run,
     )
 
 

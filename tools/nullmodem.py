@@ -67,6 +67,9 @@ class NullModem:
                 continue
             self.bytes[k] += len(data)
 
+    def elapsed_s(self) -> float:
+        return time.monotonic() - self.started
+
     def close(self) -> None:
         self._stop.set()
         for t in self._threads:

@@ -18,7 +18,7 @@ import select
 import signal
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +40,7 @@ from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, Live
 from navig8_fc.shell.gcs_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4, GcsService, Source
 from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.shell.mcap_log import McapLogger
+from navig8_fc.shell.realtime import TIMING_REALTIME, RealtimeClock
 from navig8_fc.shell.transport import parse_connection
 from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m, waypoint_poses
 
@@ -76,6 +77,7 @@ class FcOptions:
     sim_link: str | None = None
     gcs_link: str | None = None
     api_link: str | None = None
+    timing: str | None = None  # --timing lockstep|realtime: overrides the FC_TIMING parameter (docs/hil.md)
 
     @property
     def sysid(self) -> int:
@@ -148,6 +150,7 @@ class FlightControllerProcess:
         elif opts.defaults:
             self.log_event("starting from default parameters (--defaults)")
         self.stack.reconfigure()
+        self.rt = self._mk_timing()
         warm_up_kernels(self.vehicle, self.core.config)  # numba's cache loads before the first step, not in it
         if self.logger:
             self.logger.metadata("run", {"scenario": opts.scenario, "controller": self._controller_name(),
@@ -155,6 +158,17 @@ class FlightControllerProcess:
             self.logger.metadata("params", self.registry.as_dict())
 
     # --- setup -----------------------------------------------------------------------------------
+    def _mk_timing(self) -> RealtimeClock | None:
+        """The real-time mode's clock (navig8_fc/shell/realtime.py), or None in lockstep (FC_TIMING, --timing)."""
+        reg = self.registry
+        if self.opts.timing is not None:
+            reg.set("FC_TIMING", 1.0 if self.opts.timing == "realtime" else 0.0)
+        if int(reg["FC_TIMING"]) != TIMING_REALTIME:
+            return None
+        self.log_event(f"real-time timing: own clock at {int(reg['INDI_RATE_HZ'])} Hz, newest bundle per tick")
+        return RealtimeClock(float(reg["INDI_RATE_HZ"]), float(reg["RT_LATE_S"]), float(reg["RT_SPACING_TOL"]),
+                             time.monotonic())
+
     def _mav(self) -> Any:
         m = self.d.MAVLink(None, srcSystem=self.opts.sysid, srcComponent=FC_COMPID)
         m.robust_parsing = True
@@ -272,10 +286,16 @@ class FlightControllerProcess:
                         self.sim_done = True
                     continue
                 bundle = asm.add(m)
-                if bundle is not None:
+                if bundle is None:
+                    continue
+                if self.rt is not None:  # real time: the newest bundle waits for the FC's next tick
+                    self.last_bundle_wall = time.monotonic()
+                    self.rt.offer(bundle, asm.completed, self.last_bundle_wall)
+                else:
                     self._on_step(bundle, asm.completed)
 
-    def _on_step(self, b: seam.StepBundle, wire: dict[str, dict[str, Any]] | None = None) -> None:
+    def _on_step(self, b: seam.StepBundle, wire: dict[str, dict[str, Any]] | None = None,
+                 clock_us: int | None = None) -> None:
         """One lockstep step: control, answer, and queue the step's log records (written after the answer).
         wire: the bundle's messages decoded (field dicts), for the /mavlink/sim/in/<NAME> channels."""
         self.last_bundle_wall = time.monotonic()
@@ -287,7 +307,9 @@ class FlightControllerProcess:
             return
         self._last_step_time_us = t_us
         sensors = b.fc_sensors()
-        res = self.stack.step(sensors, b.imu_fresh, t_us)
+        if clock_us is not None:  # real time: the control step runs on the FC's clock (realtime.py)
+            sensors = replace(sensors, t_s=clock_us * 1e-6)
+        res = self.stack.step(sensors, b.imu_fresh, t_us if clock_us is None else clock_us)
         cmd = res.command
         out = seam.pack_actuator_controls(self.sim.mav, t_us, cmd, self.vehicle, armed=res.armed)
         self._last_answer = out
@@ -382,7 +404,8 @@ class FlightControllerProcess:
             while not self._stop:
                 ready = self._spin_for_sim() if self._spin_until > time.perf_counter() else []
                 if not ready:
-                    ready, _, _ = select.select(sock_list, [], [], 0.05)
+                    wait = 0.05 if self.rt is None else min(0.05, self.rt.timeout_s(time.monotonic()))
+                    ready, _, _ = select.select(sock_list, [], [], wait)
                 for sock in ready:
                     link = socks[sock]
                     got = link.receive()
@@ -390,11 +413,13 @@ class FlightControllerProcess:
                         self._on_sim(got)
                     else:
                         self.on_gcs(link, got)
+                if self.rt is not None and (due := self.rt.tick(time.monotonic())) is not None:
+                    self._on_step(*due)
                 # The step's answer is out: now log (this overlaps with the bridge's physics step).
                 if self._pending_tick is not None:
                     tick, self._pending_tick = self._pending_tick, None
                     self._log_tick(*tick)
-                    if self.sim_status is None or self.sim_status.speed == 0.0:
+                    if self.rt is None and (self.sim_status is None or self.sim_status.speed == 0.0):
                         self._spin_until = time.perf_counter() + SPIN_S  # the next bundle is due very soon
                 self._flush_frames()
                 now = time.monotonic()
@@ -468,6 +493,8 @@ class FlightControllerProcess:
     def on_wall_second(self, now: float) -> None:
         if self.n_ticks == 0:  # no bundle yet: announce again, for a bridge started after us (DESIGN §4)
             self.sim.send(seam.announce_record())
+        if self.rt is not None and (text := self.rt.report(now)) is not None:
+            self.statustext(text, 4)  # MAV_SEVERITY_WARNING
 
     def on_wall_tick(self, now: float) -> None:
         self.gcs_service.poll(now)
@@ -494,6 +521,8 @@ class FlightControllerProcess:
                 self.logger.metadata("bridge_status", self.sim_status)
             self.logger.metadata("fc_stats", {"ticks": self.n_ticks, "duplicates": self.n_duplicates,
                                               "incomplete_bundles": self._asm.incomplete})
+            if self.rt is not None:
+                self.logger.metadata("realtime_stats", vars(self.rt.stats))
             self.logger.metadata("params_final", self.registry.as_dict())
             self.logger.close()
             self.logger = None
@@ -541,6 +570,9 @@ def build_arg_parser() -> argparse.ArgumentParser:
                     "simulator interface is tcp:127.0.0.1:4560")
     ap.add_argument("--gcs-link", default=None, metavar="CONN", help=f"the GCS link as {conn}")
     ap.add_argument("--api-link", default=None, metavar="CONN", help=f"the API link as {conn}")
+    ap.add_argument("--timing", choices=["lockstep", "realtime"], default=None,
+                    help="timing mode, overriding the FC_TIMING parameter: lockstep (one step per bundle) or realtime "
+                         "(own clock at INDI_RATE_HZ; the bridge then runs --free-run; docs/hil.md)")
     return ap
 
 
@@ -552,6 +584,7 @@ def options_from_args(a: argparse.Namespace) -> FcOptions:
         state_dir=Path(a.state_dir) if a.state_dir else None, defaults=a.defaults,
         ports_file=Path(a.ports_file) if a.ports_file else None, autopilot=a.autopilot, foxglove_port=a.foxglove,
         foxglove_host=a.foxglove_host, sim_link=a.sim_link, gcs_link=a.gcs_link, api_link=a.api_link,
+        timing=a.timing,
     )
 
 

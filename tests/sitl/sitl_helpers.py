@@ -69,6 +69,12 @@ class SitlRun:
     state_dir: Path
     extra: dict[str, Any] = field(default_factory=dict)
     ports: dict[str, int] = field(default_factory=dict)  # what the processes bound: sim, gcs, api (FC), bridge
+    outputs: dict[int, str] = field(default_factory=dict)  # pid -> what the process printed (after stop)
+
+    def output(self, which: str) -> str:
+        """What the bridge or the FC printed (stdout and stderr), after stop()."""
+        p = self.bridge if which == "bridge" else self.fc
+        return "" if p is None else self.outputs.get(p.pid, "")
 
     def stop(self, timeout_s: float = 10.0) -> tuple[int | None, int | None]:
         codes: list[int | None] = []
@@ -84,7 +90,8 @@ class SitlRun:
                     p.kill()
                     p.wait(timeout=timeout_s)
             codes.append(p.returncode)
-            if p.stdout is not None:
+            if p.stdout is not None and not p.stdout.closed:
+                self.outputs[p.pid] = p.stdout.read().decode(errors="replace")
                 p.stdout.close()
         return codes[1], codes[0]
 
@@ -210,3 +217,34 @@ def takeoff_hover_land(gcs: Any, alt_m: float = 2.0, hover_samples: int = 30, ar
     es = wait_for(gcs, "EXTENDED_SYS_STATE", 5.0)
     assert es is not None and es.landed_state == m2.MAV_LANDED_STATE_ON_GROUND
     return {"err_z_m": err_z, "err_xy_m": err_xy}
+
+
+def mcap_metadata(log: Path, name: str) -> dict[str, str]:
+    from mcap.reader import make_reader
+
+    with log.open("rb") as f:
+        for m in make_reader(f).iter_metadata():
+            if m.name == name:
+                return dict(m.metadata)
+    raise AssertionError(f"no {name} metadata in {log}")
+
+
+def fly_realtime(tmp: Path, link: str, serial_paths: tuple[str, str] | None = None) -> None:
+    """The FC with --timing realtime and the bridge --free-run at 1x over `link`: arm, take off to 2 m, hover
+    within 0.3 m, land (asserted on the GCS link); then, from the FC's log, control ran on its own clock on
+    fresh data only (no step on an out-of-order bundle) and from the bridge's output, the link budget was shown."""
+    with sitl(tmp, scenario="ground", speed=1.0, fc_args=["--timing", "realtime"], bridge_args=["--free-run"],
+              link=link, serial_paths=serial_paths) as run:
+        gcs = gcs_client(run.gcs_port)
+        try:
+            wait_heartbeat(gcs, 30.0)
+            err = takeoff_hover_land(gcs)
+        finally:
+            gcs.close()
+        run.stop()
+        out = run.output("bridge")
+    assert err["err_z_m"] < 0.3 and err["err_xy_m"] < 0.3, err
+    rt = mcap_metadata(run.log, "realtime_stats")
+    assert int(rt["steps"]) > 1000 and int(rt["steps"]) <= int(rt["ticks"]), rt
+    assert int(rt["out_of_order"]) == 0, rt
+    assert "link budget 635 B/step" in out or run.bridge is None, out
