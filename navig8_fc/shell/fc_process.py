@@ -31,13 +31,20 @@ from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
 from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
 from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink import dialect as dialect_mod
+from navig8_fc.mavlink.px4sim import PX4_SIM_MESSAGES, ActuatorModel, Px4SimAssembler
 from navig8_fc.mission.executor import planned_path
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import ParamStore, default_state_path
 from navig8_fc.shell.foxglove_out import DEFAULT_PORT as FOXGLOVE_DEFAULT_PORT
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, LiveServer, script_waypoints
-from navig8_fc.shell.gcs_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4, GcsService, Source
+from navig8_fc.shell.gcs_service import (
+    MAV_AUTOPILOT_GENERIC,
+    MAV_AUTOPILOT_PX4,
+    GcsService,
+    Source,
+    origin_from_params,
+)
 from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.shell.mcap_log import McapLogger
 from navig8_fc.shell.realtime import TIMING_REALTIME, RealtimeClock
@@ -77,6 +84,7 @@ class FcOptions:
     sim_link: str | None = None
     gcs_link: str | None = None
     api_link: str | None = None
+    sim_messages: str = "navig8"  # --sim-messages: navig8 (the private bundle) or px4 (PX4's simulator messages)
     timing: str | None = None  # --timing lockstep|realtime: overrides the FC_TIMING parameter (docs/hil.md)
 
     @property
@@ -121,9 +129,9 @@ class FlightControllerProcess:
         self._mk_links()
         self.stack = FlightStack(self.vehicle, self.registry, script)
         self.model = vm.UamModel(self.vehicle)
-        self._asm = seam.BundleAssembler()
         self.sim_status: Any = None
         self._last_step_time_us: int | None = None
+        self._asm: Any = seam.BundleAssembler() if opts.sim_messages == "navig8" else self._mk_px4_assembler()
         self._last_answer: bytes | None = None  # the frame answering the last step (re-sent on duplicates)
         self.n_ticks = 0
         self.n_duplicates = 0
@@ -158,6 +166,15 @@ class FlightControllerProcess:
             self.logger.metadata("params", self.registry.as_dict())
 
     # --- setup -----------------------------------------------------------------------------------
+    def _mk_px4_assembler(self) -> Px4SimAssembler:
+        """PX4's simulator messages as the sensor source (navig8_fc/mavlink/px4sim.py, docs/hil.md)."""
+        reg = self.registry
+        model = ActuatorModel(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), 1.0 / float(reg["INDI_RATE_HZ"]),
+                              (0.0,) * 5)
+        self.log_event("sim link: PX4 simulator messages (HIL_SENSOR, HIL_STATE_QUATERNION; actuator states "
+                       "modelled unless NAVIG8_ACTUATOR_STATE comes)")
+        return Px4SimAssembler(origin_from_params(reg), model)
+
     def _mk_timing(self) -> RealtimeClock | None:
         """The real-time mode's clock (navig8_fc/shell/realtime.py), or None in lockstep (FC_TIMING, --timing)."""
         reg = self.registry
@@ -207,7 +224,8 @@ class FlightControllerProcess:
         """Bind the three links (PortInUseError names a busy one; port 0: any free port), write the ports file,
         and announce the FC to the bridge (DESIGN §4: a bridge that does not know our port learns it from this)."""
         o = self.opts
-        sim_codec = codec.seam_codec()  # the sim link speaks only the seam's messages, decoded by the codec
+        # the sim link speaks only the seam's messages (PX4 mode: and PX4's simulator messages), decoded by the codec
+        sim_codec = codec.seam_codec() if o.sim_messages == "navig8" else codec.Codec(PX4_SIM_MESSAGES)
         sim_enc = codec.Encoder(sim_codec, o.sysid, FC_COMPID)
         if o.sim_link:
             self.sim = UdpLink.connect("sim", sim_enc, parse_connection(o.sim_link), codec=sim_codec)
@@ -316,6 +334,10 @@ class FlightControllerProcess:
         if res.arm_request is not None:  # before the step's answer, so the bridge applies it on this step
             self.sim.send(seam.encode_arm_cmd(_arm_command(res.arm_request, t_us)))
         self.sim.send_raw(out)
+        if type(self._asm) is Px4SimAssembler:  # the actuator model's input: what the simulator will hold
+            self._asm.command(cmd.tilt_rad, cmd.speed_rad_s)
+            if res.arm_request is not None and res.arm_request.joint_target_rad is not None:
+                self._asm.joint_target_rad = res.arm_request.joint_target_rad
         self.n_ticks += 1
         self.announce(res.notices)
         if self.logger or self.fox:
@@ -570,6 +592,9 @@ def build_arg_parser() -> argparse.ArgumentParser:
                     "simulator interface is tcp:127.0.0.1:4560")
     ap.add_argument("--gcs-link", default=None, metavar="CONN", help=f"the GCS link as {conn}")
     ap.add_argument("--api-link", default=None, metavar="CONN", help=f"the API link as {conn}")
+    ap.add_argument("--sim-messages", choices=["navig8", "px4"], default="navig8",
+                    help="what the sim link carries: navig8 (the private bundle, docs/bridge.md) or px4 (PX4's "
+                         "simulator messages HIL_SENSOR + HIL_STATE_QUATERNION; docs/hil.md)")
     ap.add_argument("--timing", choices=["lockstep", "realtime"], default=None,
                     help="timing mode, overriding the FC_TIMING parameter: lockstep (one step per bundle) or realtime "
                          "(own clock at INDI_RATE_HZ; the bridge then runs --free-run; docs/hil.md)")
@@ -584,7 +609,7 @@ def options_from_args(a: argparse.Namespace) -> FcOptions:
         state_dir=Path(a.state_dir) if a.state_dir else None, defaults=a.defaults,
         ports_file=Path(a.ports_file) if a.ports_file else None, autopilot=a.autopilot, foxglove_port=a.foxglove,
         foxglove_host=a.foxglove_host, sim_link=a.sim_link, gcs_link=a.gcs_link, api_link=a.api_link,
-        timing=a.timing,
+        timing=a.timing, sim_messages=a.sim_messages,
     )
 
 

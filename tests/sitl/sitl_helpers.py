@@ -99,11 +99,12 @@ class SitlRun:
 @contextmanager
 def sitl(tmp: Path, scenario: str = "ground", speed: float = 1.0, fc_args: list[str] | None = None,
          bridge_args: list[str] | None = None, state_dir: Path | None = None, start_bridge: bool = True,
-         log_name: str = "run.mcap", link: str = "udp", serial_paths: tuple[str, str] | None = None
-         ) -> Iterator[SitlRun]:
+         log_name: str = "run.mcap", link: str = "udp", serial_paths: tuple[str, str] | None = None,
+         fc_link_args: list[str] | None = None) -> Iterator[SitlRun]:
     """link: the sim link's transport, "udp" (ports 0), "tcp" (the bridge listens on a free port as PX4's
     simulator does on 4560, the FC connects) or "serial" (serial_paths: the bridge's and the FC's ends of a
-    line, e.g. navig8_tools.nullmodem.NullModem(921600).paths)."""
+    line, e.g. navig8_tools.nullmodem.NullModem(921600).paths); fc_link_args replace the FC's sim-link options
+    (with start_bridge=False: a simulator the test runs itself)."""
     gcs, api = free_udp_ports(2)  # where the test's GCS / API clients will listen (the FC sends there)
     log = tmp / log_name
     state = state_dir or (tmp / "state")
@@ -125,6 +126,8 @@ def sitl(tmp: Path, scenario: str = "ground", speed: float = 1.0, fc_args: list[
         fc_link = {"udp": ["--sim-port", "0", "--bridge-port", str(ports["bridge"])],
                    "tcp": ["--sim-link", f"tcp:127.0.0.1:{ports['bridge']}"],
                    "serial": ["--sim-link", f"serial:{serial_paths[1]}:921600"] if serial_paths else []}[link]
+        if fc_link_args is not None:  # the FC's sim link as the caller says (a simulator of its own)
+            fc_link = fc_link_args
         fc_ports = tmp / f"{log_name}.fc-ports.json"
         fc_cmd = [sys.executable, "-m", "navig8_fc.shell.fc_process", "--scenario", scenario, *fc_link,
                   "--gcs-port", str(gcs), "--gcs-bind-port", "0",
