@@ -251,3 +251,42 @@ def fly_realtime(tmp: Path, link: str, serial_paths: tuple[str, str] | None = No
     assert int(rt["steps"]) > 1000 and int(rt["steps"]) <= int(rt["ticks"]), rt
     assert int(rt["out_of_order"]) == 0, rt
     assert "link budget 635 B/step" in out or run.bridge is None, out
+
+
+@dataclass
+class FcTarget:
+    """The FC the interop tests talk to: connection strings for a GCS and an API client, and the local pair when
+    pytest started it (None: pointed elsewhere, so nothing but the links can be checked)."""
+
+    gcs: str
+    api: str
+    bridge: str
+    sysid: int = 1
+    local: SitlRun | None = None
+
+    @property
+    def flies(self) -> bool:
+        return self.bridge != "none"
+
+    def connect(self, which: str = "gcs", source_system: int = 255) -> Any:
+        """A pymavlink client on the GCS or API connection string. It sends one SYSTEM_TIME at once, so an FC that
+        answers only peers who talked (udpout:) knows where to send; not a HEARTBEAT: one heartbeat would arm the
+        FC's GCS-loss failsafe, and this client sends no more."""
+        conn = mavutil.mavlink_connection(self.gcs if which == "gcs" else self.api, source_system=source_system,
+                                          source_component=190, dialect="common")
+        conn.mav.system_time_send(0, 0)
+        return conn
+
+
+@contextmanager
+def fc_target(config: Any, tmp: Path) -> Iterator[FcTarget]:
+    """From --fc-gcs/--fc-api/--bridge/--fc-sysid (tests/sitl/conftest.py): that FC; unset: the local pair on free
+    ports, its GCS and API links reached as udpin: where the FC sends."""
+    gcs = config.getoption("--fc-gcs", default=None)
+    if gcs is not None:
+        api = config.getoption("--fc-api", default=None) or gcs
+        yield FcTarget(gcs, api, config.getoption("--bridge", default=None) or "external",
+                       config.getoption("--fc-sysid", default=1))
+        return
+    with sitl(tmp, scenario="ground", speed=1.0) as run:
+        yield FcTarget(f"udpin:127.0.0.1:{run.gcs_port}", f"udpin:127.0.0.1:{run.api_port}", "local", 1, run)
