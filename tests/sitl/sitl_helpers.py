@@ -232,21 +232,27 @@ def mcap_metadata(log: Path, name: str) -> dict[str, str]:
     raise AssertionError(f"no {name} metadata in {log}")
 
 
+def fly_from_gcs(run: SitlRun, tol_m: float = 0.3) -> dict[str, float]:
+    """takeoff_hover_land from a GCS on the run's GCS port; the hover held within tol_m (asserted)."""
+    gcs = gcs_client(run.gcs_port)
+    try:
+        wait_heartbeat(gcs, 30.0)
+        err = takeoff_hover_land(gcs)
+    finally:
+        gcs.close()
+    assert err["err_z_m"] < tol_m and err["err_xy_m"] < tol_m, err
+    return err
+
+
 def fly_realtime(tmp: Path, link: str, serial_paths: tuple[str, str] | None = None) -> None:
     """The FC with --timing realtime and the bridge --free-run at 1x over `link`: arm, take off to 2 m, hover
     within 0.3 m, land (asserted on the GCS link); then, from the FC's log, control ran on its own clock on
     fresh data only (no step on an out-of-order bundle) and from the bridge's output, the link budget was shown."""
     with sitl(tmp, scenario="ground", speed=1.0, fc_args=["--timing", "realtime"], bridge_args=["--free-run"],
               link=link, serial_paths=serial_paths) as run:
-        gcs = gcs_client(run.gcs_port)
-        try:
-            wait_heartbeat(gcs, 30.0)
-            err = takeoff_hover_land(gcs)
-        finally:
-            gcs.close()
+        fly_from_gcs(run)
         run.stop()
         out = run.output("bridge")
-    assert err["err_z_m"] < 0.3 and err["err_xy_m"] < 0.3, err
     rt = mcap_metadata(run.log, "realtime_stats")
     assert int(rt["steps"]) > 1000 and int(rt["steps"]) <= int(rt["ticks"]), rt
     assert int(rt["out_of_order"]) == 0, rt
