@@ -628,12 +628,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"navig8-fc: {e.strerror}; choose another with {_PORT_OPTIONS[e.link]} or --{e.link}-link "
               "(port 0: any free port)", file=sys.stderr)
         return EXIT_USAGE
-    except OSError as e:  # a serial device that cannot be opened
-        print(f"navig8-fc: {e.strerror or e}", file=sys.stderr)
-        return 1
     except FoxglovePortError as e:
         print(f"navig8-fc: {e}; choose another with --foxglove=PORT (0: any free port)", file=sys.stderr)
         return EXIT_USAGE
+    except OSError as e:  # a serial device that cannot be opened (after FoxglovePortError, also an OSError)
+        print(f"navig8-fc: {e.strerror or e}", file=sys.stderr)
+        return 1
     signal.signal(signal.SIGINT, proc.request_stop)
     signal.signal(signal.SIGTERM, proc.request_stop)
     rc = proc.run(until_done=args.until_done)

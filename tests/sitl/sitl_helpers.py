@@ -296,3 +296,72 @@ def fc_target(config: Any, tmp: Path) -> Iterator[FcTarget]:
         return
     with sitl(tmp, scenario="ground", speed=1.0) as run:
         yield FcTarget(f"udpin:127.0.0.1:{run.gcs_port}", f"udpin:127.0.0.1:{run.api_port}", "local", 1, run)
+
+
+class LossyUdpProxy:
+    """A UDP proxy on the sim link that impairs bridge -> FC datagrams: each one delayed by a uniform jitter in
+    [0, 2 * jitter_s] (± jitter_s around jitter_s), dropped with probability `drop`, or held back behind the next
+    one with probability `reorder` (then it arrives after a newer bundle: out of order). FC -> bridge passes as is.
+    The FC is given `fc_side_port` as its --bridge-port; `bridge_addr` is set once the bridge has bound. Seeded."""
+
+    def __init__(self, jitter_s: float, drop: float, reorder: float, seed: int = 1) -> None:
+        import heapq
+        import threading
+
+        import numpy as np
+
+        self._heapq, self._rng = heapq, np.random.default_rng(seed)
+        self.jitter_s, self.drop, self.reorder = jitter_s, drop, reorder
+        self._fc_side = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # the FC talks to this one
+        self._fc_side.bind(("127.0.0.1", 0))
+        self._br_side = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # the bridge learns this one as the FC
+        self._br_side.bind(("127.0.0.1", 0))
+        self.fc_side_port = self._fc_side.getsockname()[1]
+        self.bridge_addr: tuple[str, int] | None = None
+        self._fc_addr: tuple[str, int] | None = None
+        self._due: list[tuple[float, int, bytes]] = []
+        self._held: bytes | None = None
+        self.counts = {"forwarded": 0, "dropped": 0, "reordered": 0}
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        import select as sel
+
+        n = 0
+        while not self._stop.is_set():
+            wait = 0.05 if not self._due else max(0.0, self._due[0][0] - time.monotonic())
+            r, _, _ = sel.select([self._fc_side, self._br_side], [], [], wait)
+            for s in r:
+                data, addr = s.recvfrom(65535)
+                if s is self._fc_side:
+                    self._fc_addr = addr
+                    if self.bridge_addr is not None:
+                        self._br_side.sendto(data, self.bridge_addr)
+                    continue
+                if self._rng.random() < self.drop:
+                    self.counts["dropped"] += 1
+                    continue
+                if self._held is None and self._rng.random() < self.reorder:
+                    self._held = data  # goes out right after the next datagram
+                    self.counts["reordered"] += 1
+                    continue
+                t = time.monotonic() + self._rng.uniform(0.0, 2 * self.jitter_s)
+                for d in (data, self._held) if self._held is not None else (data,):
+                    n += 1
+                    self._heapq.heappush(self._due, (t, n, d))
+                    t += 1e-4
+                self._held = None
+            now = time.monotonic()
+            while self._due and self._due[0][0] <= now:
+                _, _, d = self._heapq.heappop(self._due)
+                if self._fc_addr is not None:
+                    self._fc_side.sendto(d, self._fc_addr)
+                    self.counts["forwarded"] += 1
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self._fc_side.close()
+        self._br_side.close()
