@@ -196,3 +196,19 @@ def test_udpout_sends_to_its_peer_from_a_free_port() -> None:
     finally:
         ep.sock.close()
         rx.close()
+
+
+@pytest.mark.parametrize(("argv", "exit_code", "says"), [
+    (["-m", "sim_bridge.bridge", "--link", "serial:/dev/navig8-none:921600", "--dt", "0.005"], 2, "does not fit"),
+    (["-m", "sim_bridge.bridge", "--link", "tcp:nowhere"], 2, "expected tcp:HOST:PORT"),
+    (["-m", "navig8_fc.shell.fc_process", "--sim-link", "serial:/dev/x:fast"], 2, "not a number"),
+    (["-m", "navig8_fc.shell.fc_process", "--sim-link", "serial:/dev/navig8-none:921600", "--gcs-bind-port", "0",
+      "--api-bind-port", "0"], 1, "cannot open /dev/navig8-none"),
+])
+def test_the_clis_refuse_bad_links_with_one_clear_line(argv: list[str], exit_code: int, says: str) -> None:
+    import subprocess
+    import sys
+
+    p = subprocess.run([sys.executable, *argv], capture_output=True, text=True, timeout=120)
+    assert p.returncode == exit_code and says in p.stderr, (p.returncode, p.stderr[-1500:])
+    assert "Traceback" not in p.stderr
