@@ -35,6 +35,8 @@ import numpy as np
 from navig8_fc.mavlink import codec, dialect, seam
 from navig8_fc.shell.mavlink_link import PortInUseError, bind_udp, write_ports_file
 from navig8_fc.shell.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat
+from navig8_fc.shell.transport import StreamTransport, open_endpoint, parse_connection
+from sim_bridge.link_budget import LinkBudget, link_budget
 from sim_bridge.messages import ActuatorCommand
 from sim_bridge.plant import Plant, PlantDivergedError
 from sim_bridge.scenario import Scenario
@@ -43,6 +45,7 @@ from sim_bridge.world import load_world, parse_world_items
 BASE_BRIDGE_PORT = 4560  # + 2 N: the bridge binds here (PX4's simulator port)
 BASE_FC_PORT = 4561  # + 2 N: the FC's sim link
 STARTUP_RESEND_S = 0.1  # re-send step 0 this often until the FC answers
+STREAM_STARTUP_RESEND_S = 1.0  # on TCP/serial: re-sent bundles queue in the stream, and the FC answers every one
 STATUS_PERIOD_S = 1.0  # NAVIG8_SIM_STATUS period (wall)
 REANCHOR_LAG_S = 0.5  # paced runs that fall this far behind (a stall) restart pacing instead of bursting
 SPIN_S = 0.002  # busy-poll window at --speed 0 (see _receive)
@@ -82,6 +85,8 @@ class BridgeOptions:
     grab_mass_kg: float | None = None  # object mass a GRAB picks up (default: from the scenario)
     ports_file: Path | None = None  # written after binding: {"bridge": port}
     world: tuple[tuple[str, float], ...] = ()  # world overrides (sim_bridge.world), as navig8-sim --world
+    free_run: bool = False  # real time: step on the wall clock with the newest answer, never wait (docs/hil.md)
+    link: str | None = None  # connection string of the FC link (udpin:, udpout:, tcpin:, tcp:, serial:); None: UDP
 
     @property
     def sysid(self) -> int:
@@ -141,6 +146,8 @@ class Bridge:
     def __init__(self, opts: BridgeOptions) -> None:
         if opts.speed < 0 or not math.isfinite(opts.speed):
             raise ValueError("--speed must be >= 0 (0: as fast as possible)")
+        if opts.free_run and opts.speed <= 0:
+            raise ValueError("--free-run needs a wall-clock pace: --speed > 0")
         if not (opts.step_timeout_s > 0 and opts.stall_abort_s > 0):
             raise ValueError("--step-timeout and --stall-abort must be > 0")
         self.opts = opts
@@ -166,11 +173,19 @@ class Bridge:
         self.fc_nonce: int | None = None  # the paired FC's session nonce (None: not paired)
         self._fc_heard = -math.inf  # wall time of the paired FC's last frame
         self._resend_due = False  # a new pairing: send the current bundle at once
-        self.sock = bind_udp("bridge", (opts.host, opts.bridge_port_resolved))
+        self.budget: LinkBudget | None = None
+        if opts.link is None:
+            self.sock = bind_udp("bridge", (opts.host, opts.bridge_port_resolved))
+        else:  # a connection string: UDP, TCP or serial (navig8_fc/shell/transport.py); a serial line's budget first
+            conn = parse_connection(opts.link)
+            self.budget = link_budget(self.codec, conn, 1e6 / self.dt_us)  # ValueError: the rate does not fit
+            ep = open_endpoint("bridge", conn)
+            self.sock, self.fc_addr = ep.sock, (ep.targets[0] if ep.targets else None)
         self.port = int(self.sock.getsockname()[1])
         if opts.ports_file is not None:
             write_ports_file(opts.ports_file, {"bridge": self.port})
         self.step = 0
+        self._newest_answer_us = 0
         self._wall_start: float | None = None  # when stepping began (answer to step 0)
         self._pace_anchor: tuple[float, int] = (0.0, 0)  # (wall, step) pacing is measured from
         self._status_due = 0.0
@@ -277,8 +292,10 @@ class Bridge:
             self._fc_heard = time.perf_counter()
             if name == "HIL_ACTUATOR_CONTROLS":
                 fields = m.fields
-                if fields["time_usec"] == want and answer is None:
+                t_ans = fields["time_usec"]
+                if answer is None and (t_ans == want or self.opts.free_run and self._newest_answer_us < t_ans <= want):
                     answer = seam.decode_actuator_controls(fields, self.limits)
+                    self._newest_answer_us = t_ans  # free run: the newest answer to any bundle sent so far
                     c.answers += 1
                 else:
                     c.stale_answers += 1
@@ -391,7 +408,8 @@ class Bridge:
         c = self.counters
         print(f"navig8-bridge: scenario {self.scenario.name} (seed {o.seed}), sysid {o.sysid}, dt {o.dt_s:g} s, "
               f"speed {o.speed:g}{' (as fast as possible)' if o.speed == 0 else 'x'}, "
-              f"bound {o.host}:{self.port}, FC at {self._fc_text()}"
+              + (f"bound {o.host}:{self.port}" if o.link is None else f"link {o.link}") + f", FC at {self._fc_text()}"
+              + (f", {self.budget.line()}" if self.budget is not None else "")
               + (f", until done at t={self.n_steps * self.dt_us * 1e-6:g} s" if o.until_done else ""),
               file=sys.stderr, flush=True)
         gc.collect()
@@ -402,7 +420,8 @@ class Bridge:
         self._send_status(now)
         self._send(data)
         c.bundles_sent += 1
-        ans = self._wait_answer(data, now, STARTUP_RESEND_S, startup=True)
+        ans = self._wait_answer(data, now, STREAM_STARTUP_RESEND_S if isinstance(self.sock, StreamTransport)
+                                else STARTUP_RESEND_S, startup=True)
         now = time.perf_counter()
         self._wall_start = now
         self._pace_anchor = (now, 0)
@@ -412,6 +431,8 @@ class Bridge:
         plant, mav, arm, sock = self.plant, self.mav, self.arm, self.sock
         until_done, n_steps, paced, step_timeout_s = o.until_done, self.n_steps, o.speed > 0, o.step_timeout_s
         encode_bundle, perf_counter = seam.encode_bundle, time.perf_counter
+        if o.free_run:
+            return self._run_free(ans)
         while True:
             if until_done and self.step >= n_steps:
                 break
@@ -443,6 +464,39 @@ class Bridge:
             self._send_status(now)
         return EXIT_OK
 
+    def _run_free(self, ans: seam.ActuatorControls) -> int:
+        """Real time (--free-run): step k is released at anchor + t_k / speed whatever the FC does; the plant holds
+        the newest answer (zero-order hold), answers to older bundles are counted stale. No answer for
+        --stall-abort s: exit 3, as in lockstep."""
+        o, c, plant, arm = self.opts, self.counters, self.plant, self.arm
+        period = self.dt_us * 1e-6 / o.speed
+        last_answer = anchor = time.perf_counter()
+        k0 = 0
+        while not (o.until_done and self.step >= self.n_steps):
+            release = anchor + (self.step + 1 - k0) * period
+            while (now := time.perf_counter()) < release:
+                if now >= self._status_due:
+                    self._send_status(now)
+                got = self._receive(release - now)
+                if got is not None:
+                    ans, last_answer = got, time.perf_counter()
+            if now - release > REANCHOR_LAG_S:  # fell behind (a stall): continue from here, no burst
+                anchor, k0 = now, self.step
+            if now - last_answer > o.stall_abort_s:
+                raise _Stalled(f"navig8-bridge: navig8-fc stalled: no actuator answer for {now - last_answer:.1f} s "
+                               f"(--stall-abort {o.stall_abort_s:g} s, free run); stopping")
+            if arm.pending_gripper:
+                self._apply_arm()
+            plant.step_us(ActuatorCommand(ans.tilt_rad, ans.speed_rad_s, arm.joint_targets_rad), self.dt_us)
+            self.step += 1
+            c.steps += 1
+            self._send(self._bundle())
+            c.bundles_sent += 1
+        self.state = seam.SIM_STATE_DONE
+        for _ in range(3):
+            self._send_status(time.perf_counter())
+        return EXIT_OK
+
     def summary_line(self) -> str:
         now = time.perf_counter()
         wall = now - self._wall_start if self._wall_start is not None else 0.0
@@ -465,6 +519,13 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--fc-port", type=int, default=None,
                     help="UDP port navig8-fc listens on (default 4561+2N; 0: learn it from the FC's announcement)")
     ap.add_argument("--host", default="127.0.0.1", help="address to bind and of the FC")
+    ap.add_argument("--free-run", action="store_true",
+                    help="real time: step on the wall clock at --speed with the newest answer, never wait for the FC "
+                         "(for navig8-fc --timing realtime or a board; docs/hil.md)")
+    ap.add_argument("--link", default=None, metavar="CONN",
+                    help="the FC link as a connection string instead of --bridge-port/--fc-port: udpin:H:P, "
+                         "udpout:H:P, tcpin:H:P (PX4's simulator side, 4560), tcp:H:P, serial:DEVICE:BAUD "
+                         "(the bundle must fit the line: docs/hil.md)")
     ap.add_argument("--until-done", action="store_true",
                     help="stop at the scenario's duration, send NAVIG8_SIM_STATUS done and exit 0")
     ap.add_argument("--duration", type=float, default=None, help="override the scenario's duration (s)")
@@ -488,7 +549,7 @@ def options_from_args(a: argparse.Namespace) -> BridgeOptions:
         fc_port=a.fc_port, host=a.host, until_done=a.until_done, duration_s=a.duration, dt_s=a.dt,
         step_timeout_s=a.step_timeout, stall_abort_s=a.stall_abort, startup_timeout_s=a.startup_timeout,
         grab_mass_kg=a.grab_mass, ports_file=Path(a.ports_file) if a.ports_file else None,
-        world=tuple(parse_world_items(a.world).items()),
+        world=tuple(parse_world_items(a.world).items()), link=a.link, free_run=a.free_run,
     )
 
 
@@ -501,6 +562,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.scenario.endswith((".yaml", ".yml")) and not Path(args.scenario).is_file():
         ap.error(f"no scenario file {args.scenario}")
+    if args.link:
+        try:
+            parse_connection(args.link)
+        except ValueError as e:
+            ap.error(str(e))
     signal.signal(signal.SIGINT, _raise_shutdown)
     signal.signal(signal.SIGTERM, _raise_shutdown)
     bridge: Bridge | None = None
@@ -511,12 +577,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"navig8-bridge: {e}", file=sys.stderr)
             return EXIT_USAGE
         except PortInUseError as e:
-            print(f"navig8-bridge: UDP {e.host}:{e.port} is in use by another process; choose another with "
-                  "--bridge-port (0: any free port) or --instance", file=sys.stderr)
+            print(f"navig8-bridge: {e.proto} {e.host}:{e.port} is in use by another process; choose another with "
+                  + ("--link" if args.link else "--bridge-port (0: any free port) or --instance"), file=sys.stderr)
             return EXIT_USAGE
         except OSError as e:
-            print(f"navig8-bridge: cannot bind {args.host}:{args.bridge_port or BASE_BRIDGE_PORT + 2 * args.instance}"
-                  f": {e}", file=sys.stderr)
+            where = args.link or f"{args.host}:{args.bridge_port or BASE_BRIDGE_PORT + 2 * args.instance}"
+            print(f"navig8-bridge: cannot open {where}: {e}", file=sys.stderr)
             return EXIT_START
         rc = bridge.run()
         print(bridge.summary_line(), file=sys.stderr)

@@ -127,6 +127,30 @@ def _finite_values(values: Sequence[Any]) -> bool:
     return total - total == 0.0
 
 
+class StreamRegrouper:
+    """A stream link's (TCP, serial) frames cut into datagram-like groups for `SimGuard.on_datagram`: a read ends
+    anywhere between frames, so a bundle may span two reads. A HEARTBEAT or NAVIG8_SIM_STATUS between bundles is a
+    group of its own; a bundle ends with its last message (HIL_SENSOR). A group longer than a bundle is handed on
+    as it is, for the guard to count as malformed."""
+
+    def __init__(self) -> None:
+        self._pending: list[Message] = []
+
+    def split(self, msgs: list[Message]) -> list[list[Message]]:
+        out: list[list[Message]] = []
+        pending = self._pending
+        for m in msgs:
+            name = m.name
+            if not pending and name in ("HEARTBEAT", "NAVIG8_SIM_STATUS"):
+                out.append([m])
+                continue
+            pending.append(m)
+            if name == _BUNDLE_NAMES[-1] or len(pending) >= len(_BUNDLE_NAMES):
+                out.append(pending)
+                pending = self._pending = []
+        return out
+
+
 @dataclass
 class SimGuard:
     """One FC's view of its sim link (module docstring). `new_nonce` gives session nonces (nonzero 32-bit)."""
@@ -135,6 +159,8 @@ class SimGuard:
     limits: SensorLimits
     new_nonce: Callable[[], int]
     counters: SimGuardCounters = field(default_factory=SimGuardCounters)
+    # real-time mode: any newer step is taken (a lost datagram leaves a gap); lockstep: only the next one
+    monotonic: bool = False
     peer: tuple[str, int] | None = None
     nonce: int = 0
     last_heard_s: float = -math.inf  # wall time of the last datagram from the paired bridge
@@ -246,7 +272,11 @@ class SimGuard:
                 c.duplicates += 1
                 return _DUPLICATE
             dt = self._dt_us
-            if step != self._step + 1 or tu <= self._time_usec or (dt is not None and tu - self._time_usec != dt):
+            if self.monotonic:  # real time (FC_TIMING = 1): gaps are losses, counted by the real-time clock
+                if step <= self._step or tu <= self._time_usec:
+                    c.out_of_order += 1
+                    return _NONE
+            elif step != self._step + 1 or tu <= self._time_usec or (dt is not None and tu - self._time_usec != dt):
                 c.out_of_order += 1
                 self._notice("out_of_order", f"Sim link: step {step} out of order (at {self._step})")
                 return _NONE
