@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench lint docs clean install
+.PHONY: demo test test-hil bench lint docs clean install
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -30,6 +30,14 @@ test: $(STAMP)
 	# tests/conftest.py warms numba's cache once before xdist starts its workers. Exit 5 (no tests) fails.
 	$(PY) -m pytest -q -m 'not slow' -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: fast lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
 	$(PY) -m pytest -q -m slow; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; exit $$rc
+
+# The interop tests against an FC running elsewhere, by connection string (docs/hil.md); without FC the local pair:
+#   make test-hil FC=udpin:0.0.0.0:14550 FC_API=udpin:0.0.0.0:14540 BRIDGE=tcpin:0.0.0.0:4560   (BRIDGE=none: no sim)
+FC ?=
+FC_GCS ?= $(FC)
+test-hil: $(STAMP)
+	$(PY) -m pytest -q tests/sitl/test_hil_interop.py $(if $(FC_GCS),--fc-gcs=$(FC_GCS)) \
+		$(if $(FC_API),--fc-api=$(FC_API)) $(if $(BRIDGE),--bridge=$(BRIDGE)) $(if $(FC_SYSID),--fc-sysid=$(FC_SYSID))
 
 bench: $(STAMP)
 	$(VENV)/bin/navig8-bench

@@ -10,9 +10,9 @@ HIL_SENSOR last) and waits for the FC's single HIL_ACTUATOR_CONTROLS echoing tha
 command for dt (zero-order hold), steps the plant and sends step k + 1. A thin I/O loop: no controller code.
 
 Ports: --bridge-port 0 binds a free port; --ports-file PATH then receives {"bridge": port} (JSON, written
-atomically after binding). The FC's address is --fc-port at --host until the FC talks: any valid frame from
-the FC (its HEARTBEAT announcement at start, its answers) sets the address its datagrams come from;
---fc-port 0 sends nothing until the FC has announced itself.
+atomically after binding). Pairing (docs/bridge.md, "Pairing and sequencing"): until paired the bridge sends pair
+requests to --fc-port at --host (none with --fc-port 0); the FC's announcement carries a session nonce, the bridge
+echoes it and from then on talks only to that address and takes answers only from it.
 
 Exit codes: 0 done (--until-done) or stopped by SIGINT/SIGTERM; 1 cannot start; 2 bad arguments or the
 port in use; 3 navig8-fc stalled longer than --stall-abort; 4 the plant diverged.
@@ -34,6 +34,9 @@ import numpy as np
 
 from navig8_fc.mavlink import codec, dialect, seam
 from navig8_fc.shell.mavlink_link import PortInUseError, bind_udp, write_ports_file
+from navig8_fc.shell.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat
+from navig8_fc.shell.transport import StreamTransport, open_endpoint, parse_connection
+from sim_bridge.link_budget import LinkBudget, link_budget
 from sim_bridge.messages import ActuatorCommand
 from sim_bridge.plant import Plant, PlantDivergedError
 from sim_bridge.scenario import Scenario
@@ -42,6 +45,7 @@ from sim_bridge.world import load_world, parse_world_items
 BASE_BRIDGE_PORT = 4560  # + 2 N: the bridge binds here (PX4's simulator port)
 BASE_FC_PORT = 4561  # + 2 N: the FC's sim link
 STARTUP_RESEND_S = 0.1  # re-send step 0 this often until the FC answers
+STREAM_STARTUP_RESEND_S = 1.0  # on TCP/serial: re-sent bundles queue in the stream, and the FC answers every one
 STATUS_PERIOD_S = 1.0  # NAVIG8_SIM_STATUS period (wall)
 REANCHOR_LAG_S = 0.5  # paced runs that fall this far behind (a stall) restart pacing instead of bursting
 SPIN_S = 0.002  # busy-poll window at --speed 0 (see _receive)
@@ -81,6 +85,8 @@ class BridgeOptions:
     grab_mass_kg: float | None = None  # object mass a GRAB picks up (default: from the scenario)
     ports_file: Path | None = None  # written after binding: {"bridge": port}
     world: tuple[tuple[str, float], ...] = ()  # world overrides (sim_bridge.world), as navig8-sim --world
+    free_run: bool = False  # real time: step on the wall clock with the newest answer, never wait (docs/hil.md)
+    link: str | None = None  # connection string of the FC link (udpin:, udpout:, tcpin:, tcp:, serial:); None: UDP
 
     @property
     def sysid(self) -> int:
@@ -107,6 +113,9 @@ class BridgeCounters:
     bad_frames: int = 0  # malformed, bad CRC, unknown ids, truncated, signed (not verified here)
     garbage_bytes: int = 0  # bytes between frames
     foreign_frames: int = 0  # from another system or component
+    wrong_sender: int = 0  # FC frames from an address other than the paired FC's (or before pairing)
+    pair_refused: int = 0  # FC announcements from another address while the paired FC is live
+    sessions: int = 0  # pairings with an FC (docs/bridge.md, "Pairing and sequencing")
     other_frames: int = 0  # valid FC frames the bridge does not use (HEARTBEAT, ...)
     datagrams_in: int = 0
     oversize: int = 0
@@ -137,6 +146,8 @@ class Bridge:
     def __init__(self, opts: BridgeOptions) -> None:
         if opts.speed < 0 or not math.isfinite(opts.speed):
             raise ValueError("--speed must be >= 0 (0: as fast as possible)")
+        if opts.free_run and opts.speed <= 0:
+            raise ValueError("--free-run needs a wall-clock pace: --speed > 0")
         if not (opts.step_timeout_s > 0 and opts.stall_abort_s > 0):
             raise ValueError("--step-timeout and --stall-abort must be > 0")
         self.opts = opts
@@ -159,11 +170,22 @@ class Bridge:
         self.arm = _ArmState()
         # None: --fc-port 0, nothing is sent until the FC announces itself (see _handle)
         self.fc_addr: tuple[str, int] | None = (opts.host, opts.fc_port_resolved) if opts.fc_port_resolved else None
-        self.sock = bind_udp("bridge", (opts.host, opts.bridge_port_resolved))
+        self.fc_nonce: int | None = None  # the paired FC's session nonce (None: not paired)
+        self._fc_heard = -math.inf  # wall time of the paired FC's last frame
+        self._resend_due = False  # a new pairing: send the current bundle at once
+        self.budget: LinkBudget | None = None
+        if opts.link is None:
+            self.sock = bind_udp("bridge", (opts.host, opts.bridge_port_resolved))
+        else:  # a connection string: UDP, TCP or serial (navig8_fc/shell/transport.py); a serial line's budget first
+            conn = parse_connection(opts.link)
+            self.budget = link_budget(self.codec, conn, 1e6 / self.dt_us)  # ValueError: the rate does not fit
+            ep = open_endpoint("bridge", conn)
+            self.sock, self.fc_addr = ep.sock, (ep.targets[0] if ep.targets else None)
         self.port = int(self.sock.getsockname()[1])
         if opts.ports_file is not None:
             write_ports_file(opts.ports_file, {"bridge": self.port})
         self.step = 0
+        self._newest_answer_us = 0
         self._wall_start: float | None = None  # when stepping began (answer to step 0)
         self._pace_anchor: tuple[float, int] = (0.0, 0)  # (wall, step) pacing is measured from
         self._status_due = 0.0
@@ -178,6 +200,9 @@ class Bridge:
         return f"{self.fc_addr[0]}:{self.fc_addr[1]}" if self.fc_addr else "(port unknown until it announces itself)"
 
     def _send(self, data: bytes) -> None:
+        """To the paired FC; before pairing, a pair request instead (to --fc-port, if known)."""
+        if self.fc_nonce is None:
+            data = self.mav.frame(*pairing_heartbeat(0))
         if self.fc_addr is None:
             return  # the FC's address is not known yet (--fc-port 0): its announcement will tell
         try:
@@ -236,8 +261,9 @@ class Bridge:
     def _handle(self, data: bytes, addr: tuple[str, int] | None = None) -> seam.ActuatorControls | None:
         """Count and decode one datagram (from addr); the answer to the current step if it holds it (else None).
 
-        Frames from our FC (sysid, COMPID_FC) set the FC's address to addr: the FC announces itself with a
-        HEARTBEAT at start, so a bridge that does not know the FC's port (or an FC restarted elsewhere) is found."""
+        Pairing: the FC's HEARTBEAT carries its session nonce; the bridge pairs with that address (while unpaired,
+        from the paired address itself, or once the paired FC has been silent REPAIR_SILENCE_S) and echoes the
+        nonce. Answers and arm commands count only from the paired FC's address."""
         c = self.counters
         c.datagrams_in += 1
         if len(data) > MAX_ACCEPTED_DATAGRAM:
@@ -256,14 +282,20 @@ class Bridge:
             if m.sysid != sysid or m.compid != dialect.COMPID_FC:
                 c.foreign_frames += 1
                 continue
-            if addr is not None and addr != self.fc_addr:
-                self.fc_addr = addr
-                self._status_due = 0.0  # a new FC address hears the status first, then the (re-sent) bundle
             name = m.name
+            if name == "HEARTBEAT":
+                self._on_fc_heartbeat(int(m.fields["custom_mode"]), addr)
+                continue
+            if self.fc_nonce is None or addr != self.fc_addr:
+                c.wrong_sender += 1
+                continue
+            self._fc_heard = time.perf_counter()
             if name == "HIL_ACTUATOR_CONTROLS":
                 fields = m.fields
-                if fields["time_usec"] == want and answer is None:
+                t_ans = fields["time_usec"]
+                if answer is None and (t_ans == want or self.opts.free_run and self._newest_answer_us < t_ans <= want):
                     answer = seam.decode_actuator_controls(fields, self.limits)
+                    self._newest_answer_us = t_ans  # free run: the newest answer to any bundle sent so far
                     c.answers += 1
                 else:
                     c.stale_answers += 1
@@ -272,6 +304,24 @@ class Bridge:
             else:
                 c.other_frames += 1
         return answer
+
+    def _on_fc_heartbeat(self, nonce: int, addr: tuple[str, int] | None) -> None:
+        """The FC's announcement: pair (echo its nonce), or refuse while another live FC is paired."""
+        c = self.counters
+        if nonce == 0 or addr is None:
+            c.other_frames += 1
+            return
+        if addr == self.fc_addr and nonce == self.fc_nonce:
+            return  # the same announcement again: already paired
+        now = time.perf_counter()
+        if self.fc_nonce is not None and addr != self.fc_addr and now - self._fc_heard < REPAIR_SILENCE_S:
+            c.pair_refused += 1
+            return
+        self.fc_addr, self.fc_nonce, self._fc_heard = addr, nonce, now
+        c.sessions += 1
+        self._send(self.mav.frame(*pairing_heartbeat(nonce)))
+        self._send_status(now)  # the new FC hears the status first, then the current bundle, at once
+        self._resend_due = True
 
     def _on_arm_cmd(self, fields: dict[str, Any]) -> None:
         try:
@@ -307,6 +357,9 @@ class Bridge:
             ans = self._receive(timeout)
             if ans is not None:
                 return ans
+            if self._resend_due:
+                self._resend_due = False
+                self._send(data)
             now = time.perf_counter()
             if now >= next_resend:
                 waited = now - first_sent
@@ -355,7 +408,8 @@ class Bridge:
         c = self.counters
         print(f"navig8-bridge: scenario {self.scenario.name} (seed {o.seed}), sysid {o.sysid}, dt {o.dt_s:g} s, "
               f"speed {o.speed:g}{' (as fast as possible)' if o.speed == 0 else 'x'}, "
-              f"bound {o.host}:{self.port}, FC at {self._fc_text()}"
+              + (f"bound {o.host}:{self.port}" if o.link is None else f"link {o.link}") + f", FC at {self._fc_text()}"
+              + (f", {self.budget.line()}" if self.budget is not None else "")
               + (f", until done at t={self.n_steps * self.dt_us * 1e-6:g} s" if o.until_done else ""),
               file=sys.stderr, flush=True)
         gc.collect()
@@ -366,7 +420,8 @@ class Bridge:
         self._send_status(now)
         self._send(data)
         c.bundles_sent += 1
-        ans = self._wait_answer(data, now, STARTUP_RESEND_S, startup=True)
+        ans = self._wait_answer(data, now, STREAM_STARTUP_RESEND_S if isinstance(self.sock, StreamTransport)
+                                else STARTUP_RESEND_S, startup=True)
         now = time.perf_counter()
         self._wall_start = now
         self._pace_anchor = (now, 0)
@@ -376,6 +431,8 @@ class Bridge:
         plant, mav, arm, sock = self.plant, self.mav, self.arm, self.sock
         until_done, n_steps, paced, step_timeout_s = o.until_done, self.n_steps, o.speed > 0, o.step_timeout_s
         encode_bundle, perf_counter = seam.encode_bundle, time.perf_counter
+        if o.free_run:
+            return self._run_free(ans)
         while True:
             if until_done and self.step >= n_steps:
                 break
@@ -407,6 +464,39 @@ class Bridge:
             self._send_status(now)
         return EXIT_OK
 
+    def _run_free(self, ans: seam.ActuatorControls) -> int:
+        """Real time (--free-run): step k is released at anchor + t_k / speed whatever the FC does; the plant holds
+        the newest answer (zero-order hold), answers to older bundles are counted stale. No answer for
+        --stall-abort s: exit 3, as in lockstep."""
+        o, c, plant, arm = self.opts, self.counters, self.plant, self.arm
+        period = self.dt_us * 1e-6 / o.speed
+        last_answer = anchor = time.perf_counter()
+        k0 = 0
+        while not (o.until_done and self.step >= self.n_steps):
+            release = anchor + (self.step + 1 - k0) * period
+            while (now := time.perf_counter()) < release:
+                if now >= self._status_due:
+                    self._send_status(now)
+                got = self._receive(release - now)
+                if got is not None:
+                    ans, last_answer = got, time.perf_counter()
+            if now - release > REANCHOR_LAG_S:  # fell behind (a stall): continue from here, no burst
+                anchor, k0 = now, self.step
+            if now - last_answer > o.stall_abort_s:
+                raise _Stalled(f"navig8-bridge: navig8-fc stalled: no actuator answer for {now - last_answer:.1f} s "
+                               f"(--stall-abort {o.stall_abort_s:g} s, free run); stopping")
+            if arm.pending_gripper:
+                self._apply_arm()
+            plant.step_us(ActuatorCommand(ans.tilt_rad, ans.speed_rad_s, arm.joint_targets_rad), self.dt_us)
+            self.step += 1
+            c.steps += 1
+            self._send(self._bundle())
+            c.bundles_sent += 1
+        self.state = seam.SIM_STATE_DONE
+        for _ in range(3):
+            self._send_status(time.perf_counter())
+        return EXIT_OK
+
     def summary_line(self) -> str:
         now = time.perf_counter()
         wall = now - self._wall_start if self._wall_start is not None else 0.0
@@ -429,6 +519,13 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--fc-port", type=int, default=None,
                     help="UDP port navig8-fc listens on (default 4561+2N; 0: learn it from the FC's announcement)")
     ap.add_argument("--host", default="127.0.0.1", help="address to bind and of the FC")
+    ap.add_argument("--free-run", action="store_true",
+                    help="real time: step on the wall clock at --speed with the newest answer, never wait for the FC "
+                         "(for navig8-fc --timing realtime or a board; docs/hil.md)")
+    ap.add_argument("--link", default=None, metavar="CONN",
+                    help="the FC link as a connection string instead of --bridge-port/--fc-port: udpin:H:P, "
+                         "udpout:H:P, tcpin:H:P (PX4's simulator side, 4560), tcp:H:P, serial:DEVICE:BAUD "
+                         "(the bundle must fit the line: docs/hil.md)")
     ap.add_argument("--until-done", action="store_true",
                     help="stop at the scenario's duration, send NAVIG8_SIM_STATUS done and exit 0")
     ap.add_argument("--duration", type=float, default=None, help="override the scenario's duration (s)")
@@ -452,7 +549,7 @@ def options_from_args(a: argparse.Namespace) -> BridgeOptions:
         fc_port=a.fc_port, host=a.host, until_done=a.until_done, duration_s=a.duration, dt_s=a.dt,
         step_timeout_s=a.step_timeout, stall_abort_s=a.stall_abort, startup_timeout_s=a.startup_timeout,
         grab_mass_kg=a.grab_mass, ports_file=Path(a.ports_file) if a.ports_file else None,
-        world=tuple(parse_world_items(a.world).items()),
+        world=tuple(parse_world_items(a.world).items()), link=a.link, free_run=a.free_run,
     )
 
 
@@ -465,6 +562,11 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.scenario.endswith((".yaml", ".yml")) and not Path(args.scenario).is_file():
         ap.error(f"no scenario file {args.scenario}")
+    if args.link:
+        try:
+            parse_connection(args.link)
+        except ValueError as e:
+            ap.error(str(e))
     signal.signal(signal.SIGINT, _raise_shutdown)
     signal.signal(signal.SIGTERM, _raise_shutdown)
     bridge: Bridge | None = None
@@ -475,12 +577,12 @@ def main(argv: list[str] | None = None) -> int:
             print(f"navig8-bridge: {e}", file=sys.stderr)
             return EXIT_USAGE
         except PortInUseError as e:
-            print(f"navig8-bridge: UDP {e.host}:{e.port} is in use by another process; choose another with "
-                  "--bridge-port (0: any free port) or --instance", file=sys.stderr)
+            print(f"navig8-bridge: {e.proto} {e.host}:{e.port} is in use by another process; choose another with "
+                  + ("--link" if args.link else "--bridge-port (0: any free port) or --instance"), file=sys.stderr)
             return EXIT_USAGE
         except OSError as e:
-            print(f"navig8-bridge: cannot bind {args.host}:{args.bridge_port or BASE_BRIDGE_PORT + 2 * args.instance}"
-                  f": {e}", file=sys.stderr)
+            where = args.link or f"{args.host}:{args.bridge_port or BASE_BRIDGE_PORT + 2 * args.instance}"
+            print(f"navig8-bridge: cannot open {where}: {e}", file=sys.stderr)
             return EXIT_START
         rc = bridge.run()
         print(bridge.summary_line(), file=sys.stderr)
@@ -501,9 +603,10 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         if bridge is not None:
             bridge.close()
-        # a second signal during shutdown must not print a traceback
-        signal.signal(signal.SIGINT, signal.SIG_DFL)
-        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        # a second signal during shutdown (the terminal's Ctrl-C and navig8-sitl's forward) must neither print a
+        # traceback nor kill us on the way out
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 if __name__ == "__main__":

@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import argparse
 import ctypes
+import dataclasses
+import gc
 import hashlib
+import io
 import itertools
 import json
 import os
@@ -31,6 +34,7 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -47,8 +51,18 @@ METRICS = ("sim_time_s", "wall_time_s", "real_time_factor", "lost_control", "los
            "max_eigenvalue", "bound_violations", "max_pos_error_m", "pos_rms_error_m", "max_att_error_deg",
            "peak_reaction_force_n", "peak_reaction_torque_nm", "max_joint_rate_rad_s", "max_joint_accel_rad_s2",
            "steps_settled", "steps_total")
+# Columns of a sitl run that flies a plan (from navig8-mission's fly(): items, items reached, complete, path length)
+MISSION_METRICS = ("mission_items", "mission_reached", "mission_complete", "mission_path_m")
 # Columns that depend on where and when a run ran, not on its row (left out when comparing two tables).
-RUN_ENV_COLUMNS = ("wall_time_s", "real_time_factor", "run_wall_s", "worker")
+RUN_ENV_COLUMNS = ("wall_time_s", "real_time_factor", "run_wall_s", "run_cpu_s", "worker")
+# Thread counts of a worker process: the ones Dask's nanny gives its workers (distributed.nanny.pre-spawn-environ).
+# A run's linear algebra is on matrices of 3x3 to 12x12, where OpenBLAS's second thread only spins: in one process
+# it burns the idle core (+30 % CPU per run, docs/results.md), in a pool of one process per core it takes the
+# other worker's core.
+WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+# Dask configuration of the LocalCluster's workers (docs/campaigns.md: the same for a cluster's workers).
+DASK_WORKER_CONFIG = {"distributed.worker.profile.enabled": False,
+                      "distributed.admin.system-monitor.gil.enabled": False}
 
 
 # ---------------------------------------------------------------------------------------------
@@ -100,6 +114,9 @@ class Campaign:
     sample_seed: int
     heatmap: tuple[str, str] | None  # two factor names for the report's heat maps
     world: tuple[tuple[str, float], ...] = ()  # fixed world overrides of every run
+    plan: tuple[Any, ...] = ()  # sitl: mission items (navig8_fc.mission.plan.MissionItem) every run uploads and flies
+    plan_source: str = ""  # where the plan came from: a file path, or "from-scenario:NAME"
+    speed: float = 0.0  # sitl: navig8-sitl --speed (0: as fast as possible)
 
     @staticmethod
     def from_dict(d: Mapping[str, Any], base_dir: Path | None = None) -> Campaign:
@@ -139,18 +156,43 @@ class Campaign:
             scenario = str((base_dir / scenario).resolve())
         seeds = d.get("seeds", [1])
         seeds = list(range(1, int(seeds) + 1)) if isinstance(seeds, int) else [int(s) for s in seeds]
+        plan, plan_source = _load_plan(d.get("plan"), base_dir)
+        if plan and kind != "sitl":
+            raise ValueError("a plan is flown over MAVLink: it needs kind: sitl")
         return Campaign(
             name=str(d.get("name", "campaign")), description=str(d.get("description", "")), kind=kind,
             scenario=scenario, duration_s=None if d.get("duration_s") is None else float(d["duration_s"]),
             timeout_s=float(d.get("timeout_s", 300.0)), variants=tuple(variants), factors=tuple(factors),
             seeds=tuple(seeds), samples=int(d.get("samples", 1)), sample_seed=int(d.get("sample_seed", 0)),
             heatmap=tuple(hm) if hm else None,
-            world=tuple((str(k), float(v)) for k, v in (d.get("world") or {}).items()))
+            world=tuple((str(k), float(v)) for k, v in (d.get("world") or {}).items()), plan=plan,
+            plan_source=plan_source, speed=float(d.get("speed", 0.0)))
 
     @staticmethod
     def load(path: str | Path) -> Campaign:
         p = Path(path)
         return Campaign.from_dict(yaml.safe_load(p.read_text()), p.parent)
+
+
+def _load_plan(spec: Any, base_dir: Path | None) -> tuple[tuple[Any, ...], str]:
+    """The campaign's `plan:`: a plan file (QGroundControl .plan or waypoint text; relative to the campaign file)
+    or {from_scenario: NAME} (navig8-mission from-scenario: a scenario's script and arm schedule as a plan)."""
+    if spec is None:
+        return (), ""
+    from navig8_tools.mission import plan_from_scenario, read_plan
+
+    if isinstance(spec, Mapping):
+        if set(spec) != {"from_scenario"}:
+            raise ValueError(f"plan: a file name or {{from_scenario: NAME}}, got {dict(spec)!r}")
+        name = str(spec["from_scenario"])
+        return plan_from_scenario(name), f"from-scenario:{name}"
+    path = Path(str(spec))
+    if base_dir is not None and not path.is_absolute():
+        path = (base_dir / path).resolve()
+    items = read_plan(path).mission
+    if not items:
+        raise ValueError(f"plan {path}: no mission items")
+    return items, str(path)
 
 
 @dataclass(frozen=True)
@@ -171,6 +213,9 @@ class Row:
     params: dict[str, float]
     timeout_s: float
     instance: int = field(default=0)  # SITL only: ports 4560 + 2N... (navig8-sitl --instance)
+    plan: tuple[Any, ...] = ()  # SITL only: the mission items uploaded and flown (Campaign.plan)
+    plan_source: str = ""
+    speed: float = 0.0  # SITL only: navig8-sitl --speed
 
 
 def _run_id(variant: str, content: Mapping[str, Any]) -> str:
@@ -198,29 +243,55 @@ def expand(c: Campaign) -> list[Row]:
                         (world if f.target == "world" else params)[f.key] = values[f.name]
                     content = {"kind": c.kind, "scenario": c.scenario, "duration_s": c.duration_s,
                                "controller": v.controller, "seed": seed, "world": world, "params": params}
+                    if c.plan:  # only then: the ids of campaigns without a plan stay what they were
+                        content |= {"plan": [dataclasses.astuple(it) for it in c.plan], "speed": c.speed}
+                    elif c.speed:
+                        content["speed"] = c.speed
                     rows.append(Row(len(rows), _run_id(v.name, content), c.kind, c.scenario, c.duration_s, v.name,
                                     v.controller, seed, s, values, world, params, c.timeout_s,
-                                    instance=1 + len(rows) % 500))
+                                    instance=1 + len(rows) % 500, plan=c.plan, plan_source=c.plan_source,
+                                    speed=c.speed))
     return rows
 
 
+def _set_and_duration_args(row: Row) -> tuple[list[str], list[str]]:
+    sets = [a for k, v in row.params.items() for a in ("--set", f"{k}={v!r}")]
+    return sets, (["--duration", f"{row.duration_s!r}"] if row.duration_s is not None else [])
+
+
 def replay_command(row: Row) -> str:
-    """The command that flies this row alone."""
+    """The command that flies this row alone (sitl with a plan: navig8-sitl, and navig8-mission as the GCS)."""
+    from sim_bridge.world import world_args
+
+    if row.kind == "inprocess":
+        sets, dur = _set_and_duration_args(row)
+        return shlex.join(["navig8-sim", "--scenario", row.scenario, "--controller", row.controller, "--seed",
+                           str(row.seed), *dur, *sets, *world_args(row.world), "--log",
+                           f"out/replay_{row.run_id}.mcap"])
+    sitl = shlex.join(_sitl_argv(row, Path(f"out/replay_{row.run_id}")))
+    if not row.plan:
+        return sitl
+    # navig8-fc sends to udp 14550 until a GCS talks: navig8-mission listens there, as QGroundControl would
+    plan, prep = row.plan_source, ""
+    if plan.startswith("from-scenario:"):
+        plan = f"out/replay_{row.run_id}.waypoints"
+        prep = shlex.join(["navig8-mission", "from-scenario", "--scenario", row.plan_source.split(":", 1)[1],
+                           plan]) + " && "
+    fly = shlex.join(["navig8-mission", "fly", plan, "--connect", "udpin:127.0.0.1:14550", "--timeout",
+                      f"{row.timeout_s:g}"])
+    return f"{prep}{{ {sitl} & {fly}; wait; }}"
+
+
+def _sitl_argv(row: Row, out: Path) -> list[str]:
+    """navig8-sitl's command line for a row, its log, state and summary in `out`."""
     from navig8_tools.sim import CONTROLLERS
     from sim_bridge.world import world_args
 
-    sets = [a for k, v in row.params.items() for a in ("--set", f"{k}={v!r}")]
-    dur = ["--duration", f"{row.duration_s!r}"] if row.duration_s is not None else []
-    if row.kind == "inprocess":
-        parts = ["navig8-sim", "--scenario", row.scenario, "--controller", row.controller, "--seed", str(row.seed),
-                 *dur, *sets, *world_args(row.world), "--log", f"out/replay_{row.run_id}.mcap"]
-    else:
-        ctrl = ["--set", f"CKF_MODE={CONTROLLERS[row.controller]}"]
-        parts = ["navig8-sitl", "--scenario", row.scenario, "--speed", "0", "--until-done", "--seed", str(row.seed),
-                 *dur, "--instance", str(row.instance), "--log-dir", f"out/replay_{row.run_id}", "--state-dir",
-                 f"out/replay_{row.run_id}", *ctrl, *sets, *[f"--bridge-arg={a}" for a in world_args(row.world)],
-                 "--summary", f"out/replay_{row.run_id}/summary.json"]
-    return shlex.join(parts)
+    sets, dur = _set_and_duration_args(row)
+    return ["navig8-sitl", "--scenario", row.scenario, "--speed", f"{row.speed:g}", "--until-done", "--seed",
+            str(row.seed), *dur, "--instance", str(row.instance), "--log-dir", str(out), "--state-dir", str(out),
+            "--set", f"CKF_MODE={CONTROLLERS[row.controller]}", *sets,
+            *[f"--bridge-arg={a}" for a in world_args(row.world)], "--summary", str(out / "summary.json")]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -262,7 +333,7 @@ def call_with_timeout(fn: Callable[[], Any], timeout_s: float) -> Any:
 
 
 def _flatten_summary(s: Mapping[str, Any]) -> dict[str, Any]:
-    out = {k: s.get(k) for k in METRICS if k in s}
+    out = {k: s.get(k) for k in (*METRICS, *MISSION_METRICS) if k in s}
     settle = s.get("settle") or []
     out["steps_settled"] = sum(1 for x in settle if x.get("settle_s") is not None)
     out["steps_total"] = len(settle)
@@ -276,46 +347,134 @@ def _inprocess(row: Row, tmp: Path) -> dict[str, Any]:
                world=dict(row.world)).summary
 
 
+class _RunEnded(Exception):
+    pass
+
+
+class _GcsUntil:
+    """The GCS connection as navig8-mission's fly() uses it, whose recv_match raises _RunEnded once `stop` is set:
+    fly() waits for the plan's end, and the run may end first (the scenario's duration)."""
+
+    def __init__(self, conn: Any, stop: threading.Event) -> None:
+        self._conn, self._stop = conn, stop
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._conn, name)
+
+    def recv_match(self, *args: Any, **kwargs: Any) -> Any:
+        if self._stop.is_set():
+            raise _RunEnded
+        return self._conn.recv_match(*args, **kwargs)
+
+
+def _fly_plan(gcs: Any, row: Row, proc: subprocess.Popen, deadline: float) -> dict[str, Any]:
+    """Be this run's ground station: wait for navig8-fc's HEARTBEAT, then navig8-mission's fly() (upload the plan,
+    Mission, arm, follow the progress) until the plan completes or navig8-sitl ends. The mission's columns."""
+    from navig8_tools.mission import fly
+
+    hb = None
+    while hb is None:
+        if proc.poll() is not None:
+            raise RuntimeError(f"navig8-sitl exited ({proc.returncode}) before navig8-fc's first HEARTBEAT")
+        if time.monotonic() > deadline:
+            raise RunTimeout(f"no HEARTBEAT from navig8-fc within {row.timeout_s:.0f} s")
+        m = gcs.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5)
+        hb = m if m is not None and m.get_srcComponent() == 1 else None
+    gcs.target_system, gcs.target_component = hb.get_srcSystem(), 1
+    stop = threading.Event()
+    out: dict[str, Any] = {}
+    log = io.StringIO()
+
+    def _fly() -> None:
+        try:
+            out["summary"] = fly(_GcsUntil(gcs, stop), row.plan, timeout_s=max(0.0, deadline - time.monotonic()),
+                                 out=log)
+        except _RunEnded:
+            pass
+        except Exception as exc:  # noqa: BLE001 - re-raised in the worker's thread below
+            out["error"] = exc
+
+    th = threading.Thread(target=_fly, name="navig8-campaign-gcs", daemon=True)
+    th.start()
+    while th.is_alive() and proc.poll() is None:
+        th.join(0.1)
+    stop.set()  # navig8-sitl has ended: fly() stops at its next receive (within 0.5 s)
+    th.join()
+    if "error" in out:
+        raise RuntimeError(f"flying the plan: {out['error']} | {' | '.join(log.getvalue().splitlines()[-2:])}")
+    s = out.get("summary")
+    if s is None:  # the run ended before the plan did
+        return {"mission_items": len(row.plan), "mission_reached": None, "mission_complete": False,
+                "mission_path_m": None}
+    return {"mission_items": s["items"], "mission_reached": len(s["reached"]), "mission_complete": s["complete"],
+            "mission_path_m": s["path_m"]}
+
+
 def _sitl(row: Row, tmp: Path) -> dict[str, Any]:
-    """navig8-sitl at --speed 0 on the row's own --instance: two processes over MAVLink/UDP, the command of
-    replay_command with this run's directories."""
+    """navig8-sitl on the row's own --instance (two processes over MAVLink/UDP: the command of replay_command,
+    with this run's directories). With a plan, this worker is the run's ground station (_fly_plan), on a UDP port
+    of its own that navig8-fc is told to send to."""
     # navig8-fc reads params/vehicle.yaml and the scenario's setpoint script itself; only the plant's side of the
     # world travels (--bridge-arg=--world)
     fc_only = [k for k in row.world if k.startswith(("fc_vehicle.", "vehicle.", "scenario.setpoints",
                                                      "scenario.duration_s", "scenario.armed"))]
     if fc_only:
         raise ValueError(f"the sitl kind cannot apply {fc_only} (navig8-fc's side of the world); use inprocess")
-    argv = shlex.split(replay_command(row))
-    for opt in ("--log-dir", "--state-dir"):
-        argv[argv.index(opt) + 1] = str(tmp)
-    argv[argv.index("--summary") + 1] = str(tmp / "summary.json")
-    cmd = [sys.executable, "-m", "navig8_fc.shell.sitl", *argv[1:]]
-    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            start_new_session=True)
-    try:
-        _, err = proc.communicate(timeout=row.timeout_s)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGINT)  # navig8-sitl stops both children
+    argv = _sitl_argv(row, tmp)
+    gcs = None
+    if row.plan:
+        from pymavlink import mavutil
+
+        gcs = mavutil.mavlink_connection("udpin:127.0.0.1:0", source_system=255, source_component=190,
+                                         dialect="common")
+        argv.append(f"--fc-arg=--gcs-port={gcs.port.getsockname()[1]}")
+    deadline = time.monotonic() + row.timeout_s
+    mission: dict[str, Any] = {}
+    # stderr to a file, not a pipe: nobody reads a pipe while the plan is flown, and a full one would block the FC
+    with open(tmp / "navig8-sitl.stderr", "wb") as err:
+        proc = subprocess.Popen([sys.executable, "-m", "navig8_fc.shell.sitl", *argv[1:]], stdin=subprocess.DEVNULL,
+                                stdout=subprocess.DEVNULL, stderr=err, start_new_session=True)
         try:
-            proc.communicate(timeout=15.0)
+            if gcs is not None:
+                mission = _fly_plan(gcs, row, proc, deadline)
+            proc.wait(timeout=max(0.0, deadline - time.monotonic()))
         except subprocess.TimeoutExpired:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
-        raise RunTimeout(f"navig8-sitl did not finish within {row.timeout_s:.0f} s") from None
+            _stop_group(proc)
+            raise RunTimeout(f"navig8-sitl did not finish within {row.timeout_s:.0f} s") from None
+        except BaseException:
+            _stop_group(proc)
+            raise
+        finally:
+            if gcs is not None:
+                gcs.close()
     if not (tmp / "summary.json").exists():  # exit 1 with a summary: it lost control, which is a result
-        tail = err.decode(errors="replace").strip().splitlines()[-3:]
+        tail = (tmp / "navig8-sitl.stderr").read_text(errors="replace").strip().splitlines()[-3:]
         raise RuntimeError(f"navig8-sitl exited with {proc.returncode}: {' | '.join(tail)}")
-    return json.loads((tmp / "summary.json").read_text())
+    return json.loads((tmp / "summary.json").read_text()) | mission
+
+
+def _stop_group(proc: subprocess.Popen) -> None:
+    """Stop navig8-sitl's process group: SIGINT (it stops both children), then SIGKILL."""
+    if proc.poll() is not None:
+        return
+    os.killpg(proc.pid, signal.SIGINT)
+    try:
+        proc.wait(timeout=15.0)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()
 
 
 RUNNERS: dict[str, Callable[[Row, Path], dict[str, Any]]] = {"inprocess": _inprocess, "sitl": _sitl}
 
 
 def execute_row(row: Row) -> dict[str, Any]:
-    """Fly one row; never raises: the record says ok / error / timeout (with the error) and the metrics."""
+    """Fly one row; never raises: the record says ok / error / timeout (with the error) and the metrics, and the
+    run's wall and CPU time in its worker (`run_cpu_s`: the whole worker process, its other threads included)."""
     rec: dict[str, Any] = {"run_id": row.run_id, "status": "ok", "error": None,
                            "worker": f"{os.uname().nodename}:{os.getpid()}"}
     t0 = time.perf_counter()
+    cpu0 = time.process_time()
     try:
         with tempfile.TemporaryDirectory(prefix="navig8_campaign_") as tmp:
             if row.kind == "sitl":  # the subprocess has its own timeout and is killed by it
@@ -330,7 +489,52 @@ def execute_row(row: Row) -> dict[str, Any]:
         where = f" ({Path(tb[-1].filename).name}:{tb[-1].lineno})" if tb else ""
         rec.update(status="error", error=f"{type(exc).__name__}: {exc}{where}")
     rec["run_wall_s"] = time.perf_counter() - t0
+    rec["run_cpu_s"] = time.process_time() - cpu0
     return rec
+
+
+def warm_worker(kind: str) -> None:
+    """Load once per worker process what every in-process run needs (the imports, numba's on-disk cache of the
+    plant's and the controller's kernels, the MCAP writer/reader and the summary) by flying 0.1 s of the hover
+    scenario with a log: the first row's run then costs what every other row costs, and its timeout_s counts
+    the run, not the worker's start. Then gc.freeze(): the ~150,000 objects alive now (modules, functions,
+    numba's dispatchers; ~185,000 in a Dask worker) live as long as the worker, and without the freeze the
+    cyclic garbage collector walks them all at each full collection a run's allocations trigger: ~20 % of a
+    run's CPU, and more the bigger the worker's heap (docs/campaigns.md, "Throughput"). Never raises: a broken
+    installation shows as each row's error instead."""
+    if kind != "inprocess":  # a sitl run is two new processes: nothing to keep warm here
+        return
+    try:
+        from navig8_tools.sim import run
+
+        with tempfile.TemporaryDirectory(prefix="navig8_warm_") as tmp:
+            run("hover", "proposed", 1, 0.1, Path(tmp) / "warm.mcap")
+    except Exception:  # noqa: BLE001, S110 - see the docstring
+        pass
+    gc.collect()
+    gc.freeze()
+
+
+@contextmanager
+def worker_pool(workers: int, kind: str) -> Iterator[Any]:
+    """A concurrent.futures process pool of `workers` spawned processes (spawn: they start clean, without the
+    parent's threads), each started with WORKER_ENV and warmed once (warm_worker). WORKER_ENV is in os.environ
+    while the pool lives (its processes are spawned on demand and load numpy with it; the parent's own thread
+    pools, loaded already, are unaffected) and restored after."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    old = {k: os.environ.get(k) for k in WORKER_ENV}
+    os.environ.update(WORKER_ENV)
+    try:
+        with ProcessPoolExecutor(workers, multiprocessing.get_context("spawn"), warm_worker, (kind,)) as pool:
+            yield pool
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 # ---------------------------------------------------------------------------------------------
@@ -339,18 +543,16 @@ def execute_row(row: Row) -> dict[str, Any]:
 
 
 def _pool_results(rows: list[Row], workers: int) -> Iterator[tuple[Row, dict[str, Any]]]:
-    """concurrent.futures' process pool (spawn: workers start clean, without the parent's threads). At most
-    2 x workers runs are in flight, so a worker that dies (BrokenProcessPool) costs only the runs in flight:
-    they are recorded as crashed and a new pool takes the rest."""
-    import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    """A local process pool (worker_pool). At most 2 x workers runs are in flight, so a worker that dies
+    (BrokenProcessPool) costs only the runs in flight: they are recorded as crashed and a new pool takes the rest."""
+    from concurrent.futures import FIRST_COMPLETED, wait
     from concurrent.futures.process import BrokenProcessPool
 
     todo = list(rows)
     todo.reverse()
-    ctx = multiprocessing.get_context("spawn")
+    kind = rows[0].kind if rows else "inprocess"
     while todo:
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        with worker_pool(workers, kind) as pool:
             inflight: dict[Any, Row] = {}
             broken = False
             while (todo or inflight) and not broken:
@@ -375,17 +577,34 @@ def _pool_results(rows: list[Row], workers: int) -> Iterator[tuple[Row, dict[str
 def _dask_results(rows: list[Row], cluster: str, workers: int) -> Iterator[tuple[Row, dict[str, Any]]]:
     """Dask distributed as its users drive it: a Client on the scheduler's address (or on a LocalCluster this
     campaign starts and stops), submit, as_completed. A worker that dies is the engine's business (the nanny
-    restarts it, the scheduler reschedules; after allowed-failures the task raises KilledWorker, recorded here)."""
+    restarts it, the scheduler reschedules; after allowed-failures the task raises KilledWorker, recorded here).
+    Every worker, also one that joins or restarts later, is warmed once by a worker plugin (warm_worker); its
+    thread counts are WORKER_ENV already (the nanny's pre-spawn-environ)."""
+    import dask
     from distributed import Client, LocalCluster, as_completed
+    from distributed.diagnostics.plugin import WorkerPlugin
+
+    class WarmWorker(WorkerPlugin):
+        name = "navig8-warm-worker"
+
+        def __init__(self, kind: str) -> None:
+            self.kind = kind
+
+        def setup(self, worker: Any) -> None:
+            warm_worker(self.kind)
 
     local = None
     if cluster == "local":
-        local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                             dashboard_address="127.0.0.1:0")  # a private cluster: loopback, free ports
+        # the workers' own sampling profiler walks the running task's stack every 10 ms (and a GIL monitor, when
+        # gilknocker is installed, every 1 ms): CPU and GIL taken from the runs, for a dashboard nobody reads here.
+        with dask.config.set(DASK_WORKER_CONFIG):
+            local = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                 dashboard_address="127.0.0.1:0")  # a private cluster: loopback, free ports
         client = Client(local)
     else:
         client = Client(cluster)
     try:
+        client.register_plugin(WarmWorker(rows[0].kind if rows else "inprocess"))
         futs = {client.submit(execute_row, r, key=f"navig8-run-{r.run_id}", pure=False): r for r in rows}
         for fut in as_completed(futs):
             r = futs[fut]
@@ -424,11 +643,12 @@ def row_record(row: Row, rec: Mapping[str, Any]) -> dict[str, Any]:
     """One table row: the row's identity and factors, then the run's record."""
     out: dict[str, Any] = {"index": row.index, "run_id": row.run_id, "variant": row.variant,
                            "controller": row.controller, "seed": row.seed, "sample": row.sample, **row.factors}
-    for k in ("status", "error", "run_wall_s", "worker"):
+    for k in ("status", "error", "run_wall_s", "run_cpu_s", "worker"):
         out[k] = rec.get(k)
-    for k in METRICS:
+    for k in (*METRICS, *(MISSION_METRICS if row.plan else ())):
         out[k] = rec.get(k)
-    out["success"] = bool(rec.get("status") == "ok" and rec.get("lost_control") is False)
+    out["success"] = bool(rec.get("status") == "ok" and rec.get("lost_control") is False
+                          and (not row.plan or rec.get("mission_complete") is True))
     out["replay"] = replay_command(row)
     return out
 
@@ -531,4 +751,4 @@ if __name__ == "__main__":
 
 
 __all__ = ["Campaign", "Factor", "Variant", "Row", "expand", "execute_row", "run_campaign", "build_table",
-           "read_stream", "replay_command", "comparable", "call_with_timeout", "main"]
+           "read_stream", "replay_command", "comparable", "call_with_timeout", "worker_pool", "warm_worker", "main"]

@@ -461,24 +461,21 @@ def _max_scale(ic, base, part):
 
 
 @njit(cache=True)
-def indi_step(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_inv, gi_hat, out):
-    """IndiController.step: filters, Delta U = G_C^-1 G_hat_I Delta Acc (Eq. 5), saturation by groups
-    (a_x, then Rdot, then roll/pitch/a_z), non-finite fallback to U0, U -> clipped actuators."""
+def indi_increment(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_inv, gi_hat, out, m, d, u0, du,
+                   u):
+    """The unconstrained INDI increment: filters, M = G_C^-1 G_hat_I into m, Delta Acc = v - Acc_f into d (and
+    out's DACC), Delta U = M Delta Acc (Eq. 5) into du, U0 into u0 and U = U0 + Delta U (Eq. 6) into u."""
     indi_measure(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, out)
-    m = np.empty((5, 5))
     for i in range(5):
         for j in range(5):
             acc = 0.0
             for k in range(5):
                 acc += gc_inv[i, k] * gi_hat[k, j]
             m[i, j] = acc
-    d = np.empty(5)
     for i in range(5):
         d[i] = accel_cmd[i] - out[IO.ACC_F + i]
         out[IO.DACC + i] = d[i]
-    u0 = out[IO.U0:IO.U0 + 5].copy()
-    du = np.empty(5)
-    u = np.empty(5)
+        u0[i] = out[IO.U0 + i]
     for i in range(5):
         acc = 0.0
         for k in range(5):
@@ -488,35 +485,11 @@ def indi_step(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_
     out[IO.SCALE] = 1.0
     out[IO.SCALE + 1] = 1.0
     out[IO.SCALE + 2] = 1.0
-    if not _feasible_v(ic, u):
-        rest = du.copy()
-        part = np.empty(5)
-        base = np.empty(5)
-        tmp = np.empty(5)
-        for g in range(3):
-            for i in range(5):
-                if g == 0:
-                    part[i] = m[i, 3] * d[3]
-                elif g == 1:
-                    part[i] = m[i, 2] * d[2]
-                else:
-                    part[i] = m[i, 0] * d[0] + m[i, 1] * d[1] + m[i, 4] * d[4]
-                base[i] = rest[i] - part[i]
-                tmp[i] = u0[i] + base[i] + part[i]
-            if _feasible_v(ic, tmp):
-                break
-            for i in range(5):
-                tmp[i] = u0[i] + base[i]
-            s = _max_scale(ic, tmp, part)
-            out[IO.SCALE + g] = s
-            for i in range(5):
-                rest[i] = base[i] + s * part[i]
-                tmp[i] = u0[i] + rest[i]
-            if _feasible_v(ic, tmp):
-                break
-        for i in range(5):
-            du[i] = rest[i]
-            u[i] = u0[i] + du[i]
+
+
+@njit(cache=True)
+def indi_finish(ic, u0, du, u, out):
+    """Non-finite fallback to U0, then DU, U and the actuators (U -> alpha, w, clipped into the limits) into out."""
     fallback = False
     for i in range(5):
         if not math.isfinite(u[i]):
@@ -535,6 +508,58 @@ def indi_step(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_
     out[IO.ACT + 2] = min(out[IO.ACT + 2], ic[IC.DUCT_SPEED_MAX])
     out[IO.ACT + 3] = min(max(out[IO.ACT + 3], -ic[IC.TAIL_SPEED_MAX]), ic[IC.TAIL_SPEED_MAX])
     out[IO.ACT + 4] = min(out[IO.ACT + 4], ic[IC.DUCT_SPEED_MAX])
+
+
+@njit(cache=True)
+def group_scaling(ic, m, d, u0, du, u, out):
+    """The paper-faithful saturation handling (INDI_ALLOC = 0): the increment du = M d is scaled back axis group
+    by axis group, lowest priority first (a_x, then Rdot, then roll/pitch/a_z together; bisection on a scale
+    per group, into out's SCALE slots) until U0 + du is feasible; du and u are updated."""
+    rest = du.copy()
+    part = np.empty(5)
+    base = np.empty(5)
+    tmp = np.empty(5)
+    for g in range(3):
+        for i in range(5):
+            if g == 0:
+                part[i] = m[i, 3] * d[3]
+            elif g == 1:
+                part[i] = m[i, 2] * d[2]
+            else:
+                part[i] = m[i, 0] * d[0] + m[i, 1] * d[1] + m[i, 4] * d[4]
+            base[i] = rest[i] - part[i]
+            tmp[i] = u0[i] + base[i] + part[i]
+        if _feasible_v(ic, tmp):
+            break
+        for i in range(5):
+            tmp[i] = u0[i] + base[i]
+        s = _max_scale(ic, tmp, part)
+        out[IO.SCALE + g] = s
+        for i in range(5):
+            rest[i] = base[i] + s * part[i]
+            tmp[i] = u0[i] + rest[i]
+        if _feasible_v(ic, tmp):
+            break
+    for i in range(5):
+        du[i] = rest[i]
+        u[i] = u0[i] + du[i]
+
+
+@njit(cache=True)
+def indi_step(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_inv, gi_hat, out):
+    """IndiController.step with the paper's group scaling (INDI_ALLOC = 0): filters, Delta U = G_C^-1 G_hat_I
+    Delta Acc (Eq. 5), saturation by groups (a_x, then Rdot, then roll/pitch/a_z), non-finite fallback to U0,
+    U -> clipped actuators."""
+    m = np.empty((5, 5))
+    d = np.empty(5)
+    u0 = np.empty(5)
+    du = np.empty(5)
+    u = np.empty(5)
+    indi_increment(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_inv, gi_hat, out, m, d, u0, du,
+                   u)
+    if not _feasible_v(ic, u):
+        group_scaling(ic, m, d, u0, du, u, out)
+    indi_finish(ic, u0, du, u, out)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -11,7 +11,8 @@ Signal flow per tick:
 2. UAM model without object at (q_est, q-dot): mass, CoM, inertia, I-dot (Eq. 22), G_C,UAM (Eq. 2).
 3. Adaptive law (constrained KF): G_hat_I (Eq. 4), from U0 and Acc_m = [omega-dot, f_O + c-ddot_arm].
 4. Outer loops: [Pdot, Qdot, Rdot, a_x, a_z] commands.
-5. INDI: Delta U = G_C^-1 G_hat_I Delta Acc (Eq. 5), U = U0 + Delta U (Eq. 6) -> actuators.
+5. INDI: Delta U = G_C^-1 G_hat_I Delta Acc (Eq. 5), U = U0 + Delta U (Eq. 6) -> actuators; on saturation the
+   group scaling (INDI_ALLOC = 0) or the prioritised WLS allocation (INDI_ALLOC = 1, allocation.py).
 """
 
 from __future__ import annotations
@@ -25,6 +26,8 @@ import numpy as np
 from navig8_fc.core import _kernels as _k
 from navig8_fc.core import rotation
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig, AdaptiveLawStatus
+from navig8_fc.core.allocation import AllocationConfig
+from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.indi import (
     ActuatorLimits,
     IndiConfig,
@@ -62,6 +65,8 @@ PARAMS_USED = (
     "CKF_MODE", "CKF_LPF_TAU", "CKF_START_DLY", "CKF_Q_IXX", "CKF_Q_IYY", "CKF_Q_IZZ", "CKF_Q_M",
     "CKF_R_U1", "CKF_R_U2", "CKF_R_U3", "CKF_R_U4", "CKF_R_U5", "CKF_P0_SCALE", "CKF_PROJ_W",
     "INDI_ACC_REF", "CKF_ARM_WRENCH",
+    "INDI_ARM_FF", "INDI_ALLOC", "INDI_ALLOC_W_RP", "INDI_ALLOC_W_AZ", "INDI_ALLOC_W_YAW", "INDI_ALLOC_W_AX",
+    "INDI_ALLOC_DTILT",
 )
 
 
@@ -112,7 +117,11 @@ class ControllerConfig:
             dt_s=dt,
             k_min=float(values["INDI_K_MIN"]),
             k_max=float(values["INDI_K_MAX"]),
-            indi=IndiConfig(dt, float(values["INDI_LPF_TAU"]), ActuatorLimits.from_vehicle(vehicle)),
+            indi=IndiConfig(dt, float(values["INDI_LPF_TAU"]), ActuatorLimits.from_vehicle(vehicle),
+                            AllocationConfig(int(values["INDI_ALLOC"]), float(values["INDI_ALLOC_W_RP"]),
+                                             float(values["INDI_ALLOC_W_AZ"]), float(values["INDI_ALLOC_W_YAW"]),
+                                             float(values["INDI_ALLOC_W_AX"]), float(values["INDI_ALLOC_DTILT"])),
+                            bool(int(values["INDI_ARM_FF"]))),
             outer=OuterLoopConfig.from_params(values, vehicle.gravity_m_s2),  # type: ignore[arg-type]
             ckf=CkfConfig.from_params(values, dt),
             acc_ref=int(values["INDI_ACC_REF"]),
@@ -155,6 +164,9 @@ class FlightControllerCore:
         self._fst = _k.FST.zeros()  # joint observer + differentiator state (_kernels.fc_front)
         self._fo = _k.FO.zeros()
         self._inv_dt = 1.0 / config.dt_s
+        # INDI_ARM_FF: the arm's h' low-passed like the INDI's feedback (None until the first tick)
+        self._ff_alpha = lpf_alpha(config.indi.lpf_tau_s, config.dt_s)
+        self._hdc_f: float | None = None
         assert N_LINKS == 3
 
     def update_gains(self, outer: OuterLoopConfig, k_min: float, k_max: float) -> None:
@@ -169,6 +181,7 @@ class FlightControllerCore:
         self._indi.reset()
         self._adapt.reset()
         self._fst[:] = 0.0
+        self._hdc_f = None
 
     def step(
         self, s: FcSensors, sp: Setpoint, engaged: bool = True
@@ -220,14 +233,27 @@ class FlightControllerCore:
             ref = (ul[_UO_CEX], 0.0, ul[_UO_CEZ])
             am = acc_m.tolist()
             sf_x, sf_z = am[3], am[4]
+        ff_q = 0.0
+        if cfg.indi.arm_ff:
+            # The INDI feeds back the low-passed Q-dot, which carries the arm's reaction -h'/I_yy with the filter's
+            # lag; the part of h' the filter has not passed yet is fed forward: Delta Q-dot += (h' - h'_f) / I_yy
+            # (pitch row of G_C U = G_I Acc + [0, h', 0, 0, 0], adaptive_law.py), with I_yy = G_hat_I[1, 1].
+            hdc = fo.item(_FO_ARM_HDC)
+            hf = hdc if self._hdc_f is None else self._hdc_f + self._ff_alpha * (hdc - self._hdc_f)
+            self._hdc_f = hf
+            ff_q = (hdc - hf) / gi_hat.item(6)
         if engaged:
             sl = sens.tolist()
             if not acc_ref:
                 sf_x, sf_z = sl[_IN_ACCEL], sl[_IN_ACCEL + 2]
             outer, ol_out = _outer_loop_arrays(self._outer_cfg, spv, pos, vel, quat, gyro)
+            v_cmd = ol_out[_OO_ACCEL]
+            if ff_q != 0.0:
+                v_cmd = v_cmd.copy()
+                v_cmd[1] += ff_q
             out, indi_status = self._indi._step(gyro, sf_x, sf_z, sl[_IN_TILT],
                                                 sl[_IN_TILT + 1], sl[_IN_SPEED], sl[_IN_SPEED + 1],
-                                                sl[_IN_SPEED + 2], ol_out[_OO_ACCEL], gc_inv, gi_hat)
+                                                sl[_IN_SPEED + 2], v_cmd, gc_inv, gi_hat)
             cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
         else:
             # Keep the INDI filters warm so engaging does not start from a transient.

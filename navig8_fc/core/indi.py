@@ -8,10 +8,13 @@ Each control step:
 - Delta Acc = v - Acc_f; Delta U = G_C,UAM^-1 G_hat_I Delta Acc (Eq. 5); U = U0 + Delta U (Eq. 6);
 - U -> (alpha1, alpha3, w1, w2, w3) (Sec. 3), respecting the actuator limits.
 
-Saturation: when U would leave the feasible set, the increment is scaled back axis group by axis
-group, lowest priority first: (1) forward force a_x, (2) yaw Rdot, (3) roll, pitch and vertical
-force, which are kept as long as possible (bisection on a scale factor per group). The result is
-then clipped into the limits, and a non-finite U falls back to U0 (never NaN to the actuators).
+Saturation (INDI_ALLOC): when U would leave the feasible set,
+- 0 (the paper-faithful baseline): the increment is scaled back axis group by axis group, lowest priority
+  first: (1) forward force a_x, (2) yaw Rdot, (3) roll, pitch and vertical force, which are kept as long as
+  possible (bisection on a scale factor per group; `_kernels.group_scaling`);
+- 1: prioritised weighted least squares over the real actuators (allocation.py), which gives up a_x first
+  but keeps the duct tilts free, so the tilt lever still produces pitch moment.
+The result is then clipped into the limits, and a non-finite U falls back to U0 (never NaN to the actuators).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navig8_fc.core import _kernels as _k
+from navig8_fc.core.allocation import ALLOC_WLS, AllocationConfig, indi_step_wls
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.vehicle import VehicleConfig
 
@@ -51,6 +55,9 @@ class IndiConfig:
     dt_s: float
     lpf_tau_s: float
     limits: ActuatorLimits
+    alloc: AllocationConfig = AllocationConfig()  # INDI_ALLOC and its weights (default: the paper's scaling)
+    # INDI_ARM_FF: the arm's reaction not yet through the filter fed forward (FlightControllerCore applies it)
+    arm_ff: bool = False
 
 
 @dataclass(frozen=True)
@@ -78,7 +85,9 @@ class IndiStatus:
     u0_filtered: tuple[float, ...]
     delta_acc: tuple[float, ...]
     delta_u: tuple[float, ...]  # increment actually applied (after saturation handling)
-    saturation_scale: tuple[float, float, float]  # per group in SATURATION_ORDER, 1 = untouched
+    # per group in SATURATION_ORDER, 1 = untouched: the group's scale (INDI_ALLOC = 0) or the fraction of the
+    # group's Delta Acc the allocation delivers to first order (INDI_ALLOC = 1)
+    saturation_scale: tuple[float, float, float]
     saturated: bool
     fallback_to_u0: bool
 
@@ -96,6 +105,8 @@ class IndiController:
                               tail_speed_max=lim.tail_speed_max, u_duct_sq_max=(lim.duct_speed_max**2)**2,
                               u_tail_max=lim.tail_speed_max**2)
         self._out = _k.IO.zeros()
+        self._al = cfg.alloc.vector()
+        self._wls = cfg.alloc.mode == ALLOC_WLS
 
     def reset(self) -> None:
         self._st[:] = 0.0
@@ -120,7 +131,11 @@ class IndiController:
     ) -> tuple[IndiOutput, IndiStatus]:
         """step() on its inputs already converted (float64 arrays, Python floats); the controller's tick."""
         out = self._out
-        _k.indi_step(self._st, self._ic, gyro, sf_x, sf_z, a1, a3, w1, w2, w3, accel_cmd, gc_inv, gi_hat, out)
+        if self._wls:
+            indi_step_wls(self._st, self._ic, self._al, gyro, sf_x, sf_z, a1, a3, w1, w2, w3, accel_cmd, gc_inv,
+                          gi_hat, out)
+        else:
+            _k.indi_step(self._st, self._ic, gyro, sf_x, sf_z, a1, a3, w1, w2, w3, accel_cmd, gc_inv, gi_hat, out)
         o = tuple(out.tolist())
         s0, s1, s2 = scales = o[_IO_SCALE]
         act = o[_IO_ACT]

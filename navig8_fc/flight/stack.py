@@ -62,7 +62,18 @@ from navig8_fc.gcs.battery import BatteryState, battery_initial, battery_step
 from navig8_fc.mission.fence import Fence
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan
-from navig8_fc.modes.manager import ModeConfig, ModeInputs, ModeManager, ModeOutput, Verdict
+from navig8_fc.modes.manager import (
+    TASK_CANCELLED,
+    TASK_DONE,
+    TASK_FAILED,
+    ModeConfig,
+    ModeInputs,
+    ModeManager,
+    ModeOutput,
+    OffboardTarget,
+    TaskStatus,
+    Verdict,
+)
 from navig8_fc.modes.px4 import FlightMode
 from navig8_fc.params.registry import ParamRegistry
 
@@ -79,6 +90,9 @@ ROTOR_DISK_AREA_M2 = 0.07
 FIGURE_OF_MERIT = 0.6
 BATTERY_PERIOD_S = 0.1  # the pack model's update period (BATTERY_STATUS streams at 1 Hz)
 _POWER_DIVISOR = math.sqrt(2 * AIR_DENSITY_KG_M3 * ROTOR_DISK_AREA_M2) * FIGURE_OF_MERIT
+ARM_JOINT_REACHED_RAD = math.radians(2.0)  # an arm-joint move is complete when every joint is this close ...
+ARM_JOINT_TIMEOUT_S = 10.0  # ... and FAILED when it is not within this (sim time; a 120 deg move takes ~3 s)
+TASK_FLIGHT, TASK_ARM = "flight", "arm"  # the two kinds of long-running command that can run side by side
 
 
 def rotor_thrusts_n(vehicle: VehicleConfig, speed_rad_s: tuple[float, float, float]) -> tuple[float, float, float]:
@@ -110,6 +124,7 @@ class FlightStack:
         self.lambda_crit = math.nan
         self.reconfigure()
         self._modes = ModeManager(mode_config or ModeConfig(), script.mission() if script is not None else None)
+        self._modes.set_position_gain(self.core.config.outer.pos_k)
         self._weight_n = vehicle.uam_mass_kg * vehicle.gravity_m_s2
         self._n_steps = 0
         self._last_time_us: int | None = None
@@ -131,6 +146,9 @@ class FlightStack:
         self._failsafes: set[str] = set()  # failsafes in force (battery, fence, link losses)
         self._fence = Fence()
         self._battery_checked: BatteryState | None = None  # the pack state the battery failsafe last looked at
+        # The long-running arm-joint move (COMMAND_ACK IN_PROGRESS): its status, start and target (rad), start time.
+        self._arm_task: TaskStatus | None = None
+        self._arm_move: tuple[tuple[float, ...], tuple[float, ...], float] = ((), (), 0.0)
 
     # --- configuration ---------------------------------------------------------------------------------
     @property
@@ -151,6 +169,8 @@ class FlightStack:
             self._core = FlightControllerCore(self.vehicle, cfg)
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
+        if hasattr(self, "_modes"):  # offboard velocity feed-forward goes through the position gain
+            self._modes.set_position_gain(cfg.outer.pos_k)
         self._cfg_generation = reg.generation
         # The step's failsafe limits, read once per registry change (a lookup per step would cost ~1 us each).
         self._fs_limits = (float(reg["FS_BAT_LOW_PCT"]), float(reg["FS_BAT_CRIT_PCT"]), float(reg["FENCE_RADIUS"]),
@@ -190,6 +210,8 @@ class FlightStack:
         elif self._failsafes:
             self._failsafes.clear()  # disarmed: a new flight starts clean (the battery re-triggers if still low)
         self._sensors, self._status, self._command, self._mode_out = sensors, st, cmd, out
+        if self._arm_task is not None and self._arm_task.running:
+            self._update_arm_task(sensors)
         self._n_steps += 1
         notices = self._notices
         if out.events:
@@ -202,6 +224,24 @@ class FlightStack:
             self._notices = []
         req, self._arm_request = self._arm_request, None
         return StepResult(cmd, st, out.setpoint, out.armed, out.engaged, tuple(notices), req)
+
+    def _update_arm_task(self, sensors: FcSensors) -> None:
+        """Progress of the arm-joint move: the share of the largest joint error removed; DONE within
+        ARM_JOINT_REACHED_RAD of the target, FAILED after ARM_JOINT_TIMEOUT_S."""
+        tk = self._arm_task
+        assert tk is not None
+        q0, target, t0 = self._arm_move
+        err = max(abs(q - t) for q, t in zip(sensors.joint_pos_rad, target, strict=True))
+        if err < ARM_JOINT_REACHED_RAD:
+            self._arm_task = TaskStatus(tk.task_id, tk.kind, TASK_DONE, 100.0)
+        elif sensors.t_s - t0 > ARM_JOINT_TIMEOUT_S:
+            self._arm_task = TaskStatus(tk.task_id, tk.kind, TASK_FAILED, tk.progress_pct,
+                                        f"joints {math.degrees(err):.1f} deg off after {ARM_JOINT_TIMEOUT_S:g} s")
+        else:
+            err0 = max(abs(q - t) for q, t in zip(q0, target, strict=True))
+            pct = 100.0 * max(0.0, 1.0 - err / err0) if err0 > 0.0 else 0.0
+            if pct > tk.progress_pct:
+                self._arm_task = TaskStatus(tk.task_id, tk.kind, progress_pct=pct)
 
     def _discharge(self, t_s: float, t1: float, t2: float, t3: float) -> None:
         """The simulated battery on sim time, loaded with the rotors' induced power (module constants). The
@@ -303,6 +343,8 @@ class FlightStack:
         CRITICAL while armed). Return falls back to Land when refused."""
         m = self._modes
         verb = none_verb
+        if action != FS_NONE:
+            m.fail_task(f"failsafe: {name}")
         if action == FS_HOLD:
             verb = "holding" if m.set_mode(4, 3).ok else verb
         elif action == FS_LAND:
@@ -373,12 +415,44 @@ class FlightStack:
         lim = self.vehicle.joint_limit_rad
         if any(abs(q) > lim for q in q_rad):
             return Verdict(False, f"arm joints: targets beyond +-{math.degrees(lim):.0f} deg")
-        self._queue(ArmRequest(joint_target_rad=(float(q_rad[0]), float(q_rad[1]), float(q_rad[2]))))
+        target = (float(q_rad[0]), float(q_rad[1]), float(q_rad[2]))
+        self._queue(ArmRequest(joint_target_rad=target))
+        s = self._sensors
+        if s is not None:  # tracked once the joints are measured (a long-running command)
+            n = self._arm_task.task_id + 1 if self._arm_task is not None else 1
+            if self._arm_task is not None and self._arm_task.running:
+                self._arm_task = TaskStatus(n - 1, "arm_joints", TASK_CANCELLED, self._arm_task.progress_pct,
+                                            "replaced by a new target")
+            self._arm_task = TaskStatus(n, "arm_joints")
+            self._arm_move = (tuple(s.joint_pos_rad), target, s.t_s)
         return Verdict(True)
 
-    def offboard_setpoint(self, sp: Setpoint) -> Verdict:
-        if not all(math.isfinite(v) for v in (*sp.pos_ned, sp.pitch_rad, sp.yaw_rad)):
-            return Verdict(False, "Offboard setpoint must be finite")
+    def task_status(self, channel: str) -> TaskStatus | None:
+        """The last long-running command of `channel` (TASK_FLIGHT: takeoff, land, return, reposition; TASK_ARM:
+        arm-joint moves), running or how it ended; None before the first."""
+        return self._modes.task if channel == TASK_FLIGHT else self._arm_task
+
+    def cancel_task(self, channel: str) -> bool:
+        """COMMAND_CANCEL: stop the running command of `channel` and hold (the vehicle where it is, the joints where
+        they are); False when nothing runs there."""
+        if channel == TASK_FLIGHT:
+            return self._modes.cancel_task()
+        tk, s = self._arm_task, self._sensors
+        if tk is None or not tk.running or s is None:
+            return False
+        self._queue(ArmRequest(joint_target_rad=tuple(s.joint_pos_rad)))  # type: ignore[arg-type]
+        self._arm_task = TaskStatus(tk.task_id, tk.kind, TASK_CANCELLED, tk.progress_pct, "cancelled")
+        return True
+
+    def return_to_launch(self) -> Verdict:
+        return self._modes.return_to_launch()
+
+    def offboard_setpoint(self, sp: Setpoint | OffboardTarget) -> Verdict:
+        if isinstance(sp, Setpoint):
+            if not all(math.isfinite(v) for v in (*sp.pos_ned, sp.pitch_rad, sp.yaw_rad)):
+                return Verdict(False, "Offboard setpoint must be finite")
+        elif sp.problem():
+            return Verdict(False, sp.problem())
         self._modes.offboard_setpoint(sp)
         self._offboard_live = True
         self._failsafes.discard("Offboard setpoints lost")

@@ -11,7 +11,7 @@ from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.gcs.battery import BatteryState
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan, Progress
-from navig8_fc.modes.manager import Verdict
+from navig8_fc.modes.manager import OffboardTarget, TaskStatus, Verdict
 from navig8_fc.modes.px4 import FlightMode
 
 Vec3 = tuple[float, float, float]
@@ -44,8 +44,9 @@ class VehicleCommands(Protocol):
 
     def arm_joints(self, q_rad: tuple[float, float, float]) -> tuple[bool, str]: ...
 
-    def offboard_setpoint(self, sp: Setpoint) -> tuple[bool, str]:
-        """A streamed offboard setpoint (NED, rad); Offboard mode flies the latest."""
+    def offboard_setpoint(self, sp: Setpoint | OffboardTarget) -> tuple[bool, str]:
+        """A streamed offboard setpoint or target (NED, rad; OffboardTarget: NaN parts not given); Offboard mode
+        flies the latest."""
         ...
 
     def manual_input(self, x: float, y: float, z: float, r: float) -> None:
@@ -54,6 +55,19 @@ class VehicleCommands(Protocol):
 
     def reposition(self, pos_ned: Vec3, yaw_rad: float) -> tuple[bool, str]:
         """DO_REPOSITION: hold at pos_ned (NaN components: keep), yaw_rad (NaN: keep)."""
+        ...
+
+    def return_to_launch(self) -> tuple[bool, str]:
+        """MAV_CMD_NAV_RETURN_TO_LAUNCH: Return mode, tracked as a long-running command."""
+        ...
+
+    def task_status(self, channel: str) -> TaskStatus | None:
+        """The last long-running command of a channel ("flight": takeoff, land, return, reposition; "arm": arm-joint
+        moves), running or ended; None before the first."""
+        ...
+
+    def cancel_task(self, channel: str) -> bool:
+        """COMMAND_CANCEL: stop the running command of the channel and hold; False when none runs."""
         ...
 
     def load_fence(self, plan: Plan, origin: GeoOrigin) -> None:

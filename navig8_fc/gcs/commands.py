@@ -13,6 +13,17 @@ The ACK goes back to the sender (ACK.target_system/component = the sender's ids)
 - TEMPORARILY_REJECTED when a requested message cannot be produced yet (HOME_POSITION before a home);
 - FAILED + STATUSTEXT when the vehicle raised (never a crash: the link keeps working).
 
+Long-running commands (the MAVLink command protocol's IN_PROGRESS; docs/gcs.md "Long-running commands"):
+NAV_TAKEOFF, NAV_LAND, NAV_RETURN_TO_LAUNCH, DO_REPOSITION (the vehicle's flight task) and the arm-joint target
+(its arm task) answer COMMAND_ACK IN_PROGRESS (progress 0) when accepted, then IN_PROGRESS with `progress`
+(0..100) every PROGRESS_PERIOD_S from `poll`, then one final ACK to the requester: ACCEPTED when it got there,
+CANCELLED after COMMAND_CANCEL (the vehicle holds where it is) or when a newer command replaced it, FAILED when a
+failsafe took over or it could not complete (with a STATUSTEXT). A command that is already complete when accepted
+(landing on the ground) is ACCEPTED at once. The same command with the same parameters from the same sender while
+it runs is a retry (MAVSDK re-sends when no ACK came for 1.5 s): it gets IN_PROGRESS again, not a second start.
+MAVSDK's Action waits for the final ACK (takeoff() returns at the takeoff altitude); a client that reads only the
+first ACK sees IN_PROGRESS, "accepted and running".
+
 Duplicates: a COMMAND_LONG with confirmation > 0 that repeats the same command with the same parameters from
 the same sender within `duplicate_window_s` (default 2 s, on the caller's clock: wall time) is the client
 retrying because it missed our ACK (MAVSDK retries 3x at 0.5 s, QGC 3x): it gets the same result again
@@ -34,6 +45,7 @@ DO_SET_MISSION_CURRENT p1 item (-1 = keep), p2 1 = reset the mission's progress.
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -42,6 +54,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 from navig8_fc.flight.state import VehicleCommands
 from navig8_fc.gcs.params import is_for_us
 from navig8_fc.gcs.statustext import StatusTextEncoder
+from navig8_fc.modes.manager import TASK_CANCELLED, TASK_DONE, TASK_FAILED
 from navig8_fc.modes.px4 import px4_custom_mode
 
 MAV_CMD_NAVIG8_ARM_JOINTS = 31010  # = MAV_CMD_USER_1 in common.xml; named in navig8.xml
@@ -51,6 +64,8 @@ MSG_ID_HOME_POSITION = 242
 MSG_ID_MESSAGE_INTERVAL = 244
 MSG_ID_PROTOCOL_VERSION = 300
 MAV_CMD_DO_SET_STANDARD_MODE = 262
+PROGRESS_PERIOD_S = 0.5  # IN_PROGRESS updates, wall clock (MAVSDK re-sends a command after 1.5 s without one)
+MAV_RESULT_CANCELLED = 6  # common.xml upstream; pymavlink's copy lacks it, navig8.xml adds it (with COMMAND_CANCEL)
 
 CMD = mavlink2  # MAV_CMD_* / MAV_RESULT_* values are the same in every dialect that includes common.xml
 _READ_ONLY = frozenset({
@@ -59,6 +74,13 @@ _READ_ONLY = frozenset({
 })  # fmt: skip
 _RELATIVE_ALT_FRAMES = frozenset({CMD.MAV_FRAME_GLOBAL_RELATIVE_ALT, CMD.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT})
 _REPOSITION_FRAMES = _RELATIVE_ALT_FRAMES | {CMD.MAV_FRAME_GLOBAL, CMD.MAV_FRAME_GLOBAL_INT}
+# Long-running commands and the vehicle task channel that carries them (FlightStack.task_status).
+LONG_COMMANDS = {
+    CMD.MAV_CMD_NAV_TAKEOFF: "flight", CMD.MAV_CMD_NAV_LAND: "flight", CMD.MAV_CMD_NAV_RETURN_TO_LAUNCH: "flight",
+    CMD.MAV_CMD_DO_REPOSITION: "flight", MAV_CMD_NAVIG8_ARM_JOINTS: "arm",
+}
+_TASK_RESULT = {TASK_DONE: CMD.MAV_RESULT_ACCEPTED, TASK_FAILED: CMD.MAV_RESULT_FAILED,
+                TASK_CANCELLED: MAV_RESULT_CANCELLED}
 
 
 class CommandTarget(VehicleCommands, Protocol):
@@ -125,6 +147,18 @@ class _BadParam(ValueError):
     pass
 
 
+@dataclass
+class _Running:
+    """A long-running command being reported: the task it started, who asked (ids for the ACK, `source` for the
+    routing) and when the last IN_PROGRESS went out."""
+
+    req: CommandRequest
+    pkey: tuple[float | None, ...]
+    task_id: int
+    source: Hashable | None
+    last_sent_s: float
+
+
 def _int_param(p: float, name: str, lo: int = -(2**31), hi: int = 2**31 - 1) -> int:
     """An integer parameter sent as float; refused when not a number or outside [lo, hi]."""
     if not math.isfinite(p):
@@ -161,10 +195,13 @@ class CommandHandler:
         self._window_s = float(duplicate_window_s)
         # (src_system, src_component, command) -> (params key, time, result) of the last execution.
         self._recent: dict[tuple[int, int, int], tuple[tuple[float | None, ...], float, int]] = {}
+        self._running: dict[str, _Running] = {}  # task channel -> the long command being reported
+        self._pending: list[tuple[Hashable | None, Any]] = []  # (source, message) for the next poll
         self._handlers = {
             CMD.MAV_CMD_COMPONENT_ARM_DISARM: self._arm_disarm,
             CMD.MAV_CMD_NAV_TAKEOFF: self._takeoff,
             CMD.MAV_CMD_NAV_LAND: lambda r: self._verdict(self._vehicle.land()),
+            CMD.MAV_CMD_NAV_RETURN_TO_LAUNCH: lambda r: self._verdict(self._vehicle.return_to_launch()),
             CMD.MAV_CMD_DO_SET_MODE: self._set_mode,
             CMD.MAV_CMD_REQUEST_MESSAGE: self._request_message,
             CMD.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: lambda r: self._produce(MSG_ID_AUTOPILOT_VERSION, ()),
@@ -185,18 +222,33 @@ class CommandHandler:
     def supported_commands(self) -> frozenset[int]:
         return frozenset(self._handlers)
 
-    def handle(self, msg: Any, now_s: float) -> list[Any]:
+    def handle(self, msg: Any, now_s: float, source: Hashable | None = None) -> list[Any]:
+        """Replies to `msg` (for its sender); `source` is kept with a long-running command so that `poll` can route
+        its later ACKs (as (source, message) pairs) to the same peer."""
+        if msg.get_type() == "COMMAND_CANCEL":
+            self._cancel(msg)
+            return []
         req = self.decode(msg)
         if req is None:
             return []
         key = (req.src_system, req.src_component, req.command)
         pkey = tuple(None if math.isnan(p) else p for p in req.params) + (req.frame,)
-        if req.confirmation > 0 and req.command not in _READ_ONLY:
+        channel = LONG_COMMANDS.get(req.command)
+        if channel is not None:
+            self._report(channel, now_s)  # the running one may have ended: its final ACK before a new start
+            run = self._running.get(channel)
+            if run is not None and run.req.command == req.command and run.pkey == pkey and (
+                    run.req.src_system, run.req.src_component) == key[:2]:
+                ts = self._vehicle.task_status(channel)  # a retry of the running command
+                return [self._ack(req, CMD.MAV_RESULT_IN_PROGRESS, int(ts.progress_pct) if ts else 0)]
+        elif req.confirmation > 0 and req.command not in _READ_ONLY:
             seen = self._recent.get(key)
             if seen is not None and seen[0] == pkey and now_s - seen[1] <= self._window_s:
                 return [self._ack(req, seen[2])]
         outcome = self._execute(req)
-        if req.command not in _READ_ONLY:
+        if channel is not None and outcome.result == CMD.MAV_RESULT_ACCEPTED:
+            outcome = self._start_long(channel, req, pkey, source, now_s, outcome)
+        elif req.command not in _READ_ONLY:
             self._remember(key, pkey, now_s, outcome.result)
         out = [self._ack(req, outcome.result)]
         if outcome.reason:
@@ -243,8 +295,61 @@ class CommandHandler:
         except Exception as exc:  # noqa: BLE001 - a vehicle bug must not take the GCS link down
             return _Outcome(CMD.MAV_RESULT_FAILED, f"{_cmd_name(req.command)} failed: {type(exc).__name__}: {exc}")
 
-    def _ack(self, req: CommandRequest, result: int) -> Any:
-        return self._mav.command_ack_encode(req.command, int(result), 0, 0, req.src_system, req.src_component)
+    def _ack(self, req: CommandRequest, result: int, progress: int = 0) -> Any:
+        return self._mav.command_ack_encode(req.command, int(result), progress, 0, req.src_system, req.src_component)
+
+    # --- long-running commands -------------------------------------------------------------------------
+    def _start_long(self, channel: str, req: CommandRequest, pkey: tuple[float | None, ...],
+                    source: Hashable | None, now_s: float, outcome: _Outcome) -> _Outcome:
+        """An accepted long command: IN_PROGRESS while the task it started runs (ACCEPTED when it started none,
+        e.g. Land on the ground, or joined a running one, e.g. Land during a Return's descent)."""
+        ts = self._vehicle.task_status(channel)
+        old = self._running.get(channel)
+        if ts is None or not ts.running or (old is not None and old.task_id == ts.task_id):
+            return outcome
+        if old is not None:  # replaced by this one
+            self._finish(channel, MAV_RESULT_CANCELLED)
+        self._running[channel] = _Running(req, pkey, ts.task_id, source, now_s)
+        return _Outcome(CMD.MAV_RESULT_IN_PROGRESS, outcome.reason, outcome.info, outcome.extra)
+
+    def _finish(self, channel: str, result: int, reason: str = "") -> None:
+        run = self._running.pop(channel)
+        progress = 100 if result == CMD.MAV_RESULT_ACCEPTED else 0
+        self._pending.append((run.source, self._ack(run.req, result, progress)))
+        if reason:
+            self._pending += [(None, m) for m in self._text.warning(f"{_cmd_name(run.req.command)}: {reason}")]
+
+    def _report(self, channel: str, now_s: float) -> None:
+        run = self._running.get(channel)
+        if run is None:
+            return
+        ts = self._vehicle.task_status(channel)
+        if ts is None or ts.task_id != run.task_id:
+            self._finish(channel, MAV_RESULT_CANCELLED)
+        elif not ts.running:
+            result = _TASK_RESULT[ts.state]
+            self._finish(channel, result, ts.reason if result == CMD.MAV_RESULT_FAILED else "")
+        elif now_s - run.last_sent_s >= PROGRESS_PERIOD_S:
+            run.last_sent_s = now_s
+            self._pending.append((run.source, self._ack(run.req, CMD.MAV_RESULT_IN_PROGRESS, int(ts.progress_pct))))
+
+    def poll(self, now_s: float) -> list[tuple[Hashable | None, Any]]:
+        """Progress of the long-running commands: IN_PROGRESS updates and final ACKs as (source, message), source
+        None for a STATUSTEXT to everyone."""
+        for channel in list(self._running):
+            self._report(channel, now_s)
+        out, self._pending = self._pending, []
+        return out
+
+    def _cancel(self, msg: Any) -> None:
+        """COMMAND_CANCEL: the running long command with that id stops (its final ACK, CANCELLED, goes to whoever
+        sent it, at the next poll); nothing runs with that id: ignored, as the protocol says."""
+        if msg.target_system != self._sysid or msg.target_component not in (0, self._compid):
+            return
+        for channel, run in self._running.items():
+            if run.req.command == int(msg.command):
+                self._vehicle.cancel_task(channel)
+                return
 
     def _remember(self, key: tuple[int, int, int], pkey: tuple[float | None, ...], now_s: float, result: int) -> None:
         if len(self._recent) >= 256:  # a flood of distinct senders must not grow this without bound

@@ -113,12 +113,14 @@ DEFAULT_RATES_HZ: dict[int, float] = {
 # SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT: position targets fly Offboard (gcs_service); MISSION_FENCE: fence
 # plans (inclusion circles and polygons) are uploaded, stored and enforced (navig8_fc.mission.fence); MAVLINK2:
 # always; PARAM_ENCODE_BYTEWISE: how INT32 parameters are encoded (navig8_fc.gcs.params).
-# Not set: FTP (answered with NAK only), MISSION_RALLY, SET_ATTITUDE_TARGET, GRIPPER (WIP bit).
+# SET_ATTITUDE_TARGET: pitch, yaw and thrust fly Offboard (navig8_fc.gcs.offboard).
+# Not set: FTP (answered with NAK only), MISSION_RALLY, GRIPPER (WIP bit).
 CAPABILITIES = (
     M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
     | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
     | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
     | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+    | M.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
     | M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
     | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     | PARAM_ENCODING_CAPABILITY

@@ -37,6 +37,38 @@ from typing import Any
 DIALECT_XML = Path(__file__).with_name("navig8.xml")
 INCLUDED_XMLS = ("development.xml", "common.xml", "standard.xml", "minimal.xml")
 
+# Extension fields of upstream common.xml that pymavlink's bundled copy (ArduPilot's, 2.4.50 = the newest on PyPI)
+# lacks, added to the build's copy of common.xml before mavgen runs (the mission protocol's plan identities;
+# docs/gcs.md "opaque_id"). Extension fields do not enter CRC_EXTRA, so these messages stay wire-compatible with
+# every other dialect: a peer without the fields drops the trailing bytes, a peer with them reads them. A
+# pymavlink that already has a field is left as it is.
+COMMON_EXTENSIONS: dict[str, tuple[tuple[str, str], ...]] = {
+    "MISSION_COUNT": (("opaque_id", "Id of current on-vehicle mission, fence, or rally point plan (on-vehicle "
+                                    "plan identity). 0: unknown."),),
+    "MISSION_ACK": (("opaque_id", "Id of new on-vehicle mission, fence, or rally point plan (on upload to vehicle). "
+                                  "0: unknown."),),
+    "MISSION_CURRENT": (("mission_id", "Id of current on-vehicle mission plan, or 0 if IDs are not supported or "
+                                       "there is no mission loaded."),
+                        ("fence_id", "Id of current on-vehicle fence plan, or 0 if IDs are not supported or there "
+                                     "is no fence loaded."),
+                        ("rally_points_id", "Id of current on-vehicle rally point plan, or 0 if IDs are not "
+                                            "supported or there are no rally points loaded.")),
+}
+
+
+def patch_common(xml: str) -> str:
+    """common.xml with COMMON_EXTENSIONS appended to its messages' extension fields (uint32_t each)."""
+    for message, fields in COMMON_EXTENSIONS.items():
+        start = xml.index(f'name="{message}">')
+        end = xml.index("</message>", start)
+        if "<extensions/>" not in xml[start:end]:
+            raise RuntimeError(f"common.xml's {message} has no extension fields; COMMON_EXTENSIONS must be revisited")
+        new = "".join(f'<field type="uint32_t" name="{name}">{text}</field>\n      ' for name, text in fields
+                      if f'name="{name}"' not in xml[start:end])
+        xml = xml[:end] + new + xml[end:]
+    return xml
+
+
 # Component ids on the bridge link: the FC is the autopilot, the bridge a user component.
 COMPID_FC = 1  # MAV_COMP_ID_AUTOPILOT1
 COMPID_BRIDGE = 25  # MAV_COMP_ID_USER1
@@ -71,6 +103,7 @@ def cache_key() -> str:
 
     h = hashlib.sha256()
     h.update(f"pymavlink={pymavlink_version};python3;wire=2.0\n".encode())
+    h.update(repr(COMMON_EXTENSIONS).encode())
     h.update(DIALECT_XML.read_bytes())
     inc = included_xml_dir()
     for name in INCLUDED_XMLS:
@@ -116,6 +149,8 @@ def generate(out_py: Path) -> None:
         shutil.copyfile(DIALECT_XML, build / "navig8.xml")
         for name in INCLUDED_XMLS:
             shutil.copyfile(inc / name, build / name)
+        common = build / "common.xml"
+        common.write_text(patch_common(common.read_text(encoding="utf-8")), encoding="utf-8")
         tmp_py = build / "navig8.py"
         opts = mavgen.Opts(str(tmp_py), wire_protocol="2.0", language="Python3", validate=True, strict_units=False)
         chatter = io.StringIO()  # mavgen prints its progress; keep it for the error message only

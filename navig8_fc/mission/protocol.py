@@ -29,9 +29,10 @@ MISSION_SET_CURRENT(seq) and MAV_CMD_DO_SET_MISSION_CURRENT (`set_current`) move
 MISSION_CURRENT (seq, total = n or 65535 without a plan, mission_state, mission_mode) is broadcast at 1 Hz and at
 once when it changes; MISSION_ITEM_REACHED(seq) at once and then once a second up to 10 more times (PX4).
 
-opaque_id: every plan has a CRC32 identity (`Plan.opaque_id`, 0 = no plan). pymavlink 2.4.50's common.xml has
-no opaque_id / mission_id extension fields (MISSION_ACK, MISSION_COUNT, MISSION_CURRENT); they are filled in
-whenever the dialect has them and `opaque_id(mission_type)` reports it otherwise (docs/gcs.md).
+opaque_id: every plan has a CRC32 identity (`Plan.opaque_id`, 0 = no plan), sent in MISSION_ACK / MISSION_COUNT
+`opaque_id` and MISSION_CURRENT `mission_id` / `fence_id` whenever the dialect has those extension fields (the
+FC's navig8 dialect adds them to pymavlink's common.xml, which lacks them; navig8_fc.mavlink.dialect) and
+reported by `opaque_id(mission_type)` either way (docs/gcs.md).
 """
 
 from __future__ import annotations
@@ -209,7 +210,7 @@ class MissionProtocol:
         key = self._mission_current_key()
         if key != self._current_sent or now_s - self._current_t >= self._current_period_s:
             self._current_sent, self._current_t = key, now_s
-            out.append((None, self._mav.mission_current_encode(*key)))
+            out.append((None, self.mission_current()))
         if self._reached_left > 0 and now_s - self._reached_t >= 1.0:
             self._reached_left -= 1
             self._reached_t = now_s
@@ -217,7 +218,11 @@ class MissionProtocol:
         return out
 
     def mission_current(self) -> Any:
-        return self._mav.mission_current_encode(*self._mission_current_key())
+        m = self._mav.mission_current_encode(*self._mission_current_key())
+        if "mission_id" in m.fieldnames:  # the navig8 dialect's common.xml extensions (navig8_fc.mavlink.dialect)
+            m.mission_id = self.opaque_id(MissionType.MISSION)
+            m.fence_id = self.opaque_id(MissionType.FENCE)
+        return m
 
     # --- internals ----------------------------------------------------------------------------------------
     def _for_us(self, msg: Any) -> bool:

@@ -7,6 +7,7 @@ from navig8_fc.modes.manager import (
     ModeInputs,
     ModeManager,
     ModeOutput,
+    OffboardTarget,
     Verdict,
 )
 from navig8_fc.modes.px4 import (
@@ -31,6 +32,7 @@ __all__ = [
     "ModeInputs",
     "ModeManager",
     "ModeOutput",
+    "OffboardTarget",
     "Px4AutoSubMode",
     "Px4MainMode",
     "Verdict",

@@ -44,7 +44,7 @@ from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.mission.executor import ExecConfig, MissionExecutor
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Cmd, MissionItem, Plan, Progress
-from navig8_fc.modes.px4 import FlightMode, MavLandedState, MavModeFlag, MavState, Px4MainMode
+from navig8_fc.modes.px4 import FlightMode, MavLandedState, MavModeFlag, MavState, Px4AutoSubMode, Px4MainMode
 
 Vec3 = tuple[float, float, float]
 
@@ -54,6 +54,28 @@ class Verdict(NamedTuple):
 
     ok: bool
     reason: str = ""
+
+
+TASK_RUNNING, TASK_DONE, TASK_FAILED, TASK_CANCELLED = 0, 1, 2, 3  # TaskStatus.state
+
+
+@dataclass(frozen=True)
+class TaskStatus:
+    """A long-running command's progress (COMMAND_ACK IN_PROGRESS, then its final result; docs/gcs.md).
+
+    task_id grows with every task started; kind names the command ("takeoff", "land", "return", "reposition",
+    "arm_joints"); progress_pct 0..100, never decreasing. A task ends DONE (it got there), CANCELLED (COMMAND_CANCEL,
+    or another command took over) or FAILED (a failsafe took over, or it could not complete)."""
+
+    task_id: int
+    kind: str
+    state: int = TASK_RUNNING
+    progress_pct: float = 0.0
+    reason: str = ""
+
+    @property
+    def running(self) -> bool:
+        return self.state == TASK_RUNNING
 
 
 @dataclass(frozen=True)
@@ -76,7 +98,9 @@ class ModeConfig:
     manual_climb_m_s: float = 0.5  # full throttle travel = this vertical speed
     manual_yaw_rate_rad_s: float = 0.8  # full yaw stick
     manual_deadband: float = 0.05  # of full stick travel
-    manual_lead_m: float = 1.0  # the setpoint runs at most this far ahead of the vehicle (no wind-up)
+    manual_lead_m: float = 1.0  # velocity-driven setpoints (sticks, offboard velocity) stay this close to the vehicle
+    reposition_reached_tol_m: float = 0.3  # DO_REPOSITION is complete within this distance ...
+    reposition_reached_speed_m_s: float = 0.3  # ... and below this speed
 
     def __post_init__(self) -> None:
         positive = (
@@ -105,6 +129,41 @@ class MissionScript:
     duration_s: float | None = None  # after this the manager holds at setpoint_at(duration_s)
     start_t_s: float = 0.0  # sim time at which an air-started mission's clock reads 0
     yields_to_plan: bool = False  # only an air start holding its initial setpoint: an uploaded plan replaces it
+
+
+@dataclass(frozen=True)
+class OffboardTarget:
+    """One streamed offboard target (NED, rad), each part optional (NaN: not given), as PX4's trajectory setpoint:
+    - position given on an axis: the reference there (a client streaming a moving position gets it);
+    - velocity only on an axis: the reference is integrated from it, kept within manual_lead_m of the vehicle;
+    - velocity with position: velocity feed-forward (the reference is offset by v / OL_POS_K, so the outer loop's
+      velocity command K_p (p_ref - p) + v equals v on the trajectory: no steady lag);
+    - neither: that axis holds where its reference is;
+    - yaw given: that heading; else yaw_rate given: integrated; else kept. pitch given: held (the paper's 45 deg
+      pitch hover); else kept. Roll is never commanded: the outer loop chooses it to null the body-y force;
+    - throttle (0..1, an attitude target's thrust) with neither z position nor z velocity: a vertical-speed
+      demand as Position mode's throttle stick (0.5 = hold altitude, manual_climb_m_s at the ends)."""
+
+    pos_ned: Vec3 = (math.nan, math.nan, math.nan)
+    vel_ned: Vec3 = (math.nan, math.nan, math.nan)
+    yaw_rad: float = math.nan
+    yaw_rate_rad_s: float = math.nan
+    pitch_rad: float = math.nan
+    throttle: float = math.nan
+
+    @staticmethod
+    def of(sp: Setpoint) -> OffboardTarget:
+        """A plain position setpoint as a target (position, pitch and yaw given)."""
+        return OffboardTarget(sp.pos_ned, yaw_rad=sp.yaw_rad, pitch_rad=sp.pitch_rad)
+
+    def problem(self) -> str:
+        """Why this target cannot be flown ('' when it can): no part given, or an infinite value."""
+        values = (*self.pos_ned, *self.vel_ned, self.yaw_rad, self.yaw_rate_rad_s, self.pitch_rad, self.throttle)
+        if any(math.isinf(v) for v in values):
+            return "Offboard target must be finite (NaN = not given)"
+        if all(math.isnan(v) for v in (*self.pos_ned, *self.vel_ned, self.pitch_rad, self.throttle)):
+            return "Offboard target has no position, velocity or attitude"
+        return ""
 
 
 @dataclass(frozen=True)
@@ -197,6 +256,7 @@ class ModeManager:
         self._events: list[str] = []
         # Mode state, set on entry.
         self._sp: Setpoint | None = None  # HOLD target; ramp modes keep x, y, pitch, yaw here
+        self._ob_ref = Setpoint((0.0, 0.0, 0.0))  # Offboard's reference (set on entry)
         self._ramp_z: float = 0.0
         self._target_z: float = 0.0
         self._takeoff_alt_m: float = self._cfg.takeoff_default_alt_m
@@ -216,9 +276,15 @@ class ModeManager:
         self._land_xy: tuple[float, float] | None = None  # where a mission's landing goes down (else: here)
         self._actions: list[tuple[str, object]] = []
         self._rtl: MissionExecutor | None = None  # Return mode flies a one-item plan (NAV_RETURN_TO_LAUNCH)
-        self._offboard_sp: Setpoint | None = None  # the last streamed setpoint while it is fresh (None: lost)
+        self._offboard: OffboardTarget | None = None  # the last streamed target while it is fresh (None: lost)
+        self._pos_gain_1_s = 1.0  # the outer loop's OL_POS_K: velocity feed-forward as a position offset v / K_p
         self._reposition: tuple[Vec3, float] | None = None  # DO_REPOSITION target for Hold's entry
         self._sticks: tuple[float, float, float, float] = (0.0, 0.0, 0.5, 0.0)  # x fwd, y right, z 0..1, r
+        # The long-running flight command in progress (takeoff, land, return, reposition) and its geometry.
+        self._task: TaskStatus | None = None
+        self._task_n = 0
+        self._task_from: Vec3 = (0.0, 0.0, 0.0)
+        self._task_to: Vec3 = (0.0, 0.0, 0.0)
 
     # --- read access ---------------------------------------------------------------------------------
     @property
@@ -344,15 +410,23 @@ class ModeManager:
             self._target_z = self._home_z() - alt  # retarget; the ramp carries on from where it is
         else:
             self._switch(FlightMode.TAKEOFF)
+        here = self._here()
+        self._start_task("takeoff", (here[0], here[1], self._home_z() - alt))
         self._events.append(f"Takeoff to {alt:.1f} m above home")
         return Verdict(True)
 
     def land(self) -> Verdict:
         if not self._armed:
             return Verdict(False, "Land denied: not armed")
+        if self._mode is FlightMode.RTL and self._task is not None and self._task.running:
+            self._end_task(TASK_CANCELLED, "replaced by land")  # land here, not at home
         if self._mode is not FlightMode.LAND:
             self._switch(FlightMode.LAND)
             self._events.append("Landing")
+        if not self._detector.landed and not (self._task is not None and self._task.running
+                                                and self._task.kind in ("land", "return")):
+            here = self._here()
+            self._start_task("land", (here[0], here[1], self._home_z()))
         return Verdict(True)
 
     def set_mode(self, custom_main: int, custom_sub: int) -> Verdict:
@@ -381,7 +455,7 @@ class ModeManager:
             return self._enter_mode(mode, "Position") if flying else Verdict(
                 False, "Position denied: not flying (take off first)")
         if mode is FlightMode.OFFBOARD:
-            if self._offboard_sp is None:
+            if self._offboard is None:
                 return Verdict(False, "Offboard denied: no setpoint stream (send SET_POSITION_TARGET_* first)")
             return self._enter_mode(mode, "Offboard") if self._armed else Verdict(False, "Offboard denied: not armed")
         # Hold and Mission can be selected while disarmed, as on PX4 (arming then starts the mission).
@@ -425,10 +499,11 @@ class ModeManager:
             else:
                 self._entry_pending = True
 
-    def offboard_setpoint(self, sp: Setpoint | None) -> None:
-        """The latest streamed offboard setpoint (None: the stream is lost; the FlightStack decides on timeouts).
-        Offboard mode flies it; losing it in Offboard switches to Hold where the vehicle is."""
-        self._offboard_sp = sp
+    def offboard_setpoint(self, sp: Setpoint | OffboardTarget | None) -> None:
+        """The latest streamed offboard target (a Setpoint: position, pitch, yaw; None: the stream is lost, the
+        FlightStack decides on timeouts). Offboard mode flies it; losing it in Offboard switches to Hold where the
+        vehicle is."""
+        self._offboard = OffboardTarget.of(sp) if isinstance(sp, Setpoint) else sp
         if sp is None and self._mode is FlightMode.OFFBOARD:
             self._switch(FlightMode.HOLD)
 
@@ -450,7 +525,76 @@ class ModeManager:
             self._apply_reposition()
         else:
             self._switch(FlightMode.HOLD)
+        here = self._here()
+        self._start_task("reposition", tuple(h if math.isnan(p) else p  # type: ignore[arg-type]
+                                             for p, h in zip(pos_ned, here, strict=True)))
         return Verdict(True)
+
+    def return_to_launch(self) -> Verdict:
+        """MAV_CMD_NAV_RETURN_TO_LAUNCH: Return mode, reported as a long command (done at touchdown at home)."""
+        verdict = self.set_mode(int(Px4MainMode.AUTO), int(Px4AutoSubMode.RTL))
+        if verdict.ok and not (self._task is not None and self._task.running and self._task.kind == "return"):
+            self._start_task("return", self._home or self._here())
+        return verdict
+
+    # --- long-running commands -----------------------------------------------------------------------------
+    @property
+    def task(self) -> TaskStatus | None:
+        """The last long-running flight command (running or how it ended); None before the first."""
+        return self._task
+
+    def cancel_task(self) -> bool:
+        """COMMAND_CANCEL: stop the running flight command and hold where the vehicle is; False when none runs."""
+        tk = self._task
+        if tk is None or not tk.running:
+            return False
+        self._end_task(TASK_CANCELLED, "cancelled")
+        self._reposition = None
+        self._switch(FlightMode.HOLD)  # entry: hold here (on the ground: stays idle)
+        self._events.append(f"{tk.kind.capitalize()} cancelled: holding")
+        return True
+
+    def fail_task(self, reason: str) -> None:
+        """A failsafe takes over: the running flight command ends FAILED (before the failsafe changes the mode)."""
+        if self._task is not None and self._task.running:
+            self._end_task(TASK_FAILED, reason)
+
+    def _here(self) -> Vec3:
+        return self._last.pos_ned if self._last is not None else (0.0, 0.0, 0.0)
+
+    def _start_task(self, kind: str, to: Vec3) -> None:
+        if self._task is not None and self._task.running:
+            self._end_task(TASK_CANCELLED, f"replaced by {kind}")
+        self._task_n += 1
+        self._task = TaskStatus(self._task_n, kind)
+        self._task_from, self._task_to = self._here(), to
+
+    def _end_task(self, state: int, reason: str = "") -> None:
+        tk = self._task
+        assert tk is not None
+        self._task = TaskStatus(tk.task_id, tk.kind, state, 100.0 if state == TASK_DONE else tk.progress_pct, reason)
+
+    def _update_task(self, inp: ModeInputs) -> None:
+        """Progress (the share of the start-to-target distance covered, never decreasing) and the end of the running
+        task when its mode was left (a command's own ending is set where it happens: touchdown, takeoff done)."""
+        tk = self._task
+        if tk is None or not tk.running:
+            return
+        mode = self._mode
+        own = {"takeoff": (FlightMode.TAKEOFF,), "land": (FlightMode.LAND,), "reposition": (FlightMode.HOLD,),
+               "return": (FlightMode.RTL, FlightMode.LAND)}[tk.kind]
+        if mode not in own or not self._armed:
+            self._end_task(TASK_FAILED, f"mode changed to {mode.label}")
+            return
+        d = math.dist(inp.pos_ned, self._task_to)
+        if tk.kind == "reposition" and d < self._cfg.reposition_reached_tol_m and math.hypot(
+                *inp.vel_ned) < self._cfg.reposition_reached_speed_m_s:
+            self._end_task(TASK_DONE)
+            return
+        d0 = math.dist(self._task_from, self._task_to)
+        pct = 100.0 * min(1.0, max(0.0, 1.0 - d / d0)) if d0 > 1e-6 else 0.0
+        if pct > tk.progress_pct:
+            self._task = TaskStatus(tk.task_id, tk.kind, TASK_RUNNING, pct)
 
     def _apply_reposition(self) -> None:
         assert self._sp is not None and self._reposition is not None
@@ -492,6 +636,7 @@ class ModeManager:
         if self._entry_pending:
             self._enter(inp)
         setpoint, engaged, mission_time = self._run(inp, dt)
+        self._update_task(inp)
         armed = self._armed
         mode = self._mode
         events = self._events
@@ -541,6 +686,10 @@ class ModeManager:
         return self._last.pos_ned[2] if self._last is not None else 0.0
 
     def _switch(self, mode: FlightMode) -> None:
+        tk = self._task
+        if tk is not None and tk.running and mode is not self._mode and not (
+                tk.kind == "return" and mode is FlightMode.LAND):
+            self._end_task(TASK_CANCELLED, f"mode changed to {mode.label}")
         if self._mode is FlightMode.MISSION and mode is not FlightMode.MISSION and self._mission_t0_s is not None:
             if self._last is not None:
                 self._mission_elapsed_s = max(self._last.t_s - self._mission_t0_s, 0.0)
@@ -569,6 +718,11 @@ class ModeManager:
                 self._apply_reposition()
         elif mode is FlightMode.POSCTL:
             self._sp = Setpoint((x, y, z), self._current_pitch(), inp.yaw_rad)
+        elif mode is FlightMode.OFFBOARD:  # the reference starts where the vehicle was being held
+            out = self._last_output
+            self._sp = (Setpoint(out.setpoint.pos_ned, out.setpoint.pitch_rad, out.setpoint.yaw_rad)
+                        if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad))
+            self._ob_ref = self._sp
         elif mode is FlightMode.RTL:
             out = self._last_output
             start = out.setpoint if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad)
@@ -630,10 +784,10 @@ class ModeManager:
         if mode is FlightMode.POSCTL:
             return self._run_position(inp, dt), True, None
         if mode is FlightMode.OFFBOARD:
-            if self._offboard_sp is None:  # lost between the stack's check and this step
+            if self._offboard is None:  # lost between the stack's check and this step
                 self._switch(FlightMode.HOLD)
                 return self._last_output.setpoint if self._last_output else _idle(inp), True, None
-            return self._offboard_sp, True, None
+            return self._run_offboard(inp, dt), True, None
         if mode is FlightMode.TAKEOFF:
             assert self._sp is not None
             self._ramp_z = _approach(self._ramp_z, self._target_z, self._cfg.takeoff_climb_rate_m_s * dt)
@@ -642,6 +796,8 @@ class ModeManager:
                 self._ramp_z == self._target_z
                 and abs(inp.pos_ned[2] - self._target_z) < self._cfg.takeoff_reached_tol_m
             ):
+                if self._task is not None and self._task.running and self._task.kind == "takeoff":
+                    self._end_task(TASK_DONE)
                 self._switch(FlightMode.HOLD)
                 self._entry_pending = False
                 self._hold_on_ground = False
@@ -654,6 +810,8 @@ class ModeManager:
                 if self._detector.landed:
                     self._touchdown_t_s = inp.t_s
                     self._events.append("Landed")
+                    if self._task is not None and self._task.running and self._task.kind in ("land", "return"):
+                        self._end_task(TASK_DONE)
                     return _idle(inp), False, None
                 self._ramp_z = _approach(self._ramp_z, self._target_z, self._cfg.land_descent_rate_m_s * dt)
                 return (
@@ -689,18 +847,50 @@ class ModeManager:
         assert self._sp is not None
         cfg = self._cfg
         db = cfg.manual_deadband
-        x, y, z, r = (0.0 if abs(v) < db else v for v in self._sticks[:2] + (self._sticks[2] - 0.5,) + self._sticks[3:])
+        x, y, r = (0.0 if abs(v) < db else v for v in (self._sticks[0], self._sticks[1], self._sticks[3]))
         sp = self._sp
         yaw = _wrap_pi(sp.yaw_rad + r * cfg.manual_yaw_rate_rad_s * dt)
         c, s_ = math.cos(yaw), math.sin(yaw)
         v = cfg.manual_speed_m_s
-        vn, ve, vd = (c * x - s_ * y) * v, (s_ * x + c * y) * v, -2.0 * z * cfg.manual_climb_m_s
-        p = inp.pos_ned
-        lead = cfg.manual_lead_m
-        pos = tuple(min(pi + lead, max(pi - lead, si + vi * dt))
-                    for si, vi, pi in zip(sp.pos_ned, (vn, ve, vd), p, strict=True))
-        self._sp = Setpoint(pos, sp.pitch_rad, yaw)  # type: ignore[arg-type]
+        vn, ve, vd = (c * x - s_ * y) * v, (s_ * x + c * y) * v, self._climb_rate_down(self._sticks[2])
+        self._sp = Setpoint(_integrate_led(sp.pos_ned, (vn, ve, vd), inp.pos_ned, dt, cfg.manual_lead_m),
+                            sp.pitch_rad, yaw)
         return self._sp
+
+    def _climb_rate_down(self, throttle: float) -> float:
+        """A throttle in [0, 1] (0.5 = hold altitude, deadband around it) -> NED down speed, m/s."""
+        z = throttle - 0.5
+        return 0.0 if abs(z) < self._cfg.manual_deadband else -2.0 * z * self._cfg.manual_climb_m_s
+
+    def set_position_gain(self, pos_k_1_s: float) -> None:
+        """The outer loop's position gain OL_POS_K (1/s): offboard velocity feed-forward is the offset v / K_p."""
+        self._pos_gain_1_s = float(pos_k_1_s)
+
+    def _run_offboard(self, inp: ModeInputs, dt: float) -> Setpoint:
+        """The streamed target -> this step's setpoint (OffboardTarget's docstring). The reference (self._ob_ref)
+        integrates velocity-only axes and yaw rate; the flown setpoint adds the velocity feed-forward."""
+        tgt = self._offboard
+        assert tgt is not None
+        ref = self._ob_ref
+        pos, vel = tgt.pos_ned, tgt.vel_ned
+        if not math.isnan(tgt.throttle) and math.isnan(pos[2]) and math.isnan(vel[2]):
+            vel = (vel[0], vel[1], self._climb_rate_down(tgt.throttle))
+        v_int = tuple(0.0 if math.isnan(v) or not math.isnan(p) else v for p, v in zip(pos, vel, strict=True))
+        moved = _integrate_led(ref.pos_ned, v_int, inp.pos_ned, dt, self._cfg.manual_lead_m)  # type: ignore[arg-type]
+        ref_pos = tuple(m if math.isnan(p) else p for p, m in zip(pos, moved, strict=True))
+        if not math.isnan(tgt.yaw_rad):
+            yaw = tgt.yaw_rad
+        elif not math.isnan(tgt.yaw_rate_rad_s):
+            yaw = _wrap_pi(ref.yaw_rad + tgt.yaw_rate_rad_s * dt)
+        else:
+            yaw = ref.yaw_rad
+        pitch = ref.pitch_rad if math.isnan(tgt.pitch_rad) else tgt.pitch_rad
+        self._ob_ref = Setpoint(ref_pos, pitch, yaw)  # type: ignore[arg-type]
+        k = self._pos_gain_1_s
+        if k <= 0.0 or all(math.isnan(v) for v in vel):
+            return self._ob_ref
+        ff = tuple(r if math.isnan(v) else r + v / k for r, v in zip(ref_pos, vel, strict=True))
+        return Setpoint(ff, pitch, yaw)  # type: ignore[arg-type]
 
     def _exec_config(self) -> ExecConfig:
         cfg = self._cfg
@@ -782,6 +972,13 @@ _CRITICAL = int(MavState.CRITICAL)
 def _idle(inp: ModeInputs) -> Setpoint:
     """The setpoint reported while the controller is idle: where the vehicle is."""
     return Setpoint(inp.pos_ned, 0.0, inp.yaw_rad)
+
+
+def _integrate_led(sp: Vec3, vel: Vec3, pos: Vec3, dt: float, lead_m: float) -> Vec3:
+    """A velocity-driven setpoint one step on (sp + vel dt per axis), kept within lead_m of the vehicle on each
+    axis so it cannot wind up while the vehicle lags (Position mode's sticks, offboard velocity targets)."""
+    return tuple(min(p + lead_m, max(p - lead_m, s + v * dt))  # type: ignore[return-value]
+                 for s, v, p in zip(sp, vel, pos, strict=True))
 
 
 def _approach(value: float, target: float, max_step: float) -> float:

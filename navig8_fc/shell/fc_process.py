@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import argparse
 import gc
+import secrets
 import select
 import signal
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -31,17 +32,27 @@ from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
 from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
 from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink import dialect as dialect_mod
+from navig8_fc.mavlink.px4sim import PX4_SIM_MESSAGES, ActuatorModel, Px4SimAssembler
 from navig8_fc.mission.executor import planned_path
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import ParamStore, default_state_path
 from navig8_fc.shell.foxglove_out import DEFAULT_PORT as FOXGLOVE_DEFAULT_PORT
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, LiveServer, script_waypoints
-from navig8_fc.shell.gcs_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4, GcsService, Source
+from navig8_fc.shell.gcs_service import (
+    MAV_AUTOPILOT_GENERIC,
+    MAV_AUTOPILOT_PX4,
+    GcsService,
+    Source,
+    origin_from_params,
+)
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
-from navig8_fc.shell.mcap_log import McapLogger
+from navig8_fc.shell.mcap_log import open_logger
+from navig8_fc.shell.realtime import TIMING_REALTIME, RealtimeClock
 from navig8_fc.shell.signing import KeyFile, LinkSigning
+from navig8_fc.shell.sim_guard import BAD_DATA_FAILSAFE_S, SensorLimits, SimGuard, SimInput, StreamRegrouper
+from navig8_fc.shell.transport import StreamTransport, parse_connection
 from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m, waypoint_poses
 
 FC_COMPID = 1
@@ -73,6 +84,15 @@ class FcOptions:
     autopilot: str = "generic"  # HEARTBEAT.autopilot: "generic" or "px4" (docs/gcs.md, "Autopilot identity")
     foxglove_port: int | None = None  # --foxglove[=PORT]: serve the Foxglove channels live (0: any free port)
     foxglove_host: str = "127.0.0.1"
+    log_max_mb: float = 1024.0  # --log-max-mb: rotate the log at this size (0: no cap)
+    log_keep: int = 4  # --log-keep: rotated parts kept (the oldest is deleted)
+    # connection strings (navig8_fc/shell/transport.py: udpin:, udpout:, tcp:, tcpin:, serial:) replacing a link's
+    # host/port options; None: UDP as the port options say
+    sim_link: str | None = None
+    gcs_link: str | None = None
+    api_link: str | None = None
+    sim_messages: str = "navig8"  # --sim-messages: navig8 (the private bundle) or px4 (PX4's simulator messages)
+    timing: str | None = None  # --timing lockstep|realtime: overrides the FC_TIMING parameter (docs/hil.md)
 
     @property
     def sysid(self) -> int:
@@ -104,7 +124,16 @@ class FlightControllerProcess:
         self.vehicle = vm.VehicleConfig.load()
         self.registry = ParamRegistry.from_defaults()
         self._stop = False
-        self.logger = McapLogger(opts.log_path) if opts.log_path else None
+        # A log that cannot be opened (read-only dir, full disk) is reported and the FC flies without one.
+        self.logger, self._log_open_error = open_logger(opts.log_path, opts.log_max_mb, opts.log_keep)
+        self._log_fail_reported = False
+        self.n_log_errors = 0  # exceptions while logging a step (contained: reported, never an exit)
+        self.n_tick_errors = 0  # exceptions in the control tick (contained: last command held, land requested)
+        self._bad_data_fs = False  # the invalid-sensor-data failsafe is in force
+        self._last_cmd: tuple[Any, bool] | None = None  # (command, armed) of the last good tick
+        self.guard = SimGuard(opts.sysid, SensorLimits.from_vehicle(self.vehicle), lambda: secrets.randbits(32))
+        if self._log_open_error is not None:
+            print(f"navig8-fc: cannot open the log: {self._log_open_error}; flying without a log", file=sys.stderr)
         # (topic, raw datagram or decoded message, peer for a datagram / None for a message, sim ns, wall ns)
         self._frame_queue: list[tuple[str, Any, str | None, int, int]] = []
         self._pending_tick: tuple[Any, ...] | None = None
@@ -116,9 +145,12 @@ class FlightControllerProcess:
         self._mk_links()
         self.stack = FlightStack(self.vehicle, self.registry, script)
         self.model = vm.UamModel(self.vehicle)
-        self._asm = seam.BundleAssembler()
         self.sim_status: Any = None
         self._last_step_time_us: int | None = None
+        # PX4's simulator messages (--sim-messages px4): their own assembler, no pairing (docs/hil.md)
+        self._px4: Px4SimAssembler | None = None if opts.sim_messages == "navig8" else self._mk_px4_assembler()
+        if self._px4 is not None:
+            self._sim_to = None  # no pairing: answers go to the link's peer (the simulator that connected)
         self._last_answer: bytes | None = None  # the frame answering the last step (re-sent on duplicates)
         self.n_ticks = 0
         self.watchdog = LoopWatchdog()
@@ -155,6 +187,8 @@ class FlightControllerProcess:
         elif opts.defaults:
             self.log_event("starting from default parameters (--defaults)")
         self.stack.reconfigure()
+        self.rt = self._mk_timing()
+        self.guard.monotonic = self.rt is not None
         warm_up_kernels(self.vehicle, self.core.config)  # numba's cache loads before the first step, not in it
         if self.logger:
             self.logger.metadata("run", {"scenario": opts.scenario, "controller": self._controller_name(),
@@ -162,6 +196,26 @@ class FlightControllerProcess:
             self.logger.metadata("params", self.registry.as_dict())
 
     # --- setup -----------------------------------------------------------------------------------
+    def _mk_px4_assembler(self) -> Px4SimAssembler:
+        """PX4's simulator messages as the sensor source (navig8_fc/mavlink/px4sim.py, docs/hil.md)."""
+        reg = self.registry
+        model = ActuatorModel(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), 1.0 / float(reg["INDI_RATE_HZ"]),
+                              (0.0,) * 5)
+        self.log_event("sim link: PX4 simulator messages (HIL_SENSOR, HIL_STATE_QUATERNION; actuator states "
+                       "modelled unless NAVIG8_ACTUATOR_STATE comes)")
+        return Px4SimAssembler(origin_from_params(reg), model)
+
+    def _mk_timing(self) -> RealtimeClock | None:
+        """The real-time mode's clock (navig8_fc/shell/realtime.py), or None in lockstep (FC_TIMING, --timing)."""
+        reg = self.registry
+        if self.opts.timing is not None:
+            reg.set("FC_TIMING", 1.0 if self.opts.timing == "realtime" else 0.0)
+        if int(reg["FC_TIMING"]) != TIMING_REALTIME:
+            return None
+        self.log_event(f"real-time timing: own clock at {int(reg['INDI_RATE_HZ'])} Hz, newest bundle per tick")
+        return RealtimeClock(float(reg["INDI_RATE_HZ"]), float(reg["RT_LATE_S"]), float(reg["RT_SPACING_TOL"]),
+                             time.monotonic())
+
     def _mav(self) -> Any:
         m = self.d.MAVLink(None, srcSystem=self.opts.sysid, srcComponent=FC_COMPID)
         m.robust_parsing = True
@@ -200,12 +254,20 @@ class FlightControllerProcess:
         """Bind the three links (PortInUseError names a busy one; port 0: any free port), write the ports file,
         and announce the FC to the bridge (DESIGN §4: a bridge that does not know our port learns it from this)."""
         o = self.opts
-        sim_codec = codec.seam_codec()  # the sim link speaks only the seam's messages, decoded by the codec
-        self.sim = UdpLink.open("sim", codec.Encoder(sim_codec, o.sysid, FC_COMPID), (o.host, o.port("sim")),
-                                [(o.host, o.port("bridge"))], codec=sim_codec)
-        self.sim.max_datagrams = 1  # one bundle per step; more stay readable for the run loop's next select
-        self.gcs = UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)])
-        self.api = UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))])
+        # the sim link speaks only the seam's messages (PX4 mode: and PX4's simulator messages), decoded by the codec
+        sim_codec = codec.seam_codec() if o.sim_messages == "navig8" else codec.Codec(PX4_SIM_MESSAGES)
+        sim_enc = codec.Encoder(sim_codec, o.sysid, FC_COMPID)
+        if o.sim_link:
+            self.sim = UdpLink.connect("sim", sim_enc, parse_connection(o.sim_link), codec=sim_codec)
+        else:
+            self.sim = UdpLink.open("sim", sim_enc, (o.host, o.port("sim")), [(o.host, o.port("bridge"))],
+                                    codec=sim_codec)
+            self.sim.max_datagrams = 1  # one bundle per step; more stay readable for the run loop's next select
+        self.gcs = (UdpLink.connect("gcs", self._mav(), parse_connection(o.gcs_link)) if o.gcs_link else
+                    UdpLink.open("gcs", self._mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)]))
+        self.api = (UdpLink.connect("api", self._mav(), parse_connection(o.api_link)) if o.api_link else
+                    UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")),
+                                 [(o.gcs_host, o.port("api"))]))
         for link in (self.gcs, self.api):  # a GCS flood is handled a slice per loop pass, between control steps
             link.max_datagrams = GCS_DATAGRAMS_PER_PASS
         if o.ports_file is not None:
@@ -213,7 +275,12 @@ class FlightControllerProcess:
             if self.fox is not None and self.fox.live is not None:
                 ports["foxglove"] = self.fox.live.port
             write_ports_file(o.ports_file, ports)
-        self.sim.send(seam.announce_record())  # before the log hooks: nothing is set up to log it yet
+        # where the announcement goes: the bridge's port, or the connection string's peer (a stream has only one)
+        self._bridge_target = self.sim.targets[0] if o.sim_link and self.sim.targets else (o.host, o.port("bridge"))
+        self._stream_sim = isinstance(self.sim.sock, StreamTransport)
+        self._regroup = StreamRegrouper().split  # a stream's reads cut anywhere between frames: one bundle each
+        self._sim_to: list[tuple[str, int]] | None = []  # answers go to the paired bridge only (sim_guard)
+        self.sim.send(self.guard.announce_record(), [self._bridge_target])  # before the log hooks are set up
         for link in (self.sim, self.gcs, self.api):
             link.on_datagram = self._log_datagram
         for link in (self.gcs, self.api):  # the sim link's messages are logged decoded as /truth, /fc/...
@@ -264,44 +331,125 @@ class FlightControllerProcess:
 
     # --- lockstep --------------------------------------------------------------------------------
     def _on_sim(self, received: list[Any]) -> None:
-        """The sim link's datagrams (lists of codec.Message records): bundles to _on_step, the bridge's status kept."""
-        asm = self._asm
+        """The sim link's datagrams (codec.Message records per datagram) through the guard (pairing, sequencing,
+        validation: navig8_fc/shell/sim_guard.py): steps to _on_step, the paired bridge's status kept."""
+        guard = self.guard
+        now = time.monotonic()
         for r in received:
-            for m in r.msg:
-                if m.name == "NAVIG8_SIM_STATUS":
-                    self.sim_status = seam.decode_sim_status(m.fields)
-                    if self.sim_status.state == seam.SIM_STATE_DONE:
-                        self.sim_done = True
-                    continue
-                bundle = asm.add(m)
-                if bundle is not None:
-                    self._on_step(bundle, asm.completed)
+            if self._px4 is not None:  # PX4's simulator messages: no pairing or sequencing (docs/hil.md)
+                self._on_px4(r.msg, now)
+                continue
+            for msgs in (self._regroup(r.msg) if self._stream_sim else (r.msg,)):
+                inp, announce_to = guard.on_datagram(msgs, r.addr, now)
+                if announce_to is not None:  # a bridge asked to pair: our announcement with a fresh nonce
+                    self.sim.send(guard.announce_record(), [announce_to])
+                if guard.peer is not None and self._sim_to[:1] != [guard.peer]:
+                    self._sim_to = [guard.peer]
+                kind = inp.kind
+                if kind == "step":
+                    if self.rt is not None:  # real time: the newest step waits for the FC's next tick
+                        self.last_bundle_wall = now
+                        self.rt.offer(inp.bundle, inp, now)
+                    else:
+                        self._on_step(inp)
+                elif kind == "duplicate":
+                    self.n_duplicates += 1  # a re-sent bundle: answer with the same command, do not re-run control
+                    if self._last_answer is not None and self.rt is None:
+                        self.sim.send_raw(self._last_answer, self._sim_to)
+                elif kind == "status":
+                    self._on_sim_status(inp.status)
+        if guard.has_reports:  # refusals: the first of each kind at once, then one per kind and period
+            for severity, text in guard.reports(now):
+                self.statustext(text, severity)
 
-    def _on_step(self, b: seam.StepBundle, wire: dict[str, dict[str, Any]] | None = None) -> None:
+    def _on_sim_status(self, status: seam.SimStatus) -> None:
+        self.sim_status = status
+        if status.state == seam.SIM_STATE_DONE:
+            self.sim_done = True
+
+    def _on_px4(self, msgs: list[Any], now: float) -> None:
+        """PX4's simulator messages (navig8_fc/mavlink/px4sim.py): HIL_SENSOR completes a step."""
+        asm = self._px4
+        assert asm is not None
+        for m in msgs:
+            if m.name == "NAVIG8_SIM_STATUS":
+                self._on_sim_status(seam.decode_sim_status(m.fields))
+                continue
+            bundle = asm.add(m)
+            if bundle is None:
+                continue
+            inp = SimInput("step", bundle, dict(asm.completed))
+            if self.rt is not None:
+                self.last_bundle_wall = now
+                self.rt.offer(bundle, inp, now)
+            else:
+                self._on_step(inp)
+
+    def _on_step(self, inp: SimInput, clock_us: int | None = None) -> None:
         """One lockstep step: control, answer, and queue the step's log records (written after the answer).
-        wire: the bundle's messages decoded (field dicts), for the /mavlink/sim/in/<NAME> channels."""
+        An exception in the tick holds the last command and lands (reported, counted), never ends the process."""
         self.last_bundle_wall = time.monotonic()
+        b = inp.bundle
+        assert b is not None
         t_us = int(b.time_usec)
-        prev_us = self._last_step_time_us
-        if t_us == prev_us and self._last_answer is not None:
-            self.n_duplicates += 1  # a re-sent bundle: answer with the same command, do not re-run control
-            self.sim.send_raw(self._last_answer)
-            return
+        if inp.bad_groups:
+            if not self.guard.has_good:
+                return  # nothing valid to fly on yet: no answer (the bridge re-sends; counted by the guard)
+            self._check_bad_data(inp.bad_groups)
+        elif self._bad_data_fs:
+            self._bad_data_fs = False
+            self.statustext("Sensor data valid again", 6)
         self._last_step_time_us = t_us
         sensors = b.fc_sensors()
-        res = self.stack.step(sensors, b.imu_fresh, t_us)
+        if clock_us is not None:  # real time: the control step runs on the FC's clock (realtime.py)
+            sensors = replace(sensors, t_s=clock_us * 1e-6)
+        try:
+            res = self.stack.step(sensors, b.imu_fresh, t_us if clock_us is None else clock_us)
+        except Exception as e:  # noqa: BLE001 - contained: the vehicle keeps an answer, the operator is told
+            self._tick_failed(e, t_us)
+            return
         cmd = res.command
+        self._last_cmd = (cmd, res.armed)
         out = seam.pack_actuator_controls(self.sim.mav, t_us, cmd, self.vehicle, armed=res.armed)
         self._last_answer = out
         if res.arm_request is not None:  # before the step's answer, so the bridge applies it on this step
-            self.sim.send(seam.encode_arm_cmd(_arm_command(res.arm_request, t_us)))
-        self.sim.send_raw(out)
+            self.sim.send(seam.encode_arm_cmd(_arm_command(res.arm_request, t_us)), self._sim_to)
+        self.sim.send_raw(out, self._sim_to)
+        if self._px4 is not None:  # the actuator model's input: what the simulator will hold
+            self._px4.command(cmd.tilt_rad, cmd.speed_rad_s)
+            if res.arm_request is not None and res.arm_request.joint_target_rad is not None:
+                self._px4.joint_target_rad = res.arm_request.joint_target_rad
         self.n_ticks += 1
         self.announce(res.notices)
         paced = self.sim_status is not None and self.sim_status.speed > 0.0
         self._watch(self.watchdog.step(self.last_bundle_wall, paced))
         if self.logger or self.fox:
-            self._pending_tick = (t_us, b.truth, res.status, cmd, res.setpoint, wire, out, sensors)
+            self._pending_tick = (t_us, b.truth, res.status, cmd, res.setpoint, inp.wire, out, sensors)
+
+    def _check_bad_data(self, groups: tuple[str, ...]) -> None:
+        """Invalid sensor data for BAD_DATA_FAILSAFE_S of sim time: land (the guard holds the last good values)."""
+        if self._bad_data_fs or self.guard.bad_data_s() < BAD_DATA_FAILSAFE_S:
+            return
+        self._bad_data_fs = True
+        verb = "landing" if self.stack.state().armed and self.stack.land().ok else "no action"
+        self.statustext(f"Bad sensor data ({','.join(groups)}) {self.guard.bad_data_s():.2f} s: {verb}", 2)
+
+    def _tick_failed(self, e: Exception, t_us: int) -> None:
+        """The tick raised: answer the step with the last good command (the bridge must not stall), ask the stack to
+        land, and report (the first error at once, then every 100th)."""
+        self.n_tick_errors += 1
+        if self.n_tick_errors == 1 or self.n_tick_errors % 100 == 0:
+            print(f"navig8-fc: control tick failed at t={seam.sim_us_from_time_usec(t_us) * 1e-6:.3f} s "
+                  f"({self.n_tick_errors}x): {type(e).__name__}: {e}", file=sys.stderr)
+            try:
+                verb = "landing" if self.stack.land().ok else "holding the last command"
+            except Exception:  # noqa: BLE001 - the stack itself is failing: the held command is all there is
+                verb = "holding the last command"
+            self.statustext(f"Control error {type(e).__name__} ({self.n_tick_errors}x): {verb}", 2)
+        if self._last_cmd is not None:
+            cmd, armed = self._last_cmd
+            self._last_answer = seam.pack_actuator_controls(self.sim.mav, t_us, cmd, self.vehicle, armed=armed)
+            self.sim.send_raw(self._last_answer, self._sim_to)
 
     def _watch(self, note: str | None) -> None:
         """The watchdog's rate-limited report: /fc/event and stderr (a loaded host overruns too: not a STATUSTEXT)."""
@@ -391,7 +539,8 @@ class FlightControllerProcess:
             while not self._stop:
                 ready = self._spin_for_sim() if self._spin_until > time.perf_counter() else []
                 if not ready:
-                    ready, _, _ = select.select(sock_list, [], [], 0.05)
+                    wait = 0.05 if self.rt is None else min(0.05, self.rt.timeout_s(time.monotonic()))
+                    ready, _, _ = select.select(sock_list, [], [], wait)
                 for sock in ready:
                     link = socks[sock]
                     got = link.receive()
@@ -401,13 +550,15 @@ class FlightControllerProcess:
                         t0 = time.monotonic()
                         self.on_gcs(link, got)
                         self._watch(self.watchdog.gcs_work(time.monotonic() - t0, t0))
+                if self.rt is not None and (due := self.rt.tick(time.monotonic())) is not None:
+                    self._on_step(due[1], due[2])  # (bundle, its SimInput, the FC's clock)
                 # The step's answer is out: now log (this overlaps with the bridge's physics step).
                 if self._pending_tick is not None:
                     tick, self._pending_tick = self._pending_tick, None
-                    self._log_tick(*tick)
-                    if self.sim_status is None or self.sim_status.speed == 0.0:
+                    self._log_step(tick)
+                    if self.rt is None and (self.sim_status is None or self.sim_status.speed == 0.0):
                         self._spin_until = time.perf_counter() + SPIN_S  # the next bundle is due very soon
-                self._flush_frames()
+                self._log_step(None)
                 now = time.monotonic()
                 if now >= hb_due:
                     hb_due = now + 1.0
@@ -478,8 +629,21 @@ class FlightControllerProcess:
             link.send(m, dest)
 
     def on_wall_second(self, now: float) -> None:
-        if self.n_ticks == 0:  # no bundle yet: announce again, for a bridge started after us (DESIGN §4)
-            self.sim.send(seam.announce_record())
+        if self.guard.needs_announce(now):  # unpaired or the bridge silent: announce, for a bridge started after us
+            self.sim.send(self.guard.announce_record(), [self._bridge_target])
+        for severity, text in self.guard.reports(now):  # counts held back within a period
+            self.statustext(text, severity)
+        if self._log_open_error is not None and not self._log_fail_reported:
+            self._log_fail_reported = True  # at the first wall second: a GCS that is already listening hears it
+            self.statustext(f"Log disabled: {self._log_open_error}", 3)
+        if self.logger is not None:
+            try:
+                self.logger.log("/fc/sim_guard", self._sim_ns(), self._guard_stats(), publish_ns=time.time_ns())
+            except Exception as e:  # noqa: BLE001 - logging must never end the flight
+                self.n_log_errors += 1
+                self.logger.fail(f"{type(e).__name__}: {e}")
+        if self.rt is not None and (text := self.rt.report(now)) is not None:
+            self.statustext(text, 4)  # MAV_SEVERITY_WARNING
 
     def on_wall_tick(self, now: float) -> None:
         for change in self.gcs_service.poll(now):  # PARAM_SETs that waited for their stability floor
@@ -495,21 +659,55 @@ class FlightControllerProcess:
         if self.logger:
             self.logger.log("/fc/param_change", self._sim_ns(), change, publish_ns=time.time_ns())
 
+    def _log_step(self, tick: tuple[Any, ...] | None) -> None:
+        """Log a step's records (tick) or the queued datagrams (None). Contained: an exception here is counted
+        and reported and logging stops; a logger that lost its file (disk full) drops and counts by itself."""
+        try:
+            if tick is not None:
+                self._log_tick(*tick)
+                if self.logger is not None:
+                    self.logger.maybe_rotate()  # once per step: the size check is a syscall
+            else:
+                self._flush_frames()
+        except Exception as e:  # noqa: BLE001 - logging must never end the flight
+            self.n_log_errors += 1
+            self._frame_queue.clear()
+            if self.logger is not None:
+                self.logger.fail(f"{type(e).__name__}: {e}")
+        lg = self.logger
+        if lg is not None and lg.error is not None and not self._log_fail_reported:
+            self._log_fail_reported = True
+            self.statustext(f"Log stopped: {lg.error}", 3)
+            print(f"navig8-fc: logging stopped ({lg.error}); records from now on are dropped and counted",
+                  file=sys.stderr)
+
+    def _guard_stats(self) -> dict[str, Any]:
+        lg = self.logger
+        return {**vars(self.guard.counters), "tick_errors": self.n_tick_errors, "log_errors": self.n_log_errors,
+                "log_dropped": lg.dropped if lg is not None else 0, "log_rotations": lg.rotations if lg else 0,
+                "log_error": (lg.error if lg is not None else self._log_open_error)}
+
     def close(self) -> None:
         self.gcs_service.close()
         self.signing.save_timestamp()
         if self._pending_tick is not None and (self.logger or self.fox):
             tick, self._pending_tick = self._pending_tick, None
-            self._log_tick(*tick)
-        self._flush_frames()
+            self._log_step(tick)
+        self._log_step(None)
+        if self.logger and self.logger.error is not None:
+            print(f"navig8-fc: log {self.logger.path}: {self.logger.dropped} records dropped after "
+                  f"{self.logger.error}", file=sys.stderr)
         if self.logger:
             counters = {link.name: vars(link.counters) for link in self.links}
             self.logger.metadata("link_counters", counters)
             if self.sim_status is not None:
                 self.logger.metadata("bridge_status", self.sim_status)
             self.logger.metadata("fc_stats", {"ticks": self.n_ticks, "duplicates": self.n_duplicates,
-                                              "incomplete_bundles": self._asm.incomplete,
+                                              "sim_guard": self._guard_stats(),
+                                              "incomplete_bundles": self._px4.incomplete if self._px4 else 0,
                                               **self.watchdog.stats()})
+            if self.rt is not None:
+                self.logger.metadata("realtime_stats", vars(self.rt.stats))
             self.logger.metadata("params_final", self.registry.as_dict())
             self.logger.close()
             self.logger = None
@@ -539,6 +737,10 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--api-bind-port", type=int, default=None)
     ap.add_argument("--api-port", type=int, default=None)
     ap.add_argument("--log", default=None, help="MCAP log path")
+    ap.add_argument("--log-max-mb", type=float, default=FcOptions.log_max_mb,
+                    help="rotate the log at this size in MB: PATH, PATH-stem.1.mcap, ... (0: no cap; docs/logs.md)")
+    ap.add_argument("--log-keep", type=int, default=FcOptions.log_keep,
+                    help="log parts kept when rotating (the oldest is deleted)")
     ap.add_argument("--state-dir", default=None, help="directory for persisted parameters")
     ap.add_argument("--defaults", action="store_true", help="start from default parameters (ignore stored)")
     ap.add_argument("--autopilot", choices=["generic", "px4"], default="generic",
@@ -551,6 +753,18 @@ def build_arg_parser() -> argparse.ArgumentParser:
                     help=f"serve the Foxglove 3D channels live over WebSocket (default port {FOXGLOVE_DEFAULT_PORT}; "
                          "0: any free port)")
     ap.add_argument("--foxglove-host", default="127.0.0.1", help="address the Foxglove server binds")
+    conn = ("a connection string instead of the port options: udpin:H:P, udpout:H:P, tcp:H:P, tcpin:H:P, "
+            "serial:DEVICE:BAUD (docs/hil.md)")
+    ap.add_argument("--sim-link", default=None, metavar="CONN", help=f"the bridge/simulator link as {conn}; PX4's "
+                    "simulator interface is tcp:127.0.0.1:4560")
+    ap.add_argument("--gcs-link", default=None, metavar="CONN", help=f"the GCS link as {conn}")
+    ap.add_argument("--api-link", default=None, metavar="CONN", help=f"the API link as {conn}")
+    ap.add_argument("--sim-messages", choices=["navig8", "px4"], default="navig8",
+                    help="what the sim link carries: navig8 (the private bundle, docs/bridge.md) or px4 (PX4's "
+                         "simulator messages HIL_SENSOR + HIL_STATE_QUATERNION; docs/hil.md)")
+    ap.add_argument("--timing", choices=["lockstep", "realtime"], default=None,
+                    help="timing mode, overriding the FC_TIMING parameter: lockstep (one step per bundle) or realtime "
+                         "(own clock at INDI_RATE_HZ; the bridge then runs --free-run; docs/hil.md)")
     return ap
 
 
@@ -561,25 +775,42 @@ def options_from_args(a: argparse.Namespace) -> FcOptions:
         api_bind_port=a.api_bind_port, api_port=a.api_port, log_path=Path(a.log) if a.log else None,
         state_dir=Path(a.state_dir) if a.state_dir else None, defaults=a.defaults,
         ports_file=Path(a.ports_file) if a.ports_file else None, autopilot=a.autopilot, foxglove_port=a.foxglove,
-        foxglove_host=a.foxglove_host,
+        foxglove_host=a.foxglove_host, log_max_mb=a.log_max_mb, log_keep=a.log_keep, sim_link=a.sim_link,
+        gcs_link=a.gcs_link, api_link=a.api_link, timing=a.timing, sim_messages=a.sim_messages,
     )
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_arg_parser().parse_args(argv)
+    ap = build_arg_parser()
+    args = ap.parse_args(argv)
+    for text in (args.sim_link, args.gcs_link, args.api_link):
+        if text:
+            try:
+                parse_connection(text)
+            except ValueError as e:
+                ap.error(str(e))
+    # Ctrl-C / SIGTERM during the start (numba, dialect, parameters) ends it cleanly too: exit 0, no traceback.
+    stop_early: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, _f: stop_early.append(signum))
+    signal.signal(signal.SIGTERM, lambda signum, _f: stop_early.append(signum))
     try:
         proc = FlightControllerProcess(options_from_args(args))
     except PortInUseError as e:
-        print(f"navig8-fc: {e.strerror}; choose another with {_PORT_OPTIONS[e.link]} (0: any free port)",
-              file=sys.stderr)
+        print(f"navig8-fc: {e.strerror}; choose another with {_PORT_OPTIONS[e.link]} or --{e.link}-link "
+              "(port 0: any free port)", file=sys.stderr)
         return EXIT_USAGE
     except FoxglovePortError as e:
         print(f"navig8-fc: {e}; choose another with --foxglove=PORT (0: any free port)", file=sys.stderr)
         return EXIT_USAGE
+    except OSError as e:  # a serial device that cannot be opened (after FoxglovePortError, also an OSError)
+        print(f"navig8-fc: {e.strerror or e}", file=sys.stderr)
+        return 1
     signal.signal(signal.SIGINT, proc.request_stop)
     signal.signal(signal.SIGTERM, proc.request_stop)
+    if stop_early:
+        proc.request_stop()
     rc = proc.run(until_done=args.until_done)
-    if proc.opts.log_path:
+    if proc.opts.log_path and proc._log_open_error is None:
         print(f"navig8-fc: log {proc.opts.log_path}", file=sys.stderr)
     return rc
 

@@ -42,10 +42,11 @@ from collections.abc import Callable, Hashable, Iterable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Any, Protocol
 
-from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.stack import throttle_pct
 from navig8_fc.flight.state import GripperAction, VehicleCommands, VehicleState
+from navig8_fc.gcs import offboard
 from navig8_fc.gcs.commands import CommandHandler
 from navig8_fc.gcs.ftp import FtpServer, FtpService
 from navig8_fc.gcs.metadata import build_metadata, component_metadata_message
@@ -63,6 +64,7 @@ from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import MissionType
 from navig8_fc.mission.protocol import MissionProtocol
 from navig8_fc.mission.store import MissionStore
+from navig8_fc.modes.manager import TaskStatus
 from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
 from navig8_fc.params.registry import ParamRegistry, SetResult, run_floor
 from navig8_fc.params.store import ParamStore
@@ -73,8 +75,7 @@ MSG_AVAILABLE_MODES, MSG_CURRENT_MODE, MSG_AVAILABLE_MODES_MONITOR = 435, 436, 4
 AVAILABLE_MODES_SEQ = 1  # AVAILABLE_MODES_MONITOR.seq: the set of modes never changes at run time
 CURRENT_MODE_PERIOD_S = 2.0
 MAV_FRAME_LOCAL_NED, MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 1, 5, 6
-_IGNORE_POSITION = 0b111  # POSITION_TARGET_TYPEMASK X/Y/Z_IGNORE
-_IGNORE_YAW = 1024  # POSITION_TARGET_TYPEMASK_YAW_IGNORE
+_OFFBOARD_TYPES = frozenset({"SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT", "SET_ATTITUDE_TARGET"})
 MANUAL_CONTROL_TIMEOUT_S = 0.5  # MANUAL_CONTROL older than this: sticks centred (Position mode holds)
 
 PARAM_QUEUE_MAX = 32  # PARAM_SETs waiting for a stability floor; more are refused (busy) at once
@@ -136,6 +137,7 @@ class GcsService:
         self.origin = origin_from_params(registry)
         self._plan_generation = -1  # the mission plan generation the vehicle has
         self.last_offboard_setpoint: float | None = None  # wall time of the last accepted offboard setpoint
+        self._offboard_ignored = ""  # the part of the offboard targets not flown, as last announced
         self._last_manual: float | None = None  # wall time of the last MANUAL_CONTROL
         self.metadata = build_metadata(registry.definitions)  # QGC's parameter metadata, served read-only over FTP
         self.ftp = FtpService(mav, FtpServer(self.metadata.files), sysid, 1)
@@ -258,7 +260,7 @@ class GcsService:
                 self._route(kind, source, self._param_set(m, source, now_wall))
                 continue
             out = self.params.handle(m, now_wall, source)
-            out += self.commands.handle(m, now_wall)
+            out += self.commands.handle(m, now_wall, source)
             out += self.misc.handle(m, now_wall)
             out += self.mission.handle(m, now_wall, source)
             out += self.ftp.handle(m)
@@ -366,36 +368,40 @@ class GcsService:
         return [] if ok else self.text.warning(reason or f"SET_MODE {int(m.custom_mode):#x} refused")
 
     def _offboard(self, m: Any, now_wall: float) -> list[Any]:
-        """SET_POSITION_TARGET_LOCAL_NED (frame LOCAL_NED) / _GLOBAL_INT (GLOBAL_INT, GLOBAL_RELATIVE_ALT_INT):
-        position (+ yaw unless its ignore bit is set) -> the vehicle's offboard setpoint. Velocity/acceleration-only
-        targets are not supported: refused by STATUSTEXT (no ACK in this protocol)."""
+        """SET_POSITION_TARGET_LOCAL_NED (frames LOCAL_NED, BODY_NED) / _GLOBAL_INT (GLOBAL_INT,
+        GLOBAL_RELATIVE_ALT_INT) and SET_ATTITUDE_TARGET -> the vehicle's offboard target, per type_mask
+        (navig8_fc.gcs.offboard). No ACK in this protocol: a refusal is a STATUSTEXT; a part not flown
+        (acceleration, roll, ...) is named once until a target without it arrives."""
         kind = m.get_type()
-        if kind not in ("SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT"):
+        if kind not in _OFFBOARD_TYPES or m.target_system not in (0, self.sysid) or m.target_component not in (0, 1):
             return []
-        if m.target_system not in (0, self.sysid) or m.target_component not in (0, 1):
-            return []
-        mask = int(m.type_mask)
-        if mask & _IGNORE_POSITION:
-            return self.text.warning(f"{kind}: only position targets are supported (type_mask {mask})")
-        st = self._state()
-        yaw = st.setpoint.yaw_rad if st.setpoint is not None else st.home_yaw_rad
-        if not mask & _IGNORE_YAW:
-            yaw = float(m.yaw)
-        if kind == "SET_POSITION_TARGET_LOCAL_NED":
-            if int(m.coordinate_frame) != MAV_FRAME_LOCAL_NED:
-                return self.text.warning(f"{kind}: frame {int(m.coordinate_frame)} unsupported (LOCAL_NED)")
-            pos = (float(m.x), float(m.y), float(m.z))
+        if kind == "SET_ATTITUDE_TARGET":
+            dec = offboard.attitude_target(int(m.type_mask), tuple(m.q), float(m.thrust),
+                                           (m.body_roll_rate, m.body_pitch_rate, m.body_yaw_rate))
         else:
-            frame = int(m.coordinate_frame)
-            if frame not in (MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
-                return self.text.warning(f"{kind}: frame {frame} unsupported (GLOBAL_INT, GLOBAL_RELATIVE_ALT_INT)")
-            pos = self._to_ned(m.lat_int * 1e-7, m.lon_int * 1e-7, float(m.alt), frame != MAV_FRAME_GLOBAL_INT)
-        pitch = st.setpoint.pitch_rad if st.setpoint is not None else 0.0
-        ok, reason = self._vehicle.offboard_setpoint(Setpoint(pos, pitch, yaw))
+            mask, frame = int(m.type_mask), int(m.coordinate_frame)
+            if kind == "SET_POSITION_TARGET_LOCAL_NED":
+                if frame not in (MAV_FRAME_LOCAL_NED, offboard.MAV_FRAME_BODY_NED):
+                    return self.text.warning(f"{kind}: frame {frame} unsupported (LOCAL_NED, BODY_NED)")
+                pos = (float(m.x), float(m.y), float(m.z))
+            else:
+                if frame not in (MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
+                    return self.text.warning(f"{kind}: frame {frame} unsupported (GLOBAL_INT, GLOBAL_RELATIVE_ALT_INT)")
+                pos = self._to_ned(m.lat_int * 1e-7, m.lon_int * 1e-7, float(m.alt), frame != MAV_FRAME_GLOBAL_INT)
+            sensors = self._state().sensors
+            yaw_now = quat_to_euler(sensors.quat_wxyz)[2] if sensors is not None else 0.0
+            dec = offboard.position_target(kind, mask, frame, pos, (m.vx, m.vy, m.vz), (m.afx, m.afy, m.afz),
+                                           float(m.yaw), float(m.yaw_rate), yaw_now)
+        if dec.target is None:
+            return self.text.warning(dec.refusal)
+        ok, reason = self._vehicle.offboard_setpoint(dec.target)
         if not ok:
             return self.text.warning(reason)
         self.last_offboard_setpoint = now_wall
-        return []
+        if dec.ignored == self._offboard_ignored:
+            return []
+        self._offboard_ignored = dec.ignored
+        return self.text.warning(dec.ignored) if dec.ignored else []
 
     def _set_origin(self, m: Any) -> list[Any]:
         """SET_GPS_GLOBAL_ORIGIN -> the ORIGIN_* parameters (validated and saved as any PARAM_SET), then
@@ -450,7 +456,7 @@ class GcsService:
             self._vehicle.load_mission(self.mission.plan(), self.origin)
             self._vehicle.load_fence(self.mission.plan(MissionType.FENCE), self.origin)
         self.mission.report(self._state().mission)
-        for source, m in self.params.poll_routed(now_wall) + self.mission.poll(now_wall):
+        for source, m in self.params.poll_routed(now_wall) + self.mission.poll(now_wall) + self.commands.poll(now_wall):
             if source is None:
                 self._outbox.broadcast([m])
             else:
@@ -482,6 +488,15 @@ class GcsService:
 
     def land(self) -> tuple[bool, str]:
         return self._vehicle.land()
+
+    def return_to_launch(self) -> tuple[bool, str]:
+        return self._vehicle.return_to_launch()
+
+    def task_status(self, channel: str) -> TaskStatus | None:
+        return self._vehicle.task_status(channel)
+
+    def cancel_task(self, channel: str) -> bool:
+        return self._vehicle.cancel_task(channel)
 
     def set_mode(self, base_mode: int, custom_mode: int) -> tuple[bool, str]:
         self._intended_custom_mode = int(custom_mode)

@@ -1,4 +1,7 @@
-"""UDP MAVLink endpoints for the shell: framing, decoding with counters, peers, sending.
+"""MAVLink endpoints for the shell: framing, decoding with counters, peers, sending.
+
+A link is UDP by default (`UdpLink.open`); `UdpLink.connect` opens any connection string (UDP, TCP, serial:
+navig8_fc.shell.transport), whose stream transports stand in for the UDP socket and hand over whole frames.
 
 Each datagram is split into frames by their own length fields (`codec.split_frames`: MAVLink 1 and 2, signed
 or not), so a truncated or corrupt frame never poisons the next datagram. The sim link decodes with the codec
@@ -13,7 +16,6 @@ port (`local_port` tells which).
 
 from __future__ import annotations
 
-import errno
 import json
 import os
 import socket
@@ -24,30 +26,11 @@ from typing import Any, NamedTuple
 
 from navig8_fc.mavlink.codec import Codec, Message, split_frames
 from navig8_fc.shell.signing import redact_frame, redacted_message
+from navig8_fc.shell.transport import Connection, PortInUseError, bind_udp, open_endpoint
+
+__all__ = ["MAX_DATAGRAM", "LinkCounters", "PortInUseError", "Received", "UdpLink", "bind_udp", "write_ports_file"]
 
 MAX_DATAGRAM = 2048  # larger datagrams are counted as oversize and dropped
-
-
-class PortInUseError(OSError):
-    """A UDP port another socket holds."""
-
-    def __init__(self, link: str, host: str, port: int) -> None:
-        super().__init__(errno.EADDRINUSE, f"{link} link: UDP {host}:{port} is in use by another process")
-        self.link, self.host, self.port = link, host, port
-
-
-def bind_udp(name: str, bind: tuple[str, int]) -> socket.socket:
-    """A UDP socket bound to `bind` (port 0: any free port), without SO_REUSEADDR; PortInUseError if taken."""
-    s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-    try:
-        s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
-        s.bind(bind)
-    except OSError as e:
-        s.close()
-        if e.errno == errno.EADDRINUSE:
-            raise PortInUseError(name, bind[0], bind[1]) from e
-        raise
-    return s
 
 
 def write_ports_file(path: Path, ports: dict[str, int]) -> None:
@@ -133,6 +116,15 @@ class UdpLink:
         s = bind_udp(name, bind)
         s.setblocking(False)
         return UdpLink(name=name, sock=s, mav=mav, targets=list(targets or []), codec=codec)
+
+    @staticmethod
+    def connect(name: str, mav: Any, conn: Connection, codec: Codec | None = None) -> UdpLink:
+        """A link over a connection string's transport (navig8_fc.shell.transport: UDP, TCP or serial). A stream
+        (TCP, serial) has one peer, always the destination; its reads hand over whole frames only."""
+        ep = open_endpoint(name, conn)
+        if not ep.stream:
+            ep.sock.setblocking(False)
+        return UdpLink(name=name, sock=ep.sock, mav=mav, targets=ep.targets, codec=codec)
 
     @property
     def local_port(self) -> int:

@@ -1,5 +1,10 @@
 """MCAP logging (DESIGN §7): one file per run, JSON channels with JSON schemas Foxglove can plot.
 
+Resources (docs/logs.md, "Size cap and a full disk"): with `max_bytes` the file is closed (complete) and the log
+continues in `<stem>.1.mcap`, `<stem>.2.mcap`, ... keeping `keep_files` parts; a write that fails (disk full,
+file-size limit, I/O error) stops the log: `error` says why, later records are dropped and counted (`dropped`),
+and nothing raises into the caller's flight.
+
 Chunks are small (64 KiB by default) so a killed process loses little; `read_mcap` recovers a
 truncated file up to its last complete chunk. Times: log_time = sim time (ns), publish_time = the
 wall clock of the writer when given (the shell owns clocks; pass it in).
@@ -88,21 +93,72 @@ def json_schema_for(sample: Any) -> dict[str, Any]:
     return {}
 
 
-class McapLogger:
-    """Writes JSON messages; a channel (and its schema, from the first message) per topic."""
+def part_path(path: Path, k: int) -> Path:
+    """Part k of a rotated log: the path itself for k = 0, else <stem>.<k><suffix>."""
+    return path if k == 0 else path.with_name(f"{path.stem}.{k}{path.suffix}")
 
-    def __init__(self, path: str | Path, chunk_size: int = CHUNK_SIZE, profile: str = "navig8") -> None:
+
+class McapLogger:
+    """Writes JSON messages; a channel (and its schema, from the first message) per topic. Opening raises OSError
+    (use `open_logger` for the reported form); after that no write raises (module docstring)."""
+
+    def __init__(self, path: str | Path, chunk_size: int = CHUNK_SIZE, profile: str = "navig8", max_bytes: int = 0,
+                 keep_files: int = 0) -> None:
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.max_bytes, self.keep_files = int(max_bytes), int(keep_files)
+        self._chunk_size, self._profile = chunk_size, profile
+        self.error: str | None = None  # why the log stopped (None: writing)
+        self.dropped = 0  # records not written since it stopped
+        self.rotations = 0
+        # what a new part must hold again so channel ids stay valid: schemas, channels and metadata, in order
+        self._replay: list[tuple[str, tuple[Any, ...]]] = []
         self._fh: BinaryIO = open(self.path, "wb")  # noqa: SIM115 - closed in close()
         # FastMcapWriter: the library's file layout, byte for byte, at ~0.3 us per message instead of ~3 us (the FC
         # logs on the lockstep path). lz4 rather than zstd: 3x faster per chunk, files ~1.6x larger.
-        self._w = FastMcapWriter(self._fh, chunk_size=chunk_size, compression="lz4")
-        self._w.start(profile=profile, library="navig8-sitl")
+        self._w = self._start(self._fh)
         self._channels: dict[str, int] = {}
         self._raw_channels: dict[tuple[str, str], int] = {}
         self._schemas: dict[str, int] = {}
         self._closed = False
+
+    def _start(self, fh: BinaryIO) -> FastMcapWriter:
+        w = FastMcapWriter(fh, chunk_size=self._chunk_size, compression="lz4")
+        w.start(profile=self._profile, library="navig8-sitl")
+        return w
+
+    @property
+    def current_path(self) -> Path:
+        return part_path(self.path, self.rotations)
+
+    def fail(self, reason: str) -> None:
+        """Stop logging (a write failed): keep the reason, drop and count from now on, release the file."""
+        if self.error is None:
+            self.error = reason
+            try:
+                self._fh.close()
+            except OSError:
+                pass  # the buffered tail cannot be written either; the complete chunks stay readable
+
+    def maybe_rotate(self) -> None:
+        """Start the next part once the current one has reached max_bytes (call it between steps)."""
+        if self.max_bytes <= 0 or self.error is not None or self._closed:
+            return
+        try:
+            if self._fh.tell() < self.max_bytes:
+                return
+            self._w.finish()
+            self._fh.close()
+            self.rotations += 1
+            self._fh = open(self.current_path, "wb")  # noqa: SIM115 - closed in close()
+            self._w = self._start(self._fh)
+            for kind, args in self._replay:
+                got = getattr(self._w, kind)(*args)
+                assert kind == "add_metadata" or got is not None
+            if self.keep_files > 0 and self.rotations >= self.keep_files:
+                part_path(self.path, self.rotations - self.keep_files).unlink(missing_ok=True)
+        except OSError as e:
+            self.fail(f"{e.strerror or e} ({self.current_path.name})")
 
     def channel(self, topic: str, sample: Any, schema_name: str | None = None, encoding: str = "json",
                 schema: dict[str, Any] | None = None) -> int:
@@ -113,24 +169,35 @@ class McapLogger:
             if encoding == "json":
                 schema = dict(schema) if schema is not None else json_schema_for(sample)
                 schema["title"] = name
-                self._schemas[name] = self._w.register_schema(name, "jsonschema", json.dumps(schema).encode())
+                self._schemas[name] = self._register("register_schema", name, "jsonschema",
+                                                     json.dumps(schema).encode())
             else:
-                self._schemas[name] = self._w.register_schema(name, "", b"")
-        cid = self._w.register_channel(topic, encoding, self._schemas[name])
+                self._schemas[name] = self._register("register_schema", name, "", b"")
+        cid = self._register("register_channel", topic, encoding, self._schemas[name])
         self._channels[topic] = cid
         return cid
+
+    def _register(self, kind: str, *args: Any) -> Any:
+        """A schema or channel record (kept for the next part: ids are positions, replayed in the same order)."""
+        self._replay.append((kind, args))
+        try:
+            return getattr(self._w, kind)(*args)
+        except OSError as e:
+            self.fail(e.strerror or str(e))
+            # the id it would have had: the caller's cached ids stay consistent (nothing more is written anyway)
+            return sum(1 for k, _ in self._replay if k == kind)
 
     def _raw_channel(self, topic: str, encoding: str, peer: str) -> int:
         """A raw channel per (topic, peer): the peer rides in the channel's metadata, so each datagram keeps
         where it came from or went to at no cost per message (MCAP allows several channels on one topic)."""
         name = topic.strip("/").replace("/", ".") + ".raw"
         if name not in self._schemas:
-            self._schemas[name] = self._w.register_schema(name, "", b"")
+            self._schemas[name] = self._register("register_schema", name, "", b"")
         parts = topic.strip("/").split("/")
         meta = {"peer": peer}
         if len(parts) == 3 and parts[0] == "mavlink":
             meta.update(link=parts[1], direction=parts[2])
-        cid = self._w.register_channel(topic, encoding, self._schemas[name], meta)
+        cid = self._register("register_channel", topic, encoding, self._schemas[name], meta)
         self._raw_channels[(topic, peer)] = cid
         return cid
 
@@ -139,7 +206,7 @@ class McapLogger:
         cid = self._channels.get(topic)
         if cid is None:
             cid = self.channel(topic, to_jsonable(obj), schema=schema)
-        self._w.add_message(cid, int(t_ns), dumps_json(obj), int(t_ns if publish_ns is None else publish_ns))
+        self._add(cid, int(t_ns), dumps_json(obj), int(t_ns if publish_ns is None else publish_ns))
 
     def json_channel(self, topic: str, schema: dict[str, Any]) -> int:
         """The id of a JSON channel with this schema (registered on first use), for log_json_bytes."""
@@ -148,7 +215,16 @@ class McapLogger:
 
     def log_json_bytes(self, channel_id: int, t_ns: int, data: bytes, publish_ns: int) -> None:
         """A record already serialised as JSON on a json_channel: the lean path for records logged every step."""
-        self._w.add_message(channel_id, t_ns, data, publish_ns)
+        if self.error is not None:
+            self.dropped += 1
+            return
+        try:
+            self._w.add_message(channel_id, t_ns, data, publish_ns)
+        except OSError as e:
+            self.dropped += 1
+            self.fail(e.strerror or str(e))
+
+    _add = log_json_bytes  # every message goes through here: dropped and counted once the log has stopped
 
     def log_raw(self, topic: str, t_ns: int, payload: bytes, publish_ns: int | None = None,
                 encoding: str = "application/octet-stream", peer: str = "") -> None:
@@ -156,24 +232,48 @@ class McapLogger:
         cid = self._raw_channels.get((topic, peer))
         if cid is None:
             cid = self._raw_channel(topic, encoding, peer)
-        self._w.add_message(cid, int(t_ns), payload, int(t_ns if publish_ns is None else publish_ns))
+        self._add(cid, int(t_ns), payload, int(t_ns if publish_ns is None else publish_ns))
 
     def metadata(self, name: str, data: Any) -> None:
         """A metadata record; `data` is a mapping or a dataclass (values stored as JSON strings)."""
         d = to_jsonable(data)
-        self._w.add_metadata(name, {str(k): json.dumps(v) for k, v in d.items()})
+        rec = {str(k): json.dumps(v) for k, v in d.items()}
+        if self.rotations == 0:
+            self._replay.append(("add_metadata", (name, rec)))  # the run's start (run, params) heads every part
+        if self.error is not None:
+            self.dropped += 1
+            return
+        try:
+            self._w.add_metadata(name, rec)
+        except OSError as e:
+            self.fail(e.strerror or str(e))
 
     def close(self) -> None:
         if not self._closed:
-            self._w.finish()
-            self._fh.close()
             self._closed = True
+            if self.error is None:
+                try:
+                    self._w.finish()
+                    self._fh.close()
+                except OSError as e:
+                    self.fail(e.strerror or str(e))
 
     def __enter__(self) -> McapLogger:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def open_logger(path: Path | None, max_mb: float = 0.0, keep_files: int = 0) -> tuple[McapLogger | None, str | None]:
+    """(logger, None), or (None, why) when the log cannot be opened (read-only directory, full disk): the caller
+    reports it and runs without a log. No path: (None, None)."""
+    if path is None:
+        return None, None
+    try:
+        return McapLogger(path, max_bytes=int(max_mb * 1e6), keep_files=keep_files), None
+    except OSError as e:
+        return None, f"{e.strerror or e} ({path})"
 
 
 def read_mcap(path: str | Path, topics: list[str] | None = None,

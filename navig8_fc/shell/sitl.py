@@ -1,4 +1,5 @@
-"""navig8-sitl: starts navig8-bridge and navig8-fc as two processes, forwards SIGINT/SIGTERM, stops both.
+"""navig8-sitl: starts navig8-bridge and navig8-fc as two processes, stops both on SIGINT/SIGTERM (exit 0), and
+exits non-zero when either ends by itself before the run is done (its code, or 128 + N for signal N).
 
     navig8-sitl [--scenario NAME|FILE] [--speed X] [--until-done] [--summary FILE] [--log-dir DIR]
                 [--state-dir DIR] [--instance N] [--seed N] [--defaults] [--set NAME=VALUE ...] [--foxglove[=PORT]]
@@ -14,6 +15,7 @@ value stops here with the reason), so a campaign run is one command; world overr
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import signal
@@ -25,21 +27,54 @@ from pathlib import Path
 from typing import Any
 
 STOP_TIMEOUT_S = 10.0
+EXIT_CHILD_DIED = 1  # a child ended by itself (no --until-done end, no signal to us): its own code if positive
+
+
+def exit_code_of(returncode: int) -> int:
+    """A child's return code as an exit code: as it is if >= 0, 128 + N for a child killed by signal N (the
+    shell's convention)."""
+    return returncode if returncode >= 0 else 128 - returncode
+
+
+def stopped_cleanly(returncode: int) -> bool:
+    """A child we asked to stop that exited 0 or died of the signal (SIGTERM while its interpreter was still
+    starting): a clean stop, not a failure."""
+    return returncode in (0, -signal.SIGINT, -signal.SIGTERM)
+
+
+def _die_with_parent(parent_pid: int) -> None:
+    """In the child before exec: SIGTERM when navig8-sitl dies (Linux PR_SET_PDEATHSIG), so no orphan keeps running
+    after a kill -9 of the launcher (and if it died before this ran, do not start at all)."""
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):
+        return  # not Linux: the signals forwarded by _stop are all there is
+    if os.getppid() != parent_pid:
+        os._exit(1)
 
 
 def _spawn(module: str, args: list[str]) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", module, *args], stdin=subprocess.DEVNULL)
+    """A child in a process group of its own: a Ctrl-C in the terminal reaches only navig8-sitl, which forwards
+    SIGTERM (a SIGINT landing while a child's interpreter still starts would be a fatal error or a traceback; SIGTERM
+    then ends it quietly, and once running it stops cleanly)."""
+    return subprocess.Popen([sys.executable, "-m", module, *args], stdin=subprocess.DEVNULL, process_group=0,
+                            preexec_fn=functools.partial(_die_with_parent, os.getpid()))
 
 
 def _stop(proc: subprocess.Popen, name: str) -> int:
+    """SIGTERM, then kill after STOP_TIMEOUT_S; the child's return code (0 also for one that died of our SIGTERM)."""
     if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
+        proc.send_signal(signal.SIGTERM)
         try:
             proc.wait(timeout=STOP_TIMEOUT_S)
         except subprocess.TimeoutExpired:
             print(f"navig8-sitl: {name} did not stop within {STOP_TIMEOUT_S:.0f} s; killing it", file=sys.stderr)
             proc.kill()
             proc.wait(timeout=STOP_TIMEOUT_S)
+            return int(proc.returncode)
+        return 0 if stopped_cleanly(proc.returncode) else int(proc.returncode)
     return int(proc.returncode)
 
 
@@ -130,10 +165,13 @@ def main(argv: list[str] | None = None) -> int:
     time.sleep(0.2)  # let the FC bind its sim port before the bridge starts sending
     bridge = _spawn("sim_bridge.bridge", br_args)
     rc_bridge: int | None = None
+    died: tuple[str, int] | None = None  # the child that ended by itself, and its code
     try:
         while not stopping["flag"]:
             if bridge.poll() is not None:
                 rc_bridge = bridge.returncode
+                if not (a.until_done and rc_bridge == 0):
+                    died = ("navig8-bridge", rc_bridge)
                 break
             if fc.poll() is not None:
                 if a.until_done and fc.returncode == 0:  # done: the bridge is finishing too, let it
@@ -142,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
                     except subprocess.TimeoutExpired:
                         pass
                 else:
-                    print(f"navig8-sitl: navig8-fc exited with {fc.returncode}", file=sys.stderr)
+                    died = ("navig8-fc", fc.returncode)
                 break
             time.sleep(0.05)
     finally:
@@ -154,10 +192,21 @@ def main(argv: list[str] | None = None) -> int:
         rc_fc = _stop(fc, "navig8-fc")
         rc_b = _stop(bridge, "navig8-bridge") if rc_bridge is None else rc_bridge
     wall = time.perf_counter() - wall0
+    if stopping["flag"]:  # Ctrl-C / SIGTERM to us: a child that went first went by the same signal
+        died = None
+        rc_fc = 0 if stopped_cleanly(rc_fc) else rc_fc
+        rc_b = 0 if stopped_cleanly(rc_b) else rc_b
+    if died is not None:
+        name, code = died
+        print(f"navig8-sitl: {name} ended by itself (exit {code}) before the run was done; stopped the other",
+              file=sys.stderr)
     if rc_fc != 0 or rc_b != 0:
         print(f"navig8-sitl: navig8-fc exited with {rc_fc}, navig8-bridge with {rc_b}", file=sys.stderr)
     print(f"navig8-sitl: log {log}", file=sys.stderr)
-    if a.until_done:
+    if a.until_done and died is None and not log.is_file():  # the FC could not write it (docs/logs.md)
+        print("navig8-sitl: no log was written, so no summary", file=sys.stderr)
+        return 0 if rc_b == 0 and rc_fc == 0 else 1
+    if a.until_done and died is None:
         from navig8_fc.shell.mcap_log import read_metadata
         from navig8_tools.logdata import load_run
         from navig8_tools.summary import summarize
@@ -176,7 +225,9 @@ def main(argv: list[str] | None = None) -> int:
             Path(a.summary).parent.mkdir(parents=True, exist_ok=True)
             Path(a.summary).write_text(text + "\n")
         return 0 if rc_b == 0 and rc_fc == 0 and not summary.get("lost_control") else 1
-    return 0 if rc_fc == 0 else rc_fc
+    if died is not None:
+        return exit_code_of(died[1]) or EXIT_CHILD_DIED
+    return exit_code_of(rc_fc) or exit_code_of(rc_b)
 
 
 if __name__ == "__main__":

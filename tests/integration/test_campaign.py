@@ -5,6 +5,7 @@ replays alone through `navig8-sim` with the printed command."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import shlex
 import time
@@ -22,8 +23,11 @@ from navig8_tools.campaign import (
     comparable,
     expand,
     read_stream,
+    replay_command,
     run_campaign,
+    worker_pool,
 )
+from navig8_tools.mission import plan_from_scenario
 from navig8_tools.sim import main as sim_main
 
 SMALL = {
@@ -90,6 +94,22 @@ def test_a_raising_and_a_timed_out_run_are_recorded_and_the_campaign_goes_on(tmp
     assert res.table["status"].tolist() == ["timeout"] and "0 s" in res.table["error"][0]
 
 
+def test_a_pool_worker_is_warmed_once_and_runs_one_thread() -> None:
+    """worker_pool's processes start with WORKER_ENV and are warmed before their first row: the flight loop's modules
+    are loaded, the objects alive then are frozen out of the garbage collector's walks, and the process runs one
+    OS thread (OpenBLAS would otherwise start one per core, which spins in each worker on the core the other
+    worker needs: docs/campaigns.md, "Throughput"). The parent's environment is as it was."""
+    env = dict(os.environ)
+    with worker_pool(1, "inprocess") as pool:
+        warm = pool.submit(eval, "[m in __import__('sys').modules for m in ('navig8_tools.sim', 'mcap.reader')]")
+        frozen = pool.submit(eval, "__import__('gc').get_freeze_count()")
+        threads = pool.submit(eval, "len(__import__('os').listdir('/proc/self/task'))")
+        assert warm.result() == [True, True]
+        assert frozen.result() > 10_000
+        assert threads.result() == 1
+    assert dict(os.environ) == env
+
+
 def test_call_with_timeout_interrupts_a_python_loop_and_leaves_a_fast_call_alone() -> None:
     t0 = time.perf_counter()
     with pytest.raises(RunTimeout):
@@ -127,3 +147,22 @@ def test_the_printed_replay_command_reproduces_the_row(tmp_path: Path) -> None:
     s = json.loads(summary.read_text())
     for k in ("max_att_error_deg", "max_pos_error_m", "min_eigenvalue", "peak_reaction_force_n"):
         assert s[k] == row[k], k  # bit for bit: the row determines the run
+
+
+def test_a_sitl_campaign_with_a_plan_names_it_in_every_row_and_replay() -> None:
+    d = {"name": "plan", "kind": "sitl", "scenario": "paper_plan", "speed": 1.0, "seeds": [1, 2],
+         "plan": {"from_scenario": "paper"}, "variants": {"proposed": {"controller": "proposed"}}}
+    rows = expand(Campaign.from_dict(d))
+    assert all(r.plan == plan_from_scenario("paper") for r in rows) and len(rows) == 2
+    # the replay: the plan written by navig8-mission, navig8-sitl on the row's instance, navig8-mission fly on the
+    # port navig8-fc sends to before a GCS talks
+    cmd = replay_command(rows[1])
+    assert cmd.startswith("navig8-mission from-scenario --scenario paper out/replay_")
+    assert f"--instance {rows[1].instance} " in cmd and "--speed 1 " in cmd
+    assert "navig8-mission fly out/replay_" in cmd and "udpin:127.0.0.1:14550" in cmd
+    # the plan is part of a row's identity; a campaign without one keeps the ids it had
+    other = expand(Campaign.from_dict(dict(d, plan={"from_scenario": "hover"})))
+    assert {r.run_id for r in other}.isdisjoint(r.run_id for r in rows)
+    assert expand(Campaign.from_dict(SMALL))[0].run_id == "proposed-723407c1233c"  # as before plans existed
+    with pytest.raises(ValueError, match="kind: sitl"):
+        Campaign.from_dict(dict(d, kind="inprocess"))

@@ -9,6 +9,7 @@ and announces itself, so the bridge learns the FC's address (it runs with --fc-p
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import socket
@@ -68,6 +69,12 @@ class SitlRun:
     state_dir: Path
     extra: dict[str, Any] = field(default_factory=dict)
     ports: dict[str, int] = field(default_factory=dict)  # what the processes bound: sim, gcs, api (FC), bridge
+    outputs: dict[int, str] = field(default_factory=dict)  # pid -> what the process printed (after stop)
+
+    def output(self, which: str) -> str:
+        """What the bridge or the FC printed (stdout and stderr), after stop()."""
+        p = self.bridge if which == "bridge" else self.fc
+        return "" if p is None else self.outputs.get(p.pid, "")
 
     def stop(self, timeout_s: float = 10.0) -> tuple[int | None, int | None]:
         codes: list[int | None] = []
@@ -83,7 +90,8 @@ class SitlRun:
                     p.kill()
                     p.wait(timeout=timeout_s)
             codes.append(p.returncode)
-            if p.stdout is not None:
+            if p.stdout is not None and not p.stdout.closed:
+                self.outputs[p.pid] = p.stdout.read().decode(errors="replace")
                 p.stdout.close()
         return codes[1], codes[0]
 
@@ -91,26 +99,38 @@ class SitlRun:
 @contextmanager
 def sitl(tmp: Path, scenario: str = "ground", speed: float = 1.0, fc_args: list[str] | None = None,
          bridge_args: list[str] | None = None, state_dir: Path | None = None, start_bridge: bool = True,
-         log_name: str = "run.mcap") -> Iterator[SitlRun]:
+         log_name: str = "run.mcap", link: str = "udp", serial_paths: tuple[str, str] | None = None,
+         fc_link_args: list[str] | None = None) -> Iterator[SitlRun]:
+    """link: the sim link's transport, "udp" (ports 0), "tcp" (the bridge listens on a free port as PX4's
+    simulator does on 4560, the FC connects) or "serial" (serial_paths: the bridge's and the FC's ends of a
+    line, e.g. navig8_tools.nullmodem.NullModem(921600).paths); fc_link_args replace the FC's sim-link options
+    (with start_bridge=False: a simulator the test runs itself)."""
     gcs, api = free_udp_ports(2)  # where the test's GCS / API clients will listen (the FC sends there)
     log = tmp / log_name
     state = state_dir or (tmp / "state")
     ports: dict[str, int] = {}
     br = None
     fc = None
+    br_link = {"udp": ["--bridge-port", "0", "--fc-port", "0"], "tcp": ["--link", "tcpin:127.0.0.1:0"],
+               "serial": ["--link", f"serial:{serial_paths[0]}:921600"] if serial_paths else []}[link]
     try:
         if start_bridge:
             br_ports = tmp / f"{log_name}.bridge-ports.json"
             br_cmd = [sys.executable, "-m", "sim_bridge.bridge", "--scenario", scenario, "--speed", str(speed),
-                      "--bridge-port", "0", "--fc-port", "0", "--ports-file", str(br_ports), *(bridge_args or [])]
+                      *br_link, "--ports-file", str(br_ports), *(bridge_args or [])]
             br = subprocess.Popen(br_cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                   stderr=subprocess.STDOUT, cwd=tmp)
             ports.update(wait_ports_file(br_ports, br))
         else:
             (ports["bridge"],) = free_udp_ports(1)  # nobody there: the FC waits for bundles
+        fc_link = {"udp": ["--sim-port", "0", "--bridge-port", str(ports["bridge"])],
+                   "tcp": ["--sim-link", f"tcp:127.0.0.1:{ports['bridge']}"],
+                   "serial": ["--sim-link", f"serial:{serial_paths[1]}:921600"] if serial_paths else []}[link]
+        if fc_link_args is not None:  # the FC's sim link as the caller says (a simulator of its own)
+            fc_link = fc_link_args
         fc_ports = tmp / f"{log_name}.fc-ports.json"
-        fc_cmd = [sys.executable, "-m", "navig8_fc.shell.fc_process", "--scenario", scenario, "--sim-port", "0",
-                  "--bridge-port", str(ports["bridge"]), "--gcs-port", str(gcs), "--gcs-bind-port", "0",
+        fc_cmd = [sys.executable, "-m", "navig8_fc.shell.fc_process", "--scenario", scenario, *fc_link,
+                  "--gcs-port", str(gcs), "--gcs-bind-port", "0",
                   "--api-port", str(api), "--api-bind-port", "0", "--log", str(log), "--state-dir", str(state),
                   "--ports-file", str(fc_ports), *(fc_args or [])]
         fc = subprocess.Popen(fc_cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -154,3 +174,194 @@ def wait_heartbeat(conn: Any, timeout_s: float = 10.0) -> Any:
     assert hb is not None, "no HEARTBEAT from the FC (compid 1)"
     conn.target_system, conn.target_component = hb.get_srcSystem(), 1
     return hb
+
+
+def command(gcs: Any, cmd: int, *params: float, timeout_s: float = 5.0) -> Any:
+    """COMMAND_LONG to the FC; its COMMAND_ACK (asserted to come)."""
+    p = list(params) + [0.0] * (7 - len(params))
+    gcs.mav.command_long_send(gcs.target_system, 1, cmd, 0, *p)
+    ack = wait_for(gcs, "COMMAND_ACK", timeout_s, lambda m: m.command == cmd)
+    assert ack is not None, f"no COMMAND_ACK for {cmd}"
+    return ack
+
+
+def takeoff_hover_land(gcs: Any, alt_m: float = 2.0, hover_samples: int = 30, arm_timeout_s: float = 30.0
+                       ) -> dict[str, float]:
+    """Arm, take off to alt_m, hold, land, disarm, through the GCS link only (what crosses it: ACKs, HEARTBEAT,
+    LOCAL_POSITION_NED, EXTENDED_SYS_STATE). Returns the hover's worst errors over hover_samples positions."""
+    from pymavlink.dialects.v20 import common as m2
+
+    from navig8_fc.modes import px4_custom_mode
+    from navig8_fc.modes.px4 import Px4AutoSubMode, Px4MainMode
+
+    def fc_hb(pred: Callable[[Any], bool]) -> Callable[[Any], bool]:
+        return lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1 and pred(m)
+
+    deadline = time.monotonic() + arm_timeout_s
+    while True:
+        ack = command(gcs, m2.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+        if ack.result == m2.MAV_RESULT_ACCEPTED or time.monotonic() > deadline:
+            break
+        wait_for(gcs, "HEARTBEAT", 0.5)  # pre-arm checks may need the first sensor data
+    assert ack.result == m2.MAV_RESULT_ACCEPTED, ack
+    assert command(gcs, m2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, alt_m).result == \
+        m2.MAV_RESULT_ACCEPTED
+    hold = px4_custom_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER)
+    assert wait_for(gcs, "HEARTBEAT", 40.0, fc_hb(lambda m: m.custom_mode == hold)) is not None, "no Hold after takeoff"
+    err_z = err_xy = 0.0
+    for _ in range(hover_samples):
+        lp = wait_for(gcs, "LOCAL_POSITION_NED", 5.0)
+        assert lp is not None, "no LOCAL_POSITION_NED while hovering"
+        err_z = max(err_z, abs(-lp.z - alt_m))
+        err_xy = max(err_xy, math.hypot(lp.x, lp.y))
+    assert command(gcs, m2.MAV_CMD_NAV_LAND).result == m2.MAV_RESULT_ACCEPTED
+    assert wait_for(gcs, "HEARTBEAT", 60.0, fc_hb(lambda m: not m.base_mode & m2.MAV_MODE_FLAG_SAFETY_ARMED)) \
+        is not None, "no disarm after landing"
+    es = wait_for(gcs, "EXTENDED_SYS_STATE", 5.0)
+    assert es is not None and es.landed_state == m2.MAV_LANDED_STATE_ON_GROUND
+    return {"err_z_m": err_z, "err_xy_m": err_xy}
+
+
+def mcap_metadata(log: Path, name: str) -> dict[str, str]:
+    from mcap.reader import make_reader
+
+    with log.open("rb") as f:
+        for m in make_reader(f).iter_metadata():
+            if m.name == name:
+                return dict(m.metadata)
+    raise AssertionError(f"no {name} metadata in {log}")
+
+
+def fly_from_gcs(run: SitlRun, tol_m: float = 0.3) -> dict[str, float]:
+    """takeoff_hover_land from a GCS on the run's GCS port; the hover held within tol_m (asserted)."""
+    gcs = gcs_client(run.gcs_port)
+    try:
+        wait_heartbeat(gcs, 30.0)
+        err = takeoff_hover_land(gcs)
+    finally:
+        gcs.close()
+    assert err["err_z_m"] < tol_m and err["err_xy_m"] < tol_m, err
+    return err
+
+
+def fly_realtime(tmp: Path, link: str, serial_paths: tuple[str, str] | None = None) -> None:
+    """The FC with --timing realtime and the bridge --free-run at 1x over `link`: arm, take off to 2 m, hover
+    within 0.3 m, land (asserted on the GCS link); then, from the FC's log, control ran on its own clock on
+    fresh data only (no step on an out-of-order bundle) and from the bridge's output, the link budget was shown."""
+    with sitl(tmp, scenario="ground", speed=1.0, fc_args=["--timing", "realtime"], bridge_args=["--free-run"],
+              link=link, serial_paths=serial_paths) as run:
+        fly_from_gcs(run)
+        run.stop()
+        out = run.output("bridge")
+    rt = mcap_metadata(run.log, "realtime_stats")
+    assert int(rt["steps"]) > 1000 and int(rt["steps"]) <= int(rt["ticks"]), rt
+    assert int(rt["out_of_order"]) == 0, rt
+    assert "link budget 635 B/step" in out or run.bridge is None, out
+
+
+@dataclass
+class FcTarget:
+    """The FC the interop tests talk to: connection strings for a GCS and an API client, and the local pair when
+    pytest started it (None: pointed elsewhere, so nothing but the links can be checked)."""
+
+    gcs: str
+    api: str
+    bridge: str
+    sysid: int = 1
+    local: SitlRun | None = None
+
+    @property
+    def flies(self) -> bool:
+        return self.bridge != "none"
+
+    def connect(self, which: str = "gcs", source_system: int = 255) -> Any:
+        """A pymavlink client on the GCS or API connection string. It sends one SYSTEM_TIME at once, so an FC that
+        answers only peers who talked (udpout:) knows where to send; not a HEARTBEAT: one heartbeat would arm the
+        FC's GCS-loss failsafe, and this client sends no more."""
+        conn = mavutil.mavlink_connection(self.gcs if which == "gcs" else self.api, source_system=source_system,
+                                          source_component=190, dialect="common")
+        conn.mav.system_time_send(0, 0)
+        return conn
+
+
+@contextmanager
+def fc_target(config: Any, tmp: Path) -> Iterator[FcTarget]:
+    """From --fc-gcs/--fc-api/--bridge/--fc-sysid (tests/sitl/conftest.py): that FC; unset: the local pair on free
+    ports, its GCS and API links reached as udpin: where the FC sends."""
+    gcs = config.getoption("--fc-gcs", default=None)
+    if gcs is not None:
+        api = config.getoption("--fc-api", default=None) or gcs
+        yield FcTarget(gcs, api, config.getoption("--bridge", default=None) or "external",
+                       config.getoption("--fc-sysid", default=1))
+        return
+    with sitl(tmp, scenario="ground", speed=1.0) as run:
+        yield FcTarget(f"udpin:127.0.0.1:{run.gcs_port}", f"udpin:127.0.0.1:{run.api_port}", "local", 1, run)
+
+
+class LossyUdpProxy:
+    """A UDP proxy on the sim link that impairs bridge -> FC datagrams: each one delayed by a uniform jitter in
+    [0, 2 * jitter_s] (± jitter_s around jitter_s), dropped with probability `drop`, or held back behind the next
+    one with probability `reorder` (then it arrives after a newer bundle: out of order). FC -> bridge passes as is.
+    The FC is given `fc_side_port` as its --bridge-port; `bridge_addr` is set once the bridge has bound. Seeded."""
+
+    def __init__(self, jitter_s: float, drop: float, reorder: float, seed: int = 1) -> None:
+        import heapq
+        import threading
+
+        import numpy as np
+
+        self._heapq, self._rng = heapq, np.random.default_rng(seed)
+        self.jitter_s, self.drop, self.reorder = jitter_s, drop, reorder
+        self._fc_side = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # the FC talks to this one
+        self._fc_side.bind(("127.0.0.1", 0))
+        self._br_side = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # the bridge learns this one as the FC
+        self._br_side.bind(("127.0.0.1", 0))
+        self.fc_side_port = self._fc_side.getsockname()[1]
+        self.bridge_addr: tuple[str, int] | None = None
+        self._fc_addr: tuple[str, int] | None = None
+        self._due: list[tuple[float, int, bytes]] = []
+        self._held: bytes | None = None
+        self.counts = {"forwarded": 0, "dropped": 0, "reordered": 0}
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        import select as sel
+
+        n = 0
+        while not self._stop.is_set():
+            wait = 0.05 if not self._due else max(0.0, self._due[0][0] - time.monotonic())
+            r, _, _ = sel.select([self._fc_side, self._br_side], [], [], wait)
+            for s in r:
+                data, addr = s.recvfrom(65535)
+                if s is self._fc_side:
+                    self._fc_addr = addr
+                    if self.bridge_addr is not None:
+                        self._br_side.sendto(data, self.bridge_addr)
+                    continue
+                if self._rng.random() < self.drop:
+                    self.counts["dropped"] += 1
+                    continue
+                if self._held is None and self._rng.random() < self.reorder:
+                    self._held = data  # goes out right after the next datagram
+                    self.counts["reordered"] += 1
+                    continue
+                t = time.monotonic() + self._rng.uniform(0.0, 2 * self.jitter_s)
+                for d in (data, self._held) if self._held is not None else (data,):
+                    n += 1
+                    self._heapq.heappush(self._due, (t, n, d))
+                    t += 1e-4
+                self._held = None
+            now = time.monotonic()
+            while self._due and self._due[0][0] <= now:
+                _, _, d = self._heapq.heappop(self._due)
+                if self._fc_addr is not None:
+                    self._fc_side.sendto(d, self._fc_addr)
+                    self.counts["forwarded"] += 1
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self._fc_side.close()
+        self._br_side.close()

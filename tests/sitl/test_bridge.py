@@ -25,6 +25,7 @@ from sitl_helpers import wait_ports_file
 
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.mavlink import codec, dialect, seam
+from navig8_fc.shell.sim_guard import pairing_heartbeat
 from sim_bridge import Plant, PlantParams, load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -65,8 +66,9 @@ class FakeFc:
             if b is not None:
                 return b
 
-    def announce(self) -> None:
-        self.send_raw(self.mav.frame(*seam.announce_record()))
+    def announce(self, nonce: int = 0x5EED) -> None:
+        """The pairing announcement (docs/bridge.md): the bridge pairs with this address and echoes the nonce."""
+        self.send_raw(self.mav.frame(*pairing_heartbeat(nonce)))
 
     def answer(self, b: seam.StepBundle, cmd, *, time_usec: int | None = None) -> None:
         self.sock.sendto(seam.pack_actuator_controls(self.mav, b.time_usec if time_usec is None else time_usec, cmd,
@@ -170,6 +172,9 @@ def test_bad_datagrams_are_counted_and_dropped() -> None:
         other = codec.Encoder(codec.seam_codec(), SYSID + 7, dialect.COMPID_FC)  # another vehicle's answer
         fc.send_raw(seam.pack_actuator_controls(other, b.time_usec, trim, fc.vehicle, armed=True))
         fc.answer(b, trim, time_usec=b.time_usec + 12345)  # an answer for no bundle
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as spoof:  # the right ids from another socket
+            spoof.sendto(seam.pack_actuator_controls(fc.mav, b.time_usec, trim, fc.vehicle, armed=True), fc.bridge)
+            spoof.sendto(fc.mav.frame(*pairing_heartbeat(99)), fc.bridge)  # and a pairing while ours is live
         for _ in range(20):
             fc.answer(b, trim)
             b2 = fc.recv_bundle(5.0)
@@ -184,6 +189,7 @@ def test_bad_datagrams_are_counted_and_dropped() -> None:
         err = proc.stderr.read()
     assert "SIGTERM" in err
     assert "foreign_frames 1" in err
+    assert "wrong_sender 1," in err and "pair_refused 1," in err and "sessions 1," in err
     assert "oversize 1" in err
     assert "bad_frames 0" not in err
 

@@ -37,10 +37,11 @@ def test_arm_joint_targets_and_gripper_release(tmp_path: Path) -> None:
             wait_heartbeat(gcs, 15.0)
             # The bridge is stepping: the arm channels of ACTUATOR_OUTPUT_STATUS report the held pose (q = 0).
             assert _joints(gcs, lambda q: np.allclose(q, 0.0, atol=JOINT_TOL_RAD), 15.0) is not None
-            assert _command(gcs, MAV_CMD_NAVIG8_ARM_JOINTS, 30, 10, -10, 1).result == M.MAV_RESULT_ACCEPTED
             # out of the joint range: refused with a reason, nothing changes
             ack = _command(gcs, MAV_CMD_NAVIG8_ARM_JOINTS, 170, 0, 0, 1)
             assert ack.result == M.MAV_RESULT_DENIED
+            # a long-running command: IN_PROGRESS now, its final ACK when the joints are there
+            assert _command(gcs, MAV_CMD_NAVIG8_ARM_JOINTS, 30, 10, -10, 1).result == M.MAV_RESULT_IN_PROGRESS
             target = np.radians([30, 10, -10])
             assert _joints(gcs, lambda q: np.allclose(q, target, atol=JOINT_TOL_RAD), 10.0) is not None, \
                 "the arm never reached the accepted joint targets"

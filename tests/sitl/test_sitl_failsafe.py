@@ -77,7 +77,7 @@ def _arm_and_take_off(gcs, alt_m: float, beat: bool = False) -> None:
         if beat:
             _beat(gcs)
         time.sleep(0.3)
-    assert _cmd(gcs, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, alt_m) == M.MAV_RESULT_ACCEPTED
+    assert _cmd(gcs, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, alt_m) == M.MAV_RESULT_IN_PROGRESS
 
 
 def test_battery_critical_returns_and_fence_breach_lands(tmp_path: Path) -> None:

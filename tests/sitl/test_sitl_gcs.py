@@ -86,13 +86,13 @@ def test_pymavlink_gcs_session(tmp_path: Path) -> None:
             _wait_state(gcs, lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
                         and m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED, 5.0, "armed heartbeat")
             assert _command(gcs, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 2.0).result == \
-                M.MAV_RESULT_ACCEPTED
+                M.MAV_RESULT_IN_PROGRESS  # a long-running command: its final ACK comes at the takeoff altitude
             hold = px4_custom_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER)
             _wait_state(gcs, lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
                         and m.custom_mode == hold, 30.0, "Hold after takeoff")
             lp = _wait_state(gcs, lambda m: m.get_type() == "LOCAL_POSITION_NED", 5.0, "position")
             assert abs(-lp.z - 2.0) < 0.3, lp
-            assert _command(gcs, M.MAV_CMD_NAV_LAND).result == M.MAV_RESULT_ACCEPTED
+            assert _command(gcs, M.MAV_CMD_NAV_LAND).result == M.MAV_RESULT_IN_PROGRESS
             _wait_state(gcs, lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1
                         and not m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED, 40.0, "disarm after landing")
             es = _wait_state(gcs, lambda m: m.get_type() == "EXTENDED_SYS_STATE", 5.0, "landed state")

@@ -1,15 +1,17 @@
 """The bridge's wire: the plant's plain-float views encode like sense()/truth(); one datagram handler whose
-answers and counters follow pymavlink's reading of the same bytes; the FC's address learnt from its frames."""
+answers and counters follow pymavlink's reading of the same bytes; pairing with one FC by its announcement."""
 
 from __future__ import annotations
 
 import dataclasses
+import socket
 
 import numpy as np
 import pytest
 
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.mavlink import codec, dialect, seam
+from navig8_fc.shell.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat
 from sim_bridge.bridge import Bridge, BridgeCounters, BridgeOptions
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant
@@ -38,9 +40,18 @@ def test_wire_views_encode_byte_identical_to_sense_and_truth() -> None:
     assert np.array_equal(a._x, b._x)
 
 
+FC_ADDR = ("127.0.0.1", 40001)
+
+
+def _announce(br: Bridge, nonce: int) -> bytes:
+    return codec.Encoder(codec.seam_codec(), br.opts.sysid, dialect.COMPID_FC).frame(*pairing_heartbeat(nonce))
+
+
 @pytest.fixture()
 def bridge():
     br = Bridge(BridgeOptions(scenario="paper", speed=0.0, bridge_port=0, fc_port=1))
+    br._handle(_announce(br, 0x1234), FC_ADDR)  # paired with the FC at FC_ADDR
+    assert (br.fc_addr, br.fc_nonce, br.counters.sessions) == (FC_ADDR, 0x1234, 1)
     yield br
     br.close()
 
@@ -78,7 +89,7 @@ def test_handle_answers_and_counts_as_pymavlink_reads_the_bytes(bridge: Bridge) 
     }
     for label, data in _answers(bridge).items():
         bridge.counters = BridgeCounters()
-        got = bridge._handle(data)
+        got = bridge._handle(data, FC_ADDR)
         assert dataclasses.asdict(bridge.counters) == dataclasses.asdict(
             BridgeCounters(datagrams_in=1, **want_counts[label])), label
         ref = dialect.new_mav(1, 1).parse_buffer(data) or []
@@ -97,19 +108,37 @@ def test_handle_answers_and_counts_as_pymavlink_reads_the_bytes(bridge: Bridge) 
     assert d.MAVLINK_MSG_ID_HIL_ACTUATOR_CONTROLS == 93
 
 
-def test_the_fc_address_is_learnt_from_its_frames() -> None:
+def test_pairing_with_one_fc() -> None:
+    """The bridge pairs with the FC that announces itself with a nonce and echoes it; answers count only from that
+    address; another FC's announcement is refused while the paired one is live, accepted once it has been silent
+    REPAIR_SILENCE_S; the paired address itself may re-pair at once (a restarted FC on its port)."""
     br = Bridge(BridgeOptions(scenario="ground", speed=0.0, bridge_port=0, fc_port=0))
+    listener = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+    listener.bind(("127.0.0.1", 0))
+    listener.settimeout(5.0)
+    fc_addr = listener.getsockname()
     try:
         assert br.fc_addr is None
         br._send(b"nothing to send to")  # no address: dropped quietly
         data = _answers(br)
         br._handle(data["foreign"], ("127.0.0.1", 40001))
-        assert br.fc_addr is None  # another system's frame does not redirect the bundles
         br._handle(data["bad_crc"], ("127.0.0.1", 40002))
-        assert br.fc_addr is None
-        br._handle(data["heartbeat"], ("127.0.0.1", 40003))  # the FC's announcement
-        assert br.fc_addr == ("127.0.0.1", 40003)
-        br._handle(data["good"], ("127.0.0.1", 40004))  # a restarted FC elsewhere
-        assert br.fc_addr == ("127.0.0.1", 40004)
+        br._handle(data["good"], fc_addr)  # an answer before pairing: not from a paired FC
+        assert br.fc_addr is None and br.counters.wrong_sender == 1
+        br._handle(_announce(br, 77), fc_addr)  # the FC's announcement: pair, echo the nonce
+        assert (br.fc_addr, br.fc_nonce) == (fc_addr, 77)
+        echo = codec.seam_codec().parse(listener.recvfrom(4096)[0], codec.ParseCounters())
+        assert [(m.name, m.compid, m.fields["custom_mode"]) for m in echo] == [("HEARTBEAT", dialect.COMPID_BRIDGE, 77)]
+        assert br._handle(data["good"], ("127.0.0.1", 40004)) is None  # the right ids from the wrong address
+        assert br.counters.wrong_sender == 2 and br.fc_addr == fc_addr
+        assert br._handle(data["good"], fc_addr) is not None
+        br._handle(_announce(br, 99), ("127.0.0.1", 40005))  # another "FC" while ours is live
+        assert br.counters.pair_refused == 1 and (br.fc_addr, br.fc_nonce) == (fc_addr, 77)
+        br._handle(_announce(br, 5), fc_addr)  # our FC restarted on its port: a new session at once
+        assert (br.fc_addr, br.fc_nonce, br.counters.sessions) == (fc_addr, 5, 2)
+        br._fc_heard -= REPAIR_SILENCE_S  # ours silent that long: another may pair
+        br._handle(_announce(br, 6), ("127.0.0.1", 40006))
+        assert (br.fc_addr, br.fc_nonce, br.counters.sessions) == (("127.0.0.1", 40006), 6, 3)
     finally:
         br.close()
+        listener.close()

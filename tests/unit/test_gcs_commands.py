@@ -46,6 +46,17 @@ class FakeVehicle:
         self.calls.append(("set_mode", base_mode, custom_mode))
         return self.modes.set_custom_mode(custom_mode)
 
+    def return_to_launch(self):
+        self.calls.append(("return",))
+        return self.modes.return_to_launch()
+
+    def task_status(self, channel: str):
+        return self.modes.task if channel == "flight" else None  # arm moves are not tracked here
+
+    def cancel_task(self, channel: str) -> bool:
+        self.calls.append(("cancel", channel))
+        return channel == "flight" and self.modes.cancel_task()
+
     def gripper(self, action):
         self.calls.append(("gripper", action))
         return True, ""
@@ -168,10 +179,11 @@ def test_takeoff_long_p7_and_int_z(rig) -> None:
     assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_DENIED and "not armed" in texts(out)
     cmd_long(rig, M.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
     out = cmd_long(rig, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, NAN, NAN, NAN, 2.0)
-    assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_ACCEPTED
+    assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_IN_PROGRESS  # long-running (docs/gcs.md)
     assert vehicle.calls[-1] == ("takeoff", 2.0) and vehicle.modes.flight_mode is FlightMode.TAKEOFF
     out = cmd_int(rig, M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, p4=NAN, z=3.0)
-    assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_ACCEPTED and vehicle.calls[-1] == ("takeoff", 3.0)
+    assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_IN_PROGRESS
+    assert vehicle.calls[-1] == ("takeoff", 3.0)
     out = cmd_int(rig, M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_INT, z=1100.0)
     assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_DENIED and "frame" in texts(out)
 

@@ -76,6 +76,15 @@ class SimVehicle:
     def set_mode(self, base_mode: int, custom_mode: int):
         return self.modes.set_custom_mode(custom_mode)
 
+    def return_to_launch(self):
+        return self.modes.return_to_launch()
+
+    def task_status(self, channel: str):
+        return self.modes.task if channel == "flight" else None
+
+    def cancel_task(self, channel: str) -> bool:
+        return channel == "flight" and self.modes.cancel_task()
+
     def gripper(self, action):
         self.gripper_closed = action == "grab"
         return True, ""
@@ -137,7 +146,8 @@ class SimVehicle:
         snap = self.snapshot()
         due = self.sched.due(self.t)
         events, self.events_out = self.events_out, []
-        return events + self.builder.build_many(due, snap, int(self.t * 1000)) + self.params.poll(self.t)
+        return (events + self.builder.build_many(due, snap, int(self.t * 1000)) + self.params.poll(self.t)
+                + [m for _, m in self.commands.poll(self.t)])
 
 
 class Gcs:
@@ -200,8 +210,15 @@ def test_connect_params_arm_takeoff_hold_land_disarm(mod: Any, tmp_path: Path) -
     assert gcs.command(31337).result == M.MAV_RESULT_UNSUPPORTED
 
     assert gcs.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
-    assert gcs.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 2.0).result == 0
+    # A long-running command: IN_PROGRESS at once, progress updates, the final ACCEPTED at the takeoff altitude.
+    ack = gcs.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 2.0)
+    assert ack.result == M.MAV_RESULT_IN_PROGRESS and ack.progress == 0
     gcs.run(6.0)
+    acks = gcs.pop("COMMAND_ACK")
+    assert [a.result for a in acks[:-1]] == [M.MAV_RESULT_IN_PROGRESS] * (len(acks) - 1) and len(acks) >= 4
+    progress = [a.progress for a in acks[:-1]]
+    assert progress == sorted(progress) and progress[-1] > 50
+    assert acks[-1].result == M.MAV_RESULT_ACCEPTED and acks[-1].progress == 100
     hb = gcs.pop("HEARTBEAT")[-1]
     assert hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED and hb.custom_mode == 0x03040000  # Hold
     assert abs(vehicle.pos[2] + 2.0) < 0.05
@@ -209,8 +226,9 @@ def test_connect_params_arm_takeoff_hold_land_disarm(mod: Any, tmp_path: Path) -
     gp = gcs.pop("GLOBAL_POSITION_INT")[-1]
     assert gp.relative_alt == pytest.approx(2000, abs=50)
 
-    assert gcs.command(M.MAV_CMD_NAV_LAND).result == M.MAV_RESULT_ACCEPTED
+    assert gcs.command(M.MAV_CMD_NAV_LAND).result == M.MAV_RESULT_IN_PROGRESS
     gcs.run(8.0)
+    assert gcs.pop("COMMAND_ACK")[-1].result == M.MAV_RESULT_ACCEPTED  # at touchdown
     hbs = gcs.pop("HEARTBEAT")
     assert not hbs[-1].base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
     assert any(h.custom_mode == 0x06040000 for h in hbs)  # was in Land

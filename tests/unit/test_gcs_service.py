@@ -147,11 +147,13 @@ def test_gcs_silence_lands_through_the_stack_failsafe_input() -> None:
     rig.step(60)
     rig.send(rig.client.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0), GCS, 0.0)
     assert rig.command(GCS, M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
-    assert rig.command(GCS, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, 0, 0, 2.0).result == M.MAV_RESULT_ACCEPTED
+    assert rig.command(GCS, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, 0, 0, 2.0).result == M.MAV_RESULT_IN_PROGRESS
     hover_w = math.sqrt(rig.vehicle.uam_mass_kg * rig.vehicle.gravity_m_s2 / (2 * rig.vehicle.k_thrust_duct))
     rig.z, rig.w = -2.0, hover_w  # the vehicle climbed (the plant is not the point here)
     rig.step(250)
     assert rig.stack.state().flight_mode is FlightMode.HOLD
+    rig.gcs.poll(1.0)  # the takeoff's final ACK goes to the requester only
+    assert [(d, a.result) for d, a in rig.outbox.pop("COMMAND_ACK")] == [(GCS, M.MAV_RESULT_ACCEPTED)]
     tout = float(rig.registry["FS_GCS_TOUT"])
     last = rig.gcs.last_gcs_heartbeat
     assert last is not None

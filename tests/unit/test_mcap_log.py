@@ -123,3 +123,48 @@ def test_truth_records_in_process_and_over_the_wire_agree() -> None:
     np.testing.assert_array_equal(local["inertia_diag_kgm2"], np.diag(tr.inertia_com_kgm2))
     np.testing.assert_array_equal(local["tilt_rad"], tr.actuator_pos[:2])
     assert local["reaction_torque_o_nm"] is tr.reaction_moment_o_frd_nm
+
+
+def test_rotation_keeps_complete_parts_with_the_same_channels(tmp_path: Path) -> None:
+    """A size cap: each part is a whole MCAP (the library's CRC-checking reader reads it), holds the run's start
+    metadata and every channel again (the cached ids stay valid), and only the newest `keep_files` parts remain."""
+    from mcap.reader import make_reader
+
+    from navig8_fc.shell.mcap_log import part_path
+
+    p = tmp_path / "run.mcap"
+    lg = McapLogger(p, chunk_size=4096, max_bytes=50_000, keep_files=3)
+    lg.metadata("run", {"scenario": "hover"})
+    cid = lg.json_channel("/fast", {"type": "object"})
+    for i in range(20_000):
+        lg.log_json_bytes(cid, i, json.dumps({"i": i, "pad": [i] * 8}).encode(), i)
+        lg.log_raw("/mavlink/sim/in", i, bytes(16), i, peer="127.0.0.1:1")
+        if i % 100 == 0:
+            lg.maybe_rotate()
+    lg.close()
+    assert lg.rotations >= 5 and lg.error is None and lg.dropped == 0
+    parts = sorted(tmp_path.glob("run*.mcap"), key=lambda q: q.stat().st_mtime_ns)
+    assert parts == [part_path(p, k) for k in range(lg.rotations - 2, lg.rotations + 1)]
+    last = None
+    for q in parts:
+        assert q.stat().st_size < 50_000 + 20_000  # the cap plus at most one check interval of records
+        with open(q, "rb") as fh:
+            r = make_reader(fh, validate_crcs=True)
+            got = [json.loads(m.data)["i"] for _s, ch, m in r.iter_messages(topics=["/fast"], log_time_order=False)]
+        assert got == list(range(got[0], got[0] + len(got)))  # no record lost or doubled
+        assert last is None or got[0] == last + 1
+        last = got[-1]
+        assert read_metadata(q)["run"] == {"scenario": "hover"}
+    assert last == 19_999
+
+
+def test_a_failing_disk_stops_the_log_without_raising() -> None:
+    """/dev/full: every write fails with ENOSPC from the kernel. The logger keeps the reason, counts what it drops,
+    and never raises into the caller."""
+    lg = McapLogger("/dev/full", chunk_size=4096)
+    for i in range(2000):
+        lg.log("/x", i, {"i": i, "pad": [float(i)] * 8})
+    lg.metadata("end", {"ok": True})
+    lg.maybe_rotate()
+    lg.close()
+    assert lg.error == "No space left on device" and lg.dropped > 1000

@@ -183,3 +183,45 @@ def test_planned_path_for_display() -> None:
     for got, exp in zip(path, want, strict=True):
         # the global point is stored as int32 1e-7 deg: 1e-7 deg of longitude is 7 mm here (1.1 cm of latitude)
         assert got == pytest.approx(exp, abs=0.012)
+
+
+def _fly_exec(plan: Plan, seconds: float, start=(0.0, 0.0, -2.0)):
+    """The executor alone on a vehicle that is wherever the setpoint is (perfect tracking): its setpoints, its steps."""
+    from navig8_fc.mission.executor import ExecConfig, MissionExecutor
+
+    ex = MissionExecutor(plan, ORIGIN, (0.0, 0.0, 0.0), Setpoint(start, 0.0, 0.0), ExecConfig())
+    pos, yaw, out = start, 0.0, []
+    for k in range(int(round(seconds / DT))):
+        st = ex.step(k * DT, pos, yaw, DT)
+        pos, yaw = st.setpoint.pos_ned, st.setpoint.yaw_rad
+        out.append(st)
+        if st.land:
+            break
+    return ex, out
+
+
+def test_change_speed_delay_yaw_loiter_unlim_and_land_items() -> None:
+    wp = MissionItem(Frame.LOCAL_NED, Cmd.NAV_WAYPOINT, 1, 0, 0.1, 0, math.nan, 20000, 0, -2.0)  # N 2 m
+    plan = Plan(0, (
+        MissionItem(Frame.MISSION, Cmd.DO_CHANGE_SPEED, 1, 1, 0.5, -1, 0, 0, 0, 0),  # 0: 0.5 m/s
+        wp,  # 1
+        MissionItem(Frame.MISSION, Cmd.CONDITION_DELAY, 1, 1.5, 0, 0, 0, 0, 0, 0),  # 2: 1.5 s
+        MissionItem(Frame.MISSION, Cmd.CONDITION_YAW, 1, 90, 0, 1, 0, 0, 0, 0),  # 3: absolute 90 deg
+        MissionItem(Frame.MISSION, Cmd.CONDITION_YAW, 1, 30, 0, -1, 1, 0, 0, 0),  # 4: relative -30 deg
+        MissionItem(Frame.LOCAL_NED, Cmd.NAV_LAND, 1, 0, 0, 0, math.nan, 20000, 10000, 0),  # 5: land at N 2, E 1
+    ))
+    ex, out = _fly_exec(plan, 20.0)
+    xs = [s.setpoint.pos_ned[0] for s in out]
+    steps = [b - a for a, b in zip(xs, xs[1:], strict=False) if b != a]
+    assert max(steps) == pytest.approx(0.5 * DT)  # DO_CHANGE_SPEED: the setpoint moves at 0.5 m/s
+    assert [seq for _, seq in ex.progress.reached_log] == [0, 1, 2, 3, 4, 5]  # in order, NAV_LAND at the hand-over
+    yaws = [s.setpoint.yaw_rad for s in out]
+    assert math.radians(90) in [pytest.approx(y) for y in yaws] and yaws[-1] == pytest.approx(math.radians(60))
+    # the waypoint took 2 m / 0.5 m/s = 4 s; the delay 1.5 s more before the yaw was commanded
+    i_yaw = next(i for i, y in enumerate(yaws) if y != 0.0)
+    assert i_yaw * DT == pytest.approx(4.0 + 1.5, abs=0.05)
+    assert out[-1].land and out[-1].setpoint.pos_ned[:2] == pytest.approx((2.0, 1.0))  # NAV_LAND hands over there
+    # NAV_LOITER_UNLIM never completes.
+    loiter = Plan(0, (MissionItem(Frame.LOCAL_NED, Cmd.NAV_LOITER_UNLIM, 1, 0, 0, 0, math.nan, 0, 0, -2.0),))
+    ex, out = _fly_exec(loiter, 30.0)
+    assert not ex.finished and len(out) == round(30.0 / DT) and not out[-1].land

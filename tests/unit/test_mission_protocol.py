@@ -36,10 +36,10 @@ def test_plan_constants_are_mavlinks() -> None:
 
 
 class Rig:
-    def __init__(self, store: MissionStore | None = None) -> None:
-        self.veh = M.MAVLink(BytesIO(), srcSystem=1, srcComponent=1)
-        self.gcs = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
-        self.other = M.MAVLink(BytesIO(), srcSystem=254, srcComponent=0)
+    def __init__(self, store: MissionStore | None = None, mod: Any = M) -> None:
+        self.veh = mod.MAVLink(BytesIO(), srcSystem=1, srcComponent=1)
+        self.gcs = mod.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
+        self.other = mod.MAVLink(BytesIO(), srcSystem=254, srcComponent=0)
         self.proto = MissionProtocol(self.veh, 1, 1, store)
 
     def wire(self, m: Any, src: Any) -> Any:
@@ -118,6 +118,27 @@ def test_upload_then_download_equals_upload() -> None:
     got = download(rig)
     assert len(got) == 8 and all(same(as_item(g), e) for g, e in zip(got, EIGHT, strict=True))
     assert [g.current for g in got] == [1, 0, 0, 0, 0, 0, 0, 0]
+
+
+def test_opaque_id_on_the_wire_with_the_navig8_dialect_and_common_peers_still_decode() -> None:
+    """The FC's dialect adds upstream's extension fields (navig8_fc.mavlink.dialect.COMMON_EXTENSIONS): the plan
+    identity travels in MISSION_ACK / MISSION_COUNT opaque_id and MISSION_CURRENT mission_id / fence_id, while a
+    peer on pymavlink's common.xml (no such fields, same CRC_EXTRA) decodes the same frames."""
+    from navig8_fc.mavlink import dialect
+
+    d = dialect.load()
+    for name in ("mission_ack", "mission_count", "mission_current"):
+        assert getattr(d, f"MAVLink_{name}_message").crc_extra == getattr(M, f"MAVLink_{name}_message").crc_extra
+    rig = Rig(mod=d)
+    (ack,) = upload(rig, EIGHT)
+    assert ack.type == M.MAV_MISSION_ACCEPTED and ack.opaque_id == plan_crc(EIGHT) != 0
+    (count,) = rig.send(rig.gcs.mission_request_list_encode(1, 1, 0))
+    assert count.count == 8 and count.opaque_id == plan_crc(EIGHT)
+    cur = rig.proto.mission_current()
+    assert cur.mission_id == plan_crc(EIGHT) and cur.fence_id == 0  # no fence plan
+    plain = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
+    seen = plain.decode(bytearray(ack.pack(rig.veh)))
+    assert seen.get_type() == "MISSION_ACK" and seen.type == M.MAV_MISSION_ACCEPTED and seen.mission_type == 0
 
 
 def test_legacy_mission_item_upload_and_download_convert_xy() -> None:

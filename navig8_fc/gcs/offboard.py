@@ -1,0 +1,113 @@
+"""Offboard targets (SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT, SET_ATTITUDE_TARGET) -> an `OffboardTarget`.
+
+Pure: the caller gives the decoded fields (a global position already projected to NED) and sends the STATUSTEXTs.
+Read as PX4's mavlink_receiver does (handle_message_set_position_target_local_ned / _global_int,
+handle_message_set_attitude_target; docs/gcs.md "Offboard"): every ignore bit of type_mask makes that component
+NaN (not given); a target with no position, velocity or attitude is refused ("invalid"), as is an acceleration
+flagged as a force (FORCE_SET). What this vehicle's FlightStack cannot fly is named, not flown:
+- acceleration (afx..afz): the setpoint interface carries position (+ velocity feed-forward), pitch and yaw, so an
+  acceleration is ignored (PX4 feeds it forward); the rest of the target is flown;
+- SET_ATTITUDE_TARGET: pitch and yaw of the quaternion are flown (the tilt ducts hold pitch independently of
+  position: the paper's 45 deg pitch hover) while the position loop holds x and y; roll is the outer loop's
+  choice (it nulls the body-y force the ducts cannot make), so a commanded roll is ignored; thrust (0..1) is read
+  as a vertical-speed demand, 0.5 = hold altitude, as a Position-mode stick (the INDI loop closes the collective
+  thrust itself, and the collective for a given hover changes with pitch and payload); body rates alone (attitude
+  ignored) are refused: the INDI stack takes attitude targets, its rate loop is internal.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from navig8_fc.core.rotation import quat_to_euler
+from navig8_fc.mission.plan import PITCH_HOLD_MAX_DEG
+from navig8_fc.modes.manager import OffboardTarget
+
+Vec3 = tuple[float, float, float]
+NAN3: Vec3 = (math.nan, math.nan, math.nan)
+
+# POSITION_TARGET_TYPEMASK (common.xml)
+PT_X, PT_Y, PT_Z, PT_VX, PT_VY, PT_VZ, PT_AX, PT_AY, PT_AZ = (1 << i for i in range(9))
+PT_FORCE_SET, PT_YAW, PT_YAW_RATE = 512, 1024, 2048
+PT_ACCEL = PT_AX | PT_AY | PT_AZ
+# ATTITUDE_TARGET_TYPEMASK (common.xml)
+AT_ROLL_RATE, AT_PITCH_RATE, AT_YAW_RATE, AT_THRUST_BODY_SET, AT_THRUST, AT_ATTITUDE = 1, 2, 4, 32, 64, 128
+AT_RATES = AT_ROLL_RATE | AT_PITCH_RATE | AT_YAW_RATE
+MAV_FRAME_LOCAL_NED, MAV_FRAME_BODY_NED = 1, 8
+ROLL_IGNORED_ABOVE_RAD = math.radians(1.0)  # a commanded roll below this is "level", not worth a notice
+PITCH_MAX_RAD = math.radians(PITCH_HOLD_MAX_DEG)  # the same bound as the pitch-hold mission item
+
+
+@dataclass(frozen=True)
+class Decoded:
+    """A target to fly (with `ignored` naming any part not flown, for one STATUSTEXT), or a refusal."""
+
+    target: OffboardTarget | None
+    refusal: str = ""
+    ignored: str = ""
+
+
+def _given(mask: int, bits: tuple[int, int, int], values: Vec3) -> Vec3:
+    return tuple(math.nan if mask & b else float(v) for b, v in zip(bits, values, strict=True))  # type: ignore
+
+
+def position_target(kind: str, mask: int, frame: int, pos_ned: Vec3, vel: Vec3, acc: Vec3, yaw_rad: float,
+                    yaw_rate_rad_s: float, yaw_now_rad: float) -> Decoded:
+    """SET_POSITION_TARGET_*: pos_ned already in NED (a global position projected by the caller), `frame` only
+    for BODY_NED (velocities in the heading frame, position ignored, as PX4), vel/acc/yaw as sent."""
+    pos = _given(mask, (PT_X, PT_Y, PT_Z), pos_ned)
+    v = _given(mask, (PT_VX, PT_VY, PT_VZ), vel)
+    has_acc = (mask & PT_ACCEL) != PT_ACCEL
+    if frame == MAV_FRAME_BODY_NED:
+        pos = NAN3
+        if not all(math.isnan(c) for c in v):
+            fwd, right = (0.0 if math.isnan(c) else c for c in v[:2])
+            c, s = math.cos(yaw_now_rad), math.sin(yaw_now_rad)
+            v = (c * fwd - s * right, s * fwd + c * right, 0.0 if math.isnan(v[2]) else v[2])
+    if has_acc and mask & PT_FORCE_SET:
+        return Decoded(None, f"{kind}: force targets are not supported (type_mask {mask})")
+    target = OffboardTarget(pos, v, math.nan if mask & PT_YAW else float(yaw_rad),
+                            math.nan if mask & PT_YAW_RATE else float(yaw_rate_rad_s))
+    if all(math.isnan(c) for c in (*pos, *v)):
+        why = "only an acceleration" if has_acc else "no position or velocity"
+        return Decoded(None, f"{kind} invalid: {why} (type_mask {mask}); position and velocity are flown")
+    problem = target.problem()
+    if problem:
+        return Decoded(None, f"{kind}: {problem}")
+    ignored = "Offboard: acceleration ignored (flies pos+vel)" if has_acc else ""  # one STATUSTEXT chunk
+    return Decoded(target, ignored=ignored)
+
+
+def attitude_target(mask: int, q_wxyz: tuple[float, float, float, float], thrust: float,
+                    body_rates: Vec3) -> Decoded:
+    """SET_ATTITUDE_TARGET -> pitch, yaw and a throttle (module docstring)."""
+    kind = "SET_ATTITUDE_TARGET"
+    if mask & AT_ATTITUDE:
+        if (mask & AT_RATES) != AT_RATES:
+            return Decoded(None, f"{kind}: body-rate targets are not supported (the INDI stack takes an attitude; "
+                                 "send the quaternion)")
+        return Decoded(None, f"{kind} invalid: no attitude (type_mask {mask})")
+    if not all(math.isfinite(c) for c in q_wxyz):
+        return Decoded(None, f"{kind}: quaternion must be finite")
+    norm = math.sqrt(sum(c * c for c in q_wxyz))
+    if not 0.9 < norm < 1.1:
+        return Decoded(None, f"{kind}: quaternion is not a unit quaternion (|q| = {norm:.3f})")
+    roll, pitch, yaw = quat_to_euler(tuple(c / norm for c in q_wxyz))
+    if abs(pitch) > PITCH_MAX_RAD:
+        return Decoded(None, f"{kind}: pitch {math.degrees(pitch):.0f} deg beyond +-{PITCH_HOLD_MAX_DEG:.0f} deg")
+    throttle = math.nan
+    if not mask & AT_THRUST:
+        if not (math.isfinite(thrust) and 0.0 <= thrust <= 1.0):
+            return Decoded(None, f"{kind}: thrust {thrust:g} outside [0, 1]")
+        throttle = float(thrust)
+    notes = []
+    if abs(roll) > ROLL_IGNORED_ABOVE_RAD:
+        notes.append(f"roll {math.degrees(roll):.0f} deg ignored (the position loop sets roll)")
+    rates = _given(mask, (AT_ROLL_RATE, AT_PITCH_RATE, AT_YAW_RATE), body_rates)
+    if any(math.isfinite(r) and r != 0.0 for r in rates):
+        notes.append("body rates ignored (the attitude is flown)")
+    if mask & AT_THRUST_BODY_SET:
+        notes.append("thrust_body ignored (thrust is a climb demand)")
+    ignored = "Offboard: " + "; ".join(notes) if notes else ""
+    return Decoded(OffboardTarget(NAN3, NAN3, yaw, math.nan, pitch, throttle), ignored=ignored)

@@ -1,0 +1,140 @@
+"""The FC's real-time timing mode (FC_TIMING = 1; docs/hil.md, "Timing modes"): its own clock, the latest data.
+
+In lockstep (FC_TIMING = 0, the default) the bridge's step is the clock: the FC runs one control step per bundle.
+In real time the FC ticks on its own monotonic clock every 1/INDI_RATE_HZ, as firmware on a board does, and each
+tick uses the newest bundle that arrived since the last tick:
+
+- a bundle whose stamp is not newer than the last one used (a duplicate, a reordered or stale one) is dropped
+  and counted `out_of_order`: a step never runs on data older than the data of the step before it;
+- a bundle replaced by a newer one before any tick used it is counted `superseded` (only the newest is used);
+- a tick with no new bundle is counted `missing` and runs no control step: the last command stands (running the
+  incremental INDI law twice on the same measurements would apply its increment twice). Data missing for longer
+  than FS_SENS_TOUT trips the sensor-stale failsafe as in lockstep;
+- a bundle is `late` when its latency (arrival on this clock minus its stamp) exceeds the least latency seen so far
+  by more than RT_LATE_S: the least latency estimates the offset between the two clocks, the excess is jitter;
+- the spacing of the stamps of the bundles used is kept as statistics (mean, min, max, count outside
+  (1 ± RT_SPACING_TOL)/INDI_RATE_HZ), instead of lockstep's exact-spacing check.
+
+Counters are announced in a STATUSTEXT at most once per REPORT_PERIOD_S when they rose (`report`) and kept in the
+log's metadata (`stats`). The controller's time counts its control steps (step n at n/INDI_RATE_HZ): its
+fixed-rate filters and the stack's spacing check see exact periods, and a missing tick delays the modes' timers
+by one period instead of reading as a rate mismatch; the answer echoes the stamp of the bundle it used. The
+least-latency estimate of the clock offset assumes the two clocks run at the same rate (a crystal drift of
+d ppm moves it by d us per second: a run of hours against a board would need it to age).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+TIMING_LOCKSTEP, TIMING_REALTIME = 0, 1
+REPORT_PERIOD_S = 1.0
+BEHIND_RESYNC_PERIODS = 5  # a loop this many periods late (a stall) restarts the schedule instead of bursting
+
+
+@dataclass
+class RealtimeStats:
+    ticks: int = 0  # control periods of the FC's clock
+    steps: int = 0  # ticks that ran a control step (a new bundle was there)
+    missing: int = 0  # ticks without a new bundle (the last command stood)
+    superseded: int = 0  # bundles replaced by a newer one before a tick used them
+    out_of_order: int = 0  # bundles not newer than the last one used or held: dropped
+    late: int = 0  # bundles whose latency exceeded the least seen by more than RT_LATE_S
+    resyncs: int = 0  # the loop fell BEHIND_RESYNC_PERIODS behind its schedule and restarted it
+    spacing_n: int = 0  # stamp spacings of consecutive used bundles
+    spacing_off_tol: int = 0  # of those, outside (1 +- RT_SPACING_TOL) / INDI_RATE_HZ
+    spacing_mean_us: float = 0.0
+    spacing_min_us: float = math.inf
+    spacing_max_us: float = 0.0
+    latency_min_ms: float = math.inf  # least arrival-minus-stamp seen (the clock offset estimate)
+    latency_max_excess_ms: float = 0.0  # the largest latency above that least one (jitter)
+
+
+class RealtimeClock:
+    """The schedule and the latest-bundle slot of the real-time mode (see the module docstring). Pure: the caller
+    gives the monotonic time `now_s` (seconds) to every call."""
+
+    def __init__(self, rate_hz: float, late_s: float, spacing_tol: float, now_s: float) -> None:
+        self.period_s = 1.0 / rate_hz
+        self.period_us = 1e6 / rate_hz
+        self.late_s, self.spacing_tol = late_s, spacing_tol
+        self.next_tick_s = now_s + self.period_s
+        self.stats = RealtimeStats()
+        self._pending: tuple[Any, Any] | None = None  # (bundle, its wire messages), the newest not yet used
+        self._last_used_us: int | None = None
+        self._reported = RealtimeStats()
+        self._report_due_s = now_s + REPORT_PERIOD_S
+
+    def offer(self, bundle: Any, wire: Any, now_s: float) -> None:
+        """A complete bundle arrived (bundle.time_usec: its stamp)."""
+        s = self.stats
+        t_us = int(bundle.time_usec)
+        newest = self._pending[0].time_usec if self._pending is not None else self._last_used_us
+        if newest is not None and t_us <= newest:
+            s.out_of_order += 1
+            return
+        if self._pending is not None:
+            s.superseded += 1
+        if t_us <= 1:  # step 0 (stamp 1) is the startup handshake, held at t = 0 until the FC answers: no latency
+            self._pending = (bundle, wire)
+            return
+        latency_ms = (now_s - t_us * 1e-6) * 1e3
+        if latency_ms < s.latency_min_ms:
+            s.latency_min_ms = latency_ms
+        excess = latency_ms - s.latency_min_ms
+        if excess > s.latency_max_excess_ms:
+            s.latency_max_excess_ms = excess
+        if excess > self.late_s * 1e3:
+            s.late += 1
+        self._pending = (bundle, wire)
+
+    def timeout_s(self, now_s: float) -> float:
+        return max(0.0, self.next_tick_s - now_s)
+
+    def tick(self, now_s: float) -> tuple[Any, Any, int] | None:
+        """At or after the due time: advance the schedule and hand over (bundle, wire, clock_us) when a new
+        bundle is there (clock_us: this tick on the FC's clock), else None (counted missing). Before it: None."""
+        if now_s < self.next_tick_s:
+            return None
+        s = self.stats
+        self.next_tick_s += self.period_s
+        if now_s - self.next_tick_s > BEHIND_RESYNC_PERIODS * self.period_s:
+            self.next_tick_s = now_s + self.period_s
+            s.resyncs += 1
+        s.ticks += 1
+        if self._pending is None:
+            if self._last_used_us is not None:  # before the first bundle nothing is missing yet
+                s.missing += 1
+            return None
+        (bundle, wire), self._pending = self._pending, None
+        t_us = int(bundle.time_usec)
+        if self._last_used_us is not None:
+            d = t_us - self._last_used_us
+            s.spacing_n += 1
+            s.spacing_mean_us += (d - s.spacing_mean_us) / s.spacing_n
+            s.spacing_min_us = min(s.spacing_min_us, d)
+            s.spacing_max_us = max(s.spacing_max_us, d)
+            if abs(d - self.period_us) > self.spacing_tol * self.period_us:
+                s.spacing_off_tol += 1
+        self._last_used_us = t_us
+        s.steps += 1
+        return bundle, wire, round(s.steps * self.period_us)
+
+    def report(self, now_s: float) -> str | None:
+        """A STATUSTEXT when late, missing, out-of-order or superseded data was counted since the last report (at
+        most once per REPORT_PERIOD_S), else None."""
+        if now_s < self._report_due_s:
+            return None
+        self._report_due_s = now_s + REPORT_PERIOD_S
+        s, r = self.stats, self._reported
+        d = {k: getattr(s, k) - getattr(r, k) for k in ("late", "missing", "out_of_order", "superseded")}
+        if not any(d.values()):
+            return None
+        self._reported = RealtimeStats(**vars(s))
+        return (f"Sim link: {d['late']} late, {d['missing']} missing, {d['out_of_order']} out of order, "
+                f"{d['superseded']} superseded (totals {s.late}/{s.missing}/{s.out_of_order}/{s.superseded})")
+
+
+__all__ = ["TIMING_LOCKSTEP", "TIMING_REALTIME", "RealtimeClock", "RealtimeStats"]

@@ -1,0 +1,165 @@
+"""Offboard targets per type_mask: the decoder (navig8_fc.gcs.offboard, PX4's reading of the ignore bits), the mode
+manager flying them on a point-mass vehicle whose velocity is K_p (setpoint - position) (the outer loop's velocity
+command with a perfect inner loop), and the GcsService path from the MAVLink messages to the FlightStack."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from test_gcs_service import API, GCS, Rig
+from test_mission_executor import _flying
+from test_modes import fly
+
+from navig8_fc.gcs import offboard as ob
+from navig8_fc.modes import FlightMode, OffboardTarget
+from navig8_fc.modes.px4 import Px4MainMode
+
+NAN = math.nan
+KP_BODY = 2.0  # PointMass: velocity = 2 (setpoint - position), bounded at 1.5 m/s
+_POS, _VEL, _YAWS = ob.PT_X | ob.PT_Y | ob.PT_Z, ob.PT_VX | ob.PT_VY | ob.PT_VZ, ob.PT_YAW | ob.PT_YAW_RATE
+ALL_BUT = {"pos": _VEL | ob.PT_ACCEL | _YAWS, "vel": _POS | ob.PT_ACCEL | _YAWS,
+           "posvel": ob.PT_ACCEL | _YAWS}  # type_mask flying only these (yaw and yaw rate ignored too)
+
+
+def _quat(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
+    """ZYX Euler -> quaternion, by composing the three elementary rotations (q_z q_y q_x) with the Hamilton product."""
+    def mul(a, b):
+        aw, ax, ay, az = a
+        bw, bx, by, bz = b
+        return (aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw)
+    qz = (math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2))
+    qy = (math.cos(pitch / 2), 0.0, math.sin(pitch / 2), 0.0)
+    qx = (math.cos(roll / 2), math.sin(roll / 2), 0.0, 0.0)
+    return mul(mul(qz, qy), qx)
+
+
+# --- decoding ----------------------------------------------------------------------------------------
+def _pt(mask: int, frame: int = ob.MAV_FRAME_LOCAL_NED, yaw_now: float = 0.0) -> ob.Decoded:
+    return ob.position_target("SPT", mask, frame, (1.0, 2.0, -3.0), (0.1, 0.2, 0.3), (0.0, 0.0, 0.5), 0.7, 0.4,
+                              yaw_now)
+
+
+def test_type_mask_bits_select_position_velocity_yaw_and_yaw_rate() -> None:
+    d = _pt(ALL_BUT["pos"] & ~ob.PT_YAW)  # position + yaw
+    assert d.target.pos_ned == (1.0, 2.0, -3.0) and all(map(math.isnan, d.target.vel_ned))
+    assert d.target.yaw_rad == 0.7 and math.isnan(d.target.yaw_rate_rad_s) and not d.ignored
+    d = _pt(ALL_BUT["vel"] & ~ob.PT_YAW_RATE)  # velocity + yaw rate (MAVSDK set_velocity_ned with a yaw rate)
+    assert all(map(math.isnan, d.target.pos_ned)) and d.target.vel_ned == (0.1, 0.2, 0.3)
+    assert math.isnan(d.target.yaw_rad) and d.target.yaw_rate_rad_s == 0.4
+    d = _pt(ALL_BUT["posvel"] | ob.PT_Y | ob.PT_VY)  # per axis: y has neither
+    assert d.target.pos_ned[0] == 1.0 and math.isnan(d.target.pos_ned[1]) and math.isnan(d.target.vel_ned[1])
+
+
+def test_acceleration_is_named_once_force_and_empty_targets_are_refused() -> None:
+    d = _pt(ALL_BUT["pos"] & ~ob.PT_AZ)
+    assert d.target is not None and "acceleration ignored" in d.ignored
+    assert "force" in _pt(ALL_BUT["pos"] & ~ob.PT_AZ | ob.PT_FORCE_SET).refusal
+    assert "invalid" in _pt(_POS | _VEL | ob.PT_ACCEL | _YAWS).refusal
+    assert "only an acceleration" in _pt(_POS | _VEL | _YAWS).refusal
+    bad = ob.position_target("SPT", ALL_BUT["vel"], 1, (0, 0, 0), (math.inf, 0, 0), (0, 0, 0), 0, 0, 0)
+    assert bad.target is None and "finite" in bad.refusal
+
+
+def test_body_ned_velocity_is_rotated_by_the_heading_and_position_ignored() -> None:
+    d = _pt(ALL_BUT["posvel"], ob.MAV_FRAME_BODY_NED, yaw_now=math.pi / 2)  # facing east: forward = east
+    assert all(map(math.isnan, d.target.pos_ned))
+    assert d.target.vel_ned == pytest.approx((-0.2, 0.1, 0.3))  # 0.1 forward -> east, 0.2 right -> south
+
+
+def test_attitude_target_maps_pitch_yaw_and_thrust_and_names_what_it_cannot_fly() -> None:
+    q = _quat(0.0, math.radians(45), math.radians(30))
+    d = ob.attitude_target(ob.AT_RATES, q, 0.5, (0, 0, 0))
+    assert d.target.pitch_rad == pytest.approx(math.radians(45)) and d.target.yaw_rad == pytest.approx(math.radians(30))
+    assert d.target.throttle == 0.5 and all(map(math.isnan, d.target.pos_ned)) and not d.ignored
+    d = ob.attitude_target(ob.AT_RATES, _quat(math.radians(10), 0.0, 0.0), 0.5, (0, 0, 0))
+    assert d.target is not None and "roll 10 deg ignored" in d.ignored
+    assert "body-rate" in ob.attitude_target(ob.AT_ATTITUDE | ob.AT_THRUST, q, 0.5, (0, 0.1, 0)).refusal
+    assert "beyond" in ob.attitude_target(ob.AT_RATES, _quat(0, math.radians(70), 0), 0.5, (0, 0, 0)).refusal
+    assert "thrust" in ob.attitude_target(ob.AT_RATES, q, 1.5, (0, 0, 0)).refusal
+    assert "unit" in ob.attitude_target(ob.AT_RATES, (0.5, 0, 0, 0), 0.5, (0, 0, 0)).refusal
+    d = ob.attitude_target(ob.AT_RATES | ob.AT_THRUST, q, NAN, (0, 0, 0))  # thrust ignored: altitude held
+    assert math.isnan(d.target.throttle)
+
+
+# --- flying them -------------------------------------------------------------------------------------------
+def _offboard(target: OffboardTarget):
+    mm, body, t = _flying()
+    mm.set_position_gain(KP_BODY)
+    mm.offboard_setpoint(target)
+    assert mm.set_mode(Px4MainMode.OFFBOARD, 0).ok
+    return mm, body, t
+
+
+def test_velocity_target_is_tracked_with_the_feed_forward_and_without_lag() -> None:
+    v = (0.4, -0.3, 0.0)
+    mm, body, t = _offboard(OffboardTarget(vel_ned=v))
+    start = list(body.pos)
+    outs, t = fly(mm, body, t, 3.0)
+    assert body.vel == pytest.approx(list(v), abs=1e-3)
+    # Closed form: the vehicle is where v * 3 s takes it (no steady lag v / K_p = 0.25 m behind the reference).
+    assert body.pos == pytest.approx([start[i] + v[i] * 3.0 for i in range(3)], abs=0.02)
+    assert outs[-1].flight_mode is FlightMode.OFFBOARD
+
+
+def test_velocity_reference_cannot_wind_up_while_the_vehicle_is_held_back() -> None:
+    mm, body, t = _offboard(OffboardTarget(vel_ned=(1.0, 0.0, 0.0)))
+    lead = mm.config.manual_lead_m
+    for k in range(300):  # the vehicle is stuck (e.g. a wall): 3 s of 1 m/s demand
+        out = mm.step(body.inputs(t + k * 0.01))
+    assert out.setpoint.pos_ned[0] - body.pos[0] <= lead + 1.0 / KP_BODY + 1e-9
+
+
+def test_position_with_velocity_feed_forward_and_yaw_rate() -> None:
+    mm, body, t = _offboard(OffboardTarget(yaw_rate_rad_s=0.5, vel_ned=(0.0, 0.0, 0.0)))
+    yaw0 = mm.last_output.setpoint.yaw_rad if mm.last_output else 0.0
+    outs, t = fly(mm, body, t, 1.0)
+    assert outs[-1].setpoint.yaw_rad == pytest.approx(yaw0 + 0.5, abs=0.02)
+    # A moving position stream with its velocity: the vehicle is on the stream, not v / K_p behind it.
+    v = 0.5
+    for k in range(200):
+        tk = t + k * 0.01
+        x = 0.5 * (k * 0.01)
+        mm.offboard_setpoint(OffboardTarget((x, 0.0, -1.5), (v, 0.0, 0.0), yaw_rad=0.0))
+        out = mm.step(body.inputs(tk))
+        body.move(out.engaged, out.setpoint)
+    assert body.pos[0] == pytest.approx(0.5 * 1.99, abs=0.03) and out.setpoint.yaw_rad == 0.0
+
+
+def test_attitude_target_holds_the_pitch_and_position_and_thrust_climbs() -> None:
+    mm, body, t = _offboard(OffboardTarget(pitch_rad=math.radians(45), yaw_rad=0.3, throttle=0.5))
+    here = list(body.pos)
+    outs, t = fly(mm, body, t, 1.0)
+    sp = outs[-1].setpoint
+    assert sp.pitch_rad == pytest.approx(math.radians(45)) and sp.yaw_rad == 0.3
+    assert body.pos == pytest.approx(here, abs=0.01)  # hover in place, pitched
+    mm.offboard_setpoint(OffboardTarget(pitch_rad=math.radians(45), yaw_rad=0.3, throttle=0.75))
+    z0 = body.pos[2]
+    outs, t = fly(mm, body, t, 2.0)
+    climb = -2 * 0.25 * mm.config.manual_climb_m_s  # 0.75: half way up the stick
+    assert body.vel[2] == pytest.approx(climb, abs=1e-3) and body.pos[2] == pytest.approx(z0 + 2.0 * climb, abs=0.02)
+
+
+# --- the GcsService path -----------------------------------------------------------------------------------
+def test_messages_reach_the_stack_and_refusals_and_ignored_parts_are_said() -> None:
+    rig = Rig()
+    rig.step(60)
+    assert rig.command(API, 400, 1, 21196).result == 0  # forced arm on the bench
+    c = rig.client
+    rig.send(c.set_position_target_local_ned_encode(0, 1, 1, 1, ALL_BUT["vel"], 0, 0, 0, 0.3, 0, 0, 0, 0, 0, 0, 0), GCS)
+    assert rig.stack._modes._offboard.vel_ned == (pytest.approx(0.3), 0.0, 0.0)
+    assert not rig.outbox.pop("STATUSTEXT")
+    accel = ALL_BUT["vel"] & ~ob.PT_AX
+    for _ in range(3):  # named once, not per message
+        rig.send(c.set_position_target_local_ned_encode(0, 1, 1, 1, accel, 0, 0, 0, 0.3, 0, 0, 1, 0, 0, 0, 0), GCS)
+    (text,) = [m.text for _, m in rig.outbox.pop("STATUSTEXT")]
+    assert "acceleration ignored" in text
+    rig.send(c.set_position_target_local_ned_encode(0, 1, 1, 1, 0xFFF, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), GCS)
+    assert "invalid" in rig.outbox.pop("STATUSTEXT")[0][1].text
+    rig.send(c.set_attitude_target_encode(0, 1, 1, ob.AT_RATES, _quat(0, 0.5, 0.2), 0, 0, 0, 0.5), GCS)
+    got = rig.stack._modes._offboard
+    assert got.pitch_rad == pytest.approx(0.5) and got.yaw_rad == pytest.approx(0.2) and got.throttle == 0.5
+    rig.send(c.set_attitude_target_encode(0, 1, 1, ob.AT_ATTITUDE, (1, 0, 0, 0), 0, 0, 0.2, 0.5), GCS)
+    assert "body-rate" in rig.outbox.pop("STATUSTEXT")[0][1].text
+    assert rig.stack._modes._offboard.pitch_rad == pytest.approx(0.5)  # a refusal changes nothing
