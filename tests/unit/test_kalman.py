@@ -69,6 +69,7 @@ def _param_values(**overrides: float) -> dict[str, float]:
         "CKF_Q_IXX": 1e-4, "CKF_Q_IYY": 5e-5, "CKF_Q_IZZ": 1e-4, "CKF_Q_M": 5e-4,
         "CKF_R_U1": 2.25e6, "CKF_R_U2": 4e6, "CKF_R_U3": 2.25e6, "CKF_R_U4": 4e6, "CKF_R_U5": 1e8,
         "CKF_P0_SCALE": 100.0, "CKF_PROJ_W": 0,
+        "CKF_INC_N": 1, "CKF_EXC_ROT": 0.0, "CKF_EXC_LIN": 0.0, "CKF_SAT_GATE": 0, "CKF_U_SRC": 0, "CKF_ACC_REF": 0,
     }
     v.update(overrides)
     return v
