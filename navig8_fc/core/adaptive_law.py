@@ -151,6 +151,9 @@ class AdaptiveLawInputs:
     inertia_uam: np.ndarray  # (3, 3) UAM inertia tensor about the UAM CoM
     mass_uam_kg: float
     inertia_rate_uam: np.ndarray  # (3, 3) d/dt of inertia_uam (Eq. 22)
+    arm_hdc: float = 0.0  # the arm's h' (CKF_ARM_WRENCH)
+    indi_saturated: bool = False  # IndiStatus.saturated of the latest command (CKF_SAT_GATE)
+    u_cmd: Sequence[float] | np.ndarray | None = None  # U of the latest actuator command (CKF_U_SRC = 1)
 
 
 @dataclass(frozen=True)
@@ -236,7 +239,8 @@ class AdaptiveLaw:
         g, _, status = self.step_arrays(
             inp.t_s, np.asarray(inp.u_meas, dtype=float), np.asarray(inp.acc_m, dtype=float),
             np.ascontiguousarray(inp.gc_uam_inv, dtype=float), np.asarray(inp.inertia_uam, dtype=float),
-            float(inp.mass_uam_kg), np.asarray(inp.inertia_rate_uam, dtype=float),
+            float(inp.mass_uam_kg), np.asarray(inp.inertia_rate_uam, dtype=float), float(inp.arm_hdc),
+            bool(inp.indi_saturated), None if inp.u_cmd is None else np.asarray(inp.u_cmd, dtype=float),
         )
         return g, status
 
