@@ -23,6 +23,18 @@ Caveat: H is built from the *measured* Delta Acc_m, which the KF treats as exact
 gyro, accelerometer) biases the estimate towards zero (errors-in-variables attenuation), i.e. towards
 the lower bound K = 1 once constrained.
 
+Windows (issue 10, CKF_INC_N = N > 1, the default 25): the increments are y[k] - y[k-N], one correction every N
+steps (predict and projection every step). Why: y[k] - y[k-1] = alpha (x[k] - y[k-1]) passes white noise and a
+0.5 Hz doublet with the same gain (~alpha), so the regressor is as noisy as the raw signal and the estimate is
+attenuated towards K = 1 (errors in variables); over N = 25 steps the doublet passes with gain ~0.6 and the
+noise with ~sqrt(alpha). Non-overlapping windows share no noise samples, so the KF's white-noise assumption holds
+much better than for option (a) above. With N = 1 everything is exactly the one-step law.
+
+Gates and sources (issue 10; docs/model.md "Estimator"): a window in which the INDI saturated is not learned
+from (CKF_SAT_GATE); states whose regressor increment is below a threshold are held (CKF_EXC_ROT, CKF_EXC_LIN);
+U can be the INDI's previous actuator command instead of the measured actuators (CKF_U_SRC: the measured U's
+noise is fed back by the INDI and correlates the regressor with the noise in z).
+
 The filters and increments are one numba kernel (`lpf_increments`) over a named state layout; the KF is
 used through its public `step`. Pure core: no I/O, no clocks; time comes in as t_s from the caller.
 """
