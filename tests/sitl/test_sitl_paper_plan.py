@@ -44,7 +44,9 @@ def test_paper_plan_flown_by_navig8_mission_meets_the_paper_criteria(tmp_path: P
     # every step and arm command comes that much later relative to the 6 s mass event), the arm's initial 2 s
     # ramp is 0.25 s joint-target steps, and the run lasts 32 s (holding after the plan ends) instead of 30 s.
     ref = run_reference(tmp_path)
-    for key, rel in (("min_eigenvalue", 0.05), ("max_eigenvalue", 0.02), ("max_pos_error_m", 0.02),
+    # The eigenvalues follow the estimate, which moves since issue 10's estimator (25-step windows): a start 0.04 s
+    # later shifts its windows against the arm's reversals, so its extremes get the same 5 % as the minimum.
+    for key, rel in (("min_eigenvalue", 0.05), ("max_eigenvalue", 0.05), ("max_pos_error_m", 0.02),
                      ("pos_rms_error_m", 0.05), ("max_att_error_deg", 0.05), ("peak_reaction_force_n", 0.05),
                      ("peak_reaction_torque_nm", 0.1)):
         assert s[key] == pytest.approx(ref[key], rel=rel), key
