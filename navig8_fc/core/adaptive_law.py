@@ -86,7 +86,7 @@ class AdaptiveLawConfig:
 # Filter state of lpf_increments: the low-passed U0, Acc_m and arm h' (arm_hdc), their values at the start of the
 # current increment window, the steps counted in it and whether the INDI saturated in it.
 LAW_STATE = layout("LAW_STATE", u_f=N_MEAS, acc_f=N_MEAS, hd_f=1, u_w=N_MEAS, acc_w=N_MEAS, hd_w=1, count=1,
-                   sat=1, started=1)
+                   sat=1, sat_hold=1, started=1)
 LS_UF = LAW_STATE.U_F  # low-passed U0
 LS_AF = LAW_STATE.ACC_F  # low-passed Acc_m
 LS_HF = LAW_STATE.HD_F  # low-passed arm h'
@@ -94,7 +94,8 @@ LS_UW = LAW_STATE.U_W  # u_f at the window's start
 LS_AW = LAW_STATE.ACC_W
 LS_HW = LAW_STATE.HD_W
 LS_COUNT = LAW_STATE.COUNT  # steps since the window's start
-LS_SAT = LAW_STATE.SAT  # 1.0 when a step of the window reported INDI saturation
+LS_SAT = LAW_STATE.SAT  # 1.0 when a step of the window reported INDI saturation (or was within the hold after one)
+LS_HOLD = LAW_STATE.SAT_HOLD  # steps left in which the filters still carry a saturated step (sat_hold_steps)
 LS_STARTED = LAW_STATE.STARTED  # 1.0 after the first sample
 # Its output: the increments fed to the KF (Eq. 23), and whether a window closed this step
 LAW_OUT = layout("LAW_OUT", delta_u=N_MEAS, delta_acc=N_MEAS, delta_hd=1, ready=1, saturated=1)
@@ -106,10 +107,11 @@ LO_SAT = LAW_OUT.SATURATED  # 1.0: the INDI saturated during the window that clo
 
 
 @njit(cache=True)
-def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, out):
+def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, sat_hold_steps, out):
     """The first-order low-passes of U0, Acc_m and h' (y += alpha (x - y); the first sample sets y) and their
     increments over windows of n_window steps, y[k] - y[k - n_window], every n_window-th step (ready = 1), zeros in
-    between and on the first sample. sat (0/1, the INDI's saturation flag) is or-ed over the window. With
+    between and on the first sample. sat (0/1, the INDI's saturation flag) is or-ed over the window, and a saturated
+    step keeps flagging the following sat_hold_steps steps (the low-passed signals still carry it). With
     n_window = 1 the increments are the one-step differences y[k] - y[k-1] every step. st: LAW_STATE; out: LAW_OUT."""
     if st[LS_STARTED] == 0.0:
         for i in range(N_MEAS):
@@ -121,6 +123,7 @@ def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, out):
         st[LS_HW] = hdc
         st[LS_COUNT] = 0.0
         st[LS_SAT] = 0.0
+        st[LS_HOLD] = 0.0
         st[LS_STARTED] = 1.0
         for i in range(LAW_OUT.SIZE):
             out[i] = 0.0
@@ -135,6 +138,10 @@ def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, out):
     st[LS_COUNT] += 1.0
     if sat != 0.0:
         st[LS_SAT] = 1.0
+        st[LS_HOLD] = sat_hold_steps
+    elif st[LS_HOLD] > 0.0:
+        st[LS_SAT] = 1.0
+        st[LS_HOLD] -= 1.0
     if st[LS_COUNT] < n_window:
         for i in range(LAW_OUT.SIZE):
             out[i] = 0.0
@@ -217,6 +224,10 @@ class AdaptiveLaw:
         self._du, self._da = inc.delta_u, inc.delta_acc  # what the KF step reads
         self._n_window = float(ckf.inc_window)
         self._sat_gate = ckf.sat_gate
+        # the saturation gate also skips the filter time constant after a saturated step (the low-passed U and
+        # Acc_m still carry it: measured on the paper scenario, the windows right after a reversal's saturation
+        # moved m_hat by 2 kg)
+        self._sat_hold = float(math.ceil(ckf.lpf_tau_s / ckf.dt_s)) if ckf.sat_gate else 0.0
         self._u_from_cmd = ckf.u_from_command
         # Constants of the tick, looked up once: the config is frozen.
         self._adaptive = ckf.adaptive
@@ -284,7 +295,7 @@ class AdaptiveLaw:
         if u_cmd is not None and self._u_from_cmd:
             u_meas = u_cmd
         lpf_increments(self._st, self._alpha, self._n_window, u_meas, acc_m, float(arm_hdc),
-                       1.0 if indi_saturated else 0.0, self._inc)
+                       1.0 if indi_saturated else 0.0, self._sat_hold, self._inc)
         inc = self._inc.tolist()
         du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
         ready, window_sat = inc[LO_READY] != 0.0, inc[LO_SAT] != 0.0

@@ -116,8 +116,8 @@ def test_increments_kernel_python_path(pose: Pose) -> None:
         out_c, out_p = LAW_OUT.zeros(), LAW_OUT.zeros()
         for k, (u, acc) in enumerate(_excitation(pose, pose.base, 10)):
             sat = 1.0 if k == 4 else 0.0
-            lpf_increments(st_c, 0.0142, n_window, u, acc, 0.1 * k, sat, out_c)
-            lpf_increments.py_func(st_p, 0.0142, n_window, u, acc, 0.1 * k, sat, out_p)
+            lpf_increments(st_c, 0.0142, n_window, u, acc, 0.1 * k, sat, 2.0, out_c)
+            lpf_increments.py_func(st_p, 0.0142, n_window, u, acc, 0.1 * k, sat, 2.0, out_p)
             assert np.array_equal(st_c, st_p) and np.array_equal(out_c, out_p)
     views = LAW_OUT.views(out_c)
     assert views.delta_u.shape == (5,) and views.delta_acc.shape == (5,)
@@ -174,26 +174,31 @@ def test_excitation_gate_holds_unexcited_states(pose: Pose) -> None:
 
 
 def test_saturation_gate_skips_saturated_windows(pose: Pose) -> None:
-    """CKF_SAT_GATE: a window during which the INDI reported saturation (indi_saturated on any of its steps) is not
+    """CKF_SAT_GATE: a window during which the INDI reported saturation (indi_saturated on any of its steps), or
+    that lies within one filter time constant after such a step (the low-passed signals still carry it), is not
     learned from; the same data without the flag, or with the gate off, are."""
     data = _excitation(pose, pose.base * 1.4, 60)
+    tau = 0.04  # the hold: ceil(tau / dt) = 4 steps
 
-    def run(gate: bool, flag_steps: set[int]) -> tuple[AdaptiveLawStatus, int]:
-        law = _law(start_delay_s=0.0, inc_window=10, sat_gate=gate)
-        n_sat_windows = 0
+    def run(gate: bool, flag_steps: set[int]) -> tuple[AdaptiveLawStatus, list[int]]:
+        law = _law(start_delay_s=0.0, inc_window=10, sat_gate=gate, lpf_tau_s=tau)
+        flagged_windows = []
         for k, (u, acc) in enumerate(data):
             _, _, st = law.step_arrays(k * DT, u, acc, pose.gci, pose.j, pose.m, np.zeros((3, 3)), 0.0,
                                        k in flag_steps)
-            n_sat_windows += st.saturated
-        return st, n_sat_windows
+            if st.saturated:
+                flagged_windows.append(k)
+        return st, flagged_windows
 
-    flagged = {13, 14, 35}  # inside the windows closing at 20 and 40
-    st, n_sat = run(True, flagged)
-    assert n_sat == 2 and st.n_saturation_skips == 2 and st.n_updates == 5 - 2
-    st, n_sat = run(False, flagged)
-    assert n_sat == 2 and st.n_saturation_skips == 0 and st.n_updates == 5
-    st, n_sat = run(True, set())
-    assert n_sat == 0 and st.n_updates == 5
+    flagged = {13, 14, 35}  # inside the windows closing at 20 and 40, their holds too
+    st, windows = run(True, flagged)
+    assert windows == [20, 40] and st.n_saturation_skips == 2 and st.n_updates == 5 - 2
+    st, windows = run(False, flagged)  # gate off: flagged as they are (no hold), all learned from
+    assert windows == [20, 40] and st.n_saturation_skips == 0 and st.n_updates == 5
+    st, windows = run(True, set())
+    assert windows == [] and st.n_updates == 5
+    st, windows = run(True, {18})  # the hold (18 + 4 steps) reaches into the window closing at 30
+    assert windows == [20, 30] and st.n_saturation_skips == 2
 
 
 def test_u_from_command(pose: Pose) -> None:

@@ -158,10 +158,11 @@ def test_update_gains_takes_effect_at_the_next_tick(cfg: VehicleConfig) -> None:
 
 def test_saturation_gate_reads_the_indi_status(cfg: VehicleConfig) -> None:
     """The law's saturation flag is the INDI's public IndiStatus.saturated of the previous tick (one-step windows
-    make every tick a window): a climb demand near full speed saturates the INDI on some ticks and not on others,
-    and the law skips exactly the windows that follow a saturated command."""
+    make every tick a window, and CKF_LPF_TAU = 0 makes the hold after a saturated step empty): a climb demand near
+    full speed saturates the INDI on some ticks and not on others, and the law skips exactly the windows that follow
+    a saturated command."""
     base = ControllerConfig.from_params(ParamRegistry.from_defaults().as_dict(), cfg)
-    config = replace(base, ckf=replace(base.ckf, inc_window=1, start_delay_s=0.0, sat_gate=True))
+    config = replace(base, ckf=replace(base.ckf, inc_window=1, start_delay_s=0.0, sat_gate=True, lpf_tau_s=0.0))
     core = FlightControllerCore(cfg, config)
     prev_sat, n_sat, skips = False, 0, 0
     for i in range(150):
