@@ -9,6 +9,7 @@ controller); --suffix goes into the file names (fig15_estimates_ident.png).
 from __future__ import annotations
 
 import argparse
+import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -202,10 +203,11 @@ def plot_runs(paths: list[str | Path], out: str | Path, only: list[str] | None =
     figures = [f for f in FIGURES if not only or any(f.__name__.startswith(o) for o in only)]
     if not figures:
         raise ValueError(f"no figure matches {only}; figures: {[f.__name__ for f in FIGURES]}")
-    paths_out = [f(runs, out) for f in figures]
-    if suffix:
-        paths_out = [p.replace(p.with_name(f"{p.stem}{suffix}{p.suffix}")) for p in paths_out]
-    return paths_out
+    if not suffix:
+        return [f(runs, out) for f in figures]
+    # drawn aside first, so that the unsuffixed files already in `out` are left alone
+    with tempfile.TemporaryDirectory(dir=out) as tmp:
+        return [p.replace(out / f"{p.stem}{suffix}{p.suffix}") for p in (f(runs, Path(tmp)) for f in figures)]
 
 
 def main(argv: list[str] | None = None) -> int:
