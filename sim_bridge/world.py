@@ -116,7 +116,12 @@ def world_documents(scenario: str | Path, overrides: Mapping[str, float] | None 
         "scenario": copy.deepcopy(read_scenario_file(scenario)),
         "vehicle": _packaged_yaml("vehicle.yaml"),
     }
-    items = list((overrides or {}).items())
+    # A scenario may carry its own overrides (`world: {NAME: VALUE}`, e.g. a controller with a wrong model); the
+    # caller's apply after them.
+    own = docs["scenario"].pop("world", None) or {}
+    if any(str(name).startswith("scenario.") for name in own):
+        raise ValueError(f"a scenario's own world overrides cannot change the scenario: {sorted(own)}")
+    items = [(str(n), float(v)) for n, v in own.items()] + list((overrides or {}).items())
     # `vehicle.` is the truth and the controller's model alike: apply it before fc_vehicle is split off.
     for name, value in items:
         if name.startswith("vehicle."):

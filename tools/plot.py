@@ -1,11 +1,15 @@
 """navig8-plot: the paper's Figures 10-16 from one or more run logs (MCAP), baselines overlaid.
 
-    navig8-plot run.mcap [other.mcap ...] --out DIR
+    navig8-plot run.mcap [other.mcap ...] --out DIR [--only fig15 ...] [--labels A B ...] [--suffix _x]
+
+--only draws the named figures only (fig10 ... fig16); --labels names the runs in the legends (default: each run's
+controller); --suffix goes into the file names (fig15_estimates_ident.png).
 """
 
 from __future__ import annotations
 
 import argparse
+import tempfile
 from pathlib import Path
 
 import matplotlib
@@ -185,19 +189,36 @@ FIGURES = [fig10_reaction, fig11_joints, fig12_states, fig13_accels, fig14_actua
            fig16_eigenvalues]
 
 
-def plot_runs(paths: list[str | Path], out: str | Path) -> list[Path]:
+def plot_runs(paths: list[str | Path], out: str | Path, only: list[str] | None = None,
+              labels: list[str] | None = None, suffix: str = "") -> list[Path]:
+    """The figures (all, or those whose name starts with one of `only`) of the runs at `paths` into `out`."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     runs = [load_run(p) for p in paths]
-    return [f(runs, out) for f in FIGURES]
+    if labels:
+        if len(labels) != len(runs):
+            raise ValueError(f"{len(labels)} labels for {len(runs)} runs")
+        for run, label in zip(runs, labels, strict=True):
+            run.metadata.setdefault("run", {})["controller"] = label  # what RunLog.label shows
+    figures = [f for f in FIGURES if not only or any(f.__name__.startswith(o) for o in only)]
+    if not figures:
+        raise ValueError(f"no figure matches {only}; figures: {[f.__name__ for f in FIGURES]}")
+    if not suffix:
+        return [f(runs, out) for f in figures]
+    # drawn aside first, so that the unsuffixed files already in `out` are left alone
+    with tempfile.TemporaryDirectory(dir=out) as tmp:
+        return [p.replace(out / f"{p.stem}{suffix}{p.suffix}") for p in (f(runs, Path(tmp)) for f in figures)]
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("logs", nargs="+", help="MCAP logs; the first is the main run, others are overlaid")
     ap.add_argument("--out", required=True, help="output directory for the PNGs")
+    ap.add_argument("--only", nargs="+", default=None, help="figure names to draw (e.g. fig15)")
+    ap.add_argument("--labels", nargs="+", default=None, help="legend names of the runs, in order")
+    ap.add_argument("--suffix", default="", help="appended to the file names")
     args = ap.parse_args(argv)
-    for p in plot_runs(args.logs, args.out):
+    for p in plot_runs(args.logs, args.out, args.only, args.labels, args.suffix):
         print(p)
     return 0
 

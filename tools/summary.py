@@ -1,14 +1,15 @@
 """summary.json from a run's log, so the in-process and the SITL runs are judged by one function.
 
 Keys (issue 4): sim_time_s, wall_time_s, real_time_factor, lost_control, min_eigenvalue,
-max_eigenvalue, bound_violations, max_pos_error_m, pos_rms_error_m, max_att_error_deg, settle,
+max_eigenvalue, bound_violations, max_pos_error_m, pos_rms_error_m, max_att_error_deg, att_rms_error_deg, settle,
 peak_reaction_force_n, peak_reaction_torque_nm, max_joint_rate_rad_s, max_joint_accel_rad_s2.
 
 Definitions:
 - position error: |p - p_cmd| (3-D, UAV origin O, NED); attitude error: rotation angle between the
   true attitude and the outer loop's commanded attitude (commanded pitch/yaw with its chosen roll),
   not counted during the ATT_STEP_GRACE_S after a commanded pitch or yaw step (the 90 deg yaw step
-  is itself a 90 deg "error" at the instant it is commanded);
+  is itself a 90 deg "error" at the instant it is commanded); att_rms_error_deg is its RMS over the samples
+  outside those grace windows (issue 10: adapting vs not adapting);
 - lost_control: any non-finite state, attitude error > 60 deg or position error > 5 m;
 - eigenvalues: real parts of eig(G_hat G^-1) with G from the plant's truth, while the estimator runs;
 - bound_violations: samples where the estimate leaves the Eq. 21 box by more than 1e-9 relative;
@@ -94,10 +95,12 @@ def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
     pos_err = np.linalg.norm(pos - sp_pos, axis=1)
     have_cmd = np.all(np.isfinite(att_cmd_t), axis=1)
     att_err = np.where(have_cmd, _quat_angle_deg(quat, np.nan_to_num(att_cmd_t)), 0.0)
+    graced = np.zeros(len(t), dtype=bool)
     for j in range(2):  # grace window after each commanded pitch/yaw step
         for i in np.nonzero(np.abs(np.diff(sp_att[:, j])) > 1e-9)[0]:
             t_step = sp.t[i + 1]
-            att_err[(t >= t_step) & (t < t_step + ATT_STEP_GRACE_S)] = 0.0
+            graced |= (t >= t_step) & (t < t_step + ATT_STEP_GRACE_S)
+    att_err[graced] = 0.0
     finite = bool(np.all(np.isfinite(pos)) and np.all(np.isfinite(quat)))
     bad = ~np.isfinite(pos).all(axis=1) | ~np.isfinite(quat).all(axis=1)
     bad |= (att_err > LOST_ATT_DEG) | (pos_err > LOST_POS_M)
@@ -148,6 +151,7 @@ def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
         "max_pos_error_m": fmax(pos_err),
         "pos_rms_error_m": float(np.sqrt(np.nanmean(pos_err**2))) if len(pos_err) else None,
         "max_att_error_deg": fmax(att_err),
+        "att_rms_error_deg": float(np.sqrt(np.nanmean(att_err[~graced] ** 2))) if np.any(~graced) else None,
         "settle": settle,
         "peak_reaction_force_n": fmax(np.linalg.norm(f_mount, axis=1)),
         "peak_reaction_torque_nm": fmax(np.linalg.norm(m_mount, axis=1)),

@@ -587,6 +587,16 @@ FO = layout("FO", qest=3, qdd=3,
 
 
 @njit(cache=True)
+def com_accel_offset(p, q, r, qdot, cx, cz):
+    """(x, z) of a_c - a_O for a rigid body: omega-dot x c + omega x (omega x c) with c = (cx, 0, cz) the composite
+    CoM (FRD, from O) and omega-dot = (., qdot, .) (the planar arm keeps c_y = 0, so only Q-dot enters x and z).
+    (omega-dot x c)_x = Qdot c_z, _z = -Qdot c_x; omega x (omega x c) = omega (omega . c) - c |omega|^2."""
+    wc = p * cx + r * cz  # omega . c
+    w2 = p * p + q * q + r * r
+    return qdot * cz + p * wc - cx * w2, -qdot * cx + r * wc - cz * w2
+
+
+@njit(cache=True)
 def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo, fo,
              acc_ref=0.0):
     """FlightControllerCore's per-tick front end: the complementary joint observer (q_est), backward
@@ -624,14 +634,10 @@ def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inerti
     fo[FO.ACC_M + 3] = sens[TIN.ACCEL] + uo[UO.ARM_AX]
     fo[FO.ACC_M + 4] = sens[TIN.ACCEL + 2] + uo[UO.ARM_AZ]
     if acc_ref != 0.0:
-        cx, cz = uo[UO.CEX], uo[UO.CEZ]  # c_y = 0
-        p, qr, r = sens[TIN.GYRO], sens[TIN.GYRO + 1], sens[TIN.GYRO + 2]
-        qdot = fo[FO.ACC_M + 1]
-        wc = p * cx + r * cz  # omega . c
-        w2 = p * p + qr * qr + r * r
-        # (omega-dot x c)_x = Qdot c_z, _z = -Qdot c_x; omega x (omega x c) = omega (omega . c) - c |omega|^2
-        fo[FO.ACC_M + 3] += qdot * cz + p * wc - cx * w2
-        fo[FO.ACC_M + 4] += -qdot * cx + r * wc - cz * w2
+        dx, dz = com_accel_offset(sens[TIN.GYRO], sens[TIN.GYRO + 1], sens[TIN.GYRO + 2], fo[FO.ACC_M + 1],
+                                  uo[UO.CEX], uo[UO.CEZ])
+        fo[FO.ACC_M + 3] += dx
+        fo[FO.ACC_M + 4] += dz
     actuators_to_u(sens[TIN.TILT], sens[TIN.TILT + 1], sens[TIN.SPEED], sens[TIN.SPEED + 1], sens[TIN.SPEED + 2],
                    fo, FO.U_MEAS)
 

@@ -23,6 +23,18 @@ Caveat: H is built from the *measured* Delta Acc_m, which the KF treats as exact
 gyro, accelerometer) biases the estimate towards zero (errors-in-variables attenuation), i.e. towards
 the lower bound K = 1 once constrained.
 
+Windows (issue 10, CKF_INC_N = N > 1, the default 25): the increments are y[k] - y[k-N], one correction every N
+steps (predict and projection every step). Why: y[k] - y[k-1] = alpha (x[k] - y[k-1]) passes white noise and a
+0.5 Hz doublet with the same gain (~alpha), so the regressor is as noisy as the raw signal and the estimate is
+attenuated towards K = 1 (errors in variables); over N = 25 steps the doublet passes with gain ~0.6 and the
+noise with ~sqrt(alpha). Non-overlapping windows share no noise samples, so the KF's white-noise assumption holds
+much better than for option (a) above. With N = 1 everything is exactly the one-step law.
+
+Gates and sources (issue 10; docs/model.md "Estimator"): a window in which the INDI saturated is not learned
+from (CKF_SAT_GATE); states whose regressor increment is below a threshold are held (CKF_EXC_ROT, CKF_EXC_LIN);
+U can be the INDI's previous actuator command instead of the measured actuators (CKF_U_SRC: the measured U's
+noise is fed back by the INDI and correlates the regressor with the noise in z).
+
 The filters and increments are one numba kernel (`lpf_increments`) over a named state layout; the KF is
 used through its public `step`. Pure core: no I/O, no clocks; time comes in as t_s from the caller.
 """
@@ -71,38 +83,80 @@ class AdaptiveLawConfig:
         object.__setattr__(self, "k_max", k_max)
 
 
-# Filter state of lpf_increments
-LAW_STATE = layout("LAW_STATE", u_f=N_MEAS, acc_f=N_MEAS, started=1)
+# Filter state of lpf_increments: the low-passed U0, Acc_m and arm h' (arm_hdc), their values at the start of the
+# current increment window, the steps counted in it and whether the INDI saturated in it.
+LAW_STATE = layout("LAW_STATE", u_f=N_MEAS, acc_f=N_MEAS, hd_f=1, u_w=N_MEAS, acc_w=N_MEAS, hd_w=1, count=1,
+                   sat=1, sat_hold=1, started=1)
 LS_UF = LAW_STATE.U_F  # low-passed U0
 LS_AF = LAW_STATE.ACC_F  # low-passed Acc_m
+LS_HF = LAW_STATE.HD_F  # low-passed arm h'
+LS_UW = LAW_STATE.U_W  # u_f at the window's start
+LS_AW = LAW_STATE.ACC_W
+LS_HW = LAW_STATE.HD_W
+LS_COUNT = LAW_STATE.COUNT  # steps since the window's start
+LS_SAT = LAW_STATE.SAT  # 1.0 when a step of the window reported INDI saturation (or was within the hold after one)
+LS_HOLD = LAW_STATE.SAT_HOLD  # steps left in which the filters still carry a saturated step (sat_hold_steps)
 LS_STARTED = LAW_STATE.STARTED  # 1.0 after the first sample
-# Its output: the increments fed to the KF (Eq. 23)
-LAW_OUT = layout("LAW_OUT", delta_u=N_MEAS, delta_acc=N_MEAS)
+# Its output: the increments fed to the KF (Eq. 23), and whether a window closed this step
+LAW_OUT = layout("LAW_OUT", delta_u=N_MEAS, delta_acc=N_MEAS, delta_hd=1, ready=1, saturated=1)
 LO_DU = LAW_OUT.DELTA_U
 LO_DA = LAW_OUT.DELTA_ACC
+LO_DH = LAW_OUT.DELTA_HD
+LO_READY = LAW_OUT.READY  # 1.0: a window closed, the increments are its own (0.0: they are zeros)
+LO_SAT = LAW_OUT.SATURATED  # 1.0: the INDI saturated during the window that closed
 
 
 @njit(cache=True)
-def lpf_increments(st, alpha, u_meas, acc_m, out):
-    """The two first-order low-passes (y += alpha (x - y); the first sample sets y) and their one-step
-    increments (zeros on the first sample) into out (LAW_OUT). st: LAW_STATE."""
+def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, sat_hold_steps, out):
+    """The first-order low-passes of U0, Acc_m and h' (y += alpha (x - y); the first sample sets y) and their
+    increments over windows of n_window steps, y[k] - y[k - n_window], every n_window-th step (ready = 1), zeros in
+    between and on the first sample. sat (0/1, the INDI's saturation flag) is or-ed over the window, and a saturated
+    step keeps flagging the following sat_hold_steps steps (the low-passed signals still carry it). With
+    n_window = 1 the increments are the one-step differences y[k] - y[k-1] every step. st: LAW_STATE; out: LAW_OUT."""
     if st[LS_STARTED] == 0.0:
         for i in range(N_MEAS):
             st[LS_UF + i] = u_meas[i]
             st[LS_AF + i] = acc_m[i]
-            out[LO_DU + i] = 0.0
-            out[LO_DA + i] = 0.0
+            st[LS_UW + i] = u_meas[i]
+            st[LS_AW + i] = acc_m[i]
+        st[LS_HF] = hdc
+        st[LS_HW] = hdc
+        st[LS_COUNT] = 0.0
+        st[LS_SAT] = 0.0
+        st[LS_HOLD] = 0.0
         st[LS_STARTED] = 1.0
+        for i in range(LAW_OUT.SIZE):
+            out[i] = 0.0
         return
     for i in range(N_MEAS):
         y = st[LS_UF + i]
-        yn = y + alpha * (u_meas[i] - y)
-        out[LO_DU + i] = yn - y
-        st[LS_UF + i] = yn
+        st[LS_UF + i] = y + alpha * (u_meas[i] - y)
         y = st[LS_AF + i]
-        yn = y + alpha * (acc_m[i] - y)
-        out[LO_DA + i] = yn - y
-        st[LS_AF + i] = yn
+        st[LS_AF + i] = y + alpha * (acc_m[i] - y)
+    y = st[LS_HF]
+    st[LS_HF] = y + alpha * (hdc - y)
+    st[LS_COUNT] += 1.0
+    if sat != 0.0:
+        st[LS_SAT] = 1.0
+        st[LS_HOLD] = sat_hold_steps
+    elif st[LS_HOLD] > 0.0:
+        st[LS_SAT] = 1.0
+        st[LS_HOLD] -= 1.0
+    if st[LS_COUNT] < n_window:
+        for i in range(LAW_OUT.SIZE):
+            out[i] = 0.0
+        return
+    for i in range(N_MEAS):
+        out[LO_DU + i] = st[LS_UF + i] - st[LS_UW + i]
+        out[LO_DA + i] = st[LS_AF + i] - st[LS_AW + i]
+        st[LS_UW + i] = st[LS_UF + i]
+        st[LS_AW + i] = st[LS_AF + i]
+    out[LO_DH] = st[LS_HF] - st[LS_HW]
+    st[LS_HW] = st[LS_HF]
+    out[LO_READY] = 1.0
+    out[LO_SAT] = st[LS_SAT]
+    st[LS_COUNT] = 0.0
+    st[LS_SAT] = 0.0
 
 
 @dataclass(frozen=True)
@@ -116,6 +170,9 @@ class AdaptiveLawInputs:
     inertia_uam: np.ndarray  # (3, 3) UAM inertia tensor about the UAM CoM
     mass_uam_kg: float
     inertia_rate_uam: np.ndarray  # (3, 3) d/dt of inertia_uam (Eq. 22)
+    arm_hdc: float = 0.0  # the arm's h' (CKF_ARM_WRENCH)
+    indi_saturated: bool = False  # IndiStatus.saturated of the latest command (CKF_SAT_GATE)
+    u_cmd: Sequence[float] | np.ndarray | None = None  # U of the latest actuator command (CKF_U_SRC = 1)
 
 
 @dataclass(frozen=True)
@@ -134,8 +191,12 @@ class AdaptiveLawStatus:
     p_diag: tuple[float, ...]  # (4,)
     n_updates: int
     n_projection_fallbacks: int
-    delta_u: tuple[float, ...] = (0.0,) * N_MEAS  # increments fed to the KF (Eq. 23)
+    delta_u: tuple[float, ...] = (0.0,) * N_MEAS  # increments fed to the KF (Eq. 23); zeros between windows
     delta_acc: tuple[float, ...] = (0.0,) * N_MEAS
+    corrected: bool = False  # a measurement update ran this step (a window closed, not gated)
+    excited: tuple[bool, ...] = (False,) * N_STATE  # the states it corrected (excitation gate)
+    saturated: bool = False  # the window that closed this step had INDI saturation (skipped when CKF_SAT_GATE)
+    n_saturation_skips: int = 0  # windows skipped by the saturation gate since the start
 
 
 _ZERO4 = (0.0,) * N_STATE
@@ -158,10 +219,16 @@ class AdaptiveLaw:
         self._kf = ConstrainedKalmanFilter(ckf)
         self._alpha = lpf_alpha(ckf.lpf_tau_s, ckf.dt_s)
         self._st = LAW_STATE.zeros()
-        self._hd_f: float | None = None  # low-passed arm_hdc (the same filter as U and Acc_m)
         self._inc = LAW_OUT.zeros()
         inc = LAW_OUT.views(self._inc)
         self._du, self._da = inc.delta_u, inc.delta_acc  # what the KF step reads
+        self._n_window = float(ckf.inc_window)
+        self._sat_gate = ckf.sat_gate
+        # the saturation gate also skips the filter time constant after a saturated step (the low-passed U and
+        # Acc_m still carry it: measured on the paper scenario, the windows right after a reversal's saturation
+        # moved m_hat by 2 kg)
+        self._sat_hold = float(math.ceil(ckf.lpf_tau_s / ckf.dt_s)) if ckf.sat_gate else 0.0
+        self._u_from_cmd = ckf.u_from_command
         # Constants of the tick, looked up once: the config is frozen.
         self._adaptive = ckf.adaptive
         self._start_delay_tol = ckf.start_delay_s - 1e-9
@@ -179,7 +246,7 @@ class AdaptiveLaw:
 
     def reset(self) -> None:
         self._st[:] = 0.0
-        self._hd_f = None
+        self._n_sat_skips = 0
         self._t0: float | None = None
         self._running = False
         self._mass_hat: float | None = None
@@ -195,16 +262,21 @@ class AdaptiveLaw:
         g, _, status = self.step_arrays(
             inp.t_s, np.asarray(inp.u_meas, dtype=float), np.asarray(inp.acc_m, dtype=float),
             np.ascontiguousarray(inp.gc_uam_inv, dtype=float), np.asarray(inp.inertia_uam, dtype=float),
-            float(inp.mass_uam_kg), np.asarray(inp.inertia_rate_uam, dtype=float),
+            float(inp.mass_uam_kg), np.asarray(inp.inertia_rate_uam, dtype=float), float(inp.arm_hdc),
+            bool(inp.indi_saturated), None if inp.u_cmd is None else np.asarray(inp.u_cmd, dtype=float),
         )
         return g, status
 
     def step_arrays(
         self, t_s: float, u_meas: np.ndarray, acc_m: np.ndarray, gc_inv: np.ndarray, inertia: np.ndarray,
-        m: float, inertia_rate: np.ndarray, arm_hdc: float = 0.0,
+        m: float, inertia_rate: np.ndarray, arm_hdc: float = 0.0, indi_saturated: bool = False,
+        u_cmd: np.ndarray | None = None,
     ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
         """step() on float64 arrays (u_meas, acc_m (5,), gc_inv (5, 5) C-contiguous, inertia and inertia_rate
         (3, 3)), m a float; also returns G_hat_I row-major as a tuple (the same floats). The controller's tick.
+        indi_saturated: the INDI's saturation flag of the latest command (IndiStatus.saturated), for the gate.
+        u_cmd: U of the latest actuator command (5,), used in place of u_meas when CKF_U_SRC = 1 (None: no
+        command yet, u_meas is used).
 
         Bookkeeping on plain floats (the vectors have 4-5 components: numpy's per-call overhead would
         dominate); the values equal those of vehicle.estimate_bounds / estimated_gi / k_from_estimate exactly
@@ -220,21 +292,20 @@ class AdaptiveLaw:
             self._t0 = t_s
         # 1e-9 s guards the comparison against time accumulated in floating point.
         started = self._adaptive and (t_s - self._t0) >= self._start_delay_tol
-        lpf_increments(self._st, self._alpha, u_meas, acc_m, self._inc)
-        dhd = 0.0
-        if self.config.arm_wrench:  # the same first-order filter and one-step increment as lpf_increments
-            y = self._hd_f
-            self._hd_f = arm_hdc if y is None else y + self._alpha * (arm_hdc - y)
-            dhd = 0.0 if y is None else self._hd_f - y
+        if u_cmd is not None and self._u_from_cmd:
+            u_meas = u_cmd
+        lpf_increments(self._st, self._alpha, self._n_window, u_meas, acc_m, float(arm_hdc),
+                       1.0 if indi_saturated else 0.0, self._sat_hold, self._inc)
         inc = self._inc.tolist()
         du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
+        ready, window_sat = inc[LO_READY] != 0.0, inc[LO_SAT] != 0.0
         if not started:
             g, gl = _gi_hat_flat(j11, j13, j33, base)
             return g, gl, AdaptiveLawStatus(
                 running=False, x_hat=base, x_unconstrained=base, k=_ONES4,
                 lower=lower, upper=upper, active_lower=_FALSE4, active_upper=_FALSE4,
                 innovation=_ZERO5, p_diag=_ZERO4, n_updates=0, n_projection_fallbacks=0,
-                delta_u=du, delta_acc=da,
+                delta_u=du, delta_acc=da, saturated=window_sat,
             )
         kf = self._kf
         idot: tuple[float, float, float] | None = None  # no predict on the first KF tick: x0 is this pose
@@ -243,11 +314,16 @@ class AdaptiveLaw:
         else:
             kf.initialise(base)  # K = 1 at the start (Sec. 4)
             self._running = True
+        correct = ready
+        if ready and window_sat and self._sat_gate:  # no learning from saturated steps (Paparazzi learns from
+            correct = False  # the actuator state, which WLS keeps inside its limits; we skip such windows)
+            self._n_sat_skips += 1
         rho_x, rho_z = inertia_ratios(j11, j13, j33)
         du_kf = self._du
-        if dhd != 0.0:
+        dhd = inc[LO_DH]
+        if self.config.arm_wrench and dhd != 0.0:
             du_kf = self._du - gc_inv[:, 1] * dhd  # z = Delta U - G_C^-1 [0, Delta h', 0, 0, 0]
-        r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper)
+        r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
         x = r.x_hat
         x0, x1, x2, x3 = x
         self._mass_hat = x3
@@ -267,6 +343,10 @@ class AdaptiveLaw:
             n_projection_fallbacks=kf.n_projection_fallbacks,
             delta_u=du,
             delta_acc=da,
+            corrected=r.corrected,
+            excited=r.excited,
+            saturated=window_sat,
+            n_saturation_skips=self._n_sat_skips,
         )
 
 

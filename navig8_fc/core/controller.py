@@ -66,7 +66,7 @@ PARAMS_USED = (
     "CKF_R_U1", "CKF_R_U2", "CKF_R_U3", "CKF_R_U4", "CKF_R_U5", "CKF_P0_SCALE", "CKF_PROJ_W",
     "INDI_ACC_REF", "CKF_ARM_WRENCH",
     "INDI_ARM_FF", "INDI_ALLOC", "INDI_ALLOC_W_RP", "INDI_ALLOC_W_AZ", "INDI_ALLOC_W_YAW", "INDI_ALLOC_W_AX",
-    "INDI_ALLOC_DTILT",
+    "INDI_ALLOC_DTILT", "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
 )
 
 
@@ -151,6 +151,8 @@ class FlightControllerCore:
     """Outer loops + INDI + adaptive law for the Navig8-UAM."""
 
     _tick_io: tuple | None = None  # the tick's persistent input vector and views (_tick_buffers)
+    _indi_saturated = False  # the last INDI step's IndiStatus.saturated (the adaptive law's saturation gate)
+    _u_cmd_ok = False  # _u_cmd holds U of the last actuator command (the adaptive law's CKF_U_SRC = 1)
 
     def __init__(self, vehicle: VehicleConfig, config: ControllerConfig) -> None:
         self.vehicle = vehicle
@@ -167,6 +169,7 @@ class FlightControllerCore:
         # INDI_ARM_FF: the arm's h' low-passed like the INDI's feedback (None until the first tick)
         self._ff_alpha = lpf_alpha(config.indi.lpf_tau_s, config.dt_s)
         self._hdc_f: float | None = None
+        self._u_cmd = np.zeros(5)
         assert N_LINKS == 3
 
     def update_gains(self, outer: OuterLoopConfig, k_min: float, k_max: float) -> None:
@@ -182,6 +185,8 @@ class FlightControllerCore:
         self._adapt.reset()
         self._fst[:] = 0.0
         self._hdc_f = None
+        self._indi_saturated = False
+        self._u_cmd_ok = False
 
     def step(
         self, s: FcSensors, sp: Setpoint, engaged: bool = True
@@ -223,8 +228,14 @@ class FlightControllerCore:
         if ul[_UO_SINGULAR]:
             gc_inv = np.linalg.inv(gc)  # raises LinAlgError as before
         mass = ul[_UO_MASS]
-        gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_m, gc_inv, inertia, mass, rate,
-                                                          fo.item(_FO_ARM_HDC))
+        acc_law = acc_m
+        if cfg.ckf.acc_at_com and not acc_ref:  # CKF_ACC_REF: the law's force rows at the estimated CoM
+            am = acc_m.tolist()
+            dx, dz = _k.com_accel_offset(*s.gyro_frd, am[1], ul[_UO_CEX], ul[_UO_CEZ])
+            acc_law = np.array((am[0], am[1], am[2], am[3] + dx, am[4] + dz))
+        gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_law, gc_inv, inertia, mass, rate,
+                                                          fo.item(_FO_ARM_HDC), self._indi_saturated,
+                                                          self._u_cmd if self._u_cmd_ok else None)
         outer: OuterLoopStatus | None = None
         indi_status: IndiStatus | None = None
         ref: tuple[float, float, float] | None = None
@@ -255,7 +266,12 @@ class FlightControllerCore:
                                                 sl[_IN_TILT + 1], sl[_IN_SPEED], sl[_IN_SPEED + 1],
                                                 sl[_IN_SPEED + 2], v_cmd, gc_inv, gi_hat)
             cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
+            self._indi_saturated = indi_status.saturated
+            _k.actuators_to_u(*out.tilt_cmd_rad, *out.speed_cmd_rad_s, self._u_cmd, 0)
+            self._u_cmd_ok = True
         else:
+            self._indi_saturated = False
+            self._u_cmd_ok = False
             # Keep the INDI filters warm so engaging does not start from a transient.
             acc = s.accel_frd if not acc_ref else (sf_x, s.accel_frd[1], sf_z)
             self._indi.measure(IndiInputs(s.gyro_frd, acc, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))

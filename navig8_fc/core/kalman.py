@@ -71,6 +71,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_Q_IXX", "CKF_Q_IYY", "CKF_Q_IZZ", "CKF_Q_M",
     "CKF_R_U1", "CKF_R_U2", "CKF_R_U3", "CKF_R_U4", "CKF_R_U5",
     "CKF_P0_SCALE", "CKF_PROJ_W",
+    "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
 )
 
 
@@ -104,6 +105,23 @@ class CkfConfig:
     lpf_tau_s: time constant of the adaptive law's low-pass filters on U0 and Acc_m.
     start_delay_s: the estimator starts this long after the first sample (Sec. 4: 0.5 s).
     dt_s: control period (filters and the predict step use it).
+    inc_window: CKF_INC_N, the increment window in control steps: the law corrects every inc_window steps with
+        Delta = filtered[k] - filtered[k - inc_window] (1: one-step increments every step, our reading of the
+        paper; adaptive_law.py explains why a longer window is the better band-pass). Predict runs every step.
+    exc_rot_rad_s2, exc_lin_m_s2: CKF_EXC_ROT, CKF_EXC_LIN, excitation gate: a state is corrected only when its
+        regressor's increment is at least this large (|Delta P-dot|, |Delta Q-dot|, |Delta R-dot| for I_xx,
+        I_yy, I_zz; |(Delta a_x, Delta a_z)| for m); the others are held (Schmidt: their gain rows are zero).
+        0: every state, every correction (the paper).
+    sat_gate: CKF_SAT_GATE, skip the correction of a window in which the INDI saturated (no learning from
+        saturated steps). False: the paper.
+    u_from_command: CKF_U_SRC = 1, the law's U is the INDI's previous command (the actuators it commanded, as
+        Paparazzi's estimator without RPM feedback); False (0): U0 from the measured actuators (the paper). Why:
+        the measured U carries the actuator sensor noise, which the INDI feeds back into the next command, so the
+        accelerations the regressor sees are correlated with the measurement noise in z (closed-loop bias).
+    acc_at_com: CKF_ACC_REF = 1, the law's Acc_m force rows are the acceleration of the estimated composite CoM
+        (a_c = f_O + omega-dot x c + omega x (omega x c) + c-ddot_rel, the point G_C's force rows refer to) whatever
+        INDI_ACC_REF the INDI flies with; False (0): the INDI's Acc_m (the paper: f_O + c-ddot_rel, which puts
+        Q-dot c_z into the mass equation as error correlated with the pitch excitation).
     """
 
     q_diag: tuple[float, ...] = (1.0e-4, 5.0e-5, 1.0e-4, 5.0e-4)
@@ -114,6 +132,12 @@ class CkfConfig:
     lpf_tau_s: float = 0.7
     start_delay_s: float = 0.5
     dt_s: float = 0.01
+    inc_window: int = 1
+    exc_rot_rad_s2: float = 0.0
+    exc_lin_m_s2: float = 0.0
+    sat_gate: bool = False
+    u_from_command: bool = False
+    acc_at_com: bool = False
 
     def __post_init__(self) -> None:
         q = _floats(self.q_diag, N_STATE, "q_diag")
@@ -127,7 +151,14 @@ class CkfConfig:
         object.__setattr__(self, "mode", CkfMode(int(self.mode)))
         if self.projection_weight not in ("inv_p", "identity"):
             raise ValueError(f"projection_weight must be 'inv_p' or 'identity', got {self.projection_weight!r}")
-        for name in ("p0_scale", "lpf_tau_s", "start_delay_s"):
+        n = self.inc_window
+        if isinstance(n, bool) or int(n) != n or int(n) < 1:
+            raise ValueError(f"inc_window must be an integer >= 1, got {n!r}")
+        object.__setattr__(self, "inc_window", int(n))
+        object.__setattr__(self, "sat_gate", bool(self.sat_gate))
+        object.__setattr__(self, "u_from_command", bool(self.u_from_command))
+        object.__setattr__(self, "acc_at_com", bool(self.acc_at_com))
+        for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2"):
             v = float(getattr(self, name))
             if not (v >= 0.0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
@@ -153,6 +184,9 @@ class CkfConfig:
         missing = [n for n in CKF_PARAM_NAMES if n not in values]
         if missing:
             raise KeyError(f"missing CKF parameters: {', '.join(missing)}")
+        for flag in ("CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF"):
+            if int(values[flag]) not in (0, 1):
+                raise ValueError(f"{flag} must be 0 or 1, got {values[flag]}")
         proj = int(values["CKF_PROJ_W"])
         if proj not in (0, 1):
             raise ValueError(f"CKF_PROJ_W must be 0 (P^-1) or 1 (identity), got {proj}")
@@ -168,6 +202,12 @@ class CkfConfig:
             lpf_tau_s=float(values["CKF_LPF_TAU"]),
             start_delay_s=float(values["CKF_START_DLY"]),
             dt_s=float(dt_s),
+            inc_window=int(values["CKF_INC_N"]),
+            exc_rot_rad_s2=float(values["CKF_EXC_ROT"]),
+            exc_lin_m_s2=float(values["CKF_EXC_LIN"]),
+            sat_gate=bool(int(values["CKF_SAT_GATE"])),
+            u_from_command=bool(int(values["CKF_U_SRC"])),
+            acc_at_com=bool(int(values["CKF_ACC_REF"])),
         )
 
 
@@ -216,10 +256,13 @@ def kf_predict(x, p, q_diag, dt, id0, id1, id2):
 
 
 @njit_cached(box_qp, _kernels)
-def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, innovation):
+def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation):
     """Measurement update z = Delta U = H(Delta Acc_m) x + nu (Eq. 24): K = P H^T S^-1, S = H P H^T + R
     (a solve, no inverse), x += K (z - H x), P = (I - K H) P (I - K H)^T + K R K^T (Joseph form: PSD under
     rounding), symmetrised. x (4,), p (4, 4) in place; innovation (5,) written.
+
+    mask (4,): row i of K is multiplied by mask[i]; 0 holds state i (a Schmidt "consider" state: H still predicts
+    with it, and the Joseph form gives the exact covariance of the masked, suboptimal gain), 1 is the KF.
 
     S >= R > 0 for finite inputs, so it always factorises; a non-finite S (a NaN/inf measurement) cannot, and
     x and P become NaN, as the LAPACK solve's result was. Returns False then."""
@@ -244,6 +287,9 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, innovation):
         p[:, :] = np.nan
         return False
     gain = aug[:, 5:].T  # K (4x5), a view
+    for i in range(4):
+        for k in range(5):
+            gain[i, k] *= mask[i]
     for i in range(4):
         acc = 0.0
         for k in range(5):
@@ -328,21 +374,46 @@ def kf_project(x, p, identity, lo, hi):
 
 
 # Output of kf_step
-STEP_OUT = layout("STEP_OUT", x_hat=N_STATE, x_unconstrained=N_STATE, innovation=N_MEAS, p_diag=N_STATE)
+STEP_OUT = layout("STEP_OUT", x_hat=N_STATE, x_unconstrained=N_STATE, innovation=N_MEAS, p_diag=N_STATE,
+                  excited=N_STATE, corrected=1)
 SO_X_HAT = STEP_OUT.X_HAT
 SO_X_UNC = STEP_OUT.X_UNCONSTRAINED
 SO_INNOV = STEP_OUT.INNOVATION
 SO_P_DIAG = STEP_OUT.P_DIAG
+SO_EXCITED = STEP_OUT.EXCITED  # 1.0 per state whose regressor passed the excitation gate (0 when not correcting)
+SO_CORRECTED = STEP_OUT.CORRECTED  # 1.0 when a measurement update ran (some state excited)
+
+
+@njit(cache=True)
+def excitation_mask(da, exc_rot, exc_lin, mask):
+    """The excitation gate (CkfConfig.exc_*): mask[i] = 1.0 when state i's regressor increment is at least the
+    threshold (|da[0]|, |da[1]|, |da[2]| >= exc_rot for I_xx, I_yy, I_zz; |(da[3], da[4])| >= exc_lin for m), else
+    0.0. Returns the number of excited states. Zero thresholds pass everything (the paper)."""
+    n = 0
+    for i in range(3):
+        mask[i] = 1.0 if abs(da[i]) >= exc_rot else 0.0
+        n += int(mask[i])
+    mask[3] = 1.0 if math.sqrt(da[3] * da[3] + da[4] * da[4]) >= exc_lin else 0.0
+    return n + int(mask[3])
 
 
 @njit_cached(box_qp, _kernels)
-def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, gc_inv, du, da, rho_x, rho_z, constrained,
-            identity, lo, hi, out):
-    """predict (if do_predict), correct, project (if constrained) on x, p in place; results into out
-    (STEP_OUT). Returns the PROJ_* code."""
+def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc_rot, exc_lin, gc_inv, du, da,
+            rho_x, rho_z, constrained, identity, lo, hi, out):
+    """predict (if do_predict), correct (if do_correct and some state passes the excitation gate; the others
+    held), project (if constrained) on x, p in place; results into out (STEP_OUT). Returns the PROJ_* code."""
     if do_predict:
         kf_predict(x, p, q_diag, dt, id0, id1, id2)
-    kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, out[SO_INNOV:SO_INNOV + N_MEAS])
+    mask = out[SO_EXCITED:SO_EXCITED + N_STATE]
+    innovation = out[SO_INNOV:SO_INNOV + N_MEAS]
+    n_exc = excitation_mask(da, exc_rot, exc_lin, mask) if do_correct else 0
+    if n_exc > 0:
+        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation)
+        out[SO_CORRECTED] = 1.0
+    else:
+        mask[:] = 0.0
+        innovation[:] = 0.0
+        out[SO_CORRECTED] = 0.0
     for i in range(N_STATE):
         out[SO_X_UNC + i] = x[i]
     code = kf_project(x, p, identity, lo, hi) if constrained else PROJ_INSIDE
@@ -377,9 +448,12 @@ class KfStepResult(NamedTuple):
     p_diag: tuple[float, ...]  # (4,) diagonal of the (unreduced) posterior covariance
     projected: bool  # the projection moved the estimate
     used_fallback: bool  # box_qp's enumeration answered the projection
+    corrected: bool = True  # a measurement update ran (False: predict and project only, or nothing excited)
+    excited: tuple[bool, ...] = (True,) * N_STATE  # the states the update corrected (the excitation gate)
 
 
 _ZERO3 = (0.0, 0.0, 0.0)
+_ONES4 = np.ones(N_STATE)
 
 
 class ConstrainedKalmanFilter:
@@ -393,6 +467,7 @@ class ConstrainedKalmanFilter:
         self._dt = config.dt_s
         self._constrained = config.constrained
         self._identity_weight = config.projection_weight == "identity"
+        self._exc_rot, self._exc_lin = config.exc_rot_rad_s2, config.exc_lin_m_s2
         self._x = np.zeros(N_STATE)
         self._p = np.diag(config.p0_scale * self._q)
         self._out = STEP_OUT.zeros()
@@ -464,7 +539,7 @@ class ConstrainedKalmanFilter:
         innovation = np.empty(N_MEAS)
         kf_correct(self._x, self._p, self._r, np.ascontiguousarray(gc_uam_inv, dtype=float),
                    np.asarray(delta_u, dtype=float), np.asarray(delta_acc, dtype=float), float(rho_x),
-                   float(rho_z), innovation)
+                   float(rho_z), _ONES4, innovation)
         self.n_updates += 1
         return innovation
 
@@ -486,22 +561,29 @@ class ConstrainedKalmanFilter:
         inertia_rate_diag: Sequence[float] | None,
         lower: Sequence[float],
         upper: Sequence[float],
+        correct: bool = True,
     ) -> KfStepResult:
         """predict (skipped when inertia_rate_diag is None, e.g. on the first tick: x0 already describes the
-        current pose), correct, then project onto [lower, upper] if constrained, in one compiled call.
+        current pose), correct (when `correct`; only the states that pass the excitation gate of the config),
+        then project onto [lower, upper] if constrained, in one compiled call.
 
         delta_u, delta_acc: float64 arrays (5,); gc_uam_inv (5, 5) float64; lower/upper: 4 floats each (a tuple
-        is the cheap form: the kernel is compiled for it), ignored unless constrained.
+        is the cheap form: the kernel is compiled for it), ignored unless constrained. n_updates counts the
+        corrections that ran.
         """
         if not self._initialised:
             raise RuntimeError("ConstrainedKalmanFilter.step before initialise()")
         do_predict = inertia_rate_diag is not None
         i0, i1, i2 = inertia_rate_diag if do_predict else _ZERO3  # type: ignore[misc]
-        code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, gc_uam_inv, delta_u,
-                       delta_acc, rho_x, rho_z, self._constrained, self._identity_weight, lower, upper, self._out)
-        self.n_updates += 1
+        code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, bool(correct),
+                       self._exc_rot, self._exc_lin, gc_uam_inv, delta_u, delta_acc, rho_x, rho_z, self._constrained,
+                       self._identity_weight, lower, upper, self._out)
         self._account(code, lower, upper)
         o = self._out.tolist()
+        corrected = o[SO_CORRECTED] != 0.0
+        self.n_updates += corrected
+        exc = o[SO_EXCITED:SO_EXCITED + 4]
         return KfStepResult(tuple(o[SO_X_HAT:SO_X_HAT + 4]), tuple(o[SO_X_UNC:SO_X_UNC + 4]),
                             tuple(o[SO_INNOV:SO_INNOV + 5]), tuple(o[SO_P_DIAG:SO_P_DIAG + 4]),
-                            code != PROJ_INSIDE, code == PROJ_FALLBACK)
+                            code != PROJ_INSIDE, code == PROJ_FALLBACK, corrected,
+                            (exc[0] != 0.0, exc[1] != 0.0, exc[2] != 0.0, exc[3] != 0.0))

@@ -21,6 +21,7 @@ from navig8_fc.core.adaptive_law import (
     AdaptiveLaw,
     AdaptiveLawConfig,
     AdaptiveLawInputs,
+    AdaptiveLawStatus,
     lpf_increments,
 )
 from navig8_fc.core.filters import LowPass1
@@ -108,15 +109,110 @@ def test_increments_are_one_step_differences_of_filtered_signals(pose: Pose) -> 
 
 
 def test_increments_kernel_python_path(pose: Pose) -> None:
-    """lpf_increments' plain-Python path (its py_func) equals the compiled kernel bit for bit."""
-    st_c, st_p = LAW_STATE.zeros(), LAW_STATE.zeros()
-    out_c, out_p = LAW_OUT.zeros(), LAW_OUT.zeros()
-    for u, acc in _excitation(pose, pose.base, 10):
-        lpf_increments(st_c, 0.0142, u, acc, out_c)
-        lpf_increments.py_func(st_p, 0.0142, u, acc, out_p)
-        assert np.array_equal(st_c, st_p) and np.array_equal(out_c, out_p)
+    """lpf_increments' plain-Python path (its py_func) equals the compiled kernel bit for bit (windows of 1 and 3,
+    a saturation flag on some steps)."""
+    for n_window in (1.0, 3.0):
+        st_c, st_p = LAW_STATE.zeros(), LAW_STATE.zeros()
+        out_c, out_p = LAW_OUT.zeros(), LAW_OUT.zeros()
+        for k, (u, acc) in enumerate(_excitation(pose, pose.base, 10)):
+            sat = 1.0 if k == 4 else 0.0
+            lpf_increments(st_c, 0.0142, n_window, u, acc, 0.1 * k, sat, 2.0, out_c)
+            lpf_increments.py_func(st_p, 0.0142, n_window, u, acc, 0.1 * k, sat, 2.0, out_p)
+            assert np.array_equal(st_c, st_p) and np.array_equal(out_c, out_p)
     views = LAW_OUT.views(out_c)
     assert views.delta_u.shape == (5,) and views.delta_acc.shape == (5,)
+
+
+def test_window_increments_and_corrections_every_n_steps(pose: Pose) -> None:
+    """CKF_INC_N = 5: every 5th step the increments are the LowPass1 outputs' difference over the 5 steps (zeros in
+    between), and only those steps correct (n_updates); the estimate moves only on them (predict has I-dot = 0)."""
+    n = 5
+    law = _law(start_delay_s=0.0, inc_window=n)
+    ref_u, ref_a = LowPass1(0.7, DT, 5), LowPass1(0.7, DT, 5)
+    hist_u, hist_a = [], []
+    x_prev = None
+    for k, (u, acc) in enumerate(_excitation(pose, pose.base * 1.3, 41)):
+        _, st = law.step(_law_inputs(pose, k * DT, u, acc))
+        hist_u.append(np.array(ref_u.step(u.tolist())))
+        hist_a.append(np.array(ref_a.step(acc.tolist())))
+        if k > 0 and k % n == 0:
+            assert st.delta_u == tuple((hist_u[k] - hist_u[k - n]).tolist())
+            assert st.delta_acc == tuple((hist_a[k] - hist_a[k - n]).tolist())
+            assert st.corrected and st.n_updates == k // n and st.x_hat != x_prev
+        else:
+            assert st.delta_u == (0.0,) * 5 and st.delta_acc == (0.0,) * 5 and not st.corrected
+            assert st.n_updates == k // n
+            if x_prev is not None:
+                assert st.x_hat == x_prev
+        x_prev = st.x_hat
+
+
+def test_excitation_gate_holds_unexcited_states(pose: Pose) -> None:
+    """CKF_EXC_*: only the states whose regressor increment reaches the threshold are corrected. Data excite pitch
+    (|Delta Q-dot| large) and nothing else: I_yy moves, I_xx, I_zz and m stay exactly at x0; with no threshold all
+    four move. Without any excited state there is no correction at all."""
+    rng = np.random.default_rng(3)
+    g_true_inv = pose.gci @ veh.estimated_gi(pose.j, pose.base * np.array([1.5, 1.5, 1.5, 1.2]))
+    u_trim = veh.hover_trim(pose.cfg, pose.q, 0.0)
+
+    def run(exc_rot: float, exc_lin: float, q_amp: float) -> tuple[tuple[float, ...], int]:
+        law = _law(start_delay_s=0.0, inc_window=10, exc_rot_rad_s2=exc_rot, exc_lin_m_s2=exc_lin,
+                   q_diag=(1e-12,) * 4, p0_scale=1e9)
+        for k in range(400):
+            acc = np.array([1e-3 * rng.normal(), q_amp * math.sin(k * 0.05), 1e-3 * rng.normal(),
+                            1e-3 * rng.normal(), -9.80665 + 1e-3 * rng.normal()])
+            _, st = law.step(_law_inputs(pose, k * DT, u_trim + g_true_inv @ acc, acc))
+        return st.x_hat, st.n_updates
+
+    x_gated, n_gated = run(0.05, 0.05, 3.0)
+    assert x_gated[0] == pose.base[0] and x_gated[2] == pose.base[2] and x_gated[3] == pose.base[3]
+    assert x_gated[1] > pose.base[1] * 1.05 and n_gated > 0
+    x_free, _ = run(0.0, 0.0, 3.0)
+    assert all(a != b for a, b in zip(x_free, pose.base, strict=True))
+    x_quiet, n_quiet = run(0.05, 0.05, 0.0)
+    assert n_quiet == 0 and x_quiet == tuple(pose.base.tolist())
+
+
+def test_saturation_gate_skips_saturated_windows(pose: Pose) -> None:
+    """CKF_SAT_GATE: a window during which the INDI reported saturation (indi_saturated on any of its steps), or
+    that lies within one filter time constant after such a step (the low-passed signals still carry it), is not
+    learned from; the same data without the flag, or with the gate off, are."""
+    data = _excitation(pose, pose.base * 1.4, 60)
+    tau = 0.04  # the hold: ceil(tau / dt) = 4 steps
+
+    def run(gate: bool, flag_steps: set[int]) -> tuple[AdaptiveLawStatus, list[int]]:
+        law = _law(start_delay_s=0.0, inc_window=10, sat_gate=gate, lpf_tau_s=tau)
+        flagged_windows = []
+        for k, (u, acc) in enumerate(data):
+            _, _, st = law.step_arrays(k * DT, u, acc, pose.gci, pose.j, pose.m, np.zeros((3, 3)), 0.0,
+                                       k in flag_steps)
+            if st.saturated:
+                flagged_windows.append(k)
+        return st, flagged_windows
+
+    flagged = {13, 14, 35}  # inside the windows closing at 20 and 40, their holds too
+    st, windows = run(True, flagged)
+    assert windows == [20, 40] and st.n_saturation_skips == 2 and st.n_updates == 5 - 2
+    st, windows = run(False, flagged)  # gate off: flagged as they are (no hold), all learned from
+    assert windows == [20, 40] and st.n_saturation_skips == 0 and st.n_updates == 5
+    st, windows = run(True, set())
+    assert windows == [] and st.n_updates == 5
+    st, windows = run(True, {18})  # the hold (18 + 4 steps) reaches into the window closing at 30
+    assert windows == [20, 30] and st.n_saturation_skips == 2
+
+
+def test_u_from_command(pose: Pose) -> None:
+    """CKF_U_SRC = 1: the law's U is the command U passed in (u_meas ignored); without a command (None) u_meas."""
+    data = _excitation(pose, pose.base * 1.2, 12)
+    by_cmd, by_meas = _law(start_delay_s=0.0, u_from_command=True), _law(start_delay_s=0.0)
+    for k, (u, acc) in enumerate(data):
+        noise = np.full(5, 500.0 * (-1) ** k) if k > 0 else np.zeros(5)  # the first sample: no command yet
+        _, _, st_c = by_cmd.step_arrays(k * DT, u + noise, acc, pose.gci, pose.j, pose.m, np.zeros((3, 3)), 0.0,
+                                        False, u if k > 0 else None)
+        _, _, st_m = by_meas.step_arrays(k * DT, u, acc, pose.gci, pose.j, pose.m, np.zeros((3, 3)))
+        if k > 0:
+            assert st_c.delta_u == st_m.delta_u
+    assert st_c.x_hat == st_m.x_hat
 
 
 def test_reset_restarts_delay_and_filter(pose: Pose) -> None:

@@ -32,7 +32,9 @@ from navig8_fc.params.registry import ParamRegistry
 class _ReferenceTick:
     """The tick composed of the components' public APIs, each built here from the same config (the form
     FlightControllerCore.step had before its fast path): the front-end kernel (joint observer, UAM model, Acc_m,
-    U0) on state of its own, AdaptiveLaw.step, outer_loop_step, IndiController.step."""
+    U0) on state of its own, AdaptiveLaw.step, outer_loop_step, IndiController.step. The law gets the last
+    command's U (CKF_U_SRC), the last INDI saturation flag (CKF_SAT_GATE) and Acc_m at the estimated CoM
+    (CKF_ACC_REF, _kernels.com_accel_offset)."""
 
     def __init__(self, vehicle: VehicleConfig, config: ControllerConfig) -> None:
         self.vehicle, self.config = vehicle, config
@@ -42,6 +44,8 @@ class _ReferenceTick:
         self.outer_cfg = outer_loop_config_array(config.outer)
         self.front_state = _k.FST.zeros()
         self.obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
+        self.last_u_cmd: np.ndarray | None = None
+        self.last_saturated = False
 
     def step(self, s: FcSensors, sp: Setpoint, engaged: bool) -> tuple[ActuatorCommand, ControllerStatus]:
         cfg = self.config
@@ -59,9 +63,15 @@ class _ReferenceTick:
                     m.force_per_input, m.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
         f = _k.FO.views(fo)
         mass = uo[_k.UO.MASS]
+        acc_m = f.acc_m.tolist()
+        if cfg.ckf.acc_at_com and not cfg.acc_ref:
+            dx, dz = _k.com_accel_offset(*s.gyro_frd, acc_m[1], uo[_k.UO.CEX], uo[_k.UO.CEZ])
+            acc_m[3] += dx
+            acc_m[4] += dz
         gi_hat, adapt_status = self.adapt.step(AdaptiveLawInputs(
-            t_s=s.t_s, u_meas=f.u_meas.tolist(), acc_m=f.acc_m.tolist(), gc_uam_inv=gc_inv, inertia_uam=inertia,
-            mass_uam_kg=float(mass), inertia_rate_uam=rate,
+            t_s=s.t_s, u_meas=f.u_meas.tolist(), acc_m=acc_m, gc_uam_inv=gc_inv, inertia_uam=inertia,
+            mass_uam_kg=float(mass), inertia_rate_uam=rate, indi_saturated=self.last_saturated,
+            u_cmd=self.last_u_cmd,
         ))
         outer = indi_status = None
         if engaged:
@@ -69,7 +79,11 @@ class _ReferenceTick:
             out, indi_status = self.indi.step(IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s,
                                                          outer.accel_cmd, gc, gi_hat, gc_inv))
             cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
+            self.last_u_cmd = np.empty(5)
+            _k.actuators_to_u(*cmd.tilt_rad, *cmd.speed_rad_s, self.last_u_cmd, 0)
+            self.last_saturated = indi_status.saturated
         else:
+            self.last_u_cmd, self.last_saturated = None, False
             self.indi.measure(IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))
             cmd = MOTORS_OFF
         j = inertia
@@ -115,6 +129,9 @@ def test_update_gains_takes_effect_at_the_next_tick(cfg: VehicleConfig) -> None:
     # A core whose outer-loop gains and K bounds change mid-run flies from then on exactly like a core built
     # with the new values (same filter state up to the change), and differently from one that kept the old.
     reg = ParamRegistry.from_defaults()
+    # The law learns from the measured U here (CKF_U_SRC = 0): with the command's U its estimate would follow the
+    # gains' own history before the change, and the cores would differ for that reason alone.
+    reg.set("CKF_U_SRC", 0)
     old = ControllerConfig.from_params(reg.as_dict(), cfg)
     values = reg.as_dict()
     values.update(OL_POS_K=float(values["OL_POS_K"]) * 1.5, OL_ATT_K=float(values["OL_ATT_K"]) * 0.7,
@@ -137,3 +154,29 @@ def test_update_gains_takes_effect_at_the_next_tick(cfg: VehicleConfig) -> None:
         if i >= 60:
             assert a[0] == b[0] and a[1].outer == b[1].outer, f"tick {i}"
             assert a[0] != c[0], f"tick {i}: the new gains did not take effect"
+
+
+def test_saturation_gate_reads_the_indi_status(cfg: VehicleConfig) -> None:
+    """The law's saturation flag is the INDI's public IndiStatus.saturated of the previous tick (one-step windows
+    make every tick a window, and CKF_LPF_TAU = 0 makes the hold after a saturated step empty): a climb demand near
+    full speed saturates the INDI on some ticks and not on others, and the law skips exactly the windows that follow
+    a saturated command."""
+    base = ControllerConfig.from_params(ParamRegistry.from_defaults().as_dict(), cfg)
+    config = replace(base, ckf=replace(base.ckf, inc_window=1, start_delay_s=0.0, sat_gate=True, lpf_tau_s=0.0))
+    core = FlightControllerCore(cfg, config)
+    prev_sat, n_sat, skips = False, 0, 0
+    for i in range(150):
+        t = i * config.dt_s
+        s = FcSensors(t_s=t, gyro_frd=(0.02 * math.sin(9.0 * t), -0.3 * math.sin(3.0 * t), 0.0),
+                      accel_frd=(0.1, 0.0, -cfg.gravity_m_s2), pos_ned=(0.0, 0.0, -2.0), vel_ned=(0.0, 0.0, 0.0),
+                      quat_wxyz=(1.0, 0.0, 0.0, 0.0), tilt_rad=(0.0, 0.0), speed_rad_s=(930.0, 0.0, 930.0),
+                      joint_pos_rad=(0.0, 0.0, 0.0), joint_rate_rad_s=(0.0, 0.0, 0.0))
+        sp = Setpoint((0.0, 0.0, -30.0 if (i // 30) % 2 else -2.0), 0.0, 0.0)  # climb demands at full speed
+        _, st = core.step(s, sp)
+        if i > 0:
+            assert st.adapt.saturated == prev_sat, f"tick {i}"
+            skips += prev_sat
+        assert st.adapt.n_saturation_skips == skips
+        prev_sat = st.indi.saturated
+        n_sat += prev_sat
+    assert 0 < n_sat < 149

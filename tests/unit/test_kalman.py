@@ -69,6 +69,7 @@ def _param_values(**overrides: float) -> dict[str, float]:
         "CKF_Q_IXX": 1e-4, "CKF_Q_IYY": 5e-5, "CKF_Q_IZZ": 1e-4, "CKF_Q_M": 5e-4,
         "CKF_R_U1": 2.25e6, "CKF_R_U2": 4e6, "CKF_R_U3": 2.25e6, "CKF_R_U4": 4e6, "CKF_R_U5": 1e8,
         "CKF_P0_SCALE": 100.0, "CKF_PROJ_W": 0,
+        "CKF_INC_N": 1, "CKF_EXC_ROT": 0.0, "CKF_EXC_LIN": 0.0, "CKF_SAT_GATE": 0, "CKF_U_SRC": 0, "CKF_ACC_REF": 0,
     }
     v.update(overrides)
     return v
@@ -93,17 +94,23 @@ def test_config_from_params() -> None:
 
 
 def test_config_from_the_parameter_file_defaults() -> None:
-    """The YAML defaults (REAL32, so float32-rounded) give the paper configuration."""
+    """The YAML defaults (REAL32, so float32-rounded) give the paper's R, filter constant and start delay, and issue
+    10's estimator: 25-step windows, the command's U, Acc_m at the CoM, the saturation gate, Q = 0.1x the paper's,
+    P0 = 3000 Q (docs/model.md); the paper's settings are CkfConfig() (the test above)."""
     from navig8_fc.params.registry import ParamRegistry
 
     reg = ParamRegistry.from_defaults(check_stability=False)
     reg.require(CKF_PARAM_NAMES)
     c = CkfConfig.from_params(reg.as_dict(), dt_s=0.01)
     ref = CkfConfig()
-    np.testing.assert_allclose(c.q_diag, ref.q_diag, rtol=1e-6)
+    np.testing.assert_allclose(c.q_diag, np.array(ref.q_diag) * 0.1, rtol=1e-6)
     np.testing.assert_allclose(c.r_diag, ref.r_diag, rtol=1e-6)
+    assert c.p0_scale == 3000.0
     assert c.lpf_tau_s == pytest.approx(0.7, rel=1e-6) and c.start_delay_s == pytest.approx(0.5, rel=1e-6)
     assert c.mode == CkfMode.CONSTRAINED and c.projection_weight == "inv_p"
+    assert (c.inc_window, c.u_from_command, c.acc_at_com, c.sat_gate) == (25, True, True, True)
+    assert (c.exc_rot_rad_s2, c.exc_lin_m_s2) == (0.0, 0.0)
+    assert (ref.inc_window, ref.u_from_command, ref.acc_at_com, ref.sat_gate) == (1, False, False, False)
 
 
 def test_config_validation() -> None:
