@@ -27,15 +27,18 @@ def render() -> str:
         "(Eq. 9-13) anywhere in the arm workspace, or lets the largest eigenvalue reach the upper end of H(s)'s",
         "stable range (finite only for lightly damped actuators with long delays); `INDI_LAMBDA_MIN` must exceed",
         "the critical eigenvalue.",
+        "Gains have a positive minimum (a zero gain is never flyable). \"Armed\" says whether a value may be set",
+        "while armed: \"no\" marks parameters that change the control loop itself (rate, filters, actuator model,",
+        "estimator structure, origin); PARAM_SET refuses them in flight with the old value and a STATUSTEXT.",
         "",
-        "| index | name | type | default | min | max | units | description |",
-        "|---:|---|---|---:|---:|---:|---|---|",
+        "| index | name | type | default | min | max | units | armed | description |",
+        "|---:|---|---|---:|---:|---:|---|---|---|",
     ]
     for d in reg.definitions:
         desc = d.description.replace("|", "\\|")
         lines.append(
             f"| {d.index} | `{d.name}` | {d.type} | {_fmt(d.default, d.type)} | {_fmt(d.min, d.type)} "
-            f"| {_fmt(d.max, d.type)} | {d.units} | {desc} |"
+            f"| {_fmt(d.max, d.type)} | {d.units} | {'no' if d.not_armed else 'yes'} | {desc} |"
         )
     return "\n".join(lines) + "\n"
 

@@ -12,7 +12,9 @@ index gets no PARAM_VALUE (there is nothing true to put in it) but a STATUSTEXT,
 PARAM_SET is validated by the registry (range, NaN/Inf, cross rules, stability floor) and always answered
 with PARAM_VALUE carrying the value now in force: the new one, or the old one plus a STATUSTEXT(WARNING)
 with the reason when refused. An unknown name cannot be echoed (no index): STATUSTEXT only.
-Accepted values are saved through the ParamStore at once (only values that differ from the defaults, as
+Parameters flagged `not_armed` are refused while `armed()` says the vehicle is armed.
+Accepted values are saved through the ParamStore at once (or, with `defer_saves`, marked due for the caller to
+save off its control thread: `take_save`) (only values that differ from the defaults, as
 PX4 does, so a later change of a default in fc_params.yaml reaches vehicles that never touched it).
 Routing (the shell's job): the answer to PARAM_REQUEST_READ goes back to the requester; the PARAM_VALUE that
 answers a PARAM_SET (accepted or refused) announces the value in force and is broadcast on every link, as
@@ -25,7 +27,10 @@ MAVSDK treat every non-ArduPilot autopilot as bytewise, so this is the encoding 
 On PARAM_SET the sender's `param_type` says how the float was encoded: an integer type -> bytewise (QGC,
 MAVSDK, pymavlink `mavset(..., parm_type=INT32)`), REAL32 -> the plain float value (MAVProxy's `param set`
 and pymavlink's `param_set_send` default), which must then be integral for an INT32 parameter. The stored
-type comes from our definitions, never from the message. Caveat: MAVProxy's `param show` prints INT32
+type comes from our definitions, never from the message, and the value is decoded only by the type the
+parameter is declared with: a REAL32 parameter takes only param_type REAL32 (an integer-typed set of a float
+parameter, e.g. OL_ATT_K = NaN sent as INT8, which bytewise would read as 0, is refused, as PX4's
+MavlinkParametersManager refuses a type mismatch). Caveat: MAVProxy's `param show` prints INT32
 values raw (a tiny denormal float, e.g. 100 -> 1.4e-43); decode them with `decode_param_value`.
 """
 
@@ -69,8 +74,18 @@ class StoredLoad(NamedTuple):
 
     ok: bool  # False: nothing usable in the file (reason says why); the registry was left unchanged
     applied: int  # stored values accepted
-    refused: tuple[SetResult, ...]  # stored values the current definitions/rules refuse
+    refused: tuple[SetResult, ...]  # stored values the current definitions/rules refuse (the file is then unused)
     reason: str | None
+    set_aside: str | None = None  # where an unusable file was moved to
+
+    def report(self) -> list[str]:
+        """What the operator is told (stderr at start, STATUSTEXT at the first ground-station contact)."""
+        lines = [f"Stored {r.reason}" for r in self.refused]
+        if self.reason:
+            lines.append(self.reason)
+        if self.set_aside:
+            lines.append(f"Parameter file unusable: defaults in force; file kept as {self.set_aside}")
+        return lines
 
 
 def encode_param_value(value: float | int, param_type: int) -> float:
@@ -120,7 +135,10 @@ class ParamProtocol:
         statustext: StatusTextEncoder | None = None,
         rate_per_s: float = 200.0,
         burst: int = 20,
+        armed: Any = None,
+        defer_saves: bool = False,
     ) -> None:
+        """armed: a callable saying whether the vehicle is armed (not_armed parameters); None: never armed."""
         if not (rate_per_s > 0.0 and burst >= 1):
             raise ValueError("rate_per_s must be > 0 and burst >= 1")
         self._reg = registry
@@ -135,6 +153,9 @@ class ParamProtocol:
         self._credit = float(burst)
         self._last_poll_s: float | None = None
         self._changes: list[SetResult] = []
+        self._armed = armed if armed is not None else (lambda: False)
+        self._defer_saves = bool(defer_saves)
+        self._save_due = False
 
     # --- inbound -------------------------------------------------------------------------------------
     def handle(self, msg: Any, now_s: float, source: Any = None) -> list[Any]:
@@ -204,26 +225,57 @@ class ParamProtocol:
         """Write the current values to the store; the reason when that failed (None: saved or no store)."""
         if self._store is None:
             return None
+        self._save_due = False
+        return self.write_values(self.non_default_values())
+
+    def write_values(self, values: dict[str, float | int]) -> str | None:
+        """Write `values` to the store (any thread: touches only the store); the reason when that failed."""
+        if self._store is None:
+            return None
         try:
-            self._store.save(self.non_default_values())
+            self._store.save(values)
         except (OSError, ValueError) as exc:
             return f"parameters not saved: {exc}"
         return None
 
+    @property
+    def save_due(self) -> bool:
+        return self._save_due and self._store is not None
+
+    def take_save(self) -> dict[str, float | int] | None:
+        """With defer_saves: the values to write when a save is due (then no longer due), else None."""
+        if not self._save_due or self._store is None:
+            return None
+        self._save_due = False
+        return self.non_default_values()
+
     def load_stored(self) -> StoredLoad:
-        """Defaults, then the stored values (startup and PREFLIGHT_STORAGE read). No file: registry unchanged."""
+        """Defaults, then the stored values (startup and PREFLIGHT_STORAGE read). No file: registry unchanged.
+        A file is applied whole or not at all: when it cannot be read, or any known entry is refused by the
+        current rules (a zero gain, a value the stability floor refuses), the registry is left as it was and
+        the file is moved aside (store.set_aside); unknown names (a parameter since removed) are skipped."""
         if self._store is None:
             return StoredLoad(False, 0, (), "no parameter storage configured")
+        if not self._store.exists() and not self._store.path.exists():
+            return StoredLoad(False, 0, (), None)  # nothing stored yet: nothing to report
         values, reason = self._store.load()
-        if not values:
-            return StoredLoad(False, 0, (), reason or "parameter file is empty")
+        if reason is not None:
+            aside = self._store.set_aside()
+            return StoredLoad(False, 0, (), reason, str(aside) if aside else None)
+        unknown = sorted(n for n in values if n not in self._reg)
+        values = {n: v for n, v in values.items() if n in self._reg}
         before = self._reg.as_dict()
         self._reg.reset_defaults()
         results = self._reg.load_values(values)
-        self._changes.extend(results)
         refused = tuple(r for r in results if not r.accepted)
+        note = f"unknown stored parameters skipped: {', '.join(unknown)}" if unknown else None
+        if refused:
+            self._reg.restore(before)  # all or nothing: back to what was in force
+            aside = self._store.set_aside()
+            return StoredLoad(False, 0, refused, note, str(aside) if aside else None)
+        self._changes.extend(results)
         self._record_reset(before, {r.name for r in results})
-        return StoredLoad(True, len(results) - len(refused), refused, reason)
+        return StoredLoad(True, len(results), (), note)
 
     def storage_command(self, action: int, armed: bool = False) -> tuple[int, list[Any]]:
         """MAV_CMD_PREFLIGHT_STORAGE param1: 0 read, 1 write, 2 reset to defaults -> (MAV_RESULT, messages)."""
@@ -251,12 +303,13 @@ class ParamProtocol:
             return mavlink2.MAV_RESULT_ACCEPTED, msgs
         loaded = self.load_stored()
         if not loaded.ok:
-            return mavlink2.MAV_RESULT_FAILED, self._text.warning(f"Parameter load failed: {loaded.reason}")
+            msgs = []
+            for line in loaded.report() or ["no stored parameters"]:
+                msgs += self._text.warning(f"Parameter load failed: {line}")
+            return mavlink2.MAV_RESULT_FAILED, msgs
         msgs = self._changed_values(before)
-        for r in loaded.refused:
-            msgs += self._text.warning(f"Stored {r.reason}")
-        if loaded.reason:
-            msgs += self._text.warning(loaded.reason)
+        for line in loaded.report():
+            msgs += self._text.warning(line)
         msgs += self._text.info(f"Parameters loaded ({loaded.applied} stored values)")
         return mavlink2.MAV_RESULT_ACCEPTED, msgs
 
@@ -276,21 +329,57 @@ class ParamProtocol:
         name = param_name(msg.param_id)
         if name not in self._reg:
             return self._text.warning(f"PARAM_SET: unknown parameter {name!r}")
-        value = decode_param_value(float(msg.param_value), int(msg.param_type))
+        value, why = self.decode_set(name, msg)
         if value is None:
             old = self._reg.get(name)
-            result = SetResult(name, False, old, old, f"{name}: param_type {int(msg.param_type)} unsupported")
+            result = SetResult(name, False, old, old, why)
         else:
-            result = self._reg.set(name, value)
+            result = self._reg.set(name, value, armed=bool(self._armed()))
         self._changes.append(result)
         out = [self.param_value(name)]
         if not result.accepted:
             out += self._text.warning(result.reason or f"{name}: refused")
         elif result.value != result.old_value:
-            err = self.save()
-            if err is not None:
-                out += self._text.warning(f"{name} set, but {err}")
+            if self._defer_saves:
+                self._save_due = True
+            else:
+                err = self.save()
+                if err is not None:
+                    out += self._text.warning(f"{name} set, but {err}")
         return out
+
+    def decode_set(self, name: str, msg: Any) -> tuple[float | int | None, str | None]:
+        """A PARAM_SET's value, decoded only as the declared type allows (module docstring), or why not."""
+        wire_type = int(msg.param_type)
+        declared = self._reg.definition(name).type
+        if declared == "REAL32" and wire_type != MAV_PARAM_TYPE_REAL32:
+            return None, f"{name}: is REAL32, param_type {wire_type} refused"
+        value = decode_param_value(float(msg.param_value), wire_type)
+        if value is None:
+            return None, f"{name}: param_type {wire_type} unsupported"
+        return value, None
+
+    def floor_needed(self, msg: Any) -> dict[str, float | int] | None:
+        """For a PARAM_SET addressed to us: the candidate values whose stability floor is not computed yet
+        (the registry's floor_needed), so the caller can compute it off its control thread first."""
+        if msg.get_type() != "PARAM_SET" or not is_for_us(msg, self._sysid, self._compid):
+            return None
+        name = param_name(msg.param_id)
+        if name not in self._reg:
+            return None
+        value, _ = self.decode_set(name, msg)
+        if value is None:
+            return None
+        return self._reg.floor_needed(name, value, armed=bool(self._armed()))
+
+    def refuse_set(self, msg: Any, why: str) -> list[Any]:
+        """A PARAM_SET not processed (`why`: busy, not authorised): the value in force, nothing changed."""
+        name = param_name(msg.param_id)
+        if not is_for_us(msg, self._sysid, self._compid):
+            return []
+        if name not in self._reg:
+            return self._text.warning(f"PARAM_SET {name!r}: {why}")
+        return [self.param_value(name)] + self._text.warning(f"{name}: {why}")
 
     def _record_reset(self, before: dict[str, float | int], already: set[str]) -> None:
         for name, old in before.items():

@@ -11,7 +11,14 @@ Rules checked on every set (each refusal carries a human-readable reason):
 - cross-parameter rules: INDI_K_MIN <= INDI_K_MAX; INDI_LAMBDA_MIN above the critical eigenvalue;
 - the stability floor (DESIGN §5): a K bound (or an actuator/sampling/filter parameter) that would
   let an eigenvalue of G_hat G^-1 fall below the critical eigenvalue of H(s) (Eq. 9-13) anywhere in
-  the workspace is refused.
+  the workspace is refused;
+- `not_armed: true` in the YAML: the parameter changes the loop itself (rate, filters, actuator model,
+  estimator mode) and is refused while armed (`set(..., armed=True)`).
+
+The stability floor costs ~0.1-0.3 s (a workspace sweep), too long for the control thread: results are
+cached by the values they depend on (`floor_key`), and `floor_needed` tells a caller which candidate would
+need a fresh sweep, so the shell can compute it on a worker (`compute_floor`, pure) and `store_floor` the
+result before the set runs (navig8_fc.shell.gcs_service). Without that, `set` computes it inline.
 """
 
 from __future__ import annotations
@@ -33,6 +40,9 @@ TYPES = ("REAL32", "INT32")
 STABILITY_PARAMS = frozenset(
     {"INDI_K_MIN", "INDI_K_MAX", "INDI_LAMBDA_MIN", "ACT_WN", "ACT_ZETA", "INDI_RATE_HZ", "INDI_LPF_TAU"}
 )
+# What the floor itself depends on (INDI_LAMBDA_MIN is compared against it afterwards): the cache key.
+FLOOR_INPUTS = ("INDI_K_MIN", "INDI_K_MAX", "ACT_WN", "ACT_ZETA", "INDI_RATE_HZ", "INDI_LPF_TAU")
+FLOOR_CACHE_SIZE = 256
 
 
 class ParamDefinitionError(ValueError):
@@ -49,6 +59,7 @@ class ParamDef:
     units: str
     description: str
     index: int
+    not_armed: bool = False  # refused while armed (changes the loop itself)
 
     def coerce(self, value: float) -> float | int:
         """The stored form: INT32 as int, REAL32 rounded to float32 (what MAVLink carries)."""
@@ -121,6 +132,27 @@ class WorkspaceStabilityCheck:
         return StabilityFloor(lam_crit, min_eig, lam_up, max_eig)
 
 
+def _flag(raw: Mapping[str, Any], key: str) -> bool:
+    v = raw.get(key, False)
+    if not isinstance(v, bool):
+        raise ValueError(f"{key} must be true or false, got {v!r}")
+    return v
+
+
+def run_floor(check: StabilityCheck, values: Mapping[str, float | int]) -> StabilityFloor:
+    """`check(values)`; parameters the analysis itself refuses give a floor that refuses. Module-level, so a
+    worker process can run it (the check and the values pickle)."""
+    try:
+        return check(values)
+    except (ValueError, ArithmeticError):
+        return StabilityFloor(math.inf, -math.inf)
+
+
+def floor_key(values: Mapping[str, float | int]) -> tuple[float, ...]:
+    """The values the stability floor depends on, as a cache key."""
+    return tuple(float(values[n]) for n in FLOOR_INPUTS)
+
+
 def load_definitions(text: str) -> tuple[ParamDef, ...]:
     """Parse and check the YAML definitions (names, types, ranges, defaults)."""
     doc = yaml.safe_load(text)
@@ -141,6 +173,7 @@ def load_definitions(text: str) -> tuple[ParamDef, ...]:
                 units=str(raw.get("units", "")),
                 description=str(raw["description"]).strip(),
                 index=i,
+                not_armed=_flag(raw, "not_armed"),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise ParamDefinitionError(f"parameter #{i}: {exc!r}") from exc
@@ -177,6 +210,7 @@ class ParamRegistry:
             stability_check = WorkspaceStabilityCheck()
         self._stability_check = stability_check
         self._generation = 0
+        self._floors: dict[tuple[float, ...], StabilityFloor] = {}  # floor_key -> result (insertion = age)
 
     # --- construction -------------------------------------------------------------------------
     @staticmethod
@@ -241,8 +275,15 @@ class ParamRegistry:
             raise ParamDefinitionError(f"code uses undefined parameters: {', '.join(missing)}")
 
     # --- validation -----------------------------------------------------------------------------
-    def validate(self, name: str, value: float) -> str | None:
+    def validate(self, name: str, value: float, armed: bool = False) -> str | None:
         """None when `value` may be set, otherwise the reason (for STATUSTEXT)."""
+        candidate = self._candidate(name, value, armed)
+        if isinstance(candidate, str):
+            return candidate
+        return self._cross_check(name, candidate)
+
+    def _candidate(self, name: str, value: float, armed: bool) -> dict[str, float | int] | str:
+        """Every value with `name` set to `value` when the per-parameter rules pass, else the refusal reason."""
         if name not in self._by_name:
             return f"unknown parameter {name!r}"
         d = self._by_name[name]
@@ -259,15 +300,51 @@ class ParamRegistry:
         lo, hi = d.coerce(d.min), d.coerce(d.max)
         if not (lo <= cv <= hi):
             return f"{name}: {v:g} outside [{d.min:g}, {d.max:g}] {d.units}".rstrip()
+        if armed and d.not_armed and cv != self._values[name]:
+            return f"{name}: cannot be changed while armed (it changes the control loop)"
         candidate = dict(self._values)
         candidate[name] = cv
-        return self._cross_check(name, candidate)
+        return candidate
+
+    # --- stability floor (cached; computable off the caller's thread) ----------------------------
+    def floor_needed(self, name: str, value: float, armed: bool = False) -> dict[str, float | int] | None:
+        """The candidate values whose floor a set of `name` to `value` would compute now (not cached), else
+        None (no floor needed, cached, or refused earlier by a cheap rule)."""
+        if name not in STABILITY_PARAMS or self._stability_check is None:
+            return None
+        candidate = self._candidate(name, value, armed)
+        if isinstance(candidate, str) or floor_key(candidate) in self._floors:
+            return None
+        return candidate
+
+    def compute_floor(self, values: Mapping[str, float | int]) -> StabilityFloor:
+        """The floor for `values` (pure; see `run_floor`)."""
+        assert self._stability_check is not None
+        return run_floor(self._stability_check, values)
+
+    @property
+    def stability_check(self) -> StabilityCheck | None:
+        """The check itself, for a caller that runs it elsewhere (`run_floor` in a worker process)."""
+        return self._stability_check
+
+    def store_floor(self, values: Mapping[str, float | int], floor: StabilityFloor) -> None:
+        self._floors[floor_key(values)] = floor
+        while len(self._floors) > FLOOR_CACHE_SIZE:
+            del self._floors[next(iter(self._floors))]
+
+    def _floor(self, values: Mapping[str, float | int]) -> StabilityFloor:
+        key = floor_key(values)
+        floor = self._floors.get(key)
+        if floor is None:
+            floor = self.compute_floor(values)
+            self.store_floor(values, floor)
+        return floor
 
     def _cross_check(self, name: str, c: Mapping[str, float | int]) -> str | None:
         if "INDI_K_MIN" in c and "INDI_K_MAX" in c and c["INDI_K_MIN"] > c["INDI_K_MAX"]:
             return f"{name}: needs INDI_K_MIN <= INDI_K_MAX ({c['INDI_K_MIN']:g} > {c['INDI_K_MAX']:g})"
         if name in STABILITY_PARAMS and self._stability_check is not None:
-            floor = self._stability_check(c)
+            floor = self._floor(c)
             if not floor.min_eigenvalue > floor.lambda_crit:
                 return (
                     f"{name}: refused by the stability floor: min eig(Ghat G^-1) "
@@ -286,12 +363,12 @@ class ParamRegistry:
         return None
 
     # --- mutation -------------------------------------------------------------------------------
-    def set(self, name: str, value: float) -> SetResult:
+    def set(self, name: str, value: float, armed: bool = False) -> SetResult:
         """Apply `value` if valid; a refusal changes nothing and reports the old value."""
         if name not in self._by_name:
             return SetResult(name, False, math.nan, math.nan, f"unknown parameter {name!r}")
         old = self._values[name]
-        reason = self.validate(name, value)
+        reason = self.validate(name, value, armed)
         if reason is not None:
             return SetResult(name, False, old, old, reason)
         new = self._by_name[name].coerce(float(value))
@@ -310,6 +387,11 @@ class ParamRegistry:
         for n in order:
             results.append(self.set(n, values[n]))
         return results
+
+    def restore(self, snapshot: Mapping[str, float | int]) -> None:
+        """Put back values taken with `as_dict` from this registry (they were valid together when taken)."""
+        self._values = {d.name: snapshot[d.name] for d in self._defs}
+        self._generation += 1
 
     def reset_defaults(self) -> None:
         self._values = {d.name: d.coerce(d.default) for d in self._defs}

@@ -16,8 +16,15 @@ current definitions refuse is reported, not applied).
 Atomic write: the JSON goes to a temporary file in the same directory, is flushed and fsync'ed, then
 os.replace()d over the target (atomic on POSIX and Windows), and the directory is fsync'ed so the rename
 itself survives a power cut. A crash at any point leaves either the old file or the new one, never a
-half-written file. A corrupt or unreadable file is reported (`LoadResult.reason`) and left where it is,
-so nothing is destroyed before a person has looked at it; the next successful save replaces it.
+half-written file.
+
+Bounded reading: a stored file is at most MAX_FILE_BYTES and MAX_DEPTH deep (the format is 2 deep), checked
+before the JSON parser runs, so a hostile file (200,000 `[`) cannot exhaust the parser's recursion; NaN/Infinity
+literals are refused by the parser itself. A file that cannot be used as a whole (unreadable, a directory,
+garbage, truncated, the wrong format, a non-finite or non-numeric entry) gives no values and a reason; the
+caller (gcs.params.ParamProtocol.load_stored) then starts from the defaults, reports the reason and moves the
+file aside with `set_aside` (`<name>.rejected-<n>`), so nothing is destroyed before a person has looked at it and
+the next save does not silently replace it.
 """
 
 from __future__ import annotations
@@ -32,6 +39,8 @@ from typing import NamedTuple
 
 FORMAT_NAME = "navig8-fc-params"
 FORMAT_VERSION = 1
+MAX_FILE_BYTES = 64 * 1024  # ~100 bytes per stored value: room for every parameter many times over
+MAX_DEPTH = 4  # nesting of [ and { (the format needs 2)
 
 
 class LoadResult(NamedTuple):
@@ -63,27 +72,39 @@ class ParamStore:
         return self._path.is_file()
 
     def load(self) -> LoadResult:
-        """Stored values by name. Missing or corrupt file -> ({}, reason); bad entries are skipped with a reason."""
+        """Stored values by name. Missing or unusable file -> ({}, reason): a file is used whole or not at all
+        (module docstring)."""
+        path = self._path
         try:
-            text = self._path.read_text(encoding="utf-8")
+            if path.exists() and not path.is_file():
+                return LoadResult({}, f"parameter file {path} is not a regular file")
+            with path.open("rb") as f:
+                raw = f.read(MAX_FILE_BYTES + 1)
         except FileNotFoundError:
-            return LoadResult({}, f"no parameter file at {self._path}")
+            return LoadResult({}, f"no parameter file at {path}")
         except OSError as exc:
-            return LoadResult({}, f"cannot read parameter file {self._path}: {exc}")
-        except UnicodeDecodeError as exc:
-            return LoadResult({}, f"parameter file {self._path} is corrupt: {exc}")
+            return LoadResult({}, f"cannot read parameter file {path}: {exc}")
+        if len(raw) > MAX_FILE_BYTES:
+            return LoadResult({}, f"parameter file {path} is corrupt: larger than {MAX_FILE_BYTES} bytes")
         try:
-            doc = json.loads(text)
-        except json.JSONDecodeError as exc:
-            return LoadResult({}, f"parameter file {self._path} is corrupt: {exc}")
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            return LoadResult({}, f"parameter file {path} is corrupt: {exc}")
+        depth = json_depth(text)
+        if depth > MAX_DEPTH:
+            return LoadResult({}, f"parameter file {path} is corrupt: nested {depth} deep (at most {MAX_DEPTH})")
+        try:
+            doc = json.loads(text, parse_constant=_refuse_constant)
+        except (json.JSONDecodeError, ValueError, RecursionError) as exc:
+            return LoadResult({}, f"parameter file {path} is corrupt: {exc}")
         if not isinstance(doc, dict) or doc.get("format") != FORMAT_NAME:
-            return LoadResult({}, f"parameter file {self._path} is not a {FORMAT_NAME} file")
+            return LoadResult({}, f"parameter file {path} is not a {FORMAT_NAME} file")
         version = doc.get("version")
         if version != FORMAT_VERSION:
-            return LoadResult({}, f"parameter file {self._path} has version {version!r}, expected {FORMAT_VERSION}")
+            return LoadResult({}, f"parameter file {path} has version {version!r}, expected {FORMAT_VERSION}")
         params = doc.get("params")
         if not isinstance(params, dict):
-            return LoadResult({}, f"parameter file {self._path} has no 'params' object")
+            return LoadResult({}, f"parameter file {path} has no 'params' object")
         values: dict[str, float] = {}
         bad: list[str] = []
         for name, value in params.items():
@@ -92,8 +113,24 @@ class ParamStore:
                 bad.append(str(name))
                 continue
             values[str(name)] = value
-        reason = f"skipped non-numeric entries in {self._path}: {', '.join(sorted(bad))}" if bad else None
-        return LoadResult(values, reason)
+        if bad:
+            return LoadResult({}, f"parameter file {path} is corrupt: non-numeric entries {', '.join(sorted(bad))}")
+        return LoadResult(values, None)
+
+    def set_aside(self) -> Path | None:
+        """Move an unusable file out of the way (`<name>.rejected-<n>`, the first free n) and return where it
+        went; None when there is nothing at the path or it cannot be moved (the reason is already reported)."""
+        if not (self._path.exists() or self._path.is_symlink()):
+            return None
+        for n in range(1, 1000):
+            dest = self._path.with_name(f"{self._path.name}.rejected-{n}")
+            if not (dest.exists() or dest.is_symlink()):
+                try:
+                    os.replace(self._path, dest)
+                except OSError:
+                    return None
+                return dest
+        return None
 
     def save(self, values: Mapping[str, float]) -> None:
         """Write `values` atomically (temp file + fsync + os.replace). Raises OSError/ValueError on failure."""
@@ -105,6 +142,33 @@ class ParamStore:
             clean[str(name)] = v
         doc = {"format": FORMAT_NAME, "version": FORMAT_VERSION, "params": dict(sorted(clean.items()))}
         write_atomic(self._path, (json.dumps(doc, indent=2, allow_nan=False) + "\n").encode("utf-8"))
+
+
+def json_depth(text: str) -> int:
+    """The deepest nesting of [ and { in a JSON text (brackets inside strings do not count); a linear scan,
+    so checking it costs no recursion whatever the input."""
+    depth = deepest = 0
+    in_string = escaped = False
+    for ch in text:
+        if in_string:
+            if escaped:
+                escaped = False
+            elif ch == "\\":
+                escaped = True
+            elif ch == '"':
+                in_string = False
+        elif ch == '"':
+            in_string = True
+        elif ch in "[{":
+            depth += 1
+            deepest = max(deepest, depth)
+        elif ch in "]}":
+            depth -= 1
+    return deepest
+
+
+def _refuse_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a parameter value")
 
 
 def write_atomic(path: Path, data: bytes) -> None:

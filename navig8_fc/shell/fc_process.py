@@ -46,15 +46,18 @@ from navig8_fc.shell.gcs_service import (
     Source,
     origin_from_params,
 )
+from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.shell.mcap_log import open_logger
 from navig8_fc.shell.realtime import TIMING_REALTIME, RealtimeClock
+from navig8_fc.shell.signing import KeyFile, LinkSigning
 from navig8_fc.shell.sim_guard import BAD_DATA_FAILSAFE_S, SensorLimits, SimGuard, SimInput, StreamRegrouper
 from navig8_fc.shell.transport import StreamTransport, parse_connection
 from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m, waypoint_poses
 
 FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
+GCS_DATAGRAMS_PER_PASS = 16  # ~2-5 ms of GCS work at most between two looks at the sim link
 WALL_TICK_S = 0.001  # GCS services (telemetry schedule, paced parameter list) run at most this often
 _GRIPPER_CODES = {None: seam.GRIPPER_NONE, "grab": seam.GRIPPER_GRAB, "release": seam.GRIPPER_RELEASE}
 EXIT_USAGE = 2  # bad arguments, or a port in use
@@ -150,15 +153,25 @@ class FlightControllerProcess:
             self._sim_to = None  # no pairing: answers go to the link's peer (the simulator that connected)
         self._last_answer: bytes | None = None  # the frame answering the last step (re-sent on duplicates)
         self.n_ticks = 0
+        self.watchdog = LoopWatchdog()
         self.n_duplicates = 0
         self.last_bundle_wall = time.monotonic()
         self.sim_done = False
         store = ParamStore(default_state_path(opts.state_dir, opts.instance)) if opts.state_dir else None
+        self.signing = LinkSigning((self.gcs.mav, self.api.mav), KeyFile(default_state_path(
+            opts.state_dir, opts.instance, "fc_signing")) if opts.state_dir else None)  # docs/security.md
         missions = MissionStore(default_state_path(opts.state_dir, opts.instance, "fc_mission")) if opts.state_dir \
             else None
         self.gcs_service = GcsService(self._mav(), opts.sysid, self.stack.state, self.stack, self, self.registry,
                                       self.vehicle, store, missions,
-                                      autopilot=MAV_AUTOPILOT_PX4 if opts.autopilot == "px4" else MAV_AUTOPILOT_GENERIC)
+                                      autopilot=MAV_AUTOPILOT_PX4 if opts.autopilot == "px4" else MAV_AUTOPILOT_GENERIC,
+                                      trusted_sources=[(link.name, t) for link in (self.gcs, self.api)
+                                                       for t in link.targets],
+                                      background_params=True, signing=self.signing)
+        for link in (self.gcs, self.api):  # telemetry only to confirmed peers (docs/security.md)
+            link.admit_peer = self.gcs_service.admits_peer
+        for line in self.signing.load():
+            self.log_event(line)
         if missions is not None:
             reason = self.gcs_service.mission.load_stored()
             n = len(self.gcs_service.mission.plan().items)
@@ -169,8 +182,8 @@ class FlightControllerProcess:
             loaded = self.gcs_service.load_stored_params()
             if loaded.ok:
                 self.log_event(f"parameters loaded from {store.path} ({loaded.applied} values)")
-            for r in loaded.refused:
-                self.log_event(f"stored value refused: {r.reason}")
+            for line in loaded.report():  # also STATUSTEXT at the first ground-station contact
+                self.log_event(line)
         elif opts.defaults:
             self.log_event("starting from default parameters (--defaults)")
         self.stack.reconfigure()
@@ -255,6 +268,8 @@ class FlightControllerProcess:
         self.api = (UdpLink.connect("api", self._mav(), parse_connection(o.api_link)) if o.api_link else
                     UdpLink.open("api", self._mav(), (o.bind_host, o.port("api_bind")),
                                  [(o.gcs_host, o.port("api"))]))
+        for link in (self.gcs, self.api):  # a GCS flood is handled a slice per loop pass, between control steps
+            link.max_datagrams = GCS_DATAGRAMS_PER_PASS
         if o.ports_file is not None:
             ports = {"sim": self.sim.local_port, "gcs": self.gcs.local_port, "api": self.api.local_port}
             if self.fox is not None and self.fox.live is not None:
@@ -406,6 +421,8 @@ class FlightControllerProcess:
                 self._px4.joint_target_rad = res.arm_request.joint_target_rad
         self.n_ticks += 1
         self.announce(res.notices)
+        paced = self.sim_status is not None and self.sim_status.speed > 0.0
+        self._watch(self.watchdog.step(self.last_bundle_wall, paced))
         if self.logger or self.fox:
             self._pending_tick = (t_us, b.truth, res.status, cmd, res.setpoint, inp.wire, out, sensors)
 
@@ -433,6 +450,11 @@ class FlightControllerProcess:
             cmd, armed = self._last_cmd
             self._last_answer = seam.pack_actuator_controls(self.sim.mav, t_us, cmd, self.vehicle, armed=armed)
             self.sim.send_raw(self._last_answer, self._sim_to)
+
+    def _watch(self, note: str | None) -> None:
+        """The watchdog's rate-limited report: /fc/event and stderr (a loaded host overruns too: not a STATUSTEXT)."""
+        if note is not None:
+            self.log_event(note)
 
     def statustext(self, text: str, severity: int = 6) -> None:
         """STATUSTEXT to every GCS (and the log keeps it)."""
@@ -525,7 +547,9 @@ class FlightControllerProcess:
                     if link is self.sim:
                         self._on_sim(got)
                     else:
+                        t0 = time.monotonic()
                         self.on_gcs(link, got)
+                        self._watch(self.watchdog.gcs_work(time.monotonic() - t0, t0))
                 if self.rt is not None and (due := self.rt.tick(time.monotonic())) is not None:
                     self._on_step(due[1], due[2])  # (bundle, its SimInput, the FC's clock)
                 # The step's answer is out: now log (this overlaps with the bridge's physics step).
@@ -542,6 +566,7 @@ class FlightControllerProcess:
                 if now >= wall_tick_due:  # not on every lockstep step: at --speed 0 steps come every ~0.3 ms
                     wall_tick_due = now + WALL_TICK_S
                     self.on_wall_tick(now)
+                    self._watch(self.watchdog.gcs_work(time.monotonic() - now, now))
                 if until_done and self.sim_done:
                     break
                 self._check_timeouts(now)
@@ -621,7 +646,8 @@ class FlightControllerProcess:
             self.statustext(text, 4)  # MAV_SEVERITY_WARNING
 
     def on_wall_tick(self, now: float) -> None:
-        self.gcs_service.poll(now)
+        for change in self.gcs_service.poll(now):  # PARAM_SETs that waited for their stability floor
+            self.log_param_change(change)
         self._show_plan()
 
     def log_event(self, text: str) -> None:
@@ -662,6 +688,8 @@ class FlightControllerProcess:
                 "log_error": (lg.error if lg is not None else self._log_open_error)}
 
     def close(self) -> None:
+        self.gcs_service.close()
+        self.signing.save_timestamp()
         if self._pending_tick is not None and (self.logger or self.fox):
             tick, self._pending_tick = self._pending_tick, None
             self._log_step(tick)
@@ -676,7 +704,8 @@ class FlightControllerProcess:
                 self.logger.metadata("bridge_status", self.sim_status)
             self.logger.metadata("fc_stats", {"ticks": self.n_ticks, "duplicates": self.n_duplicates,
                                               "sim_guard": self._guard_stats(),
-                                              "incomplete_bundles": self._px4.incomplete if self._px4 else 0})
+                                              "incomplete_bundles": self._px4.incomplete if self._px4 else 0,
+                                              **self.watchdog.stats()})
             if self.rt is not None:
                 self.logger.metadata("realtime_stats", vars(self.rt.stats))
             self.logger.metadata("params_final", self.registry.as_dict())

@@ -14,13 +14,32 @@ Broadcasts go to both GCS-facing links (every peer of each): telemetry streams a
 and MISSION_ITEM_REACHED, STATUSTEXT (events and refusal reasons), and the PARAM_VALUE announcing the value in
 force after a PARAM_SET (accepted or refused) or a PREFLIGHT_STORAGE
 load/reset, so every connected GCS stays in sync.
+
+Who may command (docs/security.md): the sender's system id must lie in GCS_SYSID..GCS_SYSID_HI (ArduPilot's
+SYSID_MYGCS/SYSID_ENFORCE, as a range) unless GCS_ENFORCE is 0. A sender outside it is refused: COMMAND_LONG/INT
+get COMMAND_ACK DENIED, PARAM_SET gets the value in force, a STATUSTEXT (at most one a second) tells the
+operator; everything else it sends is dropped and counted (`n_unauthorised`), and its HEARTBEAT neither arms
+the GCS-loss failsafe nor makes it a peer. A source is *confirmed* when it is one of the links' configured
+targets (`trusted_sources`) or has sent a HEARTBEAT from an allowed id (`admits_peer`, which the links ask
+before adding a peer, so telemetry goes only to confirmed peers); from an unconfirmed source only commands and
+PARAM_SETs are answered (one refusal each), so a spoofed source gets no more bytes than it sends (reflection).
+
+GCS work off the control path: a PARAM_SET whose stability floor is not cached (a ~0.1-0.3 s workspace sweep)
+waits in a bounded queue while a worker *process* computes the floor (a thread would not do: numpy's batched
+eigenvalue call holds the GIL for tens of ms, measured 48 ms worst vs 13 ms idle on this host); `poll` (the main
+loop, between control steps) applies it when ready, in arrival order. PARAM_SETs are rate-limited per source
+(PARAM_SET_RATE); saves are written by a worker thread. Without `background_params` (in-process callers)
+everything runs inline.
 """
 
 from __future__ import annotations
 
 import math
+import multiprocessing
 import time
-from collections.abc import Callable, Hashable
+from collections import deque
+from collections.abc import Callable, Hashable, Iterable
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
 from typing import Any, Protocol
 
 from navig8_fc.core.rotation import quat_to_euler
@@ -47,7 +66,7 @@ from navig8_fc.mission.protocol import MissionProtocol
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.modes.manager import TaskStatus
 from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
-from navig8_fc.params.registry import ParamRegistry, SetResult
+from navig8_fc.params.registry import ParamRegistry, SetResult, run_floor
 from navig8_fc.params.store import ParamStore
 
 MAV_TYPE_GCS = 6
@@ -58,6 +77,11 @@ CURRENT_MODE_PERIOD_S = 2.0
 MAV_FRAME_LOCAL_NED, MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 1, 5, 6
 _OFFBOARD_TYPES = frozenset({"SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT", "SET_ATTITUDE_TARGET"})
 MANUAL_CONTROL_TIMEOUT_S = 0.5  # MANUAL_CONTROL older than this: sticks centred (Position mode holds)
+
+PARAM_QUEUE_MAX = 32  # PARAM_SETs waiting for a stability floor; more are refused (busy) at once
+REFUSAL_TEXT_PERIOD_S = 1.0  # at most one "not authorised" STATUSTEXT a second
+_COMMANDS = frozenset({"COMMAND_LONG", "COMMAND_INT"})
+_WITHOUT_SIGNING = frozenset({"HEARTBEAT", "SETUP_SIGNING", "RADIO_STATUS"})  # what GCS_SIGN_REQ lets through
 
 Source = Hashable  # who sent a message, as the Outbox knows how to answer it (the process: (link name, address))
 _BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
@@ -92,8 +116,12 @@ class GcsService:
     def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], vehicle: VehicleCommands,
                  outbox: Outbox, registry: ParamRegistry, vehicle_config: VehicleConfig,
                  store: ParamStore | None = None, mission_store: MissionStore | None = None,
-                 autopilot: int = MAV_AUTOPILOT_GENERIC) -> None:
-        """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them)."""
+                 autopilot: int = MAV_AUTOPILOT_GENERIC, trusted_sources: Iterable[Source] = (),
+                 background_params: bool = False, signing: Any = None) -> None:
+        """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them).
+        trusted_sources: sources confirmed without a HEARTBEAT (the links' configured targets).
+        background_params: stability floors and saves on a worker thread (the process); else inline.
+        signing: the links' signing (shell.signing.LinkSigning: `set_key`, `active`); None: SETUP_SIGNING refused."""
         self.mav = mav
         self.sysid = int(sysid)
         self._state = state
@@ -101,7 +129,8 @@ class GcsService:
         self._outbox = outbox
         self.text = StatusTextEncoder(mav)
         self._registry = registry
-        self.params = ParamProtocol(registry, mav, store, statustext=self.text)
+        self.params = ParamProtocol(registry, mav, store, statustext=self.text, armed=lambda: self._state().armed,
+                                    defer_saves=background_params)
         self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text)
         self.misc = MiscProtocols(mav, statustext=self.text)
         self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text)
@@ -119,6 +148,29 @@ class GcsService:
         self._current_mode_sent: tuple[int, int] | None = None
         self._current_mode_t = -math.inf
         self._std_modes = hasattr(mav, "current_mode_encode")  # navig8.xml includes development.xml: it has them
+        self._trusted = set(trusted_sources)
+        self._signing = signing
+        self._confirmed: set[Source] = set()  # sources that sent a HEARTBEAT from an allowed system id
+        self.n_unauthorised = 0  # messages dropped or refused: sender not allowed, or source unconfirmed
+        self._refusal_text_t = -math.inf
+        self._now = 0.0
+        self._operator_reports: list[str] = []  # told at the first ground-station contact
+        self._pool = ThreadPoolExecutor(1, thread_name_prefix="navig8-params") if background_params else None
+        self._param_queue: deque[tuple[Any, Source | None]] = deque()
+        self._floor_job: tuple[dict[str, float | int], Future[Any]] | None = None
+        self._save_job: Future[str | None] | None = None
+        self._param_tokens: dict[Source | None, tuple[float, float]] = {}  # source -> (tokens, last time)
+        self._floor_pool: Executor | None = None  # started at the first floor to compute (no cost otherwise)
+        self._floor_pool_failed = False
+
+    def _submit_floor(self, values: dict[str, float | int]) -> None:
+        if self._floor_pool is None:
+            try:  # a spawned process: nothing of this one (threads, sockets) is inherited
+                self._floor_pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
+            except (OSError, ValueError):
+                self._floor_pool = self._pool  # no processes here: a thread still keeps the sweep off the loop
+        assert self._floor_pool is not None
+        self._floor_job = (values, self._floor_pool.submit(run_floor, self._registry.stability_check, values))
 
     @property
     def last_gcs_heartbeat(self) -> float | None:
@@ -126,19 +178,87 @@ class GcsService:
         return self._last_gcs_heartbeat
 
     def load_stored_params(self) -> StoredLoad:
-        """The persisted parameter values (startup); the caller logs the outcome."""
-        return self.params.load_stored()
+        """The persisted parameter values (startup); the caller logs the outcome. What went wrong is also told
+        to the first ground station that makes contact (STATUSTEXT)."""
+        loaded = self.params.load_stored()
+        self._operator_reports = loaded.report()
+        return loaded
+
+    # --- authorisation ---------------------------------------------------------------------------
+    def authorised(self, sysid: int) -> bool:
+        """Whether a sender with this system id may command (GCS_SYSID..GCS_SYSID_HI, unless GCS_ENFORCE 0)."""
+        reg = self._registry
+        if int(reg["GCS_ENFORCE"]) == 0:
+            return True
+        lo = int(reg["GCS_SYSID"])
+        return lo <= int(sysid) <= max(lo, int(reg["GCS_SYSID_HI"]))
+
+    def admits_peer(self, msg: Any, addr: Any = None) -> bool:
+        """Whether a link may start sending telemetry to the sender of `msg`: a HEARTBEAT from an allowed id."""
+        return msg.get_type() == "HEARTBEAT" and self.authorised(msg.get_srcSystem())
+
+    def confirmed(self, source: Source | None) -> bool:
+        return source is None or source in self._trusted or source in self._confirmed
+
+    def _refuse(self, m: Any, why: str) -> list[Any]:
+        """A message from a sender that may not command: one answer for a command or PARAM_SET, else nothing."""
+        self.n_unauthorised += 1
+        kind = m.get_type()
+        out: list[Any] = []
+        if kind in _COMMANDS and m.target_system in (0, self.sysid) and m.target_component in (0, 1):
+            out.append(self.mav.command_ack_encode(int(m.command), 2, 0, 0, m.get_srcSystem(),  # MAV_RESULT_DENIED
+                                                   m.get_srcComponent()))
+        elif kind == "PARAM_SET":
+            out += [r for r in self.params.refuse_set(m, why) if r.get_type() == "PARAM_VALUE"]  # text below
+        return out + (self._throttled_text(f"{kind} from system {m.get_srcSystem()} refused: {why}") if out else [])
+
+    def _throttled_text(self, text: str) -> list[Any]:
+        """A refusal STATUSTEXT, at most one a second: a flood of refused requests is not a flood of texts."""
+        if self._now - self._refusal_text_t < REFUSAL_TEXT_PERIOD_S:
+            return []
+        self._refusal_text_t = self._now
+        return self.text.warning(text)
+
+    def _refuse_set(self, m: Any, why: str) -> list[Any]:
+        out = self.params.refuse_set(m, why)
+        values = [r for r in out if r.get_type() == "PARAM_VALUE"]
+        return values + (self._throttled_text(f"PARAM_SET {why}") if values else [])
 
     # --- routing ---------------------------------------------------------------------------------
     def handle(self, received: list[tuple[Any, Source | None]], now_wall: float) -> list[SetResult]:
         """Inbound messages (msg, source); replies go back to the source through the outbox (module docstring).
         Without a source (in-process callers), replies are broadcast. Returns the parameter changes (set, load,
         reset outcomes) the messages caused, for the caller's log."""
+        self._now = now_wall
         for m, source in received:
             self.n_gcs_msgs += 1
             kind = m.get_type()
-            if kind == "HEARTBEAT" and m.type == MAV_TYPE_GCS:
-                self._last_gcs_heartbeat = now_wall
+            src_sys = m.get_srcSystem()
+            if not self.authorised(src_sys):
+                self._route(kind, source, self._refuse(m, f"system {src_sys} is not an allowed ground station"))
+                continue
+            if kind == "HEARTBEAT":
+                if source is not None:
+                    self._confirmed.add(source)
+                if m.type == MAV_TYPE_GCS:
+                    self._last_gcs_heartbeat = now_wall
+            elif not self.confirmed(source):
+                self._route(kind, source, self._refuse(m, "send a HEARTBEAT first"))
+                continue
+            if (int(self._registry["GCS_SIGN_REQ"]) and not (self._signing is not None and self._signing.active)
+                    and kind not in _WITHOUT_SIGNING):
+                self._route(kind, source, self._refuse(m, "signing required: set a key with SETUP_SIGNING"))
+                continue
+            if kind == "SETUP_SIGNING":
+                self._route(kind, source, self._setup_signing(m))
+                continue
+            if self._operator_reports:  # the first contact: what the operator must know (a bad parameter file)
+                for line in self._operator_reports:
+                    self._outbox.broadcast(self.text.encode(2, line))  # MAV_SEVERITY_CRITICAL
+                self._operator_reports = []
+            if kind == "PARAM_SET":
+                self._route(kind, source, self._param_set(m, source, now_wall))
+                continue
             out = self.params.handle(m, now_wall, source)
             out += self.commands.handle(m, now_wall, source)
             out += self.misc.handle(m, now_wall)
@@ -152,12 +272,92 @@ class GcsService:
                 # PX4's scaling: x/y/r -1000..1000, z 0..1000 (500 = hold altitude); missing sticks are centred.
                 self._vehicle.manual_input(m.x / 1000.0, m.y / 1000.0, m.z / 1000.0, m.r / 1000.0)
                 self._last_manual = now_wall
-            for r in out:
-                if source is None or is_broadcast_reply(kind, r.get_type()):
-                    self._outbox.broadcast([r])
-                else:
-                    self._outbox.reply(source, [r])
+            self._route(kind, source, out)
         return self.params.drain_changes()
+
+    def _route(self, kind: str, source: Source | None, out: list[Any]) -> None:
+        for r in out:
+            if source is None or is_broadcast_reply(kind, r.get_type()):
+                self._outbox.broadcast([r])
+            else:
+                self._outbox.reply(source, [r])
+
+    def _setup_signing(self, m: Any) -> list[Any]:
+        """SETUP_SIGNING for us: the key to the links (never to a message or the log; module docstring of
+        shell.signing for who may send it)."""
+        if m.target_system not in (0, self.sysid):
+            return []
+        if self._signing is None:
+            return self.text.warning("SETUP_SIGNING refused: signing not available on this link")
+        return self.text.info(self._signing.set_key(bytes(m.secret_key), int(m.initial_timestamp)))
+
+    # --- PARAM_SET off the control path -----------------------------------------------------------
+    def _param_set(self, m: Any, source: Source | None, now_wall: float) -> list[Any]:
+        """Rate limit, then at once when nothing is queued and no stability sweep is needed; else queued."""
+        rate = float(self._registry["PARAM_SET_RATE"])
+        tokens, last = self._param_tokens.get(source, (rate, now_wall))
+        tokens = min(rate, tokens + (now_wall - last) * rate)
+        if tokens < 1.0:
+            self._param_tokens[source] = (tokens, now_wall)
+            return self._refuse_set(m, f"refused: more than {rate:g} PARAM_SET/s, retry")
+        self._param_tokens[source] = (tokens - 1.0, now_wall)
+        if len(self._param_tokens) > 64:  # forget idle sources (bounded memory under spoofed floods)
+            self._param_tokens = {k: v for k, v in self._param_tokens.items() if now_wall - v[1] < 2.0}
+        if self._pool is None or (not self._param_queue and self.params.floor_needed(m) is None):
+            return self.params.handle(m, now_wall, source)
+        if len(self._param_queue) >= PARAM_QUEUE_MAX:
+            return self._refuse_set(m, "refused: busy checking the stability floor, retry")
+        self._param_queue.append((m, source))
+        return []
+
+    def _run_param_queue(self, now_wall: float) -> None:
+        """Queued PARAM_SETs in order, each once its floor is computed (the worker); called between steps."""
+        while self._param_queue:
+            m, source = self._param_queue[0]
+            if self._floor_job is not None:
+                values, job = self._floor_job
+                if not job.done():
+                    return
+                self._floor_job = None
+                try:
+                    self._registry.store_floor(values, job.result())
+                except Exception:  # noqa: BLE001 - a dead worker: from now on floors are computed inline
+                    self._floor_pool_failed = True
+            need = self.params.floor_needed(m)
+            if need is not None and self._pool is not None and not self._floor_pool_failed:
+                self._submit_floor(need)
+                return
+            self._param_queue.popleft()
+            self._route("PARAM_SET", source, self.params.handle(m, now_wall, source))
+
+    def _save_params(self) -> None:
+        """A due save on the worker (its outcome reported when done); one at a time, the latest values."""
+        if self._save_job is not None:
+            if not self._save_job.done():
+                return
+            err, self._save_job = self._save_job.result(), None
+            if err:
+                self.statustext(err, 4)  # MAV_SEVERITY_WARNING
+        values = self.params.take_save()
+        if values is not None and self._pool is not None:
+            self._save_job = self._pool.submit(self.params.write_values, values)
+
+    @property
+    def params_busy(self) -> bool:
+        """PARAM_SETs queued or a save being written (tests wait on this, bounded)."""
+        return bool(self._param_queue) or self._save_job is not None or self.params.save_due
+
+    def close(self) -> None:
+        """Finish the queue's last save and stop the worker."""
+        if self._pool is not None:
+            values = self.params.take_save()
+            if values is not None:
+                self._pool.submit(self.params.write_values, values)
+            self._pool.shutdown(wait=True)
+            self._pool = None
+        if self._floor_pool is not None:
+            self._floor_pool.shutdown(wait=False, cancel_futures=True)
+            self._floor_pool = None
 
     def _set_mode_message(self, m: Any) -> list[Any]:
         """The legacy SET_MODE message (what `mode X` in MAVProxy sends), read in PX4's custom_mode encoding
@@ -242,7 +442,12 @@ class GcsService:
                           yaw_rad: float) -> tuple[bool, str]:
         return self._vehicle.reposition(self._to_ned(lat_deg, lon_deg, alt_m, relative_alt), yaw_rad)
 
-    def poll(self, now_wall: float) -> None:
+    def poll(self, now_wall: float) -> list[SetResult]:
+        """Wall-clock work (telemetry, paced downloads, queued PARAM_SETs); returns the parameter changes the
+        queued PARAM_SETs made, for the caller's log."""
+        self._now = now_wall
+        self._run_param_queue(now_wall)
+        self._save_params()
         if self._last_manual is not None and now_wall - self._last_manual > MANUAL_CONTROL_TIMEOUT_S:
             self._last_manual = None
             self._vehicle.manual_input(0.0, 0.0, 0.5, 0.0)  # sticks no longer received: centred (hold)
@@ -265,6 +470,7 @@ class GcsService:
             msgs.append(self._current_mode())
         if msgs:
             self._outbox.broadcast(msgs)
+        return self.params.drain_changes()
 
     def statustext(self, text: str, severity: int) -> None:
         """STATUSTEXT to every GCS (chunked when longer than one message)."""
@@ -342,6 +548,9 @@ class GcsService:
         return self.mav.current_mode_encode(standard_mode_of(custom), custom, self._intended_custom_mode)
 
     def set_message_interval(self, msg_id: int, interval_us: int) -> bool:
+        """Clamped to GCS_RATE_MAX (a floor on the interval: one request cannot ask for 500 Hz streams)."""
+        if interval_us > 0:
+            interval_us = max(int(interval_us), int(math.ceil(1e6 / float(self._registry["GCS_RATE_MAX"]))))
         return self.telemetry.scheduler.set_interval(msg_id, interval_us)
 
     def message_interval_us(self, msg_id: int) -> int:

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from navig8_fc.mavlink.codec import Codec, Message, split_frames
+from navig8_fc.shell.signing import redact_frame, redacted_message
 from navig8_fc.shell.transport import Connection, PortInUseError, bind_udp, open_endpoint
 
 __all__ = ["MAX_DATAGRAM", "LinkCounters", "PortInUseError", "Received", "UdpLink", "bind_udp", "write_ports_file"]
@@ -57,6 +58,7 @@ class LinkCounters:
     send_errors: int = 0
     signed: int = 0  # signed frames on the sim link (skipped: it does not verify signatures)
     bad_flags: int = 0  # MAVLink 2 frames with an unknown incompat flag (the sim link)
+    bad_signature: int = 0  # GCS links with a signing key: frames unsigned or wrongly signed (refused)
 
 
 _peer_texts: dict[tuple[tuple[str, int], ...], str] = {}
@@ -91,6 +93,9 @@ class UdpLink:
     targets: list[tuple[str, int]] = field(default_factory=list)
     peers: list[tuple[str, int]] = field(default_factory=list)
     sysid_filter: int | None = None  # drop frames not from... (kept None: we accept any source)
+    # Which senders become peers (telemetry goes to them): None = any decoded frame; else asked (msg, addr),
+    # so a spoofed source gets no stream until the GCS service confirms it (docs/security.md).
+    admit_peer: Callable[[Any, tuple[str, int]], bool] | None = None
     counters: LinkCounters = field(default_factory=LinkCounters)
     max_peers: int = 8
     # Logging hooks. on_datagram: every datagram in (up to MAX_DATAGRAM bytes) and out, raw, once, as it crossed
@@ -147,27 +152,37 @@ class UdpLink:
             if len(data) > MAX_DATAGRAM:
                 c.oversize += 1
                 continue
-            if self.on_datagram:
-                self.on_datagram(self.name, "in", data, f"{addr[0]}:{addr[1]}")
             if self.codec is not None:
+                if self.on_datagram:
+                    self.on_datagram(self.name, "in", data, f"{addr[0]}:{addr[1]}")
                 self._receive_records(data, addr, out)
                 continue
             frames, garbage, truncated = split_frames(data)
             c.garbage_bytes += garbage
             c.truncated += truncated
+            if self.on_datagram:  # a SETUP_SIGNING's key never reaches the log (signing.redact_frame)
+                logged = data
+                for fr in frames:
+                    if (red := redact_frame(fr)) is not fr:
+                        logged = logged.replace(fr, red)
+                self.on_datagram(self.name, "in", logged, f"{addr[0]}:{addr[1]}")
             for fr in frames:
                 try:
                     msg = self.mav.decode(bytearray(fr))
-                except Exception:  # noqa: BLE001 - any decode failure is bad input: count, drop
-                    c.bad_crc += 1
+                except Exception as exc:  # noqa: BLE001 - any decode failure is bad input: count, drop
+                    if "signature" in str(exc).lower():
+                        c.bad_signature += 1
+                    else:
+                        c.bad_crc += 1
                     continue
                 if msg.get_type().startswith(("UNKNOWN_", "BAD_DATA")):
                     c.unknown_id += 1  # pymavlink hands these back undecoded: not a peer, not an input
                     continue
                 c.frames_in += 1
-                self._note_peer(addr)
+                if self.admit_peer is None or self.admit_peer(msg, addr):
+                    self._note_peer(addr)
                 if self.on_frame:
-                    self.on_frame(self.name, "in", fr, msg, addr)
+                    self.on_frame(self.name, "in", redact_frame(fr), redacted_message(msg), addr)
                 out.append(Received(fr, msg, addr))
         return out
 

@@ -278,14 +278,73 @@ def test_storage_without_store_or_file_fails_cleanly(mavs, tmp_path: Path) -> No
     assert msgs and msgs[0].get_type() == "STATUSTEXT"
 
 
-def test_stored_values_refused_by_current_rules_are_reported(mavs, tmp_path: Path) -> None:
+def test_a_stored_file_with_a_refused_value_is_not_applied_and_set_aside(mavs, tmp_path: Path) -> None:
     store = ParamStore(tmp_path / "p.json")
     store.save({"INDI_K_MIN": 0.1, "OL_POS_K": 2.0, "GONE_PARAM": 1.0})
     proto, reg = make(mavs, store)
+    reg.set("OL_VEL_K", 2.5)
     loaded = proto.load_stored()
-    assert loaded.ok and loaded.applied == 1
-    assert {r.name for r in loaded.refused} == {"INDI_K_MIN", "GONE_PARAM"}
-    assert reg.get("INDI_K_MIN") == 0.5 and reg.get("OL_POS_K") == 2.0
+    assert not loaded.ok and loaded.applied == 0
+    assert {r.name for r in loaded.refused} == {"INDI_K_MIN"}
+    assert reg.get("INDI_K_MIN") == 0.5 and reg.get("OL_POS_K") == 1.0 and reg.get("OL_VEL_K") == 2.5  # unchanged
+    assert loaded.set_aside == str(tmp_path / "p.json.rejected-1") and not store.path.exists()
+    report = "\n".join(loaded.report())
+    assert "INDI_K_MIN" in report and "GONE_PARAM" in report and "p.json.rejected-1" in report
+
+
+@pytest.mark.parametrize("content", ["garbage\x00", '{"format": "navig8-fc-params", "version": 1, "params": {"OL',
+                                     '{"format": "navig8-fc-params", "version": 1, "params": {"OL_ATT_K": NaN}}',
+                                     "[" * 200_000,
+                                     '{"format": "navig8-fc-params", "version": 1, "params": {"OL_ATT_K": 0.0}}'])
+def test_every_unusable_file_is_reported_and_kept_aside(mavs, tmp_path: Path, content: str) -> None:
+    path = tmp_path / "p.json"
+    path.write_text(content, encoding="latin-1")
+    proto, reg = make(mavs, ParamStore(path))
+    before = reg.as_dict()
+    loaded = proto.load_stored()
+    assert not loaded.ok and reg.as_dict() == before
+    assert loaded.report() and loaded.set_aside is not None
+    assert Path(loaded.set_aside).read_text(encoding="latin-1") == content and not path.exists()
+    result, msgs = proto.storage_command(0)  # nothing left to load: a clear failure, nothing changed
+    assert result == mavlink2.MAV_RESULT_FAILED and by_type(msgs, "STATUSTEXT")
+
+
+def test_set_is_decoded_only_by_the_declared_type(mavs) -> None:
+    proto, reg = make(mavs)
+    veh, gcs = mavs
+    nan_as_int8 = struct.unpack("<f", struct.pack("<f", math.nan))[0]  # bytewise INT8 would read this as 0
+    for ptype in (mavlink2.MAV_PARAM_TYPE_INT8, mavlink2.MAV_PARAM_TYPE_UINT8, INT32):
+        out = send(proto, mavs, gcs.param_set_encode(1, 1, b"OL_ATT_K", nan_as_int8, ptype))
+        assert value_of(by_type(out, "PARAM_VALUE")[0]) == pytest.approx(4.0) and by_type(out, "STATUSTEXT")
+    assert reg.get("OL_ATT_K") == pytest.approx(4.0)
+    out = send(proto, mavs, gcs.param_set_encode(1, 1, b"OL_ATT_K", math.nan, REAL32))
+    assert reg.get("OL_ATT_K") == pytest.approx(4.0) and by_type(out, "STATUSTEXT")
+
+
+@pytest.mark.parametrize("name", ["OL_POS_K", "OL_VEL_K", "OL_ATT_K", "OL_RATE_K"])
+def test_zero_gains_are_refused(mavs, name: str) -> None:
+    proto, reg = make(mavs)
+    _, gcs = mavs
+    before = reg.get(name)
+    out = send(proto, mavs, gcs.param_set_encode(1, 1, name.encode(), 0.0, REAL32))
+    assert reg.get(name) == before and value_of(by_type(out, "PARAM_VALUE")[0]) == pytest.approx(before)
+    assert "outside" in by_type(out, "STATUSTEXT")[0].text
+
+
+def test_loop_parameters_are_refused_while_armed(mavs) -> None:
+    reg = ParamRegistry.from_defaults(stability_check=_floor)
+    armed = [True]
+    proto = ParamProtocol(reg, mavs[0], armed=lambda: armed[0])
+    _, gcs = mavs
+    out = send(proto, mavs, gcs.param_set_encode(1, 1, b"INDI_RATE_HZ", struct.unpack("<f", struct.pack("<i", 200))[0],
+                                                 INT32))
+    assert reg.get("INDI_RATE_HZ") == 100 and "armed" in by_type(out, "STATUSTEXT")[0].text
+    send(proto, mavs, gcs.param_set_encode(1, 1, b"OL_POS_K", 1.5, REAL32))  # a gain may be tuned in flight
+    assert reg.get("OL_POS_K") == pytest.approx(1.5)
+    armed[0] = False
+    send(proto, mavs, gcs.param_set_encode(1, 1, b"INDI_RATE_HZ", struct.unpack("<f", struct.pack("<i", 200))[0],
+                                           INT32))
+    assert reg.get("INDI_RATE_HZ") == 200
 
 
 def test_long_refusal_reason_is_chunked(mavs) -> None:

@@ -6,10 +6,12 @@ VehicleState; messages cross a pymavlink encode/decode as on the wire."""
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
 from io import BytesIO
 from typing import Any
 
+import numpy as np
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
@@ -65,7 +67,8 @@ class Rig:
             s = self.stack.state()
             return replace(s, **state_override) if state_override else s
 
-        self.gcs = GcsService(self.mav, 1, state, self.stack, self.outbox, self.registry, self.vehicle)
+        self.gcs = GcsService(self.mav, 1, state, self.stack, self.outbox, self.registry, self.vehicle,
+                              trusted_sources=[API, GCS])  # the links' configured targets, as the process gives
         self.client = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
         self.t_us = 0
         self.z, self.w = 0.0, 0.0
@@ -235,3 +238,93 @@ def test_actuator_output_status_channel_8_is_the_reported_gripper_state() -> Non
         rig.gcs.poll(10.0 + k)  # 1 s apart: every stream is due
         *_, (_, act) = rig.outbox.pop("ACTUATOR_OUTPUT_STATUS")
         assert act.actuator[8] == (1.0 if closed else 0.0)  # channel 8 (from 0): 1 closed, 0 open
+
+
+class _Signing:
+    """The links' signing as GcsService sees it (set_key, active); the real one is tested in test_signing.py."""
+
+    def __init__(self) -> None:
+        self.active = False
+        self.keys: list[bytes] = []
+
+    def set_key(self, key: bytes, ts: int) -> str:
+        self.keys.append(key)
+        self.active = True
+        return "Signing key set"
+
+
+def test_signing_required_refuses_commands_until_a_key_is_set_and_the_key_never_leaves() -> None:
+    rig = Rig()
+    signing = _Signing()
+    rig.gcs._signing = signing
+    rig.registry.set("GCS_SIGN_REQ", 1)
+    rig.step(60)
+    assert rig.command(GCS, M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_DENIED
+    key = bytes(range(7, 39))
+    rig.send(rig.client.setup_signing_encode(1, 1, list(key), 1), GCS)
+    assert signing.keys == [key]
+    texts = [m.text for _, m in rig.outbox.pop("STATUSTEXT")]
+    assert "Signing key set" in texts and not any(key.hex() in t or key.decode("latin-1") in t for t in texts)
+    assert rig.command(GCS, M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+
+
+def test_foreign_system_ids_are_refused_and_do_not_arm_the_gcs_loss_failsafe() -> None:
+    rig = Rig()
+    rig.step(60)
+    stranger = M.MAVLink(BytesIO(), srcSystem=200, srcComponent=190)
+    src = ("gcs", ("127.0.0.1", 40000))
+    hb = rig.mav.decode(bytearray(stranger.heartbeat_encode(M.MAV_TYPE_GCS, 8, 0, 0, 0).pack(stranger)))
+    rig.gcs.handle([(hb, src)], 1.0)
+    assert rig.gcs.last_gcs_heartbeat is None and not rig.gcs.admits_peer(hb)
+    cmd = stranger.command_long_encode(1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+    rig.gcs.handle([(rig.mav.decode(bytearray(cmd.pack(stranger))), src)], 1.0)
+    ((dest, ack),) = rig.outbox.pop("COMMAND_ACK")
+    assert dest == src and ack.result == M.MAV_RESULT_DENIED and not rig.stack.state().armed
+    # An allowed id from an address that sent no HEARTBEAT: a command is refused, a HEARTBEAT confirms it.
+    own = ("gcs", ("127.0.0.1", 40001))
+    rig.send(rig.client.param_request_list_encode(1, 1), own)
+    assert rig.gcs.params.list_remaining == 0
+    rig.send(rig.client.heartbeat_encode(M.MAV_TYPE_GCS, 8, 0, 0, 0), own, now=2.0)
+    assert rig.gcs.confirmed(own) and rig.gcs.last_gcs_heartbeat == 2.0
+    rig.send(rig.client.param_request_list_encode(1, 1), own)
+    assert rig.gcs.params.list_remaining > 0
+
+
+def test_message_interval_has_a_floor() -> None:
+    rig = Rig()
+    rig.command(GCS, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 2000)
+    floor_us = 1e6 / float(rig.registry["GCS_RATE_MAX"])
+    assert rig.gcs.message_interval_us(M.MAVLINK_MSG_ID_ATTITUDE) >= floor_us
+
+
+def test_param_sets_needing_a_stability_sweep_wait_on_the_worker_and_every_one_is_answered(tmp_path) -> None:
+    """The process's mode: floors on a worker thread, applied by poll in arrival order; the queue is bounded and
+    PARAM_SET rate-limited, and every PARAM_SET gets a PARAM_VALUE (accepted, refused, or busy/rate refusals)."""
+    from navig8_fc.params.store import ParamStore
+
+    rig = Rig()
+    store = ParamStore(tmp_path / "p.json")
+    svc = GcsService(rig.mav, 1, rig.stack.state, rig.stack, rig.outbox, rig.registry, rig.vehicle, store,
+                     trusted_sources=[GCS], background_params=True)
+    try:
+        n = 120
+        values = [0.5 + 0.002 * (i % 20) for i in range(n)]
+        for i, v in enumerate(values):
+            msg = rig.client.param_set_encode(1, 1, b"INDI_K_MIN", v, M.MAV_PARAM_TYPE_REAL32)
+            svc.handle([(rig.mav.decode(bytearray(msg.pack(rig.client))), GCS)], 1.0 + i * 1e-4)
+        t = 2.0
+        deadline = time.monotonic() + 60.0
+        while svc.params_busy and time.monotonic() < deadline:
+            t += 0.01
+            svc.poll(t)
+            time.sleep(0.005)
+        assert not svc.params_busy, "queued PARAM_SETs never finished"
+        answers = [m for _, m in rig.outbox.pop("PARAM_VALUE") if m.param_id == "INDI_K_MIN"]
+        assert len(answers) == n
+        final = float(rig.registry["INDI_K_MIN"])
+        assert abs(answers[-1].param_value - final) < 1e-6  # the last answer is the value in force
+        assert final in {float(np.float32(v)) for v in values}
+        svc.close()
+        assert store.load().values["INDI_K_MIN"] == final  # saved by the worker
+    finally:
+        svc.close()

@@ -43,7 +43,7 @@ def _rig(autopilot: int = 0) -> tuple[GcsService, Outbox, Any, FlightStack]:
     stack = FlightStack(vehicle, reg)
     mav = dialect.load().MAVLink(None, srcSystem=1, srcComponent=1)
     out = Outbox(mav)
-    svc = GcsService(mav, 1, stack.state, stack, out, reg, vehicle, autopilot=autopilot)
+    svc = GcsService(mav, 1, stack.state, stack, out, reg, vehicle, autopilot=autopilot, trusted_sources=[GCS])
     client = dev.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
     return svc, out, client, stack
 
