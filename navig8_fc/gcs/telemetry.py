@@ -220,6 +220,13 @@ class TelemetryScheduler:
     def supported_ids(self) -> frozenset[int]:
         return frozenset(self._default_us)
 
+    def copy(self) -> TelemetryScheduler:
+        """A table with the same defaults and the same current rates, its streams due at the next call."""
+        c = TelemetryScheduler({}, self._min_interval_us)
+        c._default_us, c._interval_us = dict(self._default_us), dict(self._interval_us)
+        c._next_s = dict.fromkeys(self._default_us)
+        return c
+
     def set_interval(self, msg_id: int, interval_us: int) -> bool:
         if msg_id not in self._default_us or interval_us < -1:
             return False

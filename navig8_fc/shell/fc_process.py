@@ -608,12 +608,18 @@ class FlightControllerProcess:
             self.log_param_change(change)
 
     # --- Outbox (GcsService) ---------------------------------------------------------------------
-    def broadcast(self, msgs: list[Any]) -> None:
-        """To every peer of both GCS-facing links (telemetry, HEARTBEAT, STATUSTEXT, PARAM_VALUE announcements).
-        Every STATUSTEXT (the FC's events and the GCS service's refusal reasons alike) also goes to /foxglove/log."""
+    def broadcast(self, msgs: list[Any], exclude: frozenset[Source] = frozenset()) -> None:
+        """To every peer of both GCS-facing links (telemetry, HEARTBEAT, STATUSTEXT, PARAM_VALUE announcements),
+        except the sources in `exclude` (source = (link name, address)). Every STATUSTEXT (the FC's events and the
+        GCS service's refusal reasons alike) also goes to /foxglove/log."""
         for link in (self.gcs, self.api):
+            dest = None
+            if exclude:
+                dest = [a for a in link.destinations() if (link.name, a) not in exclude]
+                if not dest:
+                    continue
             for m in msgs:
-                link.send(m)
+                link.send(m, dest)
         if self.fox is not None:
             for m in msgs:
                 if m.get_type() == "STATUSTEXT":

@@ -95,8 +95,9 @@ def origin_from_params(reg: ParamRegistry) -> GeoOrigin:
 class Outbox(Protocol):
     """Where GcsService's messages go (the process implements it over its GCS-facing links)."""
 
-    def broadcast(self, msgs: list[Any]) -> None:
-        """To every peer of every GCS-facing link."""
+    def broadcast(self, msgs: list[Any], exclude: frozenset[Source] = frozenset()) -> None:
+        """To every peer of every GCS-facing link, except the sources in `exclude` (peers with their own stream
+        intervals, which get their telemetry by `reply`)."""
         ...
 
     def reply(self, source: Source, msgs: list[Any]) -> None:
@@ -151,6 +152,7 @@ class GcsService:
         self._trusted = set(trusted_sources)
         self._signing = signing
         self._confirmed: set[Source] = set()  # sources that sent a HEARTBEAT from an allowed system id
+        self._command_source: Source | None = None  # the sender of the command being handled
         self.n_unauthorised = 0  # messages dropped or refused: sender not allowed, or source unconfirmed
         self._refusal_text_t = -math.inf
         self._now = 0.0
@@ -260,7 +262,9 @@ class GcsService:
                 self._route(kind, source, self._param_set(m, source, now_wall))
                 continue
             out = self.params.handle(m, now_wall, source)
+            self._command_source = source  # SET/GET_MESSAGE_INTERVAL act on this peer's stream table
             out += self.commands.handle(m, now_wall, source)
+            self._command_source = None
             out += self.misc.handle(m, now_wall)
             out += self.mission.handle(m, now_wall, source)
             out += self.ftp.handle(m)
@@ -461,7 +465,10 @@ class GcsService:
                 self._outbox.broadcast([m])
             else:
                 self._outbox.reply(source, [m])
-        msgs = self.telemetry.due_messages(now_wall)
+        tel = self.telemetry
+        for peer, peer_msgs in tel.due_per_peer(now_wall):  # peers with their own SET_MESSAGE_INTERVAL rates
+            self._outbox.reply(peer, peer_msgs)
+        msgs = tel.due_messages(now_wall)
         custom = self._state().custom_mode
         key = (custom, self._intended_custom_mode)
         if self._std_modes and (key != self._current_mode_sent
@@ -469,7 +476,13 @@ class GcsService:
             self._current_mode_sent, self._current_mode_t = key, now_wall  # 0.5 Hz and at once on a change
             msgs.append(self._current_mode())
         if msgs:
-            self._outbox.broadcast(msgs)
+            peers = tel.peers_with_own_rates
+            if peers:
+                self._outbox.broadcast(msgs, exclude=peers)
+                for peer in peers:  # CURRENT_MODE is not a stream: every peer gets it
+                    self._outbox.reply(peer, [m for m in msgs if m.get_type() == "CURRENT_MODE"])
+            else:
+                self._outbox.broadcast(msgs)
         return self.params.drain_changes()
 
     def statustext(self, text: str, severity: int) -> None:
@@ -551,10 +564,10 @@ class GcsService:
         """Clamped to GCS_RATE_MAX (a floor on the interval: one request cannot ask for 500 Hz streams)."""
         if interval_us > 0:
             interval_us = max(int(interval_us), int(math.ceil(1e6 / float(self._registry["GCS_RATE_MAX"]))))
-        return self.telemetry.scheduler.set_interval(msg_id, interval_us)
+        return self.telemetry.scheduler_for(self._command_source, create=True).set_interval(msg_id, interval_us)
 
     def message_interval_us(self, msg_id: int) -> int:
-        return self.telemetry.scheduler.interval_us(msg_id)
+        return self.telemetry.scheduler_for(self._command_source).interval_us(msg_id)
 
     def set_mission_current(self, seq: int, reset: bool) -> tuple[bool, str]:
         return self.mission.set_current(seq, reset)
@@ -566,6 +579,7 @@ class GcsService:
 class Telemetry:
     """Streams on the wall clock from a snapshot of the vehicle's latest state (built only when something is due)."""
 
+    MAX_PEER_TABLES = 8  # as many as a link keeps peers
     EIG_MARGIN_PERIOD_S = 0.5  # the bound-based margin costs ~1.4 ms: refresh it at 2 Hz
 
     def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], registry: ParamRegistry,
@@ -573,7 +587,9 @@ class Telemetry:
         self._state = state
         self._registry = registry
         self._vehicle = vehicle_config
-        self.scheduler = TelemetryScheduler()
+        self.scheduler = TelemetryScheduler()  # the shared stream table (defaults and SET_MESSAGE_INTERVAL
+        # from in-process callers); peers that set their own rates get a copy (scheduler_for)
+        self._peer_sched: dict[Source, TelemetryScheduler] = {}
         # Announced as PX4 (option), QGroundControl's PX4 plugin wants flight_sw_version >= 1.4.1 and warns about
         # an old release when the type is OFFICIAL: 1.15.0 DEV (docs/gcs.md, "Autopilot identity").
         sw = (1, 15, 0) if autopilot == MAV_AUTOPILOT_PX4 else (0, 1, 0)
@@ -625,11 +641,43 @@ class Telemetry:
     def boot_ms(self, now_wall: float) -> int:
         return int((now_wall - self.boot_wall) * 1000)
 
+    def scheduler_for(self, source: Source | None, create: bool = False) -> TelemetryScheduler:
+        """The stream table of one peer (as PX4 keeps one per link, but per peer: a SET_MESSAGE_INTERVAL from one
+        ground station changes only the rates it receives; docs/security.md). Without a table of its own a peer
+        gets the shared defaults; `create` gives it one (a copy of the defaults), at most MAX_PEER_TABLES, the
+        oldest dropped (that peer falls back to the shared table)."""
+        if source is None:
+            return self.scheduler
+        sched = self._peer_sched.get(source)
+        if sched is None:
+            if not create:
+                return self.scheduler
+            if len(self._peer_sched) >= self.MAX_PEER_TABLES:
+                del self._peer_sched[next(iter(self._peer_sched))]
+            sched = self._peer_sched[source] = self.scheduler.copy()
+        return sched
+
+    @property
+    def peers_with_own_rates(self) -> frozenset[Source]:
+        return frozenset(self._peer_sched)
+
     def due_messages(self, now_wall: float) -> list[Any]:
+        """The shared table's streams that are due (for every peer without a table of its own)."""
         due = self.scheduler.due(now_wall)
         if not due:
             return []
         return self.builder.build_many(due, self.snapshot(now_wall), self.boot_ms(now_wall))
+
+    def due_per_peer(self, now_wall: float) -> list[tuple[Source, list[Any]]]:
+        """Each peer table's due streams (the snapshot built once for all of them)."""
+        out: list[tuple[Source, list[Any]]] = []
+        snap = None
+        for source, sched in self._peer_sched.items():
+            due = sched.due(now_wall)
+            if due:
+                snap = snap or self.snapshot(now_wall)
+                out.append((source, self.builder.build_many(due, snap, self.boot_ms(now_wall))))
+        return out
 
     def build_now(self, msg_id: int, now_wall: float) -> list[Any] | None:
         if msg_id not in self.builder.supported_ids:

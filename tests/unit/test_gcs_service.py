@@ -36,8 +36,8 @@ class Outbox:
     def _wire(self, m: Any) -> Any:
         return self._rx.decode(bytearray(m.pack(self._mav)))
 
-    def broadcast(self, msgs: list[Any]) -> None:
-        self.sent += [("all", self._wire(m)) for m in msgs]
+    def broadcast(self, msgs: list[Any], exclude: frozenset[Any] = frozenset()) -> None:
+        self.sent += [("all" if not exclude else ("all but", exclude), self._wire(m)) for m in msgs]
 
     def reply(self, source: Any, msgs: list[Any]) -> None:
         self.sent += [(source, self._wire(m)) for m in msgs]
@@ -288,6 +288,36 @@ def test_foreign_system_ids_are_refused_and_do_not_arm_the_gcs_loss_failsafe() -
     assert rig.gcs.confirmed(own) and rig.gcs.last_gcs_heartbeat == 2.0
     rig.send(rig.client.param_request_list_encode(1, 1), own)
     assert rig.gcs.params.list_remaining > 0
+
+
+def test_message_intervals_are_per_peer() -> None:
+    """A SET_MESSAGE_INTERVAL changes the rate only for the peer that sent it (the other ground station keeps the
+    defaults); the shared broadcast then leaves that peer out, and GET_MESSAGE_INTERVAL answers each its own."""
+    rig = Rig()
+    rig.step(5)
+    rig.command(API, M.MAV_CMD_GET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE)
+    ((_, mi),) = rig.outbox.pop("MESSAGE_INTERVAL")
+    default_us = mi.interval_us
+    assert default_us > 0
+    assert rig.command(GCS, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, 200_000).result == \
+        M.MAV_RESULT_ACCEPTED
+    for source, want in ((GCS, 200_000), (API, default_us)):
+        rig.command(source, M.MAV_CMD_GET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE)
+        ((dest, mi),) = rig.outbox.pop("MESSAGE_INTERVAL")
+        assert dest == source and mi.interval_us == want
+    rig.outbox.sent.clear()
+    for i in range(201):  # 2 s of wall time in 10 ms polls
+        rig.gcs.poll(10.0 + 0.01 * i)
+    att = rig.outbox.pop("ATTITUDE")
+    to_gcs = [d for d, _ in att if d == GCS]
+    shared = [d for d, _ in att if d != GCS]
+    assert len(to_gcs) in (10, 11)  # 5 Hz for 2 s
+    assert len(shared) == pytest.approx(2e6 / default_us, abs=1) and all(d == ("all but", {GCS}) for d in shared)
+    # only the mission protocol's own MISSION_CURRENT report goes to every peer; every telemetry stream of the
+    # shared table leaves GCS out
+    assert {m.get_type() for d, m in rig.outbox.sent if d == "all"} <= {"MISSION_CURRENT"}
+    hb = [d for d, _ in rig.outbox.pop("HEARTBEAT")]
+    assert GCS in hb  # its own table keeps the heartbeat
 
 
 def test_message_interval_has_a_floor() -> None:

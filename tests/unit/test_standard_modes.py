@@ -25,7 +25,7 @@ class Outbox:
         self._mav = mav
         self._rx = dev.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
 
-    def broadcast(self, msgs: list[Any]) -> None:
+    def broadcast(self, msgs: list[Any], exclude: frozenset[Any] = frozenset()) -> None:
         self.sent += [self._rx.decode(bytearray(m.pack(self._mav))) for m in msgs]
 
     def reply(self, source: Any, msgs: list[Any]) -> None:
