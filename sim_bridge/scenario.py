@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from navig8_fc.flight.script import FlightScript, parse_flight_script, read_scenario_file, vec3
+from navig8_fc.flight.script import ArmSegment, FlightScript, parse_flight_script, read_scenario_file, vec3
 
 Vec3 = tuple[float, float, float]
 
@@ -45,16 +45,6 @@ class ObjectEvent:
             raise ValueError(f"unknown object event kind {self.kind!r} (expected one of {EVENT_KINDS})")
         if not (math.isfinite(self.t_s) and self.t_s >= 0.0 and self.mass_kg >= 0.0):
             raise ValueError(f"invalid object event {self}")
-
-
-@dataclass(frozen=True)
-class ArmSegment:
-    """Joint target moving linearly from q_start at t0 to q_end at t1 (t1 == t0: a step to q_end)."""
-
-    t0_s: float
-    t1_s: float
-    q_start_rad: Vec3
-    q_end_rad: Vec3
 
 
 @dataclass(frozen=True)
@@ -155,9 +145,8 @@ class Scenario:
         )
         if list(events) != sorted(events, key=lambda e: e.t_s):
             raise ValueError("scenario events must be sorted by time")
-        arm = d.get("arm", {"kind": "hold"})
-        kind = str(arm["kind"])
-        segments = _arm_segments(kind, arm, q0, script.duration_s)
+        kind = str(d.get("arm", {"kind": "hold"})["kind"])
+        segments = script.arm_plan  # parsed with the FC's script (the FC's arm preview reads the same plan)
         return Scenario(
             script=script,
             description=str(d.get("description", "")),
@@ -169,37 +158,6 @@ class Scenario:
             arm_segments=segments,
             paper_text=str(d.get("paper_text", "")),
         )
-
-
-def _arm_segments(kind: str, arm: dict[str, Any], q0: Vec3, duration_s: float) -> tuple[ArmSegment, ...]:
-    if kind == "hold":
-        q = vec3(arm["q_deg"], deg=True) if "q_deg" in arm else q0
-        return (ArmSegment(0.0, 0.0, q, q),)
-    if kind == "steps":
-        segs = [ArmSegment(0.0, 0.0, q0, q0)]
-        for st in arm["steps"]:
-            q = vec3(st["q_deg"], deg=True)
-            t = float(st["t_s"])
-            segs.append(ArmSegment(t, t, segs[-1].q_end_rad, q))
-        return tuple(segs)
-    if kind == "eq26":
-        # Eq. 26 as read in notes §6.2: q_cmd = A [1 + sum_k (-1)^k 2 u(t - T k)] = A (-1)^floor(t/T),
-        # a +-A square wave starting at +A (Pose 1). The paper's "gradually" from q = 0 to Pose 1 is a
-        # linear ramp of the command over [0, ramp_s] (ramp_s <= T), then Eq. 26 from there on.
-        a = math.radians(float(arm["amplitude_deg"]))
-        period = float(arm["half_period_s"])
-        ramp = float(arm.get("ramp_s", 0.0))
-        if not 0.0 <= ramp <= period:
-            raise ValueError("eq26 ramp_s must lie in [0, half_period_s]")
-        pose1 = (a, a, a)
-        segs = [ArmSegment(0.0, ramp, q0, pose1)]
-        k = 1
-        while k * period <= duration_s + 1e-9:
-            v = a if k % 2 == 0 else -a
-            segs.append(ArmSegment(k * period, k * period, segs[-1].q_end_rad, (v, v, v)))
-            k += 1
-        return tuple(segs)  # after duration_s the last target holds
-    raise ValueError(f"unknown arm command kind {kind!r} (hold, steps, eq26)")
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:

@@ -17,6 +17,14 @@ during the paper's arm reversal (issue 10).
    reach is a linear program over the moment history (exact discretisation of the momentum, trapezoid for
    theta, ending at rest). It ignores the actuator lag, the noise and the hover-force coupling of a tilted
    body, so it is a lower bound: no controller flying this actuator set can do better.
+3. **With the actuators' lag** (`--lag`). The same LP with the delivered moment the commanded moment history
+   through the actuators' second-order response (omega_n, zeta of params/plant.yaml: 120 rad/s, 1), the command
+   inside the static authority (zeta = 1 does not overshoot, so the delivered moment stays inside it too), in two
+   variants: *preview* (the command may start before the reaction: the controller knows the arm's plan) and
+   *causal* (the command stays at trim until one control tick after the reaction starts: a controller that
+   sees the reaction only when it happens). The moment is a nonlinear function of the actuator states (thrust
+   ~ w|w|, the tail reversing through zero speed has none), so the linear lag of the moment is a model, not an
+   exact bound; the numbers say how much of the flown error the lag alone explains.
 
 Everything is the model of navig8_fc.core.vehicle (the same G_C the controller uses) and the plant's joint servo
 (sim_bridge._kernels._servo_accel). See docs/model.md ("Pitch authority").
@@ -207,19 +215,43 @@ class ReversalBound:
     authority_min_nm: np.ndarray
 
 
+def lag_matrix(dt_s: float, n: int, omega_n: float, zeta: float) -> np.ndarray:
+    """L (n x n, lower triangular): the delivered moment over step k, L @ u, for a commanded moment u held over
+    each step and a second-order actuator (unit gain, at rest at trim before step 0); the delivered value of
+    step k is the response at the step's middle (the step response s(t) differenced at (k - j + 1/2) dt)."""
+    def step(t: np.ndarray) -> np.ndarray:
+        t = np.maximum(t, 0.0)
+        if abs(zeta - 1.0) < 1e-9:
+            return 1.0 - np.exp(-omega_n * t) * (1.0 + omega_n * t)
+        if zeta > 1.0:
+            r = math.sqrt(zeta * zeta - 1.0)
+            p1, p2 = omega_n * (zeta - r), omega_n * (zeta + r)
+            return 1.0 - (p2 * np.exp(-p1 * t) - p1 * np.exp(-p2 * t)) / (p2 - p1)
+        wd = omega_n * math.sqrt(1.0 - zeta * zeta)
+        return 1.0 - np.exp(-zeta * omega_n * t) * (np.cos(wd * t) + zeta * omega_n / wd * np.sin(wd * t))
+
+    lag = np.arange(n)[:, None] - np.arange(n)[None, :]  # k - j
+    g = step((lag + 0.5) * dt_s) - step((lag - 0.5) * dt_s)
+    return np.where(lag >= 0, g, 0.0)
+
+
 def min_pitch_excursion(t_s: np.ndarray, inertia_yy: np.ndarray, h_y: np.ndarray, m_max: np.ndarray,
-                        m_min: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+                        m_min: np.ndarray, lag: np.ndarray | None = None,
+                        hold_until: int = 0) -> tuple[float, np.ndarray, np.ndarray]:
     """min over moment histories u (held over each step, m_min <= u <= m_max) of max_k |theta_k|, for
-    d/dt (I theta' + h) = u, theta(0) = theta'(0) = 0, theta' = 0 at the end.
+    d/dt (I theta' + h) = u_delivered, theta(0) = theta'(0) = 0, theta' = 0 at the end; u_delivered = u, or
+    lag @ u (`lag_matrix`, (n-1) x (n-1)) with the actuators' lag; u = 0 (trim) on the first hold_until steps.
 
     The momentum P = I theta' + h is exact under a held u (P_{k+1} = P_k + dt u_k); theta integrates theta'
-    with the trapezoid rule. Returns (peak, theta history, u)."""
+    with the trapezoid rule. Returns (peak, theta history, u commanded)."""
     n = len(t_s)
     dt = np.diff(t_s)
     # P_k = h_0 + sum_{j<k} dt_j u_j  ->  theta'_k = (P_k - h_k)/I_k = (C u)_k + e_k
     c = np.zeros((n, n - 1))
     for k in range(1, n):
         c[k, :k] = dt[:k]
+    if lag is not None:
+        c = c @ lag
     c /= inertia_yy[:, None]
     e = (h_y[0] - h_y) / inertia_yy
     # theta_k = sum_{j<k} dt_j (theta'_j + theta'_{j+1})/2
@@ -236,7 +268,8 @@ def min_pitch_excursion(t_s: np.ndarray, inertia_yy: np.ndarray, h_y: np.ndarray
     b_ub = np.concatenate([-b_th, b_th])
     a_eq = np.concatenate([c[-1], [0.0]])[None, :]
     b_eq = np.array([-e[-1]])
-    bounds = [(lo, hi) for lo, hi in zip(m_min[:-1], m_max[:-1], strict=True)] + [(0.0, None)]
+    bounds = [(0.0, 0.0) if k < hold_until else (lo, hi)
+              for k, (lo, hi) in enumerate(zip(m_min[:-1], m_max[:-1], strict=True))] + [(0.0, None)]
     res = linprog(cost, A_ub=a_ub, b_ub=b_ub, A_eq=a_eq, b_eq=b_eq, bounds=bounds, method="highs")
     if res.status != 0:
         raise ValueError(f"the reversal LP failed: {res.message}")
@@ -246,10 +279,16 @@ def min_pitch_excursion(t_s: np.ndarray, inertia_yy: np.ndarray, h_y: np.ndarray
 
 def reversal_bound(cfg: VehicleConfig, q_from_rad: float, q_to_rad: float, object_mass_kg: float,
                    v_max: float, a_max: float, fx_free: bool = False, dt_s: float = 0.002,
-                   settle_s: float = 1.0, grid: int = 17) -> ReversalBound:
-    """The paper's reversal (all three joints from q_from to q_to through the plant's servo)."""
+                   settle_s: float = 1.0, grid: int = 17, actuator: tuple[float, float] | None = None,
+                   causal_delay_s: float | None = None, pre_s: float = 0.0) -> ReversalBound:
+    """The paper's reversal (all three joints from q_from to q_to through the plant's servo, starting at pre_s).
+    actuator = (omega_n, zeta): the delivered moment lags its command (module docstring, 3.); causal_delay_s: the
+    command stays at trim until this long after the reversal starts (None: free from t = 0, a preview)."""
     move_s = abs(q_to_rad - q_from_rad) / v_max + v_max / a_max + 0.05
     qj, qdj = servo_profile(q_from_rad, q_to_rad, v_max, a_max, dt_s, move_s + settle_s)
+    n_pre = int(round(pre_s / dt_s))
+    qj = np.concatenate([np.full(n_pre, q_from_rad), qj])
+    qdj = np.concatenate([np.zeros(n_pre), qdj])
     t = np.arange(len(qj)) * dt_s
     q3, qd3 = np.repeat(qj[:, None], N_LINKS, axis=1), np.repeat(qdj[:, None], N_LINKS, axis=1)
     h = arm_momentum_y(cfg, q3, qd3, object_mass_kg)
@@ -259,7 +298,9 @@ def reversal_bound(cfg: VehicleConfig, q_from_rad: float, q_to_rad: float, objec
     auth = [hover_authority(cfg, [g] * N_LINKS, object_mass_kg, "pitch", fx_free) for g in grid_q]
     m_max = np.interp(qj, grid_q, [a.max_nm for a in auth])
     m_min = np.interp(qj, grid_q, [a.min_nm for a in auth])
-    peak, theta, u = min_pitch_excursion(t, iyy, h, m_max, m_min)
+    lag = lag_matrix(dt_s, len(t) - 1, *actuator) if actuator is not None else None
+    hold = 0 if causal_delay_s is None else n_pre + int(round(causal_delay_s / dt_s))
+    peak, theta, u = min_pitch_excursion(t, iyy, h, m_max, m_min, lag, hold)
     dist = -np.gradient(h, t)
     return ReversalBound(peak, t, theta, u, dist, m_max, m_min)
 
@@ -272,8 +313,12 @@ POSES_DEG = {"q=0": (0.0, 0.0, 0.0), "+20x3": (20.0, 20.0, 20.0), "-20x3": (-20.
              "80/10/10": (80.0, 10.0, 10.0), "60/60/60": (60.0, 60.0, 60.0)}
 
 
+LAG_PRE_S = 0.2  # how early a preview may start commanding before the reversal (longer than the actuators' lag)
+CAUSAL_DELAY_S = 0.01  # one control tick at 100 Hz: the first tick that can see the reaction
+
+
 def analyse(cfg: VehicleConfig, masses: Sequence[float], reversal: bool, v_max: float,
-            a_max: float, amplitude_deg: float) -> dict[str, Any]:
+            a_max: float, amplitude_deg: float, actuator: tuple[float, float] | None = None) -> dict[str, Any]:
     static = []
     for name, pose in POSES_DEG.items():
         q = [math.radians(v) for v in pose]
@@ -298,11 +343,16 @@ def analyse(cfg: VehicleConfig, masses: Sequence[float], reversal: bool, v_max: 
             for q0, q1 in ((amp, -amp), (-amp, amp)):
                 for fx_free in (False, True):
                     b = reversal_bound(cfg, q0, q1, m, v_max, a_max, fx_free)
-                    rev.append({"object_kg": m, "from_deg": math.degrees(q0), "to_deg": math.degrees(q1),
-                                "fx_free": fx_free, "min_peak_pitch_deg": math.degrees(b.min_peak_pitch_rad),
-                                "peak_reaction_nm": float(np.max(np.abs(b.disturbance_nm))),
-                                "authority_nm": [float(np.min(b.authority_min_nm)),
-                                                 float(np.max(b.authority_max_nm))]})
+                    row = {"object_kg": m, "from_deg": math.degrees(q0), "to_deg": math.degrees(q1),
+                           "fx_free": fx_free, "min_peak_pitch_deg": math.degrees(b.min_peak_pitch_rad),
+                           "peak_reaction_nm": float(np.max(np.abs(b.disturbance_nm))),
+                           "authority_nm": [float(np.min(b.authority_min_nm)), float(np.max(b.authority_max_nm))]}
+                    if actuator is not None:
+                        for key, delay in (("lag_preview_deg", None), ("lag_causal_deg", CAUSAL_DELAY_S)):
+                            bl = reversal_bound(cfg, q0, q1, m, v_max, a_max, fx_free, actuator=actuator,
+                                                causal_delay_s=delay, pre_s=LAG_PRE_S)
+                            row[key] = math.degrees(bl.min_peak_pitch_rad)
+                    rev.append(row)
     return {"tail_max_thrust_n": tail_max_thrust_n(cfg), "static": static, "reversal": rev}
 
 
@@ -320,9 +370,13 @@ def render_text(rep: dict[str, Any]) -> str:
     if rep["reversal"]:
         lines.append("arm reversal: smallest peak pitch excursion any controller reaches (lower bound)")
         for r in rep["reversal"]:
+            lag = ""
+            if "lag_preview_deg" in r:
+                lag = (f"; with the actuators' lag {r['lag_preview_deg']:6.2f} (preview)"
+                       f" {r['lag_causal_deg']:6.2f} (causal)")
             lines.append(f"  m_o {r['object_kg']:.1f} kg {r['from_deg']:+.0f} -> {r['to_deg']:+.0f} deg"
                          f" Fx {'free' if r['fx_free'] else 'held'}: {r['min_peak_pitch_deg']:6.2f} deg"
-                         f" (peak reaction {r['peak_reaction_nm']:.1f} N m)")
+                         f" (peak reaction {r['peak_reaction_nm']:.1f} N m){lag}")
     return "\n".join(lines)
 
 
@@ -337,6 +391,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--amplitude-deg", type=float, default=20.0, help="reversal amplitude (Eq. 26: 20 deg)")
     ap.add_argument("--no-reversal", action="store_true", help="static authority only")
     ap.add_argument("--json", action="store_true", help="one JSON object instead of the table")
+    ap.add_argument("--lag", action="store_true",
+                    help="also the reversal bound with the actuators' second-order lag (preview and causal)")
     args = ap.parse_args(argv)
     cfg = VehicleConfig.load()
     if args.tail_max_thrust is not None:
@@ -346,8 +402,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         cfg = with_tail_thrust(cfg, args.tail_max_thrust)
     try:
         masses = [float(v) for v in args.masses.split(",")]
+        act = (plant.speed_dynamics.omega_n_rad_s, plant.speed_dynamics.zeta) if args.lag else None
         rep = analyse(cfg, masses, not args.no_reversal, plant.joint_v_max_rad_s, plant.joint_a_max_rad_s2,
-                      args.amplitude_deg)
+                      args.amplitude_deg, act)
     except ValueError as e:
         print(f"navig8-authority: {e}", file=sys.stderr)
         return 2

@@ -27,6 +27,7 @@ from navig8_fc.core import _kernels as _k
 from navig8_fc.core import rotation
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig, AdaptiveLawStatus
 from navig8_fc.core.allocation import AllocationConfig
+from navig8_fc.core.arm_preview import ArmPreviewConfig, arm_preview_step, hold_plan
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.indi import (
     ActuatorLimits,
@@ -54,6 +55,7 @@ _UO_CEX, _UO_CEZ = int(_k.UO.CEX), int(_k.UO.CEZ)
 _PACK_SENSORS = struct.Struct(f"={int(_k.TIN.POS)}d").pack_into
 _PACK_ENGAGED = struct.Struct(f"={int(_k.TIN.SIZE)}d").pack_into
 _IN_ACCEL, _IN_TILT, _IN_SPEED = int(_k.TIN.ACCEL), int(_k.TIN.TILT), int(_k.TIN.SPEED)
+_IN_JRATE = int(_k.TIN.JRATE)
 _FO_QEST, _FO_QDD, _OO_ACCEL = _k.FO.QEST.sl, _k.FO.QDD.sl, _k.OO.ACCEL_CMD.sl
 _FO_ARM_HDC = int(_k.FO.ARM_HDC)
 
@@ -67,6 +69,7 @@ PARAMS_USED = (
     "INDI_ACC_REF", "CKF_ARM_WRENCH",
     "INDI_ARM_FF", "INDI_ALLOC", "INDI_ALLOC_W_RP", "INDI_ALLOC_W_AZ", "INDI_ALLOC_W_YAW", "INDI_ALLOC_W_AX",
     "INDI_ALLOC_DTILT", "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
+    "INDI_ARM_LEAD", "ARM_SERVO_HZ", "ARM_SERVO_VMAX", "ARM_SERVO_AMAX",
 )
 
 
@@ -121,7 +124,9 @@ class ControllerConfig:
                             AllocationConfig(int(values["INDI_ALLOC"]), float(values["INDI_ALLOC_W_RP"]),
                                              float(values["INDI_ALLOC_W_AZ"]), float(values["INDI_ALLOC_W_YAW"]),
                                              float(values["INDI_ALLOC_W_AX"]), float(values["INDI_ALLOC_DTILT"])),
-                            bool(int(values["INDI_ARM_FF"]))),
+                            int(values["INDI_ARM_FF"]),
+                            ArmPreviewConfig(float(values["INDI_ARM_LEAD"]), float(values["ARM_SERVO_HZ"]),
+                                             float(values["ARM_SERVO_VMAX"]), float(values["ARM_SERVO_AMAX"]))),
             outer=OuterLoopConfig.from_params(values, vehicle.gravity_m_s2),  # type: ignore[arg-type]
             ckf=CkfConfig.from_params(values, dt),
             acc_ref=int(values["INDI_ACC_REF"]),
@@ -169,6 +174,11 @@ class FlightControllerCore:
         # INDI_ARM_FF: the arm's h' low-passed like the INDI's feedback (None until the first tick)
         self._ff_alpha = lpf_alpha(config.indi.lpf_tau_s, config.dt_s)
         self._hdc_f: float | None = None
+        # INDI_ARM_FF = 2: the arm's commanded trajectory (arm_preview plan rows, sim time; None: hold the measured
+        # joints, i.e. no preview) and the servo model's scratch state
+        self._arm_plan: np.ndarray | None = None
+        self._arm_ref = np.zeros(10)  # the servo reference model's state (arm_preview_step), invalid until set
+        self._arm_ahead = np.zeros(9)
         self._u_cmd = np.zeros(5)
         assert N_LINKS == 3
 
@@ -179,12 +189,19 @@ class FlightControllerCore:
         self._outer_cfg = outer_loop_config_array(outer)  # what the tick reads: rebuilt with the gains
         self._adapt.set_k_bounds(k_min, k_max)
 
+    def set_arm_plan(self, plan: np.ndarray | None) -> None:
+        """The arm's commanded joint trajectory (arm_preview plan rows in sim time), which INDI_ARM_FF = 2 previews:
+        the scenario's arm plan, or `arm_preview.hold_plan(target)` after an arm-joint command."""
+        self._arm_plan = None if plan is None else np.ascontiguousarray(plan, dtype=np.float64)
+        self._arm_ref[9] = 0.0  # the reference model starts again from the measured joints
+
     def reset(self) -> None:
         """Forget filter and estimator state (e.g. on arming); the start delay counts again."""
         self._indi.reset()
         self._adapt.reset()
         self._fst[:] = 0.0
         self._hdc_f = None
+        self._arm_ref[9] = 0.0
         self._indi_saturated = False
         self._u_cmd_ok = False
 
@@ -245,13 +262,22 @@ class FlightControllerCore:
             am = acc_m.tolist()
             sf_x, sf_z = am[3], am[4]
         ff_q = 0.0
-        if cfg.indi.arm_ff:
+        arm_ff = cfg.indi.arm_ff
+        if arm_ff:
             # The INDI feeds back the low-passed Q-dot, which carries the arm's reaction -h'/I_yy with the filter's
             # lag; the part of h' the filter has not passed yet is fed forward: Delta Q-dot += (h' - h'_f) / I_yy
             # (pitch row of G_C U = G_I Acc + [0, h', 0, 0, 0], adaptive_law.py), with I_yy = G_hat_I[1, 1].
             hdc = fo.item(_FO_ARM_HDC)
             hf = hdc if self._hdc_f is None else self._hdc_f + self._ff_alpha * (hdc - self._hdc_f)
             self._hdc_f = hf
+            plan = self._arm_plan
+            if arm_ff == 2 and plan is not None:
+                # The INDI delivers I_yy v + LPF(h') after the actuators' lag; commanding I_yy v + h'(t + lead) instead
+                # has the counter-moment there when the arm's reaction is (arm_preview.py; G_C U = G_I Acc + h' e_M).
+                pv = cfg.indi.arm_preview
+                hdc = arm_preview_step(plan, s.t_s, cfg.dt_s, pv.lead_s, fo[_FO_QEST], sens[_IN_JRATE:_IN_JRATE + 3],
+                                       1.0 / pv.servo_hz, pv.a_max_rad_s2, pv.v_max_rad_s, m_obj_est, model.geometry,
+                                       self._arm_ref, self._arm_ahead)
             ff_q = (hdc - hf) / gi_hat.item(6)
         if engaged:
             sl = sens.tolist()
@@ -325,6 +351,9 @@ def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: i
                       joint_rate_rad_s=(0.1, 0.0, -0.1))
         _, st = core.step(s, sp, engaged=i > 0)
     assert st is not None
+    # INDI_ARM_FF = 2's preview kernel (runs only when selected; loaded here so selecting it does not stall a tick)
+    arm_preview_step(hold_plan((0.1, 0.0, -0.1)), 0.0, cfg.dt_s, 0.05, np.zeros(3), np.zeros(3), 1e-3, 42.0, 4.0, 0.0,
+                     core._model.geometry, np.zeros(10), np.zeros(9))
     # the attitude kernels Python code calls directly (rotation.py: telemetry, the plant's truth)
     q = rotation.euler_to_quat(0.1, 0.2, 0.3)
     rotation.quat_to_euler(rotation.quat_mul(q, q))

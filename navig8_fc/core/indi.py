@@ -26,6 +26,7 @@ import numpy as np
 
 from navig8_fc.core import _kernels as _k
 from navig8_fc.core.allocation import ALLOC_WLS, AllocationConfig, indi_step_wls
+from navig8_fc.core.arm_preview import ArmPreviewConfig
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.vehicle import VehicleConfig
 
@@ -56,8 +57,10 @@ class IndiConfig:
     lpf_tau_s: float
     limits: ActuatorLimits
     alloc: AllocationConfig = AllocationConfig()  # INDI_ALLOC and its weights (default: the paper's scaling)
-    # INDI_ARM_FF: the arm's reaction not yet through the filter fed forward (FlightControllerCore applies it)
-    arm_ff: bool = False
+    # INDI_ARM_FF (FlightControllerCore applies it): 0 none (the paper), 1 the measured arm reaction not yet through
+    # the filter, 2 the reaction predicted INDI_ARM_LEAD ahead from the arm's commanded trajectory (arm_preview.py)
+    arm_ff: int = 0
+    arm_preview: ArmPreviewConfig = ArmPreviewConfig()
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,16 @@ SETPOINT_CHANNELS = ("x_ned_m", "y_ned_m", "z_ned_m", "pitch_deg", "yaw_deg")
 
 
 @dataclass(frozen=True)
+class ArmSegment:
+    """Joint target moving linearly from q_start at t0 to q_end at t1 (t1 == t0: a step to q_end)."""
+
+    t0_s: float
+    t1_s: float
+    q_start_rad: Vec3
+    q_end_rad: Vec3
+
+
+@dataclass(frozen=True)
 class FlightScript:
     """What the flight controller flies in a scenario: the setpoint at each time, armed in the air or not."""
 
@@ -38,6 +48,9 @@ class FlightScript:
     starts_armed_in_air: bool
     setpoint0: Setpoint
     steps: tuple[tuple[float, str, float], ...]  # (t_s, channel, value in SI units), sorted by time
+    # the arm's commanded joint targets (the scenario's `arm` key, sim time): the bridge's servo follows them, and
+    # the FC's arm preview (INDI_ARM_FF = 2) predicts the arm's reaction from them
+    arm_plan: tuple[ArmSegment, ...] = ()
 
     @property
     def scripted(self) -> bool:
@@ -103,13 +116,48 @@ def parse_flight_script(d: dict[str, Any]) -> FlightScript:
         if unknown:
             raise ValueError(f"unknown setpoint channels {sorted(unknown)}")
     steps.sort(key=lambda s: s[0])
+    arm = d.get("arm", {"kind": "hold"})
+    q0 = vec3(ini.get("joint_pos_deg", [0.0, 0.0, 0.0]), deg=True)
     return FlightScript(
         name=str(d["name"]),
         duration_s=float(d["duration_s"]),
         starts_armed_in_air=bool(d.get("armed", True)),
         setpoint0=setpoint0,
         steps=tuple(steps),
+        arm_plan=arm_segments(str(arm["kind"]), arm, q0, float(d["duration_s"])),
     )
+
+
+def arm_segments(kind: str, arm: dict[str, Any], q0: Vec3, duration_s: float) -> tuple[ArmSegment, ...]:
+    """The arm's commanded joint targets from a scenario's `arm` key (kinds hold, steps, eq26)."""
+    if kind == "hold":
+        q = vec3(arm["q_deg"], deg=True) if "q_deg" in arm else q0
+        return (ArmSegment(0.0, 0.0, q, q),)
+    if kind == "steps":
+        segs = [ArmSegment(0.0, 0.0, q0, q0)]
+        for st in arm["steps"]:
+            q = vec3(st["q_deg"], deg=True)
+            t = float(st["t_s"])
+            segs.append(ArmSegment(t, t, segs[-1].q_end_rad, q))
+        return tuple(segs)
+    if kind == "eq26":
+        # Eq. 26 as read in notes §6.2: q_cmd = A [1 + sum_k (-1)^k 2 u(t - T k)] = A (-1)^floor(t/T),
+        # a +-A square wave starting at +A (Pose 1). The paper's "gradually" from q = 0 to Pose 1 is a
+        # linear ramp of the command over [0, ramp_s] (ramp_s <= T), then Eq. 26 from there on.
+        a = math.radians(float(arm["amplitude_deg"]))
+        period = float(arm["half_period_s"])
+        ramp = float(arm.get("ramp_s", 0.0))
+        if not 0.0 <= ramp <= period:
+            raise ValueError("eq26 ramp_s must lie in [0, half_period_s]")
+        pose1 = (a, a, a)
+        segs = [ArmSegment(0.0, ramp, q0, pose1)]
+        k = 1
+        while k * period <= duration_s + 1e-9:
+            v = a if k % 2 == 0 else -a
+            segs.append(ArmSegment(k * period, k * period, segs[-1].q_end_rad, (v, v, v)))
+            k += 1
+        return tuple(segs)  # after duration_s the last target holds
+    raise ValueError(f"unknown arm command kind {kind!r} (hold, steps, eq26)")
 
 
 def read_scenario_file(name_or_path: str | Path) -> dict[str, Any]:

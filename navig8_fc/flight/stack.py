@@ -35,6 +35,7 @@ from __future__ import annotations
 import math
 
 from navig8_fc.core import stability
+from navig8_fc.core.arm_preview import hold_plan, plan_rows
 from navig8_fc.core.controller import (
     MOTORS_OFF,
     ActuatorCommand,
@@ -122,6 +123,10 @@ class FlightStack:
         self._core: FlightControllerCore | None = None
         self._cfg_generation = -1
         self.lambda_crit = math.nan
+        # the arm's commanded trajectory the core's arm preview reads (INDI_ARM_FF = 2): the script's, then held
+        # targets of arm-joint commands
+        self._arm_plan = (plan_rows(tuple((g.t0_s, g.t1_s, g.q_start_rad, g.q_end_rad) for g in script.arm_plan))
+                          if script is not None and script.arm_plan else None)
         self.reconfigure()
         self._modes = ModeManager(mode_config or ModeConfig(), script.mission() if script is not None else None)
         self._modes.set_position_gain(self.core.config.outer.pos_k)
@@ -167,6 +172,7 @@ class FlightStack:
         if (core is None or cfg.indi != core.config.indi or cfg.ckf != core.config.ckf
                 or cfg.acc_ref != core.config.acc_ref or cfg.arm_wrench != core.config.arm_wrench):
             self._core = FlightControllerCore(self.vehicle, cfg)
+            self._core.set_arm_plan(self._arm_plan)
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
         if hasattr(self, "_modes"):  # offboard velocity feed-forward goes through the position gain
@@ -417,6 +423,8 @@ class FlightStack:
             return Verdict(False, f"arm joints: targets beyond +-{math.degrees(lim):.0f} deg")
         target = (float(q_rad[0]), float(q_rad[1]), float(q_rad[2]))
         self._queue(ArmRequest(joint_target_rad=target))
+        self._arm_plan = hold_plan(target)
+        self.core.set_arm_plan(self._arm_plan)
         s = self._sensors
         if s is not None:  # tracked once the joints are measured (a long-running command)
             n = self._arm_task.task_id + 1 if self._arm_task is not None else 1

@@ -165,3 +165,45 @@ def test_reversal_bound_is_sensible() -> None:
     weak = au.reversal_bound(au.with_tail_thrust(cfg, 60.0), a, -a, 2.0, 4.0, 42.0, fx_free=False, grid=5)
     assert free.min_peak_pitch_rad <= held.min_peak_pitch_rad + 1e-9 <= weak.min_peak_pitch_rad + 2e-9
     assert 100.0 < np.max(np.abs(held.disturbance_nm)) < 150.0
+
+
+@pytest.mark.parametrize("zeta", [1.0, 0.7, 1.5])
+def test_lag_matrix_step_response_against_scipy(zeta: float) -> None:
+    """A unit command held from step 0 is delivered as the second-order step response at each step's middle."""
+    from scipy import signal
+
+    wn, dt, n = 120.0, 0.002, 200
+    lag = au.lag_matrix(dt, n, wn, zeta)
+    t_half = np.arange(2 * n + 1) * 0.5 * dt  # scipy wants an even grid; the step middles are its odd points
+    _, ref = signal.step(signal.lti([wn * wn], [1.0, 2 * zeta * wn, wn * wn]), T=t_half)
+    assert lag @ np.ones(n) == pytest.approx(ref[1::2], abs=1e-6)
+    assert np.allclose(np.triu(lag, 1), 0.0)  # causal: nothing is delivered before it is commanded
+
+
+def test_lag_bound_limits_and_order() -> None:
+    """The closed-form case above: a very fast actuator gives the lag-free peak; a causal command (held at trim
+    for a while after the disturbance starts) cannot do better than one with a preview, nor than no lag."""
+    inertia, d, u, big_t, dt = 0.8, 100.0, 40.0, 0.2, 0.001
+    t = np.arange(0, 1.0 + 1e-12, dt)
+    h = d * np.minimum(t, big_t)
+    args = (t, np.full_like(t, inertia), h, np.full_like(t, u), np.full_like(t, -u))
+    free, _, _ = au.min_pitch_excursion(*args)
+    fast, _, _ = au.min_pitch_excursion(*args, lag=au.lag_matrix(dt, len(t) - 1, 1e5, 1.0))
+    slow, _, _ = au.min_pitch_excursion(*args, lag=au.lag_matrix(dt, len(t) - 1, 120.0, 1.0))
+    causal, _, mom = au.min_pitch_excursion(*args, lag=au.lag_matrix(dt, len(t) - 1, 120.0, 1.0), hold_until=10)
+    assert fast == pytest.approx(free, rel=2e-3)
+    assert free < slow < causal
+    assert np.all(mom[:10] == 0.0)
+    # a delay of the command by tau = 10 ms costs at least the excursion the uncountered disturbance builds in it
+    assert causal - free > 0.5 * d * (0.01**2) / inertia
+
+
+def test_reversal_bound_with_lag_brackets_the_lag_free_one() -> None:
+    cfg = VehicleConfig.load()
+    a = math.radians(20.0)
+    kw = dict(fx_free=True, grid=5, dt_s=0.004)
+    free = au.reversal_bound(cfg, -a, a, 2.0, 4.0, 42.0, **kw)
+    causal = au.reversal_bound(cfg, -a, a, 2.0, 4.0, 42.0, actuator=(120.0, 1.0), causal_delay_s=0.01, pre_s=0.2, **kw)
+    preview = au.reversal_bound(cfg, -a, a, 2.0, 4.0, 42.0, actuator=(120.0, 1.0), pre_s=0.2, **kw)
+    assert free.min_peak_pitch_rad < causal.min_peak_pitch_rad
+    assert preview.min_peak_pitch_rad < causal.min_peak_pitch_rad

@@ -1,0 +1,156 @@
+"""Arm preview (INDI_ARM_FF = 2, issue 10): the arm's reaction predicted from its commanded trajectory.
+
+The arm reversal's reaction (≈ 60 rad/s² of pitch) arrives within one control tick, while the actuators (second
+order, ωn = 120 rad/s, the tail reversing through zero speed) need ≈ 90 ms to deliver the counter-moment; a
+feed-forward of the *measured* reaction (INDI_ARM_FF = 1) cannot beat that lag. But the FC knows what the arm was
+told to do: the scenario's arm plan (joint targets in sim time, which the joint servo follows) or the last
+arm-joint command. So the FC runs its own model of the joint servo forward from the measured joint state over
+a lead time (INDI_ARM_LEAD, about the actuators' lag) and feeds forward the reaction the arm will produce then,
+as a preview (reference-model) feed-forward does.
+
+The servo model is the FC's own (parameters ARM_SERVO_VMAX, ARM_SERVO_AMAX, ARM_SERVO_HZ: the arm's data sheet,
+not the plant's truth): a time-optimal rate- and acceleration-limited tracker that follows the braking curve
+v = sign(e)·sqrt(2 a_max |e|), clipped to ±v_max, with the acceleration clipped to ±a_max (bang-coast-bang).
+The reaction is ḣ of `_kernels.mass_props` (MP.HDC: minus the arm's reaction pitch moment about the composite
+CoM, the term CKF_ARM_WRENCH and INDI_ARM_FF = 1 use) at the predicted (q, q̇, q̈) with the estimated object.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from navig8_fc.core import _kernels as _k
+
+_MP_HDC = int(_k.MP.HDC)
+_N_MP = int(_k.MP.SIZE)
+
+# A plan row: [t0_s, t1_s, q_start (3), q_end (3)]: the target moves linearly from q_start at t0 to q_end at t1
+# (t1 == t0: a step); before the first row the first q_start holds, after a row's t1 its q_end until the next row.
+PLAN_COLS = 8
+# A joint within these of its target is taken as at rest on it: the joint-angle estimate's residual noise (σ ≈ 0.006
+# rad, docs/model.md "Joint angles") would otherwise read as a target error the model's bang-bang law turns into
+# ±a_max, i.e. a reaction the arm never produces (5σ of the angle estimate and of the 0.01 rad/s rate noise).
+REST_TOL_RAD = 0.03
+REST_TOL_RAD_S = 0.05
+RESYNC_RAD = 0.2  # the reference model is put back on the measured joints when it is this far off
+
+
+@njit(cache=True)
+def plan_target(plan: np.ndarray, t_s: float, j: int) -> float:
+    """Joint j's commanded angle (rad) at sim time t_s from the plan rows (linear scan: plans are short)."""
+    n = plan.shape[0]
+    if t_s < plan[0, 0]:
+        return plan[0, 2 + j]
+    i = 0
+    while i + 1 < n and plan[i + 1, 0] <= t_s:
+        i += 1
+    t0, t1 = plan[i, 0], plan[i, 1]
+    if t_s >= t1:
+        return plan[i, 5 + j]
+    return plan[i, 2 + j] + (t_s - t0) / (t1 - t0) * (plan[i, 5 + j] - plan[i, 2 + j])
+
+
+@njit(cache=True)
+def servo_model_accel(e: float, v: float, h: float, amax: float, vmax: float) -> float:
+    """The FC's joint-servo model, the arm data sheet's time-optimal tracker: the acceleration over the next period
+    h that puts (e, v) on the braking curve v = sign(e) sqrt(2 a_max |e|) (clipped to ±v_max) at the period's end,
+    itself clipped to ±a_max (so bang-coast-bang); on arrival, when two periods can land on (e, v) = (0, 0) within
+    the limits, the first of those two accelerations (so it does not chatter)."""
+    a0 = (e - 1.5 * v * h) / (h * h)
+    if abs(a0) <= amax and abs(v / h + a0) <= amax and abs(v + a0 * h) <= vmax:
+        return a0
+    # the velocity v1 at the end of the period that lands on the curve there: with e1 = e - (v + v1) h / 2,
+    # v1 = sqrt(2 a_max e1) solves v1^2 + a_max h v1 - 2 a_max (e - v h / 2) = 0 (for e1 > 0; mirrored below)
+    s_e = e - 0.5 * v * h
+    ah = amax * h
+    v1 = 0.5 * (math.sqrt(ah * ah + 8.0 * amax * abs(s_e)) - ah)
+    if s_e < 0.0:
+        v1 = -v1
+    v1 = min(max(v1, -vmax), vmax)
+    a = (v1 - v) / h
+    return min(max(a, -amax), amax)
+
+
+@njit(cache=True)
+def servo_model_run(plan: np.ndarray, t_s: float, n: int, h_s: float, amax: float, vmax: float,
+                    state: np.ndarray) -> None:
+    """Run the servo model n periods h_s from state (q (3), q̇ (3), q̈ (3)) at sim time t_s toward the plan's
+    targets (exact constant-acceleration steps); afterwards state[6:9] holds the acceleration of the period that
+    starts at t_s + n h_s."""
+    t = t_s
+    for k in range(n + 1):
+        for j in range(3):
+            a = servo_model_accel(plan_target(plan, t, j) - state[j], state[3 + j], h_s, amax, vmax)
+            state[6 + j] = a
+            if k < n:
+                state[j] += state[3 + j] * h_s + 0.5 * a * h_s * h_s
+                state[3 + j] += a * h_s
+        t += h_s
+
+
+@njit(cache=True)
+def arm_preview_step(plan: np.ndarray, t_s: float, dt_s: float, lead_s: float, q: np.ndarray, qd: np.ndarray,
+                     h_s: float, amax: float, vmax: float, object_mass_kg: float, geo: np.ndarray, ref: np.ndarray,
+                     ahead: np.ndarray) -> float:
+    """One control tick of the preview: ḣ (MP.HDC) the arm will produce at t_s + lead_s.
+
+    ref (10,) is the reference model's state, [q (3), q̇ (3), q̈ (3), valid], at t_s − dt_s: the servo model run
+    open loop on the plan (the measured angle's noise, σ ≈ 0.006 rad, would move the predicted braking point by
+    as much as the braking distance near the end of a move). It is advanced to t_s and put back on the
+    measurement (q the joint-angle estimate, q̇ the measured rate) when it is not yet valid or a joint is more
+    than RESYNC_RAD away (the arm did not do what it was told); a measured joint at rest within REST_TOL_* of its
+    target starts at rest on the target. ahead (9,) receives the predicted q, q̇, q̈ at t_s + lead_s."""
+    if ref[9] > 0.5:
+        servo_model_run(plan, t_s - dt_s, int(dt_s / h_s + 0.5), h_s, amax, vmax, ref)
+        for j in range(3):
+            if abs(ref[j] - q[j]) > RESYNC_RAD:
+                ref[9] = 0.0
+    if ref[9] <= 0.5:
+        for j in range(3):
+            tgt = plan_target(plan, t_s, j)
+            if abs(tgt - q[j]) <= REST_TOL_RAD and abs(qd[j]) <= REST_TOL_RAD_S:
+                ref[j] = tgt
+                ref[3 + j] = 0.0
+            else:
+                ref[j] = q[j]
+                ref[3 + j] = qd[j]
+        ref[9] = 1.0
+    for i in range(9):
+        ahead[i] = ref[i]
+    servo_model_run(plan, t_s, int(lead_s / h_s + 0.5), h_s, amax, vmax, ahead)
+    inertia = np.empty((3, 3))
+    rate = np.empty((3, 3))
+    mp = np.empty(_N_MP)
+    _k.mass_props(ahead[0:3], ahead[3:6], ahead[6:9], object_mass_kg, geo, inertia, rate, mp)
+    return mp[_MP_HDC]
+
+
+def plan_rows(segments: tuple[tuple[float, float, tuple[float, float, float], tuple[float, float, float]], ...]
+              ) -> np.ndarray:
+    """Plan rows (PLAN_COLS) from (t0_s, t1_s, q_start_rad, q_end_rad) segments sorted by t0."""
+    if not segments:
+        raise ValueError("an arm plan needs at least one segment")
+    rows = np.array([[t0, t1, *qa, *qb] for t0, t1, qa, qb in segments], dtype=np.float64)
+    if rows.shape[1] != PLAN_COLS or not np.all(np.isfinite(rows)) or np.any(rows[:, 1] < rows[:, 0]) \
+            or np.any(np.diff(rows[:, 0]) < 0.0):
+        raise ValueError("arm plan segments must be finite, sorted by t0, with t1 >= t0")
+    return rows
+
+
+def hold_plan(q_rad: tuple[float, float, float]) -> np.ndarray:
+    """A plan that holds q_rad from now on (an arm-joint command replaces the scenario's plan)."""
+    return plan_rows(((0.0, 0.0, q_rad, q_rad),))
+
+
+@dataclass(frozen=True)
+class ArmPreviewConfig:
+    """INDI_ARM_FF = 2's lead time and the FC's joint-servo model (module docstring)."""
+
+    lead_s: float = 0.06  # INDI_ARM_LEAD
+    servo_hz: float = 1000.0  # ARM_SERVO_HZ
+    v_max_rad_s: float = 4.0  # ARM_SERVO_VMAX
+    a_max_rad_s2: float = 42.0  # ARM_SERVO_AMAX
