@@ -291,6 +291,12 @@ class FcTarget:
             pytest.skip(f"pointed at an FC elsewhere: {why}")
         return self.local
 
+    def mavsdk_address(self, which: str = "api") -> str:
+        """The connection string as MAVSDK's system_address (`udpin://HOST:PORT`, `tcpout://`, `serial://DEV:BAUD`)."""
+        scheme, _, rest = (self.api if which == "api" else self.gcs).partition(":")
+        scheme = {"udp": "udpin", "tcp": "tcpout", "tcpin": "tcpin", "serial": "serial"}.get(scheme, scheme)
+        return f"{scheme}://{rest}"
+
     @contextmanager
     def session(self, which: str = "gcs", source_system: int = 255, timeout_s: float = 30.0) -> Iterator[Any]:
         """connect(), the FC's HEARTBEAT awaited (target set), closed at the end."""
@@ -321,19 +327,20 @@ def wait_fc_heartbeat(conn: Any, sysid: int, timeout_s: float = 30.0) -> Any:
 
 @contextmanager
 def fc_target(config: Any, tmp: Path, scenario: str = "ground", speed: float = 1.0,
-              fc_args: list[str] | None = None) -> Iterator[FcTarget]:
+              fc_args: list[str] | None = None, start_bridge: bool = True) -> Iterator[FcTarget]:
     """From --fc-gcs/--fc-api/--bridge/--fc-sysid (tests/sitl/conftest.py): that FC; unset: the local pair on free
-    ports (scenario, speed, fc_args: for the local pair only), its GCS and API links reached as udpin: where the
-    FC sends. An FC elsewhere is expected on the ground, disarmed, with its default parameters: what each module
-    changes it restores."""
+    ports (scenario, speed, fc_args, start_bridge: for the local pair only), its GCS and API links reached as
+    udpin: where the FC sends. An FC elsewhere is expected on the ground, disarmed, with its default parameters:
+    what each module changes it restores."""
     gcs = config.getoption("--fc-gcs", default=None)
     if gcs is not None:
         api = config.getoption("--fc-api", default=None) or gcs
         yield FcTarget(gcs, api, config.getoption("--bridge", default=None) or "external",
                        config.getoption("--fc-sysid", default=1))
         return
-    with sitl(tmp, scenario=scenario, speed=speed, fc_args=fc_args) as run:
-        yield FcTarget(f"udpin:127.0.0.1:{run.gcs_port}", f"udpin:127.0.0.1:{run.api_port}", "local", 1, run)
+    with sitl(tmp, scenario=scenario, speed=speed, fc_args=fc_args, start_bridge=start_bridge) as run:
+        yield FcTarget(f"udpin:127.0.0.1:{run.gcs_port}", f"udpin:127.0.0.1:{run.api_port}",
+                       "local" if start_bridge else "none", 1, run)
 
 
 @contextmanager

@@ -14,6 +14,8 @@ import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 from sitl_helpers import FcTarget, wait_for
 
+from navig8_fc.modes import px4_custom_mode
+from navig8_fc.modes.px4 import Px4AutoSubMode, Px4MainMode
 from navig8_tools.logdata import load_run
 
 M = mavlink2
@@ -48,7 +50,7 @@ def _take_off(gcs) -> None:
         wait_for(gcs, "HEARTBEAT", 0.5)
     assert _command(gcs, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 2.0).result in (
         M.MAV_RESULT_ACCEPTED, M.MAV_RESULT_IN_PROGRESS)
-    hold = 0x04030000  # AUTO.LOITER (Hold)
+    hold = px4_custom_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER)
     assert wait_for(gcs, "HEARTBEAT", 40.0, _fc_hb(lambda m: m.custom_mode == hold)) is not None
 
 

@@ -19,6 +19,8 @@ from sitl_helpers import FcTarget, gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Cmd, Frame, MissionItem
+from navig8_fc.modes import px4_custom_mode
+from navig8_fc.modes.px4 import Px4AutoSubMode, Px4MainMode
 from navig8_fc.shell.mcap_log import read_mcap
 from navig8_tools.mission import download, upload
 
@@ -128,7 +130,8 @@ def test_eight_item_plan_flown_reached_in_order_lands_at_home_and_disarms(fc: Fc
                 gcs.mav.mission_clear_all_send(gcs.target_system, 1, 0)
                 ack = wait_for(gcs, "MISSION_ACK", 5.0)
                 assert ack is not None and ack.type == M.MAV_MISSION_ACCEPTED
-            gcs.mav.set_mode_send(gcs.target_system, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 0x04030000)  # Hold
+            gcs.mav.set_mode_send(gcs.target_system, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                                  px4_custom_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER))  # Hold
     if fc.local is None:
         return  # the rest reads the local log
     fc.local.stop()
