@@ -34,8 +34,8 @@ test: $(STAMP)
 # The MAVLink-only SITL tests against an FC running elsewhere, by connection string (docs/hil.md); without FC the
 # local pairs (one per module); `python tests/sitl/hil_pair.py` runs it against a pair started outside pytest:
 #   make test-hil FC=udpin:0.0.0.0:14550 FC_API=udpin:0.0.0.0:14540 BRIDGE=tcpin:0.0.0.0:4560   (BRIDGE=none: no sim)
-FC ?=
-FC_GCS ?= $(FC)
+# FC is also make's built-in Fortran compiler (f77): take it only when given on the command line or in the environment.
+FC_GCS ?= $(if $(filter command line environment,$(origin FC)),$(FC))
 # The MAVLink-only SITL tests (docs/hil.md, "A test suite for any FC"); pointed elsewhere, their local-only tests skip.
 HIL_TESTS := tests/sitl/test_hil_interop.py tests/sitl/test_sitl_gcs.py tests/sitl/test_sitl_set_mode.py \
 	tests/sitl/test_sitl_params_interop.py tests/sitl/test_sitl_param_metadata.py tests/sitl/test_sitl_link_health.py \
