@@ -31,13 +31,20 @@ test: $(STAMP)
 	$(PY) -m pytest -q -m 'not slow' -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: fast lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
 	$(PY) -m pytest -q -m slow; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; exit $$rc
 
-# The interop tests against an FC running elsewhere, by connection string (docs/hil.md); without FC the local pair:
+# The MAVLink-only SITL tests against an FC running elsewhere, by connection string (docs/hil.md); without FC the
+# local pairs (one per module); `python tests/sitl/hil_pair.py` runs it against a pair started outside pytest:
 #   make test-hil FC=udpin:0.0.0.0:14550 FC_API=udpin:0.0.0.0:14540 BRIDGE=tcpin:0.0.0.0:4560   (BRIDGE=none: no sim)
-FC ?=
-FC_GCS ?= $(FC)
+# FC is also make's built-in Fortran compiler (f77): take it only when given on the command line or in the environment.
+FC_GCS ?= $(if $(filter command line environment,$(origin FC)),$(FC))
+# The MAVLink-only SITL tests (docs/hil.md, "A test suite for any FC"); pointed elsewhere, their local-only tests skip.
+HIL_TESTS := tests/sitl/test_hil_interop.py tests/sitl/test_sitl_gcs.py tests/sitl/test_sitl_set_mode.py \
+	tests/sitl/test_sitl_params_interop.py tests/sitl/test_sitl_param_metadata.py tests/sitl/test_sitl_link_health.py \
+	tests/sitl/test_sitl_mission.py tests/sitl/test_sitl_offboard.py tests/sitl/test_sitl_arm_gripper.py \
+	tests/sitl/test_sitl_mavsdk.py tests/sitl/test_sitl_mavsdk_guided.py tests/sitl/test_sitl_failsafe.py
 test-hil: $(STAMP)
-	$(PY) -m pytest -q tests/sitl/test_hil_interop.py $(if $(FC_GCS),--fc-gcs=$(FC_GCS)) \
-		$(if $(FC_API),--fc-api=$(FC_API)) $(if $(BRIDGE),--bridge=$(BRIDGE)) $(if $(FC_SYSID),--fc-sysid=$(FC_SYSID))
+	$(PY) -m pytest -q -rs $(HIL_TESTS) $(if $(FC_GCS),--fc-gcs=$(FC_GCS)) \
+		$(if $(FC_API),--fc-api=$(FC_API)) $(if $(BRIDGE),--bridge=$(BRIDGE)) $(if $(FC_SYSID),--fc-sysid=$(FC_SYSID)) \
+		$(PYTEST_ARGS)
 
 bench: $(STAMP)
 	$(VENV)/bin/navig8-bench

@@ -14,10 +14,24 @@ import pytest
 _HERE = Path(__file__).resolve().parent
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    config.addinivalue_line("markers", "local_only(reason): needs the local pair (its log, its processes, its "
+                            "ports); skipped with the reason when pointed at an FC elsewhere (--fc-gcs)")
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Every test here is slow. Pointed at an FC elsewhere (--fc-gcs, `make test-hil`), only the tests on the
+    `fc` fixture (MAVLink only, docs/hil.md) run; the rest start their own processes and skip, with the reason
+    their local_only marker gives."""
+    elsewhere = config.getoption("--fc-gcs", default=None) is not None
     for item in items:
-        if _HERE in Path(str(item.fspath)).resolve().parents:
-            item.add_marker(pytest.mark.slow)
+        if _HERE not in Path(str(item.fspath)).resolve().parents:
+            continue
+        item.add_marker(pytest.mark.slow)
+        if elsewhere and "fc" not in getattr(item, "fixturenames", ()):
+            mark = item.get_closest_marker("local_only")
+            why = mark.args[0] if mark is not None and mark.args else "starts its own local processes"
+            item.add_marker(pytest.mark.skip(reason=f"needs the local pair: {why}"))
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -31,3 +45,15 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                 help="the simulator behind the FC (free text for the report, e.g. its connection string); 'none': "
                      "no simulator (a board on the bench): the flight tests skip")
     g.addoption("--fc-sysid", type=int, default=1, help="the FC's system id (default 1)")
+
+
+@pytest.fixture(scope="module")
+def fc(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory):  # noqa: ANN201
+    """The FC a module's MAVLink-only tests talk to (sitl_helpers.FcTarget): --fc-gcs/--fc-api/--bridge when given
+    (`make test-hil`), else one local pair for the whole module, started as the module's FC_LOCAL dict says
+    (scenario, speed, fc_args; default: ground at 1x). Tests reach it with fc.session() and check the local log
+    only through fc.require_local(...)."""
+    from sitl_helpers import fc_target
+
+    with fc_target(request.config, tmp_path_factory.mktemp("fc"), **getattr(request.module, "FC_LOCAL", {})) as t:
+        yield t

@@ -275,6 +275,38 @@ class FcTarget:
     def flies(self) -> bool:
         return self.bridge != "none"
 
+    def require_flight(self) -> None:
+        """Skip a test that flies when no simulator is behind the FC (--bridge=none)."""
+        if not self.flies:
+            import pytest
+
+            pytest.skip("--bridge=none: no simulator behind the FC")
+
+    def require_local(self, why: str) -> SitlRun:
+        """The local pair; skips (with why) when pointed at an FC elsewhere: its log, its processes, its ports are
+        not here."""
+        if self.local is None:
+            import pytest
+
+            pytest.skip(f"pointed at an FC elsewhere: {why}")
+        return self.local
+
+    def mavsdk_address(self, which: str = "api") -> str:
+        """The connection string as MAVSDK's system_address (`udpin://HOST:PORT`, `tcpout://`, `serial://DEV:BAUD`)."""
+        scheme, _, rest = (self.api if which == "api" else self.gcs).partition(":")
+        scheme = {"udp": "udpin", "tcp": "tcpout", "tcpin": "tcpin", "serial": "serial"}.get(scheme, scheme)
+        return f"{scheme}://{rest}"
+
+    @contextmanager
+    def session(self, which: str = "gcs", source_system: int = 255, timeout_s: float = 30.0) -> Iterator[Any]:
+        """connect(), the FC's HEARTBEAT awaited (target set), closed at the end."""
+        conn = self.connect(which, source_system)
+        try:
+            wait_fc_heartbeat(conn, self.sysid, timeout_s)
+            yield conn
+        finally:
+            conn.close()
+
     def connect(self, which: str = "gcs", source_system: int = 255) -> Any:
         """A pymavlink client on the GCS or API connection string. It sends one SYSTEM_TIME at once, so an FC that
         answers only peers who talked (udpout:) knows where to send; not a HEARTBEAT: one heartbeat would arm the
@@ -285,18 +317,65 @@ class FcTarget:
         return conn
 
 
+def wait_fc_heartbeat(conn: Any, sysid: int, timeout_s: float = 30.0) -> Any:
+    """The FC's HEARTBEAT (sysid, compid 1) within timeout_s (asserted); sets the connection's target."""
+    hb = wait_for(conn, "HEARTBEAT", timeout_s, lambda m: m.get_srcComponent() == 1 and m.get_srcSystem() == sysid)
+    assert hb is not None, f"no HEARTBEAT from the FC (sysid {sysid}, compid 1)"
+    conn.target_system, conn.target_component = sysid, 1
+    return hb
+
+
 @contextmanager
-def fc_target(config: Any, tmp: Path) -> Iterator[FcTarget]:
+def fc_target(config: Any, tmp: Path, scenario: str = "ground", speed: float = 1.0,
+              fc_args: list[str] | None = None, start_bridge: bool = True) -> Iterator[FcTarget]:
     """From --fc-gcs/--fc-api/--bridge/--fc-sysid (tests/sitl/conftest.py): that FC; unset: the local pair on free
-    ports, its GCS and API links reached as udpin: where the FC sends."""
+    ports (scenario, speed, fc_args, start_bridge: for the local pair only), its GCS and API links reached as
+    udpin: where the FC sends. An FC elsewhere is expected on the ground, disarmed, with its default parameters:
+    what each module changes it restores."""
     gcs = config.getoption("--fc-gcs", default=None)
     if gcs is not None:
         api = config.getoption("--fc-api", default=None) or gcs
         yield FcTarget(gcs, api, config.getoption("--bridge", default=None) or "external",
                        config.getoption("--fc-sysid", default=1))
         return
-    with sitl(tmp, scenario="ground", speed=1.0) as run:
-        yield FcTarget(f"udpin:127.0.0.1:{run.gcs_port}", f"udpin:127.0.0.1:{run.api_port}", "local", 1, run)
+    with sitl(tmp, scenario=scenario, speed=speed, fc_args=fc_args, start_bridge=start_bridge) as run:
+        yield FcTarget(f"udpin:127.0.0.1:{run.gcs_port}", f"udpin:127.0.0.1:{run.api_port}",
+                       "local" if start_bridge else "none", 1, run)
+
+
+@contextmanager
+def external_pair(tmp: Path, speed: float = 1.0, scenario: str = "ground") -> Iterator[dict[str, str]]:
+    """navig8-bridge and navig8-fc as plain processes, wired as a companion computer would be: the bridge listens
+    on TCP as PX4's simulator does (`--link tcpin:`), the FC connects (`--sim-link tcp:`), the FC serves its GCS
+    link on TCP (`--gcs-link tcpin:`) and sends its API link to a UDP port. Yields the pytest options that point
+    the suite at it (fc_gcs, fc_api, bridge); both processes are ended on exit."""
+    (api,) = free_udp_ports(1)
+    br_ports, fc_ports = tmp / "ext-bridge-ports.json", tmp / "ext-fc-ports.json"
+    procs: list[subprocess.Popen] = []
+    try:
+        procs.append(subprocess.Popen(
+            [sys.executable, "-m", "sim_bridge.bridge", "--scenario", scenario, "--speed", str(speed), "--link",
+             "tcpin:127.0.0.1:0", "--ports-file", str(br_ports)],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tmp))
+        bridge = wait_ports_file(br_ports, procs[0])["bridge"]
+        procs.append(subprocess.Popen(
+            [sys.executable, "-m", "navig8_fc.shell.fc_process", "--scenario", scenario, "--sim-link",
+             f"tcp:127.0.0.1:{bridge}", "--gcs-link", "tcpin:127.0.0.1:0", "--api-port", str(api),
+             "--api-bind-port", "0", "--state-dir", str(tmp / "ext-state"), "--log", str(tmp / "ext.mcap"),
+             "--ports-file", str(fc_ports)],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tmp))
+        gcs = wait_ports_file(fc_ports, procs[1])["gcs"]
+        yield {"fc_gcs": f"tcp:127.0.0.1:{gcs}", "fc_api": f"udpin:127.0.0.1:{api}",
+               "bridge": f"tcpin:127.0.0.1:{bridge}"}
+    finally:
+        for p in reversed(procs):
+            if p.poll() is None:
+                p.terminate()
+            try:
+                p.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait(timeout=10)
 
 
 class LossyUdpProxy:

@@ -20,7 +20,7 @@ from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import common as m2
-from sitl_helpers import FcTarget, command, fc_target, mcap_metadata, takeoff_hover_land, wait_for
+from sitl_helpers import FcTarget, command, mcap_metadata, takeoff_hover_land, wait_fc_heartbeat, wait_for
 
 from navig8_fc.mission.plan import Cmd, Frame, MissionItem
 from navig8_tools.mission import download, upload
@@ -33,30 +33,17 @@ PLAN = (
 
 
 @pytest.fixture(scope="module")
-def fc(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Iterator[FcTarget]:
-    with fc_target(request.config, tmp_path_factory.mktemp("hil")) as target:
-        yield target
-
-
-def _heartbeat(conn: Any, sysid: int, timeout_s: float = 30.0) -> Any:
-    hb = wait_for(conn, "HEARTBEAT", timeout_s, lambda m: m.get_srcComponent() == 1 and m.get_srcSystem() == sysid)
-    assert hb is not None, f"no HEARTBEAT from the FC (sysid {sysid}, compid 1)"
-    conn.target_system, conn.target_component = sysid, 1
-    return hb
-
-
-@pytest.fixture(scope="module")
 def gcs(fc: FcTarget) -> Iterator[Any]:
     conn = fc.connect("gcs")
     try:
-        _heartbeat(conn, fc.sysid)
+        wait_fc_heartbeat(conn, fc.sysid)
         yield conn
     finally:
         conn.close()
 
 
 def test_identity_and_capabilities(gcs: Any) -> None:
-    hb = _heartbeat(gcs, gcs.target_system, 5.0)
+    hb = wait_fc_heartbeat(gcs, gcs.target_system, 5.0)
     assert hb.type == m2.MAV_TYPE_TRICOPTER and hb.autopilot in (m2.MAV_AUTOPILOT_GENERIC, m2.MAV_AUTOPILOT_PX4)
     assert command(gcs, m2.MAV_CMD_REQUEST_MESSAGE, m2.MAVLINK_MSG_ID_AUTOPILOT_VERSION).result == \
         m2.MAV_RESULT_ACCEPTED
@@ -70,7 +57,7 @@ def test_identity_and_capabilities(gcs: Any) -> None:
 def test_api_link_answers_too(fc: FcTarget) -> None:
     api = fc.connect("api", source_system=245)
     try:
-        _heartbeat(api, fc.sysid)
+        wait_fc_heartbeat(api, fc.sysid)
         assert command(api, 42424).result == m2.MAV_RESULT_UNSUPPORTED
     finally:
         api.close()
@@ -127,16 +114,14 @@ def test_mission_upload_download_clear(gcs: Any) -> None:
 
 
 def test_takeoff_hover_land(fc: FcTarget, gcs: Any) -> None:
-    if not fc.flies:
-        pytest.skip("--bridge=none: no simulator behind the FC")
+    fc.require_flight()
     err = takeoff_hover_land(gcs)
     assert err["err_z_m"] < 0.3 and err["err_xy_m"] < 0.3, err
 
 
 def test_local_log_records_the_session(fc: FcTarget) -> None:
-    if fc.local is None:
-        pytest.skip("pointed at an FC elsewhere: its log is not here")
-    fc.local.stop()
-    stats = mcap_metadata(fc.local.log, "fc_stats")
+    run = fc.require_local("its log is not here")
+    run.stop()
+    stats = mcap_metadata(run.log, "fc_stats")
     assert int(stats["ticks"]) > 1000
-    assert "gcs" in mcap_metadata(fc.local.log, "link_counters")
+    assert "gcs" in mcap_metadata(run.log, "link_counters")

@@ -1,19 +1,22 @@
-"""A pymavlink ground station against the real two-process SITL over loopback UDP (issue 5 must-show)."""
+"""A pymavlink ground station against the real two-process SITL over loopback UDP (issue 5 must-show).
+
+MAVLink only: runs against any FC by connection string (`make test-hil`, docs/hil.md); the parameter it sets is
+restored and the flight ends landed and disarmed."""
 
 from __future__ import annotations
 
 import math
 import time
-from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import FcTarget, wait_for
 
 from navig8_fc.modes import px4_custom_mode
 from navig8_fc.modes.px4 import Px4AutoSubMode, Px4MainMode
 from navig8_fc.params.registry import ParamRegistry
 
 M = mavlink2
+FC_LOCAL = {"speed": 2.0}  # the local pair (conftest.py `fc`)
 
 
 def _command(gcs, command: int, *params: float, timeout_s: float = 5.0):
@@ -45,12 +48,20 @@ def _wait_state(gcs, pred, timeout_s: float, what: str):
     return m
 
 
-def test_pymavlink_gcs_session(tmp_path: Path) -> None:
+def _read(gcs, name: str) -> float:
+    gcs.mav.param_request_read_send(gcs.target_system, 1, name.encode(), -1)
+    pv = wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == name)
+    assert pv is not None, f"no PARAM_VALUE {name}"
+    return pv.param_value
+
+
+def test_pymavlink_gcs_session(fc: FcTarget) -> None:
     reg = ParamRegistry.from_defaults(check_stability=False)
-    with sitl(tmp_path, scenario="ground", speed=2.0) as run:
-        gcs = gcs_client(run.gcs_port)
+    with fc.session() as gcs:
+        ol_pos_k = _read(gcs, "OL_POS_K")
         try:
-            hb = wait_heartbeat(gcs, 15.0)
+            hb = wait_for(gcs, "HEARTBEAT", 15.0, lambda m: m.get_srcComponent() == 1)
+            assert hb is not None
             assert hb.type == M.MAV_TYPE_TRICOPTER and hb.autopilot == M.MAV_AUTOPILOT_GENERIC
             assert not hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED
             # AUTOPILOT_VERSION on request
@@ -65,9 +76,10 @@ def test_pymavlink_gcs_session(tmp_path: Path) -> None:
             params = _download_params(gcs)
             assert set(params) == {d.name for d in reg.definitions}
             # refused set (stability floor) -> old value echoed + STATUSTEXT; accepted set -> new value
+            k_min = _read(gcs, "INDI_K_MIN")  # 0.5 by default
             gcs.mav.param_set_send(gcs.target_system, 1, b"INDI_K_MIN", 0.1, M.MAV_PARAM_TYPE_REAL32)
             pv = wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == "INDI_K_MIN")
-            assert pv is not None and abs(pv.param_value - 0.5) < 1e-6
+            assert pv is not None and abs(pv.param_value - k_min) < 1e-6
             st = wait_for(gcs, "STATUSTEXT", 5.0, lambda m: "INDI_K_MIN" in m.text)
             assert st is not None and "stability floor" in st.text
             gcs.mav.param_set_send(gcs.target_system, 1, b"OL_POS_K", 1.2, M.MAV_PARAM_TYPE_REAL32)
@@ -76,6 +88,7 @@ def test_pymavlink_gcs_session(tmp_path: Path) -> None:
             # unknown command -> UNSUPPORTED
             assert _command(gcs, 42424).result == M.MAV_RESULT_UNSUPPORTED
             # arm -> takeoff 2 m -> hold -> land -> disarm
+            fc.require_flight()  # skips the rest with --bridge=none (the parameter is restored below)
             deadline = time.monotonic() + 20.0
             while True:
                 ack = _command(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
@@ -98,4 +111,6 @@ def test_pymavlink_gcs_session(tmp_path: Path) -> None:
             es = _wait_state(gcs, lambda m: m.get_type() == "EXTENDED_SYS_STATE", 5.0, "landed state")
             assert es.landed_state == M.MAV_LANDED_STATE_ON_GROUND
         finally:
-            gcs.close()
+            gcs.mav.param_set_send(gcs.target_system, 1, b"OL_POS_K", ol_pos_k, M.MAV_PARAM_TYPE_REAL32)
+            assert wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == "OL_POS_K"
+                            and abs(m.param_value - ol_pos_k) < 1e-6) is not None, "OL_POS_K not restored"

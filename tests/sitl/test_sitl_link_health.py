@@ -1,7 +1,11 @@
 """Link health as a ground station sees it: a stalled bridge (STATUSTEXT, SYS_STATUS health and pre-arm bits,
 arming denied, recovery), a control-rate mismatch between INDI_RATE_HZ and the bridge's --dt, replies routed
 to the link that asked, and the /fc/statustext log's publish time. Real processes on free loopback ports,
-bounded waits; every process is stopped."""
+bounded waits; every process is stopped.
+
+The routing of replies is MAVLink only (two clients, GCS and API links): it runs against any FC by connection
+string (`make test-hil`, docs/hil.md) and restores what it changes. The rest stalls or reconfigures the local
+bridge or reads the local log, and skips when pointed elsewhere."""
 
 from __future__ import annotations
 
@@ -9,8 +13,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+import pytest
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import free_udp_ports, gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import FcTarget, free_udp_ports, gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.shell import fc_process as fp
 from navig8_fc.shell.mcap_log import read_mcap, read_mcap_records
@@ -63,6 +68,7 @@ def _full_text(conn: Any, first: Any) -> str:
     return text
 
 
+@pytest.mark.local_only("reads the local log")
 def test_statustext_log_publish_time_is_wall_clock(tmp_path: Path) -> None:
     log = tmp_path / "fc.mcap"
     fc = _fc_in_process(tmp_path, log)
@@ -77,6 +83,7 @@ def test_statustext_log_publish_time_is_wall_clock(tmp_path: Path) -> None:
     assert t0 <= recs[0][1] <= t1, "publish_time must be the writer's wall clock (docs/logs.md)"
 
 
+@pytest.mark.local_only("stalls the local bridge process")
 def test_stalled_bridge_is_reported_and_blocks_arming(tmp_path: Path) -> None:
     with sitl(tmp_path, scenario="ground", speed=1.0) as run:
         gcs = gcs_client(run.gcs_port)
@@ -112,6 +119,7 @@ def test_stalled_bridge_is_reported_and_blocks_arming(tmp_path: Path) -> None:
     assert any("navig8-bridge" in e for e in events), events
 
 
+@pytest.mark.local_only("stalls and resumes the local bridge process")
 def test_bridge_back_after_a_stall_restores_health(tmp_path: Path) -> None:
     # A stopped (SIGSTOP) bridge stalls the lockstep; SIGCONT resumes it: health must come back.
     import signal
@@ -146,6 +154,7 @@ def test_bridge_back_after_a_stall_restores_health(tmp_path: Path) -> None:
             gcs.close()
 
 
+@pytest.mark.local_only("starts the local bridge with another --dt")
 def test_indi_rate_that_disagrees_with_the_bridge_is_reported(tmp_path: Path) -> None:
     with sitl(tmp_path, scenario="ground", speed=1.0) as run:
         gcs = gcs_client(run.gcs_port)
@@ -178,13 +187,10 @@ def test_indi_rate_that_disagrees_with_the_bridge_is_reported(tmp_path: Path) ->
     assert any("INDI_RATE_HZ" in e for e in events), events
 
 
-def test_replies_go_to_the_link_that_asked(tmp_path: Path) -> None:
-    with sitl(tmp_path, scenario="ground", speed=1.0) as run:
-        gcs = gcs_client(run.gcs_port, source_system=255)
-        api = gcs_client(run.api_port, source_system=245)
+def test_replies_go_to_the_link_that_asked(fc: FcTarget) -> None:
+    with fc.session("gcs", source_system=255) as gcs, fc.session("api", source_system=245) as api:
+        old = None
         try:
-            wait_heartbeat(gcs, 15.0)
-            wait_heartbeat(api, 15.0)
             # Both clients talk first so the FC knows both peers.
             for c in (gcs, api):
                 c.mav.heartbeat_send(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0)
@@ -199,7 +205,8 @@ def test_replies_go_to_the_link_that_asked(tmp_path: Path) -> None:
             assert wait_for(api, ["COMMAND_ACK", "AUTOPILOT_VERSION"], 1.0) is None, "the API got the GCS's reply"
             # A parameter read is a reply; a parameter set is announced on both links.
             api.mav.param_request_read_send(api.target_system, 1, b"OL_POS_K", -1)
-            assert wait_for(api, "PARAM_VALUE", 3.0, lambda m: m.param_id == "OL_POS_K") is not None
+            old = wait_for(api, "PARAM_VALUE", 3.0, lambda m: m.param_id == "OL_POS_K")
+            assert old is not None
             assert wait_for(gcs, "PARAM_VALUE", 1.0) is None, "the GCS got the API's PARAM_VALUE read"
             api.mav.param_set_send(api.target_system, 1, b"OL_POS_K", 1.1, M.MAV_PARAM_TYPE_REAL32)
             for c in (api, gcs):
@@ -216,6 +223,9 @@ def test_replies_go_to_the_link_that_asked(tmp_path: Path) -> None:
             assert _command(api, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_GRAB) == M.MAV_RESULT_ACCEPTED
             for c in (gcs, api):
                 assert wait_for(c, "STATUSTEXT", 3.0, lambda m: m.text == "Gripper: grab") is not None
-        finally:
-            gcs.close()
-            api.close()
+        finally:  # leave the FC as found: the gain back, the gripper open
+            if old is not None:
+                api.mav.param_set_send(api.target_system, 1, b"OL_POS_K", old.param_value, M.MAV_PARAM_TYPE_REAL32)
+                assert wait_for(api, "PARAM_VALUE", 3.0, lambda m: m.param_id == "OL_POS_K"
+                                and abs(m.param_value - old.param_value) < 1e-6) is not None
+            _command(api, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_RELEASE)

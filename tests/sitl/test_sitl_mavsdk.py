@@ -1,21 +1,25 @@
-"""MAVSDK (gRPC wrapper with its bundled mavsdk_server) flies the SITL: the API-client path on 14540+N."""
+"""MAVSDK (gRPC wrapper with its bundled mavsdk_server) flies the SITL: the API-client path on 14540+N.
+
+MAVLink only: runs against any FC by connection string (`make test-hil`, docs/hil.md; MAVSDK takes the API
+string); it lands where it took off."""
 
 from __future__ import annotations
 
 import asyncio
 import time
-from pathlib import Path
 
 import mavsdk_grpc as mavsdk  # the test extras install it (`make test`)
 import pytest
-from sitl_helpers import free_udp_ports, sitl
+from sitl_helpers import FcTarget, free_udp_ports
+
+FC_LOCAL = {"speed": 2.0}  # the local pair (conftest.py `fc`)
 
 
-async def _session(api_port: int, grpc_port: int) -> dict:
+async def _session(address: str, grpc_port: int) -> dict:
     out: dict = {}
     drone = mavsdk.System(port=grpc_port)
     try:
-        await drone.connect(system_address=f"udpin://127.0.0.1:{api_port}")
+        await drone.connect(system_address=address)
         await _fly(drone, out)
     finally:
         drone._stop_mavsdk_server()  # the library starts mavsdk_server; stop it with the test, not at exit
@@ -53,10 +57,10 @@ async def _fly(drone, out: dict) -> None:
             break
 
 
-def test_mavsdk_connects_checks_health_and_flies(tmp_path: Path) -> None:
+def test_mavsdk_connects_checks_health_and_flies(fc: FcTarget) -> None:
+    fc.require_flight()
     (grpc_port,) = free_udp_ports(1)  # any free port number; mavsdk_server binds TCP on it
-    with sitl(tmp_path, scenario="ground", speed=2.0) as run:
-        out = asyncio.run(asyncio.wait_for(_session(run.api_port, grpc_port), 90.0))
+    out = asyncio.run(asyncio.wait_for(_session(fc.mavsdk_address("api"), grpc_port), 90.0))
     assert out["health"].is_armable and out["mode_on_ground"] == "READY"
     assert out["k_min"] == pytest.approx(0.5)
     assert out["alt_m"] > 1.8 and out["mode_hold"] == "HOLD" and out["disarmed"]

@@ -1,21 +1,24 @@
 """MAVSDK (the pinned mavsdk-grpc, its bundled mavsdk_server) flies a mission, offboard position NED, goto_location
-and return_to_launch over real UDP; each ends where it should within TOL_M (LOCAL_POSITION_NED from telemetry)."""
+and return_to_launch over real UDP; each ends where it should within TOL_M (LOCAL_POSITION_NED from telemetry).
+
+MAVLink only: runs against any FC by connection string (`make test-hil`, docs/hil.md; MAVSDK takes the API
+string); it returns home, lands, and clears the plan it uploaded."""
 
 from __future__ import annotations
 
 import asyncio
 import math
 import time
-from pathlib import Path
 
 import mavsdk_grpc as mavsdk
 from mavsdk_grpc.mission_raw import MissionItem
 from mavsdk_grpc.offboard import PositionNedYaw
-from sitl_helpers import free_udp_ports, sitl
+from sitl_helpers import FcTarget, free_udp_ports
 
 from navig8_fc.mission.geo import GeoOrigin
 
 TOL_M = 0.5
+FC_LOCAL = {"speed": 2.0}  # the local pair (conftest.py `fc`)
 ORIGIN = GeoOrigin()  # the FC's default global origin
 
 
@@ -43,11 +46,11 @@ def _item(seq: int, command: int, n: float, e: float, rel_alt: float, p1: float 
                        round(lon * 1e7), rel_alt, 0)
 
 
-async def _session(api_port: int, grpc_port: int) -> dict:
+async def _session(address: str, grpc_port: int) -> dict:
     out: dict = {}
     drone = mavsdk.System(port=grpc_port)
     try:
-        await drone.connect(system_address=f"udpin://127.0.0.1:{api_port}")
+        await drone.connect(system_address=address)
         async for state in drone.core.connection_state():
             if state.is_connected:
                 break
@@ -94,15 +97,16 @@ async def _session(api_port: int, grpc_port: int) -> dict:
                 break
         end = await _ned(drone)
         out["home_d"] = math.dist(end, home)
+        await drone.mission_raw.clear_mission()  # leave the FC as found: no plan
     finally:
         drone._stop_mavsdk_server()
     return out
 
 
-def test_mavsdk_mission_offboard_goto_and_return(tmp_path: Path) -> None:
+def test_mavsdk_mission_offboard_goto_and_return(fc: FcTarget) -> None:
+    fc.require_flight()
     (grpc_port,) = free_udp_ports(1)
-    with sitl(tmp_path, scenario="ground", speed=2.0) as run:
-        out = asyncio.run(asyncio.wait_for(_session(run.api_port, grpc_port), 180.0))
+    out = asyncio.run(asyncio.wait_for(_session(fc.mavsdk_address("api"), grpc_port), 180.0))
     assert out["progress"][-1][0] == out["progress"][-1][1] == 3 and out["mission_finished"], out
     assert out["mission_d"] < TOL_M and out["offboard_d"] < TOL_M and out["goto_d"] < TOL_M, out
     assert out["offboard_mode"] == "OFFBOARD" and out["rtl_mode"] == "RETURN_TO_LAUNCH", out

@@ -1,19 +1,26 @@
 """Missions over real UDP with pymavlink as the ground station (navig8-mission's client): an
 8-item plan uploaded and downloaded item for item, an upload cut off halfway leaves the old plan in force, a plan
 with one bad item is refused whole with the result code that names it, and the plan survives a restart (state
-dir)."""
+dir).
+
+The protocol and the flight are MAVLink only: they run against any FC by connection string (`make test-hil`,
+docs/hil.md), and the plan is cleared at the end there. The restart (a second FC process on the state dir) and
+the Foxglove record of the plan (the log) need the local pair and skip when pointed elsewhere."""
 
 from __future__ import annotations
 
 import math
+import shutil
 import time
 from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import FcTarget, gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Cmd, Frame, MissionItem
+from navig8_fc.modes import px4_custom_mode
+from navig8_fc.modes.px4 import Px4AutoSubMode, Px4MainMode
 from navig8_fc.shell.mcap_log import read_mcap
 from navig8_tools.mission import download, upload
 
@@ -31,6 +38,7 @@ EIGHT = (
     MissionItem(Frame.MISSION, Cmd.NAV_RETURN_TO_LAUNCH, 1, 0, 0, 0, 0, 0, 0, 0),
 )
 HOME_TOL_M = 0.5
+FC_LOCAL = {"speed": 2.0}  # the local pair (conftest.py `fc`)
 
 
 def _same(a: tuple[MissionItem, ...], b: tuple[MissionItem, ...]) -> bool:
@@ -40,32 +48,34 @@ def _same(a: tuple[MissionItem, ...], b: tuple[MissionItem, ...]) -> bool:
     return [key(i) for i in a] == [key(i) for i in b]
 
 
-def test_mission_upload_download_interrupted_refused_and_persisted(tmp_path: Path) -> None:
-    with sitl(tmp_path, scenario="ground", speed=1.0) as run:
-        gcs = gcs_client(run.gcs_port)
-        try:
-            wait_heartbeat(gcs, 15.0)
-            assert upload(gcs, EIGHT) == M.MAV_MISSION_ACCEPTED
-            items, current = download(gcs)
-            assert _same(items, EIGHT) and current == 0
-            # Cut off after 4 of 8 items: the vehicle repeats its request, gives up after 5 s, keeps the old plan.
-            other = EIGHT[:3] + (EIGHT[6], EIGHT[7]) * 2 + (EIGHT[7],)
-            assert upload(gcs, other, stop_after=4) == -1
-            st = wait_for(gcs, "STATUSTEXT", 8.0, lambda m: "timed out" in m.text)
-            assert st is not None, "no upload timeout reported"
-            assert _same(download(gcs)[0], EIGHT)
-            # One bad item (DO_GRIPPER action 3) refuses the whole plan with INVALID_PARAM2 and says why.
-            bad = EIGHT[:3] + (MissionItem(Frame.MISSION, Cmd.DO_GRIPPER, 1, 1, 3, 0, 0, 0, 0, 0),) + EIGHT[4:]
-            assert upload(gcs, bad) == M.MAV_MISSION_INVALID_PARAM2
-            st = wait_for(gcs, "STATUSTEXT", 3.0, lambda m: "Item 3" in m.text)
-            assert st is not None and "action" in st.text
-            assert _same(download(gcs)[0], EIGHT)
-            cur = wait_for(gcs, "MISSION_CURRENT", 3.0)
-            assert cur is not None and cur.total == 8 and cur.mission_state == M.MISSION_STATE_NOT_STARTED
-        finally:
-            gcs.close()
-    # A new process with the same state dir has the plan.
-    with sitl(tmp_path, scenario="ground", speed=1.0, state_dir=run.state_dir, log_name="again.mcap") as run2:
+def test_mission_upload_download_interrupted_refused(fc: FcTarget) -> None:
+    with fc.session() as gcs:
+        assert upload(gcs, EIGHT) == M.MAV_MISSION_ACCEPTED
+        items, current = download(gcs)
+        assert _same(items, EIGHT) and current == 0
+        # Cut off after 4 of 8 items: the vehicle repeats its request, gives up after 5 s, keeps the old plan.
+        other = EIGHT[:3] + (EIGHT[6], EIGHT[7]) * 2 + (EIGHT[7],)
+        assert upload(gcs, other, stop_after=4) == -1
+        st = wait_for(gcs, "STATUSTEXT", 8.0, lambda m: "timed out" in m.text)
+        assert st is not None, "no upload timeout reported"
+        assert _same(download(gcs)[0], EIGHT)
+        # One bad item (DO_GRIPPER action 3) refuses the whole plan with INVALID_PARAM2 and says why.
+        bad = EIGHT[:3] + (MissionItem(Frame.MISSION, Cmd.DO_GRIPPER, 1, 1, 3, 0, 0, 0, 0, 0),) + EIGHT[4:]
+        assert upload(gcs, bad) == M.MAV_MISSION_INVALID_PARAM2
+        st = wait_for(gcs, "STATUSTEXT", 3.0, lambda m: "Item 3" in m.text)
+        assert st is not None and "action" in st.text
+        assert _same(download(gcs)[0], EIGHT)
+        cur = wait_for(gcs, "MISSION_CURRENT", 3.0)
+        assert cur is not None and cur.total == 8 and cur.mission_state == M.MISSION_STATE_NOT_STARTED
+
+
+def test_plan_survives_a_restart(fc: FcTarget, tmp_path: Path) -> None:
+    """A new FC process on (a copy of) the state dir the plan was stored in has the plan."""
+    run = fc.require_local("starts a second FC process on the local state dir")
+    state = tmp_path / "state"
+    shutil.copytree(run.state_dir, state)
+    with sitl(tmp_path, scenario="ground", speed=1.0, state_dir=state, log_name="again.mcap",
+              start_bridge=False) as run2:
         gcs = gcs_client(run2.gcs_port)
         try:
             wait_heartbeat(gcs, 15.0)
@@ -74,13 +84,13 @@ def test_mission_upload_download_interrupted_refused_and_persisted(tmp_path: Pat
             gcs.close()
 
 
-def test_eight_item_plan_flown_reached_in_order_lands_at_home_and_disarms(tmp_path: Path) -> None:
+def test_eight_item_plan_flown_reached_in_order_lands_at_home_and_disarms(fc: FcTarget) -> None:
     """Upload -> download equal -> Mission (selected while disarmed) -> arm -> MISSION_ITEM_REACHED 0..7 in order ->
-    lands within HOME_TOL_M of home -> disarms."""
-    with sitl(tmp_path, scenario="ground", speed=2.0) as run:
-        gcs = gcs_client(run.gcs_port)
+    lands within HOME_TOL_M of home -> disarms. On the local pair (the module's last test: it stops the pair),
+    the log's Foxglove record draws the plan."""
+    fc.require_flight()
+    with fc.session() as gcs:
         try:
-            wait_heartbeat(gcs, 15.0)
             home = wait_for(gcs, "HOME_POSITION", 15.0)
             assert home is not None
             assert upload(gcs, EIGHT) == M.MAV_MISSION_ACCEPTED
@@ -116,10 +126,18 @@ def test_eight_item_plan_flown_reached_in_order_lands_at_home_and_disarms(tmp_pa
             hx, hy = home.x, home.y
             assert math.hypot(pos.x - hx, pos.y - hy) < HOME_TOL_M and abs(pos.z - home.z) < HOME_TOL_M
         finally:
-            gcs.close()
+            if fc.local is None:  # an FC elsewhere is left without the plan; the local one keeps it for the log check
+                gcs.mav.mission_clear_all_send(gcs.target_system, 1, 0)
+                ack = wait_for(gcs, "MISSION_ACK", 5.0)
+                assert ack is not None and ack.type == M.MAV_MISSION_ACCEPTED
+            gcs.mav.set_mode_send(gcs.target_system, M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED,
+                                  px4_custom_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER))  # Hold
+    if fc.local is None:
+        return  # the rest reads the local log
+    fc.local.stop()
     # Foxglove's 3D view draws the uploaded plan (/foxglove/mission, ENU world): home, the five position items
     # in order (takeoff over home, the local waypoint 1 m north at 2 m, ...), back home.
-    records = [rec for _, _, rec in read_mcap(run.log, ["/foxglove/mission"])]
+    records = [rec for _, _, rec in read_mcap(fc.local.log, ["/foxglove/mission"])]
     assert records, "no /foxglove/mission record"
     poses = [p["position"] for p in records[-1]["poses"]]
     assert len(poses) == 6, poses

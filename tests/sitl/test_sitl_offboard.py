@@ -1,17 +1,19 @@
 """Offboard and long commands over SITL (real processes, real UDP, pymavlink): takeoff reported IN_PROGRESS then
 ACCEPTED; an Offboard velocity target tracked; an attitude target (pitch, yaw, thrust 0.5) held in place; a
-DO_REPOSITION cancelled by COMMAND_CANCEL (final ACK CANCELLED, the vehicle holds where it was)."""
+DO_REPOSITION cancelled by COMMAND_CANCEL (final ACK CANCELLED, the vehicle holds where it was).
+
+MAVLink only: runs against any FC by connection string (`make test-hil`, docs/hil.md); there it ends with a
+Return (home, landed, disarmed) for the next module."""
 
 from __future__ import annotations
 
 import math
 import time
 from io import BytesIO
-from pathlib import Path
 from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import FcTarget, wait_for
 
 from navig8_fc.gcs import offboard as ob
 from navig8_fc.mavlink import dialect
@@ -19,6 +21,7 @@ from navig8_fc.mission.geo import GeoOrigin
 
 M = mavlink2
 MAV_RESULT_CANCELLED = 6  # common.xml upstream (pymavlink's copy lacks it; navig8.xml has it)
+FC_LOCAL = {"speed": 2.0}  # the local pair (conftest.py `fc`)
 VEL_ONLY = (ob.PT_X | ob.PT_Y | ob.PT_Z | ob.PT_ACCEL | ob.PT_YAW | ob.PT_YAW_RATE)
 
 
@@ -48,12 +51,11 @@ def _last(msgs: list[Any], kind: str, n: int) -> list[Any]:
     return [m for m in msgs if m.get_type() == kind][-n:]
 
 
-def test_offboard_velocity_attitude_and_cancel(tmp_path: Path) -> None:
+def test_offboard_velocity_attitude_and_cancel(fc: FcTarget) -> None:
+    fc.require_flight()
     cancel_mav = dialect.load().MAVLink(BytesIO(), srcSystem=255, srcComponent=190)  # COMMAND_CANCEL is ours
-    with sitl(tmp_path, scenario="ground", speed=2.0) as run:
-        gcs = gcs_client(run.gcs_port)
+    with fc.session() as gcs:
         try:
-            wait_heartbeat(gcs, 15.0)
             deadline = time.monotonic() + 15.0
             while _cmd(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result != M.MAV_RESULT_ACCEPTED:
                 assert time.monotonic() < deadline, "arming never accepted"
@@ -109,8 +111,11 @@ def test_offboard_velocity_attitude_and_cancel(tmp_path: Path) -> None:
             held = wait_for(gcs, "LOCAL_POSITION_NED", 10.0, lambda m: math.hypot(m.vx, m.vy, m.vz) < 0.05)
             assert held is not None, "never came to rest after the cancel"
             assert abs(held.y - at_cancel.y) < 0.6 and held.y < p.y + 3.0, (at_cancel, held)  # short of the target
-        finally:
-            gcs.close()
+        finally:  # an FC elsewhere serves the next module: leave it as found (home, landed, disarmed)
+            if fc.local is None:
+                _cmd(gcs, M.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+                assert wait_for(gcs, "HEARTBEAT", 90.0, lambda m: m.get_srcComponent() == 1
+                                and not m.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED) is not None, "no disarm (Return)"
 
 
 def _quat_pitch_yaw(pitch: float, yaw: float) -> tuple[float, float, float, float]:

@@ -2,7 +2,10 @@
 (src/Vehicle/ComponentInformation/RequestMetaDataTypeStateMachine.cc, src/Vehicle/FTP/FTPDownloadStateMachine.cc;
 docs/gcs.md): MAV_CMD_REQUEST_MESSAGE(COMPONENT_METADATA) to compid 1, then the general metadata file by its
 mftp URI over MAVFTP (OpenFileRO, BurstReadFile until NAK EOF, ResetSessions), its CRC against file_crc, then the
-parameter file by the URI and CRC the general file gives. Path traversal and writes are refused."""
+parameter file by the URI and CRC the general file gives. Path traversal and writes are refused.
+
+MAVLink only: runs against any FC by connection string (`make test-hil`, docs/hil.md); locally the FC alone
+(no bridge: nothing flies)."""
 
 from __future__ import annotations
 
@@ -10,11 +13,10 @@ import json
 import struct
 import time
 import zlib
-from pathlib import Path
 from typing import Any
 
 import yaml
-from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import FcTarget, wait_fc_heartbeat, wait_for
 
 from navig8_fc.mavlink import dialect
 from navig8_fc.params.registry import ParamRegistry
@@ -24,6 +26,7 @@ ACK, NAK = 128, 129
 OPEN_RO, READ, BURST, RESET, CRC, WRITE, CREATE, REMOVE = 4, 5, 15, 2, 14, 7, 6, 8
 ERR_EOF, ERR_PROTECTED = 6, 9
 MAX_DATA = 239
+FC_LOCAL = {"start_bridge": False}  # the local FC (conftest.py `fc`), no simulator needed
 
 
 class Ftp:
@@ -91,49 +94,48 @@ def _command_ack(conn: Any, command: int) -> Any:
     return ack
 
 
-def test_qgc_style_parameter_metadata_download_over_mavftp(tmp_path: Path) -> None:
-    with sitl(tmp_path, scenario="ground", start_bridge=False) as run:
-        conn = gcs_client(run.gcs_port)
-        d = dialect.load()
-        conn.mav = d.MAVLink(conn, srcSystem=255, srcComponent=190)  # COMPONENT_METADATA is in navig8.xml
-        conn.mav.robust_parsing = True
-        try:
-            wait_heartbeat(conn)
-            req = d.MAV_CMD_REQUEST_MESSAGE
-            conn.mav.command_long_send(conn.target_system, 1, req, 0, 397, 0, 0, 0, 0, 0, 0)
-            assert _command_ack(conn, req).result == d.MAV_RESULT_ACCEPTED
-            meta = wait_for(conn, "COMPONENT_METADATA", 5.0)
-            assert meta is not None and meta.uri.startswith("mftp://")
-            conn.mav.command_long_send(conn.target_system, 1, req, 0, 395, 0, 0, 0, 0, 0, 0)  # the deprecated twin
-            assert _command_ack(conn, req).result == d.MAV_RESULT_ACCEPTED
-            info = wait_for(conn, "COMPONENT_INFORMATION", 5.0)
-            assert info is not None and (info.general_metadata_uri, info.general_metadata_file_crc) == (
-                meta.uri, meta.file_crc)
+def test_qgc_style_parameter_metadata_download_over_mavftp(fc: FcTarget) -> None:
+    conn = fc.connect()
+    d = dialect.load()
+    conn.mav = d.MAVLink(conn, srcSystem=255, srcComponent=190)  # COMPONENT_METADATA is in navig8.xml
+    conn.mav.robust_parsing = True
+    try:
+        wait_fc_heartbeat(conn, fc.sysid)
+        req = d.MAV_CMD_REQUEST_MESSAGE
+        conn.mav.command_long_send(conn.target_system, 1, req, 0, 397, 0, 0, 0, 0, 0, 0)
+        assert _command_ack(conn, req).result == d.MAV_RESULT_ACCEPTED
+        meta = wait_for(conn, "COMPONENT_METADATA", 5.0)
+        assert meta is not None and meta.uri.startswith("mftp://")
+        conn.mav.command_long_send(conn.target_system, 1, req, 0, 395, 0, 0, 0, 0, 0, 0)  # the deprecated twin
+        assert _command_ack(conn, req).result == d.MAV_RESULT_ACCEPTED
+        info = wait_for(conn, "COMPONENT_INFORMATION", 5.0)
+        assert info is not None and (info.general_metadata_uri, info.general_metadata_file_crc) == (
+            meta.uri, meta.file_crc)
 
-            ftp = Ftp(conn)
-            general_raw = ftp.download(meta.uri)
-            assert zlib.crc32(general_raw) == meta.file_crc
-            general = json.loads(general_raw)
-            assert general["version"] == 1
-            (ptype,) = [t for t in general["metadataTypes"] if t["type"] == 1]  # COMP_METADATA_TYPE_PARAMETER
-            params_raw = ftp.download(ptype["uri"])
-            assert zlib.crc32(params_raw) == ptype["fileCrc"]
-            _s, _ss, op, _z, _b, _o, data = ftp.one(CRC, data=ptype["uri"].removeprefix("mftp://[;comp=1]").encode())
-            assert op == ACK and struct.unpack("<I", data[:4])[0] == ptype["fileCrc"]
-            meta_params = {p["name"]: p for p in json.loads(params_raw)["parameters"]}
-            yaml_params = yaml.safe_load(ParamRegistry.definitions_text())["params"]
-            assert sorted(meta_params) == sorted(p["name"] for p in yaml_params)
-            for p in yaml_params:
-                m = meta_params[p["name"]]
-                assert m.get("units", "") == p["units"], p["name"]
-                assert (m["min"], m["max"], m["default"]) == tuple(float(p[k]) for k in ("min", "max", "default"))
+        ftp = Ftp(conn)
+        general_raw = ftp.download(meta.uri)
+        assert zlib.crc32(general_raw) == meta.file_crc
+        general = json.loads(general_raw)
+        assert general["version"] == 1
+        (ptype,) = [t for t in general["metadataTypes"] if t["type"] == 1]  # COMP_METADATA_TYPE_PARAMETER
+        params_raw = ftp.download(ptype["uri"])
+        assert zlib.crc32(params_raw) == ptype["fileCrc"]
+        _s, _ss, op, _z, _b, _o, data = ftp.one(CRC, data=ptype["uri"].removeprefix("mftp://[;comp=1]").encode())
+        assert op == ACK and struct.unpack("<I", data[:4])[0] == ptype["fileCrc"]
+        meta_params = {p["name"]: p for p in json.loads(params_raw)["parameters"]}
+        yaml_params = yaml.safe_load(ParamRegistry.definitions_text())["params"]
+        assert sorted(meta_params) == sorted(p["name"] for p in yaml_params)
+        for p in yaml_params:
+            m = meta_params[p["name"]]
+            assert m.get("units", "") == p["units"], p["name"]
+            assert (m["min"], m["max"], m["default"]) == tuple(float(p[k]) for k in ("min", "max", "default"))
 
-            for path in (b"/navig8/../../etc/passwd", b"../navig8/parameters.json"):
-                _s, _ss, op, _z, _b, _o, data = ftp.one(OPEN_RO, data=path)
-                assert op == NAK and data[0] == ERR_PROTECTED
-            for opcode in (CREATE, WRITE, REMOVE):
-                _s, _ss, op, _z, _b, _o, data = ftp.one(opcode, data=b"/navig8/parameters.json")
-                assert op == NAK and data[0] == ERR_PROTECTED
-            assert ftp.download(ptype["uri"]) == params_raw  # unchanged
-        finally:
-            conn.close()
+        for path in (b"/navig8/../../etc/passwd", b"../navig8/parameters.json"):
+            _s, _ss, op, _z, _b, _o, data = ftp.one(OPEN_RO, data=path)
+            assert op == NAK and data[0] == ERR_PROTECTED
+        for opcode in (CREATE, WRITE, REMOVE):
+            _s, _ss, op, _z, _b, _o, data = ftp.one(opcode, data=b"/navig8/parameters.json")
+            assert op == NAK and data[0] == ERR_PROTECTED
+        assert ftp.download(ptype["uri"]) == params_raw  # unchanged
+    finally:
+        conn.close()

@@ -1,4 +1,9 @@
-"""Parameters persist across a restart; MAVProxy (a real client) downloads and sets them; logs export to .tlog."""
+"""Parameters persist across a restart; MAVProxy (a real client) downloads and sets them; logs export to .tlog.
+
+MAVProxy's session is MAVLink only: it runs against any FC by connection string (`make test-hil`, docs/hil.md;
+MAVProxy's --master is the GCS string, the read-back goes over the API link) and restores the value it set. The
+restart (process control) and the .tlog export (the local log) start their own pairs and skip when pointed
+elsewhere."""
 
 from __future__ import annotations
 
@@ -8,14 +13,16 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import FcTarget, gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.params.registry import ParamRegistry
 from navig8_tools.mcap_to_tlog import export
 
 M = mavlink2
+FC_LOCAL = {"scenario": "ground"}  # the local pair for MAVProxy's session (conftest.py `fc`)
 
 
 def _set(gcs, name: str, value: float):
@@ -28,6 +35,7 @@ def _read(gcs, name: str):
     return wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == name)
 
 
+@pytest.mark.local_only("restarts the FC process on its state dir")
 def test_parameters_persist_across_restart_and_defaults_flag(tmp_path: Path) -> None:
     state = tmp_path / "state"
     with sitl(tmp_path, state_dir=state, log_name="a.mcap") as run:
@@ -55,6 +63,7 @@ def test_parameters_persist_across_restart_and_defaults_flag(tmp_path: Path) -> 
             gcs.close()
 
 
+@pytest.mark.local_only("exports the local log")
 def test_tlog_export_opens_in_pymavlink(tmp_path: Path) -> None:
     with sitl(tmp_path, scenario="hover", speed=4.0) as run:
         gcs = gcs_client(run.gcs_port)
@@ -83,15 +92,17 @@ def test_tlog_export_opens_in_pymavlink(tmp_path: Path) -> None:
     assert {"HEARTBEAT", "PARAM_VALUE", "PARAM_REQUEST_READ"} <= types
 
 
-def test_mavproxy_downloads_all_parameters_and_sets_one(tmp_path: Path) -> None:
+def test_mavproxy_downloads_all_parameters_and_sets_one(fc: FcTarget, tmp_path: Path) -> None:
     # Not skipped when missing: MAVProxy is part of what `make install` / `make test` set up (pinned, lean).
     assert shutil.which("mavproxy.py", path=str(Path(sys.executable).parent)), (
         "MAVProxy is missing from this venv: run `make install` (pip install --no-deps MAVProxy==1.8.75)")
     n_params = len(ParamRegistry.from_defaults(check_stability=False))
     mavproxy = str(Path(sys.executable).parent / "mavproxy.py")
-    with sitl(tmp_path, scenario="ground") as run:
-        cmd = [sys.executable, mavproxy, f"--master=udpin:127.0.0.1:{run.gcs_port}", "--nowait",
-               "--default-modules=param", f"--state-basedir={tmp_path}"]
+    with fc.session("api", source_system=245) as api:  # a second client on the same vehicle reads the value back
+        old = _read(api, "OL_ATT_K")
+        assert old is not None
+        cmd = [sys.executable, mavproxy, f"--master={fc.gcs}", "--nowait", "--default-modules=param",
+               f"--target-system={fc.sysid}", f"--state-basedir={tmp_path}"]
         p = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                              cwd=tmp_path, text=True)
         out = _Reader(p)
@@ -99,22 +110,18 @@ def test_mavproxy_downloads_all_parameters_and_sets_one(tmp_path: Path) -> None:
             assert out.wait_for(f"Received {n_params} parameters", 60.0), out.text[-3000:]
             p.stdin.write("param set OL_ATT_K 4.5\n")
             p.stdin.flush()
-            gcs = gcs_client(run.gcs_port)  # a second GCS on the same vehicle reads the value back
-            try:
-                wait_heartbeat(gcs, 10.0)
-                deadline = time.monotonic() + 10.0
-                value = None
-                while time.monotonic() < deadline:
-                    value = _read(gcs, "OL_ATT_K").param_value
-                    if abs(value - 4.5) < 1e-6:
-                        break
-                    time.sleep(0.2)
-                assert value is not None and abs(value - 4.5) < 1e-6, out.text[-3000:]
-            finally:
-                gcs.close()
+            deadline = time.monotonic() + 10.0
+            value = None
+            while time.monotonic() < deadline:
+                value = _read(api, "OL_ATT_K").param_value
+                if abs(value - 4.5) < 1e-6:
+                    break
+                time.sleep(0.2)
+            assert value is not None and abs(value - 4.5) < 1e-6, out.text[-3000:]
         finally:
             p.kill()
             p.wait(timeout=10)
+            _set(api, "OL_ATT_K", old.param_value)  # leave it as found
 
 
 class _Reader:
