@@ -1,6 +1,7 @@
 """Issue 12 must-show: the FC flies a hover on PX4's simulator messages alone (HIL_SENSOR, HIL_STATE_QUATERNION,
 HIL_GPS in; HIL_ACTUATOR_CONTROLS out; no private message) from a small simulator driving the real plant over TCP
-(tests/sitl/px4_test_sim.py): arm, take off to 2 m, hover (sitl_helpers' hover band), land, disarm, through the GCS link."""
+(tests/sitl/px4_test_sim.py): arm, take off to 2 m, hover (sitl_helpers' hover band), land, disarm, through the
+GCS link."""
 
 from __future__ import annotations
 
