@@ -26,10 +26,12 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check navig8_fc sim_bridge tools tests
-	# Fast lane (unit, integration) on both cores; then the SITL lane alone (real processes, wall-clock pacing).
-	# tests/conftest.py warms numba's cache once before xdist starts its workers. Exit 5 (no tests) fails.
+	# Fast lane (unit, integration) on both cores; then the SITL lane (real processes), also on two workers: a
+	# lockstep pair keeps about one core busy and the real-time tests little, so two modules side by side take
+	# 4.7 min instead of 7.8 (docs/results.md, "Test suite time"); --dist loadfile keeps a module's shared pair in
+	# one worker. tests/conftest.py warms numba's cache once before xdist starts its workers. Exit 5 fails.
 	$(PY) -m pytest -q -m 'not slow' -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: fast lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
-	$(PY) -m pytest -q -m slow; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; exit $$rc
+	$(PY) -m pytest -q -m slow -n 2 --dist loadfile; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; exit $$rc
 
 # The MAVLink-only SITL tests against an FC running elsewhere, by connection string (docs/hil.md); without FC the
 # local pairs (one per module); `python tests/sitl/hil_pair.py` runs it against a pair started outside pytest:
