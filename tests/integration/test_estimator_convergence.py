@@ -1,57 +1,37 @@
 """The adaptive law converges on the identification scenario (issue 10's "the estimate moves where the truth moves").
 
 Plant and FlightStack in one process (as navig8-sim), the ident scenario (an unknown 2 kg object at q = 0, pitch
-doublets from 2 s), one seed. The truth is independent of the filter: K_true,i = J_ii / I_true,ii and
-K_true,4 = m_UAM / m_true from the plant's composite inertia about its true CoM (sim_bridge) and the controller's UAM
-model, clipped to the Eq. 20 box [0.5, 1]. The paper's configuration (one-step increments of the measured U, Acc_m
-at O, the paper's Q) is run on the same data to show that the check can fail.
+doublets from 2 s, yaw doublets between them from 4 s). The truth is independent of the filter: K_true,i = J_ii /
+I_true,ii and K_true,4 = m_UAM / m_true from the plant's composite inertia about its true CoM (sim_bridge) and the
+controller's UAM model, clipped to the Eq. 20 box [0.5, 1]. The paper's configuration (one-step increments of the
+measured U, Acc_m at O, the paper's Q) is run on the same data to show that the check can fail.
 """
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
+import yaml
 
-from navig8_fc.core.controller import warm_up_kernels
-from navig8_fc.flight import FlightStack
-from navig8_fc.params.registry import ParamRegistry
-from navig8_tools.sim import _sensors_to_fc
-from sim_bridge.messages import ActuatorCommand as PlantCommand
-from sim_bridge.plant import Plant
-from sim_bridge.world import load_world
+from navig8_tools.estimator_convergence import k_trace
+from sim_bridge.world import world_documents
 
 EXCITATION_T_S = 2.0  # the first pitch doublet of params/scenarios/ident.yaml
 CONVERGE_WITHIN_S = 10.0
 TOL_K = 0.1
+SEEDS = range(1, 11)
+YAW_DONE_T_S = 14.0  # the last yaw doublet of ident.yaml ends here
 PAPER = {"CKF_INC_N": 1, "CKF_U_SRC": 0, "CKF_ACC_REF": 0, "CKF_SAT_GATE": 0, "CKF_Q_IXX": 1e-4,
          "CKF_Q_IYY": 5e-5, "CKF_Q_IZZ": 1e-4, "CKF_Q_M": 5e-4, "CKF_P0_SCALE": 100.0}
 
 
-def _k_error(overrides: dict[str, float], duration_s: float, seed: int = 1) -> tuple[np.ndarray, np.ndarray]:
+def _k_error(overrides: dict[str, float], duration_s: float, seed: int = 1,
+             scenario: str | Path = "ident") -> tuple[np.ndarray, np.ndarray]:
     """(t, |K - clip(K_true, 0.5, 1)| per tick (n, 4)) for the ident scenario, proposed controller."""
-    reg = ParamRegistry.from_defaults()
-    for name, value in overrides.items():
-        assert reg.set(name, value).accepted, name
-    w = load_world("ident")
-    plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(seed))
-    stack = FlightStack(w.fc_vehicle, reg, w.scenario.script)
-    cfg = stack.core.config
-    warm_up_kernels(w.fc_vehicle, cfg)
-    n = int(round(duration_s / cfg.dt_s))
-    ts, errs = [], []
-    for k in range(n + 1):
-        sb = plant.sense()
-        s = _sensors_to_fc(sb)
-        res = stack.step(s, True, sb.time_us)
-        st, tr = res.status, plant.truth()
-        j, i_true = st.inertia_uam_diag, np.asarray(tr.inertia_com_kgm2)
-        k_true = np.array([j[0] / i_true[0, 0], j[1] / i_true[1, 1], j[2] / i_true[2, 2], st.mass_uam_kg / tr.mass_kg])
-        ts.append(s.t_s)
-        errs.append(np.abs(np.array(st.adapt.k) - np.clip(k_true, reg["INDI_K_MIN"], reg["INDI_K_MAX"])))
-        if k == n:
-            break
-        plant.step(PlantCommand(tilt_rad=res.command.tilt_rad, speed_rad_s=res.command.speed_rad_s), cfg.dt_s)
-    return np.array(ts), np.array(errs)
+    t, k, k_true = k_trace(overrides, duration_s, seed, scenario)
+    return t, np.abs(k - k_true)
 
 
 @pytest.fixture(scope="module")
@@ -75,3 +55,36 @@ def test_the_paper_configuration_does_not_converge() -> None:
     t, err = _k_error(PAPER, EXCITATION_T_S + CONVERGE_WITHIN_S + 0.05)
     late = t >= EXCITATION_T_S + CONVERGE_WITHIN_S - 1e-9
     assert np.any(err[late] > 0.3)
+
+
+def test_every_inertia_k_converges_in_10_of_10_seeds() -> None:
+    """Seeds 1-10, defaults, to the end of the yaw doublets (14 s) and 2 s on: K1, K2 and K3 (the yaw doublets'
+    point) are within 0.1 of the clipped truth from 12 s on in every seed (docs/results.md, "The estimate converges").
+    K4 is excited by the position steps after 15 s and is checked on seed 1 above."""
+    worst = np.zeros(3)
+    for seed in SEEDS:
+        t, err = _k_error({}, YAW_DONE_T_S + 2.0, seed)
+        late = t >= EXCITATION_T_S + CONVERGE_WITHIN_S - 1e-9
+        worst = np.maximum(worst, err[late, :3].max(axis=0))
+    assert np.all(worst <= TOL_K), worst
+
+
+def test_without_yaw_doublets_k3_wanders(tmp_path: Path) -> None:
+    """The same scenario with its yaw steps removed (the session-4 ident): yaw is not excited and K3 leaves the
+    0.1 band after 12 s in at least one of seeds 6 and 8 (0.145 and 0.119 measured): the check above can fail, and
+    the yaw doublets are what makes K3 converge."""
+    doc = world_documents("ident")["scenario"]
+    steps = []
+    for step in doc["setpoints"]["steps"]:
+        kept = {k: v for k, v in step.items() if k != "yaw_deg"}
+        if len(kept) > 1:
+            steps.append(kept)
+    assert len(steps) < len(doc["setpoints"]["steps"])  # there were yaw-only steps to remove
+    doc["setpoints"]["steps"] = steps
+    path = tmp_path / "ident_no_yaw.yaml"
+    path.write_text(yaml.safe_dump(doc, sort_keys=False))
+    worst_k3 = 0.0
+    for seed in (6, 8):
+        t, err = _k_error({}, 27.0, seed, path)
+        worst_k3 = max(worst_k3, float(err[t >= EXCITATION_T_S + CONVERGE_WITHIN_S - 1e-9, 2].max()))
+    assert worst_k3 > TOL_K

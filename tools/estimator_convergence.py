@@ -1,0 +1,111 @@
+"""Does the adaptive law's implied K converge to the truth? (issue 10, "the estimate moves where the truth moves")
+
+    python -m navig8_tools.estimator_convergence [--scenario ident] [--seeds 1-10] [--from-s 12] [--tol 0.1]
+                                                 [--set NAME=VALUE ...]
+
+Plant and FlightStack in one process (as navig8-sim, no log), proposed controller. Per tick the implied
+K = (J_xx / I_xx, J_yy / I_yy, J_zz / I_zz, m_UAM / m) of the estimate is compared with the truth from the plant's
+composite inertia about its true CoM and the controller's UAM model, clipped to the Eq. 20 box [INDI_K_MIN,
+INDI_K_MAX]. Prints one JSON line per seed (from when each |K - K_true| stays within --tol, the largest error from
+--from-s on, K and K_true at the end) and the medians and worst seeds.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+from pathlib import Path
+
+import numpy as np
+
+from navig8_fc.core.controller import warm_up_kernels
+from navig8_fc.flight import FlightStack
+from navig8_fc.params.registry import ParamRegistry
+from navig8_tools.sim import _sensors_to_fc
+from sim_bridge.messages import ActuatorCommand as PlantCommand
+from sim_bridge.plant import Plant
+from sim_bridge.world import load_world
+
+K_NAMES = ("K1", "K2", "K3", "K4")
+
+
+def k_trace(overrides: dict[str, float], duration_s: float, seed: int = 1,
+            scenario: str | Path = "ident") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(t (n,), implied K (n, 4), clip(K_true, k_min, k_max) (n, 4)) of a proposed-controller run."""
+    reg = ParamRegistry.from_defaults()
+    for name, value in overrides.items():
+        res = reg.set(name, value)
+        if not res.accepted:
+            raise ValueError(res.reason)
+    w = load_world(scenario)
+    plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(seed))
+    stack = FlightStack(w.fc_vehicle, reg, w.scenario.script)
+    cfg = stack.core.config
+    warm_up_kernels(w.fc_vehicle, cfg)
+    n = int(round(duration_s / cfg.dt_s))
+    ts, ks, kts = [], [], []
+    for k in range(n + 1):
+        sb = plant.sense()
+        s = _sensors_to_fc(sb)
+        res = stack.step(s, True, sb.time_us)
+        st, tr = res.status, plant.truth()
+        j, i_true = st.inertia_uam_diag, np.asarray(tr.inertia_com_kgm2)
+        k_true = np.array([j[0] / i_true[0, 0], j[1] / i_true[1, 1], j[2] / i_true[2, 2], st.mass_uam_kg / tr.mass_kg])
+        ts.append(s.t_s)
+        ks.append(np.array(st.adapt.k))
+        kts.append(np.clip(k_true, reg["INDI_K_MIN"], reg["INDI_K_MAX"]))
+        if k == n:
+            break
+        plant.step(PlantCommand(tilt_rad=res.command.tilt_rad, speed_rad_s=res.command.speed_rad_s), cfg.dt_s)
+    return np.array(ts), np.array(ks), np.array(kts)
+
+
+def within_for_good_from_s(t: np.ndarray, err: np.ndarray, tol: float) -> float:
+    """The time from which |err| <= tol holds to the end (nan if it does not hold at the end)."""
+    bad = np.nonzero(err > tol)[0]
+    if len(bad) == 0:
+        return float(t[0])
+    return float(t[bad[-1] + 1]) if bad[-1] + 1 < len(t) else float("nan")
+
+
+def _seeds(text: str) -> list[int]:
+    out: list[int] = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        out.extend(range(int(lo), int(hi or lo) + 1))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenario", default="ident")
+    ap.add_argument("--seeds", default="1-10", help="e.g. 1-10 or 1,3,5")
+    ap.add_argument("--duration", type=float, default=None, help="s (default: the scenario's)")
+    ap.add_argument("--from-s", type=float, default=12.0, help="largest error reported from this time on")
+    ap.add_argument("--tol", type=float, default=0.1)
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
+    a = ap.parse_args(argv)
+    overrides = {n: float(v) for n, _, v in (s.partition("=") for s in a.set)}
+    duration = a.duration if a.duration is not None else load_world(a.scenario).scenario.duration_s
+    rows = []
+    for seed in _seeds(a.seeds):
+        t, k, kt = k_trace(overrides, duration, seed, a.scenario)
+        err = np.abs(k - kt)
+        row = {"seed": seed,
+               "within_from_s": [within_for_good_from_s(t, err[:, i], a.tol) for i in range(4)],
+               "max_err_late": [float(x) for x in err[t >= a.from_s - 1e-9].max(axis=0)],
+               "k_end": [round(float(x), 3) for x in k[-1]], "k_true_end": [round(float(x), 3) for x in kt[-1]]}
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+    for i, name in enumerate(K_NAMES):
+        wf = [r["within_from_s"][i] for r in rows]
+        me = [r["max_err_late"][i] for r in rows]
+        print(f"{name}: within {a.tol} for good from (s) median {statistics.median(wf):.2f}, worst {max(wf):.2f}; "
+              f"max |K - K_true| from {a.from_s:g} s median {statistics.median(me):.3f}, worst {max(me):.3f}; "
+              f"seeds beyond {a.tol}: {sum(m > a.tol for m in me)}/{len(me)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
