@@ -22,7 +22,7 @@ EXCITATION_T_S = 2.0  # the first pitch doublet of params/scenarios/ident.yaml
 CONVERGE_WITHIN_S = 10.0
 TOL_K = 0.1
 SEEDS = range(1, 11)
-YAW_DONE_T_S = 14.0  # the last yaw doublet of ident.yaml ends here
+IDENT_DURATION_S = 30.0
 PAPER = {"CKF_INC_N": 1, "CKF_U_SRC": 0, "CKF_ACC_REF": 0, "CKF_SAT_GATE": 0, "CKF_Q_IXX": 1e-4,
          "CKF_Q_IYY": 5e-5, "CKF_Q_IZZ": 1e-4, "CKF_Q_M": 5e-4, "CKF_P0_SCALE": 100.0}
 
@@ -57,15 +57,15 @@ def test_the_paper_configuration_does_not_converge() -> None:
     assert np.any(err[late] > 0.3)
 
 
-def test_every_inertia_k_converges_in_10_of_10_seeds() -> None:
-    """Seeds 1-10, defaults, to the end of the yaw doublets (14 s) and 2 s on: K1, K2 and K3 (the yaw doublets'
-    point) are within 0.1 of the clipped truth from 12 s on in every seed (docs/results.md, "The estimate converges").
-    K4 is excited by the position steps after 15 s and is checked on seed 1 above."""
-    worst = np.zeros(3)
+def test_every_k_converges_in_10_of_10_seeds() -> None:
+    """Seeds 1-10, defaults, the whole 30 s: every implied K (K3: the yaw doublets' point; K4: the mass gate's,
+    CKF_EXC_LIN) is within 0.1 of the clipped truth from 12 s to the end in every seed (docs/results.md, "The
+    estimate converges": worst seeds 0.032 / 0.057 / 0.086 / 0.091)."""
+    worst = np.zeros(4)
     for seed in SEEDS:
-        t, err = _k_error({}, YAW_DONE_T_S + 2.0, seed)
+        t, err = _k_error({}, IDENT_DURATION_S, seed)
         late = t >= EXCITATION_T_S + CONVERGE_WITHIN_S - 1e-9
-        worst = np.maximum(worst, err[late, :3].max(axis=0))
+        worst = np.maximum(worst, err[late].max(axis=0))
     assert np.all(worst <= TOL_K), worst
 
 

@@ -109,7 +109,7 @@ def test_config_from_the_parameter_file_defaults() -> None:
     assert c.lpf_tau_s == pytest.approx(0.7, rel=1e-6) and c.start_delay_s == pytest.approx(0.5, rel=1e-6)
     assert c.mode == CkfMode.CONSTRAINED and c.projection_weight == "inv_p"
     assert (c.inc_window, c.u_from_command, c.acc_at_com, c.sat_gate) == (25, True, True, True)
-    assert (c.exc_rot_rad_s2, c.exc_lin_m_s2) == (0.0, 0.0)
+    assert (c.exc_rot_rad_s2, c.exc_lin_m_s2) == (0.0, pytest.approx(0.2, rel=1e-6))
     assert (ref.inc_window, ref.u_from_command, ref.acc_at_com, ref.sat_gate) == (1, False, False, False)
 
 
