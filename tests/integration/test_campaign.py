@@ -51,6 +51,23 @@ def test_rows_are_the_crossed_grid_with_shared_draws_and_stable_ids() -> None:
     assert rows[0].world == {"scenario.object.mass_kg": 0.0, "sensor_noise_scale": rows[0].factors["noise"]}
 
 
+def test_a_variant_world_applies_to_its_rows_only_and_factors_win() -> None:
+    d = dict(SMALL, world={"sensor_noise_scale": 1.0, "vehicle.propulsion.k_thrust_tail": 2e-4},
+             variants={"weak_tail": {"controller": "proposed", "world": {"vehicle.propulsion.k_thrust_tail": 6e-5}},
+                       "paper_tail": {"controller": "proposed"}})
+    rows = expand(Campaign.from_dict(d))
+    by = {v: [r for r in rows if r.variant == v] for v in ("weak_tail", "paper_tail")}
+    assert {r.world["vehicle.propulsion.k_thrust_tail"] for r in by["weak_tail"]} == {6e-5}
+    assert {r.world["vehicle.propulsion.k_thrust_tail"] for r in by["paper_tail"]} == {2e-4}
+    # the drawn noise factor overrides the campaign's fixed value in both
+    assert all(r.world["sensor_noise_scale"] == r.factors["noise"] != 1.0 for r in rows)
+    # same world content, different variant: still different runs (the name is part of the id)
+    assert len({r.run_id for r in rows}) == len(rows)
+    assert "--world vehicle.propulsion.k_thrust_tail=6e-05" in replay_command(by["weak_tail"][0])
+    with pytest.raises(ValueError, match="unknown keys"):
+        Campaign.from_dict(dict(SMALL, variants={"v": {"controller": "proposed", "sets": {"INDI_ALLOC": 1}}}))
+
+
 def test_local_pool_and_dask_local_cluster_give_the_same_table(tmp_path: Path) -> None:
     distributed = pytest.importorskip("distributed")
     c = Campaign.from_dict(SMALL)
