@@ -42,6 +42,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from navig8_fc.params.store import read_parm_file
+
 KINDS = ("inprocess", "sitl")
 DISTRIBUTIONS = ("grid", "value", "uniform", "normal", "loguniform", "choice")
 TABLE_FILE = "results.parquet"
@@ -131,10 +133,14 @@ class Campaign:
             ctrl = str((v or {}).get("controller", vname))
             if ctrl not in CONTROLLERS:
                 raise ValueError(f"variant {vname!r}: controller must be one of {sorted(CONTROLLERS)}, got {ctrl!r}")
-            unknown = set(v or {}) - {"controller", "set", "world"}
+            unknown = set(v or {}) - {"controller", "params", "set", "world"}
             if unknown:
-                raise ValueError(f"variant {vname!r}: unknown keys {sorted(unknown)} (controller, set, world)")
-            params = tuple((str(k), float(x)) for k, x in ((v or {}).get("set") or {}).items())
+                raise ValueError(f"variant {vname!r}: unknown keys {sorted(unknown)} (controller, params, set, world)")
+            preset: dict[str, float] = {}
+            if (v or {}).get("params"):  # a parameter set file (.parm), relative to the campaign file; set: wins
+                pf = Path(str(v["params"]))
+                preset = read_parm_file(pf if pf.is_absolute() or base_dir is None else base_dir / pf)
+            params = tuple((str(k), float(x)) for k, x in (preset | dict((v or {}).get("set") or {})).items())
             vworld = tuple((str(k), float(x)) for k, x in ((v or {}).get("world") or {}).items())
             variants.append(Variant(str(vname), ctrl, params, vworld))
         if not variants:

@@ -68,6 +68,13 @@ def test_a_variant_world_applies_to_its_rows_only_and_factors_win() -> None:
         Campaign.from_dict(dict(SMALL, variants={"v": {"controller": "proposed", "sets": {"INDI_ALLOC": 1}}}))
 
 
+def test_a_variant_params_file_is_read_relative_to_the_campaign_and_set_wins(tmp_path: Path) -> None:
+    (tmp_path / "p.parm").write_text("INDI_ALLOC 1\nINDI_LPF_TAU 0.03\n")
+    d = dict(SMALL, variants={"v": {"controller": "proposed", "params": "p.parm", "set": {"INDI_LPF_TAU": 0.05}}})
+    rows = expand(Campaign.from_dict(d, tmp_path))
+    assert rows[0].params == {"INDI_ALLOC": 1.0, "INDI_LPF_TAU": 0.05}
+
+
 def test_local_pool_and_dask_local_cluster_give_the_same_table(tmp_path: Path) -> None:
     distributed = pytest.importorskip("distributed")
     c = Campaign.from_dict(SMALL)
