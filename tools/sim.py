@@ -6,7 +6,8 @@
 
 --set changes a flight-controller parameter (params/fc_params.yaml), --params a set of them from a file
 (`params/presets/*.parm`: `issue10.parm` is the configuration that meets issue 10, `paper.parm` the paper's);
---world changes the world the run flies in: the plant, the scenario, the vehicle, or the controller's model of it (sim_bridge/world.py lists the names).
+--world changes the world the run flies in: the plant, the scenario, the vehicle, or the controller's model of it
+(sim_bridge/world.py lists the names).
 
 The flight controller is the same `FlightStack` navig8-fc runs (mode manager, failsafes, controller core),
 stepped at INDI_RATE_HZ on the sensor bundle's time; the plant integrates in between with the command held
