@@ -190,3 +190,18 @@ def test_a_sitl_campaign_with_a_plan_names_it_in_every_row_and_replay() -> None:
     assert expand(Campaign.from_dict(SMALL))[0].run_id == "proposed-723407c1233c"  # as before plans existed
     with pytest.raises(ValueError, match="kind: sitl"):
         Campaign.from_dict(dict(d, kind="inprocess"))
+
+
+@pytest.mark.parametrize("path", sorted((Path(__file__).resolve().parents[2] / "params" / "campaigns").glob("*.yaml")),
+                         ids=lambda p: p.stem)
+def test_every_shipped_campaign_loads_and_expands(path: Path) -> None:
+    # the shipped files name presets and world keys by path: a renamed parameter or preset breaks them here
+    c = Campaign.load(path)
+    rows = expand(c)
+    assert rows and len({r.run_id for r in rows}) == len(rows)
+    from navig8_fc.params.registry import ParamRegistry
+
+    reg = ParamRegistry.from_defaults()
+    for r in rows:
+        for k, v in r.params.items():
+            assert reg.set(k, v).accepted, (path.name, r.variant, k, v)
