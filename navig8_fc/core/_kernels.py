@@ -359,7 +359,8 @@ ST = layout("ST", gyro_f=3,  # low-passed gyro
             init=1,  # 1.0 once the filters have had their first sample
             # INDI_U0_SRC = 1: the actuator estimate (alpha1, alpha3, w1, w2, w3 positions, then their rates), the
             # last command sent (clipped actuators) and 1.0 when that command was flown (the previous tick engaged)
-            act_x=10, act_cmd=5, act_ok=1)
+            act_x=10, act_cmd=5, act_ok=1,
+            act_n=1)  # ticks since the estimate restarted at the measurement
 IC = layout("IC", alpha=1, inv_dt=1, tilt_min=1, tilt_max=1, duct_speed_max=1, tail_speed_max=1,
             u_duct_sq_max=1,  # (w_duct_max^2)^2: bound on U_c^2 + U_s^2 of a duct
             u_tail_max=1,  # w_tail_max^2: bound on |U5|
@@ -406,14 +407,20 @@ def actuator_estimate(st, ic, tilt1, tilt3, w1, w2, w3):
     """INDI_U0_SRC = 1: the actuators' positions in st[ACT_X:ACT_X + 5] from the command flown last tick through
     the FC's actuator model, corrected toward the measurement by the complementary gain: the model carries the
     fast part (no sensor noise), the measurement the slow part (model errors, disturbances). Without a flown
-    command (first tick, after disengaging) the estimate restarts at the measurement, at rest."""
+    command (first tick, after disengaging) the estimate restarts at the measurement, at rest; the gain is then
+    1/(n + 1) on the n-th tick until it reaches the complementary gain (the running mean of the model-measurement
+    gap, as a Kalman filter's gain falls from its start): otherwise the first sample's noise (20 rad/s on the
+    speeds) would stay in U0 for ~INDI_U0_TAU and fly as a moment that long."""
     meas = (tilt1, tilt3, w1, w2, w3)
     if st[ST.ACT_OK] != 0.0:
         actuator_model_step(st, ST.ACT_X, ic[IC.ACT_AD:IC.ACT_AD + 4], ic[IC.ACT_BD:IC.ACT_BD + 2], st, ST.ACT_CMD)
-        g = ic[IC.U0_GAIN]
+        n = st[ST.ACT_N] + 1.0
+        st[ST.ACT_N] = n
+        g = max(ic[IC.U0_GAIN], 1.0 / (n + 1.0))
         for i in range(5):
             st[ST.ACT_X + i] += g * (meas[i] - st[ST.ACT_X + i])
     else:
+        st[ST.ACT_N] = 0.0
         for i in range(5):
             st[ST.ACT_X + i] = meas[i]
             st[ST.ACT_X + 5 + i] = 0.0
