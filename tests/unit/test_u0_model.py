@@ -161,3 +161,26 @@ def test_actuator_model_matches_the_simulators_discretisation() -> None:
 def test_bad_u0_source_is_refused() -> None:
     with pytest.raises(ValueError, match="INDI_U0_SRC"):
         _indi(2)
+
+
+def test_restart_takes_the_running_mean_of_the_measurements() -> None:
+    """After a restart the correction gain is 1/(n+1) until it reaches the complementary gain: with the actuators
+    holding still (the INDI's increment zero, so the command is U0 and the model predicts no motion) the estimate
+    on tick n is exactly the mean of the first n+1 measurements (closed form), not the first sample slowly
+    forgotten."""
+    q = np.zeros(3)
+    gc, gi = _gc_gi(q)
+    gc_inv = np.linalg.inv(gc)
+    indi = _indi(U0_MODEL, u0_tau_s=0.2, lpf_tau_s=0.0)  # LPF off: U0 is U(estimate); gain 0.049, so n <= 19
+    a1, a3, w1, w2, w3 = vm.u_to_actuators(vm.hover_trim(CFG, q, 0.0))
+    true = np.array([a1, a3, w1, w2, w3])
+    rng = np.random.default_rng(5)
+    meas = []
+    for _ in range(15):
+        m = true + rng.normal(0.0, [0.08, 0.08, 20.0, 20.0, 20.0])
+        meas.append(m)
+        # zero angular acceleration and v equal to the measured specific force: Delta Acc = 0, U = U0
+        _, st = indi.step(IndiInputs((0.0, 0.0, 0.0), (0.0, 0.0, -9.81), (m[0], m[1]), (m[2], m[3], m[4]),
+                                     (0.0, 0.0, 0.0, 0.0, -9.81), gc, gi, gc_inv))
+        want = vm.actuators_to_u(*np.mean(meas, axis=0))
+        np.testing.assert_allclose(st.u0_filtered, want, rtol=1e-9)
