@@ -1,13 +1,15 @@
 """navig8-authority: the actuator set's moment authority at hover, and the physical limit it puts on pitch
 during the paper's arm reversal (issue 10).
 
-    navig8-authority [--tail-max-thrust N] [--masses 0,1,2] [--json] [--no-reversal]
+    navig8-authority [--tail-max-thrust N] [--masses 0,1,2] [--pitch-deg 45] [--lag] [--json] [--no-reversal]
 
 1. **Static authority.** For an arm pose q and object mass m_o, the largest pure pitch (roll) moment about the
    composite CoM that the real actuator set (duct speeds 0..w_max, duct tilts within their limits, reversible
    tail speed) can hold at hover: maximise M (L) over U subject to G_C(c) U = [L, M, N, Fx, Fz] with the other
    moments 0, Fz = -m g and Fx = 0 ("Fx held") or Fx free (the tilt lever: common duct tilt x the duct height
-   below the CoM). Each duct's (U_cos, U_sin) = w^2 (cos a, sin a) lies in a disk sector of radius w_max^2 and
+   below the CoM). With the body pitched by theta (`--pitch-deg`, the paper's 45 deg phase) the hover force in
+   body axes is m g (sin theta, 0, -cos theta): "Fx held" then holds Fx = m g sin theta.
+   Each duct's (U_cos, U_sin) = w^2 (cos a, sin a) lies in a disk sector of radius w_max^2 and
    the tilt range; a range wider than 180 deg is not convex, but it is the union of two half disks, so the
    optimum is the best of the 4 linear programs over the pieces of the two ducts (exact up to the inscribed
    polygon of the disk, whose solutions are all flyable).
@@ -110,8 +112,9 @@ def _duct_constraints(cfg: VehicleConfig, pieces: tuple[tuple[float, float], ...
 
 
 def hover_authority(cfg: VehicleConfig, q_rad: Sequence[float], object_mass_kg: float, axis: str = "pitch",
-                    fx_free: bool = False, sides: int = POLYGON_SIDES) -> Authority:
-    """Largest/smallest pure moment about the composite CoM the actuator set holds at hover (level body).
+                    fx_free: bool = False, sides: int = POLYGON_SIDES, body_pitch_rad: float = 0.0) -> Authority:
+    """Largest/smallest pure moment about the composite CoM the actuator set holds at hover, the body pitched by
+    body_pitch_rad (0: level): the actuators hold -m g_body = m g (sin theta, 0, -cos theta) in FRD.
 
     Raises ValueError if the actuator set cannot even trim there."""
     row = ROWS[axis]
@@ -119,7 +122,8 @@ def hover_authority(cfg: VehicleConfig, q_rad: Sequence[float], object_mass_kg: 
     gc = control_effectiveness_gc(cfg, mp.com_frd_m)
     fixed = [r for r in range(5) if r != row and not (fx_free and r == 3)]
     target = np.zeros(5)
-    target[4] = -mp.mass_kg * cfg.gravity_m_s2
+    target[3] = mp.mass_kg * cfg.gravity_m_s2 * math.sin(body_pitch_rad)
+    target[4] = -mp.mass_kg * cfg.gravity_m_s2 * math.cos(body_pitch_rad)
     u5 = (math.copysign(cfg.tail_speed_min**2, cfg.tail_speed_min),
           math.copysign(cfg.tail_speed_max**2, cfg.tail_speed_max))
     bounds = [(None, None)] * 4 + [u5]
@@ -280,8 +284,10 @@ def min_pitch_excursion(t_s: np.ndarray, inertia_yy: np.ndarray, h_y: np.ndarray
 def reversal_bound(cfg: VehicleConfig, q_from_rad: float, q_to_rad: float, object_mass_kg: float,
                    v_max: float, a_max: float, fx_free: bool = False, dt_s: float = 0.002,
                    settle_s: float = 1.0, grid: int = 17, actuator: tuple[float, float] | None = None,
-                   causal_delay_s: float | None = None, pre_s: float = 0.0) -> ReversalBound:
-    """The paper's reversal (all three joints from q_from to q_to through the plant's servo, starting at pre_s).
+                   causal_delay_s: float | None = None, pre_s: float = 0.0,
+                   body_pitch_rad: float = 0.0) -> ReversalBound:
+    """The paper's reversal (all three joints from q_from to q_to through the plant's servo, starting at pre_s),
+    about a hover pitched by body_pitch_rad (the excursion is counted from there).
     actuator = (omega_n, zeta): the delivered moment lags its command (module docstring, 3.); causal_delay_s: the
     command stays at trim until this long after the reversal starts (None: free from t = 0, a preview)."""
     move_s = abs(q_to_rad - q_from_rad) / v_max + v_max / a_max + 0.05
@@ -295,7 +301,8 @@ def reversal_bound(cfg: VehicleConfig, q_from_rad: float, q_to_rad: float, objec
     iyy = np.array([mass_properties(cfg, qq, object_mass_kg).inertia_com[1, 1] for qq in q3])
     # static authority on a grid of the (equal) joint angle, interpolated along the path
     grid_q = np.linspace(min(q_from_rad, q_to_rad), max(q_from_rad, q_to_rad), grid)
-    auth = [hover_authority(cfg, [g] * N_LINKS, object_mass_kg, "pitch", fx_free) for g in grid_q]
+    auth = [hover_authority(cfg, [g] * N_LINKS, object_mass_kg, "pitch", fx_free, body_pitch_rad=body_pitch_rad)
+            for g in grid_q]
     m_max = np.interp(qj, grid_q, [a.max_nm for a in auth])
     m_min = np.interp(qj, grid_q, [a.min_nm for a in auth])
     lag = lag_matrix(dt_s, len(t) - 1, *actuator) if actuator is not None else None
@@ -318,7 +325,9 @@ CAUSAL_DELAY_S = 0.01  # one control tick at 100 Hz: the first tick that can see
 
 
 def analyse(cfg: VehicleConfig, masses: Sequence[float], reversal: bool, v_max: float,
-            a_max: float, amplitude_deg: float, actuator: tuple[float, float] | None = None) -> dict[str, Any]:
+            a_max: float, amplitude_deg: float, actuator: tuple[float, float] | None = None,
+            pitch_deg: float = 0.0) -> dict[str, Any]:
+    th = math.radians(pitch_deg)
     static = []
     for name, pose in POSES_DEG.items():
         q = [math.radians(v) for v in pose]
@@ -330,7 +339,7 @@ def analyse(cfg: VehicleConfig, masses: Sequence[float], reversal: bool, v_max: 
                         continue
                     key = f"{axis}{'_fx_free' if fx_free else ''}"
                     try:
-                        a = hover_authority(cfg, q, m, axis, fx_free)
+                        a = hover_authority(cfg, q, m, axis, fx_free, body_pitch_rad=th)
                     except ValueError:  # this actuator set cannot even trim there
                         row[key] = None
                         continue
@@ -342,7 +351,7 @@ def analyse(cfg: VehicleConfig, masses: Sequence[float], reversal: bool, v_max: 
         for m in masses:
             for q0, q1 in ((amp, -amp), (-amp, amp)):
                 for fx_free in (False, True):
-                    b = reversal_bound(cfg, q0, q1, m, v_max, a_max, fx_free)
+                    b = reversal_bound(cfg, q0, q1, m, v_max, a_max, fx_free, body_pitch_rad=th)
                     row = {"object_kg": m, "from_deg": math.degrees(q0), "to_deg": math.degrees(q1),
                            "fx_free": fx_free, "min_peak_pitch_deg": math.degrees(b.min_peak_pitch_rad),
                            "peak_reaction_nm": float(np.max(np.abs(b.disturbance_nm))),
@@ -350,14 +359,15 @@ def analyse(cfg: VehicleConfig, masses: Sequence[float], reversal: bool, v_max: 
                     if actuator is not None:
                         for key, delay in (("lag_preview_deg", None), ("lag_causal_deg", CAUSAL_DELAY_S)):
                             bl = reversal_bound(cfg, q0, q1, m, v_max, a_max, fx_free, actuator=actuator,
-                                                causal_delay_s=delay, pre_s=LAG_PRE_S)
+                                                causal_delay_s=delay, pre_s=LAG_PRE_S, body_pitch_rad=th)
                             row[key] = math.degrees(bl.min_peak_pitch_rad)
                     rev.append(row)
-    return {"tail_max_thrust_n": tail_max_thrust_n(cfg), "static": static, "reversal": rev}
+    return {"tail_max_thrust_n": tail_max_thrust_n(cfg), "body_pitch_deg": pitch_deg, "static": static,
+            "reversal": rev}
 
 
 def render_text(rep: dict[str, Any]) -> str:
-    lines = [f"tail: +-{rep['tail_max_thrust_n']:.0f} N",
+    lines = [f"tail: +-{rep['tail_max_thrust_n']:.0f} N; body pitch {rep['body_pitch_deg']:g} deg",
              "static pure-moment authority at hover about the composite CoM, N m [min, max] (inner LP)",
              f"{'pose':>9} {'m_o':>4} | {'pitch, Fx held':>17} | {'pitch, Fx free':>17} | {'roll':>17}"]
     for r in rep["static"]:
@@ -389,6 +399,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="evaluate a tail of this maximum thrust (N) instead of params/vehicle.yaml's")
     ap.add_argument("--masses", default="0,1,2", help="object masses, kg, comma separated")
     ap.add_argument("--amplitude-deg", type=float, default=20.0, help="reversal amplitude (Eq. 26: 20 deg)")
+    ap.add_argument("--pitch-deg", type=float, default=0.0,
+                    help="hover with the body pitched (the paper's 45 deg phase); default level")
     ap.add_argument("--no-reversal", action="store_true", help="static authority only")
     ap.add_argument("--json", action="store_true", help="one JSON object instead of the table")
     ap.add_argument("--lag", action="store_true",
@@ -404,7 +416,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         masses = [float(v) for v in args.masses.split(",")]
         act = (plant.speed_dynamics.omega_n_rad_s, plant.speed_dynamics.zeta) if args.lag else None
         rep = analyse(cfg, masses, not args.no_reversal, plant.joint_v_max_rad_s, plant.joint_a_max_rad_s2,
-                      args.amplitude_deg, act)
+                      args.amplitude_deg, act, args.pitch_deg)
     except ValueError as e:
         print(f"navig8-authority: {e}", file=sys.stderr)
         return 2

@@ -42,6 +42,8 @@ from typing import Any
 import numpy as np
 import yaml
 
+from navig8_fc.params.store import read_parm_file
+
 KINDS = ("inprocess", "sitl")
 DISTRIBUTIONS = ("grid", "value", "uniform", "normal", "loguniform", "choice")
 TABLE_FILE = "results.parquet"
@@ -49,8 +51,8 @@ STREAM_FILE = "runs.jsonl"
 # Scalar summary keys of navig8_tools.summary.summarize kept per run (settle is folded to two counts).
 METRICS = ("sim_time_s", "wall_time_s", "real_time_factor", "lost_control", "lost_control_t_s", "min_eigenvalue",
            "max_eigenvalue", "bound_violations", "max_pos_error_m", "pos_rms_error_m", "max_att_error_deg",
-           "peak_reaction_force_n", "peak_reaction_torque_nm", "max_joint_rate_rad_s", "max_joint_accel_rad_s2",
-           "steps_settled", "steps_total")
+           "att_rms_error_deg", "peak_reaction_force_n", "peak_reaction_torque_nm", "max_joint_rate_rad_s",
+           "max_joint_accel_rad_s2", "steps_settled", "steps_total")
 # Columns of a sitl run that flies a plan (from navig8-mission's fly(): items, items reached, complete, path length)
 MISSION_METRICS = ("mission_items", "mission_reached", "mission_complete", "mission_path_m")
 # Columns that depend on where and when a run ran, not on its row (left out when comparing two tables).
@@ -97,6 +99,7 @@ class Variant:
     name: str
     controller: str  # navig8_tools.sim.CONTROLLERS
     params: tuple[tuple[str, float], ...] = ()  # FC parameters (params/fc_params.yaml), e.g. an allocation option
+    world: tuple[tuple[str, float], ...] = ()  # world overrides of this variant's runs (over the campaign's world:)
 
 
 @dataclass(frozen=True)
@@ -130,8 +133,16 @@ class Campaign:
             ctrl = str((v or {}).get("controller", vname))
             if ctrl not in CONTROLLERS:
                 raise ValueError(f"variant {vname!r}: controller must be one of {sorted(CONTROLLERS)}, got {ctrl!r}")
-            params = tuple((str(k), float(x)) for k, x in ((v or {}).get("set") or {}).items())
-            variants.append(Variant(str(vname), ctrl, params))
+            unknown = set(v or {}) - {"controller", "params", "set", "world"}
+            if unknown:
+                raise ValueError(f"variant {vname!r}: unknown keys {sorted(unknown)} (controller, params, set, world)")
+            preset: dict[str, float] = {}
+            if (v or {}).get("params"):  # a parameter set file (.parm), relative to the campaign file; set: wins
+                pf = Path(str(v["params"]))
+                preset = read_parm_file(pf if pf.is_absolute() or base_dir is None else base_dir / pf)
+            params = tuple((str(k), float(x)) for k, x in (preset | dict((v or {}).get("set") or {})).items())
+            vworld = tuple((str(k), float(x)) for k, x in ((v or {}).get("world") or {}).items())
+            variants.append(Variant(str(vname), ctrl, params, vworld))
         if not variants:
             raise ValueError("a campaign needs at least one variant")
         factors = []
@@ -237,7 +248,7 @@ def expand(c: Campaign) -> list[Row]:
             for s, draw in enumerate(draws):
                 for seed in c.seeds:
                     values = {f.name: float(x) for f, x in zip(grid, cell, strict=True)} | draw
-                    world = dict(c.world)
+                    world = dict(c.world) | dict(v.world)
                     params = dict(v.params)
                     for f in c.factors:
                         (world if f.target == "world" else params)[f.key] = values[f.name]

@@ -30,13 +30,18 @@ def _fmt(x: Any, nd: int = 2) -> str:
     return "–" if x is None or (isinstance(x, float) and not np.isfinite(x)) else f"{x:.{nd}f}"
 
 
+def _col(df: Any, name: str) -> Any:
+    """A numeric column, all-NaN when the table has no such column (rows written before it existed)."""
+    return df[name].astype(float) if name in df else df.index.to_series().astype(float) * np.nan
+
+
 def robustness_table(df: Any, by: str | None = None) -> str:
     """Per variant (and per value of `by`): runs, failed runs, lost control, success rate, median and worst max
-    attitude error, median position RMS."""
+    attitude error, median attitude and position RMS, the worst (smallest) eigenvalue and the bound violations."""
     keys = ["variant"] + ([by] if by else [])
     head = "| " + " | ".join(keys) + " | runs | failed | lost control | success | max att err ° (median / worst) " \
-        "| pos RMS m (median) |"
-    lines = [head, "|" + "---|" * len(keys) + "---:|---:|---:|---:|---:|---:|"]
+        "| att RMS ° (median) | pos RMS m (median) | min λ (worst) | bound violations |"
+    lines = [head, "|" + "---|" * len(keys) + "---:|" * 9]
     for key, g in df.groupby(keys, sort=False):
         key = key if isinstance(key, tuple) else (key,)
         ok = g[g["status"] == "ok"]
@@ -44,7 +49,10 @@ def robustness_table(df: Any, by: str | None = None) -> str:
         lines.append("| " + " | ".join(str(k) for k in key) + f" | {len(g)} | {int((g['status'] != 'ok').sum())} "
                      f"| {int(ok['lost_control'].astype(bool).sum())} | {100 * g['success'].mean():.0f} % "
                      f"| {_fmt(att.median(), 1)} / {_fmt(att.max(), 1)} "
-                     f"| {_fmt(ok['pos_rms_error_m'].astype(float).median(), 3)} |")
+                     f"| {_fmt(_col(ok, 'att_rms_error_deg').median(), 2)} "
+                     f"| {_fmt(ok['pos_rms_error_m'].astype(float).median(), 3)} "
+                     f"| {_fmt(_col(ok, 'min_eigenvalue').min(), 3)} "
+                     f"| {int(_col(ok, 'bound_violations').fillna(0).sum())} |")
     return "\n".join(lines)
 
 

@@ -1,11 +1,13 @@
 """navig8-sim: plant + sensors + flight controller in one process (no sockets), logged to MCAP.
 
     navig8-sim --scenario paper --controller proposed|unconstrained|fixed [--seed N] [--duration S]
-               [--log run.mcap] [--summary summary.json] [--plots DIR] [--set NAME=VALUE ...]
+               [--log run.mcap] [--summary summary.json] [--plots DIR] [--params FILE] [--set NAME=VALUE ...]
                [--world NAME=VALUE ...] [--world NAME*=VALUE ...]
 
---set changes a flight-controller parameter (params/fc_params.yaml); --world changes the world the run flies
-in: the plant, the scenario, the vehicle, or the controller's model of it (sim_bridge/world.py lists the names).
+--set changes a flight-controller parameter (params/fc_params.yaml), --params a set of them from a file
+(`params/presets/*.parm`: `issue10.parm` is the configuration that meets issue 10, `paper.parm` the paper's);
+--world changes the world the run flies in: the plant, the scenario, the vehicle, or the controller's model of it
+(sim_bridge/world.py lists the names).
 
 The flight controller is the same `FlightStack` navig8-fc runs (mode manager, failsafes, controller core),
 stepped at INDI_RATE_HZ on the sensor bundle's time; the plant integrates in between with the command held
@@ -29,6 +31,7 @@ from navig8_fc.core.controller import ControllerStatus, FcSensors, warm_up_kerne
 from navig8_fc.flight import FlightStack
 from navig8_fc.logrecords import truth_record
 from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.params.store import read_parm_file
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, script_waypoints
 from navig8_fc.shell.mcap_log import McapLogger
 from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m
@@ -188,11 +191,21 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--log", default="out/run.mcap")
     ap.add_argument("--summary", default=None)
     ap.add_argument("--plots", default=None, help="also write Figures 10-16 here")
+    ap.add_argument("--params", action="append", default=[], metavar="FILE",
+                    help="a parameter set (.parm, MAVProxy's param load format), e.g. params/presets/issue10.parm; "
+                         "applied before --set")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a parameter")
     ap.add_argument("--world", action="append", default=[], metavar="NAME=VALUE",
                     help="override the world (NAME*=VALUE scales; names: sim_bridge/world.py)")
     args = ap.parse_args(argv)
-    res = run(args.scenario, args.controller, args.seed, args.duration, args.log, _parse_set(args.set),
+    overrides: dict[str, float] = {}
+    for f in args.params:
+        try:
+            overrides.update(read_parm_file(f))
+        except (OSError, ValueError, UnicodeDecodeError) as exc:
+            ap.error(f"--params {f}: {exc}")
+    overrides.update(_parse_set(args.set))
+    res = run(args.scenario, args.controller, args.seed, args.duration, args.log, overrides,
               progress=True, world=parse_world_items(args.world))
     text = json.dumps(res.summary, indent=2, allow_nan=True)
     print(text)

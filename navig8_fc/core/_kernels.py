@@ -356,10 +356,17 @@ ST = layout("ST", gyro_f=3,  # low-passed gyro
             gyro_prev=3,  # previous low-passed gyro (backward difference)
             acc_f=2,  # low-passed specific force x, z
             u0_f=5,  # low-passed U0
-            init=1)  # 1.0 once the filters have had their first sample
+            init=1,  # 1.0 once the filters have had their first sample
+            # INDI_U0_SRC = 1: the actuator estimate (alpha1, alpha3, w1, w2, w3 positions, then their rates), the
+            # last command sent (clipped actuators) and 1.0 when that command was flown (the previous tick engaged)
+            act_x=10, act_cmd=5, act_ok=1,
+            act_n=1)  # ticks since the estimate restarted at the measurement
 IC = layout("IC", alpha=1, inv_dt=1, tilt_min=1, tilt_max=1, duct_speed_max=1, tail_speed_max=1,
             u_duct_sq_max=1,  # (w_duct_max^2)^2: bound on U_c^2 + U_s^2 of a duct
-            u_tail_max=1)  # w_tail_max^2: bound on |U5|
+            u_tail_max=1,  # w_tail_max^2: bound on |U5|
+            u0_src=1,  # INDI_U0_SRC: 0 U0 from the measured actuators (Eq. 5), 1 from the model + measurement
+            u0_gain=1,  # the complementary filter's correction gain toward the measurement (INDI_U0_TAU)
+            act_ad=4, act_bd=2)  # the actuator model's exact discretisation (actuator_model.actuator_discretisation)
 IO = layout("IO", acc_f=5, u0=5, dacc=5, du=5, u=5, scale=3, fallback=1,
             act=5)  # alpha1, alpha3, w1, w2, w3 (clipped)
 
@@ -385,10 +392,50 @@ def u_to_actuators(u, out, at):
 
 
 @njit(cache=True)
+def actuator_model_step(x, xo, ad, bd, cmd, co):
+    """The five actuators' state x[xo:xo + 5] (positions), x[xo + 5:xo + 10] (rates) advanced one period under
+    the held command cmd[co:co + 5]: [p, r] <- Ad [p, r] + Bd u (Eq. 10's second-order lag, exact ZOH;
+    ad = [a00, a01, a10, a11], bd = [b0, b1] from actuator_model.actuator_discretisation)."""
+    for i in range(5):
+        p, r, u = x[xo + i], x[xo + 5 + i], cmd[co + i]
+        x[xo + i] = ad[0] * p + ad[1] * r + bd[0] * u
+        x[xo + 5 + i] = ad[2] * p + ad[3] * r + bd[1] * u
+
+
+@njit(cache=True)
+def actuator_estimate(st, ic, tilt1, tilt3, w1, w2, w3):
+    """INDI_U0_SRC = 1: the actuators' positions in st[ACT_X:ACT_X + 5] from the command flown last tick through
+    the FC's actuator model, corrected toward the measurement by the complementary gain: the model carries the
+    fast part (no sensor noise), the measurement the slow part (model errors, disturbances). Without a flown
+    command (first tick, after disengaging) the estimate restarts at the measurement, at rest; the gain is then
+    1/(n + 1) on the n-th tick until it reaches the complementary gain (the running mean of the model-measurement
+    gap, as a Kalman filter's gain falls from its start): otherwise the first sample's noise (20 rad/s on the
+    speeds) would stay in U0 for ~INDI_U0_TAU and fly as a moment that long."""
+    meas = (tilt1, tilt3, w1, w2, w3)
+    if st[ST.ACT_OK] != 0.0:
+        actuator_model_step(st, ST.ACT_X, ic[IC.ACT_AD:IC.ACT_AD + 4], ic[IC.ACT_BD:IC.ACT_BD + 2], st, ST.ACT_CMD)
+        n = st[ST.ACT_N] + 1.0
+        st[ST.ACT_N] = n
+        g = max(ic[IC.U0_GAIN], 1.0 / (n + 1.0))
+        for i in range(5):
+            st[ST.ACT_X + i] += g * (meas[i] - st[ST.ACT_X + i])
+    else:
+        st[ST.ACT_N] = 0.0
+        for i in range(5):
+            st[ST.ACT_X + i] = meas[i]
+            st[ST.ACT_X + 5 + i] = 0.0
+
+
+@njit(cache=True)
 def indi_measure(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, out):
-    """Filters of IndiController.measure: writes acc_f (out[0:5]) and u0 (out[5:10])."""
+    """Filters of IndiController.measure: writes acc_f (out[0:5]) and u0 (out[5:10]). U0 before its low-pass:
+    the measured actuators (INDI_U0_SRC = 0, Eq. 5) or their estimate (1, actuator_estimate)."""
     u = np.empty(5)
-    actuators_to_u(tilt1, tilt3, w1, w2, w3, u, 0)
+    if ic[IC.U0_SRC] != 0.0:
+        actuator_estimate(st, ic, tilt1, tilt3, w1, w2, w3)
+        actuators_to_u(st[ST.ACT_X], st[ST.ACT_X + 1], st[ST.ACT_X + 2], st[ST.ACT_X + 3], st[ST.ACT_X + 4], u, 0)
+    else:
+        actuators_to_u(tilt1, tilt3, w1, w2, w3, u, 0)
     if st[ST.INIT] == 0.0:
         for i in range(3):
             st[ST.GYRO_F + i] = gyro[i]

@@ -70,6 +70,7 @@ PARAMS_USED = (
     "INDI_ARM_FF", "INDI_ALLOC", "INDI_ALLOC_W_RP", "INDI_ALLOC_W_AZ", "INDI_ALLOC_W_YAW", "INDI_ALLOC_W_AX",
     "INDI_ALLOC_DTILT", "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
     "INDI_ARM_LEAD", "ARM_SERVO_HZ", "ARM_SERVO_VMAX", "ARM_SERVO_AMAX",
+    "INDI_U0_SRC", "INDI_U0_TAU", "ACT_WN", "ACT_ZETA",
 )
 
 
@@ -126,7 +127,9 @@ class ControllerConfig:
                                              float(values["INDI_ALLOC_W_AX"]), float(values["INDI_ALLOC_DTILT"])),
                             int(values["INDI_ARM_FF"]),
                             ArmPreviewConfig(float(values["INDI_ARM_LEAD"]), float(values["ARM_SERVO_HZ"]),
-                                             float(values["ARM_SERVO_VMAX"]), float(values["ARM_SERVO_AMAX"]))),
+                                             float(values["ARM_SERVO_VMAX"]), float(values["ARM_SERVO_AMAX"])),
+                            u0_src=int(values["INDI_U0_SRC"]), u0_tau_s=float(values["INDI_U0_TAU"]),
+                            act_wn_rad_s=float(values["ACT_WN"]), act_zeta=float(values["ACT_ZETA"])),
             outer=OuterLoopConfig.from_params(values, vehicle.gravity_m_s2),  # type: ignore[arg-type]
             ckf=CkfConfig.from_params(values, dt),
             acc_ref=int(values["INDI_ACC_REF"]),

@@ -3,8 +3,11 @@
 Each control step:
 - angular acceleration from differentiating the low-passed gyro; body specific force x, z low-passed
   with the same filter (tau = INDI_LPF_TAU): Acc_f = [Pdot, Qdot, Rdot, a_x, a_z] filtered;
-- U0 from the measured duct angles and propeller speeds, passed through the same low-pass so the
-  increment is unbiased by the filter lag (notes §4, Paparazzi's synchronisation);
+- U0 from the measured duct angles and propeller speeds (INDI_U0_SRC = 0, the paper's Eq. 5), or (1) from the
+  command flown last tick through the FC's actuator model (Eq. 10, ACT_WN, ACT_ZETA) corrected toward the
+  measurement by a complementary filter (time constant INDI_U0_TAU), which keeps the 20 rad/s speed-sensor noise
+  out of the increment (docs/model.md, "Hover sway"); either is passed through the same low-pass as the
+  feedback so the increment is unbiased by the filter lag (notes §4, Paparazzi's synchronisation);
 - Delta Acc = v - Acc_f; Delta U = G_C,UAM^-1 G_hat_I Delta Acc (Eq. 5); U = U0 + Delta U (Eq. 6);
 - U -> (alpha1, alpha3, w1, w2, w3) (Sec. 3), respecting the actuator limits.
 
@@ -25,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from navig8_fc.core import _kernels as _k
+from navig8_fc.core.actuator_model import actuator_discretisation
 from navig8_fc.core.allocation import ALLOC_WLS, AllocationConfig, indi_step_wls
 from navig8_fc.core.arm_preview import ArmPreviewConfig
 from navig8_fc.core.filters import lpf_alpha
@@ -34,6 +38,9 @@ from navig8_fc.core.vehicle import VehicleConfig
 _IO_ACC_F, _IO_U0, _IO_DACC, _IO_DU, _IO_U, _IO_SCALE, _IO_ACT = (
     m.sl for m in (_k.IO.ACC_F, _k.IO.U0, _k.IO.DACC, _k.IO.DU, _k.IO.U, _k.IO.SCALE, _k.IO.ACT))
 _IO_FALLBACK = int(_k.IO.FALLBACK)
+_ST_ACT_CMD, _ST_ACT_OK = _k.ST.ACT_CMD.sl, int(_k.ST.ACT_OK)
+
+U0_MEASURED, U0_MODEL = 0, 1  # INDI_U0_SRC
 
 # Axis groups of Delta Acc = [Pdot, Qdot, Rdot, a_x, a_z], scaled back in this order on saturation.
 SATURATION_ORDER: tuple[tuple[int, ...], ...] = ((3,), (2,), (0, 1, 4))
@@ -61,6 +68,12 @@ class IndiConfig:
     # the filter, 2 the reaction predicted INDI_ARM_LEAD ahead from the arm's commanded trajectory (arm_preview.py)
     arm_ff: int = 0
     arm_preview: ArmPreviewConfig = ArmPreviewConfig()
+    # INDI_U0_SRC (U0_MEASURED: the paper; U0_MODEL: the command through the actuator model, complemented by the
+    # measurement with time constant INDI_U0_TAU) and the FC's actuator model (ACT_WN, ACT_ZETA; Eq. 10)
+    u0_src: int = U0_MEASURED
+    u0_tau_s: float = 0.2
+    act_wn_rad_s: float = 120.0
+    act_zeta: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -103,10 +116,15 @@ class IndiController:
         self.cfg = cfg
         lim = cfg.limits
         self._st = _k.ST.zeros()
+        if cfg.u0_src not in (U0_MEASURED, U0_MODEL):
+            raise ValueError(f"INDI_U0_SRC must be {U0_MEASURED} or {U0_MODEL}, got {cfg.u0_src}")
+        ad, bd = actuator_discretisation(cfg.act_wn_rad_s, cfg.act_zeta, cfg.dt_s)
         self._ic = _k.IC.pack(alpha=lpf_alpha(cfg.lpf_tau_s, cfg.dt_s), inv_dt=1.0 / cfg.dt_s,
                               tilt_min=lim.tilt_min_rad, tilt_max=lim.tilt_max_rad, duct_speed_max=lim.duct_speed_max,
                               tail_speed_max=lim.tail_speed_max, u_duct_sq_max=(lim.duct_speed_max**2)**2,
-                              u_tail_max=lim.tail_speed_max**2)
+                              u_tail_max=lim.tail_speed_max**2, u0_src=float(cfg.u0_src),
+                              u0_gain=lpf_alpha(cfg.u0_tau_s, cfg.dt_s),
+                              act_ad=ad, act_bd=bd)
         self._out = _k.IO.zeros()
         self._al = cfg.alloc.vector()
         self._wls = cfg.alloc.mode == ALLOC_WLS
@@ -117,6 +135,7 @@ class IndiController:
     def measure(self, inp: IndiInputs) -> tuple[list[float], list[float]]:
         """Filtered acceleration feedback and filtered U0 (also used while disarmed, to stay warm)."""
         sf, (a1, a3), (w1, w2, w3) = inp.specific_force_frd, inp.tilt_rad, inp.speed_rad_s
+        self._st[_ST_ACT_OK] = 0.0  # no command flown: the actuator estimate restarts at the measurement
         _k.indi_measure(self._st, self._ic, np.asarray(inp.gyro_frd, dtype=float), float(sf[0]), float(sf[2]),
                         float(a1), float(a3), float(w1), float(w2), float(w3), self._out)
         o = self._out.tolist()
@@ -139,6 +158,9 @@ class IndiController:
                           gi_hat, out)
         else:
             _k.indi_step(self._st, self._ic, gyro, sf_x, sf_z, a1, a3, w1, w2, w3, accel_cmd, gc_inv, gi_hat, out)
+        st = self._st
+        st[_ST_ACT_CMD] = out[_IO_ACT]  # what the actuators fly until the next tick: the model's input
+        st[_ST_ACT_OK] = 1.0
         o = tuple(out.tolist())
         s0, s1, s2 = scales = o[_IO_SCALE]
         act = o[_IO_ACT]

@@ -24,9 +24,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-import numpy as np
-from scipy.linalg import expm
-
+from navig8_fc.core.actuator_model import ActuatorModel  # the FC's model (core), re-exported here
 from navig8_fc.mavlink.codec import SEAM_MESSAGES, Message
 from navig8_fc.mavlink.seam import StepBundle
 from navig8_fc.mission.geo import GeoOrigin
@@ -41,28 +39,6 @@ def ned_from_global(origin: GeoOrigin, lat_e7: int, lon_e7: int, alt_mm: int) ->
     """Local NED (m) of a MAVLink position (degE7, degE7, mm AMSL): the inverse of GeoOrigin.to_global."""
     n, e = origin.to_ned_xy(lat_e7 * 1e-7, lon_e7 * 1e-7)
     return n, e, origin.alt_amsl_m - alt_mm * 1e-3
-
-
-class ActuatorModel:
-    """x'' = wn^2 (u - x) - 2 zeta wn x' for each of the five actuators (alpha1, alpha3, w1, w2, w3; Eq. 10's
-    second-order model), the command held over each period: x_{k+1} = Ad x_k + Bd u_k (exact, by the matrix
-    exponential of the augmented system)."""
-
-    def __init__(self, wn_rad_s: float, zeta: float, dt_s: float, initial: Sequence[float]) -> None:
-        a = np.array([[0.0, 1.0, 0.0], [-wn_rad_s**2, -2.0 * zeta * wn_rad_s, wn_rad_s**2], [0.0, 0.0, 0.0]])
-        m = expm(a * dt_s)
-        self._ad, self._bd = m[:2, :2], m[:2, 2]
-        self.x = np.array([[float(v), 0.0] for v in initial])  # (position, rate) per actuator
-
-    def step(self, command: Sequence[float]) -> tuple[float, ...]:
-        """Advance one period under `command`; the positions after it."""
-        u = np.asarray(command, dtype=float)
-        self.x = self.x @ self._ad.T + np.outer(u, self._bd)
-        return tuple(float(v) for v in self.x[:, 0])
-
-    @property
-    def positions(self) -> tuple[float, ...]:
-        return tuple(float(v) for v in self.x[:, 0])
 
 
 @dataclass

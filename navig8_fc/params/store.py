@@ -58,6 +58,42 @@ def default_state_path(state_dir: str | Path, instance: int, stem: str = "fc_par
     return Path(state_dir) / f"{stem}_{int(instance)}.json"
 
 
+def parse_parm_text(text: str, source: str = "<text>") -> dict[str, float]:
+    """A parameter set in ArduPilot's / MAVProxy's `.parm` format (what MAVProxy's `param load` and `param save`
+    read and write): one `NAME VALUE` (or `NAME,VALUE`) per line, `#` starts a comment. Names are not checked here
+    (the registry does that when the values are applied); a malformed line, a non-finite value or a name given
+    twice raises ValueError naming the line."""
+    values: dict[str, float] = {}
+    for n, line in enumerate(text.splitlines(), 1):
+        body = line.split("#", 1)[0].strip()
+        if not body:
+            continue
+        parts = body.replace(",", " ").split()
+        if len(parts) != 2:
+            raise ValueError(f"{source}:{n}: expected 'NAME VALUE', got {line.strip()!r}")
+        name, raw = parts
+        try:
+            value = float(raw)
+        except ValueError:
+            raise ValueError(f"{source}:{n}: {name}: {raw!r} is not a number") from None
+        if not math.isfinite(value):
+            raise ValueError(f"{source}:{n}: {name}: {raw!r} is not finite")
+        if name in values:
+            raise ValueError(f"{source}:{n}: {name} is given twice")
+        values[name] = value
+    return values
+
+
+def read_parm_file(path: str | Path) -> dict[str, float]:
+    """parse_parm_text of a file of at most MAX_FILE_BYTES (UTF-8); ValueError/OSError with the reason."""
+    p = Path(path)
+    with p.open("rb") as f:
+        raw = f.read(MAX_FILE_BYTES + 1)
+    if len(raw) > MAX_FILE_BYTES:
+        raise ValueError(f"{p}: larger than {MAX_FILE_BYTES} bytes")
+    return parse_parm_text(raw.decode("utf-8"), str(p))
+
+
 class ParamStore:
     """Load and save the parameter values of one vehicle instance."""
 

@@ -2,13 +2,16 @@
 exits non-zero when either ends by itself before the run is done (its code, or 128 + N for signal N).
 
     navig8-sitl [--scenario NAME|FILE] [--speed X] [--until-done] [--summary FILE] [--log-dir DIR]
-                [--state-dir DIR] [--instance N] [--seed N] [--defaults] [--set NAME=VALUE ...] [--foxglove[=PORT]]
+                [--state-dir DIR] [--instance N] [--seed N] [--defaults] [--params FILE] [--set NAME=VALUE ...]
+                [--foxglove[=PORT]]
 
 Default: the `ground` scenario (on the ground, disarmed, waiting for a GCS) in real time. With
 --until-done the scenario runs to its end, both processes exit, and the summary (the same keys as
 navig8-sim) is computed from the flight controller's MCAP log. --set NAME=VALUE writes a parameter into the
 instance's parameter file in --state-dir before navig8-fc starts (checked as a GCS's PARAM_SET is; a refused
-value stops here with the reason), so a campaign run is one command; world overrides reach the plant with
+value stops here with the reason), so a campaign run is one command; --params FILE does the same for a
+parameter set (`params/presets/*.parm`, MAVProxy's `param load` format), and with --defaults the stored file
+becomes the defaults plus those values; world overrides reach the plant with
 --bridge-arg=--world --bridge-arg=NAME=VALUE.
 """
 
@@ -22,6 +25,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -90,9 +94,13 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--instance", type=int, default=0)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--duration", type=float, default=None)
-    ap.add_argument("--defaults", action="store_true", help="start from default parameters")
+    ap.add_argument("--defaults", action="store_true",
+                    help="start from default parameters (with --params/--set: the defaults plus those, stored)")
+    ap.add_argument("--params", action="append", default=[], metavar="FILE",
+                    help="store a parameter set (.parm: NAME VALUE per line, as MAVProxy's param load) for this "
+                         "instance before the FC starts, e.g. params/presets/issue10.parm; before --set")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                    help="store a parameter for this instance before the FC starts (not with --defaults)")
+                    help="store a parameter for this instance before the FC starts")
     ap.add_argument("--bind-host", default="127.0.0.1", help="GCS/API bind address (0.0.0.0 in a container)")
     ap.add_argument("--gcs-host", default="127.0.0.1", help="where GCS/API traffic goes before a GCS talks")
     ap.add_argument("--foxglove", nargs="?", type=int, const=8765, default=None, metavar="PORT",
@@ -102,24 +110,35 @@ def build_arg_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def _store_params(state_dir: str, instance: int, items: list[str]) -> str | None:
-    """Merge NAME=VALUE items into the instance's stored parameters; the reason of the first refusal, else None."""
+def _store_params(state_dir: str, instance: int, items: list[str], files: Sequence[str] = (),
+                  from_defaults: bool = False) -> str | None:
+    """Merge the parameter files' values, then NAME=VALUE items, into the instance's stored parameters (into the
+    defaults when from_defaults); the reason of the first refusal, else None (nothing is stored on a refusal)."""
     from navig8_fc.params.registry import ParamRegistry
-    from navig8_fc.params.store import ParamStore, default_state_path
+    from navig8_fc.params.store import ParamStore, default_state_path, read_parm_file
 
     store = ParamStore(default_state_path(state_dir, instance))
     reg = ParamRegistry.from_defaults()
-    reg.load_values(store.load().values)
+    if not from_defaults:
+        reg.load_values(store.load().values)
+    pairs: list[tuple[str, float, str]] = []
+    for f in files:
+        try:
+            pairs += [(k, v, f) for k, v in read_parm_file(f).items()]
+        except (OSError, ValueError, UnicodeDecodeError) as exc:
+            return f"--params {f}: {exc}"
     for it in items:
         name, sep, value = it.partition("=")
         try:
-            res = reg.set(name.strip(), float(value)) if sep else None
+            pairs.append((name.strip(), float(value), "--set"))
         except ValueError:
-            res = None
-        if res is None:
+            sep = ""
+        if not sep:
             return f"--set expects NAME=VALUE with a number, got {it!r}"
+    for name, value, src in pairs:
+        res = reg.set(name, value)
         if not res.accepted:
-            return str(res.reason)
+            return f"{src}: {res.reason}"
     Path(state_dir).mkdir(parents=True, exist_ok=True)
     store.save(reg.as_dict())
     return None
@@ -127,9 +146,9 @@ def _store_params(state_dir: str, instance: int, items: list[str]) -> str | None
 
 def main(argv: list[str] | None = None) -> int:
     a = build_arg_parser().parse_args(argv)
-    if a.set:
-        err = "--set and --defaults exclude each other" if a.defaults else _store_params(a.state_dir, a.instance,
-                                                                                           a.set)
+    stored = bool(a.set or a.params)
+    if stored:
+        err = _store_params(a.state_dir, a.instance, a.set, a.params, from_defaults=a.defaults)
         if err:
             print(f"navig8-sitl: {err}", file=sys.stderr)
             return 2
@@ -140,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     log = log_dir / f"navig8_{scen_name}_i{a.instance}_{stamp}_{os.getpid()}.mcap"
     fc_args = ["--instance", str(a.instance), "--scenario", a.scenario, "--log", str(log),
                "--state-dir", a.state_dir, "--bind-host", a.bind_host, "--gcs-host", a.gcs_host, *a.fc_arg]
-    if a.defaults:
+    if a.defaults and not stored:  # with --params/--set the stored file is already the defaults plus those
         fc_args.append("--defaults")
     if a.foxglove is not None:
         fc_args.append(f"--foxglove={a.foxglove}")

@@ -1,37 +1,44 @@
-"""The attitude bound of issue 10 on the paper scenario (in-process, seed 1): the prioritised WLS allocation
-(INDI_ALLOC = 1) with the shorter INDI filter and the arm feed-forward, against the paper's group scaling in the
-same configuration. The first 12.5 s hold the two worst kinds of event: 1 kg reversals (2.5, 5 s), the 2 kg
-object's arrival (6 s) and 2 kg reversals (7.5, 10 s, + -> - and - -> +), and the east/north position steps.
+"""Issue 10's attitude bound on the paper scenario (in-process, seed 1, the whole 30 s: the 1 kg and 2 kg arm
+reversals every 2.5 s, the object's arrival at 6 s, the position steps at 5/10/15 s, the 45 deg pitch step at 20 s
+and the reversals at 45 deg pitch, the yaw step at 25 s), ±200 N tail.
 
-The issue asks for <= 20 deg; this configuration holds 25.9-29.9 deg over 10 seeds of the full run
-(docs/results.md, "Prioritised allocation"), so the test fails above ATT_BOUND_DEG, the bound it does hold."""
+The issue-10 preset (params/presets/issue10.parm) holds the issue's 20 deg with no loss of control, no bound
+violation and the eigenvalue floor; the paper's configuration (params/presets/paper.parm) does not (42 deg), and
+neither does the preset with the paper's group scaling in place of the prioritised allocation: the tests fail when
+the bound is exceeded and show that it can be. 10 seeds of the same: docs/results.md, "Issue 10: the configuration
+that meets it" (params/campaigns/issue10_attitude.yaml)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
+from navig8_fc.params.store import read_parm_file
 from navig8_tools.sim import run
 
-ATT_BOUND_DEG = 30.0  # what INDI_ALLOC = 1 holds (10 seeds: max 29.9 deg over 30 s); the issue's target is 20
-CONFIG = {"INDI_LPF_TAU": 0.03, "INDI_ARM_FF": 1}
+ATT_BOUND_DEG = 20.0  # issue 10
+PRESETS = Path(__file__).resolve().parents[2] / "params" / "presets"
 
 
 @pytest.fixture(scope="module")
-def runs(tmp_path_factory) -> dict[int, dict]:
+def runs(tmp_path_factory) -> dict[str, dict]:
     d = tmp_path_factory.mktemp("att")
-    return {alloc: run("paper", "proposed", seed=1, duration_s=12.5, log_path=d / f"a{alloc}.mcap",
-                       overrides={**CONFIG, "INDI_ALLOC": alloc}).summary for alloc in (0, 1)}
+    best, paper = read_parm_file(PRESETS / "issue10.parm"), read_parm_file(PRESETS / "paper.parm")
+    cases = {"issue10": best, "group_scaling": {**best, "INDI_ALLOC": 0}, "paper": paper}
+    return {name: run("paper", "proposed", seed=1, log_path=d / f"{name}.mcap", overrides=o).summary
+            for name, o in cases.items()}
 
 
-def test_prioritised_allocation_holds_the_attitude_bound(runs) -> None:
-    s = runs[1]
+def test_the_issue10_preset_holds_the_attitude_bound(runs) -> None:
+    s = runs["issue10"]
     assert s["lost_control"] is False
     assert s["bound_violations"] == 0
     assert s["min_eigenvalue"] >= 0.45
     assert s["max_att_error_deg"] <= ATT_BOUND_DEG, s["max_att_error_deg"]
+    assert all(st["settle_s"] is not None for st in s["settle"]), s["settle"]  # every commanded step settles
 
 
-def test_group_scaling_does_not(runs) -> None:
-    # the paper's saturation handling holds F_x and loses the tilt lever: >= 10 deg worse in the same loop
-    assert runs[0]["max_att_error_deg"] > runs[1]["max_att_error_deg"] + 10.0, (runs[0]["max_att_error_deg"],
-                                                                                runs[1]["max_att_error_deg"])
+def test_the_paper_configuration_and_group_scaling_do_not(runs) -> None:
+    assert runs["paper"]["max_att_error_deg"] > ATT_BOUND_DEG + 10.0, runs["paper"]["max_att_error_deg"]
+    assert runs["group_scaling"]["max_att_error_deg"] > ATT_BOUND_DEG, runs["group_scaling"]["max_att_error_deg"]

@@ -51,6 +51,30 @@ def test_rows_are_the_crossed_grid_with_shared_draws_and_stable_ids() -> None:
     assert rows[0].world == {"scenario.object.mass_kg": 0.0, "sensor_noise_scale": rows[0].factors["noise"]}
 
 
+def test_a_variant_world_applies_to_its_rows_only_and_factors_win() -> None:
+    d = dict(SMALL, world={"sensor_noise_scale": 1.0, "vehicle.propulsion.k_thrust_tail": 2e-4},
+             variants={"weak_tail": {"controller": "proposed", "world": {"vehicle.propulsion.k_thrust_tail": 6e-5}},
+                       "paper_tail": {"controller": "proposed"}})
+    rows = expand(Campaign.from_dict(d))
+    by = {v: [r for r in rows if r.variant == v] for v in ("weak_tail", "paper_tail")}
+    assert {r.world["vehicle.propulsion.k_thrust_tail"] for r in by["weak_tail"]} == {6e-5}
+    assert {r.world["vehicle.propulsion.k_thrust_tail"] for r in by["paper_tail"]} == {2e-4}
+    # the drawn noise factor overrides the campaign's fixed value in both
+    assert all(r.world["sensor_noise_scale"] == r.factors["noise"] != 1.0 for r in rows)
+    # same world content, different variant: still different runs (the name is part of the id)
+    assert len({r.run_id for r in rows}) == len(rows)
+    assert "--world vehicle.propulsion.k_thrust_tail=6e-05" in replay_command(by["weak_tail"][0])
+    with pytest.raises(ValueError, match="unknown keys"):
+        Campaign.from_dict(dict(SMALL, variants={"v": {"controller": "proposed", "sets": {"INDI_ALLOC": 1}}}))
+
+
+def test_a_variant_params_file_is_read_relative_to_the_campaign_and_set_wins(tmp_path: Path) -> None:
+    (tmp_path / "p.parm").write_text("INDI_ALLOC 1\nINDI_LPF_TAU 0.03\n")
+    d = dict(SMALL, variants={"v": {"controller": "proposed", "params": "p.parm", "set": {"INDI_LPF_TAU": 0.05}}})
+    rows = expand(Campaign.from_dict(d, tmp_path))
+    assert rows[0].params == {"INDI_ALLOC": 1.0, "INDI_LPF_TAU": 0.05}
+
+
 def test_local_pool_and_dask_local_cluster_give_the_same_table(tmp_path: Path) -> None:
     distributed = pytest.importorskip("distributed")
     c = Campaign.from_dict(SMALL)
@@ -166,3 +190,18 @@ def test_a_sitl_campaign_with_a_plan_names_it_in_every_row_and_replay() -> None:
     assert expand(Campaign.from_dict(SMALL))[0].run_id == "proposed-723407c1233c"  # as before plans existed
     with pytest.raises(ValueError, match="kind: sitl"):
         Campaign.from_dict(dict(d, kind="inprocess"))
+
+
+@pytest.mark.parametrize("path", sorted((Path(__file__).resolve().parents[2] / "params" / "campaigns").glob("*.yaml")),
+                         ids=lambda p: p.stem)
+def test_every_shipped_campaign_loads_and_expands(path: Path) -> None:
+    # the shipped files name presets and world keys by path: a renamed parameter or preset breaks them here
+    c = Campaign.load(path)
+    rows = expand(c)
+    assert rows and len({r.run_id for r in rows}) == len(rows)
+    from navig8_fc.params.registry import ParamRegistry
+
+    reg = ParamRegistry.from_defaults()
+    for r in rows:
+        for k, v in r.params.items():
+            assert reg.set(k, v).accepted, (path.name, r.variant, k, v)
