@@ -199,7 +199,7 @@ class FlightControllerCore:
         self._outer_cfg = outer_loop_config_array(outer)  # what the tick reads: rebuilt with the gains
         self._shape_cfg = shaper_config_array(outer, self.config.dt_s)
         self._shape_ff[:] = 0.0  # shaping switched off flies the plain loop; switched on, it starts afresh
-        self.resync_reference()
+        self._shape_st[SH.INIT] = 0.0
         self._adapt.set_k_bounds(k_min, k_max)
 
     def set_arm_plan(self, plan: np.ndarray | None) -> None:
@@ -217,12 +217,14 @@ class FlightControllerCore:
         self._arm_ref[9] = 0.0
         self._indi_saturated = False
         self._u_cmd_ok = False
-        self.resync_reference()
+        self._shape_st[SH.INIT] = 0.0
 
     def resync_reference(self) -> None:
-        """The command shaper starts again from the measured state at the next engaged tick (arming, mode
-        changes, disengaging), so it never flies a reference left over from an earlier flight or mode."""
-        self._shape_st[SH.INIT] = 0.0
+        """Mode changes: the command shaper's position reference continues from the measured position and velocity
+        at the next tick (never a reference left over from the last mode), its acceleration and pitch/yaw
+        reference from where they are (no attitude-command step). Arming and disengaging seed it afresh."""
+        if self._shape_st[SH.INIT] != 0.0:
+            self._shape_st[SH.INIT] = 2.0
 
     def step(
         self, s: FcSensors, sp: Setpoint, engaged: bool = True

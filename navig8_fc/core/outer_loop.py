@@ -149,7 +149,7 @@ SH = layout("SH", pos=3, vel=3, acc=3, jerk=3,  # the position reference (NED) a
             pitch=1, pitch_rate=1, yaw=1, yaw_rate=1,  # the pitch/yaw reference
             prev=5,  # acc (3), pitch, yaw of the previous tick's reference attitude (the rate feed-forward)
             rate_prev=3,  # the previous tick's body-rate feed-forward (the angular-acceleration one)
-            init=1)  # 0: seed from the measured state at the next call
+            init=1)  # 0: seed from the measured state at the next call; 2: resync position, velocity; 1: running
 JERK_K_PER_VEL_K = 3.0  # the jerk stage's gain per OL_VEL_K: a triple pole at OL_VEL_K when OL_POS_K = OL_VEL_K / 3
 
 
@@ -206,6 +206,11 @@ def shape_reference(shc, st, sp, pos, vel, quat, sp_out, ff_out):
         first = True
     else:
         first = False
+        if st[SH.INIT] == 2.0:  # resync (a mode change): position and velocity from the measurement, the rest kept
+            for i in range(3):
+                st[SH.POS + i] = pos[i]
+                st[SH.VEL + i] = vel[i]
+            st[SH.INIT] = 1.0
     for i in range(3):
         st[SH.PREV + i] = st[SH.ACC + i]
     st[SH.PREV + 3] = st[SH.PITCH]
