@@ -53,7 +53,7 @@ class OuterLoopConfig:
     err_max_m: float = 0.0  # OL_ERR_MAX: the reference waits for a vehicle this far behind (0 = never)
     att_rate_ref_rad_s: float = 1.0  # OL_ATT_RATE_REF: pitch/yaw reference's rate limit
     att_acc_ref_rad_s2: float = 0.0  # OL_ATT_ACC_REF: pitch/yaw reference's acceleration limit
-    ff_level: int = 2  # OL_FF: angular feed-forward of the reference: 0 none, 1 body rate, 2 + angular accel.
+    ff_level: int = 1  # OL_FF: angular feed-forward of the reference: 0 none, 1 body rate, 2 + angular accel.
 
     @property
     def shaping(self) -> bool:
