@@ -380,6 +380,11 @@ def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: i
     # INDI_ARM_FF = 2's preview kernel (runs only when selected; loaded here so selecting it does not stall a tick)
     arm_preview_step(hold_plan((0.1, 0.0, -0.1)), 0.0, cfg.dt_s, 0.05, np.zeros(3), np.zeros(3), 1e-3, 42.0, 4.0, 0.0,
                      core._model.geometry, np.zeros(10), np.zeros(9))
+    # the command shaper (runs only when OL_JERK_MAX or OL_ATT_ACC_REF is on; loaded here so switching it on does not
+    # stall a tick)
+    shape_reference(shaper_config_array(replace(config.outer, jerk_max_m_s3=5.0, att_acc_ref_rad_s2=1.0), cfg.dt_s),
+                    SH.zeros(), _k.OSP.zeros(), np.zeros(3), np.zeros(3), np.array((1.0, 0.0, 0.0, 0.0)),
+                    _k.OSP.zeros(), _k.OFF.zeros())
     # the attitude kernels Python code calls directly (rotation.py: telemetry, the plant's truth)
     q = rotation.euler_to_quat(0.1, 0.2, 0.3)
     rotation.quat_to_euler(rotation.quat_mul(q, q))

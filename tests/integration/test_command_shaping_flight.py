@@ -1,7 +1,8 @@
-"""Command shaping on the paper scenario (in-process, seed 1, the first 12.5 s: the east and north position steps at
-5 s and 10 s, each at an arm reversal, with the best inner-loop configuration of docs/results.md, yaw weight 3). Without shaping
-the north step makes the commanded roll jump by atan(OL_ACC_MAX / g) = 22 deg in one tick; with it the attitude
-error stays within the issue's 20 deg, and both steps still settle (against the raw setpoint)."""
+"""Command shaping on the paper scenario (in-process, seed 1, the first 12.5 s: the east and north position
+steps at 5 s and 10 s, each at an arm reversal, with the best inner-loop configuration of docs/results.md and
+yaw weight 3). Without shaping the north step makes the commanded roll jump by atan(OL_ACC_MAX / g) = 22 deg in
+one tick; with it the attitude error stays within the issue's 20 deg, and both steps still settle (against the
+raw setpoint)."""
 
 from __future__ import annotations
 
