@@ -61,22 +61,15 @@ class OuterLoopConfig:
 
     @staticmethod
     def from_params(values: Mapping[str, float], gravity_m_s2: float) -> OuterLoopConfig:
-        return OuterLoopConfig(
-            pos_k=float(values["OL_POS_K"]),
-            vel_k=float(values["OL_VEL_K"]),
-            vel_max_m_s=float(values["OL_VEL_MAX"]),
-            acc_max_m_s2=float(values["OL_ACC_MAX"]),
-            att_k=float(values["OL_ATT_K"]),
-            rate_k=float(values["OL_RATE_K"]),
-            rate_max_rad_s=float(values["OL_RATE_MAX"]),
-            gravity_m_s2=gravity_m_s2,
-            jerk_max_m_s3=float(values["OL_JERK_MAX"]),
-            ref_acc_max_m_s2=float(values["OL_ACC_REF"]),
-            err_max_m=float(values["OL_ERR_MAX"]),
-            att_rate_ref_rad_s=float(values["OL_ATT_RATE_REF"]),
-            att_acc_ref_rad_s2=float(values["OL_ATT_ACC_REF"]),
-            ff_level=int(values["OL_FF"]),
-        )
+        kw = {name: float(values[param]) for name, param in _PARAM_OF.items()}
+        return OuterLoopConfig(**kw, gravity_m_s2=gravity_m_s2, ff_level=int(values["OL_FF"]))  # type: ignore[arg-type]
+
+
+# OuterLoopConfig's fields and the parameters they come from (OL_FF, an integer, apart)
+_PARAM_OF = {"pos_k": "OL_POS_K", "vel_k": "OL_VEL_K", "vel_max_m_s": "OL_VEL_MAX", "acc_max_m_s2": "OL_ACC_MAX",
+             "att_k": "OL_ATT_K", "rate_k": "OL_RATE_K", "rate_max_rad_s": "OL_RATE_MAX",
+             "jerk_max_m_s3": "OL_JERK_MAX", "ref_acc_max_m_s2": "OL_ACC_REF", "err_max_m": "OL_ERR_MAX",
+             "att_rate_ref_rad_s": "OL_ATT_RATE_REF", "att_acc_ref_rad_s2": "OL_ATT_ACC_REF"}
 
 
 @dataclass(frozen=True)
