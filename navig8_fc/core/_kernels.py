@@ -282,9 +282,12 @@ def attitude_error_rotvec(mw, mx, my, mz, cw, cx, cy, cz):
     return k * ex, k * ey, k * ez
 
 
-# Outer loops: config, setpoint and output vectors (outer_loop)
+# Outer loops: config, setpoint, feed-forward and output vectors (outer_loop)
 OC = layout("OC", pos_k=1, vel_k=1, vel_max=1, acc_max=1, att_k=1, rate_k=1, rate_max=1, gravity=1)
 OSP = layout("OSP", pos=3, pitch=1, yaw=1)  # p_cmd N, E, D (m); pitch, yaw (rad)
+# Feed-forward of a shaped reference (outer_loop.shape_reference; all zero: the paper's stateless loop):
+# velocity and acceleration (NED), body rate and angular acceleration of the reference attitude (its own FRD axes)
+OFF = layout("OFF", vel=3, acc=3, rate=3, ang_acc=3)
 OO = layout("OO", accel_cmd_ned=3, specific_force_cmd_ned=3, att_cmd_quat=4, roll_cmd=1, rate_cmd=3,
             accel_cmd=5)  # accel_cmd = [Pdot, Qdot, Rdot, a_x, a_z] for INDI
 
@@ -300,30 +303,50 @@ def _clip_norm3(v, limit):
 
 
 @njit(cache=True)
-def outer_loop(cfg, sp, pos, vel, quat, gyro, out):
-    """One step of the outer loops (stateless P cascade of [28], notes 6.5); cfg: OC, sp: OSP, out: OO.
+def roll_for_force(f0, f1, f2, pitch, yaw):
+    """The roll that nulls the body-y component of the specific force f (NED) at the given pitch and yaw (the ducts
+    act in x-z only): with f' = R_y(pitch)^T R_z(yaw)^T f, roll = atan2(f'_y, -f'_z)."""
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    fx1 = cy * f0 + sy * f1
+    fy1 = -sy * f0 + cy * f1
+    fz2 = math.sin(pitch) * fx1 + math.cos(pitch) * f2
+    return math.atan2(fy1, -fz2)
 
-    a_cmd = K_v (sat(K_p (p_cmd - p), v_max) - v), |a_cmd| <= a_max; f_cmd = a_cmd - g (NED). Pitch and yaw
-    follow the setpoint; roll nulls the body-y part of f_cmd (the ducts act in x-z only): with
-    f' = R_y(theta)^T R_z(psi)^T f_cmd, roll = atan2(f'_y, -f'_z). omega_cmd = K_att rotvec(q^-1 q_cmd), limited;
-    [Pdot, Qdot, Rdot] = K_rate (omega_cmd - omega); body a_x, a_z = f_cmd rotated with the measured attitude.
+
+@njit(cache=True)
+def _rotate_quat(w, x, y, z, v0, v1, v2):
+    """R(q) v for the unit quaternion q (the frame q rotates into: R(q) maps q's axes into the reference's)."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = quat_to_dcm(w, x, y, z)
+    return (r00 * v0 + r01 * v1 + r02 * v2, r10 * v0 + r11 * v1 + r12 * v2, r20 * v0 + r21 * v1 + r22 * v2)
+
+
+@njit(cache=True)
+def outer_loop(cfg, sp, ff, pos, vel, quat, gyro, out):
+    """One step of the outer loops (P cascade of [28], notes 6.5); cfg: OC, sp: OSP, ff: OFF, out: OO.
+
+    v_cmd = sat(K_p (p_cmd - p), v_max) + v_ff (the sum limited to v_max when v_ff != 0);
+    a_cmd = K_v (v_cmd - v) + a_ff, |a_cmd| <= a_max; f_cmd = a_cmd - g (NED). Pitch and yaw follow the setpoint;
+    roll nulls the body-y part of f_cmd (roll_for_force). omega_cmd = sat(K_att rotvec(q^-1 q_cmd), rate_max) +
+    omega_ff; [Pdot, Qdot, Rdot] = K_rate (omega_cmd - omega) + omega-dot_ff, the feed-forwards rotated from the
+    command's axes into the measured body's; body a_x, a_z = f_cmd rotated with the measured attitude. With ff = 0
+    this is the paper's stateless loop, bit for bit (PX4's PositionControl adds the same velocity/acceleration
+    feed-forwards of its trajectory; docs/model.md "Command shaping").
     """
     v = np.empty(3)
     for i in range(3):
         v[i] = cfg[OC.POS_K] * (sp[OSP.POS + i] - pos[i])
     _clip_norm3(v, cfg[OC.VEL_MAX])
+    if ff[OFF.VEL] != 0.0 or ff[OFF.VEL + 1] != 0.0 or ff[OFF.VEL + 2] != 0.0:
+        for i in range(3):
+            v[i] += ff[OFF.VEL + i]
+        _clip_norm3(v, cfg[OC.VEL_MAX])
     a = np.empty(3)
     for i in range(3):
-        a[i] = cfg[OC.VEL_K] * (v[i] - vel[i])
+        a[i] = cfg[OC.VEL_K] * (v[i] - vel[i]) + ff[OFF.ACC + i]
     _clip_norm3(a, cfg[OC.ACC_MAX])
     f0, f1, f2 = a[0], a[1], a[2] - cfg[OC.GRAVITY]
     pitch, yaw = sp[OSP.PITCH], sp[OSP.YAW]
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    cp, spp = math.cos(pitch), math.sin(pitch)
-    fx1 = cy * f0 + sy * f1
-    fy1 = -sy * f0 + cy * f1
-    fz2 = spp * fx1 + cp * f2
-    roll = math.atan2(fy1, -fz2)
+    roll = roll_for_force(f0, f1, f2, pitch, yaw)
     qw, qx, qy, qz = euler_to_quat(roll, pitch, yaw)
     # f in body axes with the measured attitude: R^T f
     r00, _, r02, r10, _, r12, r20, _, r22 = quat_to_dcm(quat[0], quat[1], quat[2], quat[3])
@@ -334,6 +357,17 @@ def outer_loop(cfg, sp, pos, vel, quat, gyro, out):
     for i in range(3):
         err[i] = cfg[OC.ATT_K] * err[i]
     _clip_norm3(err, cfg[OC.RATE_MAX])
+    dw = np.zeros(3)  # angular-acceleration feed-forward in the measured body axes
+    if (ff[OFF.RATE] != 0.0 or ff[OFF.RATE + 1] != 0.0 or ff[OFF.RATE + 2] != 0.0 or ff[OFF.ANG_ACC] != 0.0
+            or ff[OFF.ANG_ACC + 1] != 0.0 or ff[OFF.ANG_ACC + 2] != 0.0):
+        # the command's axes -> the measured body's: conj(q_meas) (x) q_cmd
+        ew, ex, ey, ez = quat_mul(quat[0], -quat[1], -quat[2], -quat[3], qw, qx, qy, qz)
+        w0, w1, w2 = _rotate_quat(ew, ex, ey, ez, ff[OFF.RATE], ff[OFF.RATE + 1], ff[OFF.RATE + 2])
+        err[0] += w0
+        err[1] += w1
+        err[2] += w2
+        dw[0], dw[1], dw[2] = _rotate_quat(ew, ex, ey, ez, ff[OFF.ANG_ACC], ff[OFF.ANG_ACC + 1],
+                                           ff[OFF.ANG_ACC + 2])
     for i in range(3):
         out[OO.ACCEL_CMD_NED + i] = a[i]
     out[OO.SPECIFIC_FORCE_CMD_NED] = f0
@@ -346,7 +380,7 @@ def outer_loop(cfg, sp, pos, vel, quat, gyro, out):
     out[OO.ROLL_CMD] = roll
     for i in range(3):
         out[OO.RATE_CMD + i] = err[i]
-        out[OO.ACCEL_CMD + i] = cfg[OC.RATE_K] * (err[i] - gyro[i])
+        out[OO.ACCEL_CMD + i] = cfg[OC.RATE_K] * (err[i] - gyro[i]) + dw[i]
     out[OO.ACCEL_CMD + 3] = fb0
     out[OO.ACCEL_CMD + 4] = fb2
 

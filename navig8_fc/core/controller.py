@@ -38,11 +38,14 @@ from navig8_fc.core.indi import (
 )
 from navig8_fc.core.kalman import CkfConfig
 from navig8_fc.core.outer_loop import (
+    SH,
     OuterLoopConfig,
     OuterLoopStatus,
     Setpoint,
     _outer_loop_arrays,
     outer_loop_config_array,
+    shape_reference,
+    shaper_config_array,
 )
 from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig, ghat_ginv_eig_record
 
@@ -64,6 +67,7 @@ JOINT_OBS_TAU_S = 1.0  # complementary-filter time constant for the joint angles
 PARAMS_USED = (
     "INDI_RATE_HZ", "INDI_LPF_TAU", "INDI_K_MIN", "INDI_K_MAX",
     "OL_POS_K", "OL_VEL_K", "OL_VEL_MAX", "OL_ACC_MAX", "OL_ATT_K", "OL_RATE_K", "OL_RATE_MAX",
+    "OL_JERK_MAX", "OL_ACC_REF", "OL_ERR_MAX", "OL_ATT_RATE_REF", "OL_ATT_ACC_REF", "OL_FF",
     "CKF_MODE", "CKF_LPF_TAU", "CKF_START_DLY", "CKF_Q_IXX", "CKF_Q_IYY", "CKF_Q_IZZ", "CKF_Q_M",
     "CKF_R_U1", "CKF_R_U2", "CKF_R_U3", "CKF_R_U4", "CKF_R_U5", "CKF_P0_SCALE", "CKF_PROJ_W",
     "INDI_ACC_REF", "CKF_ARM_WRENCH",
@@ -170,6 +174,12 @@ class FlightControllerCore:
         self._adapt = AdaptiveLaw(AdaptiveLawConfig(config.ckf, config.k_min, config.k_max, config.arm_wrench))
         self._obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
         self._outer_cfg = outer_loop_config_array(config.outer)
+        # Command shaping (outer_loop.shape_reference): its configuration, state (SH; INIT = 0: seed from the
+        # measured state at the next engaged tick), the shaped setpoint and the feed-forwards it writes
+        self._shape_cfg = shaper_config_array(config.outer, config.dt_s)
+        self._shape_st = SH.zeros()
+        self._shape_sp = _k.OSP.zeros()
+        self._shape_ff = _k.OFF.zeros()  # stays zero while shaping is off: the paper's loop
         self._uo = _k.UO.zeros()
         self._fst = _k.FST.zeros()  # joint observer + differentiator state (_kernels.fc_front)
         self._fo = _k.FO.zeros()
@@ -190,6 +200,9 @@ class FlightControllerCore:
         (A change of rate, filter or estimator settings needs a new core: its filters depend on them.)"""
         self.config = replace(self.config, outer=outer, k_min=k_min, k_max=k_max)
         self._outer_cfg = outer_loop_config_array(outer)  # what the tick reads: rebuilt with the gains
+        self._shape_cfg = shaper_config_array(outer, self.config.dt_s)
+        self._shape_ff[:] = 0.0  # shaping switched off flies the plain loop; switched on, it starts afresh
+        self._shape_st[SH.INIT] = 0.0
         self._adapt.set_k_bounds(k_min, k_max)
 
     def set_arm_plan(self, plan: np.ndarray | None) -> None:
@@ -207,6 +220,14 @@ class FlightControllerCore:
         self._arm_ref[9] = 0.0
         self._indi_saturated = False
         self._u_cmd_ok = False
+        self._shape_st[SH.INIT] = 0.0
+
+    def resync_reference(self) -> None:
+        """Mode changes: the command shaper's position reference continues from the measured position and velocity
+        at the next tick (never a reference left over from the last mode), its acceleration and pitch/yaw
+        reference from where they are (no attitude-command step). Arming and disengaging seed it afresh."""
+        if self._shape_st[SH.INIT] != 0.0:
+            self._shape_st[SH.INIT] = 2.0
 
     def step(
         self, s: FcSensors, sp: Setpoint, engaged: bool = True
@@ -286,7 +307,11 @@ class FlightControllerCore:
             sl = sens.tolist()
             if not acc_ref:
                 sf_x, sf_z = sl[_IN_ACCEL], sl[_IN_ACCEL + 2]
-            outer, ol_out = _outer_loop_arrays(self._outer_cfg, spv, pos, vel, quat, gyro)
+            ffv = self._shape_ff
+            if cfg.outer.shaping:
+                shape_reference(self._shape_cfg, self._shape_st, spv, pos, vel, quat, self._shape_sp, ffv)
+                spv = self._shape_sp
+            outer, ol_out = _outer_loop_arrays(self._outer_cfg, spv, pos, vel, quat, gyro, ffv)
             v_cmd = ol_out[_OO_ACCEL]
             if ff_q != 0.0:
                 v_cmd = v_cmd.copy()
@@ -301,6 +326,7 @@ class FlightControllerCore:
         else:
             self._indi_saturated = False
             self._u_cmd_ok = False
+            self._shape_st[SH.INIT] = 0.0
             # Keep the INDI filters warm so engaging does not start from a transient.
             acc = s.accel_frd if not acc_ref else (sf_x, s.accel_frd[1], sf_z)
             self._indi.measure(IndiInputs(s.gyro_frd, acc, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))
@@ -357,6 +383,11 @@ def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: i
     # INDI_ARM_FF = 2's preview kernel (runs only when selected; loaded here so selecting it does not stall a tick)
     arm_preview_step(hold_plan((0.1, 0.0, -0.1)), 0.0, cfg.dt_s, 0.05, np.zeros(3), np.zeros(3), 1e-3, 42.0, 4.0, 0.0,
                      core._model.geometry, np.zeros(10), np.zeros(9))
+    # the command shaper (runs only when OL_JERK_MAX or OL_ATT_ACC_REF is on; loaded here so switching it on does not
+    # stall a tick)
+    shape_reference(shaper_config_array(replace(config.outer, jerk_max_m_s3=5.0, att_acc_ref_rad_s2=1.0), cfg.dt_s),
+                    SH.zeros(), _k.OSP.zeros(), np.zeros(3), np.zeros(3), np.array((1.0, 0.0, 0.0, 0.0)),
+                    _k.OSP.zeros(), _k.OFF.zeros())
     # the attitude kernels Python code calls directly (rotation.py: telemetry, the plant's truth)
     q = rotation.euler_to_quat(0.1, 0.2, 0.3)
     rotation.quat_to_euler(rotation.quat_mul(q, q))

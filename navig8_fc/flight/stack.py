@@ -209,6 +209,8 @@ class FlightStack:
                                     self._n_steps * core.config.dt_s >= ESTIMATOR_WARMUP_S))
         if out.armed and not was_armed:
             core.reset()  # the estimator's start delay counts from arming
+        elif self._mode_out is not None and out.flight_mode is not self._mode_out.flight_mode:
+            core.resync_reference()  # the command shaper continues from where the vehicle is
         cmd, st = core.step(sensors, out.setpoint, engaged=out.engaged)
         self._discharge(sensors.t_s, t1, t2, t3)
         if out.armed:
