@@ -12,6 +12,7 @@
                                   # (--campaign-runs N, --campaign-rounds R: R rounds in turn, medians)
     navig8-bench --lockstep --foxglove  # also with navig8-sitl --foxglove 0 (server up, nobody connected),
                                   # runs alternated with the plain ones: lockstep_foxglove_rtf and its ratio
+    navig8-bench --fc --params params/presets/issue10.parm  # the FC sections with a parameter set
     navig8-bench --json           # one JSON object with every metric (plant_rtf, fc_tick_us_median,
                                   # inprocess_rtf, lockstep_rtf, lockstep_over_inprocess, ...)
 
@@ -192,9 +193,9 @@ def _fc_section(args: argparse.Namespace) -> SectionResult:
     loop on the paper scenario (proposed controller), no logging."""
     from navig8_tools.sim import run
 
-    run("paper", "proposed", args.seed, 2.0)  # warm-up: imports, numba cache load
+    run("paper", "proposed", args.seed, 2.0, overrides=args.overrides)  # warm-up: imports, numba cache load
     ticks: list[float] = []
-    run("paper", "proposed", args.seed, 30.0, tick_times_s=ticks)
+    run("paper", "proposed", args.seed, 30.0, tick_times_s=ticks, overrides=args.overrides)
     us = np.array(ticks) * 1e6
     med, p99 = float(np.median(us)), float(np.percentile(us, 99))
     return SectionResult(
@@ -212,10 +213,12 @@ def _inprocess_section(args: argparse.Namespace) -> SectionResult:
 
     from navig8_tools.sim import run
 
-    run("paper", "proposed", args.seed, 2.0)
-    rtfs = [run("paper", "proposed", args.seed, 30.0).summary["real_time_factor"] for _ in range(3)]
+    run("paper", "proposed", args.seed, 2.0, overrides=args.overrides)
+    rtfs = [run("paper", "proposed", args.seed, 30.0, overrides=args.overrides).summary["real_time_factor"]
+            for _ in range(3)]
     with tempfile.TemporaryDirectory() as tmp:
-        logged = run("paper", "proposed", args.seed, 30.0, Path(tmp) / "b.mcap").summary["real_time_factor"]
+        logged = run("paper", "proposed", args.seed, 30.0, Path(tmp) / "b.mcap",
+                     overrides=args.overrides).summary["real_time_factor"]
     rtf = float(np.median(rtfs))
     return SectionResult(
         {"inprocess_rtf": rtf, "inprocess_rtf_logged": float(logged)},
@@ -235,9 +238,9 @@ def _lockstep_section(args: argparse.Namespace) -> SectionResult:
     from navig8_fc.shell.mcap_log import read_metadata
     from navig8_tools.sim import run
 
-    run("paper", "proposed", args.seed, 2.0)  # warm-up: imports, numba cache load
-    inproc = float(np.median([run("paper", "proposed", args.seed, 30.0).summary["real_time_factor"]
-                              for _ in range(3)]))
+    run("paper", "proposed", args.seed, 2.0, overrides=args.overrides)  # warm-up: imports, numba cache load
+    inproc = float(np.median([run("paper", "proposed", args.seed, 30.0,
+                                  overrides=args.overrides).summary["real_time_factor"] for _ in range(3)]))
     rtfs: list[float] = []
     fox_rtfs: list[float] = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -246,7 +249,8 @@ def _lockstep_section(args: argparse.Namespace) -> SectionResult:
             logs = Path(tmp) / f"l{i}"
             subprocess.run([sys.executable, "-m", "navig8_fc.shell.sitl", "--scenario", "paper", "--speed", "0",
                             "--until-done", "--instance", str(args.instance), "--log-dir", str(logs), "--state-dir",
-                            str(Path(tmp) / "state"), "--defaults", *extra], check=True, capture_output=True,
+                            str(Path(tmp) / "state"), "--defaults", *args.params_args, *extra], check=True,
+                           capture_output=True,
                            timeout=600)
             meta = read_metadata(next(logs.glob("*.mcap")))
             return float(meta.get("bridge_status", {}).get("rtf", float("nan")))
@@ -451,7 +455,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--foxglove", action="store_true",
                     help="--lockstep also with navig8-sitl --foxglove (nobody connected), runs alternated")
     ap.add_argument("--plant-dt", type=float, default=0.01, help="control period for --plant (s)")
+    ap.add_argument("--params", default=None, metavar="FILE",
+                    help="fly --fc, --inprocess and --lockstep with a parameter set (params/presets/*.parm)")
     args = ap.parse_args(argv)
+    from navig8_fc.params.store import read_parm_file
+
+    args.overrides = read_parm_file(args.params) if args.params else {}
+    args.params_args = ["--params", args.params] if args.params else []
     chosen = [s for s in SECTIONS if getattr(args, s.flag.replace("-", "_"))] or SECTIONS
     metrics: dict[str, Any] = {}
     for s in chosen:
