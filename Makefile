@@ -23,6 +23,9 @@ demo: $(STAMP)
 	$(VENV)/bin/navig8-sitl --scenario paper --speed 0 --until-done --defaults --log-dir out/logs \
 		--state-dir out/state --summary out/summary.json
 	$(VENV)/bin/navig8-plot $$(ls -t out/logs/*.mcap | head -1) --out out/figures
+	# the same flight with the issue-10 preset (docs/results.md, "Issue 10: the configuration that meets it")
+	$(VENV)/bin/navig8-sitl --scenario paper --speed 0 --until-done --defaults --params params/presets/issue10.parm \
+		--instance 1 --log-dir out/logs_issue10 --state-dir out/state --summary out/summary_issue10.json
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check navig8_fc sim_bridge tools tests

@@ -92,3 +92,22 @@ def test_the_sim_link_is_logged_decoded_as_well_as_raw(sitl_summary: dict) -> No
         assert rec["mavpackettype"] == "HIL_SENSOR" and rec == raw_hil[rec["time_usec"]]
         checked += 1
     assert checked >= 3000
+
+
+def test_the_issue10_preset_over_sitl_holds_the_attitude_bound(tmp_path: Path) -> None:
+    # navig8-sitl --defaults --params FILE: the preset stored for the instance and flown by navig8-fc over MAVLink;
+    # the same flight as in-process (rounding of the float32 seam), within issue 10's 20 deg.
+    from navig8_fc.params.store import read_parm_file
+
+    preset = Path(__file__).resolve().parents[2] / "params" / "presets" / "issue10.parm"
+    out = tmp_path / "summary.json"
+    cmd = [sys.executable, "-m", "navig8_fc.shell.sitl", "--scenario", "paper", "--speed", "0", "--until-done",
+           "--log-dir", str(tmp_path / "logs"), "--state-dir", str(tmp_path / "state"), "--summary", str(out),
+           "--instance", "8", "--defaults", "--params", str(preset)]
+    p = subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
+    assert p.returncode == 0, p.stderr[-3000:]
+    s = json.loads(out.read_text())
+    assert s["lost_control"] is False and s["bound_violations"] == 0 and s["min_eigenvalue"] >= 0.45
+    assert s["max_att_error_deg"] <= 20.0, s["max_att_error_deg"]
+    ref = run("paper", "proposed", seed=1, overrides=read_parm_file(preset), log_path=tmp_path / "ref.mcap").summary
+    assert s["max_att_error_deg"] == pytest.approx(ref["max_att_error_deg"], abs=1.0)
