@@ -234,11 +234,25 @@ def _run_id(variant: str, content: Mapping[str, Any]) -> str:
     return f"{variant}-{h}"
 
 
+def _scenario_digest(scenario: str) -> str | None:
+    """A digest of the scenario's content (its parsed YAML, so comments do not count): a run id names the
+    scenario's content, not just its name, and resuming after the file changed flies the changed rows again.
+    None when the file cannot be read (its rows then fail with the reason when they run)."""
+    from navig8_fc.flight.script import read_scenario_file
+
+    try:
+        doc = read_scenario_file(scenario)
+    except (OSError, ValueError, yaml.YAMLError):
+        return None
+    return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
 def expand(c: Campaign) -> list[Row]:
     """The campaign's rows in a fixed order: variant x grid cells x samples x seeds. The random factors are
     drawn once per sample (Generator(sample_seed)), so every variant meets the same worlds."""
     grid = [f for f in c.factors if not f.random]
     rand = [f for f in c.factors if f.random]
+    scen_sha = _scenario_digest(c.scenario)
     rng = np.random.default_rng(c.sample_seed)
     draws = [{f.name: f.draw(rng) for f in rand} for _ in range(c.samples if rand else 1)]
     rows: list[Row] = []
@@ -253,7 +267,8 @@ def expand(c: Campaign) -> list[Row]:
                     for f in c.factors:
                         (world if f.target == "world" else params)[f.key] = values[f.name]
                     content = {"kind": c.kind, "scenario": c.scenario, "duration_s": c.duration_s,
-                               "controller": v.controller, "seed": seed, "world": world, "params": params}
+                               "controller": v.controller, "seed": seed, "world": world, "params": params,
+                               "scenario_sha": scen_sha}
                     if c.plan:  # only then: the ids of campaigns without a plan stay what they were
                         content |= {"plan": [dataclasses.astuple(it) for it in c.plan], "speed": c.speed}
                     elif c.speed:
