@@ -458,9 +458,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--params", default=None, metavar="FILE",
                     help="fly --fc, --inprocess and --lockstep with a parameter set (params/presets/*.parm)")
     args = ap.parse_args(argv)
-    from navig8_fc.params.store import read_parm_file
+    from navig8_fc.params.store import read_overrides
 
-    args.overrides = read_parm_file(args.params) if args.params else {}
+    args.overrides = read_overrides([args.params] if args.params else [])
     args.params_args = ["--params", args.params] if args.params else []
     chosen = [s for s in SECTIONS if getattr(args, s.flag.replace("-", "_"))] or SECTIONS
     metrics: dict[str, Any] = {}

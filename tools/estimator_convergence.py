@@ -22,6 +22,7 @@ import numpy as np
 from navig8_fc.core.controller import warm_up_kernels
 from navig8_fc.flight import FlightStack
 from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.params.store import read_overrides
 from navig8_tools.sim import _sensors_to_fc
 from sim_bridge.messages import ActuatorCommand as PlantCommand
 from sim_bridge.plant import Plant
@@ -84,9 +85,14 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=None, help="s (default: the scenario's)")
     ap.add_argument("--from-s", type=float, default=12.0, help="largest error reported from this time on")
     ap.add_argument("--tol", type=float, default=0.1)
+    ap.add_argument("--params", action="append", default=[], metavar="FILE",
+                    help="a parameter set (params/presets/*.parm), applied before --set")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE")
     a = ap.parse_args(argv)
-    overrides = {n: float(v) for n, _, v in (s.partition("=") for s in a.set)}
+    try:
+        overrides = read_overrides(a.params, a.set)
+    except (OSError, ValueError) as exc:
+        ap.error(str(exc))
     duration = a.duration if a.duration is not None else load_world(a.scenario).scenario.duration_s
     rows = []
     for seed in _seeds(a.seeds):

@@ -31,7 +31,7 @@ from navig8_fc.core.controller import ControllerStatus, FcSensors, warm_up_kerne
 from navig8_fc.flight import FlightStack
 from navig8_fc.logrecords import truth_record
 from navig8_fc.params.registry import ParamRegistry
-from navig8_fc.params.store import read_parm_file
+from navig8_fc.params.store import read_overrides
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, script_waypoints
 from navig8_fc.shell.mcap_log import McapLogger
 from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m
@@ -174,14 +174,6 @@ def run(
     return RunResult(summary, Path(log_path) if log_path else None)
 
 
-def _parse_set(items: list[str]) -> dict[str, float]:
-    out = {}
-    for it in items:
-        name, _, value = it.partition("=")
-        out[name.strip()] = float(value)
-    return out
-
-
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--scenario", default="paper")
@@ -198,13 +190,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--world", action="append", default=[], metavar="NAME=VALUE",
                     help="override the world (NAME*=VALUE scales; names: sim_bridge/world.py)")
     args = ap.parse_args(argv)
-    overrides: dict[str, float] = {}
-    for f in args.params:
-        try:
-            overrides.update(read_parm_file(f))
-        except (OSError, ValueError, UnicodeDecodeError) as exc:
-            ap.error(f"--params {f}: {exc}")
-    overrides.update(_parse_set(args.set))
+    try:
+        overrides = read_overrides(args.params, args.set)
+    except (OSError, ValueError) as exc:
+        ap.error(str(exc))
     res = run(args.scenario, args.controller, args.seed, args.duration, args.log, overrides,
               progress=True, world=parse_world_items(args.world))
     text = json.dumps(res.summary, indent=2, allow_nan=True)

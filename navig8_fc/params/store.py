@@ -33,7 +33,7 @@ import json
 import math
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import NamedTuple
 
@@ -92,6 +92,32 @@ def read_parm_file(path: str | Path) -> dict[str, float]:
     if len(raw) > MAX_FILE_BYTES:
         raise ValueError(f"{p}: larger than {MAX_FILE_BYTES} bytes")
     return parse_parm_text(raw.decode("utf-8"), str(p))
+
+
+def parse_set_item(item: str) -> tuple[str, float]:
+    """One command-line `NAME=VALUE` (`--set`); ValueError naming the item when it is not that."""
+    name, sep, value = item.partition("=")
+    try:
+        number = float(value)
+    except ValueError:
+        sep = ""
+    if not sep or not name.strip():
+        raise ValueError(f"--set expects NAME=VALUE with a number, got {item!r}")
+    return name.strip(), number
+
+
+def read_overrides(files: Iterable[str | Path] = (), set_items: Iterable[str] = ()) -> dict[str, float]:
+    """The parameter values of `--params FILE ...` (in order) and then `--set NAME=VALUE ...` (which win), as the
+    command-line tools take them; ValueError (or OSError) naming the file or item at fault. Names and values are
+    checked by the registry when applied."""
+    out: dict[str, float] = {}
+    for f in files:
+        try:
+            out.update(read_parm_file(f))
+        except (OSError, ValueError) as exc:
+            raise ValueError(f"--params {f}: {exc}") from None
+    out.update(parse_set_item(it) for it in set_items)
+    return out
 
 
 class ParamStore:

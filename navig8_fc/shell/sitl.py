@@ -115,7 +115,7 @@ def _store_params(state_dir: str, instance: int, items: list[str], files: Sequen
     """Merge the parameter files' values, then NAME=VALUE items, into the instance's stored parameters (into the
     defaults when from_defaults); the reason of the first refusal, else None (nothing is stored on a refusal)."""
     from navig8_fc.params.registry import ParamRegistry
-    from navig8_fc.params.store import ParamStore, default_state_path, read_parm_file
+    from navig8_fc.params.store import ParamStore, default_state_path, parse_set_item, read_parm_file
 
     store = ParamStore(default_state_path(state_dir, instance))
     reg = ParamRegistry.from_defaults()
@@ -125,16 +125,13 @@ def _store_params(state_dir: str, instance: int, items: list[str], files: Sequen
     for f in files:
         try:
             pairs += [(k, v, f) for k, v in read_parm_file(f).items()]
-        except (OSError, ValueError, UnicodeDecodeError) as exc:
+        except (OSError, ValueError) as exc:
             return f"--params {f}: {exc}"
     for it in items:
-        name, sep, value = it.partition("=")
         try:
-            pairs.append((name.strip(), float(value), "--set"))
-        except ValueError:
-            sep = ""
-        if not sep:
-            return f"--set expects NAME=VALUE with a number, got {it!r}"
+            pairs.append((*parse_set_item(it), "--set"))
+        except ValueError as exc:
+            return str(exc)
     for name, value, src in pairs:
         res = reg.set(name, value)
         if not res.accepted:

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from navig8_fc.params.registry import ParamRegistry
-from navig8_fc.params.store import ParamStore, default_state_path, parse_parm_text, read_parm_file
+from navig8_fc.params.store import ParamStore, default_state_path, parse_parm_text, read_overrides, read_parm_file
 from navig8_fc.shell.sitl import main
 
 REPO = Path(__file__).resolve().parents[2]
@@ -68,3 +68,16 @@ def test_every_preset_loads_whole(preset: Path) -> None:
 
 def test_presets_exist() -> None:
     assert {p.stem for p in (REPO / "params" / "presets").glob("*.parm")} >= {"paper", "issue10"}
+
+
+def test_read_overrides_takes_files_in_order_then_set_items_and_names_the_culprit(tmp_path: Path) -> None:
+    a, b = tmp_path / "a.parm", tmp_path / "b.parm"
+    a.write_text("X 1\nY 2\n")
+    b.write_text("Y 3\n")
+    assert read_overrides([a, b], ["X=5", " Z = 0.5"]) == {"X": 5.0, "Y": 3.0, "Z": 0.5}
+    with pytest.raises(ValueError, match="--set expects NAME=VALUE"):
+        read_overrides([], ["X"])
+    with pytest.raises(ValueError, match="--set expects NAME=VALUE"):
+        read_overrides([], ["X=abc"])
+    with pytest.raises(ValueError, match="--params .*missing.parm"):
+        read_overrides([tmp_path / "missing.parm"])
