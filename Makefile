@@ -20,12 +20,13 @@ install: $(STAMP)
 
 demo: $(STAMP)
 	$(VENV)/bin/navig8-stability --plots out/stability
+	# the paper's scenario flown twice over SITL: with the defaults (the robust controller) and with the paper's method
 	$(VENV)/bin/navig8-sitl --scenario paper --speed 0 --until-done --defaults --log-dir out/logs \
 		--state-dir out/state --summary out/summary.json
 	$(VENV)/bin/navig8-plot $$(ls -t out/logs/*.mcap | head -1) --out out/figures
-	# the same flight with the issue-10 preset (docs/results.md, "Issue 10: the configuration that meets it")
-	$(VENV)/bin/navig8-sitl --scenario paper --speed 0 --until-done --defaults --params params/presets/issue10.parm \
-		--instance 1 --log-dir out/logs_issue10 --state-dir out/state --summary out/summary_issue10.json
+	$(VENV)/bin/navig8-sitl --scenario paper --speed 0 --until-done --defaults --params params/presets/paper.parm \
+		--instance 1 --log-dir out/logs_paper --state-dir out/state --summary out/summary_paper.json
+	$(VENV)/bin/navig8-compare defaults=out/summary.json paper.parm=out/summary_paper.json
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check navig8_fc sim_bridge tools tests

@@ -56,6 +56,7 @@ P = layout("P", g=1,  # gravity (m/s^2)
            act_min=5, act_max=5,
            h=1, servo_n=1,  # physics step (s), physics steps per servo period
            vmax=1, amax=1, qlim=1,  # joint rate, acceleration and angle limits (targets clamped to +-qlim)
+           stall_j=1, stall_us=1,  # fault: joint stall_j (-1: none) stops dead from stall_us on
            kn=1, cn=1, mu=1, veps=1,  # contact stiffness, damping per point; friction coeff., regularisation speed
            nc=1, cp=3 * N_CONTACT_MAX,  # number of contact points; the points, FRD relative to O
            h_us=1)  # physics step in microseconds (integer-valued)
@@ -599,6 +600,8 @@ def advance(x, p, cmd, sched, n_steps, t0_us, base_mode, d, w) -> int:
     amax = p[P.AMAX]
     vmax = p[P.VMAX]
     qlim = p[P.QLIM]
+    stall_j = int(p[P.STALL_J])
+    stall_us = p[P.STALL_US]
     xb = w[W.XB:W.XB + N_BASE]
     xs = w[W.XS:W.XS + N_BASE]
     k1 = w[W.K1:W.K1 + N_BASE]
@@ -630,7 +633,11 @@ def advance(x, p, cmd, sched, n_steps, t0_us, base_mode, d, w) -> int:
                 elif tgt < -qlim:
                     tgt = -qlim
                 x[X.QTGT + j] = tgt
-                if abs(tgt - x[X.Q + j]) <= 1e-12 and abs(x[X.QD + j]) <= 1e-9:
+                if j == stall_j and t_us >= stall_us:
+                    # a jammed joint: stopped within one servo period (its reaction is in the dynamics), whatever
+                    # it is told from then on
+                    x[X.QDD + j] = -x[X.QD + j] / hs
+                elif abs(tgt - x[X.Q + j]) <= 1e-12 and abs(x[X.QD + j]) <= 1e-9:
                     # arrived: snap the round-off residue of the deadbeat law so the joint rests exactly
                     x[X.Q + j] = tgt
                     x[X.QD + j] = 0.0

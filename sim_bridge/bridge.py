@@ -540,6 +540,10 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--ports-file", default=None, help='after binding, write {"bridge": port} here as JSON')
     ap.add_argument("--world", action="append", default=[], metavar="NAME=VALUE",
                     help="override the plant/scenario/vehicle (NAME*=VALUE scales; names: sim_bridge/world.py)")
+    ap.add_argument("--write-fc-vehicle", default=None, metavar="FILE",
+                    help="write the vehicle the flight controller should know in this world (the vehicle file with "
+                         "the --world overrides of vehicle.* and fc_vehicle.* applied) to FILE for navig8-fc "
+                         "--vehicle, and exit")
     return ap
 
 
@@ -567,6 +571,18 @@ def main(argv: list[str] | None = None) -> int:
             parse_connection(args.link)
         except ValueError as e:
             ap.error(str(e))
+    if args.write_fc_vehicle:
+        import yaml
+
+        from sim_bridge.world import world_documents
+
+        try:
+            docs = world_documents(args.scenario, parse_world_items(args.world))
+        except (ValueError, FileNotFoundError) as e:
+            ap.error(str(e))
+        Path(args.write_fc_vehicle).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.write_fc_vehicle).write_text(yaml.safe_dump(docs["fc_vehicle"], sort_keys=False))
+        return 0
     signal.signal(signal.SIGINT, _raise_shutdown)
     signal.signal(signal.SIGTERM, _raise_shutdown)
     bridge: Bridge | None = None

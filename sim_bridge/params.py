@@ -85,6 +85,11 @@ class PlantParams:
     joint_a_max_rad_s2: float
     sensors: SensorParams
     ground: GroundParams
+    # joint-servo faults (robustness tests of the FC's arm preview; none by default): every joint follows its
+    # scheduled target joint_lag_s late; joint joint_stall_index (0-2; -1 none) stops dead at joint_stall_t_s
+    joint_lag_s: float = 0.0
+    joint_stall_index: int = -1
+    joint_stall_t_s: float = 0.0
 
     def __post_init__(self) -> None:
         h_us = 1e6 / self.physics_rate_hz
@@ -95,6 +100,8 @@ class PlantParams:
             raise ValueError("physics_rate_hz must be an integer multiple of servo_rate_hz")
         if not (self.joint_v_max_rad_s > 0.0 and self.joint_a_max_rad_s2 > 0.0):
             raise ValueError("joint servo limits must be > 0")
+        if not (self.joint_lag_s >= 0.0 and self.joint_stall_index in (-1, 0, 1, 2) and self.joint_stall_t_s >= 0.0):
+            raise ValueError("joint servo faults: lag_s >= 0, stall_joint in -1..2, stall_t_s >= 0")
 
     @property
     def physics_step_us(self) -> int:
@@ -120,6 +127,9 @@ class PlantParams:
             speed_dynamics=_dynamics(act["speed"]),
             joint_v_max_rad_s=float(servo["v_max_rad_s"]),
             joint_a_max_rad_s2=float(servo["a_max_rad_s2"]),
+            joint_lag_s=float(servo.get("lag_s", 0.0)),
+            joint_stall_index=int(servo.get("stall_joint", -1)),
+            joint_stall_t_s=float(servo.get("stall_t_s", 0.0)),
             sensors=SensorParams(**{k: float(v) for k, v in sens.items()}),
             ground=GroundParams(
                 contact_points_frd_m=tuple(

@@ -125,7 +125,8 @@ def build_param_vector(vehicle: VehicleConfig, params: PlantParams) -> np.ndarra
         phi_h=[phi for phi, _ in disc[h]], gam_h=[gam for _, gam in disc[h]],
         phi_h2=[phi for phi, _ in disc[0.5 * h]], gam_h2=[gam for _, gam in disc[0.5 * h]],
         act_min=lo, act_max=hi, h=h, servo_n=params.servo_substeps, vmax=params.joint_v_max_rad_s,
-        amax=params.joint_a_max_rad_s2, qlim=vehicle.joint_limit_rad, kn=g.stiffness_n_m, cn=g.damping_n_s_m,
+        amax=params.joint_a_max_rad_s2, qlim=vehicle.joint_limit_rad, stall_j=params.joint_stall_index,
+        stall_us=round(params.joint_stall_t_s * 1e6), kn=g.stiffness_n_m, cn=g.damping_n_s_m,
         mu=g.friction_coeff, veps=g.friction_reg_speed_m_s, nc=len(g.contact_points_frd_m), cp=cp,
         h_us=params.physics_step_us,
     )
@@ -168,6 +169,7 @@ class Plant:
         self._p = build_param_vector(vehicle, params)
         self._h_us = params.physics_step_us
         self._sched = scenario.arm_schedule()
+        self._sched[:, :2] += round(params.joint_lag_s * 1e6)  # a lagging servo: every target reached late
         self._act_lo, self._act_hi = actuator_limits(vehicle)
         self._act_lo_list, self._act_hi_list = self._act_lo.tolist(), self._act_hi.tolist()
         self._qlim = vehicle.joint_limit_rad

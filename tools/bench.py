@@ -12,7 +12,7 @@
                                   # (--campaign-runs N, --campaign-rounds R: R rounds in turn, medians)
     navig8-bench --lockstep --foxglove  # also with navig8-sitl --foxglove 0 (server up, nobody connected),
                                   # runs alternated with the plain ones: lockstep_foxglove_rtf and its ratio
-    navig8-bench --fc --params params/presets/issue10.parm  # the FC sections with a parameter set
+    navig8-bench --fc --params params/presets/paper.parm  # the FC sections with a parameter set
     navig8-bench --json           # one JSON object with every metric (plant_rtf, fc_tick_us_median,
                                   # inprocess_rtf, lockstep_rtf, lockstep_over_inprocess, ...)
 

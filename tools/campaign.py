@@ -24,6 +24,7 @@ import hashlib
 import io
 import itertools
 import json
+import math
 import os
 import shlex
 import signal
@@ -45,6 +46,8 @@ import yaml
 from navig8_fc.params.store import read_parm_file
 
 KINDS = ("inprocess", "sitl")
+GENERATORS = ("envelope",)  # campaign `generator:` values: rows whose scenarios are drawn (tools/envelope.py)
+SCENARIO_DIR = "scenarios"  # DIR/scenarios/: the generated scenarios, one file per draw (the replays read them)
 DISTRIBUTIONS = ("grid", "value", "uniform", "normal", "loguniform", "choice")
 TABLE_FILE = "results.parquet"
 STREAM_FILE = "runs.jsonl"
@@ -120,6 +123,10 @@ class Campaign:
     plan: tuple[Any, ...] = ()  # sitl: mission items (navig8_fc.mission.plan.MissionItem) every run uploads and flies
     plan_source: str = ""  # where the plan came from: a file path, or "from-scenario:NAME"
     speed: float = 0.0  # sitl: navig8-sitl --speed (0: as fast as possible)
+    # `generator: envelope`: each sample is a generated scenario (tools/envelope.py, its ranges in `envelope:`)
+    generator: str = ""
+    envelope: Any = None  # navig8_tools.envelope.EnvelopeSpec with generator: envelope
+    authority: bool = False  # per run, navig8_tools.authority.bound_from_log on its log (inprocess kind)
 
     @staticmethod
     def from_dict(d: Mapping[str, Any], base_dir: Path | None = None) -> Campaign:
@@ -170,6 +177,23 @@ class Campaign:
         plan, plan_source = _load_plan(d.get("plan"), base_dir)
         if plan and kind != "sitl":
             raise ValueError("a plan is flown over MAVLink: it needs kind: sitl")
+        generator, envelope = str(d.get("generator") or ""), None
+        if generator:
+            if generator not in GENERATORS:
+                raise ValueError(f"generator must be one of {GENERATORS}, got {generator!r}")
+            clash = sorted({"factors", "seeds", "scenario", "plan"} & {k for k, v in d.items() if v})
+            if kind != "inprocess" or clash:
+                raise ValueError(f"generator: {generator} makes each row's scenario, factors and seed; it needs kind: "
+                                 f"inprocess and no {clash or 'other kind'}")
+            from navig8_tools.envelope import EnvelopeSpec
+
+            envelope = EnvelopeSpec.from_dict(d.get(generator) or {})
+            scenario, seeds = f"generated:{generator}", [0]
+        elif d.get("envelope") is not None:
+            raise ValueError("envelope: ranges need generator: envelope")
+        authority = bool(d.get("authority", False))
+        if authority and kind != "inprocess":
+            raise ValueError("authority: true reads the run's log in the worker: it needs kind: inprocess")
         return Campaign(
             name=str(d.get("name", "campaign")), description=str(d.get("description", "")), kind=kind,
             scenario=scenario, duration_s=None if d.get("duration_s") is None else float(d["duration_s"]),
@@ -177,7 +201,8 @@ class Campaign:
             seeds=tuple(seeds), samples=int(d.get("samples", 1)), sample_seed=int(d.get("sample_seed", 0)),
             heatmap=tuple(hm) if hm else None,
             world=tuple((str(k), float(v)) for k, v in (d.get("world") or {}).items()), plan=plan,
-            plan_source=plan_source, speed=float(d.get("speed", 0.0)))
+            plan_source=plan_source, speed=float(d.get("speed", 0.0)), generator=generator, envelope=envelope,
+            authority=authority)
 
     @staticmethod
     def load(path: str | Path) -> Campaign:
@@ -227,6 +252,10 @@ class Row:
     plan: tuple[Any, ...] = ()  # SITL only: the mission items uploaded and flown (Campaign.plan)
     plan_source: str = ""
     speed: float = 0.0  # SITL only: navig8-sitl --speed
+    # a generated scenario's document: the worker flies it (no shared file system needed); `scenario` is the file
+    # run_campaign writes it to, which the replay command reads
+    scenario_doc: Mapping[str, Any] | None = None
+    authority: bool = False  # also compute navig8_tools.authority.bound_from_log on the run's log
 
 
 def _run_id(variant: str, content: Mapping[str, Any]) -> str:
@@ -244,12 +273,26 @@ def _scenario_digest(scenario: str) -> str | None:
         doc = read_scenario_file(scenario)
     except (OSError, ValueError, yaml.YAMLError):
         return None
+    return _doc_digest(doc)
+
+
+def _doc_digest(doc: Any) -> str:
+    """The digest of a parsed scenario document (the same for a generated document and the file written from it:
+    YAML keeps every float's bits)."""
     return hashlib.sha256(json.dumps(doc, sort_keys=True, default=str).encode()).hexdigest()[:16]
 
 
-def expand(c: Campaign) -> list[Row]:
+def default_out_dir(c: Campaign) -> Path:
+    return Path("out/campaigns") / c.name
+
+
+def expand(c: Campaign, out_dir: str | Path | None = None) -> list[Row]:
     """The campaign's rows in a fixed order: variant x grid cells x samples x seeds. The random factors are
-    drawn once per sample (Generator(sample_seed)), so every variant meets the same worlds."""
+    drawn once per sample (Generator(sample_seed)), so every variant meets the same worlds. A generated campaign:
+    variant x samples, each sample's scenario drawn once (_expand_generated); `out_dir` (default
+    out/campaigns/<name>) is where its scenario files go, which the rows' replay commands name."""
+    if c.generator:
+        return _expand_generated(c, Path(out_dir) if out_dir is not None else default_out_dir(c))
     grid = [f for f in c.factors if not f.random]
     rand = [f for f in c.factors if f.random]
     scen_sha = _scenario_digest(c.scenario)
@@ -278,6 +321,72 @@ def expand(c: Campaign) -> list[Row]:
                                     instance=1 + len(rows) % 500, plan=c.plan, plan_source=c.plan_source,
                                     speed=c.speed))
     return rows
+
+
+@dataclass(frozen=True)
+class GeneratedDraw:
+    """One sample of a generated campaign: its scenario document and file name, world, FC parameters, factors."""
+
+    sample: int
+    file_name: str
+    scenario: dict[str, Any]
+    world: dict[str, float]
+    params: dict[str, float]
+    factors: dict[str, Any]
+
+
+def generated_draws(c: Campaign) -> list[GeneratedDraw]:
+    """The campaign's draws (tools/envelope.py draw(sample, sample_seed, spec)); each draw's file is named by its
+    sample and a digest of its content, so an edited spec never overwrites a file an older row's replay names."""
+    from navig8_tools.envelope import draw
+
+    out = []
+    for s in range(c.samples):
+        scen, world, params, factors = draw(s, c.sample_seed, c.envelope)
+        name = f"{c.name}_{s:04d}_{_doc_digest(scen)[:8]}.yaml"
+        out.append(GeneratedDraw(s, name, scen, world, params, factors))
+    return out
+
+
+def _expand_generated(c: Campaign, out_dir: Path) -> list[Row]:
+    """Rows of a generated campaign: variant x samples, every variant on the same draws (common random numbers:
+    the same scenario, world, FC parameters and seed); campaign and variant world/params apply under the draw's."""
+    draws = generated_draws(c)
+    rows: list[Row] = []
+    for v in c.variants:
+        # the authority bound depends on the draw only (the arm's motion is the plant's servo on the drawn plan, the
+        # object and the commanded pitch are the draw's), so it is computed on the first variant's runs and shared
+        # by every variant's row of the same sample (build_table): a third of the cost for three controllers
+        authority = c.authority and v is c.variants[0]
+        for g in draws:
+            world = dict(c.world) | dict(v.world) | g.world
+            params = dict(v.params) | g.params
+            seed = int(g.factors["seed"])
+            content = {"kind": c.kind, "generator": c.generator, "duration_s": c.duration_s,
+                       "controller": v.controller, "seed": seed, "world": world, "params": params,
+                       "scenario_sha": _doc_digest(g.scenario)}
+            if authority:
+                content["authority"] = True
+            rows.append(Row(len(rows), _run_id(v.name, content), c.kind, str(out_dir / SCENARIO_DIR / g.file_name),
+                            c.duration_s, v.name, v.controller, seed, g.sample, dict(g.factors), world, params,
+                            c.timeout_s, scenario_doc=g.scenario, authority=authority))
+    return rows
+
+
+def write_scenario_files(rows: list[Row]) -> list[Path]:
+    """Each generated row's scenario document to its file (once per draw; the same content for every variant)."""
+    written: dict[str, Path] = {}
+    for r in rows:
+        if r.scenario_doc is None or r.scenario in written:
+            continue
+        p = Path(r.scenario)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        head = (f"# A generated scenario (navig8-campaign, tools/envelope.py), sample {r.sample}: fly it with the "
+                f"row's replay command.\n")
+        p.write_text(head + yaml.safe_dump(dict(r.scenario_doc), sort_keys=False, default_flow_style=None,
+                                           width=120))
+        written[r.scenario] = p
+    return list(written.values())
 
 
 def _set_and_duration_args(row: Row) -> tuple[list[str], list[str]]:
@@ -317,7 +426,7 @@ def _sitl_argv(row: Row, out: Path) -> list[str]:
     return ["navig8-sitl", "--scenario", row.scenario, "--speed", f"{row.speed:g}", "--until-done", "--seed",
             str(row.seed), *dur, "--instance", str(row.instance), "--log-dir", str(out), "--state-dir", str(out),
             "--set", f"CKF_MODE={CONTROLLERS[row.controller]}", *sets,
-            *[f"--bridge-arg={a}" for a in world_args(row.world)], "--summary", str(out / "summary.json")]
+            *world_args(row.world), "--summary", str(out / "summary.json")]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -359,18 +468,49 @@ def call_with_timeout(fn: Callable[[], Any], timeout_s: float) -> Any:
 
 
 def _flatten_summary(s: Mapping[str, Any]) -> dict[str, Any]:
-    out = {k: s.get(k) for k in (*METRICS, *MISSION_METRICS) if k in s}
+    out = {k: s.get(k) for k in (*METRICS, *MISSION_METRICS, *AUTHORITY_COLUMNS, "authority_error") if k in s}
     settle = s.get("settle") or []
     out["steps_settled"] = sum(1 for x in settle if x.get("settle_s") is not None)
     out["steps_total"] = len(settle)
     return out
 
 
+AUTHORITY_COLUMNS = ("authority_bound_deg", "authority_trim_feasible", "authority_worst_t_s")
+
+
 def _inprocess(row: Row, tmp: Path) -> dict[str, Any]:
     from navig8_tools.sim import run
 
-    return run(row.scenario, row.controller, row.seed, row.duration_s, tmp / "run.mcap", dict(row.params),
-               world=dict(row.world)).summary
+    scenario = row.scenario
+    if row.scenario_doc is not None:  # the worker's own copy: a Dask worker elsewhere need not see DIR
+        scenario = str(tmp / "scenario.yaml")
+        Path(scenario).write_text(yaml.safe_dump(dict(row.scenario_doc), sort_keys=False))
+    res = run(scenario, row.controller, row.seed, row.duration_s, tmp / "run.mcap", dict(row.params),
+              world=dict(row.world))
+    summary = dict(res.summary)
+    if row.authority:
+        summary |= _authority_columns(res.run_log, scenario, row.world)
+    return summary
+
+
+def _authority_columns(run_log: Any, scenario: str, world: Mapping[str, float]) -> dict[str, Any]:
+    """navig8_tools.authority.bound_from_log(run_log, vehicle) on this run's log and true vehicle, as columns:
+    the smallest peak pitch excursion any controller could reach on the logged arm motion (deg), whether the
+    trim is feasible, when the bound's worst moment falls. NaN (and `authority_error` saying why) while that
+    function is not there, or when it fails: the run's own metrics are kept either way."""
+    nan = {k: math.nan for k in AUTHORITY_COLUMNS}
+    try:
+        from navig8_tools.authority import bound_from_log
+    except ImportError as exc:
+        return nan | {"authority_error": f"navig8_tools.authority.bound_from_log is not available ({exc})"}
+    from sim_bridge.world import load_world
+
+    try:
+        b = bound_from_log(run_log, load_world(scenario, dict(world)).vehicle)
+        return {"authority_bound_deg": float(b["bound_deg"]), "authority_trim_feasible": bool(b["trim_feasible"]),
+                "authority_worst_t_s": float(b["worst_t_s"]), "authority_error": None}
+    except Exception as exc:  # noqa: BLE001 - a failed bound is a missing column, not a failed run
+        return nan | {"authority_error": f"{type(exc).__name__}: {exc}"}
 
 
 class _RunEnded(Exception):
@@ -442,8 +582,9 @@ def _sitl(row: Row, tmp: Path) -> dict[str, Any]:
     of its own that navig8-fc is told to send to."""
     # navig8-fc reads params/vehicle.yaml and the scenario's setpoint script itself; only the plant's side of the
     # world travels (--bridge-arg=--world)
-    fc_only = [k for k in row.world if k.startswith(("fc_vehicle.", "vehicle.", "scenario.setpoints",
-                                                     "scenario.duration_s", "scenario.armed"))]
+    # navig8-sitl --world gives the FC the world's vehicle (vehicle.*, fc_vehicle.*, tail_max_thrust_n); the FC's
+    # flight script it reads from the scenario file itself, so overrides of the script cannot reach it
+    fc_only = [k for k in row.world if k.startswith(("scenario.setpoints", "scenario.duration_s", "scenario.armed"))]
     if fc_only:
         raise ValueError(f"the sitl kind cannot apply {fc_only} (navig8-fc's side of the world); use inprocess")
     argv = _sitl_argv(row, tmp)
@@ -665,14 +806,17 @@ def read_stream(out_dir: Path) -> dict[str, dict[str, Any]]:
     return recs
 
 
-def row_record(row: Row, rec: Mapping[str, Any]) -> dict[str, Any]:
-    """One table row: the row's identity and factors, then the run's record."""
+def row_record(row: Row, rec: Mapping[str, Any], authority: bool | None = None) -> dict[str, Any]:
+    """One table row: the row's identity and factors, then the run's record (with the authority columns when the
+    row computed them or `authority` says the table has them)."""
     out: dict[str, Any] = {"index": row.index, "run_id": row.run_id, "variant": row.variant,
                            "controller": row.controller, "seed": row.seed, "sample": row.sample, **row.factors}
     for k in ("status", "error", "run_wall_s", "run_cpu_s", "worker"):
         out[k] = rec.get(k)
-    for k in (*METRICS, *(MISSION_METRICS if row.plan else ())):
-        out[k] = rec.get(k)
+    for k in (*METRICS, *(MISSION_METRICS if row.plan else ()),
+              *((*AUTHORITY_COLUMNS, "authority_error") if (row.authority if authority is None else authority)
+                else ())):
+        out[k] = rec.get(k, math.nan if k in AUTHORITY_COLUMNS else None)
     out["success"] = bool(rec.get("status") == "ok" and rec.get("lost_control") is False
                           and (not row.plan or rec.get("mission_complete") is True))
     out["replay"] = replay_command(row)
@@ -683,7 +827,16 @@ def build_table(rows: list[Row], recs: Mapping[str, Mapping[str, Any]]) -> Any:
     """The campaign's table (pandas DataFrame, campaign order) of the rows that have a record."""
     import pandas as pd
 
-    data = [row_record(r, recs[r.run_id]) for r in rows if r.run_id in recs]
+    have = [r for r in rows if r.run_id in recs]
+    authority = any(r.authority for r in rows)
+    # a generated campaign computes the bound on one variant's runs per draw; the others' rows share it
+    shared = {r.sample: recs[r.run_id] for r in have if r.authority}
+    data = []
+    for r in have:
+        rec = recs[r.run_id]
+        if authority and not r.authority and r.sample in shared:
+            rec = dict(rec) | {k: shared[r.sample].get(k) for k in (*AUTHORITY_COLUMNS, "authority_error")}
+        data.append(row_record(r, rec, authority))
     return pd.DataFrame(data)
 
 
@@ -709,7 +862,8 @@ def run_campaign(campaign: Campaign, out_dir: str | Path, workers: int | None = 
     it arrives, then write the table. `limit`: run at most that many of the missing rows."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    rows = expand(campaign)
+    rows = expand(campaign, out)
+    write_scenario_files(rows)  # every generated row's file, also of rows recorded before: the replays read them
     recs = read_stream(out)
     todo = [r for r in rows if r.run_id not in recs or (retry_failed and recs[r.run_id]["status"] != "ok")]
     if limit is not None:
@@ -759,7 +913,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-report", action="store_true")
     a = ap.parse_args(argv)
     c = Campaign.load(a.campaign)
-    out = Path(a.out or f"out/campaigns/{c.name}")
+    out = Path(a.out) if a.out else default_out_dir(c)
     res = run_campaign(c, out, a.workers, a.cluster, a.retry_failed, a.limit, progress=not a.no_progress)
     backend = "dask " + a.cluster if a.cluster else f"local pool of {a.workers or os.cpu_count()}"
     print(f"{res.ran} runs now ({res.failed} failed) in {res.wall_s:.1f} s on {backend}; "
@@ -776,5 +930,6 @@ if __name__ == "__main__":
     raise SystemExit(main())
 
 
-__all__ = ["Campaign", "Factor", "Variant", "Row", "expand", "execute_row", "run_campaign", "build_table",
-           "read_stream", "replay_command", "comparable", "call_with_timeout", "worker_pool", "warm_worker", "main"]
+__all__ = ["Campaign", "Factor", "Variant", "Row", "GeneratedDraw", "generated_draws", "write_scenario_files",
+           "expand", "execute_row", "run_campaign", "build_table", "read_stream", "replay_command", "comparable",
+           "call_with_timeout", "worker_pool", "warm_worker", "default_out_dir", "main"]

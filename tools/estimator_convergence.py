@@ -1,4 +1,4 @@
-"""Does the adaptive law's implied K converge to the truth? (issue 10, "the estimate moves where the truth moves")
+"""Does the adaptive law's implied K converge to the truth? ("the estimate moves where the truth moves")
 
     python -m navig8_tools.estimator_convergence [--scenario ident] [--seeds 1-10] [--from-s 12] [--tol 0.1]
                                                  [--set NAME=VALUE ...]

@@ -5,7 +5,7 @@
                [--world NAME=VALUE ...] [--world NAME*=VALUE ...]
 
 --set changes a flight-controller parameter (params/fc_params.yaml), --params a set of them from a file
-(`params/presets/*.parm`: `issue10.parm` is the configuration that meets issue 10, `paper.parm` the paper's);
+(`params/presets/paper.parm` is the paper's method; the defaults are the robust controller);
 --world changes the world the run flies in: the plant, the scenario, the vehicle, or the controller's model of it
 (sim_bridge/world.py lists the names).
 
@@ -48,6 +48,7 @@ CONTROLLERS = {"fixed": 0, "unconstrained": 1, "proposed": 2}
 class RunResult:
     summary: dict[str, Any]
     log_path: Path | None
+    run_log: Any = None  # the log as read back for the summary (navig8_tools.logdata.RunLog), for more analysis
 
 
 def _floats(v: Any) -> tuple[float, ...]:
@@ -168,10 +169,11 @@ def run(
         print(file=sys.stderr)
     summary: dict[str, Any] = {"sim_time_s": n_steps * cfg.dt_s, "wall_time_s": wall,
                                "real_time_factor": n_steps * cfg.dt_s / wall}
-    if log_path:
-        summary = summarize(load_run(log_path), wall)
+    run_log = load_run(log_path) if log_path else None
+    if run_log is not None:
+        summary = summarize(run_log, wall)
     summary.update({"scenario": sc.name, "controller": controller, "seed": seed})
-    return RunResult(summary, Path(log_path) if log_path else None)
+    return RunResult(summary, Path(log_path) if log_path else None, run_log)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -184,7 +186,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--summary", default=None)
     ap.add_argument("--plots", default=None, help="also write Figures 10-16 here")
     ap.add_argument("--params", action="append", default=[], metavar="FILE",
-                    help="a parameter set (.parm, MAVProxy's param load format), e.g. params/presets/issue10.parm; "
+                    help="a parameter set (.parm, MAVProxy's param load format), e.g. params/presets/paper.parm; "
                          "applied before --set")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a parameter")
     ap.add_argument("--world", action="append", default=[], metavar="NAME=VALUE",

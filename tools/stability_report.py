@@ -1,10 +1,16 @@
-"""navig8-stability: the stability analysis of paper Sec. 3.1-3.2 (Eq. 9-20, Figs. 5-7) for given constants.
+"""navig8-stability: the stability analysis of paper Sec. 3.1-3.2 (Eq. 9-20, Figs. 5-7) for the configuration flown.
 
-    navig8-stability [--wn W] [--zeta Z] [--ts T] [--tl L] [--k-min K] [--k-max K] [--json] [--plots DIR]
+    navig8-stability [--params FILE ...] [--set NAME=VALUE ...] [--wn W] [--zeta Z] [--ts T] [--tl L]
+                     [--k-min K] [--k-max K] [--lambda-min L] [--json] [--plots DIR]
 
-Defaults come from the parameter registry (params/fc_params.yaml): ACT_WN, ACT_ZETA, 1/INDI_RATE_HZ,
-INDI_LPF_TAU, INDI_K_MIN, INDI_K_MAX, INDI_LAMBDA_MIN. The math lives in navig8_fc.core.stability;
-this file only formats it. See docs/stability.md.
+The configuration is the parameter defaults (params/fc_params.yaml), then `--params` files, then `--set` items, as
+navig8-sim takes them (navig8_fc.params.store.read_overrides): ACT_WN, ACT_ZETA, tau_s = 1/INDI_RATE_HZ,
+INDI_LPF_TAU, INDI_K_MIN, INDI_K_MAX, INDI_LAMBDA_MIN, INDI_LAM_MARGIN, INDI_U0_SRC, INDI_U0_TAU. `--wn` ...
+`--lambda-min` override the analysis inputs directly (tau_s need not be 1/an integer rate). The report holds
+the configured loop next to the paper's Section 3 constants (the reference), the stated margin the parameter
+checks enforce (INDI_LAM_MARGIN) with the registry's verdict, the model-based U0 over an actuator-bandwidth
+mismatch and the sampled loop as a check of the Pade analysis. The math lives in navig8_fc.core.stability; this
+file only formats it. See docs/stability.md.
 """
 
 from __future__ import annotations
@@ -15,7 +21,7 @@ import math
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +34,14 @@ REPORT_LAMBDAS = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0)
 FIG6_LAMBDAS = (0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0)
 
 
+# The paper's Section 3 constants (Sec. 3.1: wn 120 rad/s, zeta 1, tau_s 0.01 s, tau_L 0.1 s): the reference column.
+PAPER_LOOP = (120.0, 1.0, 0.01, 0.1)
+# Plant actuator bandwidth / ACT_WN for the mismatch table (the plant's actuators +-40 % off the FC's model).
+MISMATCH_FACTORS = (0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4)
+CONFIG_PARAMS = ("ACT_WN", "ACT_ZETA", "INDI_RATE_HZ", "INDI_LPF_TAU", "INDI_K_MIN", "INDI_K_MAX", "INDI_LAMBDA_MIN",
+                 "INDI_LAM_MARGIN", "INDI_U0_SRC", "INDI_U0_TAU", "INDI_ACC_REF")
+
+
 @dataclass(frozen=True)
 class Inputs:
     wn_rad_s: float
@@ -37,28 +51,54 @@ class Inputs:
     k_min: float
     k_max: float
     lambda_min: float
+    lam_margin: float = 1.0  # INDI_LAM_MARGIN: required guaranteed-min-eigenvalue / lambda_crit
+    u0_src: int = 0  # INDI_U0_SRC
+    u0_tau_s: float = 0.2  # INDI_U0_TAU
 
 
-def _registry_defaults() -> dict[str, float]:
+@dataclass(frozen=True)
+class Configuration:
+    """The parameter values the report analyses (defaults, then --params, then --set) and what the registry says."""
+
+    values: dict[str, float | int]  # CONFIG_PARAMS as the registry stores them (shortest decimal for REAL32)
+    overrides: dict[str, float]  # what --params / --set changed
+    verdict: str | None  # the registry's refusal of this configuration (None: a PARAM_SET to it is accepted)
+
+
+def _shortest(x: float | int) -> float | int:
+    # The registry stores REAL32 values as float32 (what MAVLink carries): 0.1 -> 0.10000000149. Take the
+    # shortest decimal that rounds to the same float32, i.e. the value in the YAML or .parm file.
+    return x if isinstance(x, int) else float(str(np.float32(x)))
+
+
+def configuration(files: Sequence[str] = (), set_items: Sequence[str] = ()) -> Configuration:
+    """The defaults with `--params` files and `--set` items applied (store.read_overrides, the one parser), each
+    checked by the registry's per-parameter rules (name, range, type). The stability rules are not applied while
+    setting (the report analyses refused configurations too, to show why); `verdict` is the registry's answer to
+    the configuration as a whole: its stability floor, the INDI_LAM_MARGIN margin and INDI_LAMBDA_MIN."""
     from navig8_fc.params.registry import ParamRegistry
+    from navig8_fc.params.store import read_overrides
 
-    # The stability floor is not needed to read defaults; skip building its checker.
-    reg = ParamRegistry.from_defaults(check_stability=False)
+    overrides = read_overrides(files, set_items)
+    plain = ParamRegistry.from_defaults(check_stability=False)
+    for name, value in overrides.items():
+        res = plain.set(name, value)
+        if not res.accepted:
+            raise ValueError(res.reason or f"{name}: refused")
+    checked = ParamRegistry.from_defaults()
+    checked.restore(plain.as_dict())
+    verdict = checked.validate("INDI_LAM_MARGIN", checked["INDI_LAM_MARGIN"])
+    if verdict is not None:
+        verdict = verdict.removeprefix("INDI_LAM_MARGIN: ")
+    values = {n: _shortest(plain[n]) for n in CONFIG_PARAMS}
+    return Configuration(values, overrides, verdict)
 
-    def real(name: str) -> float:
-        # The registry stores REAL32 values as float32 (what MAVLink carries): 0.1 -> 0.10000000149.
-        # Take the shortest decimal that rounds to the same float32, i.e. the value in the YAML file.
-        return float(str(np.float32(reg.get(name))))
 
-    return {
-        "wn": real("ACT_WN"),
-        "zeta": real("ACT_ZETA"),
-        "ts": 1.0 / float(reg.get("INDI_RATE_HZ")),
-        "tl": real("INDI_LPF_TAU"),
-        "k_min": real("INDI_K_MIN"),
-        "k_max": real("INDI_K_MAX"),
-        "lambda_min": real("INDI_LAMBDA_MIN"),
-    }
+def inputs_of(values: dict[str, float | int]) -> Inputs:
+    return Inputs(float(values["ACT_WN"]), float(values["ACT_ZETA"]), 1.0 / float(values["INDI_RATE_HZ"]),
+                  float(values["INDI_LPF_TAU"]), float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"]),
+                  float(values["INDI_LAMBDA_MIN"]), float(values["INDI_LAM_MARGIN"]), int(values["INDI_U0_SRC"]),
+                  float(values["INDI_U0_TAU"]))
 
 
 def _lam_key(lam: float) -> str:
@@ -73,22 +113,55 @@ def _pairs(z: np.ndarray) -> list[list[float]]:
     return [[float(v.real), float(v.imag)] for v in np.asarray(z, dtype=complex)]
 
 
-def analyse(inp: Inputs, cfg: VehicleConfig) -> dict[str, Any]:
+def _step_dict(m: st.StepMetrics) -> dict[str, Any]:
+    return {
+        "stable": m.stable,
+        "overshoot_pct": _finite_or_none(m.overshoot_pct),
+        "settling_s": _finite_or_none(m.settling_s),
+        "peak_time_s": _finite_or_none(m.peak_time_s),
+        "rise_time_s": _finite_or_none(m.rise_time_s),
+    }
+
+
+def loop_report(wn: float, zeta: float, ts: float, tl: float) -> dict[str, Any]:
+    """lambda_crit, lambda_upper, zeros, poles and step metrics of H(s) (Eq. 13) at REPORT_LAMBDAS."""
+    p = (wn, zeta, ts, tl)
+    return {
+        "wn_rad_s": wn, "zeta": zeta, "ts_s": ts, "tl_s": tl,
+        "lambda_crit": st.lambda_crit(*p),
+        "lambda_upper": _finite_or_none(st.lambda_upper(*p)),
+        "zeros": [float(z) for z in st.zeros(*p)],
+        "poles_at_lambda": {_lam_key(lam): _pairs(st.poles(lam, *p)) for lam in REPORT_LAMBDAS},
+        "step": {_lam_key(lam): _step_dict(st.step_metrics(lam, *p)) for lam in REPORT_LAMBDAS},
+    }
+
+
+def mismatch_table(inp: Inputs, factors: Sequence[float] = MISMATCH_FACTORS) -> list[dict[str, Any]]:
+    """lambda_crit with the plant's actuator bandwidth factor x ACT_WN (same zeta) for U0 measured (Eq. 9 with the
+    true actuators), model-based with INDI_U0_TAU and model alone (core.stability.lambda_crit_model_u0), and the
+    sampled loop's rotational and force modes with the model-based U0 (sampled_lambda_crit)."""
+    wn, z, ts, tl = inp.wn_rad_s, inp.zeta, inp.ts_s, inp.tl_s
+    rows = []
+    for f in factors:
+        wp = f * wn
+        row: dict[str, Any] = {
+            "plant_wn_factor": f,
+            "plant_wn_rad_s": wp,
+            "measured_u0": st.lambda_crit(wp, z, ts, tl),
+            "model_u0": st.lambda_crit_model_u0(wn, z, ts, tl, wp, z, inp.u0_tau_s),
+            "model_u0_alone": st.lambda_crit_model_u0(wn, z, ts, tl, wp, z),
+        }
+        for ch in st.CHANNELS:
+            row[f"sampled_{ch}"] = st.sampled_lambda_crit(wn, z, 1.0 / ts, tl, ch, wp, z, "model", inp.u0_tau_s)
+        rows.append(row)
+    return rows
+
+
+def analyse(inp: Inputs, cfg: VehicleConfig, verdict: str | None = None) -> dict[str, Any]:
     """Everything the report prints, as one JSON-ready dict."""
     p = (inp.wn_rad_s, inp.zeta, inp.ts_s, inp.tl_s)
-    lam_crit = st.lambda_crit(*p)
-    lam_up = st.lambda_upper(*p)
-    poles_at = {_lam_key(lam): _pairs(st.poles(lam, *p)) for lam in REPORT_LAMBDAS}
-    step = {}
-    for lam in REPORT_LAMBDAS:
-        m = st.step_metrics(lam, *p)
-        step[_lam_key(lam)] = {
-            "stable": m.stable,
-            "overshoot_pct": _finite_or_none(m.overshoot_pct),
-            "settling_s": _finite_or_none(m.settling_s),
-            "peak_time_s": _finite_or_none(m.peak_time_s),
-            "rise_time_s": _finite_or_none(m.rise_time_s),
-        }
+    loop = loop_report(*p)
+    lam_crit = loop["lambda_crit"]
     t0 = time.perf_counter()
     kb = st.k_bounds_analysis(cfg, inp.k_min, inp.k_max)
     kb_s = time.perf_counter() - t0
@@ -117,7 +190,7 @@ def analyse(inp: Inputs, cfg: VehicleConfig) -> dict[str, Any]:
         "stable_margin_ok": kb.min_eigenvalue > lam_crit,
         "above_lambda_min": kb.min_eigenvalue >= inp.lambda_min,
     }
-    # issue 10: the same worst case for the matrix the paper's loop flies (INDI feedback at O: K Xi T^-1)
+    # The same worst case for the matrix the paper's loop flies (INDI feedback at O: K Xi T^-1)
     kb_o = st.k_bounds_analysis(cfg, inp.k_min, inp.k_max, reference="o")
     k_bounds_flown_o = {
         "min_eigenvalue": kb_o.min_eigenvalue,
@@ -128,6 +201,31 @@ def analyse(inp: Inputs, cfg: VehicleConfig) -> dict[str, Any]:
         "max_abs_imag": kb_o.max_abs_imag,
         "stable_margin_ok": kb_o.min_eigenvalue > lam_crit,
     }
+    # The stated margin: the registry's floor computation (the coarse workspace sweep) against lambda_crit.
+    guaranteed = st.min_eigenvalue_over_workspace(cfg, inp.k_min, inp.k_max)
+    ratio = guaranteed / lam_crit if lam_crit > 0.0 else math.inf
+    at_g = st.step_metrics(guaranteed, *p) if guaranteed > 0.0 else None
+    margin = {
+        "lambda_crit": lam_crit,
+        "lambda_min": inp.lambda_min,
+        "guaranteed_min_eigenvalue": guaranteed,
+        "margin": _finite_or_none(ratio),
+        "required_margin": inp.lam_margin,
+        "meets_margin": ratio >= inp.lam_margin,
+        "full_sweep_margin": kb.min_eigenvalue / lam_crit if lam_crit > 0.0 else None,
+        "step_at_guaranteed": _step_dict(at_g) if at_g is not None else None,
+        "registry_verdict": verdict,
+    }
+    model_u0 = {
+        "u0_src": inp.u0_src,
+        "u0_tau_s": inp.u0_tau_s,
+        # the model right (plant = ACT_WN, ACT_ZETA): Eq. 9 again, whatever INDI_U0_TAU
+        "lambda_crit_model_right": st.lambda_crit_model_u0(*p, inp.wn_rad_s, inp.zeta, inp.u0_tau_s),
+        "mismatch": mismatch_table(inp),
+    }
+    rate = 1.0 / inp.ts_s
+    sampled = {ch: st.sampled_lambda_crit(inp.wn_rad_s, inp.zeta, rate, inp.tl_s, ch) for ch in st.CHANNELS}
+    reference = loop_report(*PAPER_LOOP)
     return {
         "k_bounds_flown_o": k_bounds_flown_o,
         "inputs": {
@@ -140,12 +238,18 @@ def analyse(inp: Inputs, cfg: VehicleConfig) -> dict[str, Any]:
             "lambda_min": inp.lambda_min,
         },
         "lambda_crit": lam_crit,
-        "lambda_upper": _finite_or_none(lam_up),
-        "zeros": [float(z) for z in st.zeros(*p)],
-        "poles_at_lambda": poles_at,
-        "step": step,
+        "lambda_upper": loop["lambda_upper"],
+        "zeros": loop["zeros"],
+        "poles_at_lambda": loop["poles_at_lambda"],
+        "step": loop["step"],
         "step_band_pct": 100.0 * st.SETTLING_BAND,
         "k_bounds": k_bounds,
+        "margin": margin,
+        "model_u0": model_u0,
+        "sampled_lambda_crit": sampled,
+        "reference": reference,
+        "reference_sampled_lambda_crit": {ch: st.sampled_lambda_crit(PAPER_LOOP[0], PAPER_LOOP[1], 1.0 / PAPER_LOOP[2],
+                                                                     PAPER_LOOP[3], ch) for ch in st.CHANNELS},
     }
 
 
@@ -181,8 +285,21 @@ def render_text(r: dict[str, Any]) -> str:
         "Navig8 INDI stability analysis (paper Sec. 3.1-3.2, Eq. 9-20)",
         f"  actuator wn = {i['wn_rad_s']:g} rad/s, zeta = {i['zeta']:g}; tau_s = {i['ts_s']:g} s; "
         f"tau_L = {i['tl_s']:g} s; K in [{i['k_min']:g}, {i['k_max']:g}]; lambda_min = {i['lambda_min']:g}",
+    ]
+    conf = r.get("configuration")
+    if conf is not None:
+        v = conf["values"]
+        lines += [
+            "  configured values (defaults, then --params, then --set): "
+            + ", ".join(f"{n} {v[n]:g}" for n in v),
+            "  changed from the defaults: "
+            + (", ".join(f"{n}={x:g}" for n, x in conf["overrides"].items()) or "nothing"),
+        ]
+    if "reference" in r:
+        lines += ["", *_side_by_side(r)]
+    lines += [
         "",
-        "H_i(s) (Eq. 13)",
+        "H_i(s) (Eq. 13), configured",
         f"  lambda_crit  = {r['lambda_crit']:.4f}   (H stable for lambda in (lambda_crit, 1])",
         f"  lambda_upper = {lam_up}",
         "  zeros        = " + ", ".join(f"{z:g}" for z in r["zeros"]) + "  (independent of lambda)",
@@ -219,11 +336,82 @@ def render_text(r: dict[str, Any]) -> str:
     if ko is not None:
         pose_o = "/".join(f"{v:.0f}" for v in ko["pose_deg"])
         lines += [
-            "The matrix the paper's loop flies (INDI force feedback at O, INDI_ACC_REF = 0): K Xi T^-1 (issue 10)",
+            "The matrix the paper's loop flies (INDI force feedback at O, INDI_ACC_REF = 0): K Xi T^-1",
             f"  min Re(eig)   = {ko['min_eigenvalue']:.4f} at q = {pose_o} deg, m_o = {ko['object_mass_kg']:g} kg;"
             f"  max Re(eig) = {ko['max_eigenvalue']:.4f};  > lambda_crit: {'yes' if ko['stable_margin_ok'] else 'NO'}",
         ]
+    if "margin" in r:
+        lines += ["", *_margin_lines(r), "", *_model_u0_lines(r)]
     return "\n".join(lines)
+
+
+def _os(step: dict[str, Any] | None) -> str:
+    if step is None or not step["stable"]:
+        return "unstable"
+    return f"{step['overshoot_pct']:.1f} % / {step['settling_s']:.3f} s"
+
+
+def _side_by_side(r: dict[str, Any]) -> list[str]:
+    ref, i = r["reference"], r["inputs"]
+    sr, sc = r["reference_sampled_lambda_crit"], r["sampled_lambda_crit"]
+    rows = [
+        ("wn, zeta, tau_s, tau_L", f"{ref['wn_rad_s']:g}, {ref['zeta']:g}, {ref['ts_s']:g}, {ref['tl_s']:g}",
+         f"{i['wn_rad_s']:g}, {i['zeta']:g}, {i['ts_s']:g}, {i['tl_s']:g}"),
+        ("lambda_crit (Eq. 13, Pade)", f"{ref['lambda_crit']:.4f}", f"{r['lambda_crit']:.4f}"),
+        ("sampled loop lambda_crit, rot.", f"{sr['rotational']:.4f}", f"{sc['rotational']:.4f}"),
+        ("sampled loop lambda_crit, force", f"{sr['force']:.4f}", f"{sc['force']:.4f}"),
+        ("zeros", ", ".join(f"{z:g}" for z in ref["zeros"]), ", ".join(f"{z:g}" for z in r["zeros"])),
+        ("lambda_min / lambda_crit", f"{i['lambda_min'] / ref['lambda_crit']:.2f}",
+         f"{i['lambda_min'] / r['lambda_crit']:.2f}"),
+    ]
+    for key in ("0.3", "0.5", "1.0"):
+        rows.append((f"step at lambda {key}: OS / 2 % settle", _os(ref["step"][key]), _os(r["step"][key])))
+    rows.append(("dominant pole(s) at lambda 0.5", _fmt_poles(ref["poles_at_lambda"]["0.5"])[0],
+                 _fmt_poles(r["poles_at_lambda"]["0.5"])[0]))
+    out = [f"  {'':34}  {'paper Sec. 3 (reference)':>26}  {'configured':>26}"]
+    out += [f"  {a:34}  {b:>26}  {c:>26}" for a, b, c in rows]
+    return ["The configured loop next to the paper's Section 3 constants", *out]
+
+
+def _margin_lines(r: dict[str, Any]) -> list[str]:
+    m = r["margin"]
+    ratio = "inf" if m["margin"] is None else f"{m['margin']:.3f}"
+    full = "-" if m["full_sweep_margin"] is None else f"{m['full_sweep_margin']:.3f}"
+    verdict = m["registry_verdict"]
+    out = [
+        "Stated margin (INDI_LAM_MARGIN; the registry's stability floor)",
+        f"  lambda_crit = {m['lambda_crit']:.4f};  lambda_min (INDI_LAMBDA_MIN) = {m['lambda_min']:g}",
+        f"  guaranteed min Re eig(G_hat G^-1) over the K box and the workspace (the registry's sweep) = "
+        f"{m['guaranteed_min_eigenvalue']:.4f}",
+        f"  margin = guaranteed / lambda_crit = {ratio} (the full sweep's minimum gives {full}); "
+        f"required >= {m['required_margin']:g}: {'yes' if m['meets_margin'] else 'NO'}",
+        f"  step at the guaranteed min eigenvalue: overshoot / 2 % settling {_os(m['step_at_guaranteed'])}",
+    ]
+    if "configuration" in r:
+        out.append("  registry: a PARAM_SET to this configuration is "
+                   + ("accepted" if verdict is None else f"refused: {verdict}"))
+    return out
+
+
+def _model_u0_lines(r: dict[str, Any]) -> list[str]:
+    mu = r["model_u0"]
+    state = "in force" if mu["u0_src"] == 1 else "not in force"
+    tau = mu["u0_tau_s"]
+    out = [
+        f"Model-based U0 (INDI_U0_SRC = 1, {state}; INDI_U0_TAU = {tau:g} s)",
+        f"  with the actuator model right: lambda_crit = {mu['lambda_crit_model_right']:.4f} (Eq. 9: the loop "
+        "is unchanged)",
+        "  lambda_crit with the plant's actuators off ACT_WN (same zeta):",
+        f"  {'plant wn':>14}  {'U0 measured':>11}  {'model, tau ' + format(tau, 'g'):>14}  {'model alone':>11}  "
+        f"{'sampled rot.':>12}  {'sampled force':>13}",
+    ]
+    for row in mu["mismatch"]:
+        f = row["plant_wn_factor"]
+        label = f"{f:.1f} x = {row['plant_wn_rad_s']:g}"
+        out.append(f"  {label:>14}  {row['measured_u0']:11.4f}  "
+                   f"{row['model_u0']:14.4f}  {row['model_u0_alone']:11.4f}  {row['sampled_rotational']:12.4f}  "
+                   f"{row['sampled_force']:13.4f}")
+    return out
 
 
 def write_plots(inp: Inputs, cfg: VehicleConfig, out_dir: Path, lam_crit: float) -> list[Path]:
@@ -320,25 +508,38 @@ def write_plots(inp: Inputs, cfg: VehicleConfig, out_dir: Path, lam_crit: float)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    d = _registry_defaults()
     ap = argparse.ArgumentParser(prog="navig8-stability", description=__doc__.split("\n\n")[0])
-    ap.add_argument("--wn", type=float, default=d["wn"], help="actuator natural frequency, rad/s (ACT_WN)")
-    ap.add_argument("--zeta", type=float, default=d["zeta"], help="actuator damping ratio (ACT_ZETA)")
-    ap.add_argument("--ts", type=float, default=d["ts"], help="sampling time tau_s, s (1/INDI_RATE_HZ)")
-    ap.add_argument("--tl", type=float, default=d["tl"], help="LPF time constant tau_L, s (INDI_LPF_TAU)")
-    ap.add_argument("--k-min", type=float, default=d["k_min"], help="lower bound of K_i (INDI_K_MIN)")
-    ap.add_argument("--k-max", type=float, default=d["k_max"], help="upper bound of K_i (INDI_K_MAX)")
-    ap.add_argument("--lambda-min", type=float, default=d["lambda_min"], help="desired min eigenvalue")
+    ap.add_argument("--params", action="append", default=[], metavar="FILE",
+                    help="a parameter set (.parm), e.g. params/presets/paper.parm; applied before --set")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a parameter")
+    ap.add_argument("--wn", type=float, default=None, help="analysis input: actuator natural frequency, rad/s")
+    ap.add_argument("--zeta", type=float, default=None, help="analysis input: actuator damping ratio")
+    ap.add_argument("--ts", type=float, default=None, help="analysis input: sampling time tau_s, s")
+    ap.add_argument("--tl", type=float, default=None, help="analysis input: LPF time constant tau_L, s")
+    ap.add_argument("--k-min", type=float, default=None, help="analysis input: lower bound of K_i")
+    ap.add_argument("--k-max", type=float, default=None, help="analysis input: upper bound of K_i")
+    ap.add_argument("--lambda-min", type=float, default=None, help="analysis input: desired min eigenvalue")
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     ap.add_argument("--plots", type=Path, default=None, metavar="DIR", help="write fig5/6/7 PNGs to DIR")
     args = ap.parse_args(argv)
-    inp = Inputs(args.wn, args.zeta, args.ts, args.tl, args.k_min, args.k_max, args.lambda_min)
+    try:
+        conf = configuration(args.params, args.set)
+    except (OSError, ValueError) as exc:
+        ap.error(str(exc))
+    inp = inputs_of(conf.values)
+    direct = {"wn_rad_s": args.wn, "zeta": args.zeta, "ts_s": args.ts, "tl_s": args.tl, "k_min": args.k_min,
+              "k_max": args.k_max, "lambda_min": args.lambda_min}
+    direct = {k: v for k, v in direct.items() if v is not None}
+    inp = replace(inp, **direct)
     cfg = VehicleConfig.load()
     try:
-        report = analyse(inp, cfg)
+        # --wn ... override the analysis inputs, not the parameters: the registry's verdict does not apply then
+        report = analyse(inp, cfg, None if direct else conf.verdict)
     except ValueError as e:
         print(f"navig8-stability: {e}", file=sys.stderr)
         return 2
+    if not direct:
+        report["configuration"] = {"values": conf.values, "overrides": conf.overrides, "verdict": conf.verdict}
     if args.plots is not None:
         paths = write_plots(inp, cfg, args.plots, report["lambda_crit"])
         report["plots"] = [str(p) for p in paths]

@@ -1,6 +1,6 @@
 """summary.json from a run's log, so the in-process and the SITL runs are judged by one function.
 
-Keys (issue 4): sim_time_s, wall_time_s, real_time_factor, lost_control, min_eigenvalue,
+Keys: sim_time_s, wall_time_s, real_time_factor, lost_control, min_eigenvalue,
 max_eigenvalue, bound_violations, max_pos_error_m, pos_rms_error_m, max_att_error_deg, att_rms_error_deg, settle,
 peak_reaction_force_n, peak_reaction_torque_nm, max_joint_rate_rad_s, max_joint_accel_rad_s2.
 
@@ -9,7 +9,7 @@ Definitions:
   true attitude and the outer loop's commanded attitude (commanded pitch/yaw with its chosen roll),
   not counted during the ATT_STEP_GRACE_S after a commanded pitch or yaw step (the 90 deg yaw step
   is itself a 90 deg "error" at the instant it is commanded); att_rms_error_deg is its RMS over the samples
-  outside those grace windows (issue 10: adapting vs not adapting);
+  outside those grace windows (it separates adapting from not adapting);
 - lost_control: any non-finite state, attitude error > 60 deg or position error > 5 m;
 - eigenvalues: real parts of eig(G_hat G^-1) with G from the plant's truth, while the estimator runs;
 - bound_violations: samples where the estimate leaves the Eq. 21 box by more than 1e-9 relative;
@@ -158,3 +158,45 @@ def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
         "max_joint_rate_rad_s": fmax(np.abs(qd)),
         "max_joint_accel_rad_s2": fmax(np.abs(qdd)),
     }
+
+
+SIDE_BY_SIDE = (("lost_control", "lost control", "{}"), ("max_att_error_deg", "max attitude error (deg)", "{:.1f}"),
+                ("att_rms_error_deg", "attitude RMS (deg)", "{:.2f}"), ("max_pos_error_m", "max position error (m)",
+                                                                        "{:.2f}"),
+                ("pos_rms_error_m", "position RMS (m)", "{:.2f}"), ("min_eigenvalue", "min eigenvalue", "{:.3f}"),
+                ("bound_violations", "bound violations", "{}"), ("real_time_factor", "real-time factor", "{:.1f}"))
+
+
+def side_by_side(summaries: dict[str, dict[str, Any]]) -> str:
+    """A text table of summary.json files (columns by label), the keys of SIDE_BY_SIDE plus the settled steps."""
+    labels = list(summaries)
+    rows = [["", *labels]]
+    for key, name, fmt in SIDE_BY_SIDE:
+        rows.append([name] + [fmt.format(s[key]) if s.get(key) is not None else "-" for s in summaries.values()])
+    rows.append(["steps settled"] + [f"{sum(1 for x in s.get('settle', []) if x.get('settle_s') is not None)}"
+                                     f" / {len(s.get('settle', []))}" for s in summaries.values()])
+    widths = [max(len(r[i]) for r in rows) for i in range(len(labels) + 1)]
+    def line(r: list[str]) -> str:
+        return "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths, strict=True)))
+
+    return "\n".join(line(r) for r in rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """navig8-compare LABEL=summary.json ...: the runs' summaries side by side (make demo prints the defaults and
+    the paper's method this way)."""
+    import argparse
+    import json
+    from pathlib import Path
+
+    ap = argparse.ArgumentParser(description=main.__doc__)
+    ap.add_argument("runs", nargs="+", metavar="LABEL=FILE")
+    a = ap.parse_args(argv)
+    sums: dict[str, dict[str, Any]] = {}
+    for item in a.runs:
+        label, sep, path = item.partition("=")
+        if not sep:
+            label, path = Path(item).stem, item
+        sums[label] = json.loads(Path(path).read_text())
+    print(side_by_side(sums))
+    return 0

@@ -400,7 +400,9 @@ IC = layout("IC", alpha=1, inv_dt=1, tilt_min=1, tilt_max=1, duct_speed_max=1, t
             u_tail_max=1,  # w_tail_max^2: bound on |U5|
             u0_src=1,  # INDI_U0_SRC: 0 U0 from the measured actuators (Eq. 5), 1 from the model + measurement
             u0_gain=1,  # the complementary filter's correction gain toward the measurement (INDI_U0_TAU)
-            act_ad=4, act_bd=2)  # the actuator model's exact discretisation (actuator_model.actuator_discretisation)
+            # the actuator model's exact discretisation (actuator_model.actuator_discretisation), per group: the duct
+            # tilts (alpha1, alpha3), then the propeller speeds (w1, w2, w3); Ad as [a00, a01, a10, a11], Bd [b0, b1]
+            act_ad=8, act_bd=4)
 IO = layout("IO", acc_f=5, u0=5, dacc=5, du=5, u=5, scale=3, fallback=1,
             act=5)  # alpha1, alpha3, w1, w2, w3 (clipped)
 
@@ -429,11 +431,13 @@ def u_to_actuators(u, out, at):
 def actuator_model_step(x, xo, ad, bd, cmd, co):
     """The five actuators' state x[xo:xo + 5] (positions), x[xo + 5:xo + 10] (rates) advanced one period under
     the held command cmd[co:co + 5]: [p, r] <- Ad [p, r] + Bd u (Eq. 10's second-order lag, exact ZOH;
-    ad = [a00, a01, a10, a11], bd = [b0, b1] from actuator_model.actuator_discretisation)."""
+    per group g (0: the tilts alpha1, alpha3; 1: the speeds w1, w2, w3) ad[4 g:4 g + 4] = [a00, a01, a10, a11],
+    bd[2 g:2 g + 2] = [b0, b1] from actuator_model.actuator_discretisation)."""
     for i in range(5):
+        g = 0 if i < 2 else 1
         p, r, u = x[xo + i], x[xo + 5 + i], cmd[co + i]
-        x[xo + i] = ad[0] * p + ad[1] * r + bd[0] * u
-        x[xo + 5 + i] = ad[2] * p + ad[3] * r + bd[1] * u
+        x[xo + i] = ad[4 * g] * p + ad[4 * g + 1] * r + bd[2 * g] * u
+        x[xo + 5 + i] = ad[4 * g + 2] * p + ad[4 * g + 3] * r + bd[2 * g + 1] * u
 
 
 @njit(cache=True)
@@ -447,7 +451,7 @@ def actuator_estimate(st, ic, tilt1, tilt3, w1, w2, w3):
     speeds) would stay in U0 for ~INDI_U0_TAU and fly as a moment that long."""
     meas = (tilt1, tilt3, w1, w2, w3)
     if st[ST.ACT_OK] != 0.0:
-        actuator_model_step(st, ST.ACT_X, ic[IC.ACT_AD:IC.ACT_AD + 4], ic[IC.ACT_BD:IC.ACT_BD + 2], st, ST.ACT_CMD)
+        actuator_model_step(st, ST.ACT_X, ic[IC.ACT_AD:IC.ACT_AD + 8], ic[IC.ACT_BD:IC.ACT_BD + 4], st, ST.ACT_CMD)
         n = st[ST.ACT_N] + 1.0
         st[ST.ACT_N] = n
         g = max(ic[IC.U0_GAIN], 1.0 / (n + 1.0))
@@ -663,7 +667,7 @@ FST = layout("FST", qest=3,  # joint-angle estimate
              init=1)  # 1.0 after the first sample
 FO = layout("FO", qest=3, qdd=3,
             acc_m=5,  # [P_dot, Q_dot, R_dot, a_x + arm, a_z + arm] (Eq. 23)
-            arm_hdc=1,  # UO.HDC: minus the arm's reaction pitch moment about the CoM (issue 10, CKF_ARM_WRENCH)
+            arm_hdc=1,  # UO.HDC: minus the arm's reaction pitch moment about the CoM (CKF_ARM_WRENCH)
             u_meas=5)  # U0 from the measured actuators
 
 
@@ -686,7 +690,7 @@ def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inerti
     the differences. sens: TIN (only its sensor part is read).
 
     acc_ref = 0 (the paper): Acc_m's force rows are the specific force at O plus the arm's c-ddot_rel.
-    acc_ref = 1 (INDI_ACC_REF, issue 10): they are the acceleration of the estimated composite CoM c
+    acc_ref = 1 (INDI_ACC_REF): they are the acceleration of the estimated composite CoM c
     (uo CEX, CEZ): a_c = f_O + omega-dot x c + omega x (omega x c) + c-ddot_rel (the Coriolis term
     2 omega x c-dot_rel is left out), the point G_C's force rows and the flown loop refer to."""
     q = np.empty(3)

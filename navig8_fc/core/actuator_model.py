@@ -9,12 +9,15 @@ when no actuator measurements arrive (navig8_fc.mavlink.px4sim). The step itself
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
+from numba import njit
 from scipy.linalg import expm
 
 from navig8_fc.core import _kernels as _k
+from navig8_fc.core.layout import layout
 
 N_ACTUATORS = 5
 
@@ -28,11 +31,19 @@ def actuator_discretisation(wn_rad_s: float, zeta: float, dt_s: float) -> tuple[
     return np.ascontiguousarray(m[:2, :2].ravel()), np.ascontiguousarray(m[:2, 2])
 
 
+def group_discretisation(wn_tilt_rad_s: float, wn_speed_rad_s: float, zeta: float, dt_s: float
+                         ) -> tuple[np.ndarray, np.ndarray]:
+    """The (Ad (8), Bd (4)) pair `_kernels.actuator_model_step` takes: the tilts' group, then the speeds'."""
+    ad_t, bd_t = actuator_discretisation(wn_tilt_rad_s, zeta, dt_s)
+    ad_s, bd_s = actuator_discretisation(wn_speed_rad_s, zeta, dt_s)
+    return np.concatenate([ad_t, ad_s]), np.concatenate([bd_t, bd_s])
+
+
 class ActuatorModel:
     """The five actuators' (position, rate) state, advanced one period per `step(command)`."""
 
     def __init__(self, wn_rad_s: float, zeta: float, dt_s: float, initial: Sequence[float]) -> None:
-        self._ad, self._bd = actuator_discretisation(wn_rad_s, zeta, dt_s)
+        self._ad, self._bd = group_discretisation(wn_rad_s, wn_rad_s, zeta, dt_s)
         self._x = np.zeros(2 * N_ACTUATORS)  # positions, then rates (the kernel's layout)
         self._x[:N_ACTUATORS] = np.asarray(initial, dtype=float)
 
@@ -50,4 +61,112 @@ class ActuatorModel:
         return tuple(self._x[N_ACTUATORS:].tolist())
 
 
-__all__ = ["N_ACTUATORS", "ActuatorModel", "actuator_discretisation"]
+# ---------------------------------------------------------------------------------------------
+# Online identification of the actuators' bandwidth (INDI_U0_SRC = 1, ACT_ID = 1)
+# ---------------------------------------------------------------------------------------------
+# The model-based U0 is only as good as its model of the actuators (ACT_WN). A bank of three copies of the model per
+# group (tilts, speeds), at omega_n x {1/r, 1, r} around the current estimate on a log grid, is run on the command
+# flown and corrected toward the measurement like the INDI's own estimate; the exponentially weighted mean squared
+# one-step innovation J of each copy says which omega_n explains the measurement best, and the estimate climbs the
+# grid toward the lower J (a multiple-model hill climb: no gradient of the exact discretisation needed, and every
+# bank member is a stable exact second-order model). The sensor noise is the same for all three copies, so it
+# cancels in the comparison; J differs only where the actuators move (transients), which is what identifies omega_n.
+ID_GRID_MIN, ID_GRID_MAX, ID_GRID_STEP = 0.4, 2.5, 1.05  # omega_n / ACT_WN of the grid, and its ratio per index
+ID_SIDE = 3  # the side copies sit ID_SIDE grid steps away (x 1.05^3 = 1.16)
+ID_J_TAU_S = 2.0  # time constant of the innovation averages
+ID_EVAL_S = 0.5  # how often the estimate may move, one side step at a time
+ID_HYST = 0.02  # a side copy must beat the middle one's J by this share
+# State: the three copies' actuator states (positions 5, rates 5 each), J per group and copy, the grid index per
+# group, ticks since the last move, whether the copies have a state, the number of moves (an edge for the shell).
+AID = layout("AID", x=30, j=6, idx=2, ticks=1, ok=1, moves=1)
+
+
+def id_grid(wn_rad_s: float, zeta: float, dt_s: float) -> np.ndarray:
+    """The identification grid: row i = [Ad (4), Bd (2), omega_n] at omega_n = ACT_WN * ID_GRID_STEP^(i - i0)."""
+    lo = math.floor(math.log(ID_GRID_MIN) / math.log(ID_GRID_STEP))
+    hi = math.ceil(math.log(ID_GRID_MAX) / math.log(ID_GRID_STEP))
+    rows = []
+    for i in range(lo, hi + 1):
+        w = wn_rad_s * ID_GRID_STEP**i
+        ad, bd = actuator_discretisation(w, zeta, dt_s)
+        rows.append(np.concatenate([ad, bd, [w]]))
+    return np.ascontiguousarray(rows)
+
+
+def id_state(grid: np.ndarray, wn_rad_s: float) -> np.ndarray:
+    """A fresh identification state at the grid index nearest ACT_WN for both groups."""
+    st = AID.zeros()
+    i0 = int(np.argmin(np.abs(grid[:, 6] - wn_rad_s)))
+    st[AID.IDX] = i0
+    st[AID.IDX + 1] = i0
+    return st
+
+
+@njit(cache=True)
+def actuator_identify(st: np.ndarray, grid: np.ndarray, cmd: np.ndarray, meas: np.ndarray, gain: float,
+                      dt_s: float) -> bool:
+    """One control tick of the bank (module comment above): advance the three copies per group under cmd (the
+    command flown over the last period), accumulate their innovations against meas (alpha1, alpha3, w1, w2, w3),
+    correct them with the complementary gain, and every ID_EVAL_S move the group's estimate one side step toward a
+    copy whose J is lower by ID_HYST. Returns True when an estimate moved (the caller re-discretises the U0 model).
+    Before the first call, and after `st[AID.OK] = 0`, the copies start at the measurement."""
+    n = grid.shape[0]
+    if st[AID.OK] < 0.5:
+        for m in range(3):
+            for i in range(5):
+                st[AID.X + 10 * m + i] = meas[i]
+                st[AID.X + 10 * m + 5 + i] = 0.0
+        st[AID.OK] = 1.0
+        return False
+    a = dt_s / ID_J_TAU_S
+    for g in range(2):
+        i_lo, i_hi = (0, 2) if g == 0 else (2, 5)
+        centre = int(st[AID.IDX + g])
+        for m in range(3):
+            r = min(max(centre + (m - 1) * ID_SIDE, 0), n - 1)
+            e2 = 0.0
+            for i in range(i_lo, i_hi):
+                o = AID.X + 10 * m
+                p, v, u = st[o + i], st[o + 5 + i], cmd[i]
+                p1 = grid[r, 0] * p + grid[r, 1] * v + grid[r, 4] * u
+                v1 = grid[r, 2] * p + grid[r, 3] * v + grid[r, 5] * u
+                e = meas[i] - p1
+                e2 += e * e
+                st[o + i] = p1 + gain * e
+                st[o + 5 + i] = v1
+            jj = AID.J + 3 * g + m
+            st[jj] += a * (e2 - st[jj])
+    st[AID.TICKS] += 1.0
+    if st[AID.TICKS] * dt_s < ID_EVAL_S:
+        return False
+    st[AID.TICKS] = 0.0
+    moved = False
+    for g in range(2):
+        j_lo, j_mid, j_hi = st[AID.J + 3 * g], st[AID.J + 3 * g + 1], st[AID.J + 3 * g + 2]
+        centre = int(st[AID.IDX + g])
+        step = 0
+        if j_lo < (1.0 - ID_HYST) * j_mid and j_lo <= j_hi and centre - ID_SIDE >= 0:
+            step = -ID_SIDE
+        elif j_hi < (1.0 - ID_HYST) * j_mid and centre + ID_SIDE <= n - 1:
+            step = ID_SIDE
+        if step != 0:
+            st[AID.IDX + g] = centre + step
+            # the copy that won becomes the middle one; the others continue from its state
+            src = 0 if step < 0 else 2
+            i_lo, i_hi = (0, 2) if g == 0 else (2, 5)
+            for m in range(3):
+                if m != src:
+                    for i in range(i_lo, i_hi):
+                        st[AID.X + 10 * m + i] = st[AID.X + 10 * src + i]
+                        st[AID.X + 10 * m + 5 + i] = st[AID.X + 10 * src + 5 + i]
+            jw = st[AID.J + 3 * g + src]
+            for m in range(3):
+                st[AID.J + 3 * g + m] = jw
+            moved = True
+    if moved:
+        st[AID.MOVES] += 1.0
+    return moved
+
+
+__all__ = ["N_ACTUATORS", "ActuatorModel", "actuator_discretisation", "group_discretisation", "id_grid", "id_state",
+           "actuator_identify", "AID"]

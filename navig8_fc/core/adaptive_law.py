@@ -23,14 +23,14 @@ Caveat: H is built from the *measured* Delta Acc_m, which the KF treats as exact
 gyro, accelerometer) biases the estimate towards zero (errors-in-variables attenuation), i.e. towards
 the lower bound K = 1 once constrained.
 
-Windows (issue 10, CKF_INC_N = N > 1, the default 25): the increments are y[k] - y[k-N], one correction every N
+Windows (CKF_INC_N = N > 1, the default 25): the increments are y[k] - y[k-N], one correction every N
 steps (predict and projection every step). Why: y[k] - y[k-1] = alpha (x[k] - y[k-1]) passes white noise and a
 0.5 Hz doublet with the same gain (~alpha), so the regressor is as noisy as the raw signal and the estimate is
 attenuated towards K = 1 (errors in variables); over N = 25 steps the doublet passes with gain ~0.6 and the
 noise with ~sqrt(alpha). Non-overlapping windows share no noise samples, so the KF's white-noise assumption holds
 much better than for option (a) above. With N = 1 everything is exactly the one-step law.
 
-Gates and sources (issue 10; docs/model.md "Estimator"): a window in which the INDI saturated is not learned
+Gates and sources (docs/model.md "Estimator"): a window in which the INDI saturated is not learned
 from (CKF_SAT_GATE); states whose regressor increment is below a threshold are held (CKF_EXC_ROT, CKF_EXC_LIN);
 U can be the INDI's previous actuator command instead of the measured actuators (CKF_U_SRC: the measured U's
 noise is fed back by the INDI and correlates the regressor with the noise in z).
@@ -69,7 +69,7 @@ class AdaptiveLawConfig:
     ckf: CkfConfig = field(default_factory=CkfConfig)
     k_min: float = 0.5
     k_max: float = 1.0
-    # CKF_ARM_WRENCH (issue 10): take the arm's reaction pitch moment out of the measurement. The body's pitch
+    # CKF_ARM_WRENCH: take the arm's reaction pitch moment out of the measurement. The body's pitch
     # equation about the CoM is G_C U = G_I Acc + [0, h', 0, 0, 0] (h' = arm_hdc, the rate of the bodies'
     # angular momentum relative to the body); the paper's Eq. 24 drops h', which then acts as equation
     # error correlated with Delta Q-dot. With it: z = Delta U - G_C^-1[:, M] Delta h'. False: the paper.

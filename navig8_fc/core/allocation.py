@@ -1,4 +1,4 @@
-"""Prioritised weighted least-squares control allocation over the real actuators (issue 10, INDI_ALLOC = 1).
+"""Prioritised weighted least-squares control allocation over the real actuators (INDI_ALLOC = 1).
 
 The paper's INDI (Eq. 5-6) inverts G_C,UAM^-1 G_hat_I exactly; when the resulting U leaves the feasible set the
 paper-faithful option (INDI_ALLOC = 0, `_kernels.indi_step`) scales the increment back group by group, which

@@ -17,6 +17,7 @@ Signal flow per tick:
 
 from __future__ import annotations
 
+import math
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
@@ -27,7 +28,15 @@ from navig8_fc.core import _kernels as _k
 from navig8_fc.core import rotation
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig, AdaptiveLawStatus
 from navig8_fc.core.allocation import AllocationConfig
-from navig8_fc.core.arm_preview import ArmPreviewConfig, arm_preview_step, hold_plan
+from navig8_fc.core.arm_preview import (
+    PS,
+    ArmPreviewConfig,
+    arm_preview_step,
+    hold_plan,
+    preview_ahead,
+    preview_supervise,
+    reference_advance,
+)
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.indi import (
     ActuatorLimits,
@@ -61,8 +70,18 @@ _IN_ACCEL, _IN_TILT, _IN_SPEED = int(_k.TIN.ACCEL), int(_k.TIN.TILT), int(_k.TIN
 _IN_JRATE = int(_k.TIN.JRATE)
 _FO_QEST, _FO_QDD, _OO_ACCEL = _k.FO.QEST.sl, _k.FO.QDD.sl, _k.OO.ACCEL_CMD.sl
 _FO_ARM_HDC = int(_k.FO.ARM_HDC)
+_SH_PITCH, _SH_YAW = int(SH.PITCH), int(SH.YAW)
+_PS_TRUST, _PS_ERR, _PS_V_HAT, _PS_A_HAT = int(PS.TRUST), int(PS.ERR), int(PS.V_HAT), int(PS.A_HAT)
+_PS_DROPS, _PS_IDENTS = int(PS.DROPS), int(PS.IDENTS)
 
 JOINT_OBS_TAU_S = 1.0  # complementary-filter time constant for the joint angles (docs/model.md)
+# The shaped reference's feed-forward assumes the vehicle follows the reference. While the vehicle's attitude is more
+# than SHAPING_FF_ATT_RAD off the reference's (the actuators cannot follow it), the feed-forward is halved each tick
+# (the feedback alone flies: a demand the vehicle cannot meet only adds to the error); it comes back over
+# SHAPING_FF_RISE_S once they agree again. (Halving it also on every saturated tick was measured: the same peaks and a
+# 7 % worse attitude RMS on the paper scenario, so saturation alone does not withdraw it.)
+SHAPING_FF_ATT_RAD = 0.35
+SHAPING_FF_RISE_S = 0.3
 
 PARAMS_USED = (
     "INDI_RATE_HZ", "INDI_LPF_TAU", "INDI_K_MIN", "INDI_K_MAX",
@@ -75,6 +94,7 @@ PARAMS_USED = (
     "INDI_ALLOC_DTILT", "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
     "INDI_ARM_LEAD", "ARM_SERVO_HZ", "ARM_SERVO_VMAX", "ARM_SERVO_AMAX",
     "INDI_U0_SRC", "INDI_U0_TAU", "ACT_WN", "ACT_ZETA",
+    "ARM_CHK_TOL", "ARM_TRUST_RISE", "ARM_SERVO_ID", "ACT_ID", "ACT_CHK_TILT", "ACT_CHK_SPD",
 )
 
 
@@ -131,14 +151,38 @@ class ControllerConfig:
                                              float(values["INDI_ALLOC_W_AX"]), float(values["INDI_ALLOC_DTILT"])),
                             int(values["INDI_ARM_FF"]),
                             ArmPreviewConfig(float(values["INDI_ARM_LEAD"]), float(values["ARM_SERVO_HZ"]),
-                                             float(values["ARM_SERVO_VMAX"]), float(values["ARM_SERVO_AMAX"])),
+                                             float(values["ARM_SERVO_VMAX"]), float(values["ARM_SERVO_AMAX"]),
+                                             check_tol_rad_s=float(values["ARM_CHK_TOL"]),
+                                             trust_rise_s=float(values["ARM_TRUST_RISE"]),
+                                             identify=bool(int(values["ARM_SERVO_ID"]))),
                             u0_src=int(values["INDI_U0_SRC"]), u0_tau_s=float(values["INDI_U0_TAU"]),
-                            act_wn_rad_s=float(values["ACT_WN"]), act_zeta=float(values["ACT_ZETA"])),
+                            act_wn_rad_s=float(values["ACT_WN"]), act_zeta=float(values["ACT_ZETA"]),
+                            act_identify=bool(int(values["ACT_ID"])),
+                            act_check_tilt_rad=float(values["ACT_CHK_TILT"]),
+                            act_check_speed_rad_s=float(values["ACT_CHK_SPD"])),
             outer=OuterLoopConfig.from_params(values, vehicle.gravity_m_s2),  # type: ignore[arg-type]
             ckf=CkfConfig.from_params(values, dt),
             acc_ref=int(values["INDI_ACC_REF"]),
             arm_wrench=bool(int(values["CKF_ARM_WRENCH"])),
         )
+
+
+@dataclass(frozen=True)
+class FeedForwardStatus:
+    """The model-based feed-forwards' checks against what is measured (docs/model.md, "Feed-forward that cannot
+    hurt"). Arm preview (INDI_ARM_FF = 2): the trust in the servo model (0: the measured reaction is flown, 1: the
+    preview), its last consistency error, the servo limits identified online, and how many times trust was
+    withdrawn and the limits re-identified (counters: a change is an event)."""
+
+    arm_trust: float
+    arm_err_rad_s: float
+    arm_v_hat_rad_s: float
+    arm_a_hat_rad_s2: float
+    arm_drops: int
+    arm_idents: int
+    # command shaping (OL_JERK_MAX / OL_ATT_ACC_REF): the share of the reference's feed-forward flown (1: all; less
+    # while the vehicle's attitude is far off the reference's: SHAPING_FF_*)
+    shaping_ff_scale: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -157,6 +201,7 @@ class ControllerStatus:
     # the point (FRD, m) whose acceleration the INDI force rows and Acc_m refer to when INDI_ACC_REF = 1 (the
     # estimated composite CoM); None: the paper's specific force at O
     ref_frd_m: tuple[float, float, float] | None = None
+    ff: FeedForwardStatus | None = None  # the feed-forwards' supervision (None: no model-based feed-forward flown)
 
 
 class FlightControllerCore:
@@ -180,6 +225,8 @@ class FlightControllerCore:
         self._shape_st = SH.zeros()
         self._shape_sp = _k.OSP.zeros()
         self._shape_ff = _k.OFF.zeros()  # stays zero while shaping is off: the paper's loop
+        self._shape_ff_scale = 1.0  # the feed-forward's check (shaping_ff_scale of FeedForwardStatus)
+        self._shape_rise = config.dt_s / SHAPING_FF_RISE_S
         self._uo = _k.UO.zeros()
         self._fst = _k.FST.zeros()  # joint observer + differentiator state (_kernels.fc_front)
         self._fo = _k.FO.zeros()
@@ -192,6 +239,9 @@ class FlightControllerCore:
         self._arm_plan: np.ndarray | None = None
         self._arm_ref = np.zeros(10)  # the servo reference model's state (arm_preview_step), invalid until set
         self._arm_ahead = np.zeros(9)
+        pv = config.indi.arm_preview
+        self._arm_sup_cfg = pv.supervisor_config()
+        self._arm_sup = pv.supervisor_state()  # kept across resets: the identified servo stays identified
         self._u_cmd = np.zeros(5)
         assert N_LINKS == 3
 
@@ -219,6 +269,7 @@ class FlightControllerCore:
         self._hdc_f = None
         self._arm_ref[9] = 0.0
         self._indi_saturated = False
+        self._shape_ff_scale = 1.0
         self._u_cmd_ok = False
         self._shape_st[SH.INIT] = 0.0
 
@@ -286,6 +337,7 @@ class FlightControllerCore:
             am = acc_m.tolist()
             sf_x, sf_z = am[3], am[4]
         ff_q = 0.0
+        ff_status: FeedForwardStatus | None = None
         arm_ff = cfg.indi.arm_ff
         if arm_ff:
             # The INDI feeds back the low-passed Q-dot, which carries the arm's reaction -h'/I_yy with the filter's
@@ -298,10 +350,24 @@ class FlightControllerCore:
             if arm_ff == 2 and plan is not None:
                 # The INDI delivers I_yy v + LPF(h') after the actuators' lag; commanding I_yy v + h'(t + lead) instead
                 # has the counter-moment there when the arm's reaction is (arm_preview.py; G_C U = G_I Acc + h' e_M).
+                # The servo model is checked against the measured joints every tick (preview_supervise): the preview
+                # is blended in by the trust it has earned, the measured h' (INDI_ARM_FF = 1) flies the rest.
                 pv = cfg.indi.arm_preview
-                hdc = arm_preview_step(plan, s.t_s, cfg.dt_s, pv.lead_s, fo[_FO_QEST], sens[_IN_JRATE:_IN_JRATE + 3],
-                                       1.0 / pv.servo_hz, pv.a_max_rad_s2, pv.v_max_rad_s, m_obj_est, model.geometry,
+                sup = self._arm_sup
+                h_s = 1.0 / pv.servo_hz
+                v_hat, a_hat = sup.item(_PS_V_HAT), sup.item(_PS_A_HAT)
+                qd_meas = sens[_IN_JRATE:_IN_JRATE + 3]
+                err = reference_advance(plan, s.t_s, cfg.dt_s, fo[_FO_QEST], qd_meas, h_s, a_hat, v_hat,
+                                        self._arm_ref)
+                preview_supervise(sup, self._arm_sup_cfg, err, qd_meas, self._arm_ref, cfg.dt_s)
+                trust = sup.item(_PS_TRUST)
+                if trust > 0.0:
+                    hp = preview_ahead(plan, s.t_s, pv.lead_s, h_s, a_hat, v_hat, m_obj_est, model.geometry,
                                        self._arm_ref, self._arm_ahead)
+                    hdc = trust * hp + (1.0 - trust) * hdc
+                su = sup.tolist()
+                ff_status = FeedForwardStatus(su[_PS_TRUST], su[_PS_ERR], su[_PS_V_HAT], su[_PS_A_HAT],
+                                              int(su[_PS_DROPS]), int(su[_PS_IDENTS]), self._shape_ff_scale)
             ff_q = (hdc - hf) / gi_hat.item(6)
         if engaged:
             sl = sens.tolist()
@@ -311,6 +377,11 @@ class FlightControllerCore:
             if cfg.outer.shaping:
                 shape_reference(self._shape_cfg, self._shape_st, spv, pos, vel, quat, self._shape_sp, ffv)
                 spv = self._shape_sp
+                ffv = self._check_shaping_ff(ffv, quat)
+                if ff_status is None:
+                    ff_status = FeedForwardStatus(0.0, 0.0, 0.0, 0.0, 0, 0, self._shape_ff_scale)
+                else:
+                    ff_status = replace(ff_status, shaping_ff_scale=self._shape_ff_scale)
             outer, ol_out = _outer_loop_arrays(self._outer_cfg, spv, pos, vel, quat, gyro, ffv)
             v_cmd = ol_out[_OO_ACCEL]
             if ff_q != 0.0:
@@ -345,8 +416,27 @@ class FlightControllerCore:
             indi=indi_status,
             adapt=adapt_status,
             ref_frd_m=ref,
+            ff=ff_status,
         )
         return cmd, status
+
+    def _check_shaping_ff(self, ffv: np.ndarray, quat: np.ndarray) -> np.ndarray:
+        """The shaped reference's feed-forward, scaled by its check (SHAPING_FF_*): a scaled copy, or ffv itself."""
+        sh = self._shape_st.tolist()
+        cp, sp_, cy, sy = math.cos(sh[_SH_PITCH]), math.sin(sh[_SH_PITCH]), math.cos(sh[_SH_YAW]), math.sin(sh[_SH_YAW])
+        # the reference attitude's body x axis against the measured one (roll is the outer loop's choice: not
+        # compared); both in NED: x_ref = (cos pitch cos yaw, cos pitch sin yaw, -sin pitch)
+        w, x, y, z = quat.tolist()
+        bx = (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y))
+        c = max(-1.0, min(1.0, bx[0] * cp * cy + bx[1] * cp * sy - bx[2] * sp_))
+        off = math.acos(c) > SHAPING_FF_ATT_RAD
+        scale = self._shape_ff_scale
+        if off:
+            scale *= 0.5
+        else:
+            scale = min(1.0, scale + self._shape_rise)
+        self._shape_ff_scale = scale
+        return ffv if scale >= 1.0 else ffv * scale
 
     def _tick_buffers(self) -> tuple:
         """Built on the first step and kept (`_tick_io`): the input vector the sensors are packed into, the
@@ -383,6 +473,8 @@ def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: i
     # INDI_ARM_FF = 2's preview kernel (runs only when selected; loaded here so selecting it does not stall a tick)
     arm_preview_step(hold_plan((0.1, 0.0, -0.1)), 0.0, cfg.dt_s, 0.05, np.zeros(3), np.zeros(3), 1e-3, 42.0, 4.0, 0.0,
                      core._model.geometry, np.zeros(10), np.zeros(9))
+    pv = cfg.indi.arm_preview
+    preview_supervise(pv.supervisor_state(), pv.supervisor_config(), 0.1, np.zeros(3), np.zeros(10), cfg.dt_s)
     # the command shaper (runs only when OL_JERK_MAX or OL_ATT_ACC_REF is on; loaded here so switching it on does not
     # stall a tick)
     shape_reference(shaper_config_array(replace(config.outer, jerk_max_m_s3=5.0, att_acc_ref_rad_s2=1.0), cfg.dt_s),

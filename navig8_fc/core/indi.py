@@ -22,13 +22,14 @@ The result is then clipped into the limits, and a non-finite U falls back to U0 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from navig8_fc.core import _kernels as _k
-from navig8_fc.core.actuator_model import actuator_discretisation
+from navig8_fc.core.actuator_model import AID, actuator_identify, group_discretisation, id_grid, id_state
 from navig8_fc.core.allocation import ALLOC_WLS, AllocationConfig, indi_step_wls
 from navig8_fc.core.arm_preview import ArmPreviewConfig
 from navig8_fc.core.filters import lpf_alpha
@@ -39,6 +40,7 @@ _IO_ACC_F, _IO_U0, _IO_DACC, _IO_DU, _IO_U, _IO_SCALE, _IO_ACT = (
     m.sl for m in (_k.IO.ACC_F, _k.IO.U0, _k.IO.DACC, _k.IO.DU, _k.IO.U, _k.IO.SCALE, _k.IO.ACT))
 _IO_FALLBACK = int(_k.IO.FALLBACK)
 _ST_ACT_CMD, _ST_ACT_OK = _k.ST.ACT_CMD.sl, int(_k.ST.ACT_OK)
+_IC_U0_GAIN, _IC_ACT_AD, _IC_ACT_BD = int(_k.IC.U0_GAIN), _k.IC.ACT_AD.sl, _k.IC.ACT_BD.sl
 
 U0_MEASURED, U0_MODEL = 0, 1  # INDI_U0_SRC
 
@@ -74,6 +76,12 @@ class IndiConfig:
     u0_tau_s: float = 0.2
     act_wn_rad_s: float = 120.0
     act_zeta: float = 1.0
+    # INDI_U0_SRC = 1's checks (docs/model.md, "Feed-forward that cannot hurt"): identify the actuators' bandwidth
+    # online (ACT_ID) and distrust the model, flying the measured U0, while its innovation RMS exceeds ACT_CHK_TILT
+    # (rad) or ACT_CHK_SPD (rad/s)
+    act_identify: bool = False
+    act_check_tilt_rad: float = 0.25
+    act_check_speed_rad_s: float = 60.0
 
 
 @dataclass(frozen=True)
@@ -106,6 +114,11 @@ class IndiStatus:
     saturation_scale: tuple[float, float, float]
     saturated: bool
     fallback_to_u0: bool
+    # INDI_U0_SRC = 1: the actuator model's bandwidth in use (rad/s, tilts and speeds: ACT_WN, or identified), its
+    # innovation RMS against the measurement (rad, rad/s) and whether it is trusted (False: the measured U0 is flown)
+    act_wn_rad_s: tuple[float, float] = (0.0, 0.0)
+    act_innov_rms: tuple[float, float] = (0.0, 0.0)
+    u0_model_trusted: bool = True
 
 
 class IndiController:
@@ -118,7 +131,7 @@ class IndiController:
         self._st = _k.ST.zeros()
         if cfg.u0_src not in (U0_MEASURED, U0_MODEL):
             raise ValueError(f"INDI_U0_SRC must be {U0_MEASURED} or {U0_MODEL}, got {cfg.u0_src}")
-        ad, bd = actuator_discretisation(cfg.act_wn_rad_s, cfg.act_zeta, cfg.dt_s)
+        ad, bd = group_discretisation(cfg.act_wn_rad_s, cfg.act_wn_rad_s, cfg.act_zeta, cfg.dt_s)
         self._ic = _k.IC.pack(alpha=lpf_alpha(cfg.lpf_tau_s, cfg.dt_s), inv_dt=1.0 / cfg.dt_s,
                               tilt_min=lim.tilt_min_rad, tilt_max=lim.tilt_max_rad, duct_speed_max=lim.duct_speed_max,
                               tail_speed_max=lim.tail_speed_max, u_duct_sq_max=(lim.duct_speed_max**2)**2,
@@ -128,9 +141,20 @@ class IndiController:
         self._out = _k.IO.zeros()
         self._al = cfg.alloc.vector()
         self._wls = cfg.alloc.mode == ALLOC_WLS
+        self._u0_gain = float(self._ic[_IC_U0_GAIN])
+        # the actuator-bandwidth identification (actuator_model.actuator_identify) and the model's trust
+        self._id_on = cfg.u0_src == U0_MODEL and cfg.act_identify
+        self._id_grid = id_grid(cfg.act_wn_rad_s, cfg.act_zeta, cfg.dt_s)
+        self._id = id_state(self._id_grid, cfg.act_wn_rad_s)
+        self._id_meas = np.zeros(5)
+        self._wn = (cfg.act_wn_rad_s, cfg.act_wn_rad_s)
+        self._innov = (0.0, 0.0)
+        self._u0_trusted = True
+        self._u0_ok_ticks = 0
 
     def reset(self) -> None:
         self._st[:] = 0.0
+        self._id[AID.OK] = 0.0  # the bank restarts at the measurement; its estimate is kept
 
     def measure(self, inp: IndiInputs) -> tuple[list[float], list[float]]:
         """Filtered acceleration feedback and filtered U0 (also used while disarmed, to stay warm)."""
@@ -153,6 +177,8 @@ class IndiController:
     ) -> tuple[IndiOutput, IndiStatus]:
         """step() on its inputs already converted (float64 arrays, Python floats); the controller's tick."""
         out = self._out
+        if self._id_on:
+            self._check_actuator_model(a1, a3, w1, w2, w3)
         if self._wls:
             indi_step_wls(self._st, self._ic, self._al, gyro, sf_x, sf_z, a1, a3, w1, w2, w3, accel_cmd, gc_inv,
                           gi_hat, out)
@@ -173,5 +199,45 @@ class IndiController:
             saturation_scale=scales,
             saturated=s0 < 1.0 or s1 < 1.0 or s2 < 1.0,
             fallback_to_u0=o[_IO_FALLBACK] != 0.0,
+            act_wn_rad_s=self._wn,
+            act_innov_rms=self._innov,
+            u0_model_trusted=self._u0_trusted,
         )
         return res, status
+
+    def _check_actuator_model(self, a1: float, a3: float, w1: float, w2: float, w3: float) -> None:
+        """INDI_U0_SRC = 1 with ACT_ID: the bank's tick on the command flown last tick (before the INDI's own estimate
+        advances), a moved estimate re-discretised into the U0 model, and the model's trust: distrusted (the
+        complementary gain 1: the measured U0) while a group's innovation RMS exceeds its ACT_CHK_*, trusted again
+        after one J time constant below 70 % of it."""
+        st = self._st
+        if st[_ST_ACT_OK] == 0.0:
+            self._id[AID.OK] = 0.0
+            return
+        m = self._id_meas
+        m[0], m[1], m[2], m[3], m[4] = a1, a3, w1, w2, w3
+        ic = self._ic
+        if actuator_identify(self._id, self._id_grid, st[_ST_ACT_CMD], m, self._u0_gain, self.cfg.dt_s):
+            g = self._id_grid
+            it, isp = int(self._id[AID.IDX]), int(self._id[AID.IDX + 1])
+            ic[_IC_ACT_AD] = np.concatenate([g[it, 0:4], g[isp, 0:4]])
+            ic[_IC_ACT_BD] = np.concatenate([g[it, 4:6], g[isp, 4:6]])
+            self._wn = (float(g[it, 6]), float(g[isp, 6]))
+        j = self._id[AID.J.sl].tolist()
+        rms_t, rms_s = math.sqrt(max(j[1], 0.0) / 2.0), math.sqrt(max(j[4], 0.0) / 3.0)
+        self._innov = (rms_t, rms_s)
+        cfg = self.cfg
+        bad = rms_t > cfg.act_check_tilt_rad or rms_s > cfg.act_check_speed_rad_s
+        if bad:
+            self._u0_ok_ticks = 0
+            if self._u0_trusted:
+                self._u0_trusted = False
+                ic[_IC_U0_GAIN] = 1.0
+        elif not self._u0_trusted:
+            if rms_t < 0.7 * cfg.act_check_tilt_rad and rms_s < 0.7 * cfg.act_check_speed_rad_s:
+                self._u0_ok_ticks += 1
+                if self._u0_ok_ticks * cfg.dt_s >= 2.0:
+                    self._u0_trusted = True
+                    ic[_IC_U0_GAIN] = self._u0_gain
+            else:
+                self._u0_ok_ticks = 0

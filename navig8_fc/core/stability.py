@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import optimize, signal
+from scipy.linalg import expm as linalg_expm
 
 from navig8_fc.core.vehicle import VehicleConfig, effectiveness_pair, mass_properties, reference_transform
 
@@ -192,12 +193,214 @@ def _stability_edge(wn: float, zeta: float, ts: float, tl: float, lam_end: float
     """The lam between 1 and lam_end where the dominant pole of H_i crosses into the right half plane: a
     geometric scan from 1 brackets the first crossing, brentq refines it; if_none when the scan finds none."""
     _check_nominal_stable(wn, zeta, ts, tl)
-    f = lambda lam: max_real_pole(lam, wn, zeta, ts, tl)
+    return _edge(lambda lam: max_real_pole(lam, wn, zeta, ts, tl), lam_end, n_scan, if_none)
+
+
+def _edge(f, lam_end: float, n_scan: int, if_none: float, xtol: float = 1e-12) -> float:
+    """First lam from 1 towards lam_end where f (>= 0: unstable) changes sign: geometric scan, then brentq."""
     bracket = _bracket_scan(f, np.geomspace(1.0, lam_end, n_scan))
     if bracket is None:
         return if_none
     a, b = sorted(bracket)
-    return float(optimize.brentq(f, a, b, xtol=1e-12, rtol=1e-12))
+    return float(optimize.brentq(f, a, b, xtol=xtol, rtol=1e-12))
+
+
+# --------------------------------------------------------------------------------------
+# Model-based U0 (INDI_U0_SRC = 1) with a mismatched actuator model
+# --------------------------------------------------------------------------------------
+#
+# Fig. 4 with U0 measured: u = U0 + G_hat^-1 (v - L P xdot), U0 = L P A u, xdot = G A u, which gives Eq. 7.
+# With the model-based U0 the FC runs its actuator model A_m (ACT_WN, ACT_ZETA) on the command it flew last tick
+# (e^(-tau_s s) u) and corrects the model's position toward the measured actuators (P A u) with gain
+# c = 1/INDI_U0_TAU (a position-only correction, as _kernels.actuator_estimate does). In continuous time, with
+# x_hat = (p_hat, r_hat):  p_hat' = r_hat + c (y - p_hat),  r_hat' = wm^2 (P u - p_hat) - 2 zm wm r_hat, so
+#
+#     p_hat = B(s) P u,   B = [wm^2 D_A + c (s + 2 zm wm) wp^2] / (D_c D_A),
+#     D_c = s^2 + (2 zm wm + c) s + wm^2 + 2 zm wm c,
+#
+# (A = wp^2/D_A is the true actuator, D_m = s^2 + 2 zm wm s + wm^2 the model's denominator). c = 0 is the pure
+# model (B = A_m), c -> inf the measurement alone (B = A). U0 = L B P u goes through the same low-pass. Then
+# (1 - L P B) u + G_hat^-1 L P G A u = G_hat^-1 v; with y = G A u and G_hat G^-1 = M Lambda M^-1 (A, B scalar):
+#
+#     [G_hat G^-1 (1 - L P B) + L P A] y = A v,   H_i = A / (lam (1 - L P B) + L P A)
+#
+# which is Eq. 9 whenever B = A: the model-based U0 does not change the loop when the model is right (whatever c).
+# With A_m != A, multiplying by D_L D_P D_c D_A:
+#
+#     den = lam D_L D_P D_c D_A - lam N_P [wm^2 D_A + c (s + 2 zm wm) wp^2] + wp^2 N_P D_c      (degree 6)
+#     num = wp^2 D_L D_P D_c
+#
+# with D_L = tau_L s + 1, D_P = 2 + tau_s s, N_P = 2 - tau_s s. H(0) = 1 still (den(0) = num(0) = 2 wp^2 D_c(0)).
+
+
+def model_u0_coefficients(
+    lam: complex,
+    wn: float,
+    zeta: float,
+    ts: float,
+    tl: float,
+    plant_wn: float,
+    plant_zeta: float,
+    u0_tau_s: float = math.inf,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(num, den) of H_i(s) with the model-based U0 (INDI_U0_SRC = 1), highest power first (see above).
+
+    wn, zeta: the FC's actuator model (ACT_WN, ACT_ZETA); plant_wn, plant_zeta: the true actuators; u0_tau_s:
+    INDI_U0_TAU (inf: the model alone, 0: the measurement alone, which is Eq. 13 with the true actuators).
+    """
+    _check_loop_params(wn, zeta, ts, tl)
+    _check_loop_params(plant_wn, plant_zeta, ts, tl)
+    if not u0_tau_s >= 0.0:
+        raise ValueError(f"u0_tau_s must be >= 0 s (inf: the model alone), got {u0_tau_s}")
+    if u0_tau_s == 0.0:
+        return h_coefficients(lam, plant_wn, plant_zeta, ts, tl)
+    c = 0.0 if math.isinf(u0_tau_s) else 1.0 / u0_tau_s
+    wm, zm, wp = wn, zeta, plant_wn
+    d_l, d_p, n_p = np.array([tl, 1.0]), np.array([ts, 2.0]), np.array([-ts, 2.0])
+    d_a = np.array([1.0, 2.0 * plant_zeta * wp, wp**2])
+    d_c = np.array([1.0, 2.0 * zm * wm + c, wm**2 + 2.0 * zm * wm * c])
+    b_num = np.polyadd(wm**2 * d_a, c * wp**2 * np.array([1.0, 2.0 * zm * wm]))
+    lam_c = complex(lam)
+    lpca = np.polymul(np.polymul(d_l, d_p), np.polymul(d_c, d_a))
+    den = np.polyadd(np.polyadd(lam_c * lpca, -lam_c * np.polymul(n_p, b_num)), wp**2 * np.polymul(n_p, d_c))
+    num = wp**2 * np.polymul(np.polymul(d_l, d_p), d_c)
+    if lam_c.imag == 0.0:
+        den = den.real
+    return num, den
+
+
+def model_u0_poles(lam: complex, wn: float, zeta: float, ts: float, tl: float, plant_wn: float, plant_zeta: float,
+                   u0_tau_s: float = math.inf) -> np.ndarray:
+    """Roots of model_u0_coefficients' den, dominant first. The model's own poles (roots of D_c) are among them
+    and cancel against zeros when the model is right; they are stable for wn, zeta > 0, c >= 0."""
+    _, den = model_u0_coefficients(lam, wn, zeta, ts, tl, plant_wn, plant_zeta, u0_tau_s)
+    p = np.roots(den)
+    return p[np.argsort(-p.real, kind="stable")]
+
+
+def lambda_crit_model_u0(
+    wn: float,
+    zeta: float,
+    ts: float,
+    tl: float,
+    plant_wn: float,
+    plant_zeta: float,
+    u0_tau_s: float = math.inf,
+    lam_lo: float = 1e-6,
+    n_scan: int = 120,
+) -> float:
+    """lambda_crit (as `lambda_crit`) of the loop with the model-based U0 and true actuators (plant_wn, plant_zeta).
+
+    Equals lambda_crit(wn, zeta, ts, tl) when the model is right (plant = model), for every u0_tau_s, and
+    lambda_crit(plant_wn, plant_zeta, ts, tl) for u0_tau_s = 0. ValueError if the loop is unstable at lam = 1
+    (a model far enough off that even the exact effectiveness does not fly).
+    """
+    if not 0.0 < lam_lo < 1.0:
+        raise ValueError(f"need 0 < lam_lo < 1, got {lam_lo}")
+
+    def f(lam: float) -> float:
+        return float(model_u0_poles(lam, wn, zeta, ts, tl, plant_wn, plant_zeta, u0_tau_s)[0].real)
+
+    p1 = f(1.0)
+    if p1 >= 0.0:
+        raise ValueError(f"H(s) with the model-based U0 is not stable at lam = 1 (max Re(pole) = {p1:.4g})")
+    return _edge(f, lam_lo, n_scan, 0.0)
+
+
+# --------------------------------------------------------------------------------------
+# The sampled loop itself (no Pade): an independent check of the continuous analysis
+# --------------------------------------------------------------------------------------
+
+CHANNELS = ("rotational", "force")
+
+
+def _zoh_actuator(wn: float, zeta: float, dt_s: float) -> np.ndarray:
+    """exp(M dt) for [p, r, w, u]: the actuator p'' = wn^2 (u - p) - 2 zeta wn p' under a held u, and the
+    integral w of p over the period (the body rate a rotational mode's gyro sees, in mode units)."""
+    a = np.zeros((4, 4))
+    a[0, 1] = 1.0
+    a[1, 0], a[1, 1], a[1, 3] = -wn**2, -2.0 * zeta * wn, wn**2
+    a[2, 0] = 1.0
+    return np.asarray(linalg_expm(a * dt_s))
+
+
+def sampled_loop_matrix(
+    lam: float,
+    wn: float,
+    zeta: float,
+    rate_hz: float,
+    tl: float,
+    channel: str = "rotational",
+    plant_wn: float | None = None,
+    plant_zeta: float | None = None,
+    u0_source: str = "model",
+    u0_tau_s: float = math.inf,
+) -> np.ndarray:
+    """The one-tick state-transition matrix of one decoupled mode of the FC's sampled INDI loop (v = 0).
+
+    What the FC does each tick (lockstep: the bundle at t_k, the command held over [t_k, t_k+1)), in the units of
+    one eigen-mode of G_hat G^-1 (Ghat = lam G there): the actuators (true: plant_wn/zeta, default the model's)
+    advance under the held command; the feedback is the sampled acceleration through the exact first-order
+    low-pass (alpha = 1 - exp(-dt/tau_L)), for a "force" mode directly, for a "rotational" mode as the backward
+    difference of the low-passed gyro (IndiController.measure); U0 is the measured actuator or ("model") the
+    actuator model run on the last command with the position corrected toward the measurement by
+    alpha(u0_tau_s) (_kernels.actuator_estimate), through the same low-pass; u = U0 + (v - Acc_f)/lam (Eq. 5-6).
+    State [p, r, p_hat, r_hat, u_prev, U0_f, f] with f = the force filter's output or the gyro filter's lag e.
+    """
+    if channel not in CHANNELS:
+        raise ValueError(f"channel must be one of {CHANNELS}, got {channel!r}")
+    if u0_source not in ("model", "measured"):
+        raise ValueError(f"u0_source must be 'model' or 'measured', got {u0_source!r}")
+    if not (rate_hz > 0.0 and math.isfinite(rate_hz) and tl > 0.0 and lam != 0.0):
+        raise ValueError(f"need rate_hz > 0, tl > 0, lam != 0; got {rate_hz}, {tl}, {lam}")
+    dt = 1.0 / rate_hz
+    m_p = _zoh_actuator(plant_wn if plant_wn is not None else wn, plant_zeta if plant_zeta is not None else zeta, dt)
+    m_m = _zoh_actuator(wn, zeta, dt)
+    alpha = 1.0 - math.exp(-dt / tl)
+    g = 0.0 if math.isinf(u0_tau_s) else (1.0 if u0_tau_s == 0.0 else 1.0 - math.exp(-dt / u0_tau_s))
+    rotational = channel == "rotational"
+
+    def tick(x: np.ndarray) -> np.ndarray:
+        p, r, ph, rh, u_prev, u0f, f = x
+        p, r, dw = m_p[:3] @ np.array([p, r, 0.0, u_prev])
+        ph, rh = m_m[:2] @ np.array([ph, rh, 0.0, u_prev])
+        ph = ph + g * (p - ph)
+        src = ph if u0_source == "model" else p
+        u0f = u0f + alpha * (src - u0f)
+        if rotational:
+            d = dw + f  # w_k - w_f,k-1: the rate increment plus the filter's lag
+            acc, f = alpha * d / dt, (1.0 - alpha) * d
+        else:
+            f = f + alpha * (p - f)
+            acc = f
+        u = u0f - acc / lam
+        return np.array([p, r, ph, rh, u, u0f, f])
+
+    return np.column_stack([tick(e) for e in np.eye(7)])
+
+
+def sampled_lambda_crit(
+    wn: float,
+    zeta: float,
+    rate_hz: float,
+    tl: float,
+    channel: str = "rotational",
+    plant_wn: float | None = None,
+    plant_zeta: float | None = None,
+    u0_source: str = "model",
+    u0_tau_s: float = math.inf,
+    lam_lo: float = 1e-4,
+    n_scan: int = 200,
+) -> float:
+    """lambda_crit of the sampled loop (sampled_loop_matrix): where its spectral radius reaches 1, from lam = 1 down."""
+
+    def f(lam: float) -> float:
+        m = sampled_loop_matrix(lam, wn, zeta, rate_hz, tl, channel, plant_wn, plant_zeta, u0_source, u0_tau_s)
+        return float(np.max(np.abs(np.linalg.eigvals(m)))) - 1.0
+
+    if f(1.0) >= 0.0:
+        raise ValueError("the sampled loop is not stable at lam = 1")
+    return _edge(f, lam_lo, n_scan, 0.0, xtol=1e-10)
 
 
 @dataclass(frozen=True)
@@ -331,7 +534,7 @@ def xi_batch(cfg: VehicleConfig, poses_rad: np.ndarray, object_masses_kg: np.nda
 
     reference: the point whose acceleration the INDI force rows feed back. "com" (the true composite CoM):
     Eq. 14 as printed. "o" (the paper's specific force at O, INDI_ACC_REF = 0): the loop flies T(O - c) G, so
-    G_hat G_flown^-1 = K Xi T^-1 (vehicle.reference_transform; T^-1 = 2 I - T); issue 10."""
+    G_hat G_flown^-1 = K Xi T^-1 (vehicle.reference_transform; T^-1 = 2 I - T)."""
     if reference not in REFERENCES:
         raise ValueError(f"reference must be one of {REFERENCES}, got {reference!r}")
     poses = np.atleast_2d(np.asarray(poses_rad, dtype=float))

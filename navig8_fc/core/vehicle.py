@@ -412,7 +412,7 @@ class UamModel:
 def reference_transform(ref_minus_com_frd_m: Sequence3) -> np.ndarray:
     """T (5x5) with [omega-dot, a_p,x, a_p,z] = T [omega-dot, a_c,x, a_c,z] for a point p = c + d of the rigid body:
     a_p = a_c + omega-dot x d + (terms without U), and with d_y = 0 (omega-dot x d)_x = Qdot d_z,
-    (omega-dot x d)_z = -Qdot d_x. The loop that feeds back the acceleration of p flies T G (issue 10)."""
+    (omega-dot x d)_z = -Qdot d_x. The loop that feeds back the acceleration of p flies T G (INDI_ACC_REF)."""
     t = np.eye(5)
     t[3, 1] = float(ref_minus_com_frd_m[2])
     t[4, 1] = -float(ref_minus_com_frd_m[0])
@@ -420,7 +420,7 @@ def reference_transform(ref_minus_com_frd_m: Sequence3) -> np.ndarray:
 
 
 def flown_effectiveness(gc_true: np.ndarray, gi_true: np.ndarray, ref_minus_com_frd_m: Sequence3) -> np.ndarray:
-    """G of the loop actually flown: U -> [omega-dot, a_p,x, a_p,z] = T(p - c) G_I^-1 G_C (Eq. 1-2, issue 10)."""
+    """G of the loop actually flown: U -> [omega-dot, a_p,x, a_p,z] = T(p - c) G_I^-1 G_C (Eq. 1-2)."""
     return reference_transform(ref_minus_com_frd_m) @ np.linalg.solve(gi_true, gc_true)
 
 

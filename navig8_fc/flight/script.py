@@ -128,8 +128,21 @@ def parse_flight_script(d: dict[str, Any]) -> FlightScript:
     )
 
 
+def target_at(seg: ArmSegment, t_s: float) -> Vec3:
+    """The joint target of one segment at t_s >= seg.t0_s (the same linear interpolation as the plant's kernel)."""
+    if t_s >= seg.t1_s:
+        return seg.q_end_rad
+    f = (t_s - seg.t0_s) / (seg.t1_s - seg.t0_s)
+    a, b = seg.q_start_rad, seg.q_end_rad
+    return (a[0] + f * (b[0] - a[0]), a[1] + f * (b[1] - a[1]), a[2] + f * (b[2] - a[2]))
+
+
 def arm_segments(kind: str, arm: dict[str, Any], q0: Vec3, duration_s: float) -> tuple[ArmSegment, ...]:
-    """The arm's commanded joint targets from a scenario's `arm` key (kinds hold, steps, eq26)."""
+    """The arm's commanded joint targets from a scenario's `arm` key (kinds hold, steps, eq26).
+
+    steps: `steps: [{t_s, q_deg, ramp_s}]`, sorted by t_s. Without `ramp_s` (or 0) the target jumps to q_deg at
+    t_s; with it the target moves linearly from wherever it is at t_s (a ramp still under way is cut there, so
+    the target never jumps) to q_deg over ramp_s seconds: a slow sweep is one long ramp."""
     if kind == "hold":
         q = vec3(arm["q_deg"], deg=True) if "q_deg" in arm else q0
         return (ArmSegment(0.0, 0.0, q, q),)
@@ -138,7 +151,18 @@ def arm_segments(kind: str, arm: dict[str, Any], q0: Vec3, duration_s: float) ->
         for st in arm["steps"]:
             q = vec3(st["q_deg"], deg=True)
             t = float(st["t_s"])
-            segs.append(ArmSegment(t, t, segs[-1].q_end_rad, q))
+            ramp = float(st.get("ramp_s", 0.0))
+            if not (math.isfinite(t) and math.isfinite(ramp) and ramp >= 0.0):
+                raise ValueError(f"arm step {st!r}: t_s must be finite and ramp_s >= 0")
+            if t < segs[-1].t0_s:
+                raise ValueError(f"arm steps must be sorted by t_s ({t} after {segs[-1].t0_s})")
+            unknown = set(st) - {"t_s", "q_deg", "ramp_s", "note"}
+            if unknown:
+                raise ValueError(f"arm step: unknown keys {sorted(unknown)} (t_s, q_deg, ramp_s, note)")
+            # a step's start value is never read (the target is q_end from t0 on); it stays the previous end, as
+            # it always was, so the schedules of step-only files are the same bits
+            start = target_at(segs[-1], t) if ramp > 0.0 else segs[-1].q_end_rad
+            segs.append(ArmSegment(t, t + ramp, start, q))
         return tuple(segs)
     if kind == "eq26":
         # Eq. 26 as read in notes §6.2: q_cmd = A [1 + sum_k (-1)^k 2 u(t - T k)] = A (-1)^floor(t/T),

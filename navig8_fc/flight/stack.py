@@ -144,6 +144,10 @@ class FlightStack:
         self._battery_energy_j = 0.0  # drawn since _battery_t_s
         self._arm_request: ArmRequest | None = None
         self._notices: list[Notice] = []  # decided in the step before the mode manager runs (the rate check)
+        # what the feed-forward notices last announced (_feedforward_notices)
+        wn = float(registry["ACT_WN"])
+        self._ff_announced: dict = {"arm_drops": 0, "arm_idents": 0, "u0_trusted": True, "act_wn": (wn, wn),
+                                    "arm_servo": (float(registry["ARM_SERVO_VMAX"]), float(registry["ARM_SERVO_AMAX"]))}
         self._sensors_stale = False
         self._stale_age_s = 0.0  # the longest sensor age seen in the current outage
         self._gcs_lost = False
@@ -173,6 +177,8 @@ class FlightStack:
                 or cfg.acc_ref != core.config.acc_ref or cfg.arm_wrench != core.config.arm_wrench):
             self._core = FlightControllerCore(self.vehicle, cfg)
             self._core.set_arm_plan(self._arm_plan)
+            if hasattr(self, "_ff_announced"):  # a new core counts its checks' events from zero
+                self._ff_announced.update(arm_drops=0, arm_idents=0)
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
         if hasattr(self, "_modes"):  # offboard velocity feed-forward goes through the position gain
@@ -209,9 +215,13 @@ class FlightStack:
                                     self._n_steps * core.config.dt_s >= ESTIMATOR_WARMUP_S))
         if out.armed and not was_armed:
             core.reset()  # the estimator's start delay counts from arming
-        elif self._mode_out is not None and out.flight_mode is not self._mode_out.flight_mode:
-            core.resync_reference()  # the command shaper continues from where the vehicle is
+        elif self._mode_out is not None and out.entries != self._mode_out.entries:
+            # A mode (re-)entered (also Hold after a cancelled reposition): the command shaper continues from where
+            # the vehicle is, never from a reference that was heading for the old target.
+            core.resync_reference()
         cmd, st = core.step(sensors, out.setpoint, engaged=out.engaged)
+        if st.ff is not None or st.indi is not None:
+            self._feedforward_notices(st)
         self._discharge(sensors.t_s, t1, t2, t3)
         if out.armed:
             self._check_battery_and_fence(sensors.pos_ned)
@@ -232,6 +242,40 @@ class FlightStack:
             self._notices = []
         req, self._arm_request = self._arm_request, None
         return StepResult(cmd, st, out.setpoint, out.armed, out.engaged, tuple(notices), req)
+
+    def _feedforward_notices(self, st: ControllerStatus) -> None:
+        """STATUSTEXTs for the model-based feed-forwards' checks (docs/model.md, "Feed-forward that cannot hurt"):
+        the arm preview withdrawn (a WARNING when its trust falls to 0 from above it, the servo model's error named),
+        the arm servo and the actuators re-identified (INFO, when an estimate moved by more than 10 % from the one
+        last announced), the actuator model distrusted and trusted again."""
+        last = self._ff_announced
+        ff, ind = st.ff, st.indi
+        if ff is not None and ff.arm_drops > last["arm_drops"]:
+            last["arm_drops"] = ff.arm_drops
+            self._notices.append(Notice(SEVERITY_WARNING, f"Arm preview off: the joints move {ff.arm_err_rad_s:.2f} "
+                                        "rad/s off the servo model; flying the measured reaction"))
+        if ff is not None and ff.arm_idents > last["arm_idents"]:
+            last["arm_idents"] = ff.arm_idents
+            v0, a0 = last["arm_servo"]
+            if abs(ff.arm_v_hat_rad_s - v0) > 0.1 * v0 or abs(ff.arm_a_hat_rad_s2 - a0) > 0.1 * a0:
+                last["arm_servo"] = (ff.arm_v_hat_rad_s, ff.arm_a_hat_rad_s2)
+                self._notices.append(Notice(SEVERITY_INFO, f"Arm servo identified: {ff.arm_v_hat_rad_s:.2f} rad/s, "
+                                            f"{ff.arm_a_hat_rad_s2:.1f} rad/s^2"))
+        if ind is not None and ind.act_wn_rad_s[0] > 0.0:
+            wt, ws = ind.act_wn_rad_s
+            t0, s0 = last["act_wn"]
+            if abs(wt - t0) > 0.1 * t0 or abs(ws - s0) > 0.1 * s0:
+                last["act_wn"] = (wt, ws)
+                self._notices.append(Notice(SEVERITY_INFO, f"Actuator bandwidth identified: tilt {wt:.0f} rad/s, "
+                                            f"speed {ws:.0f} rad/s"))
+            if ind.u0_model_trusted != last["u0_trusted"]:
+                last["u0_trusted"] = ind.u0_model_trusted
+                rt, rs = ind.act_innov_rms
+                self._notices.append(
+                    Notice(SEVERITY_INFO, "Actuator model agrees with the measurement again: model U0") if
+                    ind.u0_model_trusted else
+                    Notice(SEVERITY_WARNING, f"Actuator model off (innovation {rt:.2f} rad, {rs:.0f} rad/s): "
+                           "flying the measured U0"))
 
     def _update_arm_task(self, sensors: FcSensors) -> None:
         """Progress of the arm-joint move: the share of the largest joint error removed; DONE within

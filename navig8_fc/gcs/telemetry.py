@@ -42,6 +42,11 @@ K_MIN - lambda_crit and moves mostly with the parameters, a little with the pose
 measurement. The actual min eigenvalue of G_hat G^-1 needs the true G, which only the bridge's truth has (it
 is in the logs); an "as estimated" variant (G from the estimated object) was not chosen because it would
 report the estimator's own belief back as a margin.
+LAM_CRIT: lambda_crit of H(s) for the configuration in force (ACT_WN, ACT_ZETA, 1/INDI_RATE_HZ, INDI_LPF_TAU;
+Eq. 9-13). LAM_MARGIN: the stated margin the parameter checks enforce, the smallest eigenvalue of G_hat G^-1
+guaranteed over the K box and the workspace divided by LAM_CRIT (a change that takes it below INDI_LAM_MARGIN is
+refused; docs/stability.md "The flown configuration"). Both change only with those parameters: the registry's
+stability floor of the values in force, NaN while it is being computed (a worker, after a reset or at start).
 
 Frames and units: GLOBAL_POSITION_INT converts NED to WGS-84 with PX4's flat-earth (equirectangular)
 projection around `GeoOrigin`, Earth radius 6 371 000 m: lat = lat0 + n/R, lon = lon0 + e/(R cos lat0),
@@ -198,6 +203,8 @@ class VehicleSnapshot:
     ckf_x_hat: Vec4 = _NAN4  # [I_xx, I_yy, I_zz, m] estimate (kg m^2, kg)
     ckf_k: Vec4 = _NAN4  # implied [K1..K4]
     eig_margin: float = math.nan  # see module docstring
+    lam_crit: float = math.nan  # lambda_crit of the configuration in force (module docstring)
+    lam_margin: float = math.nan  # guaranteed min eigenvalue / lambda_crit (module docstring)
     time_unix_usec: int = 0  # given by the shell (0 = unknown)
     throttle_pct: float = 0.0
 
@@ -506,12 +513,14 @@ class TelemetryBuilder:
         names_values = (
             ("IXX_HAT", snap.ckf_x_hat[0]), ("IYY_HAT", snap.ckf_x_hat[1]), ("IZZ_HAT", snap.ckf_x_hat[2]),
             ("M_HAT", snap.ckf_x_hat[3]), ("K1", snap.ckf_k[0]), ("K2", snap.ckf_k[1]), ("K3", snap.ckf_k[2]),
-            ("K4", snap.ckf_k[3]), ("EIG_MARGIN", snap.eig_margin),
+            ("K4", snap.ckf_k[3]), ("EIG_MARGIN", snap.eig_margin), ("LAM_CRIT", snap.lam_crit),
+            ("LAM_MARGIN", snap.lam_margin),
         )  # fmt: skip
         return [self._mav.named_value_float_encode(now_boot_ms, n.encode("ascii"), float(v)) for n, v in names_values]
 
 
-STABILITY_VALUE_NAMES = ("IXX_HAT", "IYY_HAT", "IZZ_HAT", "M_HAT", "K1", "K2", "K3", "K4", "EIG_MARGIN")
+STABILITY_VALUE_NAMES = ("IXX_HAT", "IYY_HAT", "IZZ_HAT", "M_HAT", "K1", "K2", "K3", "K4", "EIG_MARGIN", "LAM_CRIT",
+                         "LAM_MARGIN")
 
 
 # --- the bound-based eigenvalue margin ----------------------------------------------------------------------

@@ -92,6 +92,11 @@ class ModeConfig:
     landed_max_thrust_ratio: float = 0.5  # thrust / weight below this: the ground carries the vehicle
     landed_max_height_m: float = 0.3  # fallback cue when the thrust is unknown
     landed_hold_s: float = 0.5
+    # LAND touches down at once when the vehicle is this close to home height and no longer descending: the
+    # ground stopped it. The thrust cue needs landed_hold_s, and within that time an INDI with a prioritised
+    # allocation answers the impact by tilting the ducts past 90 deg to push down (the vertical force ranks
+    # above the forward one), which drives the vehicle along the ground.
+    land_contact_height_m: float = 0.1
     air_start_home_z_ned_m: float = 0.0  # ground under an air-started vehicle (the plant's ground plane)
     rtl_alt_m: float = 2.5  # Return (mode and plan item): climb to this height above home first if lower
     manual_speed_m_s: float = 1.0  # Position mode: full stick = this horizontal speed
@@ -99,6 +104,9 @@ class ModeConfig:
     manual_yaw_rate_rad_s: float = 0.8  # full yaw stick
     manual_deadband: float = 0.05  # of full stick travel
     manual_lead_m: float = 1.0  # velocity-driven setpoints (sticks, offboard velocity) stay this close to the vehicle
+    # Offboard on the ground: idle until the target is this far above the vehicle (PX4's takeoff state machine keeps
+    # the motors at idle while landed and no climb is asked; pushing a target into the ground must not fly)
+    offboard_liftoff_m: float = 0.2
     reposition_reached_tol_m: float = 0.3  # DO_REPOSITION is complete within this distance ...
     reposition_reached_speed_m_s: float = 0.3  # ... and below this speed
 
@@ -197,6 +205,7 @@ class ModeOutput:
     events: tuple[str, ...] = field(default_factory=tuple)  # for STATUSTEXT (INFO)
     mission: Progress = Progress()  # the uploaded plan's progress (navig8_fc.mission.executor)
     actions: tuple[tuple[str, object], ...] = ()  # arm/gripper actions of plan items (MissionExecutor.step)
+    entries: int = 0  # mode entries so far: a change means a fresh reference (also on re-entering the same mode)
 
 
 class LandDetector:
@@ -214,9 +223,13 @@ class LandDetector:
         self._seen_sample = False
         self.landed = False
 
-    def candidate(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
+    def slow(self, inp: ModeInputs) -> bool:
+        """Below the landed speeds (vertical and horizontal)."""
         vx, vy, vz = inp.vel_ned
-        if not (abs(vz) < self._max_vz and math.hypot(vx, vy) < self._max_vxy):  # not slow
+        return abs(vz) < self._max_vz and math.hypot(vx, vy) < self._max_vxy
+
+    def candidate(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
+        if not self.slow(inp):
             return False
         thrust_ratio = inp.thrust_ratio
         if _isfinite(thrust_ratio):
@@ -249,6 +262,7 @@ class ModeManager:
         self._armed = air_start
         self._mode = FlightMode.MISSION if air_start else FlightMode.READY
         self._entry_pending = True
+        self._entries = 0  # mode entries (ModeOutput.entries)
         self._last: ModeInputs | None = None
         self._last_output: ModeOutput | None = None
         self._home: Vec3 | None = None
@@ -657,6 +671,7 @@ class ModeManager:
             tuple(events) if events else (),
             self._mission_progress_now(),
             tuple(self._actions) if self._actions else (),
+            self._entries,
         )
         if events:
             events.clear()
@@ -709,6 +724,7 @@ class ModeManager:
     def _enter(self, inp: ModeInputs) -> None:
         """Entry actions that need a state sample (where to hold, where a ramp starts)."""
         self._entry_pending = False
+        self._entries += 1
         x, y, z = inp.pos_ned
         mode = self._mode
         if mode is FlightMode.HOLD:
@@ -787,7 +803,10 @@ class ModeManager:
             if self._offboard is None:  # lost between the stack's check and this step
                 self._switch(FlightMode.HOLD)
                 return self._last_output.setpoint if self._last_output else _idle(inp), True, None
-            return self._run_offboard(inp, dt), True, None
+            sp = self._run_offboard(inp, dt)
+            if self._detector.landed and sp.pos_ned[2] > inp.pos_ned[2] - self._cfg.offboard_liftoff_m:
+                return _idle(inp), False, None  # on the ground and not asked to climb: idle, as PX4's takeoff state
+            return sp, True, None
         if mode is FlightMode.TAKEOFF:
             assert self._sp is not None
             self._ramp_z = _approach(self._ramp_z, self._target_z, self._cfg.takeoff_climb_rate_m_s * dt)
@@ -807,7 +826,7 @@ class ModeManager:
         if mode is FlightMode.LAND:
             assert self._sp is not None
             if self._touchdown_t_s is None:
-                if self._detector.landed:
+                if self._detector.landed or self._ground_contact(inp):
                     self._touchdown_t_s = inp.t_s
                     self._events.append("Landed")
                     if self._task is not None and self._task.running and self._task.kind in ("land", "return"):
@@ -824,6 +843,12 @@ class ModeManager:
                 self._entry_pending = False
             return _idle(inp), False, None
         raise AssertionError(f"unhandled mode {mode}")  # MISSION is handled first
+
+    def _ground_contact(self, inp: ModeInputs) -> bool:
+        """LAND's touchdown without the detector's hold: at home height (land_contact_height_m) and slow."""
+        home = self._home
+        return (home is not None and home[2] - inp.pos_ned[2] < self._cfg.land_contact_height_m
+                and self._detector.slow(inp))
 
     def _run_mission(self, t_s: float) -> tuple[Setpoint, bool, float | None]:
         script = self._script

@@ -11,7 +11,8 @@ Rules checked on every set (each refusal carries a human-readable reason):
 - cross-parameter rules: INDI_K_MIN <= INDI_K_MAX; INDI_LAMBDA_MIN above the critical eigenvalue;
 - the stability floor (DESIGN §5): a K bound (or an actuator/sampling/filter parameter) that would
   let an eigenvalue of G_hat G^-1 fall below the critical eigenvalue of H(s) (Eq. 9-13) anywhere in
-  the workspace is refused;
+  the workspace is refused, and so is one that leaves the guaranteed smallest eigenvalue less than
+  INDI_LAM_MARGIN times lambda_crit (the stated margin, docs/stability.md "The flown configuration");
 - `not_armed: true` in the YAML: the parameter changes the loop itself (rate, filters, actuator model,
   estimator mode) and is refused while armed (`set(..., armed=True)`).
 
@@ -38,9 +39,11 @@ TYPES = ("REAL32", "INT32")
 
 # Parameters the stability floor depends on: a change to any of them re-runs the check.
 STABILITY_PARAMS = frozenset(
-    {"INDI_K_MIN", "INDI_K_MAX", "INDI_LAMBDA_MIN", "ACT_WN", "ACT_ZETA", "INDI_RATE_HZ", "INDI_LPF_TAU"}
+    {"INDI_K_MIN", "INDI_K_MAX", "INDI_LAMBDA_MIN", "INDI_LAM_MARGIN", "ACT_WN", "ACT_ZETA", "INDI_RATE_HZ",
+     "INDI_LPF_TAU"}
 )
-# What the floor itself depends on (INDI_LAMBDA_MIN is compared against it afterwards): the cache key.
+# What the floor itself depends on (INDI_LAMBDA_MIN and INDI_LAM_MARGIN are compared against it afterwards): the
+# cache key.
 FLOOR_INPUTS = ("INDI_K_MIN", "INDI_K_MAX", "ACT_WN", "ACT_ZETA", "INDI_RATE_HZ", "INDI_LPF_TAU")
 FLOOR_CACHE_SIZE = 256
 
@@ -96,19 +99,57 @@ class StabilityFloor:
     def ok(self) -> bool:
         return self.min_eigenvalue > self.lambda_crit and self.max_eigenvalue < self.lambda_upper
 
+    @property
+    def margin(self) -> float:
+        """min_eigenvalue / lambda_crit: the factor by which the true control effectiveness may exceed the
+        worst-case model before H(s) loses stability (inf when lambda_crit is 0, nan for a refusing floor)."""
+        if not (math.isfinite(self.lambda_crit) and math.isfinite(self.min_eigenvalue)):
+            return math.nan
+        return math.inf if self.lambda_crit <= 0.0 else self.min_eigenvalue / self.lambda_crit
+
+
+@dataclass(frozen=True)
+class StabilityStatus:
+    """The stability floor of the parameters in force, as telemetry (LAM_CRIT, LAM_MARGIN) and the log report it."""
+
+    lambda_crit: float  # of H(s) for ACT_WN, ACT_ZETA, 1/INDI_RATE_HZ, INDI_LPF_TAU (Eq. 9-13)
+    min_eigenvalue: float  # smallest Re eig(G_hat G^-1) guaranteed over the K box and the workspace
+    margin: float  # min_eigenvalue / lambda_crit
+    required_margin: float  # INDI_LAM_MARGIN
+    lambda_min: float  # INDI_LAMBDA_MIN (the performance target, Sec. 3.2)
+
+    @property
+    def meets_margin(self) -> bool:
+        return self.margin >= self.required_margin
+
 
 StabilityCheck = Callable[[Mapping[str, float | int]], StabilityFloor]
 
 
 class WorkspaceStabilityCheck:
     """λ_crit of H(s) for the actuator/sampling/filter parameters vs the smallest eigenvalue of K·Ξ
-    over the arm workspace and object masses (navig8_fc.core.stability)."""
+    over the arm workspace and object masses (navig8_fc.core.stability).
+
+    Results are kept per process for the vehicle file and the floor inputs (the sweep is a pure function of
+    them), so registries of one process (the FC's, a test's) compute each configuration once."""
+
+    _memo: dict[tuple[Any, tuple[float, ...]], StabilityFloor] = {}
 
     def __init__(self, vehicle_path: str | Path | None = None) -> None:
         self._vehicle_path = vehicle_path
         self._cfg: Any = None
 
     def __call__(self, values: Mapping[str, float | int]) -> StabilityFloor:
+        key = (None if self._vehicle_path is None else str(self._vehicle_path), floor_key(values))
+        hit = self._memo.get(key)
+        if hit is None:
+            hit = self._compute(values)
+            if len(self._memo) >= FLOOR_CACHE_SIZE:
+                self._memo.pop(next(iter(self._memo)))
+            self._memo[key] = hit
+        return hit
+
+    def _compute(self, values: Mapping[str, float | int]) -> StabilityFloor:
         from navig8_fc.core import stability
         from navig8_fc.core.vehicle import VehicleConfig
 
@@ -332,6 +373,23 @@ class ParamRegistry:
         while len(self._floors) > FLOOR_CACHE_SIZE:
             del self._floors[next(iter(self._floors))]
 
+    def floor_in_force(self) -> StabilityFloor | None:
+        """The stability floor of the values in force if it is computed (cached), else None (no check, or not
+        computed yet: after a reset to defaults or at start, until a caller computes it, e.g. on a worker)."""
+        if self._stability_check is None:
+            return None
+        return self._floors.get(floor_key(self._values))
+
+    def stability_status(self) -> StabilityStatus | None:
+        """lambda_crit, the guaranteed smallest eigenvalue and their ratio for the values in force (None: the
+        floor is not computed yet, see floor_in_force)."""
+        floor = self.floor_in_force()
+        if floor is None:
+            return None
+        return StabilityStatus(floor.lambda_crit, floor.min_eigenvalue, floor.margin,
+                               float(self._values.get("INDI_LAM_MARGIN", 1.0)),
+                               float(self._values.get("INDI_LAMBDA_MIN", math.nan)))
+
     def _floor(self, values: Mapping[str, float | int]) -> StabilityFloor:
         key = floor_key(values)
         floor = self._floors.get(key)
@@ -354,6 +412,12 @@ class ParamRegistry:
                 return (
                     f"{name}: refused: max eig(Ghat G^-1) {floor.max_eigenvalue:.2f} >= lambda_upper "
                     f"{floor.lambda_upper:.2f}, where H(s) is unstable again"
+                )
+            required = float(c.get("INDI_LAM_MARGIN", 1.0))
+            if floor.margin < required:
+                return (
+                    f"{name}: refused: stability margin {floor.margin:.2f} < INDI_LAM_MARGIN {required:g} "
+                    f"(guaranteed min eig {floor.min_eigenvalue:.3f}, lambda_crit {floor.lambda_crit:.3f})"
                 )
             lam_min = c.get("INDI_LAMBDA_MIN")
             if lam_min is not None and lam_min <= floor.lambda_crit:

@@ -13,6 +13,7 @@ whatever the simulation speed (mavlink_notes §1.3).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import gc
 import secrets
 import select
@@ -35,7 +36,7 @@ from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mavlink.px4sim import PX4_SIM_MESSAGES, ActuatorModel, Px4SimAssembler
 from navig8_fc.mission.executor import planned_path
 from navig8_fc.mission.store import MissionStore
-from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.params.registry import ParamRegistry, StabilityStatus
 from navig8_fc.params.store import ParamStore, default_state_path
 from navig8_fc.shell.foxglove_out import DEFAULT_PORT as FOXGLOVE_DEFAULT_PORT
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, LiveServer, script_waypoints
@@ -93,6 +94,7 @@ class FcOptions:
     api_link: str | None = None
     sim_messages: str = "navig8"  # --sim-messages: navig8 (the private bundle) or px4 (PX4's simulator messages)
     timing: str | None = None  # --timing lockstep|realtime: overrides the FC_TIMING parameter (docs/hil.md)
+    vehicle_path: Path | None = None  # --vehicle: its constants (vehicle.yaml format); None: packaged
 
     @property
     def sysid(self) -> int:
@@ -121,7 +123,7 @@ class FlightControllerProcess:
     def __init__(self, opts: FcOptions) -> None:
         self.opts = opts
         self.d = dialect_mod.load()
-        self.vehicle = vm.VehicleConfig.load()
+        self.vehicle = vm.VehicleConfig.load(opts.vehicle_path)
         self.registry = ParamRegistry.from_defaults()
         self._stop = False
         # A log that cannot be opened (read-only dir, full disk) is reported and the FC flies without one.
@@ -168,6 +170,7 @@ class FlightControllerProcess:
                                       trusted_sources=[(link.name, t) for link in (self.gcs, self.api)
                                                        for t in link.targets],
                                       background_params=True, signing=self.signing)
+        self._stability_logged: StabilityStatus | None = None  # the last /fc/stability record
         for link in (self.gcs, self.api):  # telemetry only to confirmed peers (docs/security.md)
             link.admit_peer = self.gcs_service.admits_peer
         for line in self.signing.load():
@@ -654,7 +657,18 @@ class FlightControllerProcess:
     def on_wall_tick(self, now: float) -> None:
         for change in self.gcs_service.poll(now):  # PARAM_SETs that waited for their stability floor
             self.log_param_change(change)
+        stab = self.gcs_service.stability
+        if stab is not None and stab != self._stability_logged:
+            self._stability_logged = stab
+            self.log_stability(stab)
         self._show_plan()
+
+    def log_stability(self, stab: StabilityStatus) -> None:
+        """/fc/stability: lambda_crit, the guaranteed min eigenvalue and the margin of the configuration in force
+        (LAM_CRIT, LAM_MARGIN), once at start and again whenever a parameter they depend on changes them."""
+        if self.logger:
+            rec = {**dataclasses.asdict(stab), "meets_margin": stab.meets_margin}
+            self.logger.log("/fc/stability", self._sim_ns(), rec, publish_ns=time.time_ns())
 
     def log_event(self, text: str) -> None:
         print(f"navig8-fc: {text}", file=sys.stderr)
@@ -768,6 +782,10 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--sim-messages", choices=["navig8", "px4"], default="navig8",
                     help="what the sim link carries: navig8 (the private bundle, docs/bridge.md) or px4 (PX4's "
                          "simulator messages HIL_SENSOR + HIL_STATE_QUATERNION; docs/hil.md)")
+    ap.add_argument("--vehicle", default=None, metavar="FILE",
+                    help="the vehicle's constants (params/vehicle.yaml's format; default the packaged file): a board's "
+                         "own airframe, or the world navig8-sitl --world gives the bridge (navig8-bridge "
+                         "--write-fc-vehicle)")
     ap.add_argument("--timing", choices=["lockstep", "realtime"], default=None,
                     help="timing mode, overriding the FC_TIMING parameter: lockstep (one step per bundle) or realtime "
                          "(own clock at INDI_RATE_HZ; the bridge then runs --free-run; docs/hil.md)")
@@ -783,6 +801,7 @@ def options_from_args(a: argparse.Namespace) -> FcOptions:
         ports_file=Path(a.ports_file) if a.ports_file else None, autopilot=a.autopilot, foxglove_port=a.foxglove,
         foxglove_host=a.foxglove_host, log_max_mb=a.log_max_mb, log_keep=a.log_keep, sim_link=a.sim_link,
         gcs_link=a.gcs_link, api_link=a.api_link, timing=a.timing, sim_messages=a.sim_messages,
+        vehicle_path=Path(a.vehicle) if a.vehicle else None,
     )
 
 

@@ -28,14 +28,17 @@ GCS work off the control path: a PARAM_SET whose stability floor is not cached (
 waits in a bounded queue while a worker *process* computes the floor (a thread would not do: numpy's batched
 eigenvalue call holds the GIL for tens of ms, measured 48 ms worst vs 13 ms idle on this host); `poll` (the main
 loop, between control steps) applies it when ready, in arrival order. PARAM_SETs are rate-limited per source
-(PARAM_SET_RATE); saves are written by a worker thread. Without `background_params` (in-process callers)
-everything runs inline.
+(PARAM_SET_RATE); saves are written by a worker thread. The floor of the values in force (LAM_MARGIN, `stability`)
+is computed on the same worker process when no PARAM_SET has computed it (at start, after a reset or a load).
+Without `background_params` (in-process callers) everything runs inline.
 """
 
 from __future__ import annotations
 
 import math
 import multiprocessing
+import os
+import threading
 import time
 from collections import deque
 from collections.abc import Callable, Hashable, Iterable
@@ -66,7 +69,7 @@ from navig8_fc.mission.protocol import MissionProtocol
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.modes.manager import TaskStatus
 from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
-from navig8_fc.params.registry import ParamRegistry, SetResult, run_floor
+from navig8_fc.params.registry import ParamRegistry, SetResult, StabilityStatus, run_floor
 from navig8_fc.params.store import ParamStore
 
 MAV_TYPE_GCS = 6
@@ -91,6 +94,22 @@ def origin_from_params(reg: ParamRegistry) -> GeoOrigin:
     """The global origin from ORIGIN_LAT_E7 / ORIGIN_LON_E7 / ORIGIN_ALT."""
     return GeoOrigin(int(reg["ORIGIN_LAT_E7"]) * 1e-7, int(reg["ORIGIN_LON_E7"]) * 1e-7, float(reg["ORIGIN_ALT"]))
 
+
+
+def _floor_worker_init(parent_pid: int) -> None:
+    """The stability-floor worker lives only as long as the FC: a killed FC (SIGKILL, no shutdown) must not leave
+    it running, nor leave it holding the FC's stdout/stderr (a supervisor reading them would wait forever)."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 1)  # its results and errors go back through the futures, not the console
+    os.dup2(devnull, 2)
+    os.close(devnull)
+
+    def watch() -> None:
+        while os.getppid() == parent_pid:
+            time.sleep(0.2)
+        os._exit(0)  # re-parented: the FC is gone
+
+    threading.Thread(target=watch, name="navig8-floor-parent-watch", daemon=True).start()
 
 class Outbox(Protocol):
     """Where GcsService's messages go (the process implements it over its GCS-facing links)."""
@@ -162,15 +181,26 @@ class GcsService:
         self._floor_job: tuple[dict[str, float | int], Future[Any]] | None = None
         self._save_job: Future[str | None] | None = None
         self._param_tokens: dict[Source | None, tuple[float, float]] = {}  # source -> (tokens, last time)
-        self._floor_pool: Executor | None = None  # started at the first floor to compute (no cost otherwise)
+        self._floor_pool: Executor | None = None  # started with the background worker, else at the first floor
         self._floor_pool_failed = False
+        if background_params:
+            # Spawning the worker and importing the stability analysis (scipy) takes seconds, more on a busy
+            # machine: done at start-up, with the current configuration's floor computed once, so the first
+            # PARAM_SET that needs a floor is answered in the analysis' own time, not in the worker's start-up.
+            self._start_floor_pool()
+            assert self._floor_pool is not None
+            self._floor_pool.submit(run_floor, self._registry.stability_check, self._registry.as_dict())
+
+    def _start_floor_pool(self) -> None:
+        try:  # a spawned process: nothing of this one (threads, sockets) is inherited
+            self._floor_pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                                                   initializer=_floor_worker_init, initargs=(os.getpid(),))
+        except (OSError, ValueError):
+            self._floor_pool = self._pool  # no processes here: a thread still keeps the sweep off the loop
 
     def _submit_floor(self, values: dict[str, float | int]) -> None:
         if self._floor_pool is None:
-            try:  # a spawned process: nothing of this one (threads, sockets) is inherited
-                self._floor_pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"))
-            except (OSError, ValueError):
-                self._floor_pool = self._pool  # no processes here: a thread still keeps the sweep off the loop
+            self._start_floor_pool()
         assert self._floor_pool is not None
         self._floor_job = (values, self._floor_pool.submit(run_floor, self._registry.stability_check, values))
 
@@ -314,25 +344,52 @@ class GcsService:
         self._param_queue.append((m, source))
         return []
 
+    def _floor_job_done(self) -> bool:
+        """Store the worker's finished floor in the registry; False while one is still being computed."""
+        if self._floor_job is None:
+            return True
+        values, job = self._floor_job
+        if not job.done():
+            return False
+        self._floor_job = None
+        try:
+            self._registry.store_floor(values, job.result())
+        except Exception:  # noqa: BLE001 - a dead worker: from now on floors are computed inline
+            self._floor_pool_failed = True
+        return True
+
     def _run_param_queue(self, now_wall: float) -> None:
         """Queued PARAM_SETs in order, each once its floor is computed (the worker); called between steps."""
         while self._param_queue:
             m, source = self._param_queue[0]
-            if self._floor_job is not None:
-                values, job = self._floor_job
-                if not job.done():
-                    return
-                self._floor_job = None
-                try:
-                    self._registry.store_floor(values, job.result())
-                except Exception:  # noqa: BLE001 - a dead worker: from now on floors are computed inline
-                    self._floor_pool_failed = True
+            if not self._floor_job_done():
+                return
             need = self.params.floor_needed(m)
             if need is not None and self._pool is not None and not self._floor_pool_failed:
                 self._submit_floor(need)
                 return
             self._param_queue.popleft()
             self._route("PARAM_SET", source, self.params.handle(m, now_wall, source))
+
+    def _floor_in_force(self) -> None:
+        """The stability floor of the values in force for LAM_MARGIN and the log (`stability`), when no PARAM_SET
+        has computed it (at start, after a reset or load): on the worker, as a PARAM_SET's; inline without one."""
+        reg = self._registry
+        if reg.stability_check is None or self._param_queue or not self._floor_job_done():
+            return
+        if reg.floor_in_force() is not None:
+            return
+        values = reg.as_dict()
+        if self._pool is not None and not self._floor_pool_failed:
+            self._submit_floor(values)
+        else:
+            reg.store_floor(values, reg.compute_floor(values))
+
+    @property
+    def stability(self) -> StabilityStatus | None:
+        """lambda_crit, the guaranteed smallest eigenvalue and the margin of the configuration in force (None while
+        its floor is being computed)."""
+        return self._registry.stability_status()
 
     def _save_params(self) -> None:
         """A due save on the worker (its outcome reported when done); one at a time, the latest values."""
@@ -451,6 +508,7 @@ class GcsService:
         queued PARAM_SETs made, for the caller's log."""
         self._now = now_wall
         self._run_param_queue(now_wall)
+        self._floor_in_force()
         self._save_params()
         if self._last_manual is not None and now_wall - self._last_manual > MANUAL_CONTROL_TIMEOUT_S:
             self._last_manual = None
@@ -607,6 +665,7 @@ class Telemetry:
             reg = self._registry
             self._eig_margin = eig_margin_lower_bound(self._vehicle, st.q_est_rad, float(reg["INDI_K_MIN"]),
                                                       float(reg["INDI_K_MAX"]), v.lambda_crit)
+        stab = self._registry.stability_status()
         zero3 = (0.0, 0.0, 0.0)
         ok = v.sensors_ok
         bat_low_pct = float(self._registry["FS_BAT_LOW_PCT"])  # below it: unhealthy (the low-battery failsafe)
@@ -634,6 +693,8 @@ class Telemetry:
             ckf_x_hat=st.adapt.x_hat if st else (math.nan,) * 4,  # type: ignore[arg-type]
             ckf_k=st.adapt.k if st else (math.nan,) * 4,  # type: ignore[arg-type]
             eig_margin=self._eig_margin,
+            lam_crit=v.lambda_crit,
+            lam_margin=stab.margin if stab is not None else math.nan,
             time_unix_usec=time.time_ns() // 1000,
             throttle_pct=throttle_pct(self._vehicle, s.speed_rad_s) if s else 0.0,
         )

@@ -98,13 +98,17 @@ def build_arg_parser() -> argparse.ArgumentParser:
                     help="start from default parameters (with --params/--set: the defaults plus those, stored)")
     ap.add_argument("--params", action="append", default=[], metavar="FILE",
                     help="store a parameter set (.parm: NAME VALUE per line, as MAVProxy's param load) for this "
-                         "instance before the FC starts, e.g. params/presets/issue10.parm; before --set")
+                         "instance before the FC starts, e.g. params/presets/paper.parm; before --set")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="store a parameter for this instance before the FC starts")
     ap.add_argument("--bind-host", default="127.0.0.1", help="GCS/API bind address (0.0.0.0 in a container)")
     ap.add_argument("--gcs-host", default="127.0.0.1", help="where GCS/API traffic goes before a GCS talks")
     ap.add_argument("--foxglove", nargs="?", type=int, const=8765, default=None, metavar="PORT",
                     help="navig8-fc serves the Foxglove 3D channels live over WebSocket (default 8765; 0: any free)")
+    ap.add_argument("--world", action="append", default=[], metavar="NAME=VALUE",
+                    help="a world override (sim_bridge/world.py, as navig8-sim --world) for the bridge; the vehicle's "
+                         "(vehicle.*, fc_vehicle.*, tail_max_thrust_n) reach navig8-fc as its --vehicle file too, "
+                         "e.g. --world tail_max_thrust_n=200")
     ap.add_argument("--fc-arg", action="append", default=[], help="extra argument for navig8-fc (repeatable)")
     ap.add_argument("--bridge-arg", action="append", default=[], help="extra argument for navig8-bridge")
     return ap
@@ -162,8 +166,19 @@ def main(argv: list[str] | None = None) -> int:
         fc_args.append(f"--foxglove={a.foxglove}")
     if a.until_done:
         fc_args.append("--until-done")
+    world = [arg for item in a.world for arg in ("--world", item)]
+    if world:  # the FC flies with the vehicle of this world: the bridge writes it (one reader of the world names)
+        vfile = Path(a.state_dir) / f"vehicle_i{a.instance}.yaml"
+        p = subprocess.run([sys.executable, "-m", "sim_bridge.bridge", "--scenario", a.scenario, *world,
+                            "--write-fc-vehicle", str(vfile)], stdin=subprocess.DEVNULL, capture_output=True,
+                           text=True, timeout=120)
+        if p.returncode != 0:
+            print(f"navig8-sitl: {p.stderr.strip().splitlines()[-1] if p.stderr.strip() else 'bad --world'}",
+                  file=sys.stderr)
+            return 2
+        fc_args += ["--vehicle", str(vfile)]
     br_args = ["--instance", str(a.instance), "--scenario", a.scenario, "--speed", str(a.speed),
-               "--seed", str(a.seed), *a.bridge_arg]
+               "--seed", str(a.seed), *world, *a.bridge_arg]
     if a.until_done:
         br_args.append("--until-done")
     if a.duration is not None:

@@ -202,9 +202,9 @@ def test_a_sitl_campaign_with_a_plan_names_it_in_every_row_and_replay() -> None:
     # the plan is part of a row's identity; a campaign without one keeps the ids it had
     other = expand(Campaign.from_dict(dict(d, plan={"from_scenario": "hover"})))
     assert {r.run_id for r in other}.isdisjoint(r.run_id for r in rows)
-    # (An id pinned here kept plan-less ids as they were before plans existed; session 5 added the scenario's content
-    # digest to every id, test_a_changed_scenario_file_changes_the_run_ids_but_a_comment_does_not, so outputs
-    # written before then fly again on resume instead of being reused.)
+    # (No id is pinned here: every id includes the scenario's content digest,
+    # test_a_changed_scenario_file_changes_the_run_ids_but_a_comment_does_not, so outputs written under ids without
+    # it fly again on resume instead of being reused.)
     with pytest.raises(ValueError, match="kind: sitl"):
         Campaign.from_dict(dict(d, kind="inprocess"))
 

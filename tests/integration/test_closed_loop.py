@@ -1,4 +1,4 @@
-"""Plant + flight-controller core in one process: the paper's scenario (issue 4's must-show)."""
+"""Plant + flight-controller core in one process: the paper's scenario."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Issue 12 must-show: the interop tests pass when pointed, through connection strings, at a pair started outside
+"""The interop tests pass when pointed, through connection strings, at a pair started outside
 pytest. This test starts navig8-bridge and navig8-fc itself (`sitl_helpers.external_pair`: the FC's GCS link as
 tcpin: on a free port, as a companion computer would serve it), then runs `pytest tests/sitl/test_hil_interop.py
 --fc-gcs=tcp:... --fc-api=udpin:... --bridge=...` as a separate process: everything but the local-log check must

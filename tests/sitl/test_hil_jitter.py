@@ -1,4 +1,4 @@
-"""Issue 12 must-show: the FC in real-time mode against a free-running bridge whose bundles cross a proxy adding
+"""The FC in real-time mode against a free-running bridge whose bundles cross a proxy adding
 ±2 ms jitter, 5 % drops and 5 % reordering (sitl_helpers.LossyUdpProxy) holds a 2 m hover (sitl_helpers' hover
 band), never steps on a stale bundle (the stamps its answers echo only ever increase) and reports the drops
 (STATUSTEXT)."""

@@ -1,4 +1,4 @@
-"""Issue 12 must-show: the FC in real-time mode and the bridge free-running over a serial line at 921600 baud:
+"""The FC in real-time mode and the bridge free-running over a serial line at 921600 baud:
 takeoff, hover, land. The line is a pair of pseudo-terminals joined by navig8_tools.nullmodem, which delays each
 direction by its transmission time at 921600 baud (8N1); a pty is not a UART (no bit errors, no FIFO gaps)."""
 

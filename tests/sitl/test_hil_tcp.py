@@ -1,4 +1,4 @@
-"""Issue 12 must-show: the FC in real-time mode and the bridge free-running over TCP, as PX4's simulator interface
+"""The FC in real-time mode and the bridge free-running over TCP, as PX4's simulator interface
 (the simulator listens, here on a free port instead of 4560; the FC connects): takeoff, hover, land."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""A pymavlink ground station against the real two-process SITL over loopback UDP (issue 5 must-show).
+"""A pymavlink ground station against the real two-process SITL over loopback UDP.
 
 MAVLink only: runs against any FC by connection string (`make test-hil`, docs/hil.md); the parameter it sets is
 restored and the flight ends landed and disarmed."""

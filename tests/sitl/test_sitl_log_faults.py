@@ -1,4 +1,4 @@
-"""A full log disk and a read-only log directory, for real (issue 11's must-show): navig8-sitl runs inside a user and
+"""A full log disk and a read-only log directory, for real: navig8-sitl runs inside a user and
 mount namespace (`unshare -rm`, no root needed) whose log directory is a 256 KiB tmpfs (the disk fills within the
 first second of flight: ENOSPC from the kernel) or a read-only tmpfs (EROFS at start). The vehicle must keep flying
 to the end of the run (every step answered, hovering at 2 m on the GCS's telemetry) and the condition be reported

@@ -94,12 +94,12 @@ def test_the_sim_link_is_logged_decoded_as_well_as_raw(sitl_summary: dict) -> No
     assert checked >= 3000
 
 
-def test_the_issue10_preset_over_sitl_holds_the_attitude_bound(tmp_path: Path) -> None:
-    # navig8-sitl --defaults --params FILE: the preset stored for the instance and flown by navig8-fc over MAVLink;
-    # the same flight as in-process (rounding of the float32 seam), within issue 10's 20 deg.
+def test_the_paper_preset_over_sitl_flies_the_papers_method(tmp_path: Path) -> None:
+    # navig8-sitl --defaults --params FILE: the paper's method stored for the instance and flown by navig8-fc over
+    # MAVLink; the same flight as in-process (rounding of the float32 seam), and beyond the defaults' 20 deg.
     from navig8_fc.params.store import read_parm_file
 
-    preset = Path(__file__).resolve().parents[2] / "params" / "presets" / "issue10.parm"
+    preset = Path(__file__).resolve().parents[2] / "params" / "presets" / "paper.parm"
     out = tmp_path / "summary.json"
     cmd = [sys.executable, "-m", "navig8_fc.shell.sitl", "--scenario", "paper", "--speed", "0", "--until-done",
            "--log-dir", str(tmp_path / "logs"), "--state-dir", str(tmp_path / "state"), "--summary", str(out),
@@ -107,7 +107,11 @@ def test_the_issue10_preset_over_sitl_holds_the_attitude_bound(tmp_path: Path) -
     p = subprocess.run(cmd, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr[-3000:]
     s = json.loads(out.read_text())
-    assert s["lost_control"] is False and s["bound_violations"] == 0 and s["min_eigenvalue"] >= 0.45
-    assert s["max_att_error_deg"] <= 20.0, s["max_att_error_deg"]
+    assert s["lost_control"] is False and s["bound_violations"] == 0
     ref = run("paper", "proposed", seed=1, overrides=read_parm_file(preset), log_path=tmp_path / "ref.mcap").summary
     assert s["max_att_error_deg"] == pytest.approx(ref["max_att_error_deg"], abs=1.0)
+    assert s["max_att_error_deg"] > 30.0, s["max_att_error_deg"]
+
+
+def test_sitl_paper_with_the_defaults_holds_the_attitude_bound(sitl_summary: dict) -> None:
+    assert sitl_summary["max_att_error_deg"] <= 20.0, sitl_summary["max_att_error_deg"]

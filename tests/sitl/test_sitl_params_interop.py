@@ -7,6 +7,7 @@ elsewhere."""
 
 from __future__ import annotations
 
+import math
 import shutil
 import subprocess
 import sys
@@ -148,3 +149,25 @@ class _Reader:
                     return True
             time.sleep(0.1)
         return False
+
+
+def test_a_param_set_inside_the_stability_margin_is_refused_and_the_margin_streams(fc: FcTarget) -> None:
+    """Over MAVLink: LAM_CRIT and LAM_MARGIN stream (the floor of the values in force, computed on the FC's worker),
+    and a PARAM_SET that asks for more margin than the configuration has is refused: the value in force echoed, the
+    reason in a STATUSTEXT. Nothing changes on the vehicle, so any FC target can take it."""
+    with fc.session("api", source_system=246) as api:
+        named: dict[str, float] = {}
+        deadline = time.monotonic() + 60.0
+        while len(named) < 2 and time.monotonic() < deadline:
+            m = wait_for(api, "NAMED_VALUE_FLOAT", 5.0,
+                         lambda m: m.name in ("LAM_CRIT", "LAM_MARGIN") and m.value == m.value)  # not NaN
+            if m is not None:
+                named[m.name] = m.value
+        assert set(named) == {"LAM_CRIT", "LAM_MARGIN"}, named
+        assert 0.0 < named["LAM_CRIT"] < 1.0 and named["LAM_MARGIN"] > 1.0
+        asked = math.ceil(named["LAM_MARGIN"]) + 1.0  # more than the vehicle has
+        old = _read(api, "INDI_LAM_MARGIN").param_value
+        pv = _set(api, "INDI_LAM_MARGIN", asked)
+        assert pv is not None and abs(pv.param_value - old) < 1e-6
+        text = wait_for(api, "STATUSTEXT", 5.0, lambda m: m.text.startswith("INDI_LAM_MARGIN: refused"))
+        assert text is not None and "stability margin" in text.text

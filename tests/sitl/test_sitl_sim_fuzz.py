@@ -1,4 +1,4 @@
-"""The sim link under attack, with real processes on loopback (issue 11's must-show): navig8-sitl flies the hover
+"""The sim link under attack, with real processes on loopback: navig8-sitl flies the hover
 scenario with --until-done while this test, from sockets of its own, sends the FC's sim port forged bundles (NaN,
 Inf, 1e6, every next-step stamp of the run, another vehicle's replayed steps), fragments of bundles, a forged
 NAVIG8_SIM_STATUS "done", and HEARTBEAT floods from 16 sockets; and sends the bridge forged answers and a pairing.
@@ -31,7 +31,7 @@ from sim_bridge.plant import Plant
 from sim_bridge.scenario import load_scenario
 
 INSTANCE = 13
-HOVER_BOUND_M = 0.1  # the hover's own max position error is ~0.035 m; the forged data of the issue moved it 6.36 m
+HOVER_BOUND_M = 0.1  # the hover's own max position error is ~0.035 m; forged data moved it 6.36 m on an unguarded link
 
 
 def _sitl(tmp: Path, instance: int, scenario: str, gcs_port: int, *extra: str) -> subprocess.Popen:

@@ -32,7 +32,7 @@ ALLOC = AllocationConfig(mode=ALLOC_WLS)
 IC = k.IC.pack(alpha=1.0, inv_dt=1.0 / DT, tilt_min=LIM.tilt_min_rad, tilt_max=LIM.tilt_max_rad,
                duct_speed_max=LIM.duct_speed_max, tail_speed_max=LIM.tail_speed_max,
                u_duct_sq_max=LIM.duct_speed_max**4, u_tail_max=LIM.tail_speed_max**2,
-               u0_src=0.0, u0_gain=1.0, act_ad=(1.0, 0.0, 0.0, 1.0), act_bd=(0.0, 0.0))  # U0 measured (the paper)
+               u0_src=0.0, u0_gain=1.0, act_ad=(1.0, 0.0, 0.0, 1.0) * 2, act_bd=(0.0, 0.0) * 2)  # U0 measured
 
 
 def _oracle(a, d, w, eps, lo, hi):

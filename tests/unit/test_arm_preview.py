@@ -1,4 +1,4 @@
-"""INDI_ARM_FF = 2 (issue 10): the arm preview, checked against independent references.
+"""INDI_ARM_FF = 2: the arm preview, checked against independent references.
 
 - The FC's servo model against the closed-form time-optimal trapezoid (accelerate at a_max to v_max, coast,
   brake at a_max) and against the plant's servo (`sim_bridge._kernels._servo_accel`, written separately).
@@ -161,29 +161,104 @@ def _core(cfg: VehicleConfig, arm_ff: int) -> FlightControllerCore:
     return FlightControllerCore(cfg, ControllerConfig.from_params(values, cfg))
 
 
-def _fly(core: FlightControllerCore, cfg: VehicleConfig, n: int) -> list[float]:
-    """n hover ticks with the arm at rest on q = 0.35 rad; the INDI's pitch command (Q-dot) each tick."""
-    w = 610.0
+def _plant_joints(plan: np.ndarray, n_ticks: int, amax: float = A_MAX, vmax: float = V_MAX,
+                  stall: tuple[int, float] | None = None) -> list[np.ndarray]:
+    """The joints (q, q') at each 0.01 s tick as the plant's servo law (sim_bridge, written separately) moves them
+    along plan with the given limits; stall = (joint, t_s): that joint stops dead from t_s on."""
+    q = np.array([plan_target(plan, 0.0, j) for j in range(3)])
+    v = np.zeros(3)
     out = []
-    for i in range(n):
-        s = FcSensors(t_s=i * 0.01, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -cfg.gravity_m_s2),
-                      pos_ned=(0.0, 0.0, -2.0), vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
-                      tilt_rad=(0.0, 0.0), speed_rad_s=(w, 50.0, w), joint_pos_rad=(0.35, 0.35, 0.35),
-                      joint_rate_rad_s=(0.0, 0.0, 0.0))
-        _, st = core.step(s, Setpoint((0.0, 0.0, -2.0), 0.0, 0.0), engaged=True)
-        assert st.indi is not None
-        out.append(float(st.indi.delta_acc[1]))
+    for i in range(n_ticks):
+        out.append(np.concatenate([q, v]))
+        for sub in range(10):
+            t = i * 0.01 + sub * H
+            a = np.array([_servo_accel(plan_target(plan, t, j) - q[j], v[j], H, amax, vmax) for j in range(3)])
+            if stall is not None and t >= stall[1]:
+                a[stall[0]], v[stall[0]] = 0.0, 0.0
+            q, v = q + v * H + 0.5 * a * H * H, v + a * H
     return out
 
 
+def _fly(core: FlightControllerCore, cfg: VehicleConfig, n: int, joints: list[np.ndarray] | None = None
+         ) -> tuple[list[float], list]:
+    """n hover ticks, the arm at rest on q = 0.35 rad or measured as `joints`; the INDI's pitch command (Q-dot)
+    and the feed-forward status each tick."""
+    w = 610.0
+    out, ff = [], []
+    for i in range(n):
+        qj = joints[i] if joints is not None else np.array([0.35] * 3 + [0.0] * 3)
+        s = FcSensors(t_s=i * 0.01, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -cfg.gravity_m_s2),
+                      pos_ned=(0.0, 0.0, -2.0), vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
+                      tilt_rad=(0.0, 0.0), speed_rad_s=(w, 50.0, w), joint_pos_rad=tuple(qj[:3].tolist()),
+                      joint_rate_rad_s=tuple(qj[3:].tolist()))
+        _, st = core.step(s, Setpoint((0.0, 0.0, -2.0), 0.0, 0.0), engaged=True)
+        assert st.indi is not None
+        out.append(float(st.indi.delta_acc[1]))
+        ff.append(st.ff)
+    return out, ff
+
+
+# A first move (0.35 -> 0 at 0.1 s) that earns the preview its trust, then the reversal 0 -> -0.35 at 1.0 s.
+_EARN_PLAN = plan_rows(((0.0, 0.0, (0.35,) * 3, (0.35,) * 3), (0.1, 0.1, (0.35,) * 3, (0.0,) * 3),
+                        (1.0, 1.0, (0.0,) * 3, (-0.35,) * 3)))
+
+
 def test_controller_leans_against_a_coming_reversal(cfg: VehicleConfig) -> None:
-    ff1 = _fly(_core(cfg, 1), cfg, 40)
-    ff2_no_plan = _fly(_core(cfg, 2), cfg, 40)
+    ff1, _ = _fly(_core(cfg, 1), cfg, 40)
+    ff2_no_plan, _ = _fly(_core(cfg, 2), cfg, 40)
     assert ff2_no_plan == ff1  # no plan: the measured reaction, as INDI_ARM_FF = 1
+    joints = _plant_joints(_EARN_PLAN, 110)
+    ff1, _ = _fly(_core(cfg, 1), cfg, 110, joints)
+    core = _core(cfg, 2)
+    core.set_arm_plan(_EARN_PLAN)
+    ff2, st = _fly(core, cfg, 110, joints)
+    # the first move earned full trust; at rest before 1.0 s - lead both fly the same; from 0.96 s on the command
+    # carries the arm's coming reaction while the joints are still measured at rest (the plan alone moves it)
+    assert st[90].arm_trust == 1.0 and st[90].arm_drops == 0
+    assert ff2[60:94] == pytest.approx(ff1[60:94], abs=1e-6)
+    assert max(abs(a - b) for a, b in zip(ff2[96:100], ff1[96:100], strict=True)) > 5.0
+
+
+def test_preview_untrusted_until_a_move_agrees(cfg: VehicleConfig) -> None:
+    """Trust is earned by arm motion that agrees with the model: a reversal coming before any move is flown on the
+    measured reaction (INDI_ARM_FF = 1) exactly."""
+    ff1, _ = _fly(_core(cfg, 1), cfg, 40)
     core = _core(cfg, 2)
     core.set_arm_plan(plan_rows(((0.0, 0.0, (0.35,) * 3, (0.35,) * 3), (0.30, 0.30, (0.35,) * 3, (-0.35,) * 3))))
-    ff2 = _fly(core, cfg, 40)
-    # ticks before 0.30 - lead: nothing to see yet; from 0.26 s on the command carries the arm's coming reaction
-    # (the joints are still measured at rest: the plan alone moves the command)
-    assert ff2[:24] == pytest.approx(ff1[:24], abs=1e-9)
-    assert max(abs(a - b) for a, b in zip(ff2[26:30], ff1[26:30], strict=True)) > 5.0
+    ff2, st = _fly(core, cfg, 30)
+    assert ff2 == pytest.approx(ff1[:30], abs=1e-9) and st[-1].arm_trust == 0.0
+
+
+@pytest.mark.parametrize("scale", [0.2, 2.0])
+def test_a_servo_off_its_model_loses_trust_and_is_identified(cfg: VehicleConfig, scale: float) -> None:
+    """A servo 5x slower or 2x faster than the data sheet (ARM_SERVO_*): the first move disagrees within two ticks
+    of its start and trust is withdrawn; the limits are identified from that move (within 10 %), so the second
+    move agrees with the model and earns trust back."""
+    amax, vmax = A_MAX * scale, V_MAX * scale
+    # 1.4 rad moves: long enough to reach the rate limit at either speed
+    plan = plan_rows(((0.0, 0.0, (0.0,) * 3, (0.0,) * 3), (0.1, 0.1, (0.0,) * 3, (1.4,) * 3),
+                      (2.0, 2.0, (1.4,) * 3, (0.0,) * 3)))
+    n = 350
+    joints = _plant_joints(plan, n, amax, vmax)
+    core = _core(cfg, 2)
+    core.set_arm_plan(plan)
+    _, st = _fly(core, cfg, n, joints)
+    first_bad = next(i for i, s in enumerate(st) if s.arm_drops > 0 or s.arm_err_rad_s > 0.3 + 0.15 * vmax)
+    assert 10 <= first_bad <= 13  # the move starts at 0.10 s
+    assert all(s.arm_trust == 0.0 for s in st[first_bad:150])
+    assert st[199].arm_v_hat_rad_s == pytest.approx(vmax, rel=0.1)
+    assert st[199].arm_a_hat_rad_s2 == pytest.approx(amax, rel=0.1)
+    assert st[199].arm_idents >= 1
+    drops = st[199].arm_drops
+    assert st[-1].arm_drops == drops and st[-1].arm_trust == 1.0  # the second move agreed and earned trust
+
+
+def test_a_stalled_joint_withdraws_the_preview(cfg: VehicleConfig) -> None:
+    plan = plan_rows(((0.0, 0.0, (0.0,) * 3, (0.0,) * 3), (0.1, 0.1, (0.0,) * 3, (0.7,) * 3),
+                      (1.0, 1.0, (0.7,) * 3, (-0.7,) * 3)))
+    joints = _plant_joints(plan, 150, stall=(1, 1.05))
+    core = _core(cfg, 2)
+    core.set_arm_plan(plan)
+    _, st = _fly(core, cfg, 150, joints)
+    assert st[95].arm_trust == 1.0  # the first move earned it
+    assert st[108].arm_trust == 0.0 and st[-1].arm_trust == 0.0

@@ -1,4 +1,4 @@
-"""CKF_ARM_WRENCH (issue 10): the arm's reaction pitch moment in the adaptive law's measurement.
+"""CKF_ARM_WRENCH: the arm's reaction pitch moment in the adaptive law's measurement.
 
 - The kernel's h' (MP.HDC / UO.HDC: d/dt of the bodies' pitch angular momentum relative to the body, about the
   composite CoM) against a central time difference of tools/authority.py's h (written separately with numpy)

@@ -138,7 +138,7 @@ def _roll_cmds(core: FlightControllerCore, vehicle: VehicleConfig, n: int) -> np
 
 
 def test_controller_position_step_no_longer_steps_the_attitude_command() -> None:
-    paper, vehicle = _core()
+    paper, vehicle = _core(OL_JERK_MAX=0.0, OL_ATT_ACC_REF=0.0)  # the paper's stateless loop
     roll = _roll_cmds(paper, vehicle, 60)
     assert np.max(np.abs(np.diff(roll))) > 20.0  # the paper's loop: atan(OL_ACC_MAX / g) in one tick
     shaped, _ = _core(OL_JERK_MAX=J_MAX, OL_ACC_REF=A_REF)

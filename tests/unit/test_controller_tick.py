@@ -97,7 +97,11 @@ class _ReferenceTick:
 
 @pytest.mark.parametrize("mode", [CkfMode.CONSTRAINED, CkfMode.UNCONSTRAINED, CkfMode.FIXED])
 def test_step_equals_public_api_tick_bit_for_bit(cfg: VehicleConfig, mode: CkfMode) -> None:
-    base = ControllerConfig.from_params(ParamRegistry.from_defaults().as_dict(), cfg)
+    values = ParamRegistry.from_defaults().as_dict()
+    # The defaults without the parts the reference composition leaves out (each has its tests: test_reference_point,
+    # test_arm_wrench, test_command_shaping): the CoM as the INDI's reference point, the arm feed-forward, shaping.
+    values.update(INDI_ACC_REF=0, INDI_ARM_FF=0, OL_JERK_MAX=0.0, OL_ATT_ACC_REF=0.0)
+    base = ControllerConfig.from_params(values, cfg)
     config = replace(base, ckf=replace(base.ckf, mode=mode, start_delay_s=0.05))
     fast, ref = FlightControllerCore(cfg, config), _ReferenceTick(cfg, config)
     rng = np.random.default_rng(7)
@@ -129,9 +133,15 @@ def test_update_gains_takes_effect_at_the_next_tick(cfg: VehicleConfig) -> None:
     # A core whose outer-loop gains and K bounds change mid-run flies from then on exactly like a core built
     # with the new values (same filter state up to the change), and differently from one that kept the old.
     reg = ParamRegistry.from_defaults()
-    # The law learns from the measured U here (CKF_U_SRC = 0): with the command's U its estimate would follow the
-    # gains' own history before the change, and the cores would differ for that reason alone.
+    # The law learns from the measured U here (CKF_U_SRC = 0) and the INDI's U0 is the measured one (INDI_U0_SRC = 0):
+    # from the command's U, the estimate and the U0 model would follow the gains' own history before the change, and
+    # the cores would differ for that reason alone.
     reg.set("CKF_U_SRC", 0)
+    reg.set("INDI_U0_SRC", 0)
+    # Command shaping off: update_gains restarts the shaper's reference (seeded from the vehicle), which a core that
+    # had the new gains from the start does not; the gains themselves take effect at once either way.
+    reg.set("OL_JERK_MAX", 0.0)
+    reg.set("OL_ATT_ACC_REF", 0.0)
     old = ControllerConfig.from_params(reg.as_dict(), cfg)
     values = reg.as_dict()
     values.update(OL_POS_K=float(values["OL_POS_K"]) * 1.5, OL_ATT_K=float(values["OL_ATT_K"]) * 0.7,

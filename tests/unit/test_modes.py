@@ -234,6 +234,31 @@ def test_land_descends_then_disarms_after_touchdown_plus_delay() -> None:
                                                                                          strict=False))
 
 
+class ThrustingAtContact(PointMass):
+    """A vehicle whose controller keeps its thrust up when the ground stops it (an INDI answering the impact)."""
+
+    def move(self, engaged: bool, sp: Setpoint) -> None:
+        super().move(engaged, sp)
+        if engaged:
+            self.thrust_ratio = 1.0
+
+
+def test_land_touches_down_at_ground_contact_without_waiting_for_the_thrust_cue() -> None:
+    # The thrust cue never comes here (thrust/weight stays 1 on the ground), and the detector's hold would come
+    # too late for a real INDI anyway: at home height and no longer descending, LAND idles within one step.
+    mm, body, t = _armed_on_ground()
+    body.__class__ = ThrustingAtContact
+    mm.takeoff(2.0)
+    _, t = fly(mm, body, t, 6.0)
+    assert mm.land().ok
+    zs: list[float] = []
+    outs, t = fly(mm, body, t, 8.0, zs)
+    i_contact = next(i for i, z in enumerate(zs) if z >= GROUND_Z)
+    i_landed = next(i for i, o in enumerate(outs) if "Landed" in o.events)
+    assert i_landed - i_contact <= 1 and not outs[i_landed].engaged
+    assert not outs[-1].armed and outs[-1].flight_mode is FlightMode.READY
+
+
 def test_land_denied_when_disarmed_and_idempotent() -> None:
     mm = ModeManager()
     mm.step(PointMass().inputs(0.0))

@@ -9,10 +9,10 @@ import math
 import pytest
 from test_gcs_service import API, GCS, Rig
 from test_mission_executor import _flying
-from test_modes import fly
+from test_modes import DT, PointMass, fly
 
 from navig8_fc.gcs import offboard as ob
-from navig8_fc.modes import FlightMode, OffboardTarget
+from navig8_fc.modes import FlightMode, ModeManager, OffboardTarget
 from navig8_fc.modes.px4 import Px4MainMode
 
 NAN = math.nan
@@ -163,3 +163,22 @@ def test_messages_reach_the_stack_and_refusals_and_ignored_parts_are_said() -> N
     rig.send(c.set_attitude_target_encode(0, 1, 1, ob.AT_ATTITUDE, (1, 0, 0, 0), 0, 0, 0.2, 0.5), GCS)
     assert "body-rate" in rig.outbox.pop("STATUSTEXT")[0][1].text
     assert rig.stack._modes._offboard.pitch_rad == pytest.approx(0.5)  # a refusal changes nothing
+
+
+def test_offboard_on_the_ground_idles_until_a_target_above_asks_to_climb() -> None:
+    """As PX4 (its takeoff state machine): landed with the target on or below the ground, the motors idle (MAVSDK's
+    offboard_position_ned ends with a target at z = 0, on the ground); a target above lifts off again."""
+    mm = ModeManager()
+    body = PointMass()
+    mm.step(body.inputs(0.0))
+    mm.arm()
+    mm.offboard_setpoint(OffboardTarget(pos_ned=(0.0, 0.0, 0.0), yaw_rad=0.0))
+    assert mm.set_mode(Px4MainMode.OFFBOARD, 0).ok
+    outs, t = fly(mm, body, DT, 1.0)
+    assert not outs[-1].engaged and outs[-1].flight_mode is FlightMode.OFFBOARD and outs[-1].armed
+    mm.offboard_setpoint(OffboardTarget(pos_ned=(0.0, 0.0, -2.0), yaw_rad=3.0))
+    outs, t = fly(mm, body, t, 4.0)
+    assert outs[-1].engaged and body.pos[2] == pytest.approx(-2.0, abs=0.1)
+    mm.offboard_setpoint(OffboardTarget(pos_ned=(0.0, 0.0, 0.3), yaw_rad=0.0))  # back down, into the ground
+    outs, t = fly(mm, body, t, 5.0)
+    assert body.pos[2] == pytest.approx(0.0, abs=0.01) and not outs[-1].engaged

@@ -1,4 +1,4 @@
-"""Physics checks of the plant against closed forms and independent computations (issue 3).
+"""Physics checks of the plant against closed forms and independent computations.
 
 Tolerances are stated per test; "independent" means computed here from the vector-form model oracle
 (tests/unit/model_oracle.py) or a closed form, never from the plant's kernel.

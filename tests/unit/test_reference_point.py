@@ -1,4 +1,4 @@
-"""INDI_ACC_REF (issue 10): the acceleration of the estimated composite CoM as the INDI/Acc_m reference point, and
+"""INDI_ACC_REF: the acceleration of the estimated composite CoM as the INDI/Acc_m reference point, and
 the eigenvalue monitor's matrix against the loop actually flown.
 
 - fc_front's correction a_c - (f_O + c-ddot_rel) = omega-dot x c + omega x (omega x c), against numpy's cross

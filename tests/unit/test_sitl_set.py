@@ -67,7 +67,7 @@ def test_every_preset_loads_whole(preset: Path) -> None:
 
 
 def test_presets_exist() -> None:
-    assert {p.stem for p in (REPO / "params" / "presets").glob("*.parm")} >= {"paper", "issue10"}
+    assert {p.stem for p in (REPO / "params" / "presets").glob("*.parm")} >= {"paper"}
 
 
 def test_read_overrides_takes_files_in_order_then_set_items_and_names_the_culprit(tmp_path: Path) -> None:

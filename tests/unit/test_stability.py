@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -289,14 +290,16 @@ def test_k_bounds_default_and_workspace_floor(cfg):
 def test_cli_json_and_plots(tmp_path, capsys):
     from navig8_tools import stability_report
 
-    assert stability_report.main(["--json", "--plots", str(tmp_path)]) == 0
+    # the paper's configuration (its 0.1 s filter: Fig. 5's lambda_crit); the defaults fly a 0.02 s one
+    paper = Path(__file__).resolve().parents[2] / "params" / "presets" / "paper.parm"
+    assert stability_report.main(["--json", "--plots", str(tmp_path), "--params", str(paper)]) == 0
     out = capsys.readouterr().out
     report = json.loads(out)  # exactly one JSON object
     for key in ("lambda_crit", "zeros", "poles_at_lambda", "step", "k_bounds", "inputs"):
         assert key in report
     expected_inputs = {"wn_rad_s": 120.0, "zeta": 1.0, "ts_s": 0.01, "tl_s": 0.1}
     expected_inputs |= {"k_min": 0.5, "k_max": 1.0, "lambda_min": 0.5}
-    assert report["inputs"] == expected_inputs  # the registry defaults (params/fc_params.yaml)
+    assert report["inputs"] == expected_inputs  # params/presets/paper.parm over the registry's defaults
     assert 0.09 <= report["lambda_crit"] <= 0.105
     assert -10.0 in report["zeros"]
     assert all(len(p) == 2 for p in report["poles_at_lambda"]["0.5"])

@@ -1,4 +1,4 @@
-"""Model-based U0 for the INDI (INDI_U0_SRC = 1, issue 10): the command flown through the FC's actuator model
+"""Model-based U0 for the INDI (INDI_U0_SRC = 1): the command flown through the FC's actuator model
 (navig8_fc.core.actuator_model), complemented by the measurement.
 
 Checked against independent references: the simulator's own actuator dynamics (sim_bridge.plant, its own

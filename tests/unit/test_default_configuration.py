@@ -1,0 +1,63 @@
+"""The default configuration is the one documented (docs/model.md, "The default configuration"): the robust
+controller on the plausible (±60 N tail) vehicle, with the paper's method one preset away (params/presets/paper.parm).
+
+The test fails when a default moves away from the table, when the table and the parameter file disagree, or when
+paper.parm stops restoring the paper's value of a part the defaults changed."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.params.store import read_parm_file
+
+ROOT = Path(__file__).resolve().parents[2]
+
+# (parameter, default, the paper's value): the controller parts of the table
+ROBUST = (
+    ("INDI_ACC_REF", 1, 0), ("INDI_ALLOC", 1, 0), ("INDI_ALLOC_W_YAW", 3.0, 0.3), ("INDI_ALLOC_DTILT", 1.0, 0.3),
+    ("INDI_LPF_TAU", 0.02, 0.1), ("INDI_U0_SRC", 1, 0), ("INDI_ARM_FF", 1, 0), ("OL_JERK_MAX", 5.0, 0.0),
+    ("OL_ATT_ACC_REF", 1.0, 0.0), ("OL_ATT_RATE_REF", 0.6, 1.0),
+)
+CHECKS_ON = (("ACT_ID", 1), ("ARM_SERVO_ID", 1), ("OL_FF", 1))
+
+
+def test_the_defaults_are_the_documented_robust_configuration() -> None:
+    reg = ParamRegistry.from_defaults()
+    for name, default, _ in ROBUST:
+        assert float(reg[name]) == pytest.approx(default), name
+    for name, value in CHECKS_ON:
+        assert int(reg[name]) == value, name
+
+
+def test_paper_parm_restores_the_papers_method() -> None:
+    paper = read_parm_file(ROOT / "params" / "presets" / "paper.parm")
+    for name, _, value in ROBUST:
+        assert paper[name] == pytest.approx(value), name
+    # and the adaptive law's settings as printed (Sec. 4): one-step increments, measured U, no gates
+    for name, value in (("CKF_INC_N", 1), ("CKF_U_SRC", 0), ("CKF_SAT_GATE", 0), ("CKF_EXC_LIN", 0),
+                        ("CKF_Q_IXX", 1e-4), ("CKF_Q_IYY", 5e-5), ("CKF_Q_IZZ", 1e-4), ("CKF_Q_M", 5e-4)):
+        assert paper[name] == pytest.approx(value), name
+
+
+def test_the_documented_table_agrees_with_the_parameter_file() -> None:
+    text = (ROOT / "docs" / "model.md").read_text()
+    section = text[text.index("## The default configuration"):text.index("## Feed-forward that cannot hurt")]
+    for name, default, paper in ROBUST[:7]:  # one row each (the shaping parameters share one)
+        row = next(line for line in section.splitlines() if line.startswith(f"| `{name}` |"))
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        got_default = float(re.match(r"[-0-9.e]+", cells[1]).group())
+        got_paper = float(re.match(r"[-0-9.e]+", cells[2]).group())
+        assert (got_default, got_paper) == pytest.approx((default, paper)), row
+
+
+def test_the_default_vehicle_has_a_plausible_tail() -> None:
+    cfg = VehicleConfig.load()
+    tail_n = cfg.k_thrust_tail * cfg.tail_speed_max**2
+    duct_n = cfg.k_thrust_duct * cfg.duct_speed_max**2
+    assert tail_n == pytest.approx(60.0)  # docs/model.md "Tail": the top of the plausible range
+    assert tail_n < duct_n  # less than one duct
