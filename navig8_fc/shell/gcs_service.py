@@ -95,10 +95,26 @@ def origin_from_params(reg: ParamRegistry) -> GeoOrigin:
     return GeoOrigin(int(reg["ORIGIN_LAT_E7"]) * 1e-7, int(reg["ORIGIN_LON_E7"]) * 1e-7, float(reg["ORIGIN_ALT"]))
 
 
+def _idle_priority() -> None:
+    """The calling thread at idle priority (Linux SCHED_IDLE, per thread; a process it starts inherits it). Idle, not
+    a nice level: in lockstep the FC and the bridge wake each other every tick, and a nice-10 worker on the other
+    core still delayed each wake-up enough to halve the real-time factor; an idle-class task is preempted at once."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+    except (AttributeError, OSError):  # not Linux
+        try:
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
+        except (AttributeError, OSError):
+            pass
+
 
 def _floor_worker_init(parent_pid: int) -> None:
     """The stability-floor worker lives only as long as the FC: a killed FC (SIGKILL, no shutdown) must not leave
-    it running, nor leave it holding the FC's stdout/stderr (a supervisor reading them would wait forever)."""
+    it running, nor leave it holding the FC's stdout/stderr (a supervisor reading them would wait forever). It runs
+    at idle priority from birth (_start_floor_pool): its start-up (a spawned interpreter importing the FC's modules
+    and scipy, ~3 s of CPU) and the analysis (~1.5 s for a new configuration) must not take CPU from the control loop
+    and the simulator (at normal priority they had cut the lockstep real-time factor to a third on two cores)."""
+    _idle_priority()
     devnull = os.open(os.devnull, os.O_WRONLY)
     os.dup2(devnull, 1)  # its results and errors go back through the futures, not the console
     os.dup2(devnull, 2)
@@ -110,6 +126,7 @@ def _floor_worker_init(parent_pid: int) -> None:
         os._exit(0)  # re-parented: the FC is gone
 
     threading.Thread(target=watch, name="navig8-floor-parent-watch", daemon=True).start()
+
 
 class Outbox(Protocol):
     """Where GcsService's messages go (the process implements it over its GCS-facing links)."""
@@ -192,11 +209,27 @@ class GcsService:
             self._floor_pool.submit(run_floor, self._registry.stability_check, self._registry.as_dict())
 
     def _start_floor_pool(self) -> None:
-        try:  # a spawned process: nothing of this one (threads, sockets) is inherited
-            self._floor_pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                                                   initializer=_floor_worker_init, initargs=(os.getpid(),))
-        except (OSError, ValueError):
-            self._floor_pool = self._pool  # no processes here: a thread still keeps the sweep off the loop
+        # A spawned process: nothing of this one (threads, sockets) is inherited. It is started from a thread set to
+        # idle priority, which the worker (and multiprocessing's resource tracker) inherit from their first
+        # instruction: the import of the FC's modules in a spawned interpreter then runs on idle CPU only.
+        made: list[Executor | BaseException] = []
+
+        def spawn() -> None:
+            _idle_priority()
+            try:
+                pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                                           initializer=_floor_worker_init, initargs=(os.getpid(),))
+                pool.submit(os.getpid)  # the worker starts now, from this thread
+                made.append(pool)
+            except (OSError, ValueError) as exc:
+                made.append(exc)
+
+        t = threading.Thread(target=spawn, name="navig8-floor-spawn", daemon=True)
+        t.start()
+        t.join()
+        got = made[0] if made else None
+        # no processes here: a thread still keeps the sweep off the loop
+        self._floor_pool = got if isinstance(got, Executor) else self._pool
 
     def _submit_floor(self, values: dict[str, float | int]) -> None:
         if self._floor_pool is None:
