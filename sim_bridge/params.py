@@ -13,7 +13,7 @@ import yaml
 
 @dataclass(frozen=True)
 class ActuatorDynamics:
-    """Second-order actuator y'' = wn^2 (u - y) - 2 zeta wn y' (paper Sec. 3.2, Eq. 10)."""
+    """Second-order actuator y'' = wn^2 (u - y) - 2 zeta wn y' (paper Sec. 3.1, Eq. 10)."""
 
     omega_n_rad_s: float
     zeta: float

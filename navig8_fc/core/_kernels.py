@@ -322,7 +322,7 @@ def _rotate_quat(w, x, y, z, v0, v1, v2):
 
 @njit(cache=True)
 def outer_loop(cfg, sp, ff, pos, vel, quat, gyro, out):
-    """One step of the outer loops (P cascade of [28], notes 6.5); cfg: OC, sp: OSP, ff: OFF, out: OO.
+    """One step of the outer loops (P cascade of [29], notes 6.5); cfg: OC, sp: OSP, ff: OFF, out: OO.
 
     v_cmd = sat(K_p (p_cmd - p), v_max) + v_ff (the sum limited to v_max when v_ff != 0);
     a_cmd = K_v (v_cmd - v) + a_ff, |a_cmd| <= a_max; f_cmd = a_cmd - g (NED). Pitch and yaw follow the setpoint;
@@ -398,7 +398,7 @@ ST = layout("ST", gyro_f=3,  # low-passed gyro
 IC = layout("IC", alpha=1, inv_dt=1, tilt_min=1, tilt_max=1, duct_speed_max=1, tail_speed_max=1,
             u_duct_sq_max=1,  # (w_duct_max^2)^2: bound on U_c^2 + U_s^2 of a duct
             u_tail_max=1,  # w_tail_max^2: bound on |U5|
-            u0_src=1,  # INDI_U0_SRC: 0 U0 from the measured actuators (Eq. 5), 1 from the model + measurement
+            u0_src=1,  # INDI_U0_SRC: 0 U0 from the measured actuators (under Eq. 6), 1 model + measurement
             u0_gain=1,  # the complementary filter's correction gain toward the measurement (INDI_U0_TAU)
             # the actuator model's exact discretisation (actuator_model.actuator_discretisation), per group: the duct
             # tilts (alpha1, alpha3), then the propeller speeds (w1, w2, w3); Ad as [a00, a01, a10, a11], Bd [b0, b1]
@@ -467,7 +467,7 @@ def actuator_estimate(st, ic, tilt1, tilt3, w1, w2, w3):
 @njit(cache=True)
 def indi_measure(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, out):
     """Filters of IndiController.measure: writes acc_f (out[0:5]) and u0 (out[5:10]). U0 before its low-pass:
-    the measured actuators (INDI_U0_SRC = 0, Eq. 5) or their estimate (1, actuator_estimate)."""
+    the measured actuators (INDI_U0_SRC = 0, as defined under Eq. 6) or their estimate (1, actuator_estimate)."""
     u = np.empty(5)
     if ic[IC.U0_SRC] != 0.0:
         actuator_estimate(st, ic, tilt1, tilt3, w1, w2, w3)

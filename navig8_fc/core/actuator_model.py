@@ -1,4 +1,4 @@
-"""The FC's model of its actuators (paper Sec. 3.2, Eq. 10): each of the five (alpha1, alpha3, w1, w2, w3) is
+"""The FC's model of its actuators (paper Sec. 3.1, Eq. 10): each of the five (alpha1, alpha3, w1, w2, w3) is
 x'' = wn^2 (u - x) - 2 zeta wn x', the command held over each control period (zero-order hold), discretised
 exactly: [x, x']_{k+1} = Ad [x, x']_k + Bd u_k, by the matrix exponential of the augmented system.
 

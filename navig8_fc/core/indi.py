@@ -3,7 +3,7 @@
 Each control step:
 - angular acceleration from differentiating the low-passed gyro; body specific force x, z low-passed
   with the same filter (tau = INDI_LPF_TAU): Acc_f = [Pdot, Qdot, Rdot, a_x, a_z] filtered;
-- U0 from the measured duct angles and propeller speeds (INDI_U0_SRC = 0, the paper's Eq. 5), or (1) from the
+- U0 from the measured duct angles and propeller speeds (INDI_U0_SRC = 0, the paper's U0 under Eq. 6), or (1) from the
   command flown last tick through the FC's actuator model (Eq. 10, ACT_WN, ACT_ZETA) corrected toward the
   measurement by a complementary filter (time constant INDI_U0_TAU), which keeps the 20 rad/s speed-sensor noise
   out of the increment (docs/model.md, "Hover sway"); either is passed through the same low-pass as the

@@ -1,4 +1,4 @@
-"""Outer loops of the cascade of [28] (notes §6.5): position/velocity -> specific-force command,
+"""Outer loops of the cascade of [29] (paper Sec. 4) (notes §6.5): position/velocity -> specific-force command,
 attitude -> body rate -> angular-acceleration command. Pure; one numba kernel (_kernels.outer_loop).
 
 - Position: a_cmd = K_v (sat(K_p (p_cmd - p), v_max) - v) (NED), |a_cmd| <= a_max;
