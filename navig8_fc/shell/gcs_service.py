@@ -95,6 +95,9 @@ def origin_from_params(reg: ParamRegistry) -> GeoOrigin:
     return GeoOrigin(int(reg["ORIGIN_LAT_E7"]) * 1e-7, int(reg["ORIGIN_LON_E7"]) * 1e-7, float(reg["ORIGIN_ALT"]))
 
 
+FLOOR_IDLE_GRACE_S = 10.0  # a floor pending this long (wall) at idle priority: the worker is raised to normal
+
+
 def _idle_priority() -> None:
     """The calling thread at idle priority (Linux SCHED_IDLE, per thread; a process it starts inherits it). Idle, not
     a nice level: in lockstep the FC and the bridge wake each other every tick, and a nice-10 worker on the other
@@ -200,6 +203,8 @@ class GcsService:
         self._param_tokens: dict[Source | None, tuple[float, float]] = {}  # source -> (tokens, last time)
         self._floor_pool: Executor | None = None  # started with the background worker, else at the first floor
         self._floor_pool_failed = False
+        self._floor_job_t0 = math.inf  # wall time the pending floor job was submitted
+        self._floor_raised = False  # the worker left idle priority (a PARAM_SET waits, or it starved)
         if background_params:
             # Spawning the worker and importing the stability analysis (scipy) takes seconds, more on a busy
             # machine: done at start-up, with the current configuration's floor computed once, so the first
@@ -236,6 +241,7 @@ class GcsService:
             self._start_floor_pool()
         assert self._floor_pool is not None
         self._floor_job = (values, self._floor_pool.submit(run_floor, self._registry.stability_check, values))
+        self._floor_job_t0 = self._now
 
     @property
     def last_gcs_heartbeat(self) -> float | None:
@@ -400,9 +406,23 @@ class GcsService:
             need = self.params.floor_needed(m)
             if need is not None and self._pool is not None and not self._floor_pool_failed:
                 self._submit_floor(need)
+                self._raise_floor_worker()  # a ground station waits for this answer
                 return
             self._param_queue.popleft()
             self._route("PARAM_SET", source, self.params.handle(m, now_wall, source))
+
+    def _raise_floor_worker(self) -> None:
+        """The floor worker from idle to normal priority, once: a PARAM_SET waits on it, or a floor has been pending
+        FLOOR_IDLE_GRACE_S (a busy machine starves an idle-class task). Needs CAP_SYS_NICE (root) or an RLIMIT_NICE
+        that allows it; without, the worker stays idle and answers when the machine has a spare moment."""
+        if self._floor_raised:
+            return
+        self._floor_raised = True
+        for pid in list(getattr(self._floor_pool, "_processes", None) or {}):  # a process pool's workers
+            try:
+                os.sched_setscheduler(pid, os.SCHED_OTHER, os.sched_param(0))
+            except (AttributeError, OSError):
+                pass
 
     def _floor_in_force(self) -> None:
         """The stability floor of the values in force for LAM_MARGIN and the log (`stability`), when no PARAM_SET
@@ -542,6 +562,8 @@ class GcsService:
         self._now = now_wall
         self._run_param_queue(now_wall)
         self._floor_in_force()
+        if self._floor_job is not None and now_wall - self._floor_job_t0 > FLOOR_IDLE_GRACE_S:
+            self._raise_floor_worker()
         self._save_params()
         if self._last_manual is not None and now_wall - self._last_manual > MANUAL_CONTROL_TIMEOUT_S:
             self._last_manual = None
