@@ -572,7 +572,10 @@ class GcsService:
             self._plan_generation = self.mission.generation
             self._vehicle.load_mission(self.mission.plan(), self.origin)
             self._vehicle.load_fence(self.mission.plan(MissionType.FENCE), self.origin)
-        self.mission.report(self._state().mission)
+        # one VehicleState per poll (~5 us to build): nothing below until CURRENT_MODE changes the vehicle's mode
+        # (parameter, mission and command progress and the sends only read it)
+        state = self._state()
+        self.mission.report(state.mission)
         for source, m in self.params.poll_routed(now_wall) + self.mission.poll(now_wall) + self.commands.poll(now_wall):
             if source is None:
                 self._outbox.broadcast([m])
@@ -582,7 +585,7 @@ class GcsService:
         for peer, peer_msgs in tel.due_per_peer(now_wall):  # peers with their own SET_MESSAGE_INTERVAL rates
             self._outbox.reply(peer, peer_msgs)
         msgs = tel.due_messages(now_wall)
-        custom = self._state().custom_mode
+        custom = state.custom_mode
         key = (custom, self._intended_custom_mode)
         if self._std_modes and (key != self._current_mode_sent
                                 or now_wall - self._current_mode_t >= CURRENT_MODE_PERIOD_S):

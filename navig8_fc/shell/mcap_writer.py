@@ -31,6 +31,10 @@ from collections.abc import Callable, Sequence
 from itertools import chain
 from typing import BinaryIO
 
+try:  # the chunk CRC (CRC-32/ISO-HDLC, zlib's): ~1.3 us per 64 KiB chunk instead of zlib's ~15 us
+    from fastcrc.crc32 import iso_hdlc as _crc32
+except ImportError:  # pragma: no cover - zlib's own
+    _crc32 = zlib.crc32
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (
@@ -231,7 +235,7 @@ class FastMcapWriter:
             start,
             end,
             len(records),
-            zlib.crc32(records),
+            _crc32(records),
             len(comp),
         )
         chunk_length = len(header) + len(comp) + 8 + len(data)
