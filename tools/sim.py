@@ -41,7 +41,7 @@ from sim_bridge.messages import ActuatorCommand as PlantCommand
 from sim_bridge.plant import Plant
 from sim_bridge.world import load_world, parse_world_items
 
-CONTROLLERS = {"fixed": 0, "unconstrained": 1, "proposed": 2}
+CONTROLLERS = {"fixed": 0, "unconstrained": 1, "proposed": 2, "pinned": 3}  # CKF_MODE
 
 
 @dataclass(frozen=True)

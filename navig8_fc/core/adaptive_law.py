@@ -49,7 +49,7 @@ import numpy as np
 from numba import njit
 
 from navig8_fc.core.filters import lpf_alpha
-from navig8_fc.core.kalman import N_MEAS, N_STATE, CkfConfig, ConstrainedKalmanFilter, inertia_ratios
+from navig8_fc.core.kalman import N_MEAS, N_STATE, CkfConfig, CkfMode, ConstrainedKalmanFilter, inertia_ratios
 from navig8_fc.core.layout import layout
 
 __all__ = [
@@ -231,6 +231,7 @@ class AdaptiveLaw:
         self._u_from_cmd = ckf.u_from_command
         # Constants of the tick, looked up once: the config is frozen.
         self._adaptive = ckf.adaptive
+        self._pinned = ckf.mode == CkfMode.PINNED
         self._start_delay_tol = ckf.start_delay_s - 1e-9
         self._k_min, self._k_max = config.k_min, config.k_max
         self.reset()
@@ -300,9 +301,14 @@ class AdaptiveLaw:
         du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
         ready, window_sat = inc[LO_READY] != 0.0, inc[LO_SAT] != 0.0
         if not started:
-            g, gl = _gi_hat_flat(j11, j13, j33, base)
+            x_fixed, k_fixed = base, _ONES4
+            if self._pinned:  # Eq. 4 with a constant K, clipped to the Eq. 20 box (the guarantee's K)
+                k_fixed = tuple(min(max(k, k_min), k_max) for k in self.config.ckf.k_pin)
+                x_fixed = (j11 / k_fixed[0], j22 / k_fixed[1], j33 / k_fixed[2], m / k_fixed[3])
+                self._mass_hat = x_fixed[3]  # the arm term's object: the constant model's extra mass
+            g, gl = _gi_hat_flat(j11, j13, j33, x_fixed)
             return g, gl, AdaptiveLawStatus(
-                running=False, x_hat=base, x_unconstrained=base, k=_ONES4,
+                running=False, x_hat=x_fixed, x_unconstrained=x_fixed, k=k_fixed,
                 lower=lower, upper=upper, active_lower=_FALSE4, active_upper=_FALSE4,
                 innovation=_ZERO5, p_diag=_ZERO4, n_updates=0, n_projection_fallbacks=0,
                 delta_u=du, delta_acc=da, saturated=window_sat,

@@ -72,15 +72,19 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_R_U1", "CKF_R_U2", "CKF_R_U3", "CKF_R_U4", "CKF_R_U5",
     "CKF_P0_SCALE", "CKF_PROJ_W",
     "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
+    "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4",
 )
 
 
 class CkfMode(IntEnum):
-    """CKF_MODE: 0 fixed G_I,UAM (K = 1), 1 unconstrained KF (previous-work proxy), 2 proposed constrained KF."""
+    """CKF_MODE: 0 fixed G_I,UAM (K = 1), 1 unconstrained KF (previous-work proxy), 2 proposed constrained KF,
+    3 pinned: a constant K vector (CKF_K_PIN1..4, inside the Eq. 20 box), the non-adaptive baseline a search over
+    constant K can make as strong as it gets."""
 
     FIXED = 0
     UNCONSTRAINED = 1
     CONSTRAINED = 2
+    PINNED = 3
 
 
 def _floats(values: Sequence[float], n: int, name: str) -> tuple[float, ...]:
@@ -138,8 +142,13 @@ class CkfConfig:
     sat_gate: bool = False
     u_from_command: bool = False
     acc_at_com: bool = False
+    k_pin: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)  # CKF_K_PIN1..4: K of mode PINNED (Eq. 3's diagonal, K4 on mass)
 
     def __post_init__(self) -> None:
+        k_pin = _floats(self.k_pin, N_STATE, "k_pin")
+        if not all(v > 0.0 and math.isfinite(v) for v in k_pin):
+            raise ValueError(f"k_pin must be finite and > 0, got {k_pin}")
+        object.__setattr__(self, "k_pin", k_pin)
         q = _floats(self.q_diag, N_STATE, "q_diag")
         r = _floats(self.r_diag, N_MEAS, "r_diag")
         if any(v < 0.0 for v in q):
@@ -176,7 +185,7 @@ class CkfConfig:
     @property
     def adaptive(self) -> bool:
         """True when the KF runs at all (CKF_MODE 1 or 2)."""
-        return self.mode != CkfMode.FIXED
+        return self.mode in (CkfMode.UNCONSTRAINED, CkfMode.CONSTRAINED)
 
     @staticmethod
     def from_params(values: Mapping[str, float | int], dt_s: float) -> CkfConfig:
@@ -191,8 +200,8 @@ class CkfConfig:
         if proj not in (0, 1):
             raise ValueError(f"CKF_PROJ_W must be 0 (P^-1) or 1 (identity), got {proj}")
         mode = int(values["CKF_MODE"])
-        if mode not in (0, 1, 2):
-            raise ValueError(f"CKF_MODE must be 0, 1 or 2, got {mode}")
+        if mode not in (0, 1, 2, 3):
+            raise ValueError(f"CKF_MODE must be 0, 1, 2 or 3, got {mode}")
         return CkfConfig(
             q_diag=tuple(float(values[n]) for n in ("CKF_Q_IXX", "CKF_Q_IYY", "CKF_Q_IZZ", "CKF_Q_M")),
             r_diag=tuple(float(values[f"CKF_R_U{i}"]) for i in range(1, 6)),
@@ -208,6 +217,7 @@ class CkfConfig:
             sat_gate=bool(int(values["CKF_SAT_GATE"])),
             u_from_command=bool(int(values["CKF_U_SRC"])),
             acc_at_com=bool(int(values["CKF_ACC_REF"])),
+            k_pin=tuple(float(values[f"CKF_K_PIN{i}"]) for i in range(1, 5)),
         )
 
 

@@ -241,6 +241,32 @@ def test_fixed_mode_never_runs(pose: Pose) -> None:
         np.testing.assert_allclose(g, gi_uam, rtol=1e-14, atol=1e-15)
 
 
+@pytest.mark.parametrize(("k_pin", "k_flown"), [((0.6, 0.7, 0.8, 0.9), (0.6, 0.7, 0.8, 0.9)),
+                                               ((0.3, 1.0, 1.4, 0.5), (0.5, 1.0, 1.0, 0.5))])  # clipped to the box
+def test_pinned_mode_flies_eq4_with_the_constant_k(pose: Pose, k_pin: tuple, k_flown: tuple) -> None:
+    # Eq. 3-4 with K constant: G_hat_I = G_I,UAM K^-1, built here from the matrices (not the law's column scaling);
+    # the KF never runs, whatever the data, and the mass estimate is the constant model's m_UAM / K4.
+    law = _law(mode=CkfMode.PINNED, k_pin=k_pin)
+    expected = veh.inertia_matrix_gi(pose.j, pose.m) @ np.linalg.inv(veh.k_matrix(np.array(k_flown)))
+    for k, (u, acc) in enumerate(_excitation(pose, pose.base * 1.5, 100)):
+        g, st = law.step(_law_inputs(pose, k * DT, u, acc))
+        assert not st.running and st.n_updates == 0
+        np.testing.assert_allclose(st.k, k_flown, rtol=1e-12)
+        np.testing.assert_allclose(g, expected, rtol=1e-12, atol=1e-15)
+    assert law.mass_estimate_kg == pytest.approx(pose.m / k_flown[3], rel=1e-12)
+
+
+def test_pinned_k_must_be_positive() -> None:
+    with pytest.raises(ValueError, match="k_pin"):
+        CkfConfig(mode=CkfMode.PINNED, k_pin=(1.0, 0.0, 1.0, 1.0))
+    from navig8_fc.params.registry import ParamRegistry
+
+    values = ParamRegistry.from_defaults().as_dict()
+    assert CkfConfig.from_params({**values, "CKF_MODE": 3, "CKF_K_PIN2": 0.7}, DT).k_pin == (1.0, 0.7, 1.0, 1.0)
+    with pytest.raises(ValueError, match="CKF_MODE"):
+        CkfConfig.from_params({**values, "CKF_MODE": 4}, DT)
+
+
 @pytest.mark.parametrize("mode", [CkfMode.CONSTRAINED, CkfMode.UNCONSTRAINED])
 def test_converges_on_consistent_data(pose: Pose, mode: CkfMode) -> None:
     """Noise-free u/acc consistent with G_true (plus a constant acceleration bias, which the increments

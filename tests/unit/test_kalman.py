@@ -70,6 +70,7 @@ def _param_values(**overrides: float) -> dict[str, float]:
         "CKF_R_U1": 2.25e6, "CKF_R_U2": 4e6, "CKF_R_U3": 2.25e6, "CKF_R_U4": 4e6, "CKF_R_U5": 1e8,
         "CKF_P0_SCALE": 100.0, "CKF_PROJ_W": 0,
         "CKF_INC_N": 1, "CKF_EXC_ROT": 0.0, "CKF_EXC_LIN": 0.0, "CKF_SAT_GATE": 0, "CKF_U_SRC": 0, "CKF_ACC_REF": 0,
+        "CKF_K_PIN1": 1.0, "CKF_K_PIN2": 1.0, "CKF_K_PIN3": 1.0, "CKF_K_PIN4": 1.0,
     }
     v.update(overrides)
     return v
@@ -85,8 +86,10 @@ def test_config_from_params() -> None:
     assert c.mode == CkfMode.FIXED and not c.adaptive
     with pytest.raises(ValueError):
         CkfConfig.from_params(_param_values(CKF_PROJ_W=2), dt_s=0.01)
+    c = CkfConfig.from_params(_param_values(CKF_MODE=3, CKF_K_PIN4=0.8), dt_s=0.01)
+    assert c.mode == CkfMode.PINNED and not c.adaptive and c.k_pin == (1.0, 1.0, 1.0, 0.8)
     with pytest.raises(ValueError):
-        CkfConfig.from_params(_param_values(CKF_MODE=3), dt_s=0.01)
+        CkfConfig.from_params(_param_values(CKF_MODE=4), dt_s=0.01)
     values = _param_values()
     del values["CKF_R_U3"]
     with pytest.raises(KeyError):
@@ -94,8 +97,8 @@ def test_config_from_params() -> None:
 
 
 def test_config_from_the_parameter_file_defaults() -> None:
-    """The YAML defaults (REAL32, so float32-rounded) give the paper's R, filter constant and start delay, and issue
-    10's estimator: 25-step windows, the command's U, Acc_m at the CoM, the saturation gate, Q = 0.1x the paper's,
+    """The YAML defaults (REAL32, so float32-rounded) give the paper's R, filter constant and start delay, and the
+    default estimator: 25-step windows, the command's U, Acc_m at the CoM, the saturation gate, Q = 0.1x the paper's,
     P0 = 3000 Q (docs/model.md); the paper's settings are CkfConfig() (the test above)."""
     from navig8_fc.params.registry import ParamRegistry
 
