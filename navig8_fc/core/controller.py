@@ -272,6 +272,11 @@ class FlightControllerCore:
         self._shape_ff_scale = 1.0
         self._u_cmd_ok = False
         self._shape_st[SH.INIT] = 0.0
+        # The arm preview's trust is earned again in the new flight (docs/model.md); the identified servo limits
+        # (V_HAT, A_HAT) stay identified.
+        sup = self._arm_sup
+        for f in (PS.TRUST, PS.MOVING, PS.BAD_MOVE, PS.REST_TICKS, PS.QD_OK):
+            sup[f] = 0.0
 
     def resync_reference(self) -> None:
         """Mode changes: the command shaper's position reference continues from the measured position and velocity

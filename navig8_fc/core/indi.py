@@ -155,6 +155,10 @@ class IndiController:
     def reset(self) -> None:
         self._st[:] = 0.0
         self._id[AID.OK] = 0.0  # the bank restarts at the measurement; its estimate is kept
+        self._id[AID.J.sl] = 0.0  # the last flight's innovations (a crash, a landing) judge nothing of this one
+        self._id[AID.TICKS] = 0.0
+        self._u0_trusted, self._u0_ok_ticks = True, 0
+        self._ic[_IC_U0_GAIN] = self._u0_gain
 
     def measure(self, inp: IndiInputs) -> tuple[list[float], list[float]]:
         """Filtered acceleration feedback and filtered U0 (also used while disarmed, to stay warm)."""

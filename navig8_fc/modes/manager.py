@@ -49,6 +49,9 @@ from navig8_fc.modes.px4 import FlightMode, MavLandedState, MavModeFlag, MavStat
 Vec3 = tuple[float, float, float]
 
 
+LAND_CONTACT_LAG_M = 0.2  # LAND: the setpoint this far below a slow vehicle near home height = ground contact
+
+
 class Verdict(NamedTuple):
     """Answer to a command: accepted, or refused with a reason for STATUSTEXT. Unpacks as (ok, reason)."""
 
@@ -845,10 +848,13 @@ class ModeManager:
         raise AssertionError(f"unhandled mode {mode}")  # MISSION is handled first
 
     def _ground_contact(self, inp: ModeInputs) -> bool:
-        """LAND's touchdown without the detector's hold: at home height (land_contact_height_m) and slow."""
+        """LAND's touchdown without the detector's hold: within land_contact_height_m of home height, slow, and held
+        up by something: the descending setpoint is LAND_CONTACT_LAG_M below the vehicle. Without that last
+        condition a slow hover anywhere below home height (home on a roof) was taken for touchdown."""
         home = self._home
-        return (home is not None and home[2] - inp.pos_ned[2] < self._cfg.land_contact_height_m
-                and self._detector.slow(inp))
+        z = inp.pos_ned[2]
+        return (home is not None and abs(home[2] - z) < self._cfg.land_contact_height_m
+                and self._ramp_z > z + LAND_CONTACT_LAG_M and self._detector.slow(inp))
 
     def _run_mission(self, t_s: float) -> tuple[Setpoint, bool, float | None]:
         script = self._script

@@ -253,6 +253,22 @@ def test_a_servo_off_its_model_loses_trust_and_is_identified(cfg: VehicleConfig,
     assert st[-1].arm_drops == drops and st[-1].arm_trust == 1.0  # the second move agreed and earned trust
 
 
+def test_a_new_flight_earns_trust_again_and_keeps_the_identified_servo(cfg: VehicleConfig) -> None:
+    """reset() (arming) withdraws the trust the last flight earned; the servo limits it identified stay."""
+    plan = plan_rows(((0.0, 0.0, (0.0,) * 3, (0.0,) * 3), (0.1, 0.1, (0.0,) * 3, (1.4,) * 3),
+                      (2.0, 2.0, (1.4,) * 3, (0.0,) * 3)))
+    n = 350
+    joints = _plant_joints(plan, n, A_MAX * 2.0, V_MAX * 2.0)
+    core = _core(cfg, 2)
+    core.set_arm_plan(plan)
+    _, st = _fly(core, cfg, n, joints)
+    assert st[-1].arm_trust == 1.0
+    core.reset()
+    _, st2 = _fly(core, cfg, 2, joints[-2:])
+    assert st2[-1].arm_trust == 0.0
+    assert st2[-1].arm_v_hat_rad_s == pytest.approx(st[-1].arm_v_hat_rad_s)
+
+
 def test_a_stalled_joint_withdraws_the_preview(cfg: VehicleConfig) -> None:
     plan = plan_rows(((0.0, 0.0, (0.0,) * 3, (0.0,) * 3), (0.1, 0.1, (0.0,) * 3, (0.7,) * 3),
                       (1.0, 1.0, (0.7,) * 3, (-0.7,) * 3)))
