@@ -259,23 +259,18 @@ def test_land_touches_down_at_ground_contact_without_waiting_for_the_thrust_cue(
     assert not outs[-1].armed and outs[-1].flight_mode is FlightMode.READY
 
 
-def test_land_below_home_height_does_not_cut_the_motors_in_the_air() -> None:
-    # Home on a roof: the vehicle hovers 1 m below home height, still, thrust carrying its weight. LAND descends; no
-    # ground holds it up, so no touchdown (the motors stay on) for as long as the setpoint is followed.
+@pytest.mark.parametrize(("z", "ticks"), [
+    (1.0, 300),  # home on a roof: 1 m below home height, no ground holds it up while the setpoint is followed
+    (0.05, 5),  # near home height, but the setpoint has not got ahead of the vehicle yet: nothing holds it up
+])
+def test_land_below_home_height_does_not_cut_the_motors_in_the_air(z: float, ticks: int) -> None:
+    # The vehicle hovers still at z (NED, home at 0) with its thrust carrying its weight while LAND descends.
     mm, body, t = _armed_on_ground()
     mm.takeoff(2.0)
     _, t = fly(mm, body, t, 6.0)
     assert mm.land().ok
-    for k in range(300):
-        out = mm.step(ModeInputs(t + k * DT, (0.0, 0.0, 1.0), (0.0, 0.0, 0.0), 0.0, 1.0))
-        assert out.engaged and "Landed" not in out.events, k
-    # Near home height but not yet held up by anything (the setpoint has not got ahead of the vehicle): still flying.
-    mm, body, t = _armed_on_ground()
-    mm.takeoff(2.0)
-    _, t = fly(mm, body, t, 6.0)
-    assert mm.land().ok
-    for k in range(5):
-        out = mm.step(ModeInputs(t + k * DT, (0.0, 0.0, 0.05), (0.0, 0.0, 0.0), 0.0, 1.0))
+    for k in range(ticks):
+        out = mm.step(ModeInputs(t + k * DT, (0.0, 0.0, z), (0.0, 0.0, 0.0), 0.0, 1.0))
         assert out.engaged and "Landed" not in out.events, k
 
 
