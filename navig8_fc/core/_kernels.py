@@ -202,6 +202,13 @@ def gc_about(f, m0, cx, cz, gc):
 
 
 @njit(cache=True)
+def gc_inv_about(f, m0, cx, cz, gc, gc_inv):
+    """G_C about c = (cx, 0, cz) (gc_about) and its inverse into gc, gc_inv; False when G_C is singular."""
+    gc_about(f, m0, cx, cz, gc)
+    return inv_gauss_jordan(gc, gc_inv)
+
+
+@njit(cache=True)
 def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo):
     """The controller's model of the UAM without object at the arm state: mass_props, G_C about the UAM CoM and
     its inverse, and the arm's CoM-acceleration term sum_k m_k r''_k / m with a point object of object_mass_kg

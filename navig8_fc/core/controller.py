@@ -112,7 +112,7 @@ class FcSensors:
     speed_rad_s: tuple[float, float, float]  # measured w1, w2 (signed), w3
     joint_pos_rad: tuple[float, float, float]
     joint_rate_rad_s: tuple[float, float, float]
-    gripper_closed: bool = False  # the gripper's reported state (NAVIG8_ARM_STATE); telemetry only, not control
+    gripper_closed: bool = False  # the gripper's reported state (NAVIG8_ARM_STATE); the estimator forgets on its changes
 
 
 @dataclass(frozen=True)
@@ -243,6 +243,7 @@ class FlightControllerCore:
         self._arm_sup_cfg = pv.supervisor_config()
         self._arm_sup = pv.supervisor_state()  # kept across resets: the identified servo stays identified
         self._u_cmd = np.zeros(5)
+        self._gc_law, self._gc_law_inv = np.empty((5, 5)), np.empty((5, 5))  # CKF_ACC_REF: G_C about the est. CoM
         assert N_LINKS == 3
 
     def update_gains(self, outer: OuterLoopConfig, k_min: float, k_max: float) -> None:
@@ -326,13 +327,24 @@ class FlightControllerCore:
             gc_inv = np.linalg.inv(gc)  # raises LinAlgError as before
         mass = ul[_UO_MASS]
         acc_law = acc_m
-        if cfg.ckf.acc_at_com and not acc_ref:  # CKF_ACC_REF: the law's force rows at the estimated CoM
-            am = acc_m.tolist()
-            dx, dz = _k.com_accel_offset(*s.gyro_frd, am[1], ul[_UO_CEX], ul[_UO_CEZ])
-            acc_law = np.array((am[0], am[1], am[2], am[3] + dx, am[4] + dz))
-        gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_law, gc_inv, inertia, mass, rate,
+        gc_law_inv = gc_inv
+        if cfg.ckf.acc_at_com:  # CKF_ACC_REF: the law's model refers to the estimated composite CoM
+            if not acc_ref:  # its force rows (the INDI's already do with INDI_ACC_REF = 1)
+                am = acc_m.tolist()
+                dx, dz = _k.com_accel_offset(*s.gyro_frd, am[1], ul[_UO_CEX], ul[_UO_CEZ])
+                acc_law = np.array((am[0], am[1], am[2], am[3] + dx, am[4] + dz))
+            if m_obj_est > 0.0:
+                # and its moment rows: the body turns about the composite CoM, so G_C's moments are taken about it
+                # (M_c = M_O - c x F). About the UAM's CoM, a force increment (the ducts tilting to hold position
+                # through a pitch doublet) made a pitch moment the model did not have, correlated with Delta Q-dot:
+                # K2 stayed at 0.9 against a true 0.63 with a 0.5 kg object (docs/model.md, "Estimator").
+                gc_law_inv = self._gc_law_inv
+                if not _k.gc_inv_about(model.force_per_input, model.moment_o_per_input, ul[_UO_CEX], ul[_UO_CEZ],
+                                       self._gc_law, gc_law_inv):
+                    gc_law_inv = gc_inv
+        gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_law, gc_law_inv, inertia, mass, rate,
                                                           fo.item(_FO_ARM_HDC), self._indi_saturated,
-                                                          self._u_cmd if self._u_cmd_ok else None)
+                                                          self._u_cmd if self._u_cmd_ok else None, s.gripper_closed)
         outer: OuterLoopStatus | None = None
         indi_status: IndiStatus | None = None
         ref: tuple[float, float, float] | None = None

@@ -68,10 +68,15 @@ class _ReferenceTick:
             dx, dz = _k.com_accel_offset(*s.gyro_frd, acc_m[1], uo[_k.UO.CEX], uo[_k.UO.CEZ])
             acc_m[3] += dx
             acc_m[4] += dz
+        gc_law_inv = gc_inv
+        if cfg.ckf.acc_at_com and m_obj_est > 0.0:  # the law's G_C about the estimated composite CoM
+            gc_law_inv = np.empty((5, 5))
+            assert _k.gc_inv_about(m.force_per_input, m.moment_o_per_input, uo[_k.UO.CEX], uo[_k.UO.CEZ],
+                                   np.empty((5, 5)), gc_law_inv)
         gi_hat, adapt_status = self.adapt.step(AdaptiveLawInputs(
-            t_s=s.t_s, u_meas=f.u_meas.tolist(), acc_m=acc_m, gc_uam_inv=gc_inv, inertia_uam=inertia,
+            t_s=s.t_s, u_meas=f.u_meas.tolist(), acc_m=acc_m, gc_uam_inv=gc_law_inv, inertia_uam=inertia,
             mass_uam_kg=float(mass), inertia_rate_uam=rate, indi_saturated=self.last_saturated,
-            u_cmd=self.last_u_cmd,
+            u_cmd=self.last_u_cmd, gripper_closed=s.gripper_closed,
         ))
         outer = indi_status = None
         if engaged:
