@@ -30,6 +30,12 @@ attenuated towards K = 1 (errors in variables); over N = 25 steps the doublet pa
 noise with ~sqrt(alpha). Non-overlapping windows share no noise samples, so the KF's white-noise assumption holds
 much better than for option (a) above. With N = 1 everything is exactly the one-step law.
 
+Forgetting (CKF_GRIP_RST, docs/model.md "Estimator"): the FC knows when its gripper closes or opens (the sensors
+report it). A grasp resets P to P0, so the new object is learned at the filter's first speed rather than at the
+speed Q allows after a long hover has shrunk P; a release puts the estimate back where it was before the grasp (the
+object is gone, what was known of the vehicle holds) and resets P. The windows within the filter's time constant
+after either event carry the step in U and Acc_m through the low-passes and are not corrected from.
+
 Gates and sources (docs/model.md "Estimator"): a window in which the INDI saturated is not learned
 from (CKF_SAT_GATE); states whose regressor increment is below a threshold are held (CKF_EXC_ROT, CKF_EXC_LIN);
 U can be the INDI's previous actuator command instead of the measured actuators (CKF_U_SRC: the measured U's
@@ -173,6 +179,7 @@ class AdaptiveLawInputs:
     arm_hdc: float = 0.0  # the arm's h' (CKF_ARM_WRENCH)
     indi_saturated: bool = False  # IndiStatus.saturated of the latest command (CKF_SAT_GATE)
     u_cmd: Sequence[float] | np.ndarray | None = None  # U of the latest actuator command (CKF_U_SRC = 1)
+    gripper_closed: bool | None = None  # the gripper's reported state (CKF_GRIP_RST); None: not known
 
 
 @dataclass(frozen=True)
@@ -197,6 +204,7 @@ class AdaptiveLawStatus:
     excited: tuple[bool, ...] = (False,) * N_STATE  # the states it corrected (excitation gate)
     saturated: bool = False  # the window that closed this step had INDI saturation (skipped when CKF_SAT_GATE)
     n_saturation_skips: int = 0  # windows skipped by the saturation gate since the start
+    n_forgets: int = 0  # grasps and releases the estimator forgot on (CKF_GRIP_RST) since the start
 
 
 _ZERO4 = (0.0,) * N_STATE
@@ -229,6 +237,11 @@ class AdaptiveLaw:
         # moved m_hat by 2 kg)
         self._sat_hold = float(math.ceil(ckf.lpf_tau_s / ckf.dt_s)) if ckf.sat_gate else 0.0
         self._u_from_cmd = ckf.u_from_command
+        self._grip_reset = ckf.grip_reset
+        self._event_hold_s = ckf.lpf_tau_s  # no correction this long after a grasp / release (the low-passes carry it)
+        self._pred_dj = ckf.predict_from_dj
+        self._inv_dt = 1.0 / ckf.dt_s
+        self._j_prev = (0.0, 0.0, 0.0)
         # Constants of the tick, looked up once: the config is frozen.
         self._adaptive = ckf.adaptive
         self._pinned = ckf.mode == CkfMode.PINNED
@@ -251,6 +264,10 @@ class AdaptiveLaw:
         self._t0: float | None = None
         self._running = False
         self._mass_hat: float | None = None
+        self._grip_prev: bool | None = None
+        self._k_before_grasp: tuple[float, ...] | None = None
+        self._hold_until_s = -math.inf
+        self._n_forgets = 0
         self._kf.reset()  # re-initialised at the next start
 
     @property
@@ -265,19 +282,20 @@ class AdaptiveLaw:
             np.ascontiguousarray(inp.gc_uam_inv, dtype=float), np.asarray(inp.inertia_uam, dtype=float),
             float(inp.mass_uam_kg), np.asarray(inp.inertia_rate_uam, dtype=float), float(inp.arm_hdc),
             bool(inp.indi_saturated), None if inp.u_cmd is None else np.asarray(inp.u_cmd, dtype=float),
+            inp.gripper_closed,
         )
         return g, status
 
     def step_arrays(
         self, t_s: float, u_meas: np.ndarray, acc_m: np.ndarray, gc_inv: np.ndarray, inertia: np.ndarray,
         m: float, inertia_rate: np.ndarray, arm_hdc: float = 0.0, indi_saturated: bool = False,
-        u_cmd: np.ndarray | None = None,
+        u_cmd: np.ndarray | None = None, gripper_closed: bool | None = None,
     ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
         """step() on float64 arrays (u_meas, acc_m (5,), gc_inv (5, 5) C-contiguous, inertia and inertia_rate
         (3, 3)), m a float; also returns G_hat_I row-major as a tuple (the same floats). The controller's tick.
         indi_saturated: the INDI's saturation flag of the latest command (IndiStatus.saturated), for the gate.
         u_cmd: U of the latest actuator command (5,), used in place of u_meas when CKF_U_SRC = 1 (None: no
-        command yet, u_meas is used).
+        command yet, u_meas is used). gripper_closed: the gripper's reported state, for CKF_GRIP_RST (None: unknown).
 
         Bookkeeping on plain floats (the vectors have 4-5 components: numpy's per-call overhead would
         dominate); the values equal those of vehicle.estimate_bounds / estimated_gi / k_from_estimate exactly
@@ -316,14 +334,25 @@ class AdaptiveLaw:
         kf = self._kf
         idot: tuple[float, float, float] | None = None  # no predict on the first KF tick: x0 is this pose
         if self._running:
-            idot = (inertia_rate.item(0), inertia_rate.item(4), inertia_rate.item(8))
+            # Eq. 22. CKF_PRED_DJ: the drift is the tick's own change of J, so that x follows J exactly where K = 1.
+            # The model's I-dot from the measured joint rates integrates to less or more than J's change, because
+            # J is evaluated at the joint observer's q, which also moves by its correction toward the measured q:
+            # each 40 deg arm reversal of the paper scenario moved K3 by -0.05 (K3 0.74 at 23 s with no object).
+            if self._pred_dj:
+                jp = self._j_prev
+                idot = ((j11 - jp[0]) * self._inv_dt, (j22 - jp[1]) * self._inv_dt, (j33 - jp[2]) * self._inv_dt)
+            else:
+                idot = (inertia_rate.item(0), inertia_rate.item(4), inertia_rate.item(8))
         else:
             kf.initialise(base)  # K = 1 at the start (Sec. 4)
             self._running = True
-        correct = ready
+        if self._grip_reset and gripper_closed is not None:
+            self._on_gripper(bool(gripper_closed), t_s, base, lower, upper)
+        correct = ready and t_s >= self._hold_until_s
         if ready and window_sat and self._sat_gate:  # no learning from saturated steps (Paparazzi learns from
             correct = False  # the actuator state, which WLS keeps inside its limits; we skip such windows)
             self._n_sat_skips += 1
+        self._j_prev = (j11, j22, j33)
         rho_x, rho_z = inertia_ratios(j11, j13, j33)
         du_kf = self._du
         dhd = inc[LO_DH]
@@ -353,7 +382,27 @@ class AdaptiveLaw:
             excited=r.excited,
             saturated=window_sat,
             n_saturation_skips=self._n_sat_skips,
+            n_forgets=self._n_forgets,
         )
+
+    def _on_gripper(self, closed: bool, t_s: float, base: tuple[float, ...], lower: tuple[float, ...],
+                    upper: tuple[float, ...]) -> None:
+        """CKF_GRIP_RST: forget on a grasp (P0) or a release (back to the estimate before the grasp, K = 1 when the
+        flight started holding the object, and P0); then hold the corrections for the low-pass's time constant."""
+        prev, self._grip_prev = self._grip_prev, closed
+        if prev is None or prev == closed:
+            return
+        kf = self._kf
+        x = kf.x
+        if closed:
+            self._k_before_grasp = tuple(b / v for b, v in zip(base, x.tolist(), strict=True))
+            kf.forget()
+        else:
+            k = self._k_before_grasp or _ONES4
+            self._k_before_grasp = None
+            kf.forget([min(max(b / ki, lo), hi) for b, ki, lo, hi in zip(base, k, lower, upper, strict=True)])
+        self._hold_until_s = t_s + self._event_hold_s
+        self._n_forgets += 1
 
 
 def _gi_hat_flat(j11: float, j13: float, j33: float, x: Sequence[float]) -> tuple[np.ndarray, tuple[float, ...]]:

@@ -72,7 +72,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_R_U1", "CKF_R_U2", "CKF_R_U3", "CKF_R_U4", "CKF_R_U5",
     "CKF_P0_SCALE", "CKF_PROJ_W",
     "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
-    "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4",
+    "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ",
 )
 
 
@@ -143,6 +143,8 @@ class CkfConfig:
     u_from_command: bool = False
     acc_at_com: bool = False
     k_pin: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)  # CKF_K_PIN1..4: K of mode PINNED (Eq. 3's diagonal, K4 on mass)
+    grip_reset: bool = False  # CKF_GRIP_RST: forget on the gripper's reported grasp / release (AdaptiveLaw)
+    predict_from_dj: bool = False  # CKF_PRED_DJ: Eq. 22's drift from the tick's change of J, not the model's I-dot
 
     def __post_init__(self) -> None:
         k_pin = _floats(self.k_pin, N_STATE, "k_pin")
@@ -167,6 +169,8 @@ class CkfConfig:
         object.__setattr__(self, "sat_gate", bool(self.sat_gate))
         object.__setattr__(self, "u_from_command", bool(self.u_from_command))
         object.__setattr__(self, "acc_at_com", bool(self.acc_at_com))
+        object.__setattr__(self, "grip_reset", bool(self.grip_reset))
+        object.__setattr__(self, "predict_from_dj", bool(self.predict_from_dj))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2"):
             v = float(getattr(self, name))
             if not (v >= 0.0 and math.isfinite(v)):
@@ -193,7 +197,7 @@ class CkfConfig:
         missing = [n for n in CKF_PARAM_NAMES if n not in values]
         if missing:
             raise KeyError(f"missing CKF parameters: {', '.join(missing)}")
-        for flag in ("CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF"):
+        for flag in ("CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF", "CKF_GRIP_RST", "CKF_PRED_DJ"):
             if int(values[flag]) not in (0, 1):
                 raise ValueError(f"{flag} must be 0 or 1, got {values[flag]}")
         proj = int(values["CKF_PROJ_W"])
@@ -218,6 +222,8 @@ class CkfConfig:
             u_from_command=bool(int(values["CKF_U_SRC"])),
             acc_at_com=bool(int(values["CKF_ACC_REF"])),
             k_pin=tuple(float(values[f"CKF_K_PIN{i}"]) for i in range(1, 5)),
+            grip_reset=bool(int(values["CKF_GRIP_RST"])),
+            predict_from_dj=bool(int(values["CKF_PRED_DJ"])),
         )
 
 
@@ -507,6 +513,17 @@ class ConstrainedKalmanFilter:
         self._initialised = True
         self.n_updates = 0
         self.n_projection_fallbacks = 0
+
+    def forget(self, x_new: Sequence[float] | np.ndarray | None = None) -> None:
+        """Forget what was learned: P back to P0 = p0_scale * diag(Q), and the estimate moved to x_new when given
+        (a known change of the truth, e.g. a released object). The counters keep counting."""
+        self._require_initialised()
+        if x_new is not None:
+            x = np.array(x_new, dtype=float)
+            if x.shape != (N_STATE,) or not np.all(np.isfinite(x)):
+                raise ValueError(f"x_new must be {N_STATE} finite values, got {x_new!r}")
+            self._x[:] = x
+        self._p[:, :] = np.diag(self.config.p0_scale * self._q)
 
     def reset(self) -> None:
         """Back to the uninitialised state; initialise() starts again."""
