@@ -32,6 +32,7 @@ _N_MP = int(MP.SIZE)  # np.empty takes an int, not an IntEnum member
 UO = layout("UO", mass=1, cx=1, cz=1, arm_ax=1, arm_az=1,
             hdc=1,  # MP.HDC with the estimated object: the arm's reaction pitch moment about the CoM is -hdc
             cex=1, cez=1,  # CoM of the UAM with a point object of the estimated mass at the tip (the reference point)
+            obj_rate=3,  # diagonal of d/dt of that composite's inertia minus J's I-dot: the estimated object's share
             singular=1)  # 1.0 when G_C could not be inverted (the caller then falls back to numpy)
 
 
@@ -224,12 +225,17 @@ def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv,
     uo[UO.ARM_AX] = (mp[MP.MA_X] + mo * mp[MP.TIP_AX]) / m_tot
     uo[UO.ARM_AZ] = (mp[MP.MA_Z] + mo * mp[MP.TIP_AZ]) / m_tot
     uo[UO.CEX] = (m * cx + mo * mp[MP.OBJ_X]) / m_tot
-    if mo > 0.0:  # the reaction with the estimated object (G_C, G_I above stay those without it)
+    if mo > 0.0:  # the reaction and inertia with the estimated object (G_C, G_I above stay those without it)
         mp2 = np.empty(_N_MP)
-        mass_props(q, qd, qdd, mo, geo, np.empty((3, 3)), np.empty((3, 3)), mp2)
+        ic_rate = np.empty((3, 3))
+        mass_props(q, qd, qdd, mo, geo, np.empty((3, 3)), ic_rate, mp2)
         uo[UO.HDC] = mp2[MP.HDC]
+        for i in range(3):
+            uo[UO.OBJ_RATE + i] = ic_rate[i, i] - rate[i, i]
     else:
         uo[UO.HDC] = mp[MP.HDC]
+        for i in range(3):
+            uo[UO.OBJ_RATE + i] = 0.0
     uo[UO.CEZ] = (m * cz + mo * mp[MP.OBJ_Z]) / m_tot
     gc_about(f, m0, cx, cz, gc)
     uo[UO.SINGULAR] = 0.0 if inv_gauss_jordan(gc, gc_inv) else 1.0

@@ -241,7 +241,7 @@ class AdaptiveLaw:
         self._event_hold_s = ckf.lpf_tau_s  # no correction this long after a grasp / release (the low-passes carry it)
         self._pred_dj = ckf.predict_from_dj
         self._inv_dt = 1.0 / ckf.dt_s
-        self._j_prev = (0.0, 0.0, 0.0)
+        self._j_prev = (0.0, 0.0, 0.0)  # J's diagonal at the previous tick (CKF_PRED_DJ; set before it is read)
         # Constants of the tick, looked up once: the config is frozen.
         self._adaptive = ckf.adaptive
         self._pinned = ckf.mode == CkfMode.PINNED
@@ -290,12 +290,15 @@ class AdaptiveLaw:
         self, t_s: float, u_meas: np.ndarray, acc_m: np.ndarray, gc_inv: np.ndarray, inertia: np.ndarray,
         m: float, inertia_rate: np.ndarray, arm_hdc: float = 0.0, indi_saturated: bool = False,
         u_cmd: np.ndarray | None = None, gripper_closed: bool | None = None,
+        object_inertia_rate: tuple[float, float, float] | None = None,
     ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
         """step() on float64 arrays (u_meas, acc_m (5,), gc_inv (5, 5) C-contiguous, inertia and inertia_rate
         (3, 3)), m a float; also returns G_hat_I row-major as a tuple (the same floats). The controller's tick.
         indi_saturated: the INDI's saturation flag of the latest command (IndiStatus.saturated), for the gate.
         u_cmd: U of the latest actuator command (5,), used in place of u_meas when CKF_U_SRC = 1 (None: no
         command yet, u_meas is used). gripper_closed: the gripper's reported state, for CKF_GRIP_RST (None: unknown).
+        object_inertia_rate: the diagonal of the rate of the modelled inertia of a point object of the estimated mass
+        at the gripper (moving with the arm), added to Eq. 22's drift with CKF_PRED_DJ (None: no object).
 
         Bookkeeping on plain floats (the vectors have 4-5 components: numpy's per-call overhead would
         dominate); the values equal those of vehicle.estimate_bounds / estimated_gi / k_from_estimate exactly
@@ -334,13 +337,17 @@ class AdaptiveLaw:
         kf = self._kf
         idot: tuple[float, float, float] | None = None  # no predict on the first KF tick: x0 is this pose
         if self._running:
-            # Eq. 22. CKF_PRED_DJ: the drift is the tick's own change of J, so that x follows J exactly where K = 1.
-            # The model's I-dot from the measured joint rates integrates to less or more than J's change, because
-            # J is evaluated at the joint observer's q, which also moves by its correction toward the measured q:
-            # each 40 deg arm reversal of the paper scenario moved K3 by -0.05 (K3 0.74 at 23 s with no object).
+            # Eq. 22. CKF_PRED_DJ: the drift is the tick's own change of J plus the estimated object's I-dot (it
+            # moves with the arm), so that x follows the model exactly where it is right. The model's I-dot of J
+            # from the measured joint rates integrates to less or more than J's change, because J is evaluated at
+            # the joint observer's q, which also moves by its correction toward the measured q: each 40 deg arm
+            # reversal of the paper scenario moved K3 by -0.05 (K3 0.74 at 23 s with no object); and it leaves out
+            # the held object, whose inertia changes most with the arm's pose. The object's share is its rate at the
+            # estimated mass (a change of the mass estimate itself moves no inertia).
             if self._pred_dj:
-                jp = self._j_prev
-                idot = ((j11 - jp[0]) * self._inv_dt, (j22 - jp[1]) * self._inv_dt, (j33 - jp[2]) * self._inv_dt)
+                jp, inv_dt = self._j_prev, self._inv_dt
+                ob = object_inertia_rate or (0.0, 0.0, 0.0)
+                idot = ((j11 - jp[0]) * inv_dt + ob[0], (j22 - jp[1]) * inv_dt + ob[1], (j33 - jp[2]) * inv_dt + ob[2])
             else:
                 idot = (inertia_rate.item(0), inertia_rate.item(4), inertia_rate.item(8))
         else:

@@ -61,6 +61,7 @@ from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig, ghat_ginv_e
 # Slots of the front-end kernel's outputs the tick reads (module constants: no enum lookups per tick).
 _UO_MASS, _UO_SINGULAR = int(_k.UO.MASS), int(_k.UO.SINGULAR)
 _UO_CEX, _UO_CEZ = int(_k.UO.CEX), int(_k.UO.CEZ)
+_UO_OBJ_RATE = int(_k.UO.OBJ_RATE)
 # The tick's input vector (_kernels.TIN): the sensors, then pos_ned, vel_ned, quat_wxyz and the setpoint
 # (the outer loops' inputs, packed only when engaged). struct packs float64 exactly as np.array(..., dtype=float)
 # converts, into a persistent array (no per-tick allocation).
@@ -344,7 +345,8 @@ class FlightControllerCore:
                     gc_law_inv = gc_inv
         gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_law, gc_law_inv, inertia, mass, rate,
                                                           fo.item(_FO_ARM_HDC), self._indi_saturated,
-                                                          self._u_cmd if self._u_cmd_ok else None, s.gripper_closed)
+                                                          self._u_cmd if self._u_cmd_ok else None, s.gripper_closed,
+                                                          tuple(ul[_UO_OBJ_RATE:_UO_OBJ_RATE + 3]))
         outer: OuterLoopStatus | None = None
         indi_status: IndiStatus | None = None
         ref: tuple[float, float, float] | None = None
