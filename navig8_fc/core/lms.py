@@ -10,7 +10,7 @@ on the incremental model Delta omega-dot = G Delta u, both sides low-passed by t
 
     G <- G - mu (G Delta u_f - Delta omega-dot_f) Delta u_f^T        (mu: one learning rate per output axis)
 
-- `stabilization_indi.c` at commit 0001342e (line numbers as stored there): `calc_g1_element` (l. 643-646) is
+- `stabilization_indi.c` at commit 0001342e (line numbers counted in the stored copy): `calc_g1_element` (l. 643-646) is
   `g1_est[i][j] -= du_estimation[j] * mu * ddx_error`, with `ddx_error = sum_j g1_est[i][j] du_estimation[j] (+ g2
   term in yaw) - ddx_estimation[i]` formed in `lms_estimation` (l. 667-741, the loop l. 700-728); the learning
   rates are per output axis, `mu1 = {1e-5, 1e-5, 3e-6, 2e-6}` for roll, pitch, yaw, thrust (l. 152-153, mu2 = 0.002
