@@ -27,7 +27,7 @@ ENVELOPE_REPORT_FACTORS = ("pattern", "arm_shape", "object_mass_kg", "arm_speed_
 # the factors shown beside each of the worst runs
 WORST_FACTORS = ("pattern", "arm_shape", "object_mass_kg", "arm_speed_rad_s", "pitch_deg", "yaw_step_deg",
                  "tail_max_thrust_n", "actuator_bandwidth_scale")
-PAIRS = (("proposed", "fixed"), ("proposed", "pinned"), ("proposed", "unconstrained"))
+PAIRS = (("proposed", "fixed"), ("proposed", "pinned"), ("proposed", "unconstrained"), ("proposed", "lms"))
 TIE_DEG = 0.5  # paired max attitude errors closer than this are a tie
 DIST_METRICS = (("max_att_error_deg", "max attitude error (deg)"), ("max_pos_error_m", "max position error (m)"),
                 ("pos_rms_error_m", "position RMS error (m)"), ("min_eigenvalue", "min eig(G_hat G^-1)"))

@@ -1,6 +1,6 @@
 """navig8-sim: plant + sensors + flight controller in one process (no sockets), logged to MCAP.
 
-    navig8-sim --scenario paper --controller proposed|unconstrained|fixed [--seed N] [--duration S]
+    navig8-sim --scenario paper --controller proposed|unconstrained|fixed|pinned|lms [--seed N] [--duration S]
                [--log run.mcap] [--summary summary.json] [--plots DIR] [--params FILE] [--set NAME=VALUE ...]
                [--world NAME=VALUE ...] [--world NAME*=VALUE ...]
 
@@ -41,7 +41,7 @@ from sim_bridge.messages import ActuatorCommand as PlantCommand
 from sim_bridge.plant import Plant
 from sim_bridge.world import load_world, parse_world_items
 
-CONTROLLERS = {"fixed": 0, "unconstrained": 1, "proposed": 2, "pinned": 3}  # CKF_MODE
+CONTROLLERS = {"fixed": 0, "unconstrained": 1, "proposed": 2, "pinned": 3, "lms": 4}  # CKF_MODE
 
 
 @dataclass(frozen=True)

@@ -57,6 +57,7 @@ from numba import njit
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.kalman import N_MEAS, N_STATE, CkfConfig, CkfMode, ConstrainedKalmanFilter, inertia_ratios
 from navig8_fc.core.layout import layout
+from navig8_fc.core.lms import LmsEstimator
 
 __all__ = [
     "AdaptiveLaw",
@@ -224,7 +225,8 @@ class AdaptiveLaw:
     def __init__(self, config: AdaptiveLawConfig) -> None:
         self.config = config
         ckf = config.ckf
-        self._kf = ConstrainedKalmanFilter(ckf)
+        # CKF_MODE 4: the LMS baseline (lms.py) in the KF's place, same interface, same increments and gates
+        self._kf = LmsEstimator(ckf) if ckf.mode == CkfMode.LMS else ConstrainedKalmanFilter(ckf)
         self._alpha = lpf_alpha(ckf.lpf_tau_s, ckf.dt_s)
         self._st = LAW_STATE.zeros()
         self._inc = LAW_OUT.zeros()

@@ -329,11 +329,11 @@ class FlightControllerCore:
         mass = ul[_UO_MASS]
         acc_law = acc_m
         gc_law_inv = gc_inv
-        if cfg.ckf.acc_at_com:  # CKF_ACC_REF: the law's model refers to the estimated composite CoM
-            if not acc_ref:  # its force rows (the INDI's already do with INDI_ACC_REF = 1)
-                am = acc_m.tolist()
-                dx, dz = _k.com_accel_offset(*s.gyro_frd, am[1], ul[_UO_CEX], ul[_UO_CEZ])
-                acc_law = np.array((am[0], am[1], am[2], am[3] + dx, am[4] + dz))
+        if cfg.ckf.acc_at_com and not acc_ref:  # CKF_ACC_REF: the law's force rows at the estimated CoM (the
+            am = acc_m.tolist()  # INDI's already are with INDI_ACC_REF = 1)
+            dx, dz = _k.com_accel_offset(*s.gyro_frd, am[1], ul[_UO_CEX], ul[_UO_CEZ])
+            acc_law = np.array((am[0], am[1], am[2], am[3] + dx, am[4] + dz))
+        if cfg.ckf.gc_at_com:  # CKF_GC_REF: the law's moment rows about the estimated composite CoM
             if m_obj_est > 0.0:
                 # and its moment rows: the body turns about the composite CoM, so G_C's moments are taken about it
                 # (M_c = M_O - c x F). About the UAM's CoM, a force increment (the ducts tilting to hold position

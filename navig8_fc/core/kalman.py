@@ -65,6 +65,8 @@ N_STATE = 4
 N_MEAS = 5
 
 ProjectionWeight = Literal["inv_p", "identity"]
+# CKF_LMS_MU1..4's defaults (lms.py; chosen on the ident scenario, seeds 1-2, docs/model.md "Estimator baselines")
+LMS_MU_DEFAULT: tuple[float, ...] = (0.003, 0.05, 0.003, 0.001)
 
 CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_MODE", "CKF_LPF_TAU", "CKF_START_DLY",
@@ -72,19 +74,22 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_R_U1", "CKF_R_U2", "CKF_R_U3", "CKF_R_U4", "CKF_R_U5",
     "CKF_P0_SCALE", "CKF_PROJ_W",
     "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
-    "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ",
+    "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
+    "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4",
 )
 
 
 class CkfMode(IntEnum):
     """CKF_MODE: 0 fixed G_I,UAM (K = 1), 1 unconstrained KF (previous-work proxy), 2 proposed constrained KF,
     3 pinned: a constant K vector (CKF_K_PIN1..4, inside the Eq. 20 box), the non-adaptive baseline a search over
-    constant K can make as strong as it gets."""
+    constant K can make as strong as it gets, 4 LMS with clipping to the Eq. 21 box (Smeur, Chu & de Croon 2016 as
+    Paparazzi flies it; lms.py), the published adaptive baseline."""
 
     FIXED = 0
     UNCONSTRAINED = 1
     CONSTRAINED = 2
     PINNED = 3
+    LMS = 4
 
 
 def _floats(values: Sequence[float], n: int, name: str) -> tuple[float, ...]:
@@ -105,7 +110,7 @@ class CkfConfig:
     r_diag: measurement-noise variances of Delta U1..U5 (Eq. 24), (rad/s)^4.
     p0_scale: P0 = p0_scale * diag(q_diag) [A].
     projection_weight: "inv_p" (W = P^-1, minimum variance) or "identity" (W = I, i.e. clipping).
-    mode: fixed / unconstrained / constrained (CKF_MODE).
+    mode: fixed / unconstrained / constrained / pinned / lms (CKF_MODE).
     lpf_tau_s: time constant of the adaptive law's low-pass filters on U0 and Acc_m.
     start_delay_s: the estimator starts this long after the first sample (Sec. 4: 0.5 s).
     dt_s: control period (filters and the predict step use it).
@@ -145,8 +150,15 @@ class CkfConfig:
     k_pin: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)  # CKF_K_PIN1..4: K of mode PINNED (Eq. 3's diagonal, K4 on mass)
     grip_reset: bool = False  # CKF_GRIP_RST: forget on the gripper's reported grasp / release (AdaptiveLaw)
     predict_from_dj: bool = False  # CKF_PRED_DJ: Eq. 22's drift from the tick's change of J, not the model's I-dot
+    gc_at_com: bool = False  # CKF_GC_REF: the law's G_C moment rows about the estimated composite CoM (controller.py)
+    # CKF_LMS_MU1..4: the per-state rates of mode LMS (dimensionless, in lms.py's normalised coordinates)
+    lms_mu: tuple[float, ...] = LMS_MU_DEFAULT
 
     def __post_init__(self) -> None:
+        lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
+        if any(v < 0.0 for v in lms_mu):
+            raise ValueError(f"lms_mu must be >= 0, got {lms_mu}")
+        object.__setattr__(self, "lms_mu", lms_mu)
         k_pin = _floats(self.k_pin, N_STATE, "k_pin")
         if not all(v > 0.0 and math.isfinite(v) for v in k_pin):
             raise ValueError(f"k_pin must be finite and > 0, got {k_pin}")
@@ -171,6 +183,7 @@ class CkfConfig:
         object.__setattr__(self, "acc_at_com", bool(self.acc_at_com))
         object.__setattr__(self, "grip_reset", bool(self.grip_reset))
         object.__setattr__(self, "predict_from_dj", bool(self.predict_from_dj))
+        object.__setattr__(self, "gc_at_com", bool(self.gc_at_com))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2"):
             v = float(getattr(self, name))
             if not (v >= 0.0 and math.isfinite(v)):
@@ -188,8 +201,8 @@ class CkfConfig:
 
     @property
     def adaptive(self) -> bool:
-        """True when the KF runs at all (CKF_MODE 1 or 2)."""
-        return self.mode in (CkfMode.UNCONSTRAINED, CkfMode.CONSTRAINED)
+        """True when an estimator runs at all (CKF_MODE 1, 2: the KF; 4: the LMS)."""
+        return self.mode in (CkfMode.UNCONSTRAINED, CkfMode.CONSTRAINED, CkfMode.LMS)
 
     @staticmethod
     def from_params(values: Mapping[str, float | int], dt_s: float) -> CkfConfig:
@@ -197,15 +210,15 @@ class CkfConfig:
         missing = [n for n in CKF_PARAM_NAMES if n not in values]
         if missing:
             raise KeyError(f"missing CKF parameters: {', '.join(missing)}")
-        for flag in ("CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF", "CKF_GRIP_RST", "CKF_PRED_DJ"):
+        for flag in ("CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF"):
             if int(values[flag]) not in (0, 1):
                 raise ValueError(f"{flag} must be 0 or 1, got {values[flag]}")
         proj = int(values["CKF_PROJ_W"])
         if proj not in (0, 1):
             raise ValueError(f"CKF_PROJ_W must be 0 (P^-1) or 1 (identity), got {proj}")
         mode = int(values["CKF_MODE"])
-        if mode not in (0, 1, 2, 3):
-            raise ValueError(f"CKF_MODE must be 0, 1, 2 or 3, got {mode}")
+        if mode not in tuple(CkfMode):
+            raise ValueError(f"CKF_MODE must be one of {[int(m) for m in CkfMode]}, got {mode}")
         return CkfConfig(
             q_diag=tuple(float(values[n]) for n in ("CKF_Q_IXX", "CKF_Q_IYY", "CKF_Q_IZZ", "CKF_Q_M")),
             r_diag=tuple(float(values[f"CKF_R_U{i}"]) for i in range(1, 6)),
@@ -224,6 +237,8 @@ class CkfConfig:
             k_pin=tuple(float(values[f"CKF_K_PIN{i}"]) for i in range(1, 5)),
             grip_reset=bool(int(values["CKF_GRIP_RST"])),
             predict_from_dj=bool(int(values["CKF_PRED_DJ"])),
+            gc_at_com=bool(int(values["CKF_GC_REF"])),
+            lms_mu=tuple(float(values[f"CKF_LMS_MU{i}"]) for i in range(1, 5)),
         )
 
 

@@ -291,7 +291,7 @@ class FlightControllerProcess:
         self.links = (self.sim, self.gcs, self.api)
 
     def _controller_name(self) -> str:
-        return {0: "fixed", 1: "unconstrained", 2: "proposed", 3: "pinned"}[int(self.registry["CKF_MODE"])]
+        return {0: "fixed", 1: "unconstrained", 2: "proposed", 3: "pinned", 4: "lms"}[int(self.registry["CKF_MODE"])]
 
     @property
     def core(self) -> FlightControllerCore:

@@ -264,7 +264,7 @@ def test_pinned_k_must_be_positive() -> None:
     values = ParamRegistry.from_defaults().as_dict()
     assert CkfConfig.from_params({**values, "CKF_MODE": 3, "CKF_K_PIN2": 0.7}, DT).k_pin == (1.0, 0.7, 1.0, 1.0)
     with pytest.raises(ValueError, match="CKF_MODE"):
-        CkfConfig.from_params({**values, "CKF_MODE": 4}, DT)
+        CkfConfig.from_params({**values, "CKF_MODE": 5}, DT)
 
 
 @pytest.mark.parametrize("mode", [CkfMode.CONSTRAINED, CkfMode.UNCONSTRAINED])
