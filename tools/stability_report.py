@@ -433,7 +433,9 @@ def lmi_report(inp: Inputs, cfg: VehicleConfig, acc_ref: int, bisection_steps: i
         ly = b.lyapunov
         return {"name": b.name, "n_vertices": b.n_vertices, "state_dim": ly.state_dim, "feasible": ly.feasible,
                 "rate": ly.rate, "max_spectral_radius": ly.max_spectral_radius, "status": ly.status,
-                "failing": [v.text() for v in b.failing], "certificate_residual": ly.certificate_residual}
+                "failing": [v.text() for v in b.failing],
+                "certificate_residual": None if ly.certificate_residual is None else
+                _finite_or_none(ly.certificate_residual)}
 
     return {
         "feasible": r.feasible,
@@ -445,7 +447,7 @@ def lmi_report(inp: Inputs, cfg: VehicleConfig, acc_ref: int, bisection_steps: i
         "max_spectral_radius_vertex": r.max_spectral_radius_vertex.text(),
         "failing": [v.text() for v in r.failing],
         "failing_block": r.failing_block,
-        "certificate_residual": r.certificate_residual,
+        "certificate_residual": None if r.certificate_residual is None else _finite_or_none(r.certificate_residual),
         "blocks": [blk(b) for b in r.blocks],
         "xi_block_coupling": r.xi_block_coupling,
         "grid": {"poses": int(poses.shape[0]), "object_masses_kg": [float(m) for m in masses],
