@@ -1,7 +1,7 @@
 """navig8-stability: the stability analysis of paper Sec. 3.1-3.2 (Eq. 9-20, Figs. 5-7) for the configuration flown.
 
     navig8-stability [--params FILE ...] [--set NAME=VALUE ...] [--wn W] [--zeta Z] [--ts T] [--tl L]
-                     [--k-min K] [--k-max K] [--lambda-min L] [--json] [--plots DIR]
+                     [--k-min K] [--k-max K] [--lambda-min L] [--lmi] [--json] [--plots DIR]
 
 The configuration is the parameter defaults (params/fc_params.yaml), then `--params` files, then `--set` items, as
 navig8-sim takes them (navig8_fc.params.store.read_overrides): ACT_WN, ACT_ZETA, tau_s = 1/INDI_RATE_HZ,
@@ -9,7 +9,9 @@ INDI_LPF_TAU, INDI_K_MIN, INDI_K_MAX, INDI_LAMBDA_MIN, INDI_LAM_MARGIN, INDI_U0_
 `--lambda-min` override the analysis inputs directly (tau_s need not be 1/an integer rate). The report holds
 the configured loop next to the paper's Section 3 constants (the reference), the stated margin the parameter
 checks enforce (INDI_LAM_MARGIN) with the registry's verdict, the model-based U0 over an actuator-bandwidth
-mismatch and the sampled loop as a check of the Pade analysis. The math lives in navig8_fc.core.stability; this
+mismatch and the sampled loop as a check of the Pade analysis. `--lmi` adds the common-Lyapunov statement for the
+loop flown while K varies (navig8_fc.core.varying_k; about 45 s with the defaults, 100 s with the paper's preset, so
+off by default). The math lives in navig8_fc.core.stability; this
 file only formats it. See docs/stability.md.
 """
 
@@ -28,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from navig8_fc.core import stability as st
+from navig8_fc.core import varying_k as vk
 from navig8_fc.core.vehicle import VehicleConfig
 
 REPORT_LAMBDAS = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0)
@@ -342,6 +345,8 @@ def render_text(r: dict[str, Any]) -> str:
         ]
     if "margin" in r:
         lines += ["", *_margin_lines(r), "", *_model_u0_lines(r)]
+    if "lmi" in r:
+        lines += ["", *_lmi_lines(r["lmi"])]
     return "\n".join(lines)
 
 
@@ -411,6 +416,80 @@ def _model_u0_lines(r: dict[str, Any]) -> list[str]:
         out.append(f"  {label:>14}  {row['measured_u0']:11.4f}  "
                    f"{row['model_u0']:14.4f}  {row['model_u0_alone']:11.4f}  {row['sampled_rotational']:12.4f}  "
                    f"{row['sampled_force']:13.4f}")
+    return out
+
+
+def lmi_report(inp: Inputs, cfg: VehicleConfig, acc_ref: int, bisection_steps: int = 3) -> dict[str, Any]:
+    """The common quadratic Lyapunov function of the coupled loop over the K corners x the pose/object grid
+    (core.varying_k.varying_k_lmi) for the configured loop, JSON-ready. acc_ref: INDI_ACC_REF (0: Xi T^-1 at O)."""
+    loop = vk.LoopConfig(inp.wn_rad_s, inp.zeta, 1.0 / inp.ts_s, inp.tl_s, inp.k_min, inp.k_max,
+                         "model" if inp.u0_src == 1 else "measured", inp.u0_tau_s, "o" if acc_ref == 0 else "com")
+    poses, masses, offsets = vk.default_grid(cfg, inp.k_min)
+    t0 = time.perf_counter()
+    r = vk.varying_k_lmi(cfg, loop, poses, masses, offsets, bisection_steps=bisection_steps)
+    runtime = time.perf_counter() - t0
+
+    def blk(b: vk.BlockResult) -> dict[str, Any]:
+        ly = b.lyapunov
+        return {"name": b.name, "n_vertices": b.n_vertices, "state_dim": ly.state_dim, "feasible": ly.feasible,
+                "rate": ly.rate, "max_spectral_radius": ly.max_spectral_radius, "status": ly.status,
+                "failing": [v.text() for v in b.failing],
+                "certificate_residual": None if ly.certificate_residual is None else
+                _finite_or_none(ly.certificate_residual)}
+
+    return {
+        "feasible": r.feasible,
+        "n_vertices": r.n_vertices,
+        "state_dim": r.state_dim,
+        "rate": r.rate,
+        "decay_time_s": r.decay_time_s,
+        "max_spectral_radius": r.max_spectral_radius,
+        "max_spectral_radius_vertex": r.max_spectral_radius_vertex.text(),
+        "failing": [v.text() for v in r.failing],
+        "failing_block": r.failing_block,
+        "certificate_residual": None if r.certificate_residual is None else _finite_or_none(r.certificate_residual),
+        "blocks": [blk(b) for b in r.blocks],
+        "xi_block_coupling": r.xi_block_coupling,
+        "grid": {"poses": int(poses.shape[0]), "object_masses_kg": [float(m) for m in masses],
+                 "object_offsets_m": [float(o) for o in offsets], "k_corners": 16},
+        "loop": {"rate_hz": loop.rate_hz, "tl_s": loop.tl_s, "u0_source": loop.u0_source,
+                 "u0_tau_s": _finite_or_none(loop.u0_tau_s), "reference": loop.reference},
+        "n_sdp": r.n_sdp,
+        "sdp_time_s": r.sdp_time_s,
+        "runtime_s": runtime,
+    }
+
+
+def _lmi_lines(m: dict[str, Any]) -> list[str]:
+    g = m["grid"]
+    verdict = {True: "FEASIBLE: one P for every vertex", False: "INFEASIBLE: no common P on the grid",
+               None: "UNDECIDED (the solver could not tell)"}[m["feasible"]]
+    ref = "the estimated CoM" if m["loop"]["reference"] == "com" else "O (K Xi T^-1)"
+    out = [
+        "The loop flown while K varies: a common quadratic Lyapunov function (LMI A_i' P A_i <= rho^2 P)",
+        f"  coupled loop, {m['state_dim']} states (5 rows of Eq. 7 x 7), U0 {m['loop']['u0_source']}, "
+        f"feedback at {ref}",
+        f"  vertices: 16 K corners x {g['poses']} poses x object masses "
+        + "/".join(f"{v:g}" for v in g["object_masses_kg"]) + " kg x offsets "
+        + "/".join(f"{v:g}" for v in g["object_offsets_m"]) + f" m = {m['n_vertices']} distinct",
+        "    (lifted in K^-1, so the K corners are exact vertices; the pose/object cases are a grid)",
+        f"  frozen-time: max spectral radius {m['max_spectral_radius']:.4f} per tick "
+        f"({m['max_spectral_radius_vertex']})",
+        f"  result: {verdict}",
+    ]
+    if m["rate"] is not None:
+        out.append(f"  decay rate: V^(1/2) shrinks by {m['rate']:.5f} per tick at least (e-folding time "
+                   f"{m['decay_time_s']:.3f} s) for any K(t) in the box, switching among the grid's cases")
+    if m["failing"]:
+        out.append(f"  vertices that share no P ({m['failing_block']} block; infeasibility certificate residual "
+                   f"{m['certificate_residual']:.1e}):")
+        out += [f"    {v}" for v in m["failing"]]
+    for b in m["blocks"]:
+        state = {True: "common P", False: "no common P", None: "undecided"}[b["feasible"]]
+        rate = "" if b["rate"] is None else f", rate {b['rate']:.5f} per tick"
+        out.append(f"  {b['name']} block ({b['state_dim']} states, {b['n_vertices']} distinct vertices): {state}"
+                   f"{rate} (max spectral radius {b['max_spectral_radius']:.4f})")
+    out.append(f"  {m['n_sdp']} SDPs (clarabel {m['sdp_time_s']:.1f} s), {m['runtime_s']:.1f} s in all")
     return out
 
 
@@ -519,6 +598,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--k-min", type=float, default=None, help="analysis input: lower bound of K_i")
     ap.add_argument("--k-max", type=float, default=None, help="analysis input: upper bound of K_i")
     ap.add_argument("--lambda-min", type=float, default=None, help="analysis input: desired min eigenvalue")
+    ap.add_argument("--lmi", action="store_true",
+                    help="add the common Lyapunov function (LMI) of the loop flown while K varies (~45 s)")
     ap.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     ap.add_argument("--plots", type=Path, default=None, metavar="DIR", help="write fig5/6/7 PNGs to DIR")
     args = ap.parse_args(argv)
@@ -540,6 +621,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     if not direct:
         report["configuration"] = {"values": conf.values, "overrides": conf.overrides, "verdict": conf.verdict}
+    if args.lmi:
+        report["lmi"] = lmi_report(inp, cfg, int(conf.values["INDI_ACC_REF"]))
     if args.plots is not None:
         paths = write_plots(inp, cfg, args.plots, report["lambda_crit"])
         report["plots"] = [str(p) for p in paths]
