@@ -346,3 +346,51 @@ def test_set_k_bounds_moves_the_box_and_keeps_the_state(pose: Pose) -> None:
         assert all(lo <= x <= hi for lo, x, hi in zip(st.lower, st.x_hat, st.upper, strict=True))
         assert st.n_updates == st_old.n_updates  # not restarted
     assert st.x_hat != st_old.x_hat
+
+
+def test_gripper_events_forget_the_object(pose: Pose) -> None:
+    """CKF_GRIP_RST: a grasp resets P to P0 (the covariance had shrunk), a release puts the estimate back to the one
+    before the grasp and resets P; no correction within the low-pass's time constant after either. Noise-free data
+    consistent with a heavier vehicle (x_true) throughout, so the estimate has moved and P shrunk before the grasp."""
+    x_true = pose.base * np.array([1.6, 1.3, 1.8, 1.2])
+    cfg = dict(r_diag=(1.0,) * 5, q_diag=(1e-10,) * 4, p0_scale=1e8, grip_reset=True)
+    law = _law(**cfg)
+    data = _excitation(pose, x_true, 3000, seed=3)
+    p0_trace = 4 * 1e8 * 1e-10
+    st = None
+    for k, (u, acc) in enumerate(data[:300]):  # 3 s with the gripper open
+        _, st = law.step(AdaptiveLawInputs(
+            t_s=k * DT, u_meas=u, acc_m=acc, gc_uam_inv=pose.gci, inertia_uam=pose.j, mass_uam_kg=pose.m,
+            inertia_rate_uam=np.zeros((3, 3)), gripper_closed=False))
+    before = np.array(st.x_hat)
+    shrunk = sum(st.p_diag)
+    assert shrunk < 0.5 * p0_trace  # learning has shrunk P
+    k0 = 300
+    for k, (u, acc) in enumerate(data[300:2000], start=k0):
+        _, st = law.step(AdaptiveLawInputs(
+            t_s=k * DT, u_meas=u, acc_m=acc, gc_uam_inv=pose.gci, inertia_uam=pose.j, mass_uam_kg=pose.m,
+            inertia_rate_uam=np.zeros((3, 3)), gripper_closed=True))
+        if k == k0:  # the grasp: P back to P0 (plus this tick's Q), the estimate kept, no correction yet
+            assert sum(st.p_diag) == pytest.approx(p0_trace, rel=1e-6) and not st.corrected
+            np.testing.assert_allclose(st.x_hat, before, rtol=1e-12)
+            assert st.n_forgets == 1
+    held = np.array(st.x_hat)
+    np.testing.assert_allclose(held, x_true, rtol=0.05)  # the object's data identified
+    _, st = law.step(AdaptiveLawInputs(
+        t_s=2000 * DT, u_meas=data[2000][0], acc_m=data[2000][1], gc_uam_inv=pose.gci, inertia_uam=pose.j,
+        mass_uam_kg=pose.m, inertia_rate_uam=np.zeros((3, 3)), gripper_closed=False))
+    np.testing.assert_allclose(st.x_hat, before, rtol=1e-9)  # the release: back where it was before the grasp
+    assert sum(st.p_diag) == pytest.approx(p0_trace, rel=1e-6) and st.n_forgets == 2 and not st.corrected
+
+
+def test_without_grip_reset_gripper_events_change_nothing(pose: Pose) -> None:
+    data = _excitation(pose, pose.base * 1.3, 400, seed=4)
+    runs = []
+    for grip in (False, True):
+        law = _law(r_diag=(1.0,) * 5, q_diag=(1e-10,) * 4, p0_scale=1e8)
+        for k, (u, acc) in enumerate(data):
+            _, st = law.step(AdaptiveLawInputs(
+                t_s=k * DT, u_meas=u, acc_m=acc, gc_uam_inv=pose.gci, inertia_uam=pose.j, mass_uam_kg=pose.m,
+                inertia_rate_uam=np.zeros((3, 3)), gripper_closed=grip and k > 200))
+        runs.append(st.x_hat)
+    assert runs[0] == runs[1]

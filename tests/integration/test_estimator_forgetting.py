@@ -1,0 +1,74 @@
+"""The estimator identifies a held object whose truth lies inside the Eq. 20 box, forgets it when the gripper opens,
+and follows the arm's known motion (the `identification.parm` preset: CKF_GRIP_RST 1, CKF_PRED_DJ 1).
+
+Plant and FlightStack in one process (navig8_tools.estimator_convergence.k_trace). The truth is the plant's:
+K_true,i = J_ii / I_true,ii, K_true,4 = m_UAM / m_true from its composite inertia about the true CoM, clipped to the
+default box [0.5, 1] whatever box the run flies (a pinned estimate is not compared with a truth pinned alike).
+
+`grasp_release_ident` with a 0.5 kg object at q = 0: the truth while held is K1 0.59, K4 0.93 (inside the box, not on
+a bound), K = 1 before the grasp and after the release. Each check is also flown where it must fail:
+- the estimate pinned (INDI_K_MAX = INDI_K_MIN + 1e-4): it cannot reach K1 0.59 nor return to 1;
+- forgetting off (CKF_GRIP_RST 0): after the release K1 stays ~0.2 off for the rest of the flight (measured
+  0.19-0.21 over seeds 1-3) as the Q random walk allows;
+- the paper's drift (CKF_PRED_DJ 0) in the paper scenario without an object: every arm reversal moves K3 by about
+  -0.05 and it is 0.25 off (0.74 at 23 s), where the tick's change of J keeps it within 0.05 (5-24 s, up to the
+  yaw step that excites K3 itself).
+K2 is not checked: on the pitch axis the estimate misses the truth by 0.1-0.3 in this family (docs/results.md,
+"Estimator"), which is the estimator's open work.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from navig8_fc.params.store import read_overrides
+from navig8_tools.estimator_convergence import k_trace, window_max_error
+
+PRESETS = Path(__file__).resolve().parents[2] / "params" / "presets"
+IDENT = read_overrides([str(PRESETS / "identification.parm")], [])
+BOX = (0.5, 1.0)
+GRASP = {"scenario.events.0.mass_kg": 0.5}
+HELD_S = (12.0, 16.0)  # 6 s after the grasp, 5 s after the excitation resumes (7 s)
+AFTER_RELEASE_S = (19.0, 26.0)  # from 3 s after the release (16 s)
+K1, K3, K4 = 0, 2, 3
+
+
+def _windows(overrides: dict[str, float], seed: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t, k, kt = k_trace(overrides, 26.0, seed, "grasp_release_ident", GRASP, truth_box=BOX)
+    err = np.abs(k - kt)
+    return (np.array(window_max_error(t, err, *HELD_S)), np.array(window_max_error(t, err, *AFTER_RELEASE_S)),
+            kt[(t >= HELD_S[0]) & (t < HELD_S[1])])
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_the_held_object_is_identified_and_forgotten_on_release(seed: int) -> None:
+    held, after, truth_held = _windows(IDENT, seed)
+    # the truth while held is inside the box and off its bounds: identifying it is not sitting on a bound
+    assert np.all(truth_held[:, K1] > 0.55) and np.all(truth_held[:, K1] < 0.65)
+    assert np.all(truth_held[:, K4] > 0.9) and np.all(truth_held[:, K4] < 0.95)
+    assert held[K1] <= 0.05 and held[K4] <= 0.07, held
+    assert np.all(after[[K1, K3, K4]] <= 0.1), after
+
+
+def test_a_pinned_estimate_fails_the_same_checks() -> None:
+    held, after, _ = _windows({**IDENT, "INDI_K_MAX": 0.5001})
+    assert held[K1] > 0.05 and np.all(after[[K1, K3, K4]] > 0.4), (held, after)
+
+
+def test_without_forgetting_the_released_object_is_not_forgotten() -> None:
+    held, after, _ = _windows({**IDENT, "CKF_GRIP_RST": 0})
+    assert held[K1] <= 0.05, held  # the same identification while held ...
+    assert after[K1] > 0.15, after  # ... but the release is not forgotten
+
+
+def test_the_arm_motion_is_carried_by_the_drift_not_taken_for_inertia() -> None:
+    no_object = {"scenario.object.mass_kg": 0.0, "scenario.events.0.mass_kg": 0.0}
+    errs = {}
+    for pred in (1, 0):
+        t, k, kt = k_trace({**IDENT, "CKF_PRED_DJ": pred}, 30.0, 1, "paper", no_object, truth_box=BOX)
+        errs[pred] = np.abs(k - kt)[(t >= 5.0) & (t < 24.0)].max(axis=0)  # to the 25 s yaw step (K3's own excitation)
+    assert errs[1][K3] <= 0.05, errs[1]
+    assert errs[0][K3] > 0.15, errs[0]
