@@ -113,7 +113,7 @@ class FcSensors:
     speed_rad_s: tuple[float, float, float]  # measured w1, w2 (signed), w3
     joint_pos_rad: tuple[float, float, float]
     joint_rate_rad_s: tuple[float, float, float]
-    gripper_closed: bool = False  # the gripper's reported state (NAVIG8_ARM_STATE); the estimator forgets on its changes
+    gripper_closed: bool = False  # the gripper's reported state (NAVIG8_ARM_STATE); CKF_GRIP_RST forgets on it
 
 
 @dataclass(frozen=True)
