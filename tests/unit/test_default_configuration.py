@@ -40,8 +40,18 @@ def test_paper_parm_restores_the_papers_method() -> None:
         assert paper[name] == pytest.approx(value), name
     # and the adaptive law's settings as printed (Sec. 4): one-step increments, measured U, no gates
     for name, value in (("CKF_INC_N", 1), ("CKF_U_SRC", 0), ("CKF_SAT_GATE", 0), ("CKF_EXC_LIN", 0),
-                        ("CKF_Q_IXX", 1e-4), ("CKF_Q_IYY", 5e-5), ("CKF_Q_IZZ", 1e-4), ("CKF_Q_M", 5e-4)):
+                        ("CKF_Q_IXX", 1e-4), ("CKF_Q_IYY", 5e-5), ("CKF_Q_IZZ", 1e-4), ("CKF_Q_M", 5e-4),
+                        ("CKF_ACC_REF", 0), ("CKF_GC_REF", 0), ("CKF_GRIP_RST", 0), ("CKF_PRED_DJ", 0)):
         assert paper[name] == pytest.approx(value), name
+
+
+def test_the_estimator_options_are_the_documented_ones() -> None:
+    """The law's moment rows about the estimated CoM by default; forgetting and the model's drift only in
+    identification.parm (docs/model.md, "Estimator", items 4-6: they identify better and fly worse)."""
+    reg = ParamRegistry.from_defaults()
+    assert (int(reg["CKF_GC_REF"]), int(reg["CKF_GRIP_RST"]), int(reg["CKF_PRED_DJ"])) == (1, 0, 0)
+    ident = read_parm_file(ROOT / "params" / "presets" / "identification.parm")
+    assert ident == {"CKF_GRIP_RST": 1, "CKF_PRED_DJ": 1}
 
 
 def test_the_documented_table_agrees_with_the_parameter_file() -> None:
