@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from navig8_fc.core.vehicle import VehicleConfig
-from navig8_fc.mavlink import codec, dialect, seam
-from navig8_fc.shell.sim_guard import (
+from navig8_fc.links.sim_guard import (
     BAD_DATA_FAILSAFE_S,
     REPAIR_SILENCE_S,
     REPORT_PERIOD_S,
@@ -19,6 +18,7 @@ from navig8_fc.shell.sim_guard import (
     SimGuard,
     pairing_heartbeat,
 )
+from navig8_fc.mavlink import codec, dialect, seam
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant
 from sim_bridge.scenario import load_scenario
