@@ -31,7 +31,7 @@ from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FlightC
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
 from navig8_fc.links.mavlink_link import PortInUseError, UdpLink, write_ports_file
-from navig8_fc.links.signing import KeyFile, LinkSigning
+from navig8_fc.links.signing import LinkSigning
 from navig8_fc.links.sim_guard import BAD_DATA_FAILSAFE_S, SensorLimits, SimGuard, SimInput, StreamRegrouper
 from navig8_fc.links.transport import StreamTransport, parse_connection
 from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
@@ -54,6 +54,7 @@ from navig8_fc.shell.gcs_service import (
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.mcap_log import open_logger
 from navig8_fc.shell.realtime import TIMING_REALTIME, RealtimeClock
+from navig8_fc.shell.signing_keys import KeyFile
 from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m, waypoint_poses
 
 FC_COMPID = 1

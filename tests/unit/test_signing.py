@@ -16,7 +16,8 @@ from typing import Any
 from pymavlink.dialects.v20 import common as M
 
 from navig8_fc.links.mavlink_link import UdpLink
-from navig8_fc.links.signing import KeyFile, LinkSigning, redact_frame, signing_timestamp
+from navig8_fc.links.signing import LinkSigning, redact_frame, signing_timestamp
+from navig8_fc.shell.signing_keys import KeyFile
 
 KEY = bytes(range(101, 133))
 OTHER_KEY = bytes(range(1, 33))
