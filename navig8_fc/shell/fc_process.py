@@ -88,7 +88,7 @@ class FcOptions:
     foxglove_host: str = "127.0.0.1"
     log_max_mb: float = 1024.0  # --log-max-mb: rotate the log at this size (0: no cap)
     log_keep: int = 4  # --log-keep: rotated parts kept (the oldest is deleted)
-    # connection strings (navig8_fc/shell/transport.py: udpin:, udpout:, tcp:, tcpin:, serial:) replacing a link's
+    # connection strings (navig8_fc/links/transport.py: udpin:, udpout:, tcp:, tcpin:, serial:) replacing a link's
     # host/port options; None: UDP as the port options say
     sim_link: str | None = None
     gcs_link: str | None = None
@@ -336,7 +336,7 @@ class FlightControllerProcess:
     # --- lockstep --------------------------------------------------------------------------------
     def _on_sim(self, received: list[Any]) -> None:
         """The sim link's datagrams (codec.Message records per datagram) through the guard (pairing, sequencing,
-        validation: navig8_fc/shell/sim_guard.py): steps to _on_step, the paired bridge's status kept."""
+        validation: navig8_fc/links/sim_guard.py): steps to _on_step, the paired bridge's status kept."""
         guard = self.guard
         now = time.monotonic()
         for r in received:

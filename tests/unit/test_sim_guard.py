@@ -1,4 +1,4 @@
-"""The FC's sim-link guard (navig8_fc/shell/sim_guard.py) on real bundles: the plant's sensors encoded by the
+"""The FC's sim-link guard (navig8_fc/links/sim_guard.py) on real bundles: the plant's sensors encoded by the
 bridge's encoder and parsed by the codec, as the FC receives them. Pairing by nonce, strict sequencing, whole
 bundles only, validation with the last good values, and rate-limited reports."""
 
