@@ -32,10 +32,10 @@ from typing import Any
 
 import numpy as np
 
+from navig8_fc.links.mavlink_link import PortInUseError, bind_udp, write_ports_file
+from navig8_fc.links.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat
+from navig8_fc.links.transport import StreamTransport, open_endpoint, parse_connection
 from navig8_fc.mavlink import codec, dialect, seam
-from navig8_fc.shell.mavlink_link import PortInUseError, bind_udp, write_ports_file
-from navig8_fc.shell.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat
-from navig8_fc.shell.transport import StreamTransport, open_endpoint, parse_connection
 from sim_bridge.link_budget import LinkBudget, link_budget
 from sim_bridge.messages import ActuatorCommand
 from sim_bridge.plant import Plant, PlantDivergedError
@@ -176,7 +176,7 @@ class Bridge:
         self.budget: LinkBudget | None = None
         if opts.link is None:
             self.sock = bind_udp("bridge", (opts.host, opts.bridge_port_resolved))
-        else:  # a connection string: UDP, TCP or serial (navig8_fc/shell/transport.py); a serial line's budget first
+        else:  # a connection string: UDP, TCP or serial (navig8_fc/links/transport.py); a serial line's budget first
             conn = parse_connection(opts.link)
             self.budget = link_budget(self.codec, conn, 1e6 / self.dt_us)  # ValueError: the rate does not fit
             ep = open_endpoint("bridge", conn)

@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from navig8_fc.links.transport import Connection, serial_budget
 from navig8_fc.mavlink.codec import V2_OVERHEAD, Codec
-from navig8_fc.shell.transport import Connection, serial_budget
 
 HEADROOM = 0.9  # share of a serial line's bytes/s the per-step traffic may use
 BUNDLE = ("ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH", "HIL_SENSOR")  # seam.encode_bundle

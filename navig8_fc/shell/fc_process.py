@@ -30,6 +30,10 @@ from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FlightControllerCore, warm_up_kernels
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
+from navig8_fc.links.mavlink_link import PortInUseError, UdpLink, write_ports_file
+from navig8_fc.links.signing import LinkSigning
+from navig8_fc.links.sim_guard import BAD_DATA_FAILSAFE_S, SensorLimits, SimGuard, SimInput, StreamRegrouper
+from navig8_fc.links.transport import StreamTransport, parse_connection
 from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
 from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink import dialect as dialect_mod
@@ -48,12 +52,9 @@ from navig8_fc.shell.gcs_service import (
     origin_from_params,
 )
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
-from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.shell.mcap_log import open_logger
 from navig8_fc.shell.realtime import TIMING_REALTIME, RealtimeClock
-from navig8_fc.shell.signing import KeyFile, LinkSigning
-from navig8_fc.shell.sim_guard import BAD_DATA_FAILSAFE_S, SensorLimits, SimGuard, SimInput, StreamRegrouper
-from navig8_fc.shell.transport import StreamTransport, parse_connection
+from navig8_fc.shell.signing_keys import KeyFile
 from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m, waypoint_poses
 
 FC_COMPID = 1
@@ -87,7 +88,7 @@ class FcOptions:
     foxglove_host: str = "127.0.0.1"
     log_max_mb: float = 1024.0  # --log-max-mb: rotate the log at this size (0: no cap)
     log_keep: int = 4  # --log-keep: rotated parts kept (the oldest is deleted)
-    # connection strings (navig8_fc/shell/transport.py: udpin:, udpout:, tcp:, tcpin:, serial:) replacing a link's
+    # connection strings (navig8_fc/links/transport.py: udpin:, udpout:, tcp:, tcpin:, serial:) replacing a link's
     # host/port options; None: UDP as the port options say
     sim_link: str | None = None
     gcs_link: str | None = None
@@ -335,7 +336,7 @@ class FlightControllerProcess:
     # --- lockstep --------------------------------------------------------------------------------
     def _on_sim(self, received: list[Any]) -> None:
         """The sim link's datagrams (codec.Message records per datagram) through the guard (pairing, sequencing,
-        validation: navig8_fc/shell/sim_guard.py): steps to _on_step, the paired bridge's status kept."""
+        validation: navig8_fc/links/sim_guard.py): steps to _on_step, the paired bridge's status kept."""
         guard = self.guard
         now = time.monotonic()
         for r in received:

@@ -161,7 +161,7 @@ class GcsService:
         """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them).
         trusted_sources: sources confirmed without a HEARTBEAT (the links' configured targets).
         background_params: stability floors and saves on a worker thread (the process); else inline.
-        signing: the links' signing (shell.signing.LinkSigning: `set_key`, `active`); None: SETUP_SIGNING refused."""
+        signing: the links' signing (links.signing.LinkSigning: `set_key`, `active`); None: SETUP_SIGNING refused."""
         self.mav = mav
         self.sysid = int(sysid)
         self._state = state
@@ -357,7 +357,7 @@ class GcsService:
 
     def _setup_signing(self, m: Any) -> list[Any]:
         """SETUP_SIGNING for us: the key to the links (never to a message or the log; module docstring of
-        shell.signing for who may send it)."""
+        links.signing for who may send it)."""
         if m.target_system not in (0, self.sysid):
             return []
         if self._signing is None:

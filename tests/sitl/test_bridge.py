@@ -24,8 +24,8 @@ import pytest
 from sitl_helpers import wait_ports_file
 
 from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.links.sim_guard import pairing_heartbeat
 from navig8_fc.mavlink import codec, dialect, seam
-from navig8_fc.shell.sim_guard import pairing_heartbeat
 from sim_bridge import Plant, PlantParams, load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]

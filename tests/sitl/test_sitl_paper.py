@@ -67,8 +67,8 @@ def test_the_sim_link_is_logged_decoded_as_well_as_raw(sitl_summary: dict) -> No
     from mcap.reader import make_reader
     from pymavlink.dialects.v20 import common as mavlink2
 
+    from navig8_fc.links.mavlink_link import split_frames
     from navig8_fc.mavlink import dialect
-    from navig8_fc.shell.mavlink_link import split_frames
     from navig8_fc.shell.mcap_log import read_mcap
 
     log = sitl_summary["log"]

@@ -15,9 +15,9 @@ from pathlib import Path
 from pymavlink.dialects.v20 import common as mavlink2
 from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
 
+from navig8_fc.links.signing import signing_timestamp
 from navig8_fc.params.store import default_state_path
 from navig8_fc.shell.mcap_log import read_mcap
-from navig8_fc.shell.signing import signing_timestamp
 
 M = mavlink2
 KEY = bytes((i * 37 + 11) % 256 for i in range(32))

@@ -23,9 +23,9 @@ import numpy as np
 from sitl_helpers import free_udp_ports, gcs_client, wait_for, wait_heartbeat
 
 from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.links.sim_guard import pairing_heartbeat
 from navig8_fc.mavlink import codec, dialect, seam
 from navig8_fc.shell.mcap_log import read_mcap, read_metadata
-from navig8_fc.shell.sim_guard import pairing_heartbeat
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant
 from sim_bridge.scenario import load_scenario

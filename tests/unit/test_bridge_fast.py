@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.links.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat
 from navig8_fc.mavlink import codec, dialect, seam
-from navig8_fc.shell.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat
 from sim_bridge.bridge import Bridge, BridgeCounters, BridgeOptions
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant

@@ -15,10 +15,10 @@ from pathlib import Path
 
 from test_sim_guard import Wire, _set
 
+from navig8_fc.links.sim_guard import pairing_heartbeat
 from navig8_fc.mavlink import codec, dialect, seam
 from navig8_fc.shell.fc_process import FcOptions, FlightControllerProcess
 from navig8_fc.shell.mcap_log import read_mcap, read_metadata
-from navig8_fc.shell.sim_guard import pairing_heartbeat
 
 TIMEOUT_S = 30.0
 

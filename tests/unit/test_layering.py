@@ -3,15 +3,35 @@
   call no print/open/input;
 - the FlightStack, modes, the GCS protocol pieces and GcsService import no shell module (GcsService depends on
   VehicleState, VehicleCommands and an Outbox, never on the process);
-- navig8_fc imports nothing from sim_bridge (the bridge may import the FC's pure model, not the other way)."""
+- navig8_fc imports nothing from sim_bridge (the bridge may import the FC's pure model, not the other way);
+- navig8_fc/links (transports, MAVLink link, signing, sim guard) names nothing of the FC but itself and the dialect,
+  codec and seam, and reaches (through everything it imports) no shell, GCS, flight, modes, mission or params
+  module, nor sim_bridge or the tools;
+- sim_bridge reaches no module of the FC's shell, directly or through anything it imports (it shares the links
+  with the FC instead: docs/architecture.md)."""
 
 from __future__ import annotations
 
 import ast
+import functools
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
 FC = ROOT / "navig8_fc"
+LINKS = FC / "links"
+BRIDGE = ROOT / "sim_bridge"
+FIRST_PARTY = {"navig8_fc": FC, "sim_bridge": BRIDGE, "navig8_tools": ROOT / "tools", "navig8_params": ROOT / "params"}
+# what navig8_fc/links may name of the FC: itself and the MAVLink pieces below it (not mavlink.px4sim: it takes
+# the core's actuator model and the mission's geodesy)
+LINKS_MAY_NAME = ("navig8_fc.links", "navig8_fc.mavlink.codec", "navig8_fc.mavlink.dialect", "navig8_fc.mavlink.seam")
+LINKS_THIRD_PARTY = {"pymavlink", "serial", "numpy"}
+# what the links must never reach. The core is not listed: navig8_fc.mavlink.seam's StepBundle.fc_sensors builds
+# the controller's input with a function-level import of navig8_fc.core.controller (the FC calls it, the bridge
+# never does); the links themselves name no core module (LINKS_MAY_NAME).
+ABOVE_LINKS = ("navig8_fc.shell", "navig8_fc.gcs", "navig8_fc.flight", "navig8_fc.modes", "navig8_fc.mission",
+               "navig8_fc.params", "navig8_fc.logrecords", "navig8_fc.viz", "sim_bridge", "navig8_tools",
+               "navig8_params")
 FORBIDDEN = {
     "socket", "select", "selectors", "asyncio", "threading", "multiprocessing", "subprocess",
     "time", "datetime", "pymavlink", "mcap", "logging", "signal", "urllib", "http", "random",
@@ -61,6 +81,46 @@ def _rel(p: Path) -> str:
     return str(p.relative_to(ROOT))
 
 
+def _under(mod: str, prefixes: tuple[str, ...]) -> bool:
+    return any(mod == p or mod.startswith(p + ".") for p in prefixes)
+
+
+def _module_file(mod: str) -> Path | None:
+    """The file of a first-party module or package (None: not ours, or `pkg.name` naming an object)."""
+    top, *rest = mod.split(".")
+    base = FIRST_PARTY.get(top)
+    if base is None:
+        return None
+    p = base.joinpath(*rest)
+    return next((c for c in (p.with_suffix(".py"), p / "__init__.py") if c.is_file()), None)
+
+
+def _module_name(path: Path) -> str:
+    for top, base in FIRST_PARTY.items():
+        if path.is_relative_to(base):
+            parts = path.relative_to(base).with_suffix("").parts
+            return ".".join((top, *(parts[:-1] if parts[-1] == "__init__" else parts)))
+    raise ValueError(path)
+
+
+@functools.cache
+def _reached(path: Path) -> frozenset[str]:
+    """Every first-party module importing `path` can load: its imports (function-level ones included), the
+    packages around them (their __init__ runs first), and theirs in turn."""
+    seen: dict[str, Path] = {}
+    todo = [path]
+    while todo:
+        p = todo.pop()
+        name = _module_name(p)
+        if name in seen:
+            continue
+        seen[name] = p
+        for mod in _imported(p):
+            parts = mod.split(".")
+            todo += [f for i in range(1, len(parts) + 1) if (f := _module_file(".".join(parts[:i]))) is not None]
+    return frozenset(seen)
+
+
 def test_core_flight_and_modes_have_no_io() -> None:
     files = (_modules(FC / "core") + _modules(FC / "flight") + _modules(FC / "modes")
              + [FC / "params" / "registry.py"]
@@ -83,6 +143,47 @@ def test_navig8_fc_imports_nothing_from_sim_bridge() -> None:
     assert len(files) > 30
     problems = {_rel(p): bad for p in files if (bad := [m for m in _imported(p) if m.split(".")[0] == "sim_bridge"])}
     assert not problems, f"navig8_fc imports the bridge: {problems}"
+
+
+def test_links_name_only_themselves_and_the_mavlink_pieces() -> None:
+    files = _modules(LINKS)
+    assert {"transport.py", "mavlink_link.py", "signing.py", "sim_guard.py"} <= {p.name for p in files}
+    problems = {}
+    for p in files:
+        mods = _imported(p, names=False)
+        bad = [m for m in mods if m.split(".")[0] in FIRST_PARTY and m != "navig8_fc" and m != "navig8_fc.mavlink"
+               and not _under(m, LINKS_MAY_NAME)]
+        bad += [m for m in mods if (top := m.split(".")[0]) not in FIRST_PARTY and top not in LINKS_THIRD_PARTY
+                and top not in sys.stdlib_module_names and top != "__future__"]
+        if bad:
+            problems[_rel(p)] = bad
+    assert not problems, f"navig8_fc/links imports what sits above it (or an unexpected library): {problems}"
+
+
+def test_links_reach_nothing_above_them() -> None:
+    problems = {_rel(p): sorted(m for m in _reached(p) if _under(m, ABOVE_LINKS)) for p in _modules(LINKS)}
+    problems = {k: v for k, v in problems.items() if v}
+    assert not problems, f"navig8_fc/links reaches a layer above it: {problems}"
+
+
+def test_sim_bridge_reaches_nothing_of_the_fc_shell() -> None:
+    files = _modules(BRIDGE)
+    assert len(files) > 5
+    reached = {_rel(p): _reached(p) for p in files}
+    assert "navig8_fc.links.transport" in reached["sim_bridge/bridge.py"]  # the walk follows the bridge's links
+    problems = {k: sorted(m for m in v if _under(m, ("navig8_fc.shell",))) for k, v in reached.items()}
+    problems = {k: v for k, v in problems.items() if v}
+    assert not problems, f"sim_bridge reaches the FC's shell (share navig8_fc/links instead): {problems}"
+
+
+def test_reach_walk_follows_imports_through_other_modules(tmp_path: Path) -> None:
+    """A module that reaches the shell only through another module (or a package's __init__) is caught."""
+    p = tmp_path / "probe.py"
+    p.write_text("def f():\n    from navig8_fc.links import sim_guard\n    import navig8_fc.shell.fc_process\n")
+    # the probe sits outside the repository: walk from what it names
+    reached = set().union(*(_reached(f) for m in _imported(p) if (f := _module_file(m)) is not None))
+    assert {"navig8_fc.links.sim_guard", "navig8_fc.mavlink.seam", "navig8_fc.shell.fc_process",
+            "navig8_fc.shell.mcap_log", "navig8_fc.links.transport"} <= reached, sorted(reached)
 
 
 def test_checker_catches_io(tmp_path: Path) -> None:

@@ -10,8 +10,8 @@ import time
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
+from navig8_fc.links.mavlink_link import PortInUseError, UdpLink, bind_udp, split_frames, write_ports_file
 from navig8_fc.mavlink import codec, dialect, seam
-from navig8_fc.shell.mavlink_link import PortInUseError, UdpLink, bind_udp, split_frames, write_ports_file
 
 
 def _mav(sysid: int = 1) -> mavlink2.MAVLink:

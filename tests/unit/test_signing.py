@@ -1,4 +1,4 @@
-"""MAVLink 2 signing on a GCS link (navig8_fc.shell.signing over a real UdpLink on loopback): SETUP_SIGNING sets
+"""MAVLink 2 signing on a GCS link (navig8_fc.links.signing over a real UdpLink on loopback): SETUP_SIGNING sets
 a key (owner-only file, never in what the link hands the log), then unsigned, wrongly signed and replayed frames
 are refused except RADIO_STATUS, outgoing frames are signed, only the key holder can change the key; GCS_SIGN_REQ
 refuses commands until a key is set."""
@@ -15,8 +15,9 @@ from typing import Any
 
 from pymavlink.dialects.v20 import common as M
 
-from navig8_fc.shell.mavlink_link import UdpLink
-from navig8_fc.shell.signing import KeyFile, LinkSigning, redact_frame, signing_timestamp
+from navig8_fc.links.mavlink_link import UdpLink
+from navig8_fc.links.signing import LinkSigning, redact_frame, signing_timestamp
+from navig8_fc.shell.signing_keys import KeyFile
 
 KEY = bytes(range(101, 133))
 OTHER_KEY = bytes(range(1, 33))

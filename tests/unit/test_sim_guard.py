@@ -1,4 +1,4 @@
-"""The FC's sim-link guard (navig8_fc/shell/sim_guard.py) on real bundles: the plant's sensors encoded by the
+"""The FC's sim-link guard (navig8_fc/links/sim_guard.py) on real bundles: the plant's sensors encoded by the
 bridge's encoder and parsed by the codec, as the FC receives them. Pairing by nonce, strict sequencing, whole
 bundles only, validation with the last good values, and rate-limited reports."""
 
@@ -10,8 +10,7 @@ import numpy as np
 import pytest
 
 from navig8_fc.core.vehicle import VehicleConfig
-from navig8_fc.mavlink import codec, dialect, seam
-from navig8_fc.shell.sim_guard import (
+from navig8_fc.links.sim_guard import (
     BAD_DATA_FAILSAFE_S,
     REPAIR_SILENCE_S,
     REPORT_PERIOD_S,
@@ -19,6 +18,7 @@ from navig8_fc.shell.sim_guard import (
     SimGuard,
     pairing_heartbeat,
 )
+from navig8_fc.mavlink import codec, dialect, seam
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant
 from sim_bridge.scenario import load_scenario

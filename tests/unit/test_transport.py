@@ -8,9 +8,8 @@ import time
 
 import pytest
 
-from navig8_fc.mavlink import codec, seam
-from navig8_fc.shell.mavlink_link import UdpLink
-from navig8_fc.shell.transport import (
+from navig8_fc.links.mavlink_link import UdpLink
+from navig8_fc.links.transport import (
     Connection,
     PortInUseError,
     TcpClientTransport,
@@ -18,6 +17,7 @@ from navig8_fc.shell.transport import (
     open_endpoint,
     parse_connection,
 )
+from navig8_fc.mavlink import codec, seam
 from navig8_tools.nullmodem import NullModem
 from sim_bridge.bridge import Bridge, BridgeOptions
 from sim_bridge.link_budget import link_budget

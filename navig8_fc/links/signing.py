@@ -7,10 +7,11 @@ RADIO_STATUS, which the MAVLink signing guide lets a receiver accept unsigned (a
 SETUP_SIGNING sets the key: accepted unsigned only while no key is set; with a key, only a correctly signed one
 gets through the link at all, so only a holder of the key can change or (all-zero key and timestamp) remove it.
 
-The key lives in `<state-dir>/fc_signing_<N>.json` (hex, owner-only permissions, written atomically), never in
-the log: the links hand the log a copy of every SETUP_SIGNING with the key bytes zeroed (`redact_frame`), and the
-log records only "signing key set". The signing timestamp starts at the wall clock (10 us units since
-2015-01-01) and never goes back below the one stored with the key.
+The key lives in `<state-dir>/fc_signing_<N>.json` (hex, owner-only permissions, written atomically by the
+shell's `signing_keys.KeyFile`, a `KeyStore` here), never in the log: the links hand the log a copy of every
+SETUP_SIGNING with the key bytes zeroed (`redact_frame`), and the log records only "signing key set". The
+signing timestamp starts at the wall clock (10 us units since 2015-01-01) and never goes back below the one
+stored with the key.
 
 pymavlink's own `check_signature` advances a stream's timestamp *before* it checks the HMAC, so one forged frame
 with a far-future timestamp would lock the real ground station's stream out (every later genuine frame "old");
@@ -21,15 +22,10 @@ from __future__ import annotations
 
 import copy
 import hashlib
-import json
-import os
 import time
 import types
 from collections.abc import Iterable
-from pathlib import Path
-from typing import Any
-
-from navig8_fc.params.store import write_atomic
+from typing import Any, Protocol
 
 MSG_ID_SETUP_SIGNING = 256
 MSG_ID_RADIO_STATUS = 109
@@ -92,49 +88,22 @@ def verify_signature(mav: Any, msgbuf: bytearray, src_system: int, src_component
     return True
 
 
-class KeyFile:
-    """The signing key and its last timestamp, owner-only (0600), written atomically."""
-
-    def __init__(self, path: str | Path) -> None:
-        self.path = Path(path)
+class KeyStore(Protocol):
+    """Where the key rests between runs (the FC's shell: `navig8_fc.shell.signing_keys.KeyFile`)."""
 
     def load(self) -> tuple[bytes | None, int, str | None]:
-        """(key or None, timestamp, problem): no file -> (None, 0, None)."""
-        try:
-            st = self.path.stat()
-            if not self.path.is_file() or st.st_size > 4096:
-                return None, 0, f"signing key file {self.path} is not a small regular file: not used"
-            doc = json.loads(self.path.read_text(encoding="ascii"))
-            key = bytes.fromhex(doc["key"])
-            ts = int(doc.get("timestamp", 0))
-        except FileNotFoundError:
-            return None, 0, None
-        except (OSError, ValueError, KeyError, TypeError, UnicodeDecodeError):
-            return None, 0, f"signing key file {self.path} is unreadable or corrupt: not used"
-        if len(key) != KEY_LEN:
-            return None, 0, f"signing key file {self.path} does not hold a {KEY_LEN}-byte key: not used"
-        problem = None
-        if st.st_mode & 0o077:
-            os.chmod(self.path, 0o600)
-            problem = f"signing key file {self.path} was readable by others: now owner-only"
-        return key, ts, problem
+        """(key or None, timestamp, problem)."""
 
     def save(self, key: bytes, timestamp: int) -> None:
-        # params.store.write_atomic: mkstemp creates the temp file 0600, and the rename keeps that mode
-        write_atomic(self.path, json.dumps({"key": key.hex(), "timestamp": int(timestamp)}).encode("ascii"))
-        os.chmod(self.path, 0o600)
+        """Keep the key and its timestamp; raises OSError on failure."""
 
-    def remove(self) -> None:
-        try:
-            self.path.unlink()
-        except FileNotFoundError:
-            pass
+    def remove(self) -> None: ...
 
 
 class LinkSigning:
     """Signing state of the GCS-facing links (their pymavlink MAVLink objects pack and check the frames)."""
 
-    def __init__(self, mavs: Iterable[Any], key_file: KeyFile | None) -> None:
+    def __init__(self, mavs: Iterable[Any], key_file: KeyStore | None) -> None:
         self._mavs = list(mavs)
         self._file = key_file
         self.key_set = False

@@ -1,7 +1,7 @@
-"""MAVLink endpoints for the shell: framing, decoding with counters, peers, sending.
+"""MAVLink endpoints for the FC's shell and the bridge: framing, decoding with counters, peers, sending.
 
 A link is UDP by default (`UdpLink.open`); `UdpLink.connect` opens any connection string (UDP, TCP, serial:
-navig8_fc.shell.transport), whose stream transports stand in for the UDP socket and hand over whole frames.
+navig8_fc.links.transport), whose stream transports stand in for the UDP socket and hand over whole frames.
 
 Each datagram is split into frames by their own length fields (`codec.split_frames`: MAVLink 1 and 2, signed
 or not), so a truncated or corrupt frame never poisons the next datagram. The sim link decodes with the codec
@@ -24,9 +24,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from navig8_fc.links.signing import redact_frame, redacted_message
+from navig8_fc.links.transport import Connection, PortInUseError, bind_udp, open_endpoint
 from navig8_fc.mavlink.codec import Codec, Message, split_frames
-from navig8_fc.shell.signing import redact_frame, redacted_message
-from navig8_fc.shell.transport import Connection, PortInUseError, bind_udp, open_endpoint
 
 __all__ = ["MAX_DATAGRAM", "LinkCounters", "PortInUseError", "Received", "UdpLink", "bind_udp", "write_ports_file"]
 
@@ -119,7 +119,7 @@ class UdpLink:
 
     @staticmethod
     def connect(name: str, mav: Any, conn: Connection, codec: Codec | None = None) -> UdpLink:
-        """A link over a connection string's transport (navig8_fc.shell.transport: UDP, TCP or serial). A stream
+        """A link over a connection string's transport (navig8_fc.links.transport: UDP, TCP or serial). A stream
         (TCP, serial) has one peer, always the destination; its reads hand over whole frames only."""
         ep = open_endpoint(name, conn)
         if not ep.stream:
