@@ -101,6 +101,9 @@ class EnvelopeSpec:
         for name in ("arm_speed_rad_s_log", "servo_model_error_log", "sensor_noise_scale_log"):
             if getattr(self, name)[0] <= 0.0:
                 raise ValueError(f"envelope {name}: a log-uniform range must be > 0")
+        for name in ("square_half_period_s", "sweep_leg_s", "hold_s"):  # the arm's motion advances by these steps
+            if getattr(self, name)[0] <= 0.0:
+                raise ValueError(f"envelope {name}: the range must be > 0 (a zero step never ends the motion)")
         if set(self.shapes) - set(SHAPES) or not self.shapes:
             raise ValueError(f"envelope shapes: a non-empty subset of {SHAPES}, got {list(self.shapes)}")
         if set(self.patterns) - set(PATTERNS) or not self.patterns:

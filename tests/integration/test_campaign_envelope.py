@@ -65,6 +65,9 @@ def test_a_generated_campaign_refuses_what_the_draw_decides() -> None:
         Campaign.from_dict(ENV | {"envelope": {"mass": [0, 1]}})
     with pytest.raises(ValueError, match="need generator"):
         Campaign.from_dict({"name": "x", "envelope": {}, "variants": {"proposed": {}}})
+    for name in ("square_half_period_s", "sweep_leg_s", "hold_s"):  # a zero step would never end the arm's motion
+        with pytest.raises(ValueError, match=f"{name}: the range must be > 0"):
+            Campaign.from_dict(ENV | {"envelope": {name: [0.0, 0.0]}})
 
 
 def test_the_authority_columns_come_from_bound_from_log_and_are_nan_without_it(monkeypatch) -> None:
