@@ -266,7 +266,7 @@ class ArmPreviewConfig:
     """INDI_ARM_FF = 2's lead time, the FC's joint-servo model (module docstring) and its supervisor
     (`preview_supervise`)."""
 
-    lead_s: float = 0.06  # INDI_ARM_LEAD
+    lead_s: float = 0.03  # INDI_ARM_LEAD (its registry default)
     servo_hz: float = 1000.0  # ARM_SERVO_HZ
     v_max_rad_s: float = 4.0  # ARM_SERVO_VMAX
     a_max_rad_s2: float = 42.0  # ARM_SERVO_AMAX
