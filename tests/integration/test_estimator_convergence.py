@@ -6,10 +6,8 @@ I_true,ii and K_true,4 = m_UAM / m_true from the plant's composite inertia about
 controller's UAM model, clipped to the Eq. 20 box [0.5, 1]. The paper's configuration (one-step increments of the
 measured U, Acc_m at O, the paper's Q) is run on the same data to show that the check can fail.
 
-K2 (pitch) is not checked under the defaults: with the robust controller's CoM reference (INDI_ACC_REF = 1) and
-attitude acceleration reference (OL_ATT_ACC_REF = 1) the pitch estimate stays near 1 (0.7-1.0 against the clipped
-truth 0.5; docs/results.md, "Estimator"), which the estimator's own rework has to fix; each of the two alone off
-halves the bias. K1, K3, K4 converge.
+K2 (pitch) converges since the law takes its moment rows about the estimated composite CoM (CKF_GC_REF = 1; about the
+UAM's CoM it stayed at 0.7-1.0 against the clipped truth 0.5: docs/model.md, "Estimator" item 4). All four converge.
 """
 
 from __future__ import annotations
@@ -44,11 +42,11 @@ def default_run() -> tuple[np.ndarray, np.ndarray]:
     return _k_error({}, EXCITATION_T_S + CONVERGE_WITHIN_S + 1.0)
 
 
-CONVERGING = [0, 2, 3]  # K1, K3, K4 (K2: the module docstring)
+CONVERGING = [0, 1, 2, 3]  # K1..K4
 
 
 def test_implied_k_converges_within_10_s_of_excitation(default_run) -> None:
-    """Defaults: from 10 s after the first doublet on, K1, K3, K4 are within 0.1 of the clipped truth
+    """Defaults: from 10 s after the first doublet on, K1..K4 are within 0.1 of the clipped truth
     (K_true ~ 0.31 / 0.34 / 0.99 / 0.77 -> 0.5 / 0.5 / 0.99 / 0.77), and K1, K4 were not at the start (K = 1)."""
     t, err = default_run
     late = t >= EXCITATION_T_S + CONVERGE_WITHIN_S - 1e-9
@@ -65,16 +63,16 @@ def test_the_paper_configuration_does_not_converge() -> None:
     assert np.any(err[late] > 0.3)
 
 
-def test_k1_k3_k4_converge_in_10_of_10_seeds() -> None:
+def test_every_k_converges_in_10_of_10_seeds() -> None:
     """Seeds 1-10, defaults, the whole 30 s: K1, K3 (the yaw doublets' point) and K4 (the mass gate's,
-    CKF_EXC_LIN) are within 0.1 of the clipped truth from 12 s to the end in every seed (docs/results.md,
-    "Estimator": worst seeds 0.025 / 0.051 / 0.098)."""
+    CKF_EXC_LIN) are within 0.1 of the clipped truth from 12 s to the end in every seed, K2 within 0.15
+    (docs/results.md, "Estimator": worst seeds 0.019 / 0.112 / 0.051 / 0.099; K2 beyond 0.1 in 1 of 10)."""
     worst = np.zeros(4)
     for seed in SEEDS:
         t, err = _k_error({}, IDENT_DURATION_S, seed)
         late = t >= EXCITATION_T_S + CONVERGE_WITHIN_S - 1e-9
         worst = np.maximum(worst, err[late].max(axis=0))
-    assert np.all(worst[CONVERGING] <= TOL_K), worst
+    assert np.all(worst[[0, 2, 3]] <= TOL_K) and worst[1] <= 0.15, worst
 
 
 def test_without_yaw_doublets_k3_wanders(tmp_path: Path) -> None:
