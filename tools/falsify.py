@@ -427,12 +427,21 @@ def dump_yaml(doc: Mapping[str, Any]) -> str:
     return yaml.dump(dict(doc), Dumper=_FlowListDumper, sort_keys=False, width=120)
 
 
-def write_regression(controller: str, fl: Flight, score: float, command: str, params_dir: Path) -> tuple[Path, Path]:
-    """params/scenarios/falsified_<controller>.yaml and params/campaigns/falsified_<controller>.yaml."""
+def _run_line(run: Mapping[str, Any]) -> str:
+    lost = f"lost control at {run['lost_control_t_s']:.2f} s, " if run.get("lost_control") else ""
+    return (f"#   flight seed {run['seed']}: score {run['score']:.2f} ({lost}max attitude error "
+            f"{run['max_att_error_deg']:.2f} deg, max position error {run['max_pos_error_m']:.2f} m)\n")
+
+
+def write_regression(controller: str, fl: Flight, score: float, command: str, params_dir: Path,
+                     runs: Sequence[Mapping[str, Any]] = ()) -> tuple[Path, Path]:
+    """params/scenarios/falsified_<controller>.yaml and params/campaigns/falsified_<controller>.yaml; `runs`: the
+    search's flights of this case (seed, score, metrics), noted in the scenario's header."""
     head = (f"# The worst case navig8-falsify found for the {controller} controller (score {score:.1f}: the mean over\n"
             f"# the search's flight seeds of the max attitude error in deg, or {LOSS_SCORE_DEG:g} + "
             f"{LOSS_BONUS_PER_S:g}/s left when control was lost).\n"
             f"#   {command}\n"
+            + "".join(_run_line(r) for r in runs if r.get("status") == "ok") +
             f"# Level-trim use of the propellers' speed limits while holding: {fl.trim_utilisation:.3f}. Its\n"
             f"# `world:` is the plant's and the FC model's side; the FC's servo model (ARM_SERVO_VMAX/AMAX) is in\n"
             f"# the campaign params/campaigns/falsified_{controller}.yaml (docs/results.md, \"Worst cases found by\n"
@@ -474,13 +483,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--params-dir", default=None, help="where params/scenarios and params/campaigns are "
                     "(default: the package's params/)")
     ap.add_argument("--no-write", action="store_true", help="write the trace only, no regression files")
+    ap.add_argument("--write-from", default=None, metavar="TRACE",
+                    help="no search: write the regression files of a trace.json's best (the worse of two searches)")
     args = ap.parse_args(argv)
     if args.evals < 1 or args.popsize < 2:
         ap.error("--evals >= 1 and --popsize >= 2")
+    spec = FalsifySpec()
+    if args.write_from:
+        doc = json.loads(Path(args.write_from).read_text())
+        best = doc["best"]
+        fl = flight(best["x"], spec)
+        for p in write_regression(doc["controller"], fl, best["score"], doc["command"], _params_dir(args.params_dir),
+                                  best["runs"]):
+            print(f"wrote {p}", file=sys.stderr)
+        return 0
 
     from navig8_tools.campaign import worker_pool
 
-    spec = FalsifySpec()
     out = Path(args.out or f"out/falsify/{args.controller}")
     out.mkdir(parents=True, exist_ok=True)
     command = " ".join(["navig8-falsify", *(argv if argv is not None else sys.argv[1:])])
@@ -512,15 +531,19 @@ def main(argv: list[str] | None = None) -> int:
     print(f"trace: {out / 'trace.json'} ({len(trace.evaluations)} evaluations, {ev.flown} flights, {wall:.0f} s)",
           file=sys.stderr)
     if not args.no_write:
-        if args.params_dir:
-            params_dir = Path(args.params_dir)
-        else:
-            from importlib.resources import files
-
-            params_dir = Path(str(files("navig8_params")))
-        for p in write_regression(args.controller, fl, best.score, command, params_dir):
+        for p in write_regression(args.controller, fl, best.score, command, _params_dir(args.params_dir),
+                                  ev.records[i_best]["runs"]):
             print(f"wrote {p}", file=sys.stderr)
     return 0
+
+
+def _params_dir(given: str | None) -> Path:
+    """Where params/scenarios and params/campaigns are: the given directory, else the package's params/."""
+    if given:
+        return Path(given)
+    from importlib.resources import files
+
+    return Path(str(files("navig8_params")))
 
 
 if __name__ == "__main__":
