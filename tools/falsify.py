@@ -493,8 +493,8 @@ def main(argv: list[str] | None = None) -> int:
         doc = json.loads(Path(args.write_from).read_text())
         best = doc["best"]
         fl = flight(best["x"], spec)
-        for p in write_regression(doc["controller"], fl, best["score"], doc["command"], _params_dir(args.params_dir),
-                                  best["runs"]):
+        for p in write_regression(doc["controller"], fl, best["score"], search_command(doc["command"].split()),
+                                  _params_dir(args.params_dir), best["runs"]):
             print(f"wrote {p}", file=sys.stderr)
         return 0
 
@@ -502,7 +502,7 @@ def main(argv: list[str] | None = None) -> int:
 
     out = Path(args.out or f"out/falsify/{args.controller}")
     out.mkdir(parents=True, exist_ok=True)
-    command = " ".join(["navig8-falsify", *(argv if argv is not None else sys.argv[1:])])
+    command = search_command(["navig8-falsify", *(argv if argv is not None else sys.argv[1:])])
     t0 = time.perf_counter()
     with worker_pool(args.workers, "inprocess") as pool:
         ev = PoolEvaluator(pool, args.controller, args.flight_seeds, spec)
@@ -535,6 +535,23 @@ def main(argv: list[str] | None = None) -> int:
                                   ev.records[i_best]["runs"]):
             print(f"wrote {p}", file=sys.stderr)
     return 0
+
+
+def search_command(tokens: Sequence[str]) -> str:
+    """The command line that reproduces a search, without where it wrote (--out, --params-dir: the same search
+    written elsewhere) and without --write-from: what a regression file's header names."""
+    out, skip = [], False
+    for tok in tokens:
+        if skip:
+            skip = False
+            continue
+        if tok in ("--out", "--params-dir", "--write-from"):
+            skip = True
+            continue
+        if tok.startswith(("--out=", "--params-dir=", "--write-from=")):
+            continue
+        out.append(tok)
+    return " ".join(out)
 
 
 def _params_dir(given: str | None) -> Path:

@@ -21,6 +21,7 @@ from navig8_tools.falsify import (
     flight,
     flight_score,
     maximise,
+    search_command,
     write_regression,
 )
 from sim_bridge.world import load_world
@@ -140,3 +141,9 @@ def test_the_regression_files_load_as_a_scenario_and_a_campaign(tmp_path):
     for v in c.variants:
         assert dict(v.params)["ARM_SERVO_VMAX"] == fl.fc_params["ARM_SERVO_VMAX"]
     assert dict(c.variants[1].params)["CKF_K_PIN4"] == 1.0
+
+
+def test_the_recorded_command_leaves_out_where_the_search_wrote():
+    cmd = ["navig8-falsify", "--controller", "pinned", "--evals", "120", "--out", "out/x", "--params-dir=/tmp/p",
+           "--seed", "1"]
+    assert search_command(cmd) == "navig8-falsify --controller pinned --evals 120 --seed 1"
