@@ -90,6 +90,10 @@ class PlantParams:
     joint_lag_s: float = 0.0
     joint_stall_index: int = -1
     joint_stall_t_s: float = 0.0
+    # duct fault (none by default): the thrust of duct 1 (right) and duct 3 (left), and the drag torque that comes
+    # with it, times duct_efficiency[i] from duct_fault_t_s on (a damaged rotor, a partly blocked duct, a weak motor)
+    duct_efficiency: tuple[float, float] = (1.0, 1.0)
+    duct_fault_t_s: float = 0.0
 
     def __post_init__(self) -> None:
         h_us = 1e6 / self.physics_rate_hz
@@ -102,6 +106,15 @@ class PlantParams:
             raise ValueError("joint servo limits must be > 0")
         if not (self.joint_lag_s >= 0.0 and self.joint_stall_index in (-1, 0, 1, 2) and self.joint_stall_t_s >= 0.0):
             raise ValueError("joint servo faults: lag_s >= 0, stall_joint in -1..2, stall_t_s >= 0")
+        if not (len(self.duct_efficiency) == 2 and all(0.0 < e <= 1.0 for e in self.duct_efficiency)
+                and math.isfinite(self.duct_fault_t_s) and self.duct_fault_t_s >= 0.0):
+            raise ValueError(f"duct fault: two efficiencies in (0, 1] and duct_fault_t_s >= 0, got "
+                             f"{list(self.duct_efficiency)}, {self.duct_fault_t_s}")
+
+    @property
+    def duct_faulted(self) -> bool:
+        """A duct loses efficiency at some time in the run."""
+        return any(e != 1.0 for e in self.duct_efficiency)
 
     @property
     def physics_step_us(self) -> int:
@@ -130,6 +143,8 @@ class PlantParams:
             joint_lag_s=float(servo.get("lag_s", 0.0)),
             joint_stall_index=int(servo.get("stall_joint", -1)),
             joint_stall_t_s=float(servo.get("stall_t_s", 0.0)),
+            duct_efficiency=tuple(float(e) for e in act.get("duct_efficiency", (1.0, 1.0))),  # type: ignore[arg-type]
+            duct_fault_t_s=float(act.get("duct_fault_t_s", 0.0)),
             sensors=SensorParams(**{k: float(v) for k, v in sens.items()}),
             ground=GroundParams(
                 contact_points_frd_m=tuple(

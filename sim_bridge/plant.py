@@ -23,7 +23,8 @@ Public API (used in process by the flight-controller runner and, later, behind M
   has elapsed, otherwise it repeats its last sample; `SensorBundle.updated` says which groups are
   fresh. Every call draws the same number of normals from the rng, so a seed fixes the run bit for bit.
 - `truth()`: the frozen ground truth (see messages.Truth).
-- `trim_command()`: vehicle.hover_trim for the current arm pose and object mass (level body).
+- `trim_command()`: vehicle.hover_trim for the current arm pose and object mass (level body), of the ducts as
+  they are now (a duct fault, `actuators.duct_efficiency` in plant.yaml, included once it has struck).
 - `command_gripper(close, object_mass_kg)`: grasp/release now (the bridge's NAVIG8_ARM_CMD gripper).
 
 Model (notes §1-3, docs/plant.md): floating base with prescribed joint motion solved by the composite
@@ -105,12 +106,24 @@ def _actuator_discretisation(dyn: ActuatorDynamics, tau_s: float) -> tuple[np.nd
     return e[:2, :2], e[:2, 2]
 
 
-def build_param_vector(vehicle: VehicleConfig, params: PlantParams) -> np.ndarray:
-    """The kernel's parameter vector (_kernels.P layout)."""
+def duct_input_scale(efficiency: tuple[float, float]) -> np.ndarray:
+    """Per U component, the factor a duct fault puts on its force and moment: U1, U2 are duct 1's (right), U3, U4
+    duct 3's (left), U5 the tail's. Thrust K_T w^2 and drag torque K_Q w^2 scale alike (the lost thrust takes its
+    drag with it: a weaker rotor, not a draggier one), so the duct's whole column of G_C does."""
+    e1, e3 = float(efficiency[0]), float(efficiency[1])
+    return np.array([e1, e1, e3, e3, 1.0])
+
+
+def build_param_vector(vehicle: VehicleConfig, params: PlantParams,
+                       efficiency: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
+    """The kernel's parameter vector (_kernels.P layout); `efficiency`: the ducts' thrust factors (a fault)."""
     h = 1.0 / params.physics_rate_hz
     # Per-input force and moment about O from the FC's own propulsion model (notes §2.1-2.2), so the
-    # plant and vehicle.hover_trim / G_C agree exactly; the kernel only multiplies by U.
+    # plant and vehicle.hover_trim / G_C agree exactly; the kernel only multiplies by U. A duct fault scales its
+    # columns here, the one place the plant's propulsion is built (the FC's model keeps the nominal ducts).
     f, mom = propulsion_per_input(vehicle)
+    scale = duct_input_scale(efficiency)
+    f, mom = f * scale, mom * scale
     dyns = (params.tilt_dynamics, params.tilt_dynamics, params.speed_dynamics, params.speed_dynamics,
             params.speed_dynamics)
     disc = {tau: [_actuator_discretisation(dyn, tau) for dyn in dyns] for tau in (h, 0.5 * h)}
@@ -141,9 +154,15 @@ def actuator_limits(vehicle: VehicleConfig) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def trim_actuators(vehicle: VehicleConfig, q_rad: np.ndarray, object_mass_kg: float) -> np.ndarray:
-    """(alpha1, alpha3, w1, w2, w3) of the level hover trim (vehicle.hover_trim)."""
-    a1, a3, w1, w2, w3 = u_to_actuators(hover_trim(vehicle, np.asarray(q_rad, dtype=float), object_mass_kg))
+def trim_actuators(vehicle: VehicleConfig, q_rad: np.ndarray, object_mass_kg: float,
+                   efficiency: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
+    """(alpha1, alpha3, w1, w2, w3) of the level hover trim (vehicle.hover_trim), of ducts with these efficiencies.
+
+    A fault scales the duct's columns of G_C, so G_C diag(s) U' = target has U' = U / s: the faulty duct's U
+    components are the nominal trim's over its efficiency (its speed / sqrt(e), its tilt the same), the other
+    actuators the nominal trim's."""
+    u = hover_trim(vehicle, np.asarray(q_rad, dtype=float), object_mass_kg) / duct_input_scale(efficiency)
+    a1, a3, w1, w2, w3 = u_to_actuators(u)
     return np.array([a1, a3, w1, w2, w3])
 
 
@@ -167,6 +186,14 @@ class Plant:
         self._rng = rng
         self._base_mode = BASE_MODES[base_mode]
         self._p = build_param_vector(vehicle, params)
+        # a duct fault: the faulty propulsion from the first physics step at or after its time (from the start, and
+        # trimmed for, at t = 0: the vehicle was already flying with it)
+        self._fault_us: int | None = None
+        self._p_fault = self._p
+        self._efficiency = (1.0, 1.0)
+        if params.duct_faulted:
+            self._p_fault = build_param_vector(vehicle, params, params.duct_efficiency)
+            self._fault_us = -(-round(params.duct_fault_t_s * 1e6) // params.physics_step_us) * params.physics_step_us
         self._h_us = params.physics_step_us
         self._sched = scenario.arm_schedule()
         self._sched[:, :2] += round(params.joint_lag_s * 1e6)  # a lagging servo: every target reached late
@@ -199,6 +226,7 @@ class Plant:
         self._noise = np.empty(K.N_NOISE)  # the draws of one sample (refilled in place)
         self._meas = np.zeros(K.N_S)  # last sample of every sensor group (kernel-owned, writable)
         self._t_us = 0
+        self._apply_due_fault()
         self._init_state(scenario)
 
     # ---- initial state ----------------------------------------------------------------------
@@ -221,7 +249,8 @@ class Plant:
         if ini.on_ground:
             self._place_on_ground()
         if ini.actuators == "trim":
-            act = np.clip(trim_actuators(self.vehicle, q0, x[K.X.MOBJ]), self._act_lo, self._act_hi)
+            act = np.clip(trim_actuators(self.vehicle, q0, x[K.X.MOBJ], self._efficiency), self._act_lo,
+                          self._act_hi)
         else:
             act = np.zeros(5)
         x[K.X.ACT.sl] = act
@@ -318,14 +347,27 @@ class Plant:
             pending = self._ev_i < len(events)
             if pending and events[self._ev_i][0] < t_stop:
                 t_stop = events[self._ev_i][0]
+            fault = self._fault_us is not None and self._fault_us <= t_stop
+            if fault:
+                t_stop = self._fault_us  # type: ignore[assignment]
             n = (t_stop - self._t_us) // h_us
             if K.advance(
                 self._x, self._p, self._cmd, self._sched, n, self._t_us, self._base_mode, self._d, self._work
             ):
                 raise PlantDivergedError(f"non-finite plant state in ({self._t_us}, {t_stop}] us")
             self._t_us = t_stop
-            if pending and self._apply_due_events():
+            changed = pending and self._apply_due_events()
+            if (fault and self._apply_due_fault()) or changed:
                 K.evaluate(self._x, self._p, self._base_mode, self._d, self._work)
+
+    def _apply_due_fault(self) -> bool:
+        """Switch to the faulty propulsion when its time has come (once)."""
+        if self._fault_us is None or self._fault_us > self._t_us:
+            return False
+        self._p = self._p_fault
+        self._efficiency = self.params.duct_efficiency
+        self._fault_us = None
+        return True
 
     def _apply_due_events(self) -> bool:
         applied = False
@@ -419,9 +461,10 @@ class Plant:
                      cmd_nonfinite_count=self._nonfinite, cmd_clamped_count=self._clamped)
 
     def trim_command(self) -> ActuatorCommand:
-        """Level hover trim for the current arm pose and object (vehicle.hover_trim), clamped to limits."""
+        """Level hover trim for the current arm pose and object (vehicle.hover_trim) of the ducts as they are now (a
+        duct fault once it has struck), clamped to limits."""
         act = np.clip(
-            trim_actuators(self.vehicle, self._x[K.X.Q.sl], float(self._x[K.X.MOBJ])),
+            trim_actuators(self.vehicle, self._x[K.X.Q.sl], float(self._x[K.X.MOBJ]), self._efficiency),
             self._act_lo,
             self._act_hi,
         )
