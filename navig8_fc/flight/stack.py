@@ -47,6 +47,7 @@ from navig8_fc.core.controller import (
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.flight.battery import BatteryState, battery_initial, battery_step
 from navig8_fc.flight.script import FlightScript
 from navig8_fc.flight.state import (
     SEVERITY_CRITICAL,
@@ -59,7 +60,6 @@ from navig8_fc.flight.state import (
     StepResult,
     VehicleState,
 )
-from navig8_fc.gcs.battery import BatteryState, battery_initial, battery_step
 from navig8_fc.mission.fence import Fence
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan

@@ -8,7 +8,7 @@ from typing import Literal, NamedTuple, Protocol
 
 from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FcSensors
 from navig8_fc.core.outer_loop import Setpoint
-from navig8_fc.gcs.battery import BatteryState
+from navig8_fc.flight.battery import BatteryState
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan, Progress
 from navig8_fc.modes.manager import OffboardTarget, TaskStatus, Verdict

@@ -2,7 +2,7 @@
 
 MAVFTP (FILE_TRANSFER_PROTOCOL) is navig8_fc.gcs.ftp (read-only: the component metadata).
 
-The mission protocol has its own module (navig8_fc.mission.protocol).
+The mission protocol has its own module (navig8_fc.gcs.mission_protocol).
 
 TIMESYNC: a request (tc1 == 0) is answered with tc1 = now_s in ns and ts1 echoed (TIMESYNC v2: addressed
 to the requester when the dialect has the target fields). The shell chooses the clock: navig8-fc passes the

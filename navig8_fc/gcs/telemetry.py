@@ -12,7 +12,7 @@ Streams (mavlink_notes §2.7; QGC does not request streams from a generic vehicl
 | LOCAL_POSITION_NED (32)       | 10 Hz   | |
 | GLOBAL_POSITION_INT (33)      | 10 Hz   | flat earth from the configured origin |
 | VFR_HUD (74)                  | 4 Hz    | |
-| BATTERY_STATUS (147)          | 1 Hz    | simulated pack (navig8_fc.gcs.battery) |
+| BATTERY_STATUS (147)          | 1 Hz    | simulated pack (navig8_fc.flight.battery) |
 | AUTOPILOT_VERSION (148)       | off     | on request; may be streamed |
 | NAMED_VALUE_FLOAT (251)       | 5 Hz    | stability telemetry: one message per name per tick |
 | HOME_POSITION (242)           | 0.5 Hz  | also on request; nothing before a home exists |
@@ -65,7 +65,7 @@ import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
 from navig8_fc.core.rotation import quat_to_euler
-from navig8_fc.gcs.battery import BatteryState, battery_initial
+from navig8_fc.flight.battery import BatteryState, battery_initial
 from navig8_fc.gcs.params import PARAM_ENCODING_CAPABILITY
 from navig8_fc.mission.geo import EARTH_RADIUS_M, GeoOrigin  # noqa: F401 - GeoOrigin is part of this API
 

@@ -1,6 +1,6 @@
 """Mission persistence: the plans in force (MISSION and FENCE) of one vehicle instance, one JSON file written
 atomically the way the parameters are (navig8_fc.params.store.write_atomic). The only mission code that touches
-files; the protocol (navig8_fc.mission.protocol) calls `save` after every accepted upload, clear or change of the
+files; the protocol (navig8_fc.gcs.mission_protocol) calls `save` after every accepted upload, clear or change of the
 start item, and the process shell calls `load` at startup (`<state_dir>/fc_mission_<N>.json`).
 
 File format (version 1); NaN parameters (yaw "keep") are stored as null::

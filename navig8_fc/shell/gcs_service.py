@@ -54,6 +54,7 @@ from navig8_fc.gcs.commands import CommandHandler
 from navig8_fc.gcs.ftp import FtpServer, FtpService
 from navig8_fc.gcs.metadata import build_metadata, component_metadata_message
 from navig8_fc.gcs.misc import MiscProtocols
+from navig8_fc.gcs.mission_protocol import MissionProtocol
 from navig8_fc.gcs.params import ParamProtocol, StoredLoad
 from navig8_fc.gcs.statustext import StatusTextEncoder
 from navig8_fc.gcs.telemetry import (
@@ -65,7 +66,6 @@ from navig8_fc.gcs.telemetry import (
 )
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import MissionType
-from navig8_fc.mission.protocol import MissionProtocol
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.modes.manager import TaskStatus
 from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of

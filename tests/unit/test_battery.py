@@ -9,7 +9,7 @@ from dataclasses import fields
 
 import pytest
 
-from navig8_fc.gcs.battery import (
+from navig8_fc.flight.battery import (
     _CELL_OCV_V,
     _SOC_POINTS,
     BatteryConfig,

@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from navig8_fc.gcs.battery import BatteryConfig, battery_initial, battery_step, open_circuit_voltage
+from navig8_fc.flight.battery import BatteryConfig, battery_initial, battery_step, open_circuit_voltage
 from navig8_fc.gcs.telemetry import (
     CAPABILITIES,
     DEFAULT_RATES_HZ,

@@ -8,7 +8,8 @@
   codec and seam, and reaches (through everything it imports) no shell, GCS, flight, modes, mission or params
   module, nor sim_bridge or the tools;
 - sim_bridge reaches no module of the FC's shell, directly or through anything it imports (it shares the links
-  with the FC instead: docs/architecture.md)."""
+  with the FC instead: docs/architecture.md);
+- mission < modes < flight < gcs: each imports only the folders before it (no folder-level loops)."""
 
 from __future__ import annotations
 
@@ -136,6 +137,22 @@ def test_stack_modes_gcs_and_gcs_service_import_no_shell_module() -> None:
     problems = {_rel(p): bad for p in files
                 if (bad := [m for m in _imported(p) if m.startswith("navig8_fc.shell")])}
     assert not problems, f"a pure piece (or GcsService) imports the shell: {problems}"
+
+
+# The deciding and serving folders, lowest first: each may import the ones before it, never one after it, so no two
+# of them import each other (the GCS adapts MAVLink to the flight stack's records; the flight stack knows no MAVLink
+# service; missions are plans the modes and the stack fly). docs/architecture.md.
+FOLDER_ORDER = ("mission", "modes", "flight", "gcs")
+
+
+def test_the_deciding_folders_import_only_downwards() -> None:
+    problems = {}
+    for i, lower in enumerate(FOLDER_ORDER):
+        above = tuple(f"navig8_fc.{name}" for name in FOLDER_ORDER[i + 1:])
+        for p in _modules(FC / lower):
+            if bad := sorted({m for m in _imported(p, names=False) if _under(m, above)}):
+                problems[_rel(p)] = bad
+    assert not problems, f"an import runs upwards ({' < '.join(FOLDER_ORDER)}): {problems}"
 
 
 def test_navig8_fc_imports_nothing_from_sim_bridge() -> None:
