@@ -333,7 +333,10 @@ class FlightControllerCore:
             am = acc_m.tolist()  # INDI's already are with INDI_ACC_REF = 1)
             dx, dz = _k.com_accel_offset(*s.gyro_frd, am[1], ul[_UO_CEX], ul[_UO_CEZ])
             acc_law = np.array((am[0], am[1], am[2], am[3] + dx, am[4] + dz))
-        if cfg.ckf.gc_at_com:  # CKF_GC_REF: the law's moment rows about the estimated composite CoM
+        if cfg.ckf.gc_at_com and s.gripper_closed:  # CKF_GC_REF: the law's moment rows about the estimated CoM
+            # (an object at the gripper only while it reports closed: with it open, a mass estimate above m_UAM is
+            # not an object there, and a CoM moved toward the tip on it made the estimate, and the flight, wander:
+            # a cancelled reposition in SITL overshot by 1.8 m in half the runs)
             if m_obj_est > 0.0:
                 # and its moment rows: the body turns about the composite CoM, so G_C's moments are taken about it
                 # (M_c = M_O - c x F). About the UAM's CoM, a force increment (the ducts tilting to hold position
