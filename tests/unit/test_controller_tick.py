@@ -69,7 +69,7 @@ class _ReferenceTick:
             acc_m[3] += dx
             acc_m[4] += dz
         gc_law_inv = gc_inv
-        if cfg.ckf.gc_at_com and s.gripper_closed and m_obj_est > 0.0:  # the law's G_C about the estimated composite CoM
+        if cfg.ckf.gc_at_com and s.gripper_closed and m_obj_est > 0.0:  # the law's G_C about the estimated CoM
             gc_law_inv = np.empty((5, 5))
             assert _k.gc_inv_about(m.force_per_input, m.moment_o_per_input, uo[_k.UO.CEX], uo[_k.UO.CEZ],
                                    np.empty((5, 5)), gc_law_inv)
