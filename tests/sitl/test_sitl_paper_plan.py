@@ -59,13 +59,15 @@ def test_paper_plan_flown_by_navig8_mission_meets_the_paper_criteria(tmp_path: P
     before, before_ref = pos_rms_until(run.log, YAW_STEP_S), pos_rms_until(tmp_path / "ref.mcap", YAW_STEP_S)
     assert before == pytest.approx(before_ref, rel=0.1), (before, before_ref)
     # Settling: the first four steps within 0.3 s of the scripted run's. The yaw step's window runs to the end of
-    # the log (32 s here, 30 s there): with the arm resting in Pose 2 the yaw error crosses 5 deg again at ~30.3 s,
-    # after the scripted run's end, so its settle time is later here by construction; it must settle all the same.
+    # the log (32 s here, 30 s there): where the yaw error crosses 5 deg again after 30 s (with the arm resting in
+    # Pose 2 it did at ~30.3 s before the estimator's moment rows referred to the estimated CoM), its settle time is
+    # later here by construction; where it does not, it is the same step's, within the same 0.3 s (measured 2.82
+    # against 2.98 s). It must settle all the same.
     # (0.3 s: with the windowed estimator the estimate, and with it the loop's gain, follows the commands' timing;
     # a 0.02-0.04 s later plan start moved the pitch step's settling by 0.21 s in one run.)
     for a, b in zip(s["settle"][:4], ref["settle"][:4], strict=True):
         assert a["axis"] == b["axis"] and a["settle_s"] == pytest.approx(b["settle_s"], abs=0.3), (a, b)
-    assert s["settle"][4]["axis"] == "yaw" and s["settle"][4]["settle_s"] >= ref["settle"][4]["settle_s"] - 0.15
+    assert s["settle"][4]["axis"] == "yaw" and s["settle"][4]["settle_s"] >= ref["settle"][4]["settle_s"] - 0.3
 
 
 YAW_STEP_S = 25.0  # the paper scenario's last step (Eq. 25)
