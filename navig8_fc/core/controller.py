@@ -280,6 +280,15 @@ class FlightControllerCore:
         for f in (PS.TRUST, PS.MOVING, PS.BAD_MOVE, PS.REST_TICKS, PS.QD_OK):
             sup[f] = 0.0
 
+    @property
+    def reference_accel_ned(self) -> tuple[float, float, float]:
+        """The command shaper's position-reference acceleration (m/s^2, NED), which a mode change keeps; zero when
+        the position is not shaped or the reference is not running."""
+        st = self._shape_st
+        if st[SH.INIT] == 0.0 or not self.config.outer.jerk_max_m_s3 > 0.0:
+            return (0.0, 0.0, 0.0)
+        return (float(st[SH.ACC]), float(st[SH.ACC + 1]), float(st[SH.ACC + 2]))
+
     def resync_reference(self) -> None:
         """Mode changes: the command shaper's position reference continues from the measured position and velocity
         at the next tick (never a reference left over from the last mode), its acceleration and pitch/yaw

@@ -44,7 +44,7 @@ from navig8_fc.core.controller import (
     FcSensors,
     FlightControllerCore,
 )
-from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.core.outer_loop import JERK_K_PER_VEL_K, OuterLoopConfig, Setpoint
 from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.battery import BatteryState, battery_initial, battery_step
@@ -129,7 +129,7 @@ class FlightStack:
                           if script is not None and script.arm_plan else None)
         self.reconfigure()
         self._modes = ModeManager(mode_config or ModeConfig(), script.mission() if script is not None else None)
-        self._modes.set_position_gain(self.core.config.outer.pos_k)
+        self._set_mode_limits(self.core.config.outer)
         self._weight_n = vehicle.uam_mass_kg * vehicle.gravity_m_s2
         self._n_steps = 0
         self._last_time_us: int | None = None
@@ -165,6 +165,16 @@ class FlightStack:
         assert self._core is not None
         return self._core
 
+    def _set_mode_limits(self, outer: OuterLoopConfig) -> None:
+        """What the mode manager needs of the outer loop: the position gain (offboard velocity feed-forward) and the
+        limits the position reference brakes with (where Hold stops)."""
+        self._modes.set_position_gain(outer.pos_k)
+        if outer.jerk_max_m_s3 > 0.0:  # the shaped reference brakes at OL_ACC_REF with its jerk limit, its jerk
+            # stage answering 1 / K_j late
+            self._modes.set_braking(outer.ref_acc_max_m_s2, outer.jerk_max_m_s3, 1.0 / (JERK_K_PER_VEL_K * outer.vel_k))
+        else:  # the setpoint goes to the loop as it is: the loop's own acceleration limit
+            self._modes.set_braking(outer.acc_max_m_s2, math.inf)
+
     def reconfigure(self) -> bool:
         """Apply the registry's parameters if they changed since the last call (each step calls it); True when
         something was applied."""
@@ -181,8 +191,8 @@ class FlightStack:
                 self._ff_announced.update(arm_drops=0, arm_idents=0)
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
-        if hasattr(self, "_modes"):  # offboard velocity feed-forward goes through the position gain
-            self._modes.set_position_gain(cfg.outer.pos_k)
+        if hasattr(self, "_modes"):
+            self._set_mode_limits(cfg.outer)
         self._cfg_generation = reg.generation
         # The step's failsafe limits, read once per registry change (a lookup per step would cost ~1 us each).
         self._fs_limits = (float(reg["FS_BAT_LOW_PCT"]), float(reg["FS_BAT_CRIT_PCT"]), float(reg["FENCE_RADIUS"]),
@@ -212,7 +222,7 @@ class FlightStack:
         was_armed = modes.armed
         out = modes.step(ModeInputs(sensors.t_s, sensors.pos_ned, sensors.vel_ned, quat_to_euler(sensors.quat_wxyz)[2],
                                     (t1 + t2 + t3) / self._weight_n, imu_fresh,
-                                    self._n_steps * core.config.dt_s >= ESTIMATOR_WARMUP_S))
+                                    self._n_steps * core.config.dt_s >= ESTIMATOR_WARMUP_S, core.reference_accel_ned))
         if out.armed and not was_armed:
             core.reset()  # the estimator's start delay counts from arming
         elif self._mode_out is not None and out.entries != self._mode_out.entries:

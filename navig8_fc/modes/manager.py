@@ -10,7 +10,10 @@ Modes (PX4 encoding, navig8_fc.modes.px4; docs/gcs.md):
 - READY (AUTO.READY): on the ground, armed or not; controller idle (motors off in the model).
 - TAKEOFF (AUTO.TAKEOFF): the altitude setpoint ramps from where the vehicle is at `takeoff_climb_rate_m_s`
   to home + alt; done when the ramp has arrived and the vehicle is within `takeoff_reached_tol_m` -> HOLD.
-- HOLD (AUTO.LOITER, MAVSDK "Hold"): position hold where the mode was entered (or at the takeoff target).
+- HOLD (AUTO.LOITER, MAVSDK "Hold"): position hold where the vehicle comes to rest when the mode is entered (its
+  horizontal stopping point at the position reference's braking limits, as PX4's Loiter `calculate_breaking_stop`
+  and ArduPilot's `get_stopping_point_xy`), or at the takeoff target. Holding the entry point itself would fly
+  past it and back (docs/gcs.md "Hold").
   Entered on the ground it stays idle (PX4 behaves the same: Hold does not take off).
 - LAND (AUTO.LAND): descend at `land_descent_rate_m_s` where the mode was entered; on touchdown (land
   detector) the controller goes idle and the vehicle disarms `land_disarm_delay_s` later -> READY.
@@ -188,6 +191,9 @@ class ModeInputs:
     thrust_ratio: float = math.nan  # total thrust / weight (commanded or measured); NaN = unknown
     sensors_ok: bool = True  # every sensor the controller needs is alive and fresh
     estimator_ready: bool = True  # the adaptive law / estimator has a usable estimate
+    # the acceleration the vehicle is being driven with (the command shaper's reference, NED, m/s^2): where Hold
+    # stops depends on it (a vehicle still speeding up stops further on)
+    accel_ned: Vec3 = (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -254,6 +260,39 @@ class LandDetector:
         return self.landed
 
 
+def braking_distance_m(v_m_s: float, a_m_s2: float, acc_max_m_s2: float, jerk_max_m_s3: float,
+                       lag_s: float = 0.0) -> float:
+    """The distance a 1-D motion at speed v > 0 and acceleration a (along v) flies before it rests, braking at most at
+    acc_max with the acceleration changing at most at jerk_max (inf: at once), after reacting lag_s late (the
+    command shaper's jerk stage). The braking is time-optimal: the acceleration ramps from a to -a_p, holds -a_p
+    while the speed needs it, and ramps back to zero as the speed reaches zero, with a_p = min(acc_max,
+    sqrt(j v + a^2 / 2)) (the peak at which the two ramps alone take the speed to zero). With a = 0 and no lag it
+    is v^2 / (2 A) + v A / (2 j) once the speed reaches the plateau (PX4's computeBrakingDistanceFromVelocity has
+    the same two terms)."""
+    big_a, j = acc_max_m_s2, jerk_max_m_s3
+    if not math.isfinite(big_a):
+        return 0.0
+    s = v_m_s * lag_s + 0.5 * a_m_s2 * lag_s * lag_s  # the reaction
+    v = v_m_s + a_m_s2 * lag_s
+    if v <= 0.0:
+        return max(0.0, s)
+    if not math.isfinite(j):
+        return max(0.0, s + v * v / (2.0 * big_a))
+    a0 = max(a_m_s2, -big_a)
+    a_p = min(big_a, math.sqrt(j * v + 0.5 * a0 * a0))
+    a = a0
+    if a_p < -a0:  # already braking harder than needed: only the ramp out
+        t = -a0 / j
+        return max(0.0, s + v * t + 0.5 * a * t * t + j * t ** 3 / 6.0)
+    for jerk, t in ((-j, (a0 + a_p) / j), (0.0, math.nan), (j, a_p / j)):
+        if jerk == 0.0:  # the plateau: until the speed the ramp out removes is what is left
+            t = max(0.0, (v - a_p * a_p / (2.0 * j)) / a_p) if a_p > 0.0 else 0.0
+        s += v * t + 0.5 * a * t * t + jerk * t ** 3 / 6.0
+        v += a * t + 0.5 * jerk * t * t
+        a += jerk * t
+    return max(0.0, s)
+
+
 class ModeManager:
     """Arming, modes and setpoints (module docstring). Not thread-safe: one owner calls everything."""
 
@@ -295,6 +334,9 @@ class ModeManager:
         self._rtl: MissionExecutor | None = None  # Return mode flies a one-item plan (NAV_RETURN_TO_LAUNCH)
         self._offboard: OffboardTarget | None = None  # the last streamed target while it is fresh (None: lost)
         self._pos_gain_1_s = 1.0  # the outer loop's OL_POS_K: velocity feed-forward as a position offset v / K_p
+        self._brake_acc_m_s2 = math.inf  # the position reference's braking limits (set_braking; inf: stops at once)
+        self._brake_jerk_m_s3 = math.inf
+        self._brake_lag_s = 0.0
         self._reposition: tuple[Vec3, float] | None = None  # DO_REPOSITION target for Hold's entry
         self._sticks: tuple[float, float, float, float] = (0.0, 0.0, 0.5, 0.0)  # x fwd, y right, z 0..1, r
         # The long-running flight command in progress (takeoff, land, return, reposition) and its geometry.
@@ -732,6 +774,8 @@ class ModeManager:
         mode = self._mode
         if mode is FlightMode.HOLD:
             self._hold_on_ground = self._detector.landed
+            if not self._hold_on_ground:
+                x, y = self._stopping_point(x, y, inp.vel_ned, inp.accel_ned)
             self._sp = Setpoint((x, y, z), self._current_pitch(), inp.yaw_rad)
             if self._reposition is not None:
                 self._apply_reposition()
@@ -896,6 +940,27 @@ class ModeManager:
     def set_position_gain(self, pos_k_1_s: float) -> None:
         """The outer loop's position gain OL_POS_K (1/s): offboard velocity feed-forward is the offset v / K_p."""
         self._pos_gain_1_s = float(pos_k_1_s)
+
+    def set_braking(self, acc_m_s2: float, jerk_m_s3: float, lag_s: float = 0.0) -> None:
+        """The limits the position reference brakes with (OL_ACC_REF and OL_JERK_MAX when shaping, with its jerk
+        stage's lag; else OL_ACC_MAX, no jerk limit (inf), no lag): Hold's entry point is where they bring the
+        vehicle to rest."""
+        if not (acc_m_s2 > 0.0 and jerk_m_s3 > 0.0 and lag_s >= 0.0):
+            raise ValueError(f"braking limits must be positive (inf = none), got {acc_m_s2}, {jerk_m_s3}, {lag_s}")
+        self._brake_acc_m_s2, self._brake_jerk_m_s3, self._brake_lag_s = float(acc_m_s2), float(jerk_m_s3), float(lag_s)
+
+    def _stopping_point(self, x: float, y: float, vel_ned: Vec3, accel_ned: Vec3) -> tuple[float, float]:
+        """Where the horizontal motion comes to rest under the position reference's braking limits
+        (braking_distance_m); holding any nearer point flies past it and back."""
+        vx, vy = vel_ned[0], vel_ned[1]
+        v = math.hypot(vx, vy)
+        if not v > 0.0:  # also NaN
+            return x, y
+        ux, uy = vx / v, vy / v
+        a_along = accel_ned[0] * ux + accel_ned[1] * uy
+        d = braking_distance_m(v, a_along if math.isfinite(a_along) else 0.0, self._brake_acc_m_s2,
+                               self._brake_jerk_m_s3, self._brake_lag_s)
+        return x + ux * d, y + uy * d
 
     def _run_offboard(self, inp: ModeInputs, dt: float) -> Setpoint:
         """The streamed target -> this step's setpoint (OffboardTarget's docstring). The reference (self._ob_ref)

@@ -10,11 +10,21 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+from test_modes import _armed_on_ground, fly
 
 from navig8_fc.core import _kernels as _k
 from navig8_fc.core.controller import ControllerConfig, FcSensors, FlightControllerCore
-from navig8_fc.core.outer_loop import SH, OuterLoopConfig, Setpoint, shape_reference, shaper_config_array
+from navig8_fc.core.outer_loop import (
+    JERK_K_PER_VEL_K,
+    SH,
+    OuterLoopConfig,
+    Setpoint,
+    shape_reference,
+    shaper_config_array,
+)
 from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.modes import FlightMode, ModeInputs, Px4AutoSubMode, Px4MainMode
+from navig8_fc.modes.manager import braking_distance_m
 from navig8_fc.params.registry import ParamRegistry
 
 DT = 0.01
@@ -167,3 +177,74 @@ def test_controller_seeds_the_reference_from_the_vehicle() -> None:
         rolls.append(math.degrees(st.outer.roll_cmd_rad))
     assert np.max(np.abs(rolls)) > 3.0
     assert np.max(np.abs(np.diff(rolls))) < 0.5
+
+
+def _reference_from(v0_m_s: float, a0_m_s2: float, target_y_m: float, n: int = 800) -> np.ndarray:
+    """The shaped reference's east position, started at the origin moving east at v0 and accelerating at a0 (the
+    state a mode change resyncs it to), flying to a setpoint target_y east."""
+    shc = shaper_config_array(OL, DT)
+    st = SH.zeros()
+    st[SH.INIT], st[SH.VEL + 1], st[SH.ACC + 1] = 1.0, v0_m_s, a0_m_s2
+    quat = np.array([1.0, 0.0, 0.0, 0.0])
+    sp, sp_out, ff = _osp((0.0, target_y_m, 0.0)), _k.OSP.zeros(), _k.OFF.zeros()
+    ys = []
+    for _ in range(n):
+        shape_reference(shc, st, sp, st[SH.POS:SH.POS + 3].copy(), st[SH.VEL:SH.VEL + 3].copy(), quat, sp_out, ff)
+        ys.append(sp_out[1])
+    return np.array(ys)
+
+
+@pytest.mark.parametrize("v0", [0.25, 1.0, 2.0])
+@pytest.mark.parametrize("a0", [-2.0, 0.0, 2.0])
+def test_hold_entered_at_speed_stops_ahead_without_turning_back(v0: float, a0: float) -> None:
+    """Hold entered while the reference flies east at v0, accelerating at a0, holds at the stopping point of the
+    reference's braking limits: the shaped reference brakes to it and stays (backs up by at most 5 cm, against
+    12-30 cm for the time-optimal distance without the jerk stage's lag); holding the entry point itself would fly
+    past it and back by most of the braking distance."""
+    mm, body, t = _armed_on_ground()
+    mm.set_braking(A_REF, J_MAX, 1.0 / (JERK_K_PER_VEL_K * OL.vel_k))
+    mm.takeoff(3.0)
+    _outs, t = fly(mm, body, t, 1.5)  # still climbing: Hold is a mode change
+    assert mm.set_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER).ok
+    here = tuple(body.pos)
+    out = mm.step(ModeInputs(t, here, (0.0, v0, 0.0), 0.0, 1.0, accel_ned=(0.0, a0, 0.0)))
+    assert out.flight_mode is FlightMode.HOLD
+    ahead_m = out.setpoint.pos_ned[1] - here[1]
+    assert out.setpoint.pos_ned[0] == pytest.approx(here[0]) and out.setpoint.pos_ned[2] == pytest.approx(here[2])
+    ys = _reference_from(v0, a0, ahead_m)
+    assert ys.max() - ys[-1] < 0.05 and abs(ys[-1] - ahead_m) < 0.02, (ys.max(), ys[-1], ahead_m)
+    entry = _reference_from(v0, a0, 0.0)  # the entry point as the hold target
+    assert entry.max() - entry[-1] > 0.5 * ahead_m  # it turns back
+
+
+def _time_optimal_brake_m(v0: float, a0: float, acc_max: float, jerk_max: float, dt: float = 1e-5) -> float:
+    """The braking distance by integration: the acceleration heads for -acc_max at jerk_max until the ramp back to
+    zero would take exactly the speed left (v <= a^2 / (2 j)), then ramps back."""
+    s, v, a = 0.0, v0, a0
+    while v > 0.0:
+        ramp_out = a < 0.0 and v <= a * a / (2.0 * jerk_max)
+        jerk = jerk_max if ramp_out else (-jerk_max if a > -acc_max else 0.0)
+        a_next = a + jerk * dt if not ramp_out else min(a + jerk * dt, 0.0)
+        if not ramp_out and jerk < 0.0:
+            a_next = max(a_next, -acc_max)
+        s += v * dt + 0.5 * a * dt * dt
+        v += 0.5 * (a + a_next) * dt
+        a = a_next
+        if ramp_out and a == 0.0:
+            break
+    return s
+
+
+@pytest.mark.parametrize(("v0", "a0"), [(0.1, 0.0), (2.0, 0.0), (0.5, 2.0), (2.0, 1.0), (1.0, -1.0), (3.0, -0.5)])
+def test_braking_distance_matches_an_integrated_time_optimal_brake(v0: float, a0: float) -> None:
+    """braking_distance_m's closed form (trapezoid or triangle of acceleration) against a fine Euler integration of
+    the same bang-bang jerk law, and with no jerk limit v^2 / (2 A); the reaction lag adds the distance flown
+    while it lasts."""
+    a_max, j_max = 2.0, 5.0
+    assert braking_distance_m(v0, a0, a_max, j_max) == pytest.approx(_time_optimal_brake_m(v0, a0, a_max, j_max),
+                                                                      abs=2e-3)
+    assert braking_distance_m(v0, a0, a_max, math.inf) == pytest.approx(v0 * v0 / (2 * a_max))
+    lag = 0.1
+    v_lag = v0 + a0 * lag
+    assert braking_distance_m(v0, a0, a_max, j_max, lag) == pytest.approx(
+        v0 * lag + 0.5 * a0 * lag * lag + _time_optimal_brake_m(v_lag, a0, a_max, j_max), abs=2e-3)
