@@ -322,7 +322,7 @@ def _campaign_rate(arrivals: list[tuple[str, float]]) -> float:
 
 def _serial_runs(rows: list[Any]) -> list[tuple[str, float, float]]:
     """The rows one after another in this (warm) process: (worker, end time from the first start, run_cpu_s)."""
-    from navig8_tools.campaign import execute_row
+    from navig8_tools.campaign_run import execute_row
 
     out = []
     t0 = time.perf_counter()
@@ -336,15 +336,15 @@ def _serial_runs(rows: list[Any]) -> list[tuple[str, float, float]]:
 
 def _campaign_round(rows: list[Any], workers: int) -> dict[str, float]:
     """One round of the campaign section: the rows on each backend in turn; its metrics (keys without prefix)."""
-    from navig8_tools.campaign import _dask_results, _pool_results, worker_pool
+    from navig8_tools.campaign_run import dask_results, pool_results, worker_pool
 
     with worker_pool(1, "inprocess") as one:
         serial = one.submit(_serial_runs, rows).result()
     single = 60.0 * len(rows) / serial[-1][1]
     single_cpu = float(np.median([c for _, _, c in serial]))
     m = {"single_runs_per_min": single, "single_cpu_s_per_run": single_cpu}
-    for name, source in (("pool", lambda: _pool_results(rows, workers)),
-                         ("dask_local", lambda: _dask_results(rows, "local", workers))):
+    for name, source in (("pool", lambda: pool_results(rows, workers)),
+                         ("dask_local", lambda: dask_results(rows, "local", workers))):
         t0 = time.perf_counter()
         parent_cpu0 = time.process_time()
         arrivals: list[tuple[str, float]] = []
@@ -382,14 +382,14 @@ def _campaign_section(args: argparse.Namespace) -> SectionResult:
     (10 s each, MCAP log + summary as every campaign run) run (1) serially in one warm process, (2) on the local
     process pool and (3) on a Dask LocalCluster, both with --workers (default 2); --campaign-rounds times in
     turn (so a shared machine's drift hits all three alike), medians over the rounds. The single process is a
-    worker like the others (campaign.worker_pool(1): spawned with WORKER_ENV, warmed, then given all the rows
+    worker like the others (campaign_run.worker_pool(1): spawned with WORKER_ENV, warmed, then given all the rows
     in one task, run one after another with no IPC between them), so the ratios compare like with like. Rates
     are steady state (start-up reported apart); the machine-independent figure is each backend's median CPU
     seconds per run (time.process_time of the worker process around each run) against the single process's."""
     import os
     from pathlib import Path
 
-    from navig8_tools.campaign import Campaign, expand
+    from navig8_tools.campaign_spec import Campaign, expand
 
     workers = args.workers or os.cpu_count() or 1
     n_seeds = max(2, args.campaign_runs // 3)

@@ -22,7 +22,7 @@ excess, which leads the search back to flights a controller could hold (a worst 
 says nothing about this one).
 
 CMA-ES (pycma, Hansen's implementation) in the unit cube with its bounds handling; each generation's candidates x
-seeds are flown on a local process pool (navig8_tools.campaign's warmed workers, `execute_row`). Output in DIR
+seeds are flown on a local process pool (navig8_tools.campaign_run's warmed workers, `execute_row`). Output in DIR
 (default out/falsify/<controller>): `trace.json` (every evaluation: generation, x, the factors, per-seed metrics,
 the score; the best), and, unless --no-write, the worst case as a regression scenario:
 `params/scenarios/falsified_<controller>.yaml` (its world overrides inside) and
@@ -344,7 +344,7 @@ def maximise(evaluate: Callable[[list[np.ndarray]], list[float]], n_dims: int, e
 
 
 def _rows(fl: Flight, variant: Mapping[str, Any], seeds: Sequence[int], timeout_s: float) -> list[Any]:
-    from navig8_tools.campaign import Row
+    from navig8_tools.campaign_spec import Row
 
     params = {**fl.fc_params, **dict(variant.get("set") or {})}
     return [Row(index=i, run_id=f"x{i}", kind="inprocess", scenario=fl.scenario["name"], duration_s=None,
@@ -365,7 +365,7 @@ class PoolEvaluator:
         self.flown = 0
 
     def __call__(self, xs: list[np.ndarray]) -> list[float]:
-        from navig8_tools.campaign import execute_row
+        from navig8_tools.campaign_run import execute_row
 
         flights = [flight(x, self.spec) for x in xs]
         futures = {}
@@ -498,7 +498,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"wrote {p}", file=sys.stderr)
         return 0
 
-    from navig8_tools.campaign import worker_pool
+    from navig8_tools.campaign_run import worker_pool
 
     out = Path(args.out or f"out/falsify/{args.controller}")
     out.mkdir(parents=True, exist_ok=True)

@@ -15,18 +15,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from navig8_tools.campaign import (
-    STREAM_FILE,
-    Campaign,
-    RunTimeout,
-    call_with_timeout,
-    comparable,
-    expand,
-    read_stream,
-    replay_command,
-    run_campaign,
-    worker_pool,
-)
+from navig8_tools.campaign import STREAM_FILE, comparable, read_stream, run_campaign
+from navig8_tools.campaign_run import RunTimeout, call_with_timeout, worker_pool
+from navig8_tools.campaign_spec import Campaign, expand, replay_command
 from navig8_tools.mission import plan_from_scenario
 from navig8_tools.sim import main as sim_main
 

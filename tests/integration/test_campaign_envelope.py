@@ -16,9 +16,10 @@ import pytest
 import yaml
 
 from navig8_fc.flight.script import read_scenario_file
-from navig8_tools import campaign as cm
-from navig8_tools.campaign import Campaign, expand, run_campaign
+from navig8_tools import campaign_run
+from navig8_tools.campaign import run_campaign
 from navig8_tools.campaign_report import beyond_authority, envelope_table, paired_table, write_report
+from navig8_tools.campaign_spec import Campaign, expand
 from navig8_tools.sim import run
 from sim_bridge.world import parse_world_items
 
@@ -80,19 +81,20 @@ def test_the_authority_columns_come_from_bound_from_log_and_are_nan_without_it(m
         return {"bound_deg": 71.5, "trim_feasible": True, "worst_t_s": 3.25, "other": 1}
 
     monkeypatch.setattr(authority, "bound_from_log", fake_bound, raising=False)
-    cols = cm._authority_columns(object(), "hover", {"tail_max_thrust_n": 80.0})
+    cols = campaign_run._authority_columns(object(), "hover", {"tail_max_thrust_n": 80.0})
     assert cols == {"authority_bound_deg": 71.5, "authority_trim_feasible": True, "authority_worst_t_s": 3.25,
                     "authority_error": None}
     assert seen["cfg"].k_thrust_tail * seen["cfg"].tail_speed_max**2 == pytest.approx(80.0)  # the run's true vehicle
     monkeypatch.delattr(authority, "bound_from_log")
-    cols = cm._authority_columns(object(), "hover", {})
-    assert all(math.isnan(cols[k]) for k in cm.AUTHORITY_COLUMNS) and "not available" in cols["authority_error"]
+    cols = campaign_run._authority_columns(object(), "hover", {})
+    assert all(math.isnan(cols[k]) for k in campaign_run.AUTHORITY_COLUMNS)
+    assert "not available" in cols["authority_error"]
 
     def broken(run_log, vehicle_cfg):
         raise RuntimeError("no arm motion")
 
     monkeypatch.setattr(authority, "bound_from_log", broken, raising=False)
-    cols = cm._authority_columns(object(), "hover", {})
+    cols = campaign_run._authority_columns(object(), "hover", {})
     assert math.isnan(cols["authority_bound_deg"]) and "no arm motion" in cols["authority_error"]
 
 

@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 
 from navig8_fc.mission.plan import Cmd, Frame, MissionItem
-from navig8_tools.campaign import Campaign, run_campaign
+from navig8_tools.campaign import run_campaign
+from navig8_tools.campaign_spec import Campaign
 from navig8_tools.mission import write_wpl
 
 G_M_S2 = 9.80665

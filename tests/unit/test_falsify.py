@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
-from navig8_tools.campaign import Campaign
+from navig8_tools.campaign_spec import Campaign
 from navig8_tools.falsify import (
     LOSS_BONUS_PER_S,
     LOSS_SCORE_DEG,
