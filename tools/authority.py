@@ -40,44 +40,35 @@ the arm moves: during the paper's arm reversal, or during every move of a flown 
 Everything is the model of navig8_fc.core.vehicle (the same G_C and mass properties the controller uses) and the
 plant's joint servo (sim_bridge._kernels._servo_accel). See docs/model.md ("Pitch authority", "Authority bound of
 a flown run").
+
+The code: tools/authority_static.py (1.: the LP, AuthorityMap), tools/authority_excursion.py (2.-3.: the arm's
+momentum, the excursion LP, the reversal), this file (4., the report and the command line).
 """
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-import functools
 import hashlib
-import itertools
 import json
 import math
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy import sparse
-from scipy.linalg import expm
-from scipy.optimize import linprog
 
-from navig8_fc.core import _kernels as _k
-from navig8_fc.core.vehicle import N_LINKS, VehicleConfig, mass_properties, model_geometry, propulsion_per_input
-
-ROWS = {"roll": 0, "pitch": 1}  # G_C rows [L, M, N, Fx, Fz]
-POLYGON_SIDES = 256  # the speed disk as its inscribed polygon: at most 1 - cos(pi/n) = 7.5e-5 inside
-
-
-@dataclass(frozen=True)
-class Authority:
-    """The largest and smallest pure moment (N m, about the composite CoM) at hover, and the U reaching them
-    (every limit respected; the speed disk as its inscribed polygon, at most 1 - cos(pi/n) below the circle)."""
-
-    max_nm: float
-    min_nm: float
-    u_at_max: np.ndarray
-    u_at_min: np.ndarray
+from navig8_fc.core.vehicle import N_LINKS, VehicleConfig
+from navig8_tools.authority_excursion import (
+    ArmMotion,
+    authority_along,
+    mass_terms,
+    motion_terms,
+    reversal_bound,
+    window_bound,
+)
+from navig8_tools.authority_static import MAP_SPACING_M, TRIM_TOL_NM, hover_authority, map_lp_points
 
 
 def with_tail_thrust(cfg: VehicleConfig, tail_max_thrust_n: float) -> VehicleConfig:
@@ -92,553 +83,8 @@ def tail_max_thrust_n(cfg: VehicleConfig) -> float:
     return cfg.k_thrust_tail * w * w
 
 
-def _tilt_pieces(cfg: VehicleConfig) -> list[tuple[float, float]]:
-    """Convex pieces (angle intervals of at most 180 deg) whose union is the duct's tilt range."""
-    lo, hi = cfg.tilt_min_rad, cfg.tilt_max_rad
-    if hi - lo <= math.pi:
-        return [(lo, hi)]
-    if hi - lo > 2.0 * math.pi - 1e-12:
-        raise ValueError("tilt range wider than 360 deg")
-    return [(lo, lo + math.pi), (hi - math.pi, hi)]  # two half disks covering the sector
 
-
-@functools.lru_cache(maxsize=64)
-def _duct_constraints(cfg: VehicleConfig, pieces: tuple[tuple[float, float], ...], n: int,
-                      outer: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """A_ub U <= b_ub: each duct's (U_cos, U_sin) in the inscribed n-gon of its speed disk (outer: the
-    circumscribed one, a relaxation) and in one convex piece of its tilt sector (two half-planes through the
-    origin)."""
-    if cfg.duct_speed_min != 0.0:
-        raise ValueError("the authority LP assumes duct_speed_min = 0 (an annulus is not convex)")
-    r2 = cfg.duct_speed_max**2
-    # vertices on the circle at angles 2 pi k / n: edge normals half way between, at distance r2 cos(pi/n)
-    phi = (np.arange(n) + 0.5) * (2.0 * np.pi / n)
-    rows, rhs = [], []
-    for (ic, is_), (a_lo, a_hi) in zip(((0, 1), (2, 3)), pieces, strict=True):
-        for ph in phi:
-            a = np.zeros(5)
-            a[ic], a[is_] = math.cos(ph), math.sin(ph)
-            rows.append(a)
-            rhs.append(r2 if outer else r2 * math.cos(math.pi / n))
-        # angle >= a_lo: cross(dir(a_lo), U) >= 0; angle <= a_hi: cross(U, dir(a_hi)) >= 0
-        for ang, sgn in ((a_lo, 1.0), (a_hi, -1.0)):
-            a = np.zeros(5)
-            a[ic], a[is_] = sgn * math.sin(ang), -sgn * math.cos(ang)
-            rows.append(a)
-            rhs.append(0.0)
-    a_ub, b_ub = np.array(rows), np.array(rhs)
-    a_ub.setflags(write=False)
-    b_ub.setflags(write=False)
-    return a_ub, b_ub
-
-
-@functools.lru_cache(maxsize=64)
-def _propulsion(cfg: VehicleConfig) -> tuple[np.ndarray, np.ndarray]:
-    return propulsion_per_input(cfg)
-
-
-_Block = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # c, A_ub, b_ub, A_eq, b_eq
-
-
-def _solve_blocks(blocks: list[_Block], bounds: list[tuple[float | None, float | None]]) -> list[np.ndarray | None]:
-    """Independent LPs of the same size, solved as one block-diagonal LP (one solver call: the per-call overhead
-    is most of a small LP's time); if that fails (one block infeasible), halves are solved apart. None for an
-    infeasible block."""
-    if not blocks:
-        return []
-    nv = len(bounds)
-    res = linprog(np.concatenate([b[0] for b in blocks]),
-                  A_ub=sparse.block_diag([b[1] for b in blocks], format="csr"),
-                  b_ub=np.concatenate([b[2] for b in blocks]),
-                  A_eq=sparse.block_diag([b[3] for b in blocks], format="csr"),
-                  b_eq=np.concatenate([b[4] for b in blocks]), bounds=bounds * len(blocks), method="highs")
-    if res.status == 0:
-        return list(np.asarray(res.x).reshape(len(blocks), nv))
-    if len(blocks) > 1:
-        mid = len(blocks) // 2
-        return _solve_blocks(blocks[:mid], bounds) + _solve_blocks(blocks[mid:], bounds)
-    if res.status == 2:
-        return [None]
-    raise ValueError(f"authority LP failed: {res.message}")
-
-
-def authority_at_coms(cfg: VehicleConfig, coms_xz_m: np.ndarray, mass_kg: float, axis: str = "pitch",
-                      fx_free: bool = False, sides: int = POLYGON_SIDES, body_pitch_rad: float = 0.0,
-                      outer: bool = False) -> list[Authority | None]:
-    """`hover_authority` at composite CoM points (k x 2: x, z in FRD, m) of a vehicle of total mass mass_kg: the
-    pose enters the LP only through them. None where the actuator set cannot hold the hover force at all.
-    outer: the speed disk as its circumscribed polygon (a relaxation: the moments are upper bounds on what is
-    flyable, at most 1/cos(pi/n) - 1 beyond; the U are then not all flyable)."""
-    row = ROWS[axis]
-    fixed = [r for r in range(5) if r != row and not (fx_free and r == 3)]
-    target = np.zeros(5)
-    target[3] = mass_kg * cfg.gravity_m_s2 * math.sin(body_pitch_rad)
-    target[4] = -mass_kg * cfg.gravity_m_s2 * math.cos(body_pitch_rad)
-    u5 = (math.copysign(cfg.tail_speed_min**2, cfg.tail_speed_min),
-          math.copysign(cfg.tail_speed_max**2, cfg.tail_speed_max))
-    bounds: list[tuple[float | None, float | None]] = [(None, None)] * 4 + [u5]
-    cons = [_duct_constraints(cfg, combo, sides, outer)
-            for combo in itertools.product(tuple(_tilt_pieces(cfg)), repeat=2)]
-    blocks: list[_Block] = []
-    owner: list[tuple[int, float, np.ndarray]] = []
-    f, m0 = _propulsion(cfg)
-    for i, (cx, cz) in enumerate(np.asarray(coms_xz_m, dtype=float).reshape(-1, 2)):
-        gc = np.empty((5, 5))
-        _k.gc_about(f, m0, float(cx), float(cz), gc)  # control_effectiveness_gc with the per-input wrench kept
-        for a_ub, b_ub in cons:
-            for sgn in (1.0, -1.0):
-                blocks.append((-sgn * gc[row], a_ub, b_ub, gc[fixed], target[fixed]))
-                owner.append((i, sgn, gc[row]))
-    best: list[dict[float, tuple[float, np.ndarray]]] = [{} for _ in range(len(blocks) // (2 * len(cons)))]
-    for (i, sgn, g), x in zip(owner, _solve_blocks(blocks, bounds), strict=True):
-        if x is None:  # infeasible with this pair of pieces
-            continue
-        val = float(g @ x)
-        if sgn not in best[i] or sgn * val > sgn * best[i][sgn][0]:
-            best[i][sgn] = (val, x)
-    return [Authority(b[1.0][0], b[-1.0][0], b[1.0][1], b[-1.0][1]) if b else None for b in best]
-
-
-def hover_authority(cfg: VehicleConfig, q_rad: Sequence[float], object_mass_kg: float, axis: str = "pitch",
-                    fx_free: bool = False, sides: int = POLYGON_SIDES, body_pitch_rad: float = 0.0) -> Authority:
-    """Largest/smallest pure moment about the composite CoM the actuator set holds at hover, the body pitched by
-    body_pitch_rad (0: level): the actuators hold -m g_body = m g (sin theta, 0, -cos theta) in FRD.
-
-    Raises ValueError if the actuator set cannot even trim there."""
-    mp = mass_properties(cfg, q_rad, object_mass_kg)
-    (a,) = authority_at_coms(cfg, np.array([[mp.com_frd_m[0], mp.com_frd_m[2]]]), mp.mass_kg, axis, fx_free, sides,
-                             body_pitch_rad)
-    if a is None:
-        raise ValueError(f"hover is infeasible at q = {list(q_rad)}, m_o = {object_mass_kg}")
-    return a
-
-
-# --------------------------------------------------------------------------------------
-# The static authority along a path of the CoM
-# --------------------------------------------------------------------------------------
-
-MAP_SPACING_M = 0.05  # lattice of CoM points of AuthorityMap (the paper reversal's bounds within 0.01 deg of 1 cm's)
-MAP_SIDES = 64  # its speed disk: the circumscribed 64-gon (at most 1.2e-3 beyond the circle)
-TRIM_TOL_NM = 1e-6
-EXCURSION_LP_METHOD = "highs"  # HiGHS' own choice: on this sparse banded LP 2x faster than dual simplex or IPM forced
-
-
-class AuthorityMap:
-    """The static pitch authority [min, max] (N m about the composite CoM) at one total mass and body pitch, as a
-    function of the CoM (x, z): the LP (`authority_at_coms`, the disk as its circumscribed polygon) at the nodes of
-    a square lattice of CoM points, each solved when first needed and kept, and bilinear in between.
-
-    Why that is conservative (never narrower than the LP at the point itself): about the CoM c the pitch moment
-    is M_O - c_z Fx + c_x Fz, affine in c for each U, and the constraints depend on c only through the dihedral's
-    side force in the roll and yaw rows (L = L_O + c_z Fy, N = N_O - c_x Fy). Without that coupling the set of U is
-    the same for every c, so max M(c) is a maximum of affine functions of c, convex, and min M(c) concave; a
-    bilinear interpolant is a convex combination of the cell's corners that reproduces c itself, so by Jensen it
-    lies above a convex function and below a concave one. The 10 deg dihedral makes it approximate: against the
-    LP at random CoM points (tests/unit/test_authority.py) the interpolant is never narrower by more than ~2e-4
-    N m, and it is exact (to that) with Fx held, where the authority is affine in c; with Fx free it is wider by
-    up to ~0.4 N m near the LP's kinks at the default 5 cm lattice. A node where hover is infeasible
-    makes its cells fall back to the LP at the point (CoM rounded to 1 mm); NaN there if that is infeasible too."""
-
-    def __init__(self, cfg: VehicleConfig, mass_kg: float, body_pitch_rad: float, fx_free: bool,
-                 spacing_m: float = MAP_SPACING_M, sides: int = MAP_SIDES) -> None:
-        self.cfg, self.mass_kg, self.body_pitch_rad, self.fx_free = cfg, mass_kg, body_pitch_rad, fx_free
-        self.spacing_m, self.sides = spacing_m, sides
-        self._nodes: dict[tuple[int, int], tuple[float, float]] = {}
-        self._points: dict[tuple[int, int], tuple[float, float]] = {}
-        self.lp_points = 0  # how many CoM points were solved (for the timing report)
-
-    def _solve(self, keys: list[tuple[int, int]], scale: float,
-               store: dict[tuple[int, int], tuple[float, float]]) -> None:
-        missing = sorted({k for k in keys if k not in store})
-        if not missing:
-            return
-        res = authority_at_coms(self.cfg, np.array(missing, dtype=float) * scale, self.mass_kg, "pitch",
-                                self.fx_free, self.sides, self.body_pitch_rad, outer=True)
-        self.lp_points += len(missing)
-        for k, a in zip(missing, res, strict=True):
-            store[k] = (math.nan, math.nan) if a is None else (a.min_nm, a.max_nm)
-
-    def bounds(self, com_x_m: np.ndarray, com_z_m: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """[min, max] at each CoM point (1-d arrays)."""
-        gx = np.ravel(np.asarray(com_x_m, dtype=float)) / self.spacing_m
-        gz = np.ravel(np.asarray(com_z_m, dtype=float)) / self.spacing_m
-        ix, iz = np.floor(gx).astype(np.int64), np.floor(gz).astype(np.int64)
-        fx, fz = gx - ix, gz - iz
-        cells, inv = np.unique(np.column_stack([ix, iz]), axis=0, return_inverse=True)
-        inv = inv.ravel()
-        offsets = ((0, 0), (1, 0), (0, 1), (1, 1))
-        self._solve([(int(a) + dx, int(b) + dz) for a, b in cells for dx, dz in offsets], self.spacing_m,
-                    self._nodes)
-        corner = np.array([[self._nodes[(int(a) + dx, int(b) + dz)] for dx, dz in offsets] for a, b in cells])
-        weights = np.column_stack([(1 - fx) * (1 - fz), fx * (1 - fz), (1 - fx) * fz, fx * fz])
-        lo = np.sum(weights * corner[inv, :, 0], axis=1)
-        hi = np.sum(weights * corner[inv, :, 1], axis=1)
-        bad = np.flatnonzero(~(np.isfinite(lo) & np.isfinite(hi)))
-        if bad.size:  # a corner cannot hover: the LP at the point itself
-            pts = [(round(float(x) * 1000.0), round(float(z) * 1000.0))
-                   for x, z in zip(np.ravel(com_x_m)[bad], np.ravel(com_z_m)[bad], strict=True)]
-            self._solve(pts, 1e-3, self._points)
-            lo[bad] = [self._points[p][0] for p in pts]
-            hi[bad] = [self._points[p][1] for p in pts]
-        return lo, hi
-
-
-_MAPS: dict[tuple[Any, ...], AuthorityMap] = {}
 _WINDOWS: dict[tuple[Any, ...], tuple[float, float | None]] = {}  # bound_from_log's windows: (peak, untrimmable)
-
-
-def authority_map(cfg: VehicleConfig, mass_kg: float, body_pitch_rad: float, fx_free: bool,
-                  spacing_m: float = MAP_SPACING_M) -> AuthorityMap:
-    """The AuthorityMap of (vehicle, total mass, body pitch, Fx held/free), kept for the process (a campaign worker
-    reuses it across runs of the same vehicle, mass and pitch)."""
-    key = (cfg, round(mass_kg, 6), round(body_pitch_rad, 6), fx_free, spacing_m)
-    m = _MAPS.get(key)
-    if m is None:
-        if len(_MAPS) >= 256:
-            _MAPS.clear()
-        m = _MAPS[key] = AuthorityMap(cfg, round(mass_kg, 6), round(body_pitch_rad, 6), fx_free, spacing_m)
-    return m
-
-
-# --------------------------------------------------------------------------------------
-# The arm's motion and its reaction
-# --------------------------------------------------------------------------------------
-
-SERVO_STEP_S = 0.001  # the plant's joint-servo period (params/plant.yaml servo_rate_hz = 1000)
-
-
-def servo_profile(q_from: float, q_to: float, v_max: float, a_max: float, h_s: float,
-                  duration_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Joint angle and rate of the plant's servo (sim_bridge._kernels._servo_accel) after a step command,
-    sampled every h_s (its servo period; exact constant-acceleration steps, as the plant integrates them)."""
-    from sim_bridge._kernels import _servo_accel
-
-    n = int(round(duration_s / h_s)) + 1
-    q, qd = np.empty(n), np.empty(n)
-    q[0], qd[0] = q_from, 0.0
-    for k in range(n - 1):
-        a = _servo_accel(q_to - q[k], qd[k], h_s, a_max, v_max)
-        q[k + 1] = q[k] + qd[k] * h_s + 0.5 * a * h_s * h_s
-        qd[k + 1] = qd[k] + a * h_s
-    return q, qd
-
-
-def arm_momentum_y(cfg: VehicleConfig, q: np.ndarray, qd: np.ndarray, object_mass_kg: float) -> np.ndarray:
-    """Pitch (body y) angular momentum of UAV + arm (+ object) relative to the body, about the composite CoM,
-    for a body that does not rotate: sum m_k r_k x r'_k + I_k theta'_k - m c x c' (the UAV's CoM is O).
-
-    q, qd: (n, 3) joint angles and rates; returns (n,). (a x b)_y = a_z b_x - a_x b_z."""
-    q, qd = np.atleast_2d(q), np.atleast_2d(qd)
-    th, thd = np.cumsum(q, axis=1), np.cumsum(qd, axis=1)
-    L, ml, ia = cfg.link_length_m, cfg.link_mass_kg, cfg.link_inertia_kgm2
-    jx = np.full(q.shape[0], cfg.mount_frd_m[0])
-    jz = np.full(q.shape[0], cfg.mount_frd_m[2])
-    jvx, jvz = np.zeros(q.shape[0]), np.zeros(q.shape[0])
-    h = np.zeros(q.shape[0])
-    s1 = np.zeros((q.shape[0], 2))  # sum m r (x, z)
-    v1 = np.zeros((q.shape[0], 2))  # sum m r' (x, z)
-
-    def add(m: float, x, z, vx, vz) -> None:
-        nonlocal h
-        h = h + m * (z * vx - x * vz)
-        s1[:, 0] += m * x
-        s1[:, 1] += m * z
-        v1[:, 0] += m * vx
-        v1[:, 1] += m * vz
-
-    for i in range(N_LINKS):
-        s, c = np.sin(th[:, i]), np.cos(th[:, i])
-        ex, ez, dx, dz = s, c, thd[:, i] * c, -thd[:, i] * s  # e and its rate
-        add(ml, jx + 0.5 * L * ex, jz + 0.5 * L * ez, jvx + 0.5 * L * dx, jvz + 0.5 * L * dz)
-        h = h + ia * thd[:, i]
-        jx, jz, jvx, jvz = jx + L * ex, jz + L * ez, jvx + L * dx, jvz + L * dz
-    if object_mass_kg > 0.0:
-        d = cfg.object_offset_m
-        s, c = np.sin(th[:, -1]), np.cos(th[:, -1])
-        add(object_mass_kg, jx + d * s, jz + d * c, jvx + d * thd[:, -1] * c, jvz - d * thd[:, -1] * s)
-        h = h + 0.4 * object_mass_kg * cfg.object_radius_m**2 * thd[:, -1]
-    m = cfg.uam_mass_kg + object_mass_kg
-    cx, cz, cvx, cvz = s1[:, 0] / m, s1[:, 1] / m, v1[:, 0] / m, v1[:, 1] / m
-    return h - m * (cz * cvx - cx * cvz)
-
-
-@dataclass(frozen=True)
-class ArmMotion:
-    """The arm's motion on a time grid (s), the object held (kg) and the commanded body pitch (rad) per sample."""
-
-    t_s: np.ndarray
-    q_rad: np.ndarray  # (n, 3)
-    qd_rad_s: np.ndarray  # (n, 3)
-    object_mass_kg: np.ndarray  # (n,)
-    body_pitch_rad: np.ndarray  # (n,)
-
-
-def _mass_terms(cfg: VehicleConfig, q: np.ndarray, object_mass_kg: np.ndarray) -> np.ndarray:
-    """(n, 4): I_yy about the composite CoM, CoM x, CoM z, total mass at each pose (the model's mass_props)."""
-    geo, zero = model_geometry(cfg), np.zeros(N_LINKS)
-    inertia, rate, mp = np.empty((3, 3)), np.empty((3, 3)), _k.MP.zeros()
-    out = np.empty((len(q), 4))
-    for i in range(len(q)):
-        _k.mass_props(np.ascontiguousarray(q[i], dtype=float), zero, zero, float(object_mass_kg[i]), geo, inertia,
-                      rate, mp)
-        out[i] = inertia[1, 1], mp[_k.MP.CX], mp[_k.MP.CZ], mp[_k.MP.MASS]
-    return out
-
-
-def _momentum(cfg: VehicleConfig, q: np.ndarray, qd: np.ndarray, object_mass_kg: np.ndarray) -> np.ndarray:
-    h = np.empty(len(q))
-    for m in np.unique(object_mass_kg):
-        sel = object_mass_kg == m
-        h[sel] = arm_momentum_y(cfg, q[sel], qd[sel], float(m))
-    return h
-
-
-def motion_terms(cfg: VehicleConfig, motion: ArmMotion) -> dict[str, np.ndarray]:
-    """I_yy, h, the CoM and the total mass at each sample, and I_yy, h at each step's end with the step's starting
-    object (they differ where the object changes: the plant keeps the body rates continuous through a grasp or
-    release, so the momentum about the CoM jumps there while theta' does not)."""
-    q, qd, mo = motion.q_rad, motion.qd_rad_s, np.asarray(motion.object_mass_kg, dtype=float)
-    mt = _mass_terms(cfg, q, mo)
-    h = _momentum(cfg, q, qd, mo)
-    iyy_end, h_end = mt[1:, 0].copy(), h[1:].copy()
-    chg = np.flatnonzero(mo[1:] != mo[:-1])
-    if chg.size:
-        iyy_end[chg] = _mass_terms(cfg, q[chg + 1], mo[chg])[:, 0]
-        h_end[chg] = _momentum(cfg, q[chg + 1], qd[chg + 1], mo[chg])
-    return {"iyy": mt[:, 0], "com_x": mt[:, 1], "com_z": mt[:, 2], "mass": mt[:, 3], "h": h, "iyy_end": iyy_end,
-            "h_end": h_end}
-
-
-def authority_along(cfg: VehicleConfig, motion: ArmMotion, terms: dict[str, np.ndarray], fx_free: bool,
-                    spacing_m: float = MAP_SPACING_M) -> tuple[np.ndarray, np.ndarray]:
-    """The static pitch authority [min, max] (N m) at each sample of a motion (AuthorityMap per total mass and
-    commanded pitch)."""
-    lo, hi = np.empty(len(motion.t_s)), np.empty(len(motion.t_s))
-    keys = np.column_stack([terms["mass"], motion.body_pitch_rad])
-    for key in np.unique(keys, axis=0):
-        sel = np.all(keys == key, axis=1)
-        amap = authority_map(cfg, float(key[0]), float(key[1]), fx_free, spacing_m)
-        lo[sel], hi[sel] = amap.bounds(terms["com_x"][sel], terms["com_z"][sel])
-    return lo, hi
-
-
-# --------------------------------------------------------------------------------------
-# The smallest pitch excursion
-# --------------------------------------------------------------------------------------
-
-
-@functools.lru_cache(maxsize=64)
-def lag_discrete(dt_s: float, omega_n: float, zeta: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """The actuators' second-order response (unit gain) over one step of dt_s with the command held, in the state
-    z = (y, y'/omega_n): z+ = Phi z + Gamma u, and the delivered value of the step, at its middle (as the
-    momentum takes it for the whole step): y_mid = C z + D u. Returns (Phi, Gamma, C, D); exact (matrix
-    exponential)."""
-    a = np.array([[0.0, omega_n, 0.0], [-omega_n, -2.0 * zeta * omega_n, omega_n], [0.0, 0.0, 0.0]])
-    full, half = expm(a * dt_s), expm(a * 0.5 * dt_s)
-    return full[:2, :2], full[:2, 2], half[0, :2], float(half[0, 2])
-
-
-def min_pitch_excursion(t_s: np.ndarray, inertia_yy: np.ndarray, h_y: np.ndarray, m_max: np.ndarray,
-                        m_min: np.ndarray, actuator: tuple[float, float] | None = None, hold_until: int = 0,
-                        inertia_end: np.ndarray | None = None, h_end: np.ndarray | None = None,
-                        end_at_rest: bool = True, free_start: bool = False) -> tuple[float, np.ndarray, np.ndarray]:
-    """min over moment histories u (held over each step, m_min <= u <= m_max) of max_k |theta_k|, for
-    d/dt (I theta' + h) = u_delivered, theta(0) = theta'(0) = 0, theta' = 0 at the end (end_at_rest); u_delivered
-    = u, or u through the actuators' second-order lag (actuator = (omega_n, zeta), `lag_discrete`, at rest at trim
-    at t = 0); u = 0 (trim) on the first hold_until steps. m_max, m_min: per step (n - 1) or per sample (n: step k
-    takes sample k's). inertia_end, h_end (n - 1): I and h at each step's end with the step's starting object
-    (`motion_terms`; default the next sample's).
-
-    The momentum P = I theta' + h is exact under a held u (P_{k+1} = P_k + dt u_k); theta integrates theta'
-    with the trapezoid rule. A sparse LP in u, theta', theta (and the lag's state). free_start: a relaxation for a
-    piece of a longer motion, the state at t_0 free (theta, theta'; the delivered moment inside the authority's
-    envelope and its rate / omega_n within the envelope's largest |moment|, which bounds a critically or
-    over-damped response to any command inside it). Returns (peak, theta history, u commanded)."""
-    t = np.asarray(t_s, dtype=float)
-    n = len(t)
-    ns = n - 1
-    dt = np.diff(t)
-    iyy, h = np.asarray(inertia_yy, dtype=float), np.asarray(h_y, dtype=float)
-    i_end = iyy[1:] if inertia_end is None else np.asarray(inertia_end, dtype=float)
-    hh_end = h[1:] if h_end is None else np.asarray(h_end, dtype=float)
-    hi, lo = np.asarray(m_max, dtype=float)[:ns], np.asarray(m_min, dtype=float)[:ns]
-    nz = 0 if actuator is None else 2
-    iu, iw, ith, i_s, iz = 0, ns, ns + n, ns + 2 * n, ns + 2 * n + 1
-    nv = iz + nz * n
-    k = np.arange(ns)
-    rows, cols, vals = [], [], []
-
-    def put(r: np.ndarray, c: np.ndarray, v: np.ndarray | float) -> None:
-        rows.append(r)
-        cols.append(c)
-        vals.append(np.broadcast_to(np.asarray(v, dtype=float), r.shape))
-
-    # momentum: I_end[k] w[k+1] - I[k] w[k] - dt_k d_k = h[k] - h_end[k]   (rows 0 .. ns-1)
-    put(k, iw + k + 1, i_end)
-    put(k, iw + k, -iyy[:-1])
-    b_eq = [h[:-1] - hh_end]
-    if actuator is None:
-        put(k, iu + k, -dt)
-    else:
-        omega_n, zeta = actuator
-        phi = np.empty((ns, 2, 2))
-        gam, cc, dd = np.empty((ns, 2)), np.empty((ns, 2)), np.empty(ns)
-        for step in np.unique(dt):
-            sel = dt == step
-            phi[sel], gam[sel], cc[sel], dd[sel] = lag_discrete(float(step), float(omega_n), float(zeta))
-        put(k, iu + k, -dt * dd)
-        for j in range(2):
-            put(k, iz + 2 * k + j, -dt * cc[:, j])
-        # lag: z[k+1] - Phi z[k] - Gamma u[k] = 0   (rows 2 ns .. 4 ns - 1)
-        for j in range(2):
-            r = 2 * ns + 2 * k + j
-            put(r, iz + 2 * (k + 1) + j, 1.0)
-            for m in range(2):
-                put(r, iz + 2 * k + m, -phi[:, j, m])
-            put(r, iu + k, -gam[:, j])
-    # theta: th[k+1] - th[k] - dt/2 (w[k] + w[k+1]) = 0   (rows ns .. 2 ns - 1)
-    put(ns + k, ith + k + 1, 1.0)
-    put(ns + k, ith + k, -1.0)
-    put(ns + k, iw + k, -0.5 * dt)
-    put(ns + k, iw + k + 1, -0.5 * dt)
-    b_eq += [np.zeros(ns), np.zeros(nz * ns)]
-    a_eq = sparse.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                             shape=((2 + nz) * ns, nv))
-    # -s <= theta_k <= s
-    kk = np.arange(n)
-    a_ub = sparse.csr_matrix((np.concatenate([np.ones(n), -np.ones(n), -np.ones(n), -np.ones(n)]),
-                              (np.concatenate([kk, kk, n + kk, n + kk]),
-                               np.concatenate([ith + kk, np.full(n, i_s), ith + kk, np.full(n, i_s)]))),
-                             shape=(2 * n, nv))
-    lb, ub = np.full(nv, -np.inf), np.full(nv, np.inf)
-    lb[iu:iu + ns], ub[iu:iu + ns] = lo, hi
-    lb[iu:iu + hold_until], ub[iu:iu + hold_until] = 0.0, 0.0
-    if not free_start:
-        lb[iw] = ub[iw] = 0.0
-        lb[ith] = ub[ith] = 0.0
-    if end_at_rest:
-        lb[iw + n - 1] = ub[iw + n - 1] = 0.0
-    lb[i_s] = 0.0
-    if nz and free_start:
-        big = float(max(np.max(np.abs(hi)), np.max(np.abs(lo))))
-        lb[iz], ub[iz] = float(np.min(lo)), float(np.max(hi))
-        lb[iz + 1], ub[iz + 1] = -big, big
-    elif nz:
-        lb[iz:iz + 2] = ub[iz:iz + 2] = 0.0
-    cost = np.zeros(nv)
-    cost[i_s] = 1.0
-    for method in dict.fromkeys((EXCURSION_LP_METHOD, "highs-ipm", "highs-ds")):
-        # a simplex can stop on numerical trouble here (seen once in the reversals) or stall on a degenerate piece
-        # whose optimum is ~0 (a slow sweep; it normally takes < 0.2 s): interior point then solves it
-        opts = {} if method == "highs-ipm" else {"time_limit": 0.5 + 2e-4 * nv}
-        res = linprog(cost, A_ub=a_ub, b_ub=np.zeros(2 * n), A_eq=a_eq, b_eq=np.concatenate(b_eq),
-                      bounds=np.column_stack([lb, ub]), method=method, options=opts)
-        if res.status in (0, 2):
-            break
-    if res.status != 0:
-        raise ValueError(f"the excursion LP failed: {res.message}")
-    x = np.asarray(res.x)
-    return float(x[i_s]), x[ith:ith + n].copy(), x[iu:iu + ns].copy()
-
-
-@dataclass(frozen=True)
-class ExcursionBound:
-    """The smallest peak pitch excursion (rad) any controller reaches during one arm motion (inf where the
-    actuator set cannot hold the hover at some sample: untrimmable_t_s is then the first such time)."""
-
-    min_peak_pitch_rad: float
-    t_s: np.ndarray
-    pitch_rad: np.ndarray  # the optimal excursion history
-    moment_nm: np.ndarray  # the commanded actuator moment about the CoM that achieves it (per step)
-    disturbance_nm: np.ndarray  # -dh/dt: the arm's reaction moment about the CoM
-    authority_max_nm: np.ndarray  # the static authority at each sample
-    authority_min_nm: np.ndarray
-    untrimmable_t_s: float | None = None
-
-
-def window_bound(cfg: VehicleConfig, motion: ArmMotion, fx_free: bool = False,
-                 actuator: tuple[float, float] | None = None, hold_until: int = 0, end_at_rest: bool = True,
-                 spacing_m: float = MAP_SPACING_M, terms: dict[str, np.ndarray] | None = None,
-                 free_start: bool = False) -> ExcursionBound:
-    """`min_pitch_excursion` over one arm motion: I_yy(q), h(q, q', m_o) from the model (`motion_terms`, or terms
-    given), the authority of each step the envelope of its two samples' (AuthorityMap at the sample's CoM, mass and
-    commanded pitch: with the authority convex in c, see AuthorityMap, the envelope of a step's ends covers the
-    CoM's path in between). free_start: the relaxation of `min_pitch_excursion` (a piece of a longer motion)."""
-    t = np.asarray(motion.t_s, dtype=float)
-    terms = motion_terms(cfg, motion) if terms is None else terms
-    lo, hi = authority_along(cfg, motion, terms, fx_free, spacing_m)
-    dist = -np.gradient(terms["h"], t)
-    bad = ~((lo <= TRIM_TOL_NM) & (hi >= -TRIM_TOL_NM))
-    if np.any(bad):
-        nan = np.full(len(t), np.nan)
-        return ExcursionBound(math.inf, t, nan, nan[:-1], dist, hi, lo, float(t[np.argmax(bad)]))
-    # the leading steps at rest with the command at trim change nothing (theta, theta' and the lag stay 0): the LP
-    # starts at the last of them
-    still = np.all(motion.q_rad == motion.q_rad[0], axis=1) & (motion.object_mass_kg == motion.object_mass_kg[0])
-    still &= terms["h"] == terms["h"][0]
-    k0 = min(int(np.argmin(still)) - 1 if not still.all() else len(t) - 2, hold_until)
-    k0 = 0 if free_start else max(k0, 0)
-    hi_s, lo_s = np.maximum(hi[:-1], hi[1:]), np.minimum(lo[:-1], lo[1:])
-    if free_start and _holds_still(t, terms, hi_s, lo_s, actuator):
-        return ExcursionBound(0.0, t, np.zeros(len(t)), np.zeros(len(t) - 1), dist, hi, lo)
-    sl = slice(k0, None)
-    peak, th, u = min_pitch_excursion(t[sl], terms["iyy"][sl], terms["h"][sl], hi_s[sl], lo_s[sl], actuator,
-                                      0 if free_start else hold_until - k0, terms["iyy_end"][sl],
-                                      terms["h_end"][sl], end_at_rest, free_start)
-    theta, mom = np.zeros(len(t)), np.zeros(len(t) - 1)
-    theta[sl], mom[sl] = th, u
-    return ExcursionBound(peak, t, theta, mom, dist, hi, lo)
-
-
-def _holds_still(t: np.ndarray, terms: dict[str, np.ndarray], hi: np.ndarray, lo: np.ndarray,
-                  actuator: tuple[float, float] | None) -> bool:
-    """Whether theta = theta' = 0 throughout is reachable in the free-start relaxation (then its peak is exactly 0,
-    no LP needed): the moment it takes, (h_end - h) / dt per step, delivered by a command inside the authority (the
-    lag inverted step by step from the delivered moment's first value, at rest)."""
-    need = (terms["h_end"] - terms["h"][:-1]) / np.diff(t)
-    if actuator is None:
-        return bool(np.all((need <= hi) & (need >= lo)))
-    z = np.array([need[0], 0.0])
-    for k, dt in enumerate(np.diff(t)):
-        phi, gam, cc, dd = lag_discrete(float(dt), float(actuator[0]), float(actuator[1]))
-        u = (need[k] - cc @ z) / dd
-        if not lo[k] <= u <= hi[k]:
-            return False
-        z = phi @ z + gam * u
-    return True
-
-
-def reversal_motion(q_from_rad: float, q_to_rad: float, object_mass_kg: float, v_max: float, a_max: float,
-                    dt_s: float = 0.002, settle_s: float = 1.0, pre_s: float = 0.0, body_pitch_rad: float = 0.0,
-                    servo_step_s: float = SERVO_STEP_S) -> ArmMotion:
-    """The paper's reversal: all three joints from q_from to q_to through the plant's servo (integrated at about
-    servo_step_s, sampled every dt_s), after pre_s at rest."""
-    sub = max(1, round(dt_s / servo_step_s))
-    move_s = abs(q_to_rad - q_from_rad) / v_max + v_max / a_max + 0.05
-    qj, qdj = servo_profile(q_from_rad, q_to_rad, v_max, a_max, dt_s / sub, move_s + settle_s)
-    qj, qdj = qj[::sub], qdj[::sub]
-    n_pre = int(round(pre_s / dt_s))
-    qj = np.concatenate([np.full(n_pre, q_from_rad), qj])
-    qdj = np.concatenate([np.zeros(n_pre), qdj])
-    n = len(qj)
-    return ArmMotion(np.arange(n) * dt_s, np.repeat(qj[:, None], N_LINKS, axis=1),
-                     np.repeat(qdj[:, None], N_LINKS, axis=1), np.full(n, float(object_mass_kg)),
-                     np.full(n, float(body_pitch_rad)))
-
-
-def reversal_bound(cfg: VehicleConfig, q_from_rad: float, q_to_rad: float, object_mass_kg: float,
-                   v_max: float, a_max: float, fx_free: bool = False, dt_s: float = 0.002,
-                   settle_s: float = 1.0, actuator: tuple[float, float] | None = None,
-                   causal_delay_s: float | None = None, pre_s: float = 0.0,
-                   body_pitch_rad: float = 0.0, spacing_m: float = MAP_SPACING_M) -> ExcursionBound:
-    """The paper's reversal (`reversal_motion`, starting at pre_s), about a hover pitched by body_pitch_rad (the
-    excursion is counted from there): `window_bound` on it.
-    actuator = (omega_n, zeta): the delivered moment lags its command (module docstring, 3.); causal_delay_s: the
-    command stays at trim until this long after the reversal starts (None: free from t = 0, a preview)."""
-    motion = reversal_motion(q_from_rad, q_to_rad, object_mass_kg, v_max, a_max, dt_s, settle_s, pre_s,
-                             body_pitch_rad)
-    hold = 0 if causal_delay_s is None else int(round(pre_s / dt_s)) + int(round(causal_delay_s / dt_s))
-    return window_bound(cfg, motion, fx_free, actuator, hold, spacing_m=spacing_m)
 
 
 # --------------------------------------------------------------------------------------
@@ -759,6 +205,28 @@ def bound_from_log(run_log: Any, vehicle_cfg: VehicleConfig, plant: Any = None, 
 
             plant = PlantParams.load()
         actuator = moment_lag(plant)
+    flown, pitch_source = _flown_motion(run_log)
+    maps_before = map_lp_points()
+    untrimmable = _first_untrimmable(vehicle_cfg, flown, spacing_m)
+    variants = [("lag_free", None, "onset"), ("causal", actuator, "causal")]
+    if preview:
+        variants.append(("preview", actuator, "start"))
+    windows = arm_windows(flown.t_s, flown.qd_rad_s, pre_s, settle_s)
+    for w in windows:
+        u_t = _bound_window(w, vehicle_cfg, flown, variants, dt_s, causal_delay_s, settle_s, spacing_m)
+        if u_t is not None and (untrimmable is None or u_t < untrimmable):
+            untrimmable = u_t
+    out = _worst_of_windows(windows, [name for name, _, _ in variants], untrimmable, flown.t_s)
+    lp_points = sum(n - maps_before.get(k, 0) for k, n in map_lp_points().items())
+    out.update({"actuator": {"omega_n_rad_s": float(actuator[0]), "zeta": float(actuator[1])},
+                "tail_max_thrust_n": tail_max_thrust_n(vehicle_cfg), "pitch_source": pitch_source, "dt_s": dt_s,
+                "lp_points": lp_points, "compute_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0})
+    return out
+
+
+def _flown_motion(run_log: Any) -> tuple[ArmMotion, str]:
+    """The run's arm motion, object and commanded pitch at each /truth sample with finite joint data, and where the
+    commanded pitch came from (/fc/setpoint, rounded to 1e-3 deg: the AuthorityMap keys; else the flown pitch)."""
     tr = run_log["/truth"]
     t = np.asarray(tr.t, dtype=float)
     q = tr.field("joint_pos_rad", N_LINKS)
@@ -773,72 +241,106 @@ def bound_from_log(run_log: Any, vehicle_cfg: VehicleConfig, plant: Any = None, 
         pitch = np.round(np.nan_to_num(tr.field("euler_rad", 3)[:, 1]) / math.radians(1.0)) * math.radians(1.0)
         pitch_source = "/truth euler (flown, to 1 deg)"
     ok = np.all(np.isfinite(q), axis=1) & np.all(np.isfinite(qd), axis=1)
-    t, q, qd, mo, pitch = t[ok], q[ok], qd[ok], mo[ok], pitch[ok]
-    maps_before = {k: m.lp_points for k, m in _MAPS.items()}
+    return ArmMotion(t[ok], q[ok], qd[ok], mo[ok], pitch[ok]), pitch_source
 
-    # trim: every sample flown, F_x held
-    every = ArmMotion(t, q, qd, mo, pitch)
-    mt = _mass_terms(vehicle_cfg, q, mo)
+
+def _first_untrimmable(cfg: VehicleConfig, flown: ArmMotion, spacing_m: float) -> float | None:
+    """The first time at which the actuator set cannot hold the hover (F_x held) at the pose, object and commanded
+    pitch flown; None when it can throughout."""
+    mt = mass_terms(cfg, flown.q_rad, flown.object_mass_kg)
     terms = {"com_x": mt[:, 1], "com_z": mt[:, 2], "mass": mt[:, 3]}
-    lo, hi = authority_along(vehicle_cfg, every, terms, False, spacing_m)
+    lo, hi = authority_along(cfg, flown, terms, False, spacing_m)
     bad = ~((lo <= TRIM_TOL_NM) & (hi >= -TRIM_TOL_NM))
-    untrimmable = float(t[np.argmax(bad)]) if np.any(bad) else None
+    return float(flown.t_s[np.argmax(bad)]) if np.any(bad) else None
 
-    variants = [("lag_free", None, "onset"), ("causal", actuator, "causal")]
-    if preview:
-        variants.append(("preview", actuator, "start"))
-    windows = arm_windows(t, qd, pre_s, settle_s)
-    for w in windows:
-        # a window of continuous motion longer than one piece on a coarser grid (its LPs grow faster than n)
-        dt_w = dt_s if w["t_end_s"] - w["t_start_s"] <= CHUNK_S else max(dt_s, LONG_DT_S)
-        n = int(math.floor((w["t_end_s"] - w["t_start_s"]) / dt_w + 1e-9)) + 1
-        tg = w["t_start_s"] + dt_w * np.arange(n)
-        i0 = max(int(np.searchsorted(t, w["t_start_s"], side="right")) - 1, 0)
-        i1 = min(int(np.searchsorted(t, w["t_end_s"], side="left")) + 1, len(t))
-        qg, qdg = _resample(t[i0:i1], q[i0:i1], qd[i0:i1], tg)
-        j = np.clip(np.searchsorted(t, tg + 1e-9, side="right") - 1, 0, len(t) - 1)
-        motion = ArmMotion(tg, qg, qdg, mo[j], pitch[j])
-        onset = int(np.searchsorted(tg, w["t_onset_s"] - 1e-9))
-        hold = {"onset": onset, "causal": onset + int(round(causal_delay_s / dt_w)), "start": 0}
-        end_at_rest = w["t_end_s"] - w["t_stop_s"] >= min(settle_s, MIN_SETTLE_S) - 1e-9  # else the log ends first
-        w.update({"object_kg": [float(np.min(mo[j])), float(np.max(mo[j]))],
-                  "pitch_cmd_deg": [math.degrees(float(np.min(pitch[j]))), math.degrees(float(np.max(pitch[j])))],
-                  "end_at_rest": bool(end_at_rest)})
-        terms = motion_terms(vehicle_cfg, motion)
-        w["peak_reaction_nm"] = float(np.max(np.abs(np.gradient(terms["h"], tg))))
-        # a long window (continuous motion) in overlapping pieces, each after the first with its state free
-        step, span = int(round((CHUNK_S - CHUNK_OVERLAP_S) / dt_w)), int(round(CHUNK_S / dt_w))
-        starts = [0]
-        while starts[-1] + span < n - 1:
-            starts.append(starts[-1] + step)
-        pieces = [(k, min(k + span + 1, n)) for k in starts]
-        w["pieces"], w["dt_s"] = len(pieces), dt_w
-        for name, act, when in variants:
-            for fx_free in (False, True):
-                worst = 0.0
-                for k_a, k_b in pieces:
-                    last = k_b == n
-                    sl = slice(k_a, k_b)
-                    piece = ArmMotion(tg[sl], qg[sl], qdg[sl], mo[j][sl], pitch[j][sl])
-                    p_terms = {key: v[k_a:k_b] if len(v) == n else v[k_a:k_b - 1] for key, v in terms.items()}
-                    flags = (hold[when] if k_a == 0 else 0, end_at_rest and last, k_a > 0)
-                    digest = hashlib.sha1(b"".join(np.ascontiguousarray(np.round(x, 9)).tobytes() for x in (
-                        piece.q_rad, piece.qd_rad_s, piece.object_mass_kg, piece.body_pitch_rad,
-                        piece.t_s - piece.t_s[0]))).hexdigest()
-                    key = (vehicle_cfg, act, flags, spacing_m, fx_free, digest)
-                    if key not in _WINDOWS:  # a repeated move (a square wave's) is solved once
-                        if len(_WINDOWS) >= 4096:
-                            _WINDOWS.clear()
-                        b = window_bound(vehicle_cfg, piece, fx_free, act, flags[0], flags[1], spacing_m, p_terms,
-                                         flags[2])
-                        u_t = None if b.untrimmable_t_s is None else b.untrimmable_t_s - float(piece.t_s[0])
-                        _WINDOWS[key] = (b.min_peak_pitch_rad, u_t)
-                    peak, u_t = _WINDOWS[key]
-                    worst = max(worst, peak)
-                    if u_t is not None and (untrimmable is None or u_t + float(piece.t_s[0]) < untrimmable):
-                        untrimmable = u_t + float(piece.t_s[0])
-                w[f"{name}_fx_{'free' if fx_free else 'held'}_deg"] = math.degrees(worst)
-    keys = [f"{name}_fx_{fx}_deg" for name, _, _ in variants for fx in ("held", "free")]
+
+def _window_motion(w: dict[str, Any], flown: ArmMotion, dt_s: float) -> tuple[ArmMotion, float]:
+    """The window's motion resampled on its grid (dt_s; a window of continuous motion longer than one piece on a
+    coarser grid, as its LPs grow faster than its length), the object and the commanded pitch held from the last
+    logged sample; and the grid's step."""
+    t = flown.t_s
+    dt_w = dt_s if w["t_end_s"] - w["t_start_s"] <= CHUNK_S else max(dt_s, LONG_DT_S)
+    n = int(math.floor((w["t_end_s"] - w["t_start_s"]) / dt_w + 1e-9)) + 1
+    tg = w["t_start_s"] + dt_w * np.arange(n)
+    i0 = max(int(np.searchsorted(t, w["t_start_s"], side="right")) - 1, 0)
+    i1 = min(int(np.searchsorted(t, w["t_end_s"], side="left")) + 1, len(t))
+    qg, qdg = _resample(t[i0:i1], flown.q_rad[i0:i1], flown.qd_rad_s[i0:i1], tg)
+    j = np.clip(np.searchsorted(t, tg + 1e-9, side="right") - 1, 0, len(t) - 1)
+    return ArmMotion(tg, qg, qdg, flown.object_mass_kg[j], flown.body_pitch_rad[j]), dt_w
+
+
+def _window_pieces(n: int, dt_w: float) -> list[tuple[int, int]]:
+    """A window of n samples as pieces [k_a, k_b) of CHUNK_S overlapping by CHUNK_OVERLAP_S (one piece when it is
+    no longer than that)."""
+    step, span = int(round((CHUNK_S - CHUNK_OVERLAP_S) / dt_w)), int(round(CHUNK_S / dt_w))
+    starts = [0]
+    while starts[-1] + span < n - 1:
+        starts.append(starts[-1] + step)
+    return [(k, min(k + span + 1, n)) for k in starts]
+
+
+def _bound_window(w: dict[str, Any], cfg: VehicleConfig, flown: ArmMotion, variants: list[tuple[str, Any, str]],
+                  dt_s: float, causal_delay_s: float, settle_s: float, spacing_m: float) -> float | None:
+    """One window's bounds: `w` gains its object and pitch ranges, peak reaction, pieces and each variant's worst
+    piece (deg, F_x held and free). Returns the first untrimmable time found in it, or None."""
+    motion, dt_w = _window_motion(w, flown, dt_s)
+    tg, n = motion.t_s, len(motion.t_s)
+    mo, pitch = motion.object_mass_kg, motion.body_pitch_rad
+    onset = int(np.searchsorted(tg, w["t_onset_s"] - 1e-9))
+    hold = {"onset": onset, "causal": onset + int(round(causal_delay_s / dt_w)), "start": 0}
+    end_at_rest = w["t_end_s"] - w["t_stop_s"] >= min(settle_s, MIN_SETTLE_S) - 1e-9  # else the log ends first
+    w.update({"object_kg": [float(np.min(mo)), float(np.max(mo))],
+              "pitch_cmd_deg": [math.degrees(float(np.min(pitch))), math.degrees(float(np.max(pitch)))],
+              "end_at_rest": bool(end_at_rest)})
+    terms = motion_terms(cfg, motion)
+    w["peak_reaction_nm"] = float(np.max(np.abs(np.gradient(terms["h"], tg))))
+    # a long window (continuous motion) in overlapping pieces, each after the first with its state free
+    pieces = _window_pieces(n, dt_w)
+    w["pieces"], w["dt_s"] = len(pieces), dt_w
+    untrimmable = None
+    for name, act, when in variants:
+        for fx_free in (False, True):
+            worst = 0.0
+            for k_a, k_b in pieces:
+                flags = (hold[when] if k_a == 0 else 0, end_at_rest and k_b == n, k_a > 0)
+                peak, u_t = _piece_bound(cfg, motion, terms, (k_a, k_b), act, flags, fx_free, spacing_m)
+                worst = max(worst, peak)
+                if u_t is not None and (untrimmable is None or u_t < untrimmable):
+                    untrimmable = u_t
+            w[f"{name}_fx_{'free' if fx_free else 'held'}_deg"] = math.degrees(worst)
+    return untrimmable
+
+
+def _piece_bound(cfg: VehicleConfig, motion: ArmMotion, terms: dict[str, np.ndarray], span: tuple[int, int],
+                 actuator: tuple[float, float] | None, flags: tuple[int, bool, bool], fx_free: bool,
+                 spacing_m: float) -> tuple[float, float | None]:
+    """`window_bound` on the samples span = [k_a, k_b) of a window's motion, flags = (hold_until, end_at_rest,
+    free_start): its peak (rad) and its first untrimmable time (s) or None. A repeated move (a square wave's) is
+    solved once per process (_WINDOWS, keyed by the piece's content)."""
+    k_a, k_b = span
+    n = len(motion.t_s)
+    sl = slice(k_a, k_b)
+    piece = ArmMotion(motion.t_s[sl], motion.q_rad[sl], motion.qd_rad_s[sl], motion.object_mass_kg[sl],
+                      motion.body_pitch_rad[sl])
+    p_terms = {key: v[k_a:k_b] if len(v) == n else v[k_a:k_b - 1] for key, v in terms.items()}
+    digest = hashlib.sha1(b"".join(np.ascontiguousarray(np.round(x, 9)).tobytes() for x in (
+        piece.q_rad, piece.qd_rad_s, piece.object_mass_kg, piece.body_pitch_rad,
+        piece.t_s - piece.t_s[0]))).hexdigest()
+    key = (cfg, actuator, flags, spacing_m, fx_free, digest)
+    if key not in _WINDOWS:
+        if len(_WINDOWS) >= 4096:
+            _WINDOWS.clear()
+        b = window_bound(cfg, piece, fx_free, actuator, flags[0], flags[1], spacing_m, p_terms, flags[2])
+        u_t = None if b.untrimmable_t_s is None else b.untrimmable_t_s - float(piece.t_s[0])
+        _WINDOWS[key] = (b.min_peak_pitch_rad, u_t)
+    peak, u_t = _WINDOWS[key]
+    return peak, None if u_t is None else u_t + float(piece.t_s[0])
+
+
+def _worst_of_windows(windows: list[dict[str, Any]], names: list[str], untrimmable: float | None,
+                      t: np.ndarray) -> dict[str, Any]:
+    """The run's figures from its windows': each variant's worst, the bound (inf when untrimmable), when."""
+    keys = [f"{name}_fx_{fx}_deg" for name in names for fx in ("held", "free")]
     out: dict[str, Any] = {k: max((w[k] for w in windows), default=0.0) for k in keys}
     trim_ok = untrimmable is None
     if windows:
@@ -852,13 +354,6 @@ def bound_from_log(run_log: Any, vehicle_cfg: VehicleConfig, plant: Any = None, 
         "untrimmable_t_s": untrimmable,
         "worst_t_s": float(worst_t if trim_ok else untrimmable),
         "windows": windows,
-        "actuator": {"omega_n_rad_s": float(actuator[0]), "zeta": float(actuator[1])},
-        "tail_max_thrust_n": tail_max_thrust_n(vehicle_cfg),
-        "pitch_source": pitch_source,
-        "dt_s": dt_s,
-        "lp_points": sum(m.lp_points - maps_before.get(k, 0) for k, m in _MAPS.items()),
-        "compute_s": time.perf_counter() - t0,
-        "cpu_s": time.process_time() - c0,
     })
     return out
 

@@ -2,8 +2,8 @@
 
 - The FC's servo model against the closed-form time-optimal trapezoid (accelerate at a_max to v_max, coast,
   brake at a_max) and against the plant's servo (`sim_bridge._kernels._servo_accel`, written separately).
-- The preview's ḣ at t + lead against ḣ (`_kernels.mass_props`, itself checked against tools/authority's h in
-  test_arm_wrench.py) at the state the plant's servo reaches at t + lead.
+- The preview's ḣ at t + lead against ḣ (`_kernels.mass_props`, itself checked against tools/authority_excursion's
+  h in test_arm_wrench.py) at the state the plant's servo reaches at t + lead.
 - The scenario's arm plan as the FC parses it against the bridge's own target lookup (`Scenario.arm_targets`).
 - The controller: with INDI_ARM_FF = 2 and an arm step coming within the lead time the pitch command leans against
   the reaction before the arm moves; without a plan INDI_ARM_FF = 2 flies exactly as INDI_ARM_FF = 1.

@@ -1,8 +1,8 @@
 """CKF_ARM_WRENCH: the arm's reaction pitch moment in the adaptive law's measurement.
 
 - The kernel's h' (MP.HDC / UO.HDC: d/dt of the bodies' pitch angular momentum relative to the body, about the
-  composite CoM) against a central time difference of tools/authority.py's h (written separately with numpy)
-  along q(t) = q0 + q' t + q'' t^2 / 2.
+  composite CoM) against a central time difference of tools/authority_excursion.py's h (written separately with
+  numpy) along q(t) = q0 + q' t + q'' t^2 / 2.
 - The law on noise-free synthetic signals that satisfy G_C U = G_I,true Acc + [0, h', 0, 0, 0] exactly, with
   h' correlated with Q-dot (as the arm's reaction is during a reversal): with the term the estimate reaches the
   true Iyy; without it (the paper's Eq. 24) it settles elsewhere. A small R makes the filter converge within
@@ -18,7 +18,7 @@ from navig8_fc.core import _kernels as k
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig
 from navig8_fc.core.kalman import CkfConfig
 from navig8_fc.core.vehicle import UamModel, VehicleConfig, inertia_matrix_gi, model_geometry
-from navig8_tools.authority import arm_momentum_y
+from navig8_tools.authority_excursion import arm_momentum_y
 
 
 @pytest.fixture(scope="module")

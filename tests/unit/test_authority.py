@@ -1,5 +1,5 @@
-"""navig8-authority (tools/authority.py): the hover moment authority LP, the reversal bound and the bound of a flown
-run against closed forms and independent oracles.
+"""navig8-authority (tools/authority.py, authority_static.py, authority_excursion.py): the hover moment authority
+LP, the reversal bound and the bound of a flown run against closed forms and independent oracles.
 
 The closed forms use a simplified vehicle (no dihedral, no drag torques, arm straight down, no object), where
 the five wrench rows decouple: with Fx held the pitch moment comes from the tail alone, the roll moment from the
@@ -21,6 +21,8 @@ from model_oracle import arm_kinematics
 
 from navig8_fc.core.vehicle import VehicleConfig, actuators_to_u, control_effectiveness_gc, mass_properties
 from navig8_tools import authority as au
+from navig8_tools import authority_excursion as aux
+from navig8_tools import authority_static as aus
 from navig8_tools.logdata import RunLog, Series
 
 V_MAX, A_MAX = 4.0, 42.0  # the plant's joint servo (params/plant.yaml)
@@ -38,7 +40,7 @@ def test_pitch_authority_fx_held_closed_form(tail_n: float) -> None:
     mg = cfg.uam_mass_kg * cfg.gravity_m_s2
     duct_max = 2.0 * cfg.k_thrust_duct * cfg.duct_speed_max**2  # both ducts at full speed, vertical
     arm = -cfg.tail_frd_m[0]  # the ducts sit at x = 0 = the CoM's x: only the tail's lever remains
-    a = au.hover_authority(cfg, [0.0, 0.0, 0.0], 0.0, "pitch", fx_free=False)
+    a = aus.hover_authority(cfg, [0.0, 0.0, 0.0], 0.0, "pitch", fx_free=False)
     # nose up: the tail pushes down, the ducts carry m g + T; nose down: the tail lifts at most m g
     assert a.max_nm == pytest.approx(arm * min(tail_n, duct_max - mg), rel=1e-6)
     assert a.min_nm == pytest.approx(-arm * min(tail_n, mg), rel=1e-6)
@@ -49,7 +51,7 @@ def test_roll_authority_closed_form() -> None:
     mg = cfg.uam_mass_kg * cfg.gravity_m_s2
     one_duct = cfg.k_thrust_duct * cfg.duct_speed_max**2
     y = cfg.duct_right_frd_m[1]
-    a = au.hover_authority(cfg, [0.0, 0.0, 0.0], 0.0, "roll")
+    a = aus.hover_authority(cfg, [0.0, 0.0, 0.0], 0.0, "roll")
     # one duct at min(full, m g), the other the rest: L = y (T3 - T1)
     assert a.max_nm == pytest.approx(y * min(2 * one_duct - mg, mg), rel=1e-6)
     assert a.min_nm == pytest.approx(-a.max_nm, rel=1e-6)
@@ -70,16 +72,16 @@ def test_pitch_authority_fx_free_against_a_scan() -> None:
     m_tail = cfg.tail_frd_m[0] * kt2 * u5  # -(x_t)(F_z,t) with F_z,t = -K_T2 U5
     best_up = np.max((2 * kt * abs(h) * usin + m_tail)[ok])
     best_dn = np.min((-2 * kt * abs(h) * usin + m_tail)[ok])
-    a = au.hover_authority(cfg, [0.0, 0.0, 0.0], 0.0, "pitch", fx_free=True)
+    a = aus.hover_authority(cfg, [0.0, 0.0, 0.0], 0.0, "pitch", fx_free=True)
     assert a.max_nm == pytest.approx(best_up, rel=1e-3)
     assert a.min_nm == pytest.approx(best_dn, rel=1e-3)
-    assert a.max_nm > au.hover_authority(cfg, [0.0, 0.0, 0.0], 0.0, "pitch").max_nm  # the tilt lever helps
+    assert a.max_nm > aus.hover_authority(cfg, [0.0, 0.0, 0.0], 0.0, "pitch").max_nm  # the tilt lever helps
 
 
 def test_solution_is_flyable_and_beats_random_flyable_points() -> None:
     cfg = VehicleConfig.load()
     q = [math.radians(20.0)] * 3
-    a = au.hover_authority(cfg, q, 2.0, "pitch", fx_free=True)
+    a = aus.hover_authority(cfg, q, 2.0, "pitch", fx_free=True)
     for u in (a.u_at_max, a.u_at_min):
         for c, s in ((u[0], u[1]), (u[2], u[3])):
             assert math.hypot(c, s) <= cfg.duct_speed_max**2 * (1 + 1e-9)
@@ -114,7 +116,7 @@ def test_lp_matches_a_nonlinear_solver_in_actuator_space(fx_free: bool, pitch_de
         a1, a3, w1, w3, w2 = x * scale
         return gc @ actuators_to_u(a1, a3, w1, w2, w3)
 
-    a = au.hover_authority(cfg, q, 2.0, "pitch", fx_free, body_pitch_rad=math.radians(pitch_deg))
+    a = aus.hover_authority(cfg, q, 2.0, "pitch", fx_free, body_pitch_rad=math.radians(pitch_deg))
     rng = np.random.default_rng(5)
     for sgn, lp in ((1.0, a.max_nm), (-1.0, a.min_nm)):
         found = []
@@ -130,7 +132,7 @@ def test_lp_matches_a_nonlinear_solver_in_actuator_space(fx_free: bool, pitch_de
         best = max(found) if sgn > 0 else min(found)
         # nothing flyable beats the LP by more than the polygon's shortfall: at most 1 - cos(pi/n) of each duct's
         # full thrust, on a lever below 1 m (absolute: pitched, the moment is a small difference of large forces)
-        poly_nm = (1.0 - math.cos(math.pi / au.POLYGON_SIDES)) * 2.0 * cfg.k_thrust_duct * cfg.duct_speed_max**2
+        poly_nm = (1.0 - math.cos(math.pi / aus.POLYGON_SIDES)) * 2.0 * cfg.k_thrust_duct * cfg.duct_speed_max**2
         assert sgn * best <= sgn * lp + poly_nm + 1e-6
         assert best == pytest.approx(lp, rel=2e-3)  # and the LP's optimum is reached
 
@@ -151,13 +153,13 @@ def test_arm_momentum_against_vector_oracle() -> None:
         h = sum(b[0] * np.cross(b[1] - c, b[2] - cd)[1] for b in bodies)
         thd = np.cumsum(qd)
         h += cfg.link_inertia_kgm2 * thd.sum() + 0.4 * mo * cfg.object_radius_m**2 * thd[-1]
-        assert au.arm_momentum_y(cfg, q[None, :], qd[None, :], mo)[0] == pytest.approx(h, rel=1e-12, abs=1e-12)
+        assert aux.arm_momentum_y(cfg, q[None, :], qd[None, :], mo)[0] == pytest.approx(h, rel=1e-12, abs=1e-12)
 
 
 def test_min_excursion_zero_when_authority_suffices() -> None:
     t = np.linspace(0, 1, 501)
     h = 5.0 * np.sin(np.pi * t) ** 2  # peak dh/dt = 5 pi = 15.7 N m
-    peak, _, _ = au.min_pitch_excursion(t, np.full_like(t, 0.5), h, np.full_like(t, 20.0), np.full_like(t, -20.0))
+    peak, _, _ = aux.min_pitch_excursion(t, np.full_like(t, 0.5), h, np.full_like(t, 20.0), np.full_like(t, -20.0))
     assert peak < 1e-9
 
 
@@ -167,7 +169,7 @@ def test_min_excursion_closed_form() -> None:
     inertia, d, u, big_t = 0.8, 100.0, 40.0, 0.2
     t = np.arange(0, 1.0 + 1e-12, 0.0005)
     h = d * np.minimum(t, big_t)
-    peak, theta, mom = au.min_pitch_excursion(t, np.full_like(t, inertia), h, np.full_like(t, u),
+    peak, theta, mom = aux.min_pitch_excursion(t, np.full_like(t, inertia), h, np.full_like(t, u),
                                               np.full_like(t, -u))
     assert peak == pytest.approx(d * (d - u) * big_t**2 / (2 * inertia * u), rel=5e-3)
     assert np.max(np.abs(mom)) <= u + 1e-6
@@ -178,9 +180,9 @@ def test_reversal_bound_is_sensible() -> None:
     raise it; the arm's peak reaction is the paper's order (Fig. 10: 125.8 N m)."""
     cfg = VehicleConfig.load()
     a = math.radians(20.0)
-    held = au.reversal_bound(cfg, a, -a, 2.0, 4.0, 42.0, fx_free=False)
-    free = au.reversal_bound(cfg, a, -a, 2.0, 4.0, 42.0, fx_free=True)
-    weak = au.reversal_bound(au.with_tail_thrust(cfg, 60.0), a, -a, 2.0, 4.0, 42.0, fx_free=False)
+    held = aux.reversal_bound(cfg, a, -a, 2.0, 4.0, 42.0, fx_free=False)
+    free = aux.reversal_bound(cfg, a, -a, 2.0, 4.0, 42.0, fx_free=True)
+    weak = aux.reversal_bound(au.with_tail_thrust(cfg, 60.0), a, -a, 2.0, 4.0, 42.0, fx_free=False)
     assert free.min_peak_pitch_rad <= held.min_peak_pitch_rad + 1e-9 <= weak.min_peak_pitch_rad + 2e-9
     assert 100.0 < np.max(np.abs(held.disturbance_nm)) < 150.0
 
@@ -240,7 +242,7 @@ def test_lag_discretisation_against_scipy(zeta: float) -> None:
     from scipy import signal
 
     wn, dt, n = 120.0, 0.002, 200
-    phi, gam, cc, dd = au.lag_discrete(dt, wn, zeta)
+    phi, gam, cc, dd = aux.lag_discrete(dt, wn, zeta)
     z, y = np.zeros(2), []
     for _ in range(n):
         y.append(cc @ z + dd)
@@ -262,7 +264,7 @@ def test_sparse_excursion_lp_matches_the_dense_oracle(actuator: tuple[float, flo
     inertia = 0.6 + 0.2 * np.cos(t)
     hi, lo = np.full_like(t, 30.0) + 5 * t, np.full_like(t, -25.0)
     lag = None if actuator is None else _lag_matrix(0.004, len(t) - 1, *actuator)
-    peak, theta, u = au.min_pitch_excursion(t, inertia, h, hi, lo, actuator, hold)
+    peak, theta, u = aux.min_pitch_excursion(t, inertia, h, hi, lo, actuator, hold)
     assert peak == pytest.approx(_dense_excursion(t, inertia, h, hi, lo, lag, hold), rel=1e-7, abs=1e-10)
     assert peak > 1e-3 and np.max(np.abs(theta)) <= peak + 1e-9 and np.all(u[:hold] == 0.0)
 
@@ -274,10 +276,10 @@ def test_lag_bound_limits_and_order() -> None:
     t = np.arange(0, 1.0 + 1e-12, dt)
     h = d * np.minimum(t, big_t)
     args = (t, np.full_like(t, inertia), h, np.full_like(t, u), np.full_like(t, -u))
-    free, _, _ = au.min_pitch_excursion(*args)
-    fast, _, _ = au.min_pitch_excursion(*args, actuator=(1e5, 1.0))
-    slow, _, _ = au.min_pitch_excursion(*args, actuator=ACT)
-    causal, _, mom = au.min_pitch_excursion(*args, actuator=ACT, hold_until=10)
+    free, _, _ = aux.min_pitch_excursion(*args)
+    fast, _, _ = aux.min_pitch_excursion(*args, actuator=(1e5, 1.0))
+    slow, _, _ = aux.min_pitch_excursion(*args, actuator=ACT)
+    causal, _, mom = aux.min_pitch_excursion(*args, actuator=ACT, hold_until=10)
     assert fast == pytest.approx(free, rel=2e-3)
     assert free < slow < causal
     assert np.all(mom[:10] == 0.0)
@@ -289,9 +291,9 @@ def test_reversal_bound_with_lag_brackets_the_lag_free_one() -> None:
     cfg = VehicleConfig.load()
     a = math.radians(20.0)
     kw = dict(fx_free=True, dt_s=0.004)
-    free = au.reversal_bound(cfg, -a, a, 2.0, V_MAX, A_MAX, **kw)
-    causal = au.reversal_bound(cfg, -a, a, 2.0, V_MAX, A_MAX, actuator=ACT, causal_delay_s=0.01, pre_s=0.2, **kw)
-    preview = au.reversal_bound(cfg, -a, a, 2.0, V_MAX, A_MAX, actuator=ACT, pre_s=0.2, **kw)
+    free = aux.reversal_bound(cfg, -a, a, 2.0, V_MAX, A_MAX, **kw)
+    causal = aux.reversal_bound(cfg, -a, a, 2.0, V_MAX, A_MAX, actuator=ACT, causal_delay_s=0.01, pre_s=0.2, **kw)
+    preview = aux.reversal_bound(cfg, -a, a, 2.0, V_MAX, A_MAX, actuator=ACT, pre_s=0.2, **kw)
     assert free.min_peak_pitch_rad < causal.min_peak_pitch_rad
     assert preview.min_peak_pitch_rad < causal.min_peak_pitch_rad
 
@@ -308,14 +310,14 @@ def test_batched_authority_equals_one_at_a_time_and_infeasible_is_none() -> None
     poses = [[0.0] * 3, [math.radians(20.0)] * 3, [math.radians(v) for v in (80.0, 10.0, 10.0)]]
     mps = [mass_properties(cfg, q, 2.0) for q in poses]
     coms = np.array([[mp.com_frd_m[0], mp.com_frd_m[2]] for mp in mps])
-    batch = au.authority_at_coms(cfg, coms, mps[0].mass_kg, "pitch", True, body_pitch_rad=0.3)
+    batch = aus.authority_at_coms(cfg, coms, mps[0].mass_kg, "pitch", True, body_pitch_rad=0.3)
     for q, b in zip(poses, batch, strict=True):
-        one = au.hover_authority(cfg, q, 2.0, "pitch", True, body_pitch_rad=0.3)
+        one = aus.hover_authority(cfg, q, 2.0, "pitch", True, body_pitch_rad=0.3)
         assert b is not None
         assert (b.min_nm, b.max_nm) == pytest.approx((one.min_nm, one.max_nm), abs=1e-6)
-    assert au.authority_at_coms(cfg, coms[:1], 40.0) == [None]
+    assert aus.authority_at_coms(cfg, coms[:1], 40.0) == [None]
     with pytest.raises(ValueError, match="infeasible"):
-        au.hover_authority(cfg, poses[0], 40.0)
+        aus.hover_authority(cfg, poses[0], 40.0)
 
 
 @pytest.mark.parametrize("fx_free,pitch_deg,tail_n", [(False, 0.0, 200.0), (True, 0.0, 200.0), (True, 45.0, 60.0),
@@ -327,13 +329,13 @@ def test_authority_map_is_never_narrower_than_the_lp(fx_free: bool, pitch_deg: f
     tight where the authority is affine (Fx held)."""
     cfg = au.with_tail_thrust(VehicleConfig.load(), tail_n)
     th = math.radians(pitch_deg)
-    amap = au.AuthorityMap(cfg, 8.0, th, fx_free)
+    amap = aus.AuthorityMap(cfg, 8.0, th, fx_free)
     rng = np.random.default_rng(7)
     cx, cz = rng.uniform(-0.32, 0.32, 25), rng.uniform(-0.06, 0.37, 25)
     lo, hi = amap.bounds(cx, cz)
     pts = np.column_stack([cx, cz])
-    outer = au.authority_at_coms(cfg, pts, 8.0, "pitch", fx_free, au.MAP_SIDES, th, outer=True)
-    inner = au.authority_at_coms(cfg, pts, 8.0, "pitch", fx_free, au.POLYGON_SIDES, th)
+    outer = aus.authority_at_coms(cfg, pts, 8.0, "pitch", fx_free, aus.MAP_SIDES, th, outer=True)
+    inner = aus.authority_at_coms(cfg, pts, 8.0, "pitch", fx_free, aus.POLYGON_SIDES, th)
     for i, (o, n) in enumerate(zip(outer, inner, strict=True)):
         assert o is not None and n is not None
         assert hi[i] >= o.max_nm - 1e-3 and lo[i] <= o.min_nm + 1e-3
@@ -349,11 +351,11 @@ def test_motion_terms_through_a_grasp() -> None:
     cfg = VehicleConfig.load()
     q = np.array([[0.1, 0.2, 0.3], [0.12, 0.21, 0.3], [0.14, 0.22, 0.3]])
     qd = np.array([[2.0, 1.0, 0.0]] * 3)
-    motion = au.ArmMotion(np.array([0.0, 0.01, 0.02]), q, qd, np.array([0.0, 1.5, 1.5]), np.zeros(3))
-    terms = au.motion_terms(cfg, motion)
+    motion = aux.ArmMotion(np.array([0.0, 0.01, 0.02]), q, qd, np.array([0.0, 1.5, 1.5]), np.zeros(3))
+    terms = aux.motion_terms(cfg, motion)
     assert terms["iyy"][1] == pytest.approx(mass_properties(cfg, q[1], 1.5).inertia_com[1, 1], rel=1e-12)
     assert terms["iyy_end"][0] == pytest.approx(mass_properties(cfg, q[1], 0.0).inertia_com[1, 1], rel=1e-12)
-    assert terms["h_end"][0] == pytest.approx(au.arm_momentum_y(cfg, q[1:2], qd[1:2], 0.0)[0], rel=1e-12)
+    assert terms["h_end"][0] == pytest.approx(aux.arm_momentum_y(cfg, q[1:2], qd[1:2], 0.0)[0], rel=1e-12)
     assert terms["h_end"][1] == terms["h"][2] and terms["iyy_end"][1] == terms["iyy"][2]
     assert terms["h"][1] != pytest.approx(terms["h_end"][0])
 
@@ -363,7 +365,7 @@ def test_motion_terms_through_a_grasp() -> None:
 # --------------------------------------------------------------------------------------
 
 
-def _log(motion: au.ArmMotion, setpoint: bool = True) -> RunLog:
+def _log(motion: aux.ArmMotion, setpoint: bool = True) -> RunLog:
     """A run log as load_run returns it, with the /truth fields bound_from_log reads (and /fc/setpoint)."""
     truth = [{"joint_pos_rad": list(q), "joint_rate_rad_s": list(qd), "object_mass_kg": float(m),
               "euler_rad": [0.0, float(p), 0.0]}
@@ -379,14 +381,14 @@ def _log(motion: au.ArmMotion, setpoint: bool = True) -> RunLog:
 def _reversal_log(mass_kg: float, q_from_deg: float = -20.0, q_to_deg: float = 20.0, pitch_deg: float = 0.0,
                   rest_s: float = 0.5) -> RunLog:
     """The paper's reversal as the plant's servo flies it (1 ms steps), logged at 100 Hz like the runners."""
-    return _log(au.reversal_motion(math.radians(q_from_deg), math.radians(q_to_deg), mass_kg, V_MAX, A_MAX,
+    return _log(aux.reversal_motion(math.radians(q_from_deg), math.radians(q_to_deg), mass_kg, V_MAX, A_MAX,
                                    dt_s=0.01, settle_s=1.0, pre_s=rest_s, body_pitch_rad=math.radians(pitch_deg)))
 
 
 def _rest_log(q_deg: tuple[float, float, float], mass_kg: float, duration_s: float = 2.0) -> RunLog:
     n = int(round(duration_s / 0.01)) + 1
     q = np.tile(np.radians(q_deg), (n, 1))
-    return _log(au.ArmMotion(np.arange(n) * 0.01, q, np.zeros_like(q), np.full(n, mass_kg), np.zeros(n)))
+    return _log(aux.ArmMotion(np.arange(n) * 0.01, q, np.zeros_like(q), np.full(n, mass_kg), np.zeros(n)))
 
 
 @pytest.mark.parametrize("q_from_deg,pitch_deg", [(20.0, 0.0), (-20.0, 0.0), (-20.0, 45.0)])
@@ -404,9 +406,9 @@ def test_bound_from_log_of_the_paper_reversal_equals_reversal_bound(q_from_deg: 
         assert rep["trim_feasible"] and rep["worst_t_s"] == pytest.approx(0.5)
         for fx_free in (False, True):
             fx = "free" if fx_free else "held"
-            ref = au.reversal_bound(cfg, a0, a1, 2.0, V_MAX, A_MAX, fx_free, dt_s=dt, body_pitch_rad=th)
+            ref = aux.reversal_bound(cfg, a0, a1, 2.0, V_MAX, A_MAX, fx_free, dt_s=dt, body_pitch_rad=th)
             assert rep[f"lag_free_fx_{fx}_deg"] == pytest.approx(math.degrees(ref.min_peak_pitch_rad), abs=tol)
-            ref = au.reversal_bound(cfg, a0, a1, 2.0, V_MAX, A_MAX, fx_free, dt_s=dt, actuator=ACT,
+            ref = aux.reversal_bound(cfg, a0, a1, 2.0, V_MAX, A_MAX, fx_free, dt_s=dt, actuator=ACT,
                                     causal_delay_s=au.CAUSAL_DELAY_S, pre_s=au.LAG_PRE_S, body_pitch_rad=th)
             assert rep[f"causal_fx_{fx}_deg"] == pytest.approx(math.degrees(ref.min_peak_pitch_rad), abs=tol)
         assert rep["bound_deg"] == rep["causal_fx_free_deg"]
@@ -424,7 +426,7 @@ def test_bound_from_log_arm_at_rest_is_zero() -> None:
     t = np.arange(n) * 0.01
     q = np.column_stack([0.01 * np.sin(np.pi * t / 3.0) ** 2] * 3)
     qd = np.column_stack([0.01 * np.pi / 3.0 * np.sin(2 * np.pi * t / 3.0)] * 3)
-    rep = au.bound_from_log(_log(au.ArmMotion(t, q, qd, np.full(n, 1.0), np.zeros(n))), VehicleConfig.load(),
+    rep = au.bound_from_log(_log(aux.ArmMotion(t, q, qd, np.full(n, 1.0), np.zeros(n))), VehicleConfig.load(),
                             actuator=ACT)
     assert len(rep["windows"]) == 1 and rep["lag_free_fx_held_deg"] < 1e-6 and rep["bound_deg"] < 0.01
 
@@ -453,7 +455,7 @@ def test_bound_from_log_untrimmable_pose() -> None:
     give with F_x held (the LP's range lies below 0), so no controller holds it: trim_feasible False, bound inf,
     worst_t_s the first time there. +-200 N holds it."""
     cfg40 = au.with_tail_thrust(VehicleConfig.load(), 40.0)
-    assert au.hover_authority(cfg40, np.radians([80.0, 10.0, 10.0]), 2.5).max_nm < 0.0
+    assert aus.hover_authority(cfg40, np.radians([80.0, 10.0, 10.0]), 2.5).max_nm < 0.0
     rep = au.bound_from_log(_rest_log((80.0, 10.0, 10.0), 2.5), cfg40, actuator=ACT)
     assert not rep["trim_feasible"] and rep["bound_deg"] == math.inf and rep["worst_t_s"] == 0.0
     assert au.bound_from_log(_rest_log((80.0, 10.0, 10.0), 2.5), VehicleConfig.load(), actuator=ACT)["trim_feasible"]
@@ -461,7 +463,7 @@ def test_bound_from_log_untrimmable_pose() -> None:
     n = 201
     q = np.tile(np.radians([80.0, 10.0, 10.0]), (n, 1))
     mo = np.where(np.arange(n) >= 100, 2.5, 0.0)
-    rep = au.bound_from_log(_log(au.ArmMotion(np.arange(n) * 0.01, q, np.zeros_like(q), mo, np.zeros(n))), cfg40,
+    rep = au.bound_from_log(_log(aux.ArmMotion(np.arange(n) * 0.01, q, np.zeros_like(q), mo, np.zeros(n))), cfg40,
                             actuator=ACT)
     assert not rep["trim_feasible"] and rep["untrimmable_t_s"] == pytest.approx(1.0)
 
@@ -500,7 +502,7 @@ def test_cli_log_prints_the_bound_of_a_tiny_mcap(tmp_path: Path, capsys: pytest.
     the run metadata naming scenario and world as navig8-sim records them)."""
     from navig8_fc.shell.mcap_log import McapLogger
 
-    motion = au.reversal_motion(math.radians(-20.0), math.radians(20.0), 2.0, V_MAX, A_MAX, dt_s=0.01, settle_s=0.6,
+    motion = aux.reversal_motion(math.radians(-20.0), math.radians(20.0), 2.0, V_MAX, A_MAX, dt_s=0.01, settle_s=0.6,
                                 pre_s=0.3)
     path = tmp_path / "rev.mcap"
     world = {"vehicle.propulsion.k_thrust_tail": 6e-05, "vehicle.propulsion.k_torque_tail": 1.2e-06}
@@ -527,21 +529,21 @@ def test_a_long_window_in_pieces_is_a_relaxation_of_the_whole() -> None:
     and their max, is at most the whole window's LP (a relaxation), and not far below it here."""
     cfg = au.with_tail_thrust(VehicleConfig.load(), 60.0)
     a = math.radians(20.0)
-    one = au.reversal_motion(-a, a, 2.0, V_MAX, A_MAX, dt_s=0.01, settle_s=0.3, pre_s=0.5)
-    two = au.reversal_motion(a, -a, 2.0, V_MAX, A_MAX, dt_s=0.01, settle_s=1.0, pre_s=0.0)
+    one = aux.reversal_motion(-a, a, 2.0, V_MAX, A_MAX, dt_s=0.01, settle_s=0.3, pre_s=0.5)
+    two = aux.reversal_motion(a, -a, 2.0, V_MAX, A_MAX, dt_s=0.01, settle_s=1.0, pre_s=0.0)
     cat = [np.concatenate([x, y[1:]]) for x, y in ((one.q_rad, two.q_rad), (one.qd_rad_s, two.qd_rad_s))]
     n = len(cat[0])
-    motion = au.ArmMotion(np.arange(n) * 0.01, cat[0], cat[1], np.full(n, 2.0), np.zeros(n))
+    motion = aux.ArmMotion(np.arange(n) * 0.01, cat[0], cat[1], np.full(n, 2.0), np.zeros(n))
     rep = au.bound_from_log(_log(motion), cfg, actuator=ACT)
     (w,) = rep["windows"]
     assert w["moves"] == 2 and w["pieces"] > 1 and w["dt_s"] == au.LONG_DT_S
     k0 = int(round(w["t_start_s"] / 0.01))
-    whole = au.ArmMotion(motion.t_s[k0:], motion.q_rad[k0:], motion.qd_rad_s[k0:], motion.object_mass_kg[k0:],
+    whole = aux.ArmMotion(motion.t_s[k0:], motion.q_rad[k0:], motion.qd_rad_s[k0:], motion.object_mass_kg[k0:],
                          motion.body_pitch_rad[k0:])
     onset = int(round((w["t_onset_s"] - w["t_start_s"]) / 0.01))
     for fx_free in (False, True):
         fx = "free" if fx_free else "held"
-        ref = au.window_bound(cfg, whole, fx_free, ACT, onset + 1)
+        ref = aux.window_bound(cfg, whole, fx_free, ACT, onset + 1)
         got = rep[f"causal_fx_{fx}_deg"]
         assert got <= math.degrees(ref.min_peak_pitch_rad) + 1e-6
         assert got > 0.8 * math.degrees(ref.min_peak_pitch_rad)
