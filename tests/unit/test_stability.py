@@ -289,6 +289,7 @@ def test_k_bounds_default_and_workspace_floor(cfg):
 
 def test_cli_json_and_plots(tmp_path, capsys):
     from navig8_tools import stability_report
+    from navig8_tools.stability_text import render_text
 
     # the paper's configuration (its 0.1 s filter: Fig. 5's lambda_crit); the defaults fly a 0.02 s one
     paper = Path(__file__).resolve().parents[2] / "params" / "presets" / "paper.parm"
@@ -307,5 +308,5 @@ def test_cli_json_and_plots(tmp_path, capsys):
     assert set(report["k_bounds"]) >= {"min_eigenvalue", "pose_deg", "object_mass_kg", "k"}
     for name in ("fig5_poles.png", "fig6_step.png", "fig7_k_bounds.png"):
         assert (tmp_path / name).stat().st_size > 10_000
-    text = stability_report.render_text(report)
+    text = render_text(report)
     assert "lambda_crit  = 0.0968" in text

@@ -320,6 +320,7 @@ def test_report_json_for_the_flown_configuration(capsys: pytest.CaptureFixture[s
     import json
 
     from navig8_tools import stability_report as sr
+    from navig8_tools.stability_text import render_text
 
     assert sr.main(["--json"]) == 0
     r = json.loads(capsys.readouterr().out)
@@ -331,5 +332,5 @@ def test_report_json_for_the_flown_configuration(capsys: pytest.CaptureFixture[s
     rows = {row["plant_wn_factor"]: row for row in r["model_u0"]["mismatch"]}
     assert set(rows) >= {0.6, 1.0, 1.4} and rows[1.0]["model_u0"] == pytest.approx(r["lambda_crit"], abs=1e-9)
     assert max(row["model_u0"] for row in rows.values()) < 1.05 * r["lambda_crit"]
-    text = sr.render_text(r)
+    text = render_text(r)
     assert "paper Sec. 3 (reference)" in text and "a PARAM_SET to this configuration is accepted" in text
