@@ -19,7 +19,8 @@ from typing import Any
 
 import numpy as np
 
-LOSS_ATT_DEG = 60.0  # navig8_tools.summary.LOST_ATT_DEG: the attitude error that counts as a loss of control
+from navig8_tools.summary import LOST_ATT_DEG, LOST_POS_M  # what counts as a loss of control
+
 # the drawn factors the success-by-factor section of a generated campaign shows (the others are in the table)
 ENVELOPE_REPORT_FACTORS = ("pattern", "arm_shape", "object_mass_kg", "arm_speed_rad_s", "pitch_deg", "yaw_step_deg",
                            "tail_max_thrust_n", "actuator_bandwidth_scale", "sensor_noise_scale", "servo_model_error",
@@ -179,7 +180,7 @@ def beyond_authority(df: Any) -> Any:
     trim = df["authority_trim_feasible"] if "authority_trim_feasible" in df else None
     infeasible = (trim.map(lambda v: v is False or v == 0.0) if trim is not None
                   else df.index.to_series() < 0)
-    return lost & ((bound > LOSS_ATT_DEG) | infeasible.astype(bool))
+    return lost & ((bound > LOST_ATT_DEG) | infeasible.astype(bool))
 
 
 def envelope_table(df: Any) -> str:
@@ -273,8 +274,8 @@ def _authority_scatter(df: Any, fig_dir: Path) -> tuple[str, int]:
     ax.scatter(x[lost & ~beyond], y[lost & ~beyond], s=70, facecolors="none", edgecolors="k", label="lost control")
     ax.scatter(x[beyond], y[beyond], s=70, facecolors="none", edgecolors="r", linewidths=1.5,
                label="lost, beyond authority")
-    ax.axhline(LOSS_ATT_DEG, color="r", ls="--", lw=0.8)
-    ax.axvline(LOSS_ATT_DEG, color="r", ls=":", lw=0.8)
+    ax.axhline(LOST_ATT_DEG, color="r", ls="--", lw=0.8)
+    ax.axvline(LOST_ATT_DEG, color="r", ls=":", lw=0.8)
     if n_bound:
         hi = float(np.nanmax(np.concatenate([x[np.isfinite(x)], y[np.isfinite(y)]])))
         line = np.linspace(0.0, hi, 200)
@@ -299,9 +300,10 @@ def _authority_scatter(df: Any, fig_dir: Path) -> tuple[str, int]:
 def envelope_sections(df: Any, fig_dir: Path, n_worst: int = 10) -> list[str]:
     """The generated campaign's sections (module docstring)."""
     md = ["", "## The envelope per controller", "",
-          f"Loss of control: attitude error > {LOSS_ATT_DEG:g} °, position error > 5 m or a non-finite state. Beyond "
+          f"Loss of control: attitude error > {LOST_ATT_DEG:g} °, position error > {LOST_POS_M:g} m or a non-finite "
+          "state. Beyond "
           f"authority: a loss whose authority bound (the smallest peak pitch excursion any controller reaches on the "
-          f"run's logged arm motion) exceeds {LOSS_ATT_DEG:g} °, or whose trim is infeasible.", "", envelope_table(df),
+          f"run's logged arm motion) exceeds {LOST_ATT_DEG:g} °, or whose trim is infeasible.", "", envelope_table(df),
           "", "## Paired on the same draws", "",
           "Every controller flies the same draws (scenario, world, parameters, seed): per draw, which one did better.",
           "", paired_table(df)]
