@@ -28,7 +28,7 @@ import numpy as np
 
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import ControllerStatus, FcSensors, warm_up_kernels
-from navig8_fc.flight import FlightStack
+from navig8_fc.flight import FlightStack, StepResult
 from navig8_fc.logrecords import truth_record
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import read_overrides
@@ -86,6 +86,27 @@ class EigenMonitor:
                                        tr.mass_kg, self.lambda_min, self.lambda_crit, st.gc_uam, st.ref_frd_m)
 
 
+def _log_tick(logger: McapLogger, fox: FoxgloveOutput, eigmon: EigenMonitor, plant: Plant, t_ns: int, s: FcSensors,
+              res: StepResult) -> None:
+    """One FC tick into the run's log: the truth, the FC's status, setpoint and command, the eigenvalues, what the
+    FC announced, and the Foxglove 3D channels (rate-limited, docs/foxglove.md)."""
+    fc_cmd, st, sp = res.command, res.status, res.setpoint
+    tr = plant.truth()
+    logger.log("/truth", t_ns, truth_record(tr))
+    logger.log("/fc/status", t_ns, st)
+    logger.log("/fc/setpoint", t_ns, {"pos_ned": sp.pos_ned, "pitch_rad": sp.pitch_rad, "yaw_rad": sp.yaw_rad})
+    logger.log("/fc/command", t_ns, fc_cmd)
+    logger.log("/analysis/eig", t_ns, eigmon(st, tr))
+    for n in res.notices:  # as navig8-fc logs what it announces (mode events, failsafes)
+        if n.statustext:
+            logger.log("/fc/statustext", t_ns, {"severity": n.severity, "text": n.statustext})
+            fox.statustext(t_ns, n.severity, n.statustext)
+    if t_ns >= fox.next_due_ns:  # the Foxglove 3D channels, rate-limited (docs/foxglove.md)
+        act = tr.actuator_pos
+        fox.step(t_ns, VehiclePose(tr.pos_ned_m, tr.quat_wxyz, act[:2], tr.joint_pos_rad), act[2:],
+                 tr.object_mass_kg, VehiclePose(s.pos_ned, s.quat_wxyz, s.tilt_rad, st.q_est_rad), sp)
+
+
 def run(
     scenario: str,
     controller: str = "proposed",
@@ -136,25 +157,9 @@ def run(
                 tick_times_s.append(time.perf_counter() - t_tick)
             else:
                 res = stack.step(s, True, sb.time_us)
-            fc_cmd, st, sp = res.command, res.status, res.setpoint
-            cmd = PlantCommand(tilt_rad=fc_cmd.tilt_rad, speed_rad_s=fc_cmd.speed_rad_s)
+            cmd = PlantCommand(tilt_rad=res.command.tilt_rad, speed_rad_s=res.command.speed_rad_s)
             if logger:
-                t_ns = int(sb.time_us) * 1000
-                tr = plant.truth()
-                logger.log("/truth", t_ns, truth_record(tr))
-                logger.log("/fc/status", t_ns, st)
-                logger.log("/fc/setpoint", t_ns, {"pos_ned": sp.pos_ned, "pitch_rad": sp.pitch_rad,
-                                                  "yaw_rad": sp.yaw_rad})
-                logger.log("/fc/command", t_ns, fc_cmd)
-                logger.log("/analysis/eig", t_ns, eigmon(st, tr))
-                for n in res.notices:  # as navig8-fc logs what it announces (mode events, failsafes)
-                    if n.statustext:
-                        logger.log("/fc/statustext", t_ns, {"severity": n.severity, "text": n.statustext})
-                        fox.statustext(t_ns, n.severity, n.statustext)
-                if t_ns >= fox.next_due_ns:  # the Foxglove 3D channels, rate-limited (docs/foxglove.md)
-                    act = tr.actuator_pos
-                    fox.step(t_ns, VehiclePose(tr.pos_ned_m, tr.quat_wxyz, act[:2], tr.joint_pos_rad), act[2:],
-                             tr.object_mass_kg, VehiclePose(s.pos_ned, s.quat_wxyz, s.tilt_rad, st.q_est_rad), sp)
+                _log_tick(logger, fox, eigmon, plant, int(sb.time_us) * 1000, s, res)
             if k == n_steps:
                 break
             plant.step(cmd, cfg.dt_s)

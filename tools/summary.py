@@ -77,6 +77,16 @@ def settle_times(
     return out
 
 
+def fmax(a: np.ndarray) -> float | None:
+    """The largest finite value of a, None when there is none."""
+    return float(np.nanmax(a)) if a.size and np.any(np.isfinite(a)) else None
+
+
+def fmin(a: np.ndarray) -> float | None:
+    """The smallest finite value of a, None when there is none."""
+    return float(np.nanmin(a)) if a.size and np.any(np.isfinite(a)) else None
+
+
 def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
     tr = run["/truth"]
     st = run["/fc/status"]
@@ -132,12 +142,6 @@ def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
     m_mount = tr.field("reaction_torque_mount_nm", 3)
     qd = tr.field("joint_rate_rad_s", 3)
     qdd = tr.field("joint_accel_rad_s2", 3)
-
-    def fmax(a: np.ndarray) -> float | None:
-        return float(np.nanmax(a)) if a.size and np.any(np.isfinite(a)) else None
-
-    def fmin(a: np.ndarray) -> float | None:
-        return float(np.nanmin(a)) if a.size and np.any(np.isfinite(a)) else None
 
     return {
         "sim_time_s": sim_time,
