@@ -180,6 +180,26 @@ def _trim_utilisation(spec: FalsifySpec, track: np.ndarray, mass_at: Callable[[f
     return worst
 
 
+def _r3(v: float) -> float:
+    return float(round(v, 3))
+
+
+def _flight_world(f: Mapping[str, Any], spec: FalsifySpec, duct: int, eff: float, t_fault: float) -> dict[str, float]:
+    """The world overrides of a flight with factors f: the servo's speed, the actuators' bandwidth, the object's
+    offset (the truth's; the FC keeps the nominal one) and the duct fault, if any."""
+    world: dict[str, float] = {
+        "arm_servo_speed_scale": f["arm_speed_scale"],
+        "actuator_bandwidth_scale": f["actuator_bandwidth_scale"],
+        # the object's centre beyond the gripper: the truth's; the FC keeps believing the nominal offset
+        "vehicle.object.offset_from_tip_m": f["object_offset_m"],
+        "fc_vehicle.object.offset_from_tip_m": spec.nominal_object_offset_m,
+    }
+    if eff < 1.0:
+        world[f"plant.actuators.duct_efficiency.{0 if duct == 1 else 1}"] = eff
+        world["plant.actuators.duct_fault_t_s"] = t_fault
+    return world
+
+
 def flight(x: Sequence[float], spec: FalsifySpec | None = None, name: str = "falsified") -> Flight:
     """The flight at point x of the unit cube (module docstring). Pure: the same x gives the same flight."""
     spec = spec or FalsifySpec()
@@ -190,9 +210,6 @@ def flight(x: Sequence[float], spec: FalsifySpec | None = None, name: str = "fal
     grasp = [f[f"grasp_q{j}_deg"] for j in (1, 2, 3)]
     swing = [f[f"swing_q{j}_deg"] for j in (1, 2, 3)]
 
-    def r3(v: float) -> float:
-        return float(round(v, 3))
-
     # the arm to the grasp pose, and the grasp once the plant's servo is there and rested (servo_track runs the
     # plant's own servo law over the schedule), or where the arm is at latest_grasp_s
     t_move = f["grasp_move_t_s"]
@@ -200,15 +217,15 @@ def flight(x: Sequence[float], spec: FalsifySpec | None = None, name: str = "fal
     track = servo_track(steps, dur, v_max, a_max)
     arrived = _arrival_s(track, np.radians(grasp), t_move)
     in_place = arrived + spec.grasp_margin_s > spec.latest_grasp_s
-    t_grasp = r3(spec.latest_grasp_s if in_place else arrived + spec.grasp_margin_s)
+    t_grasp = _r3(spec.latest_grasp_s if in_place else arrived + spec.grasp_margin_s)
     # the swing to the second pose and back (each a ramp of swing_ramp_s; the servo's limits shape it further)
-    t_swing = r3(t_grasp + f["swing_delay_s"])
+    t_swing = _r3(t_grasp + f["swing_delay_s"])
     ramp = f["swing_ramp_s"]
-    t_back = r3(t_swing + ramp + f["swing_hold_s"])
+    t_back = _r3(t_swing + ramp + f["swing_hold_s"])
     for t, q in ((t_swing, swing), (t_back, grasp)):
         if t < dur:
             steps.append({"t_s": t, "q_deg": list(q), **({"ramp_s": ramp} if ramp > 0.0 else {})})
-    t_release = r3(t_back + ramp + f["release_delay_s"])
+    t_release = _r3(t_back + ramp + f["release_delay_s"])
     releasing = t_release <= dur - spec.release_before_end_s
     track = servo_track(steps, dur, v_max, a_max)
     events: list[dict[str, Any]] = [{"t_s": t_grasp, "kind": "grasp", "mass_kg": f["object_mass_kg"]}]
@@ -227,16 +244,7 @@ def flight(x: Sequence[float], spec: FalsifySpec | None = None, name: str = "fal
         return [float(round(math.degrees(v), 2)) for v in track[min(k, len(track) - 1), 1:]]
 
     z0 = spec.hover_z_ned_m
-    world: dict[str, float] = {
-        "arm_servo_speed_scale": s,
-        "actuator_bandwidth_scale": f["actuator_bandwidth_scale"],
-        # the object's centre beyond the gripper: the truth's; the FC keeps believing the nominal offset
-        "vehicle.object.offset_from_tip_m": f["object_offset_m"],
-        "fc_vehicle.object.offset_from_tip_m": spec.nominal_object_offset_m,
-    }
-    if eff < 1.0:
-        world[f"plant.actuators.duct_efficiency.{0 if duct == 1 else 1}"] = eff
-        world["plant.actuators.duct_fault_t_s"] = t_fault
+    world = _flight_world(f, spec, duct, eff, t_fault)
     err = f["servo_model_error"]
     fc_params = {"ARM_SERVO_VMAX": float(round(spec.nominal_servo_v_max_rad_s * err, 5)),
                  "ARM_SERVO_AMAX": float(round(spec.nominal_servo_a_max_rad_s2 * err * err, 5))}
