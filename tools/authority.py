@@ -62,7 +62,7 @@ from scipy import sparse
 from scipy.linalg import expm
 from scipy.optimize import linprog
 
-from navig8_fc.core import _kernels as _k
+from navig8_fc.core import g_c
 from navig8_fc.core.vehicle import N_LINKS, VehicleConfig, mass_properties, model_geometry, propulsion_per_input
 
 ROWS = {"roll": 0, "pitch": 1}  # G_C rows [L, M, N, Fx, Fz]
@@ -184,7 +184,7 @@ def authority_at_coms(cfg: VehicleConfig, coms_xz_m: np.ndarray, mass_kg: float,
     f, m0 = _propulsion(cfg)
     for i, (cx, cz) in enumerate(np.asarray(coms_xz_m, dtype=float).reshape(-1, 2)):
         gc = np.empty((5, 5))
-        _k.gc_about(f, m0, float(cx), float(cz), gc)  # control_effectiveness_gc with the per-input wrench kept
+        g_c.gc_about(f, m0, float(cx), float(cz), gc)  # control_effectiveness_gc with the per-input wrench kept
         for a_ub, b_ub in cons:
             for sgn in (1.0, -1.0):
                 blocks.append((-sgn * gc[row], a_ub, b_ub, gc[fixed], target[fixed]))
@@ -376,12 +376,12 @@ class ArmMotion:
 def _mass_terms(cfg: VehicleConfig, q: np.ndarray, object_mass_kg: np.ndarray) -> np.ndarray:
     """(n, 4): I_yy about the composite CoM, CoM x, CoM z, total mass at each pose (the model's mass_props)."""
     geo, zero = model_geometry(cfg), np.zeros(N_LINKS)
-    inertia, rate, mp = np.empty((3, 3)), np.empty((3, 3)), _k.MP.zeros()
+    inertia, rate, mp = np.empty((3, 3)), np.empty((3, 3)), g_c.MP.zeros()
     out = np.empty((len(q), 4))
     for i in range(len(q)):
-        _k.mass_props(np.ascontiguousarray(q[i], dtype=float), zero, zero, float(object_mass_kg[i]), geo, inertia,
+        g_c.mass_props(np.ascontiguousarray(q[i], dtype=float), zero, zero, float(object_mass_kg[i]), geo, inertia,
                       rate, mp)
-        out[i] = inertia[1, 1], mp[_k.MP.CX], mp[_k.MP.CZ], mp[_k.MP.MASS]
+        out[i] = inertia[1, 1], mp[g_c.MP.CX], mp[g_c.MP.CZ], mp[g_c.MP.MASS]
     return out
 
 

@@ -212,7 +212,7 @@ def _edge(f, lam_end: float, n_scan: int, if_none: float, xtol: float = 1e-12) -
 # Fig. 4 with U0 measured: u = U0 + G_hat^-1 (v - L P xdot), U0 = L P A u, xdot = G A u, which gives Eq. 7.
 # With the model-based U0 the FC runs its actuator model A_m (ACT_WN, ACT_ZETA) on the command it flew last tick
 # (e^(-tau_s s) u) and corrects the model's position toward the measured actuators (P A u) with gain
-# c = 1/INDI_U0_TAU (a position-only correction, as _kernels.actuator_estimate does). In continuous time, with
+# c = 1/INDI_U0_TAU (a position-only correction, as indi.actuator_estimate does). In continuous time, with
 # x_hat = (p_hat, r_hat):  p_hat' = r_hat + c (y - p_hat),  r_hat' = wm^2 (P u - p_hat) - 2 zm wm r_hat, so
 #
 #     p_hat = B(s) P u,   B = [wm^2 D_A + c (s + 2 zm wm) wp^2] / (D_c D_A),
@@ -344,7 +344,7 @@ def sampled_loop_matrix(
     low-pass (alpha = 1 - exp(-dt/tau_L)), for a "force" mode directly, for a "rotational" mode as the backward
     difference of the low-passed gyro (IndiController.measure); U0 is the measured actuator or ("model") the
     actuator model run on the last command with the position corrected toward the measurement by
-    alpha(u0_tau_s) (_kernels.actuator_estimate), through the same low-pass; u = U0 + (v - Acc_f)/lam (Eq. 5-6).
+    alpha(u0_tau_s) (indi.actuator_estimate), through the same low-pass; u = U0 + (v - Acc_f)/lam (Eq. 5-6).
     State [p, r, p_hat, r_hat, u_prev, U0_f, f] with f = the force filter's output or the gyro filter's lag e.
     """
     if channel not in CHANNELS:

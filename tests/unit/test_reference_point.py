@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from model_oracle import dumbbell_mass_properties
 
-from navig8_fc.core import _kernels as k
+from navig8_fc.core import front_end, g_c
 from navig8_fc.core.vehicle import (
     UamModel,
     VehicleConfig,
@@ -40,16 +40,16 @@ def cfg() -> VehicleConfig:
 
 def _front(model: UamModel, acc_ref: float, gyros, accel, tilt, speed, jpos, mo: float, dt: float):
     """fc_front over the gyro samples (joints still); returns Acc_m and uo after the last."""
-    fst, fo, uo = k.FST.zeros(), k.FO.zeros(), k.UO.zeros()
-    sens = k.TIN.zeros()
-    t = k.TIN.views(sens)
+    fst, fo, uo = front_end.FST.zeros(), front_end.FO.zeros(), g_c.UO.zeros()
+    sens = front_end.TIN.zeros()
+    t = front_end.TIN.views(sens)
     t.accel[:], t.tilt[:], t.speed[:], t.jpos[:], t.jrate[:] = accel, tilt, speed, jpos, 0.0
     for gyro in gyros:
         t.gyro[:] = gyro
         bufs = np.empty((3, 3)), np.empty((3, 3)), np.empty((5, 5)), np.empty((5, 5))
-        k.fc_front(fst, dt, 0.0, 1.0 / dt, sens, mo, model.geometry, model.force_per_input,
+        front_end.fc_front(fst, dt, 0.0, 1.0 / dt, sens, mo, model.geometry, model.force_per_input,
                    model.moment_o_per_input, *bufs, uo, fo, acc_ref)
-    return fo[k.FO.ACC_M.sl].copy(), uo.copy()
+    return fo[front_end.FO.ACC_M.sl].copy(), uo.copy()
 
 
 def test_front_end_reference_point_correction(cfg: VehicleConfig) -> None:
@@ -63,7 +63,7 @@ def test_front_end_reference_point_correction(cfg: VehicleConfig) -> None:
         a0, _ = _front(model, 0.0, *inputs)
         a1, uo1 = _front(model, 1.0, *inputs)
         _, c, _, _ = dumbbell_mass_properties(cfg, inputs[4], inputs[5])  # UAM + the point object (estimated mass)
-        assert [uo1[k.UO.CEX], uo1[k.UO.CEZ]] == pytest.approx([c[0], c[2]], abs=1e-12)
+        assert [uo1[g_c.UO.CEX], uo1[g_c.UO.CEZ]] == pytest.approx([c[0], c[2]], abs=1e-12)
         wdot = (w1 - w0) / dt  # the front end's backward difference of the gyro
         corr = np.cross(wdot, c) + np.cross(w1, np.cross(w1, c))
         np.testing.assert_array_equal(a1[:3], a0[:3])
