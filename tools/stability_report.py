@@ -29,8 +29,10 @@ from typing import Any
 
 import numpy as np
 
+from navig8_fc.core import k_xi
 from navig8_fc.core import stability as st
 from navig8_fc.core import varying_k as vk
+from navig8_fc.core.sampled_loop import CHANNELS, sampled_lambda_crit
 from navig8_fc.core.vehicle import VehicleConfig
 
 REPORT_LAMBDAS = (0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0)
@@ -154,8 +156,8 @@ def mismatch_table(inp: Inputs, factors: Sequence[float] = MISMATCH_FACTORS) -> 
             "model_u0": st.lambda_crit_model_u0(wn, z, ts, tl, wp, z, inp.u0_tau_s),
             "model_u0_alone": st.lambda_crit_model_u0(wn, z, ts, tl, wp, z),
         }
-        for ch in st.CHANNELS:
-            row[f"sampled_{ch}"] = st.sampled_lambda_crit(wn, z, 1.0 / ts, tl, ch, wp, z, "model", inp.u0_tau_s)
+        for ch in CHANNELS:
+            row[f"sampled_{ch}"] = sampled_lambda_crit(wn, z, 1.0 / ts, tl, ch, wp, z, "model", inp.u0_tau_s)
         rows.append(row)
     return rows
 
@@ -166,7 +168,7 @@ def analyse(inp: Inputs, cfg: VehicleConfig, verdict: str | None = None) -> dict
     loop = loop_report(*p)
     lam_crit = loop["lambda_crit"]
     t0 = time.perf_counter()
-    kb = st.k_bounds_analysis(cfg, inp.k_min, inp.k_max)
+    kb = k_xi.k_bounds_analysis(cfg, inp.k_min, inp.k_max)
     kb_s = time.perf_counter() - t0
     worst_c = kb.max_imag_eigenvalue
     k_bounds = {
@@ -194,7 +196,7 @@ def analyse(inp: Inputs, cfg: VehicleConfig, verdict: str | None = None) -> dict
         "above_lambda_min": kb.min_eigenvalue >= inp.lambda_min,
     }
     # The same worst case for the matrix the paper's loop flies (INDI feedback at O: K Xi T^-1)
-    kb_o = st.k_bounds_analysis(cfg, inp.k_min, inp.k_max, reference="o")
+    kb_o = k_xi.k_bounds_analysis(cfg, inp.k_min, inp.k_max, reference="o")
     k_bounds_flown_o = {
         "min_eigenvalue": kb_o.min_eigenvalue,
         "pose_deg": [math.degrees(v) for v in kb_o.pose_rad],
@@ -205,7 +207,7 @@ def analyse(inp: Inputs, cfg: VehicleConfig, verdict: str | None = None) -> dict
         "stable_margin_ok": kb_o.min_eigenvalue > lam_crit,
     }
     # The stated margin: the registry's floor computation (the coarse workspace sweep) against lambda_crit.
-    guaranteed = st.min_eigenvalue_over_workspace(cfg, inp.k_min, inp.k_max)
+    guaranteed = k_xi.min_eigenvalue_over_workspace(cfg, inp.k_min, inp.k_max)
     ratio = guaranteed / lam_crit if lam_crit > 0.0 else math.inf
     at_g = st.step_metrics(guaranteed, *p) if guaranteed > 0.0 else None
     margin = {
@@ -227,7 +229,7 @@ def analyse(inp: Inputs, cfg: VehicleConfig, verdict: str | None = None) -> dict
         "mismatch": mismatch_table(inp),
     }
     rate = 1.0 / inp.ts_s
-    sampled = {ch: st.sampled_lambda_crit(inp.wn_rad_s, inp.zeta, rate, inp.tl_s, ch) for ch in st.CHANNELS}
+    sampled = {ch: sampled_lambda_crit(inp.wn_rad_s, inp.zeta, rate, inp.tl_s, ch) for ch in CHANNELS}
     reference = loop_report(*PAPER_LOOP)
     return {
         "k_bounds_flown_o": k_bounds_flown_o,
@@ -251,8 +253,8 @@ def analyse(inp: Inputs, cfg: VehicleConfig, verdict: str | None = None) -> dict
         "model_u0": model_u0,
         "sampled_lambda_crit": sampled,
         "reference": reference,
-        "reference_sampled_lambda_crit": {ch: st.sampled_lambda_crit(PAPER_LOOP[0], PAPER_LOOP[1], 1.0 / PAPER_LOOP[2],
-                                                                     PAPER_LOOP[3], ch) for ch in st.CHANNELS},
+        "reference_sampled_lambda_crit": {ch: sampled_lambda_crit(PAPER_LOOP[0], PAPER_LOOP[1], 1.0 / PAPER_LOOP[2],
+                                                                  PAPER_LOOP[3], ch) for ch in CHANNELS},
     }
 
 
@@ -558,10 +560,10 @@ def write_plots(inp: Inputs, cfg: VehicleConfig, out_dir: Path, lam_crit: float)
     # Fig. 7: lam_4, lam_5 over (K1, K3) for the stretched and curled arm with a 2 kg object.
     kg = np.linspace(inp.k_min, inp.k_max, 41)
     fig = plt.figure(figsize=(12, 10))
-    cases = (("stretched", st.POSE_STRETCHED_DEG), ("curled", st.POSE_CURLED_DEG))
+    cases = (("stretched", k_xi.POSE_STRETCHED_DEG), ("curled", k_xi.POSE_CURLED_DEG))
     panel = iter("abcd")
     for row, (name, q_deg) in enumerate(cases):
-        s = st.lateral_eigenvalue_surfaces(cfg, np.radians(q_deg), st.FIG7_OBJECT_MASS_KG, kg, kg)
+        s = k_xi.lateral_eigenvalue_surfaces(cfg, np.radians(q_deg), k_xi.FIG7_OBJECT_MASS_KG, kg, kg)
         for col, (lab, val) in enumerate((("lambda_4", s.lam4), ("lambda_5", s.lam5))):
             ax = fig.add_subplot(2, 2, 2 * row + col + 1, projection="3d")
             re = val.real

@@ -143,20 +143,20 @@ def test_reference_point_changes_the_flown_eigenvalues(cfg: VehicleConfig) -> No
 def test_stability_analysis_of_the_flown_matrix(cfg: VehicleConfig) -> None:
     """k_bounds_analysis(reference="o") analyses K Xi T^-1, i.e. G_hat (T(O - c) G)^-1 built from the
     finite-difference-checked flown_effectiveness; reference="com" is Eq. 14."""
-    from navig8_fc.core import stability as st
+    from navig8_fc.core import k_xi
     from navig8_fc.core.vehicle import effectiveness_pair, k_matrix, mass_properties
 
     q = np.radians([[20.0, 20.0, 20.0]])
     k = np.array([0.5, 1.0, 0.5, 1.0])
-    r_o = st.k_bounds_analysis(cfg, 0.5, 1.0, poses_rad=q, object_masses_kg=[2.0], n_k=2, reference="o")
-    r_c = st.k_bounds_analysis(cfg, 0.5, 1.0, poses_rad=q, object_masses_kg=[2.0], n_k=2, reference="com")
+    r_o = k_xi.k_bounds_analysis(cfg, 0.5, 1.0, poses_rad=q, object_masses_kg=[2.0], n_k=2, reference="o")
+    r_c = k_xi.k_bounds_analysis(cfg, 0.5, 1.0, poses_rad=q, object_masses_kg=[2.0], n_k=2, reference="com")
     pair = effectiveness_pair(cfg, q[0], 2.0)
     c = mass_properties(cfg, q[0], 2.0).com_frd_m
     g_hat_inv = np.linalg.solve(k_matrix(k) @ np.linalg.inv(pair.gi_uam) @ pair.gc_uam, np.eye(5))  # (K G_I^-1 G_C)^-1
     g_flown = flown_effectiveness(pair.gc_true, pair.gi_true, -c)
     lam = np.sort(np.linalg.eigvals(np.linalg.inv(g_hat_inv) @ np.linalg.inv(g_flown)).real)
-    xi_o = st.xi_batch(cfg, q, np.array([2.0]), "o")[0, 0]
+    xi_o = k_xi.xi_batch(cfg, q, np.array([2.0]), "o")[0, 0]
     np.testing.assert_allclose(np.sort(np.linalg.eigvals(k_matrix(k) @ xi_o).real), lam, rtol=1e-9)
     assert r_o.min_eigenvalue != pytest.approx(r_c.min_eigenvalue, abs=1e-3)
     with pytest.raises(ValueError):
-        st.xi_batch(cfg, q, np.array([2.0]), "x")
+        k_xi.xi_batch(cfg, q, np.array([2.0]), "x")
