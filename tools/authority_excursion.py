@@ -18,7 +18,7 @@ from scipy import sparse
 from scipy.linalg import expm
 from scipy.optimize import linprog
 
-from navig8_fc.core import _kernels as _k
+from navig8_fc.core import g_c
 from navig8_fc.core.vehicle import N_LINKS, VehicleConfig, model_geometry
 from navig8_tools.authority_static import MAP_SPACING_M, TRIM_TOL_NM, authority_map
 
@@ -99,12 +99,12 @@ class ArmMotion:
 def mass_terms(cfg: VehicleConfig, q: np.ndarray, object_mass_kg: np.ndarray) -> np.ndarray:
     """(n, 4): I_yy about the composite CoM, CoM x, CoM z, total mass at each pose (the model's mass_props)."""
     geo, zero = model_geometry(cfg), np.zeros(N_LINKS)
-    inertia, rate, mp = np.empty((3, 3)), np.empty((3, 3)), _k.MP.zeros()
+    inertia, rate, mp = np.empty((3, 3)), np.empty((3, 3)), g_c.MP.zeros()
     out = np.empty((len(q), 4))
     for i in range(len(q)):
-        _k.mass_props(np.ascontiguousarray(q[i], dtype=float), zero, zero, float(object_mass_kg[i]), geo, inertia,
+        g_c.mass_props(np.ascontiguousarray(q[i], dtype=float), zero, zero, float(object_mass_kg[i]), geo, inertia,
                       rate, mp)
-        out[i] = inertia[1, 1], mp[_k.MP.CX], mp[_k.MP.CZ], mp[_k.MP.MASS]
+        out[i] = inertia[1, 1], mp[g_c.MP.CX], mp[g_c.MP.CZ], mp[g_c.MP.MASS]
     return out
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from scipy import sparse
 from scipy.optimize import linprog
 
-from navig8_fc.core import _kernels as _k
+from navig8_fc.core import g_c
 from navig8_fc.core.vehicle import VehicleConfig, mass_properties, propulsion_per_input
 
 ROWS = {"roll": 0, "pitch": 1}  # G_C rows [L, M, N, Fx, Fz]
@@ -130,7 +130,7 @@ def authority_at_coms(cfg: VehicleConfig, coms_xz_m: np.ndarray, mass_kg: float,
     f, m0 = _propulsion(cfg)
     for i, (cx, cz) in enumerate(np.asarray(coms_xz_m, dtype=float).reshape(-1, 2)):
         gc = np.empty((5, 5))
-        _k.gc_about(f, m0, float(cx), float(cz), gc)  # control_effectiveness_gc with the per-input wrench kept
+        g_c.gc_about(f, m0, float(cx), float(cz), gc)  # control_effectiveness_gc with the per-input wrench kept
         for a_ub, b_ub in cons:
             for sgn in (1.0, -1.0):
                 blocks.append((-sgn * gc[row], a_ub, b_ub, gc[fixed], target[fixed]))

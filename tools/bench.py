@@ -282,7 +282,7 @@ def _lockstep_section(args: argparse.Namespace) -> SectionResult:
 def _stability_section(args: argparse.Namespace) -> SectionResult:
     """Section 3's K-bounds analysis over the workspace (navig8-stability) and the workspace floor the parameter
     registry checks on every K-bound PARAM_SET: seconds per call (median of 3, after a warm-up call)."""
-    from navig8_fc.core import stability as st
+    from navig8_fc.core import k_xi
     from navig8_fc.core.vehicle import VehicleConfig
 
     cfg = VehicleConfig.load()
@@ -296,8 +296,8 @@ def _stability_section(args: argparse.Namespace) -> SectionResult:
             times.append(time.perf_counter() - t0)
         return float(np.median(times))
 
-    full = med_s(lambda: st.k_bounds_analysis(cfg, 0.5, 1.0))
-    floor = med_s(lambda: st.min_eigenvalue_over_workspace(cfg, 0.5, 1.0))
+    full = med_s(lambda: k_xi.k_bounds_analysis(cfg, 0.5, 1.0))
+    floor = med_s(lambda: k_xi.min_eigenvalue_over_workspace(cfg, 0.5, 1.0))
     return SectionResult(
         {"stability_k_bounds_s": full, "stability_floor_s": floor},
         [f"stability: K-bounds analysis {full:.2f} s (target < 2 s), workspace floor {floor * 1e3:.0f} ms "

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from navig8_fc.core import k_xi
 from navig8_fc.core import stability as st
 from navig8_fc.core.vehicle import VehicleConfig
 
@@ -98,10 +99,10 @@ def _fig7_k_bounds(inp: Inputs, cfg: VehicleConfig, path: Path) -> Path:
 
     kg = np.linspace(inp.k_min, inp.k_max, 41)
     fig = plt.figure(figsize=(12, 10))
-    cases = (("stretched", st.POSE_STRETCHED_DEG), ("curled", st.POSE_CURLED_DEG))
+    cases = (("stretched", k_xi.POSE_STRETCHED_DEG), ("curled", k_xi.POSE_CURLED_DEG))
     panel = iter("abcd")
     for row, (name, q_deg) in enumerate(cases):
-        s = st.lateral_eigenvalue_surfaces(cfg, np.radians(q_deg), st.FIG7_OBJECT_MASS_KG, kg, kg)
+        s = k_xi.lateral_eigenvalue_surfaces(cfg, np.radians(q_deg), k_xi.FIG7_OBJECT_MASS_KG, kg, kg)
         for col, (lab, val) in enumerate((("lambda_4", s.lam4), ("lambda_5", s.lam5))):
             ax = fig.add_subplot(2, 2, 2 * row + col + 1, projection="3d")
             re = val.real

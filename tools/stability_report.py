@@ -29,8 +29,10 @@ from typing import Any
 
 import numpy as np
 
+from navig8_fc.core import k_xi
 from navig8_fc.core import stability as st
 from navig8_fc.core import varying_k as vk
+from navig8_fc.core.sampled_loop import CHANNELS, sampled_lambda_crit
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_tools.stability_plots import write_plots
 from navig8_tools.stability_text import render_text
@@ -155,8 +157,8 @@ def mismatch_table(inp: Inputs, factors: Sequence[float] = MISMATCH_FACTORS) -> 
             "model_u0": st.lambda_crit_model_u0(wn, z, ts, tl, wp, z, inp.u0_tau_s),
             "model_u0_alone": st.lambda_crit_model_u0(wn, z, ts, tl, wp, z),
         }
-        for ch in st.CHANNELS:
-            row[f"sampled_{ch}"] = st.sampled_lambda_crit(wn, z, 1.0 / ts, tl, ch, wp, z, "model", inp.u0_tau_s)
+        for ch in CHANNELS:
+            row[f"sampled_{ch}"] = sampled_lambda_crit(wn, z, 1.0 / ts, tl, ch, wp, z, "model", inp.u0_tau_s)
         rows.append(row)
     return rows
 
@@ -167,11 +169,11 @@ def analyse(inp: Inputs, cfg: VehicleConfig, verdict: str | None = None) -> dict
     loop = loop_report(*p)
     lam_crit = loop["lambda_crit"]
     t0 = time.perf_counter()
-    kb = st.k_bounds_analysis(cfg, inp.k_min, inp.k_max)
+    kb = k_xi.k_bounds_analysis(cfg, inp.k_min, inp.k_max)
     kb_s = time.perf_counter() - t0
     k_bounds = _k_bounds_report(kb, kb_s, inp, lam_crit)
     # The same worst case for the matrix the paper's loop flies (INDI feedback at O: K Xi T^-1)
-    kb_o = st.k_bounds_analysis(cfg, inp.k_min, inp.k_max, reference="o")
+    kb_o = k_xi.k_bounds_analysis(cfg, inp.k_min, inp.k_max, reference="o")
     k_bounds_flown_o = {
         "min_eigenvalue": kb_o.min_eigenvalue,
         "pose_deg": [math.degrees(v) for v in kb_o.pose_rad],
@@ -190,7 +192,7 @@ def analyse(inp: Inputs, cfg: VehicleConfig, verdict: str | None = None) -> dict
         "mismatch": mismatch_table(inp),
     }
     rate = 1.0 / inp.ts_s
-    sampled = {ch: st.sampled_lambda_crit(inp.wn_rad_s, inp.zeta, rate, inp.tl_s, ch) for ch in st.CHANNELS}
+    sampled = {ch: sampled_lambda_crit(inp.wn_rad_s, inp.zeta, rate, inp.tl_s, ch) for ch in CHANNELS}
     reference = loop_report(*PAPER_LOOP)
     return {
         "k_bounds_flown_o": k_bounds_flown_o,
@@ -214,13 +216,13 @@ def analyse(inp: Inputs, cfg: VehicleConfig, verdict: str | None = None) -> dict
         "model_u0": model_u0,
         "sampled_lambda_crit": sampled,
         "reference": reference,
-        "reference_sampled_lambda_crit": {ch: st.sampled_lambda_crit(PAPER_LOOP[0], PAPER_LOOP[1], 1.0 / PAPER_LOOP[2],
-                                                                     PAPER_LOOP[3], ch) for ch in st.CHANNELS},
+        "reference_sampled_lambda_crit": {ch: sampled_lambda_crit(PAPER_LOOP[0], PAPER_LOOP[1], 1.0 / PAPER_LOOP[2],
+                                                                     PAPER_LOOP[3], ch) for ch in CHANNELS},
     }
 
 
-def _k_bounds_report(kb: st.KBoundsResult, kb_s: float, inp: Inputs, lam_crit: float) -> dict[str, Any]:
-    """The eigenvalues of K Xi over the workspace and the K box (st.k_bounds_analysis, which took kb_s seconds),
+def _k_bounds_report(kb: k_xi.KBoundsResult, kb_s: float, inp: Inputs, lam_crit: float) -> dict[str, Any]:
+    """The eigenvalues of K Xi over the workspace and the K box (k_xi.k_bounds_analysis, which took kb_s seconds),
     JSON-ready."""
     p = (inp.wn_rad_s, inp.zeta, inp.ts_s, inp.tl_s)
     worst_c = kb.max_imag_eigenvalue
@@ -250,12 +252,12 @@ def _k_bounds_report(kb: st.KBoundsResult, kb_s: float, inp: Inputs, lam_crit: f
     }
 
 
-def _margin_report(inp: Inputs, cfg: VehicleConfig, kb: st.KBoundsResult, lam_crit: float,
+def _margin_report(inp: Inputs, cfg: VehicleConfig, kb: k_xi.KBoundsResult, lam_crit: float,
                    verdict: str | None) -> dict[str, Any]:
     """The stated margin (INDI_LAM_MARGIN) against the guaranteed minimum eigenvalue, JSON-ready."""
     p = (inp.wn_rad_s, inp.zeta, inp.ts_s, inp.tl_s)
     # The stated margin: the registry's floor computation (the coarse workspace sweep) against lambda_crit.
-    guaranteed = st.min_eigenvalue_over_workspace(cfg, inp.k_min, inp.k_max)
+    guaranteed = k_xi.min_eigenvalue_over_workspace(cfg, inp.k_min, inp.k_max)
     ratio = guaranteed / lam_crit if lam_crit > 0.0 else math.inf
     at_g = st.step_metrics(guaranteed, *p) if guaranteed > 0.0 else None
     return {

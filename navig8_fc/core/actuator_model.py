@@ -2,9 +2,9 @@
 x'' = wn^2 (u - x) - 2 zeta wn x', the command held over each control period (zero-order hold), discretised
 exactly: [x, x']_{k+1} = Ad [x, x']_k + Bd u_k, by the matrix exponential of the augmented system.
 
-Used by the INDI's model-based U0 (INDI_U0_SRC = 1, `_kernels.indi_measure`) and by the PX4 simulator interface
+Used by the INDI's model-based U0 (INDI_U0_SRC = 1, `indi.actuator_estimate`) and by the PX4 simulator interface
 when no actuator measurements arrive (navig8_fc.mavlink.px4sim). The step itself is one numba kernel
-(`_kernels.actuator_model_step`), shared by both. Pure: no I/O.
+(`actuator_model_step`), shared by both. Pure: no I/O.
 """
 
 from __future__ import annotations
@@ -16,7 +16,6 @@ import numpy as np
 from numba import njit
 from scipy.linalg import expm
 
-from navig8_fc.core import _kernels as _k
 from navig8_fc.core.layout import layout
 
 N_ACTUATORS = 5
@@ -33,10 +32,23 @@ def actuator_discretisation(wn_rad_s: float, zeta: float, dt_s: float) -> tuple[
 
 def group_discretisation(wn_tilt_rad_s: float, wn_speed_rad_s: float, zeta: float, dt_s: float
                          ) -> tuple[np.ndarray, np.ndarray]:
-    """The (Ad (8), Bd (4)) pair `_kernels.actuator_model_step` takes: the tilts' group, then the speeds'."""
+    """The (Ad (8), Bd (4)) pair `actuator_model_step` takes: the tilts' group, then the speeds'."""
     ad_t, bd_t = actuator_discretisation(wn_tilt_rad_s, zeta, dt_s)
     ad_s, bd_s = actuator_discretisation(wn_speed_rad_s, zeta, dt_s)
     return np.concatenate([ad_t, ad_s]), np.concatenate([bd_t, bd_s])
+
+
+@njit(cache=True)
+def actuator_model_step(x, xo, ad, bd, cmd, co):
+    """The five actuators' state x[xo:xo + 5] (positions), x[xo + 5:xo + 10] (rates) advanced one period under
+    the held command cmd[co:co + 5]: [p, r] <- Ad [p, r] + Bd u (Eq. 10's second-order lag, exact ZOH;
+    per group g (0: the tilts alpha1, alpha3; 1: the speeds w1, w2, w3) ad[4 g:4 g + 4] = [a00, a01, a10, a11],
+    bd[2 g:2 g + 2] = [b0, b1] from actuator_discretisation)."""
+    for i in range(5):
+        g = 0 if i < 2 else 1
+        p, r, u = x[xo + i], x[xo + 5 + i], cmd[co + i]
+        x[xo + i] = ad[4 * g] * p + ad[4 * g + 1] * r + bd[2 * g] * u
+        x[xo + 5 + i] = ad[4 * g + 2] * p + ad[4 * g + 3] * r + bd[2 * g + 1] * u
 
 
 class ActuatorModel:
@@ -49,7 +61,7 @@ class ActuatorModel:
 
     def step(self, command: Sequence[float]) -> tuple[float, ...]:
         """Advance one period under `command`; the positions after it."""
-        _k.actuator_model_step(self._x, 0, self._ad, self._bd, np.asarray(command, dtype=float), 0)
+        actuator_model_step(self._x, 0, self._ad, self._bd, np.asarray(command, dtype=float), 0)
         return self.positions
 
     @property

@@ -1,7 +1,7 @@
 """Prioritised weighted least-squares control allocation over the real actuators (INDI_ALLOC = 1).
 
 The paper's INDI (Eq. 5-6) inverts G_C,UAM^-1 G_hat_I exactly; when the resulting U leaves the feasible set the
-paper-faithful option (INDI_ALLOC = 0, `_kernels.indi_step`) scales the increment back group by group, which
+paper-faithful option (INDI_ALLOC = 0, `indi.indi_step`) scales the increment back group by group, which
 holds the forward force a_x fixed and so discards the tilt lever (common duct tilt x the ducts' vertical offset),
 the largest source of pitch moment at hover (docs/results.md, "The physical limit"). This module replaces that
 step, only on the ticks where the exact increment is infeasible (elsewhere both options fly the same U):
@@ -33,14 +33,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navig8_fc.core import _kernels as _k
-from navig8_fc.core import box_qp
-from navig8_fc.core._kernels import IC, IO
+from navig8_fc.core import box_qp, linalg
 from navig8_fc.core.jit import njit_cached
 from navig8_fc.core.layout import layout
 
 __all__ = ["AL", "ALLOC_GROUP_SCALING", "ALLOC_WLS", "AllocationConfig", "EPS_REG", "allocate_actuators",
-           "indi_step_wls", "wls_box"]
+           "within_tilt_step", "wls_box"]
 
 ALLOC_GROUP_SCALING = 0  # INDI_ALLOC = 0: the paper's increment with group scaling on saturation
 ALLOC_WLS = 1  # INDI_ALLOC = 1: this module on saturation
@@ -48,8 +46,9 @@ ALLOC_WLS = 1  # INDI_ALLOC = 1: this module on saturation
 GN_PASSES = 3  # Gauss-Newton passes (damped): the later ones correct the first's tilt linearisation
 EPS_REG = 1e-6  # regulariser on the normalised actuator increment (|dx| ~ 1 is full range)
 
-# Allocation configuration vector: weights of Delta Acc = [Pdot, Qdot, Rdot, a_x, a_z], the tilt step per tick.
-AL = layout("AL", w_acc=5, tilt_step=1)
+# Allocation configuration vector: weights of Delta Acc = [Pdot, Qdot, Rdot, a_x, a_z], the tilt step per tick,
+# and the actuator limits the allocation keeps to (the INDI's: duct tilt range, duct speed, w_tail_max^2 on |U5|).
+AL = layout("AL", w_acc=5, tilt_step=1, tilt_min=1, tilt_max=1, duct_speed_max=1, u_tail_max=1)
 
 # Return codes of wls_box
 WLS_INTERIOR = 0  # the unconstrained minimiser is inside the box
@@ -61,7 +60,7 @@ WLS_KKT_TOL = 1e-9  # multiplier sign test, relative to the rounding scale of th
 
 @dataclass(frozen=True)
 class AllocationConfig:
-    """INDI_ALLOC and its weights (params/fc_params.yaml); `vector()` is the kernels' AL vector."""
+    """INDI_ALLOC and its weights (params/fc_params.yaml); `vector(...)` is the kernels' AL vector."""
 
     mode: int = ALLOC_GROUP_SCALING
     w_rp: float = 100.0  # roll and pitch angular acceleration, per rad/s^2
@@ -78,11 +77,15 @@ class AllocationConfig:
             if not (math.isfinite(v) and v > 0.0):
                 raise ValueError(f"allocation {name} must be finite and > 0, got {v}")
 
-    def vector(self) -> np.ndarray:
-        return AL.pack(w_acc=(self.w_rp, self.w_rp, self.w_yaw, self.w_ax, self.w_az), tilt_step=self.tilt_step_rad)
+    def vector(self, tilt_min_rad: float, tilt_max_rad: float, duct_speed_max: float, tail_speed_max: float
+               ) -> np.ndarray:
+        """The AL vector: these weights and tilt step with the actuators' limits (rad, rad/s)."""
+        return AL.pack(w_acc=(self.w_rp, self.w_rp, self.w_yaw, self.w_ax, self.w_az), tilt_step=self.tilt_step_rad,
+                       tilt_min=tilt_min_rad, tilt_max=tilt_max_rad, duct_speed_max=duct_speed_max,
+                       u_tail_max=tail_speed_max**2)
 
 
-@njit_cached(_k, box_qp)
+@njit_cached(box_qp, linalg)
 def _wls_gradient(a, d, w, eps, x, g, gscale):
     """g = A^T W^2 (A x - d) + eps x from the residual (no cancellation against a far unconstrained point),
     and the rounding scale of each component (sum of the magnitudes of its terms)."""
@@ -104,7 +107,7 @@ def _wls_gradient(a, d, w, eps, x, g, gscale):
         gscale[i] = sc
 
 
-@njit_cached(_k, box_qp)
+@njit_cached(box_qp, linalg)
 def wls_box(a, d, w, eps, lo, hi, x):
     """x = argmin sum_i (w_i (A x - d)_i)^2 + eps |x|^2 s.t. lo <= x <= hi (A: n_out x n; lo <= 0 <= hi).
 
@@ -193,7 +196,7 @@ def wls_box(a, d, w, eps, lo, hi, x):
     return WLS_FAILED
 
 
-@njit_cached(_k, box_qp)
+@njit_cached(box_qp, linalg)
 def _u_of_x(x, t_duct_max, u_tail_max, u):
     """U (Sec. 3) of the normalised actuators x = [alpha1, alpha3, t1, t3, t5]."""
     u[0] = t_duct_max * x[2] * math.cos(x[0])
@@ -203,37 +206,37 @@ def _u_of_x(x, t_duct_max, u_tail_max, u):
     u[4] = u_tail_max * x[4]
 
 
-@njit_cached(_k, box_qp)
-def _x_of_u(ic, u, x):
+@njit_cached(box_qp, linalg)
+def _x_of_u(al, u, x):
     """The normalised actuators x = [alpha1, alpha3, t1, t3, t5] of U, clamped into the position limits."""
-    t_max = ic[IC.DUCT_SPEED_MAX] * ic[IC.DUCT_SPEED_MAX]  # w_max^2
-    tmin, tmax = ic[IC.TILT_MIN], ic[IC.TILT_MAX]
+    t_max = al[AL.DUCT_SPEED_MAX] * al[AL.DUCT_SPEED_MAX]  # w_max^2
+    tmin, tmax = al[AL.TILT_MIN], al[AL.TILT_MAX]
     x[0] = min(max(math.atan2(u[1], u[0]), tmin), tmax)
     x[1] = min(max(math.atan2(u[3], u[2]), tmin), tmax)
     x[2] = min(math.hypot(u[0], u[1]) / t_max, 1.0)
     x[3] = min(math.hypot(u[2], u[3]) / t_max, 1.0)
-    x[4] = min(max(u[4] / ic[IC.U_TAIL_MAX], -1.0), 1.0)
+    x[4] = min(max(u[4] / al[AL.U_TAIL_MAX], -1.0), 1.0)
 
 
-@njit_cached(_k, box_qp)
-def within_tilt_step(ic, al, u0, u):
+@njit_cached(box_qp, linalg)
+def within_tilt_step(al, u0, u):
     """True if U's duct tilts are within INDI_ALLOC_DTILT of U0's (the per-tick tilt rate limit)."""
     x0 = np.empty(5)
     x = np.empty(5)
-    _x_of_u(ic, u0, x0)
-    _x_of_u(ic, u, x)
+    _x_of_u(al, u0, x0)
+    _x_of_u(al, u, x)
     step = al[AL.TILT_STEP]
     return abs(x[0] - x0[0]) <= step and abs(x[1] - x0[1]) <= step
 
 
-@njit_cached(_k, box_qp)
-def _wls_pass(ic, al, m, d, u0, x0, xl, radius, dacc_pred, x):
+@njit_cached(box_qp, linalg)
+def _wls_pass(al, m, d, u0, x0, xl, radius, dacc_pred, x):
     """One Gauss-Newton pass: linearise U at the actuators xl, solve the box WLS for the increment that
     delivers d relative to U0, into x (absolute actuators, inside the box around x0) and its predicted
     Delta Acc; the tilts also stay within `radius` of xl (the pass's trust region). Returns wls_box's code, or
     -1 if M is singular."""
-    t_max = ic[IC.DUCT_SPEED_MAX] * ic[IC.DUCT_SPEED_MAX]
-    u_tail = ic[IC.U_TAIL_MAX]
+    t_max = al[AL.DUCT_SPEED_MAX] * al[AL.DUCT_SPEED_MAX]
+    u_tail = al[AL.U_TAIL_MAX]
     ul = np.empty(5)
     _u_of_x(xl, t_max, u_tail, ul)
     # [M | J | U(xl) - U0]: A = M^-1 J and the offset M^-1 (U(xl) - U0)
@@ -260,7 +263,7 @@ def _wls_pass(ic, al, m, d, u0, x0, xl, radius, dacc_pred, x):
         for j in range(5):
             a[i, j] = aug[i, 5 + j]
         target[i] = d[i] - aug[i, 10]
-    tmin, tmax, step = ic[IC.TILT_MIN], ic[IC.TILT_MAX], al[AL.TILT_STEP]
+    tmin, tmax, step = al[AL.TILT_MIN], al[AL.TILT_MAX], al[AL.TILT_STEP]
     lo = np.empty(5)
     hi = np.empty(5)
     for i in range(2):
@@ -283,66 +286,25 @@ def _wls_pass(ic, al, m, d, u0, x0, xl, radius, dacc_pred, x):
     return code
 
 
-@njit_cached(_k, box_qp)
-def allocate_actuators(ic, al, m, d, u0, u, dacc_pred):
+@njit_cached(box_qp, linalg)
+def allocate_actuators(al, m, d, u0, u, dacc_pred):
     """The WLS allocation of this module's docstring, GN_PASSES Gauss-Newton passes from the actuators of U0 (pass
     k's tilt trust region INDI_ALLOC_DTILT / 2^k around the previous pass's answer):
     U (inside the actuator limits) into u, the Delta Acc the last pass predicts into dacc_pred. Returns the
     last pass's wls_box code, or -1 if M is singular (u, dacc_pred untouched)."""
-    t_max = ic[IC.DUCT_SPEED_MAX] * ic[IC.DUCT_SPEED_MAX]
+    t_max = al[AL.DUCT_SPEED_MAX] * al[AL.DUCT_SPEED_MAX]
     x0 = np.empty(5)
-    _x_of_u(ic, u0, x0)
+    _x_of_u(al, u0, x0)
     xl = x0.copy()
     x = np.empty(5)
     code = -1
     radius = al[AL.TILT_STEP]
     for _ in range(GN_PASSES):
-        code = _wls_pass(ic, al, m, d, u0, x0, xl, radius, dacc_pred, x)
+        code = _wls_pass(al, m, d, u0, x0, xl, radius, dacc_pred, x)
         radius *= 0.5  # damped: each pass may move the tilts half as far as the one before
         if code < 0:
             return code
         for i in range(5):
             xl[i] = x[i]
-    _u_of_x(x, t_max, ic[IC.U_TAIL_MAX], u)
+    _u_of_x(x, t_max, al[AL.U_TAIL_MAX], u)
     return code
-
-
-@njit_cached(_k, box_qp)
-def _group_fraction(d, pred, i0, i1, i2):
-    """How much of the group's Delta Acc the allocation delivers: <pred, d> / |d|^2 over the indices (i < 0:
-    unused), clipped to [0, 1]; 1 when the group asks for nothing."""
-    num = 0.0
-    den = 0.0
-    for i in (i0, i1, i2):
-        if i >= 0:
-            num += pred[i] * d[i]
-            den += d[i] * d[i]
-    if den == 0.0:
-        return 1.0
-    return min(max(num / den, 0.0), 1.0)
-
-
-@njit_cached(_k, box_qp)
-def indi_step_wls(st, ic, al, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_inv, gi_hat, out):
-    """IndiController.step with INDI_ALLOC = 1: the exact increment (Eq. 5-6) when feasible (and its tilts
-    within INDI_ALLOC_DTILT of U0's), else
-    allocate_actuators; the group scaling only if M is singular. out's SCALE slots hold, per group of
-    indi.SATURATION_ORDER, the fraction of the group's Delta Acc delivered (1 = untouched)."""
-    m = np.empty((5, 5))
-    d = np.empty(5)
-    u0 = np.empty(5)
-    du = np.empty(5)
-    u = np.empty(5)
-    _k.indi_increment(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_inv, gi_hat, out, m, d, u0,
-                      du, u)
-    if not (_k._feasible_v(ic, u) and within_tilt_step(ic, al, u0, u)):
-        pred = np.empty(5)
-        if allocate_actuators(ic, al, m, d, u0, u, pred) >= 0:
-            for i in range(5):
-                du[i] = u[i] - u0[i]
-            out[IO.SCALE] = _group_fraction(d, pred, 3, -1, -1)
-            out[IO.SCALE + 1] = _group_fraction(d, pred, 2, -1, -1)
-            out[IO.SCALE + 2] = _group_fraction(d, pred, 0, 1, 4)
-        else:
-            _k.group_scaling(ic, m, d, u0, du, u, out)
-    _k.indi_finish(ic, u0, du, u, out)

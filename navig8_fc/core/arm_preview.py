@@ -11,7 +11,7 @@ as a preview (reference-model) feed-forward does.
 The servo model is the FC's own (parameters ARM_SERVO_VMAX, ARM_SERVO_AMAX, ARM_SERVO_HZ: the arm's data sheet,
 not the plant's truth): a time-optimal rate- and acceleration-limited tracker that follows the braking curve
 v = sign(e)·sqrt(2 a_max |e|), clipped to ±v_max, with the acceleration clipped to ±a_max (bang-coast-bang).
-The reaction is ḣ of `_kernels.mass_props` (MP.HDC: minus the arm's reaction pitch moment about the composite
+The reaction is ḣ of `g_c.mass_props` (MP.HDC: minus the arm's reaction pitch moment about the composite
 CoM, the term CKF_ARM_WRENCH and INDI_ARM_FF = 1 use) at the predicted (q, q̇, q̈) with the estimated object.
 """
 
@@ -23,11 +23,12 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from navig8_fc.core import _kernels as _k
+from navig8_fc.core import g_c
+from navig8_fc.core.jit import njit_cached
 from navig8_fc.core.layout import layout
 
-_MP_HDC = int(_k.MP.HDC)
-_N_MP = int(_k.MP.SIZE)
+_MP_HDC = int(g_c.MP.HDC)
+_N_MP = int(g_c.MP.SIZE)
 
 # A plan row: [t0_s, t1_s, q_start (3), q_end (3)]: the target moves linearly from q_start at t0 to q_end at t1
 # (t1 == t0: a step); before the first row the first q_start holds, after a row's t1 its q_end until the next row.
@@ -127,7 +128,7 @@ def reference_advance(plan: np.ndarray, t_s: float, dt_s: float, q: np.ndarray, 
     return err
 
 
-@njit(cache=True)
+@njit_cached(g_c)  # it calls g_c.mass_props: a change there recompiles it
 def preview_ahead(plan: np.ndarray, t_s: float, lead_s: float, h_s: float, amax: float, vmax: float,
                   object_mass_kg: float, geo: np.ndarray, ref: np.ndarray, ahead: np.ndarray) -> float:
     """ḣ (MP.HDC) the arm will produce at t_s + lead_s: the servo model run lead_s ahead from ref (at t_s);
@@ -138,11 +139,11 @@ def preview_ahead(plan: np.ndarray, t_s: float, lead_s: float, h_s: float, amax:
     inertia = np.empty((3, 3))
     rate = np.empty((3, 3))
     mp = np.empty(_N_MP)
-    _k.mass_props(ahead[0:3], ahead[3:6], ahead[6:9], object_mass_kg, geo, inertia, rate, mp)
+    g_c.mass_props(ahead[0:3], ahead[3:6], ahead[6:9], object_mass_kg, geo, inertia, rate, mp)
     return mp[_MP_HDC]
 
 
-@njit(cache=True)
+@njit_cached(g_c)  # through preview_ahead
 def arm_preview_step(plan: np.ndarray, t_s: float, dt_s: float, lead_s: float, q: np.ndarray, qd: np.ndarray,
                      h_s: float, amax: float, vmax: float, object_mass_kg: float, geo: np.ndarray, ref: np.ndarray,
                      ahead: np.ndarray) -> float:

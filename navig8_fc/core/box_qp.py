@@ -32,9 +32,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from navig8_fc.core import _kernels
-from navig8_fc.core._kernels import pivot_rows
+from navig8_fc.core import linalg
 from navig8_fc.core.jit import njit_cached
+from navig8_fc.core.linalg import pivot_rows
 
 __all__ = [
     "KKT_TOL",
@@ -56,7 +56,7 @@ SOLVED_BY_ENUMERATION = 0
 NO_SOLUTION = -1  # cannot happen for SPD W and a non-empty box: every corner is a feasible candidate
 
 
-@njit_cached(_kernels)
+@njit_cached(linalg)
 def gauss_solve_inplace(m, n):
     """Solve A Y = B for the augmented m = [A | B] (n x (n + k)), Y into m[:, n:]. Gaussian elimination with
     partial pivoting; False (m partly eliminated) if a pivot is zero or not finite."""
@@ -82,7 +82,7 @@ def gauss_solve_inplace(m, n):
     return True
 
 
-@njit_cached(_kernels)
+@njit_cached(linalg)
 def _face_point(xh, w, pl, use_pl, lo, hi, state, x):
     """Minimiser of (x - x_hat)^T W (x - x_hat) on the face `state` (-1 at lower, +1 at upper, 0 free), into x.
 
@@ -158,7 +158,7 @@ def _face_point(xh, w, pl, use_pl, lo, hi, state, x):
     return True
 
 
-@njit_cached(_kernels)
+@njit_cached(linalg)
 def _kkt_next_state(x, xh, w, lo, hi, state, tol, new):
     """KKT check of the face point x of `state`; the next active set into `new`; True iff x is optimal.
 
@@ -189,13 +189,13 @@ def _kkt_next_state(x, xh, w, lo, hi, state, tol, new):
     return same
 
 
-@njit_cached(_kernels)
+@njit_cached(linalg)
 def _clip_into(x, lo, hi):
     for i in range(x.shape[0]):
         x[i] = min(max(x[i], lo[i]), hi[i])
 
 
-@njit_cached(_kernels)
+@njit_cached(linalg)
 def active_set_solve(xh, w, pl, use_pl, lo, hi, x, max_iter):
     """The active-set iteration from the clip face. Returns the iterations used (x = the certified optimum,
     clipped to the box at rounding level) or 0 (no certificate within max_iter, or a singular face)."""
@@ -215,7 +215,7 @@ def active_set_solve(xh, w, pl, use_pl, lo, hi, x, max_iter):
     return 0
 
 
-@njit_cached(_kernels)
+@njit_cached(linalg)
 def _cost(x, xh, w):
     n = x.shape[0]
     c = 0.0
@@ -227,7 +227,7 @@ def _cost(x, xh, w):
     return c
 
 
-@njit_cached(_kernels)
+@njit_cached(linalg)
 def enumerate_faces(xh, w, lo, hi, x):
     """Exact solution by enumeration: the clip face, then every face (3^n) by the number of held bounds; the
     first one passing the KKT check (EXACT_TOL) is the unique optimum of the strictly convex QP. If rounding
@@ -283,7 +283,7 @@ def enumerate_faces(xh, w, lo, hi, x):
     return True
 
 
-@njit_cached(_kernels)
+@njit_cached(linalg)
 def solve(xh, w, pl, use_pl, lo, hi, x):
     """The projection of x_hat (outside the box) into x: the active-set iteration, checked; the enumeration
     when it gives no certificate. pl = W^-1 if use_pl (only makes face solves cheaper). Returns the

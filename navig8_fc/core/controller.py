@@ -24,7 +24,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from navig8_fc.core import _kernels as _k
 from navig8_fc.core import rotation
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig, AdaptiveLawStatus
 from navig8_fc.core.allocation import AllocationConfig
@@ -38,6 +37,8 @@ from navig8_fc.core.arm_preview import (
     reference_advance,
 )
 from navig8_fc.core.filters import lpf_alpha
+from navig8_fc.core.front_end import FO, FST, TIN, com_accel_offset, fc_front
+from navig8_fc.core.g_c import UO, actuators_to_u, gc_inv_about
 from navig8_fc.core.indi import (
     ActuatorLimits,
     IndiConfig,
@@ -47,6 +48,9 @@ from navig8_fc.core.indi import (
 )
 from navig8_fc.core.kalman import CkfConfig
 from navig8_fc.core.outer_loop import (
+    OFF,
+    OO,
+    OSP,
     SH,
     OuterLoopConfig,
     OuterLoopStatus,
@@ -59,18 +63,18 @@ from navig8_fc.core.outer_loop import (
 from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig, ghat_ginv_eig_record
 
 # Slots of the front-end kernel's outputs the tick reads (module constants: no enum lookups per tick).
-_UO_MASS, _UO_SINGULAR = int(_k.UO.MASS), int(_k.UO.SINGULAR)
-_UO_CEX, _UO_CEZ = int(_k.UO.CEX), int(_k.UO.CEZ)
-_UO_OBJ_RATE = int(_k.UO.OBJ_RATE)
-# The tick's input vector (_kernels.TIN): the sensors, then pos_ned, vel_ned, quat_wxyz and the setpoint
+_UO_MASS, _UO_SINGULAR = int(UO.MASS), int(UO.SINGULAR)
+_UO_CEX, _UO_CEZ = int(UO.CEX), int(UO.CEZ)
+_UO_OBJ_RATE = int(UO.OBJ_RATE)
+# The tick's input vector (front_end.TIN): the sensors, then pos_ned, vel_ned, quat_wxyz and the setpoint
 # (the outer loops' inputs, packed only when engaged). struct packs float64 exactly as np.array(..., dtype=float)
 # converts, into a persistent array (no per-tick allocation).
-_PACK_SENSORS = struct.Struct(f"={int(_k.TIN.POS)}d").pack_into
-_PACK_ENGAGED = struct.Struct(f"={int(_k.TIN.SIZE)}d").pack_into
-_IN_ACCEL, _IN_TILT, _IN_SPEED = int(_k.TIN.ACCEL), int(_k.TIN.TILT), int(_k.TIN.SPEED)
-_IN_JRATE = int(_k.TIN.JRATE)
-_FO_QEST, _FO_QDD, _OO_ACCEL = _k.FO.QEST.sl, _k.FO.QDD.sl, _k.OO.ACCEL_CMD.sl
-_FO_ARM_HDC = int(_k.FO.ARM_HDC)
+_PACK_SENSORS = struct.Struct(f"={int(TIN.POS)}d").pack_into
+_PACK_ENGAGED = struct.Struct(f"={int(TIN.SIZE)}d").pack_into
+_IN_ACCEL, _IN_TILT, _IN_SPEED = int(TIN.ACCEL), int(TIN.TILT), int(TIN.SPEED)
+_IN_JRATE = int(TIN.JRATE)
+_FO_QEST, _FO_QDD, _OO_ACCEL = FO.QEST.sl, FO.QDD.sl, OO.ACCEL_CMD.sl
+_FO_ARM_HDC = int(FO.ARM_HDC)
 _SH_PITCH, _SH_YAW = int(SH.PITCH), int(SH.YAW)
 _PS_TRUST, _PS_ERR, _PS_V_HAT, _PS_A_HAT = int(PS.TRUST), int(PS.ERR), int(PS.V_HAT), int(PS.A_HAT)
 _PS_DROPS, _PS_IDENTS = int(PS.DROPS), int(PS.IDENTS)
@@ -220,17 +224,17 @@ class FlightControllerCore:
         self._adapt = AdaptiveLaw(AdaptiveLawConfig(config.ckf, config.k_min, config.k_max, config.arm_wrench))
         self._obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
         self._outer_cfg = outer_loop_config_array(config.outer)
-        # Command shaping (outer_loop.shape_reference): its configuration, state (SH; INIT = 0: seed from the
+        # Command shaping (shape_reference): its configuration, state (SH; INIT = 0: seed from the
         # measured state at the next engaged tick), the shaped setpoint and the feed-forwards it writes
         self._shape_cfg = shaper_config_array(config.outer, config.dt_s)
         self._shape_st = SH.zeros()
-        self._shape_sp = _k.OSP.zeros()
-        self._shape_ff = _k.OFF.zeros()  # stays zero while shaping is off: the paper's loop
+        self._shape_sp = OSP.zeros()
+        self._shape_ff = OFF.zeros()  # stays zero while shaping is off: the paper's loop
         self._shape_ff_scale = 1.0  # the feed-forward's check (shaping_ff_scale of FeedForwardStatus)
         self._shape_rise = config.dt_s / SHAPING_FF_RISE_S
-        self._uo = _k.UO.zeros()
-        self._fst = _k.FST.zeros()  # joint observer + differentiator state (_kernels.fc_front)
-        self._fo = _k.FO.zeros()
+        self._uo = UO.zeros()
+        self._fst = FST.zeros()  # joint observer + differentiator state (front_end.fc_front)
+        self._fo = FO.zeros()
         self._inv_dt = 1.0 / config.dt_s
         # INDI_ARM_FF: the arm's h' low-passed like the INDI's feedback (None until the first tick)
         self._ff_alpha = lpf_alpha(config.indi.lpf_tau_s, config.dt_s)
@@ -329,7 +333,7 @@ class FlightControllerCore:
                           *s.joint_rate_rad_s)
         model = self._model
         acc_ref = cfg.acc_ref
-        _k.fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, m_obj_est, model.geometry,
+        fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, m_obj_est, model.geometry,
                     model.force_per_input, model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo,
                     float(acc_ref))
         ul = uo.tolist()
@@ -340,7 +344,7 @@ class FlightControllerCore:
         gc_law_inv = gc_inv
         if cfg.ckf.acc_at_com and not acc_ref:  # CKF_ACC_REF: the law's force rows at the estimated CoM (the
             am = acc_m.tolist()  # INDI's already are with INDI_ACC_REF = 1)
-            dx, dz = _k.com_accel_offset(*s.gyro_frd, am[1], ul[_UO_CEX], ul[_UO_CEZ])
+            dx, dz = com_accel_offset(*s.gyro_frd, am[1], ul[_UO_CEX], ul[_UO_CEZ])
             acc_law = np.array((am[0], am[1], am[2], am[3] + dx, am[4] + dz))
         if cfg.ckf.gc_at_com and s.gripper_closed:  # CKF_GC_REF: the law's moment rows about the estimated CoM
             # (an object at the gripper only while it reports closed: with it open, a mass estimate above m_UAM is
@@ -352,7 +356,7 @@ class FlightControllerCore:
                 # through a pitch doublet) made a pitch moment the model did not have, correlated with Delta Q-dot:
                 # K2 stayed at 0.9 against a true 0.63 with a 0.5 kg object (docs/model.md, "Estimator").
                 gc_law_inv = self._gc_law_inv
-                if not _k.gc_inv_about(model.force_per_input, model.moment_o_per_input, ul[_UO_CEX], ul[_UO_CEZ],
+                if not gc_inv_about(model.force_per_input, model.moment_o_per_input, ul[_UO_CEX], ul[_UO_CEZ],
                                        self._gc_law, gc_law_inv):
                     gc_law_inv = gc_inv
         gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_law, gc_law_inv, inertia, mass, rate,
@@ -423,7 +427,7 @@ class FlightControllerCore:
                                                 sl[_IN_SPEED + 2], v_cmd, gc_inv, gi_hat)
             cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
             self._indi_saturated = indi_status.saturated
-            _k.actuators_to_u(*out.tilt_cmd_rad, *out.speed_cmd_rad_s, self._u_cmd, 0)
+            actuators_to_u(*out.tilt_cmd_rad, *out.speed_cmd_rad_s, self._u_cmd, 0)
             self._u_cmd_ok = True
         else:
             self._indi_saturated = False
@@ -474,9 +478,9 @@ class FlightControllerCore:
         views of it the outer loop and INDI kernels take (gyro, pos, vel, quat, setpoint), the views of the
         front end's output the adaptive law takes (U0, Acc_m; its kernel only reads them) and the UAM mass.
         The arrays are never replaced, so the views stay valid."""
-        sens = _k.TIN.zeros()
-        t = _k.TIN.views(sens)
-        f = _k.FO.views(self._fo)
+        sens = TIN.zeros()
+        t = TIN.views(sens)
+        f = FO.views(self._fo)
         io = (sens, t.gyro, t.pos, t.vel, t.quat, t.sp, f.u_meas, f.acc_m, self.vehicle.uam_mass_kg)
         self._tick_io = io
         return io
@@ -509,8 +513,8 @@ def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: i
     # the command shaper (runs only when OL_JERK_MAX or OL_ATT_ACC_REF is on; loaded here so switching it on does not
     # stall a tick)
     shape_reference(shaper_config_array(replace(config.outer, jerk_max_m_s3=5.0, att_acc_ref_rad_s2=1.0), cfg.dt_s),
-                    SH.zeros(), _k.OSP.zeros(), np.zeros(3), np.zeros(3), np.array((1.0, 0.0, 0.0, 0.0)),
-                    _k.OSP.zeros(), _k.OFF.zeros())
+                    SH.zeros(), OSP.zeros(), np.zeros(3), np.zeros(3), np.array((1.0, 0.0, 0.0, 0.0)),
+                    OSP.zeros(), OFF.zeros())
     # the attitude kernels Python code calls directly (rotation.py: telemetry, the plant's truth)
     q = rotation.euler_to_quat(0.1, 0.2, 0.3)
     rotation.quat_to_euler(rotation.quat_mul(q, q))

@@ -4,8 +4,9 @@ numba keys a cached kernel on its own source file (its timestamp and size) and b
 calls a kernel of another module has the callee's machine code compiled into it, and keeps running that old
 code after the callee's module changes, until its own file changes (numba issue #6845). `njit_cached(deps)`
 adds a digest of the dependency modules to the cache key: the bytecode, constants and names of each numba
-kernel in them and their numeric module constants (which numba freezes into compiled code). Changing any of
-these recompiles the caller. No file is read (the core does no I/O): the digest comes from the loaded modules.
+kernel in them, their numeric module constants and the slots of their vector layouts (layout.Slots; numba
+freezes both into compiled code). Changing any of these recompiles the caller. No file is read (the core does no
+I/O): the digest comes from the loaded modules.
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ from typing import Any
 from numba import njit
 from numba.core.caching import FunctionCache
 from numba.core.dispatcher import Dispatcher
+
+from navig8_fc.core.layout import Slots
 
 __all__ = ["module_digest", "njit_cached"]
 
@@ -35,7 +38,7 @@ def _code_digest(code: CodeType, h: Any) -> None:
 
 
 def module_digest(module: ModuleType) -> str:
-    """SHA-256 over a module's numba kernels (bytecode, constants, names) and numeric module constants."""
+    """SHA-256 over a module's numba kernels (bytecode, constants, names), numeric module constants and layouts."""
     h = hashlib.sha256()
     for name, value in sorted(vars(module).items()):
         if isinstance(value, Dispatcher):
@@ -43,6 +46,8 @@ def module_digest(module: ModuleType) -> str:
             _code_digest(value.py_func.__code__, h)
         elif isinstance(value, (bool, int, float)) and not name.startswith("__"):
             h.update(f"{name}={value!r}".encode())
+        elif isinstance(value, type) and issubclass(value, Slots) and value is not Slots:
+            h.update(f"{name}={[(m.name, int(m)) for m in value]!r}".encode())
     return h.hexdigest()
 
 

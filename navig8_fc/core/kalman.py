@@ -28,7 +28,7 @@ already inside the box the projection is x_hat itself and no QP is solved (exact
 
 One API: `predict`, `correct`, `project` and `step` (all three in one compiled call, the adaptive law's
 tick). Each stage is one numba kernel; `step`'s kernel calls the same three. The kernels that reach
-box_qp's kernels or _kernels.inv_gauss_jordan are cached by jit.njit_cached, so that numba's on-disk cache
+box_qp's kernels or linalg.inv_gauss_jordan are cached by jit.njit_cached, so that numba's on-disk cache
 follows changes in those modules.
 
 Pure core: numpy and numba; no I/O, no clocks.
@@ -45,7 +45,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 from numba import njit
 
-from navig8_fc.core import _kernels, box_qp
+from navig8_fc.core import box_qp, linalg
 from navig8_fc.core.box_qp import ProjectionResult
 from navig8_fc.core.jit import njit_cached
 from navig8_fc.core.layout import layout
@@ -286,7 +286,7 @@ def kf_predict(x, p, q_diag, dt, id0, id1, id2):
         p[i, i] += q_diag[i]
 
 
-@njit_cached(box_qp, _kernels)
+@njit_cached(box_qp, linalg)
 def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation):
     """Measurement update z = Delta U = H(Delta Acc_m) x + nu (Eq. 24): K = P H^T S^-1, S = H P H^T + R
     (a solve, no inverse), x += K (z - H x), P = (I - K H) P (I - K H)^T + K R K^T (Joseph form: PSD under
@@ -358,7 +358,7 @@ PROJ_EMPTY_BOX = -1
 PROJ_FAILED = -2  # no feasible candidate (cannot happen for SPD W and a non-empty box)
 
 
-@njit_cached(box_qp, _kernels)
+@njit_cached(box_qp, linalg)
 def kf_project(x, p, identity, lo, hi):
     """Eq. 21: x <- argmin (x' - x)^T W (x' - x) over the box (box_qp.solve), W = P^-1 or I (identity, or
     when P is singular). P is not touched. Returns a PROJ_* code."""
@@ -375,7 +375,7 @@ def kf_project(x, p, identity, lo, hi):
     pl = np.empty((n, n))  # W^-1 = P, or I: makes the face solves cheaper
     use_pl = True
     if not identity:
-        if _kernels.inv_gauss_jordan(p, w):
+        if linalg.inv_gauss_jordan(p, w):
             for i in range(n):
                 for j in range(n):
                     if not math.isfinite(w[i, j]):
@@ -428,7 +428,7 @@ def excitation_mask(da, exc_rot, exc_lin, mask):
     return n + int(mask[3])
 
 
-@njit_cached(box_qp, _kernels)
+@njit_cached(box_qp, linalg)
 def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc_rot, exc_lin, gc_inv, du, da,
             rho_x, rho_z, constrained, identity, lo, hi, out):
     """predict (if do_predict), correct (if do_correct and some state passes the excitation gate; the others

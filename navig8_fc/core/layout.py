@@ -7,7 +7,9 @@ same table's slices (`IO.U0.sl`), build vectors by name (`IO.pack(acc_f=..., u0=
 views (`IO.views(arr)`). The kernel and its callers therefore cannot disagree about an offset.
 
 numba's on-disk cache freezes these constants into the compiled code and keys the cache on the kernel's
-source file: define a layout in the module of the kernels that use it, so editing it invalidates them.
+source file: define a layout in the module of the kernels that use it, so editing it invalidates them. A kernel
+that reads another module's layout is decorated with jit.njit_cached(that module), whose digest covers the
+module's layouts.
 """
 
 from __future__ import annotations

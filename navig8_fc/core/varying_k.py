@@ -43,7 +43,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from navig8_fc.core import stability as st
+from navig8_fc.core import k_xi, sampled_loop
 from navig8_fc.core.lyapunov import CommonLyapunovResult, common_lyapunov, contraction_factors
 from navig8_fc.core.vehicle import VehicleConfig
 
@@ -51,7 +51,8 @@ from navig8_fc.core.vehicle import VehicleConfig
 EXTRA_OBJECT_OFFSET_M = 0.1
 # Block coupling |Xi[longitudinal rows, lateral columns]| below this counts as exactly block triangular (round-off).
 BLOCK_COUPLING_TOL = 1e-10
-BLOCKS: tuple[tuple[str, tuple[int, ...]], ...] = (("lateral", st.LATERAL_IDX), ("longitudinal", st.LONGITUDINAL_IDX))
+BLOCKS: tuple[tuple[str, tuple[int, ...]], ...] = (("lateral", k_xi.LATERAL_IDX),
+                                                   ("longitudinal", k_xi.LONGITUDINAL_IDX))
 
 
 @dataclass(frozen=True)
@@ -102,7 +103,7 @@ def box_upper_object_mass_kg(cfg: VehicleConfig, k_min: float) -> float:
 def default_grid(cfg: VehicleConfig, k_min: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(poses_rad, object masses kg, object offsets m): every joint on {-90, 0, 90} deg plus the two Fig. 7 poses;
     0, 1, 2 kg and the box's upper mass; the object at the tip (vehicle file) and EXTRA_OBJECT_OFFSET_M beyond."""
-    poses = np.vstack([st.pose_grid_rad(3), st.paper_poses_rad()])
+    poses = np.vstack([k_xi.pose_grid_rad(3), k_xi.paper_poses_rad()])
     masses = np.array([0.0, 1.0, 2.0, box_upper_object_mass_kg(cfg, k_min)])
     offsets = np.array([cfg.object_offset_m, cfg.object_offset_m + EXTRA_OBJECT_OFFSET_M])
     return poses, masses, offsets
@@ -114,8 +115,8 @@ def k_corners(k_min: float, k_max: float) -> np.ndarray:
     return np.stack(np.meshgrid(c, c, c, c, indexing="ij"), axis=-1).reshape(-1, 4)
 
 
-def loop_parts(loop: LoopConfig, channels: Sequence[str] = st.INDI_CHANNELS) -> st.CoupledLoopParts:
-    return st.coupled_loop_parts(loop.wn_rad_s, loop.zeta, loop.rate_hz, loop.tl_s, channels,
+def loop_parts(loop: LoopConfig, channels: Sequence[str] = sampled_loop.INDI_CHANNELS) -> sampled_loop.CoupledLoopParts:
+    return sampled_loop.coupled_loop_parts(loop.wn_rad_s, loop.zeta, loop.rate_hz, loop.tl_s, channels,
                                  u0_source=loop.u0_source, u0_tau_s=loop.u0_tau_s)
 
 
@@ -124,14 +125,14 @@ def lmi_vertices(cfg: VehicleConfig, loop: LoopConfig, poses_rad: np.ndarray, ob
     """Every (K corner, pose, mass, offset) vertex of the coupled loop; exact duplicates dropped (with no object Xi = I
     at every pose and offset), the first name kept."""
     corners = k_corners(loop.k_min, loop.k_max)
-    kappa = 1.0 / st.k_diagonals(corners[:, 0], corners[:, 1], corners[:, 2], corners[:, 3])  # (16, 5): K^-1
+    kappa = 1.0 / k_xi.k_diagonals(corners[:, 0], corners[:, 1], corners[:, 2], corners[:, 3])  # (16, 5): K^-1
     poses = np.atleast_2d(np.asarray(poses_rad, dtype=float))
     masses = np.atleast_1d(np.asarray(object_masses_kg, dtype=float))
     lam_inv, labels, seen = [], [], set()
     coupling = 0.0
     for off in np.atleast_1d(np.asarray(object_offsets_m, dtype=float)):
-        xi = st.xi_batch(replace(cfg, object_offset_m=float(off)), poses, masses, loop.reference)
-        coupling = max(coupling, st.xi_block_coupling(xi))
+        xi = k_xi.xi_batch(replace(cfg, object_offset_m=float(off)), poses, masses, loop.reference)
+        coupling = max(coupling, k_xi.xi_block_coupling(xi))
         xi_inv = np.linalg.inv(xi)
         for i, q in enumerate(poses):
             for j, m_o in enumerate(masses):
@@ -146,7 +147,8 @@ def lmi_vertices(cfg: VehicleConfig, loop: LoopConfig, poses_rad: np.ndarray, ob
                                               tuple(float(math.degrees(v)) for v in q),  # type: ignore[arg-type]
                                               float(m_o), float(off)))
     li_arr = np.array(lam_inv)
-    return VertexSet(li_arr, st.coupled_loop_matrix_from_inverse(li_arr, loop_parts(loop)), tuple(labels), coupling)
+    matrices = sampled_loop.coupled_loop_matrix_from_inverse(li_arr, loop_parts(loop))
+    return VertexSet(li_arr, matrices, tuple(labels), coupling)
 
 
 @dataclass(frozen=True)
@@ -187,14 +189,14 @@ def _name_block(label: VertexLabel, block: str) -> VertexLabel:
 
 
 def _state_index(channels: Sequence[int]) -> np.ndarray:
-    n = st.N_LOOP_STATES
+    n = sampled_loop.N_LOOP_STATES
     return np.concatenate([np.arange(n * c, n * (c + 1)) for c in channels])
 
 
 def _assemble(vs: VertexSet, p_lat: np.ndarray, p_long: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """P = diag(P_lat, t P_long) (in the full channel-major state) with the t that gives the smallest verified rate
     over every full vertex; None if no t in the scan verifies."""
-    i_lat, i_long = _state_index(st.LATERAL_IDX), _state_index(st.LONGITUDINAL_IDX)
+    i_lat, i_long = _state_index(k_xi.LATERAL_IDX), _state_index(k_xi.LONGITUDINAL_IDX)
     n = vs.matrices.shape[1]
     p_lat = p_lat / np.linalg.eigvalsh(p_lat)[-1]
     p_long = p_long / np.linalg.eigvalsh(p_long)[-1]
@@ -241,11 +243,11 @@ def varying_k_lmi(cfg: VehicleConfig, loop: LoopConfig, poses_rad: np.ndarray | 
                               sdp_time_s=r.sdp_time_s, p=r.p, **base)
     blocks: list[BlockResult] = []
     for name, idx in BLOCKS:
-        parts = loop_parts(loop, tuple(st.INDI_CHANNELS[i] for i in idx))
+        parts = loop_parts(loop, tuple(sampled_loop.INDI_CHANNELS[i] for i in idx))
         sub = vs.lam_inv[:, idx][:, :, idx]  # the block-diagonal part of a block-triangular inverse
         keys = np.round(sub, 12).reshape(len(sub), -1)
         _, first = np.unique(keys, axis=0, return_index=True)
-        mats = st.coupled_loop_matrix_from_inverse(sub[first], parts)
+        mats = sampled_loop.coupled_loop_matrix_from_inverse(sub[first], parts)
         r = common_lyapunov(mats, bisection_steps=bisection_steps)
         failing = tuple(_name_block(vs.labels[int(first[i])], name) for i in r.conflict)
         blocks.append(BlockResult(name, len(first), r, failing))

@@ -1,6 +1,6 @@
 """Navig8-UAM model: arm kinematics, composite mass properties, the inertia rate and G_C, G_I, G.
 
-Pure math; the model itself is written once, in numba kernels (_kernels.mass_props, gc_about, uam_model),
+Pure math; the model itself is written once, in numba kernels (g_c.mass_props, gc_about, uam_model),
 and the functions here bind a VehicleConfig to them. Body frame FRD with origin O at the UAV's own centre of mass.
 The arm moves in the body x-z plane: joint angles q (rad), q = 0 points down (+z),
 q > 0 swings the link forward (+x). Absolute link angle theta_i = q_1 + ... + q_i and
@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from navig8_fc.core import _kernels as _k
+from navig8_fc.core import g_c
 
 N_LINKS = 3
 Sequence3 = Sequence[float] | np.ndarray
@@ -142,11 +142,11 @@ class MassProperties:
 
 
 def model_geometry(cfg: VehicleConfig) -> np.ndarray:
-    """The vehicle constants the model kernels take (_kernels.GEO layout)."""
+    """The vehicle constants the model kernels take (g_c.GEO layout)."""
     if cfg.mount_frd_m[1] != 0.0:
         raise ValueError("the model's arm moves in the body x-z plane through O: mount_frd_m[1] must be 0")
     j = cfg.uav_inertia_array
-    return _k.GEO.pack(link_len=cfg.link_length_m, link_mass=cfg.link_mass_kg, link_inertia=cfg.link_inertia_kgm2,
+    return g_c.GEO.pack(link_len=cfg.link_length_m, link_mass=cfg.link_mass_kg, link_inertia=cfg.link_inertia_kgm2,
                        mount_x=cfg.mount_frd_m[0], mount_z=cfg.mount_frd_m[2], uam_mass=cfg.uam_mass_kg,
                        j11=j[0, 0], j22=j[1, 1], j33=j[2, 2], j13=j[0, 2], obj_offset=cfg.object_offset_m,
                        obj_radius=cfg.object_radius_m)
@@ -159,8 +159,8 @@ def _arm_state(q: Sequence3, qd: Sequence3 | None, qdd: Sequence3 | None) -> tup
 
 def _mass_props(cfg: VehicleConfig, q: Sequence3, qd: Sequence3 | None,
                 object_mass_kg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    inertia, rate, mp = np.empty((3, 3)), np.empty((3, 3)), _k.MP.zeros()
-    _k.mass_props(*_arm_state(q, qd, None), float(object_mass_kg), model_geometry(cfg), inertia, rate, mp)
+    inertia, rate, mp = np.empty((3, 3)), np.empty((3, 3)), g_c.MP.zeros()
+    g_c.mass_props(*_arm_state(q, qd, None), float(object_mass_kg), model_geometry(cfg), inertia, rate, mp)
     return inertia, rate, mp
 
 
@@ -169,10 +169,10 @@ def mass_properties(
 ) -> MassProperties:
     """Mass, CoM and inertia tensor (about the CoM) for arm pose q and an object in the gripper (mass_props)."""
     inertia, _, mp = _mass_props(cfg, q, None, object_mass_kg)
-    jo = mp[_k.MP.JO.sl]
+    jo = mp[g_c.MP.JO.sl]
     return MassProperties(
-        mass_kg=float(mp[_k.MP.MASS]),
-        com_frd_m=np.array([mp[_k.MP.CX], 0.0, mp[_k.MP.CZ]]),
+        mass_kg=float(mp[g_c.MP.MASS]),
+        com_frd_m=np.array([mp[g_c.MP.CX], 0.0, mp[g_c.MP.CZ]]),
         inertia_com=inertia,
         inertia_o=np.array([[jo[0], 0.0, jo[3]], [0.0, jo[1], 0.0], [jo[3], 0.0, jo[2]]]),
     )
@@ -232,14 +232,14 @@ def propulsion_wrench(
 
 
 def control_effectiveness_gc(cfg: VehicleConfig, com_frd_m: Sequence3) -> np.ndarray:
-    """G_C (5x5): rows [L, M, N, Fx, Fz] about the CoM, columns U1..U5 (Eq. 1-2, notes 2.2; _kernels.gc_about).
+    """G_C (5x5): rows [L, M, N, Fx, Fz] about the CoM, columns U1..U5 (Eq. 1-2, notes 2.2; g_c.gc_about).
 
     The CoM lies in the body x-z plane (the arm moves in it)."""
     if float(com_frd_m[1]) != 0.0:
         raise ValueError("control_effectiveness_gc: the model's CoM has y = 0")
     f, m0 = propulsion_per_input(cfg)
     gc = np.empty((5, 5))
-    _k.gc_about(f, m0, float(com_frd_m[0]), float(com_frd_m[2]), gc)
+    g_c.gc_about(f, m0, float(com_frd_m[0]), float(com_frd_m[2]), gc)
     return gc
 
 
@@ -326,14 +326,14 @@ def ghat_ginv_eigenvalues(pair: EffectivenessPair, k: np.ndarray) -> np.ndarray:
 def actuators_to_u(alpha1: float, alpha3: float, w1: float, w2: float, w3: float) -> np.ndarray:
     """U = [cos a1 w1^2, sin a1 w1^2, cos a3 w3^2, sin a3 w3^2, sign(w2) w2^2] (Sec. 3)."""
     u = np.empty(5)
-    _k.actuators_to_u(float(alpha1), float(alpha3), float(w1), float(w2), float(w3), u, 0)
+    g_c.actuators_to_u(float(alpha1), float(alpha3), float(w1), float(w2), float(w3), u, 0)
     return u
 
 
 def u_to_actuators(u: Sequence[float] | np.ndarray) -> tuple[float, float, float, float, float]:
     """(alpha1, alpha3, w1, w2, w3) from U (Sec. 3): alpha = atan2, w = (U_c^2 + U_s^2)^(1/4)."""
     out = np.empty(5)
-    _k.u_to_actuators(np.asarray(u, dtype=float), out, 0)
+    g_c.u_to_actuators(np.asarray(u, dtype=float), out, 0)
     a1, a3, w1, w2, w3 = out.tolist()
     return a1, a3, w1, w2, w3
 
@@ -364,14 +364,14 @@ class UamState:
 
 
 class UamModel:
-    """The controller's model of the UAM without object (_kernels.uam_model) with the vehicle's constants bound.
+    """The controller's model of the UAM without object (g_c.uam_model) with the vehicle's constants bound.
 
     The moment rows of G_C about a point c follow from those about O: M_c = M_O - c x F (notes 2.5).
     """
 
     def __init__(self, cfg: VehicleConfig) -> None:
         self.cfg = cfg
-        self.geometry = model_geometry(cfg)  # _kernels.GEO
+        self.geometry = model_geometry(cfg)  # g_c.GEO
         f, m0 = propulsion_per_input(cfg)
         self.force_per_input = np.ascontiguousarray(f)
         self.moment_o_per_input = np.ascontiguousarray(m0)
@@ -379,7 +379,7 @@ class UamModel:
     def gc_about(self, cx: float, cz: float) -> np.ndarray:
         """G_C rows [L, M, N, Fx, Fz] about c = (cx, 0, cz)."""
         gc = np.empty((5, 5))
-        _k.gc_about(self.force_per_input, self.moment_o_per_input, float(cx), float(cz), gc)
+        g_c.gc_about(self.force_per_input, self.moment_o_per_input, float(cx), float(cz), gc)
         return gc
 
     def evaluate(
@@ -395,17 +395,17 @@ class UamModel:
         (the controller's G_C and G_I stay those of the UAM without object, as in the paper).
         """
         inertia, rate = np.empty((3, 3)), np.empty((3, 3))
-        gc, gc_inv, uo = np.empty((5, 5)), np.empty((5, 5)), _k.UO.zeros()
-        _k.uam_model(*_arm_state(q, qd, qdd), float(object_mass_kg), self.geometry, self.force_per_input,
+        gc, gc_inv, uo = np.empty((5, 5)), np.empty((5, 5)), g_c.UO.zeros()
+        g_c.uam_model(*_arm_state(q, qd, qdd), float(object_mass_kg), self.geometry, self.force_per_input,
                      self.moment_o_per_input, inertia, rate, gc, gc_inv, uo)
         o = uo.tolist()
         return UamState(
-            mass_kg=o[_k.UO.MASS],
-            com_frd_m=np.array([o[_k.UO.CX], 0.0, o[_k.UO.CZ]]),
+            mass_kg=o[g_c.UO.MASS],
+            com_frd_m=np.array([o[g_c.UO.CX], 0.0, o[g_c.UO.CZ]]),
             inertia_com=inertia,
             inertia_rate=rate,
             gc=gc,
-            arm_accel_xz=(o[_k.UO.ARM_AX], o[_k.UO.ARM_AZ]),
+            arm_accel_xz=(o[g_c.UO.ARM_AX], o[g_c.UO.ARM_AZ]),
         )
 
 
@@ -441,7 +441,7 @@ def ghat_ginv_eig_record(
     G_hat^-1 = G_C,UAM(q_est)^-1 G_hat_I (Eq. 4) and G^-1 = G_C,true^-1 G_I,true, so
     G_hat G^-1 = (G_hat_I^-1 G_C,UAM)(G_C,true^-1 G_I,true). gc_uam_flat: the G_C,UAM(q_est) the controller
     used this tick (ControllerStatus.gc_uam), else it is evaluated here. The linear algebra runs in a numba
-    kernel (_kernels.ghat_ginv_eigs: every logged tick needs it). Used by the in-process runner and the SITL FC.
+    kernel (g_c.ghat_ginv_eigs: every logged tick needs it). Used by the in-process runner and the SITL FC.
 
     ref_frd_m: the point whose acceleration the loop feeds back (ControllerStatus.ref_frd_m, INDI_ACC_REF = 1);
     then G is the flown T(p - c) G (flown_effectiveness) and G^-1 = G_C,true^-1 G_I,true T^-1, T^-1 = 2 I - T
@@ -463,7 +463,7 @@ def ghat_ginv_eig_record(
         gi_flown[3, 1] = 0.0 + m * (0.0 - (float(ref_frd_m[2]) - float(com_true_frd_m[2])))
         gi_flown[4, 1] = 0.0 + m * (0.0 - (0.0 - (float(ref_frd_m[0]) - float(com_true_frd_m[0]))))
     re, im = np.empty(5), np.empty(5)
-    _k.ghat_ginv_eigs(gi_hat, gc_uam, gc_true, gi_flown, re, im)
+    g_c.ghat_ginv_eigs(gi_hat, gc_uam, gc_true, gi_flown, re, im)
     return {
         "eig_real": re.tolist(),
         "eig_imag": im.tolist(),

@@ -538,15 +538,15 @@ def eig_margin_lower_bound(
     3 x 3 (K1, K3) grid at K2 = K4 = k_min (where core.stability shows the longitudinal minimum lies).
     Cost: ~1.4 ms per call, so the shell computes it at the telemetry rate, not every control step.
     """
-    from navig8_fc.core import stability
+    from navig8_fc.core import k_xi
 
-    xi = stability.xi_batch(vehicle, np.asarray([q_rad], dtype=float), np.asarray(object_masses_kg, dtype=float))
+    xi = k_xi.xi_batch(vehicle, np.asarray([q_rad], dtype=float), np.asarray(object_masses_kg, dtype=float))
     c = np.array([k_min, k_max])
     corners = np.stack(np.meshgrid(c, c, c, c, indexing="ij"), axis=-1).reshape(-1, 4)
     g = np.linspace(k_min, k_max, 3)
     k1, k3 = np.meshgrid(g, g, indexing="ij")
     grid = np.column_stack([k1.ravel(), np.full(9, k_min), k3.ravel(), np.full(9, k_min)])
     ks = np.vstack([corners, grid])
-    k_diag = stability.k_diagonals(ks[:, 0], ks[:, 1], ks[:, 2], ks[:, 3])
-    lam = stability.k_xi_eigenvalues(xi[:, :, None, :, :], k_diag[None, None, :, :])
+    k_diag = k_xi.k_diagonals(ks[:, 0], ks[:, 1], ks[:, 2], ks[:, 3])
+    lam = k_xi.k_xi_eigenvalues(xi[:, :, None, :, :], k_diag[None, None, :, :])
     return float(lam.real.min()) - float(lambda_crit)

@@ -150,7 +150,7 @@ class WorkspaceStabilityCheck:
         return hit
 
     def _compute(self, values: Mapping[str, float | int]) -> StabilityFloor:
-        from navig8_fc.core import stability
+        from navig8_fc.core import k_xi, stability
         from navig8_fc.core.vehicle import VehicleConfig
 
         if self._cfg is None:
@@ -162,14 +162,14 @@ class WorkspaceStabilityCheck:
             float(values["INDI_LPF_TAU"]),
         )
         k_min, k_max = float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"])
-        min_eig = stability.min_eigenvalue_over_workspace(self._cfg, k_min, k_max)
+        min_eig = k_xi.min_eigenvalue_over_workspace(self._cfg, k_min, k_max)
         lam_up = stability.lambda_upper(
             float(values["ACT_WN"]), float(values["ACT_ZETA"]), 1.0 / float(values["INDI_RATE_HZ"]),
             float(values["INDI_LPF_TAU"]),
         )
         max_eig = -math.inf
         if math.isfinite(lam_up):  # rare (lightly damped, long delay): the slow side needs the full sweep
-            max_eig = stability.k_bounds_analysis(self._cfg, k_min, k_max).max_eigenvalue
+            max_eig = k_xi.k_bounds_analysis(self._cfg, k_min, k_max).max_eigenvalue
         return StabilityFloor(lam_crit, min_eig, lam_up, max_eig)
 
 

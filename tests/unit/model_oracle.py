@@ -1,6 +1,6 @@
 """Independent oracles for the vehicle model (notes 3.1-3.2), written in vector form with numpy.
 
-The model kernels (navig8_fc/core/_kernels.py: mass_props, uam_model) sum the planar terms of notes 3.2 in
+The model kernels (navig8_fc/core/g_c.py: mass_props, uam_model) sum the planar terms of notes 3.2 in
 plain floats; these oracles build the same bodies as vectors and point masses instead, so a test that agrees
 with them checks the kernel, not a transcription of it.
 """

@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
 
-from navig8_fc.core import _kernels as k
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.allocation import (
     ALLOC_WLS,
@@ -29,10 +28,7 @@ CFG = vm.VehicleConfig.load()
 LIM = ActuatorLimits.from_vehicle(CFG)
 DT = 0.01
 ALLOC = AllocationConfig(mode=ALLOC_WLS)
-IC = k.IC.pack(alpha=1.0, inv_dt=1.0 / DT, tilt_min=LIM.tilt_min_rad, tilt_max=LIM.tilt_max_rad,
-               duct_speed_max=LIM.duct_speed_max, tail_speed_max=LIM.tail_speed_max,
-               u_duct_sq_max=LIM.duct_speed_max**4, u_tail_max=LIM.tail_speed_max**2,
-               u0_src=0.0, u0_gain=1.0, act_ad=(1.0, 0.0, 0.0, 1.0) * 2, act_bd=(0.0, 0.0) * 2)  # U0 measured
+AL = ALLOC.vector(LIM.tilt_min_rad, LIM.tilt_max_rad, LIM.duct_speed_max, LIM.tail_speed_max)  # with the limits
 
 
 def _oracle(a, d, w, eps, lo, hi):
@@ -112,7 +108,7 @@ def _allocate(q_deg, d):
     u0 = vm.hover_trim(CFG, q, 0.0)
     u = np.empty(5)
     pred = np.empty(5)
-    assert allocate_actuators(IC, ALLOC.vector(), m, np.asarray(d, dtype=float), u0, u, pred) >= 0
+    assert allocate_actuators(AL, m, np.asarray(d, dtype=float), u0, u, pred) >= 0
     _within_limits(u, u0, ALLOC.tilt_step_rad)
     got = _true_dacc(m, u, u0)
     return 1.0 - np.abs(got - d) / np.maximum(np.abs(d), 1e-9)  # share of each axis met (overshoot is a miss)
@@ -162,7 +158,6 @@ def test_random_states_stay_within_limits_and_never_nan() -> None:
     rng = np.random.default_rng(12)
     gc, gi = _model(np.zeros(3))
     m = np.linalg.solve(gc, gi)
-    al = ALLOC.vector()
     for _ in range(200):
         a1, a3 = rng.uniform(LIM.tilt_min_rad, LIM.tilt_max_rad, 2)
         w1, w3 = rng.uniform(0.0, LIM.duct_speed_max, 2)
@@ -171,7 +166,7 @@ def test_random_states_stay_within_limits_and_never_nan() -> None:
         d = rng.normal(scale=rng.uniform(1.0, 200.0), size=5)
         u = np.empty(5)
         pred = np.empty(5)
-        assert allocate_actuators(IC, al, m, d, u0, u, pred) >= 0
+        assert allocate_actuators(AL, m, d, u0, u, pred) >= 0
         assert np.all(np.isfinite(u))
         _within_limits(u, u0, ALLOC.tilt_step_rad)
 

@@ -2,7 +2,7 @@
 
 - The FC's servo model against the closed-form time-optimal trapezoid (accelerate at a_max to v_max, coast,
   brake at a_max) and against the plant's servo (`sim_bridge._kernels._servo_accel`, written separately).
-- The preview's ḣ at t + lead against ḣ (`_kernels.mass_props`, itself checked against tools/authority_excursion's
+- The preview's ḣ at t + lead against ḣ (`g_c.mass_props`, itself checked against tools/authority_excursion's
   h in test_arm_wrench.py) at the state the plant's servo reaches at t + lead.
 - The scenario's arm plan as the FC parses it against the bridge's own target lookup (`Scenario.arm_targets`).
 - The controller: with INDI_ARM_FF = 2 and an arm step coming within the lead time the pitch command leans against
@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from navig8_fc.core import _kernels as k
+from navig8_fc.core import g_c
 from navig8_fc.core.arm_preview import (
     arm_preview_step,
     hold_plan,
@@ -104,8 +104,8 @@ def test_preview_predicts_the_reaction_the_plant_servo_produces(cfg: VehicleConf
         # the joints at t_s as the plant's servo has them, and what they do at t_s + lead
         now = _plant_servo(q_rest, np.zeros(3), plan, 0.0, round(t_s / H))
         fut = _plant_servo(now[:3], now[3:6], plan, t_s, round(lead / H))
-        mp = k.MP.zeros()
-        k.mass_props(fut[:3], fut[3:6], fut[6:], mo, geo, np.empty((3, 3)), np.empty((3, 3)), mp)
+        mp = g_c.MP.zeros()
+        g_c.mass_props(fut[:3], fut[3:6], fut[6:], mo, geo, np.empty((3, 3)), np.empty((3, 3)), mp)
         ref = np.zeros(10)
         ref[:6], ref[9] = now[:6], 1.0
         # ref is advanced one control tick (dt) before predicting: start it dt earlier on the plant's trajectory
@@ -113,7 +113,7 @@ def test_preview_predicts_the_reaction_the_plant_servo_produces(cfg: VehicleConf
         before = _plant_servo(q_rest, np.zeros(3), plan, 0.0, round((t_s - dt) / H))
         ref[:6] = before[:6]
         got = arm_preview_step(plan, t_s, dt, lead, now[:3], now[3:6], H, A_MAX, V_MAX, mo, geo, ref, np.zeros(9))
-        assert got == pytest.approx(float(mp[k.MP.HDC]), rel=0.02, abs=0.5)
+        assert got == pytest.approx(float(mp[g_c.MP.HDC]), rel=0.02, abs=0.5)
     # before the step nothing happens yet within a short lead; a lead that reaches past the step sees the reaction
     ref = np.zeros(10)
     quiet = arm_preview_step(plan, 2.40, 0.01, 0.05, q_rest, np.zeros(3), H, A_MAX, V_MAX, mo, geo, ref, np.zeros(9))

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from navig8_fc.core import _kernels as k
+from navig8_fc.core import g_c
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig
 from navig8_fc.core.kalman import CkfConfig
 from navig8_fc.core.vehicle import UamModel, VehicleConfig, inertia_matrix_gi, model_geometry
@@ -32,8 +32,8 @@ def test_hdc_against_time_difference_of_h(cfg: VehicleConfig) -> None:
     for _ in range(8):
         q0, qd, qdd = rng.uniform(-1, 1, 3), rng.uniform(-4, 4, 3), rng.uniform(-40, 40, 3)
         mo = float(rng.choice([0.0, rng.uniform(0.1, 2.0)]))
-        mp = k.MP.zeros()
-        k.mass_props(q0, qd, qdd, mo, geo, np.empty((3, 3)), np.empty((3, 3)), mp)
+        mp = g_c.MP.zeros()
+        g_c.mass_props(q0, qd, qdd, mo, geo, np.empty((3, 3)), np.empty((3, 3)), mp)
         eps = 1e-5
 
         hs = []
@@ -41,13 +41,13 @@ def test_hdc_against_time_difference_of_h(cfg: VehicleConfig) -> None:
             q, v = q0 + qd * t + 0.5 * qdd * t * t, qd + qdd * t
             hs.append(float(arm_momentum_y(cfg, q[None, :], v[None, :], mo)[0]))
         fd = (hs[0] - hs[1]) / (2 * eps)
-        assert mp[k.MP.HDC] == pytest.approx(fd, rel=1e-6, abs=1e-6)
+        assert mp[g_c.MP.HDC] == pytest.approx(fd, rel=1e-6, abs=1e-6)
         # the controller's model: the same with the estimated object
-        uo = k.UO.zeros()
+        uo = g_c.UO.zeros()
         model = UamModel(cfg)
-        k.uam_model(q0, qd, qdd, mo, geo, model.force_per_input, model.moment_o_per_input, np.empty((3, 3)),
+        g_c.uam_model(q0, qd, qdd, mo, geo, model.force_per_input, model.moment_o_per_input, np.empty((3, 3)),
                     np.empty((3, 3)), np.empty((5, 5)), np.empty((5, 5)), uo)
-        assert uo[k.UO.HDC] == pytest.approx(mp[k.MP.HDC], rel=1e-12, abs=1e-12)
+        assert uo[g_c.UO.HDC] == pytest.approx(mp[g_c.MP.HDC], rel=1e-12, abs=1e-12)
 
 
 def _fly_synthetic(cfg: VehicleConfig, arm_wrench: bool) -> float:

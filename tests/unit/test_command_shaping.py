@@ -12,7 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 from test_modes import _armed_on_ground, fly
 
-from navig8_fc.core import _kernels as _k
+from navig8_fc.core import outer_loop
 from navig8_fc.core.controller import ControllerConfig, FcSensors, FlightControllerCore
 from navig8_fc.core.outer_loop import (
     JERK_K_PER_VEL_K,
@@ -41,7 +41,7 @@ def _fly(cfg: OuterLoopConfig, sp: np.ndarray, n: int, start_yaw: float = 0.0, p
     quat = np.array(Rotation.from_euler("ZYX", [start_yaw, 0.0, 0.0]).as_quat(scalar_first=True))
     p = np.zeros(3) if pos is None else np.asarray(pos, dtype=float)
     out = {k: [] for k in ("pos", "vel", "acc", "pitch", "yaw", "rate", "ang_acc")}
-    sp_out, ff = _k.OSP.zeros(), _k.OFF.zeros()
+    sp_out, ff = outer_loop.OSP.zeros(), outer_loop.OFF.zeros()
     for _ in range(n):
         shape_reference(shc, st, sp, p if pos is not None else st[SH.POS:SH.POS + 3].copy(), np.zeros(3), quat,
                         sp_out, ff)
@@ -49,12 +49,12 @@ def _fly(cfg: OuterLoopConfig, sp: np.ndarray, n: int, start_yaw: float = 0.0, p
         out["pitch"].append(sp_out[3])
         out["yaw"].append(sp_out[4])
         for k in ("vel", "acc", "rate", "ang_acc"):
-            out[k].append(ff[getattr(_k.OFF, k.upper()).sl].copy())
+            out[k].append(ff[getattr(outer_loop.OFF, k.upper()).sl].copy())
     return {k: np.array(v) for k, v in out.items()}
 
 
 def _osp(pos, pitch=0.0, yaw=0.0) -> np.ndarray:
-    return _k.OSP.pack(pos=pos, pitch=pitch, yaw=yaw)
+    return outer_loop.OSP.pack(pos=pos, pitch=pitch, yaw=yaw)
 
 
 def test_position_step_respects_the_limits_and_arrives() -> None:
@@ -186,7 +186,7 @@ def _reference_from(v0_m_s: float, a0_m_s2: float, target_y_m: float, n: int = 8
     st = SH.zeros()
     st[SH.INIT], st[SH.VEL + 1], st[SH.ACC + 1] = 1.0, v0_m_s, a0_m_s2
     quat = np.array([1.0, 0.0, 0.0, 0.0])
-    sp, sp_out, ff = _osp((0.0, target_y_m, 0.0)), _k.OSP.zeros(), _k.OFF.zeros()
+    sp, sp_out, ff = _osp((0.0, target_y_m, 0.0)), outer_loop.OSP.zeros(), outer_loop.OFF.zeros()
     ys = []
     for _ in range(n):
         shape_reference(shc, st, sp, st[SH.POS:SH.POS + 3].copy(), st[SH.VEL:SH.VEL + 3].copy(), quat, sp_out, ff)

@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from navig8_fc.core import _kernels as _k
+from navig8_fc.core import front_end, g_c
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig, AdaptiveLawInputs
 from navig8_fc.core.controller import (
     JOINT_OBS_TAU_S,
@@ -34,7 +34,7 @@ class _ReferenceTick:
     FlightControllerCore.step had before its fast path): the front-end kernel (joint observer, UAM model, Acc_m,
     U0) on state of its own, AdaptiveLaw.step, outer_loop_step, IndiController.step. The law gets the last
     command's U (CKF_U_SRC), the last INDI saturation flag (CKF_SAT_GATE) and Acc_m at the estimated CoM
-    (CKF_ACC_REF, _kernels.com_accel_offset)."""
+    (CKF_ACC_REF, front_end.com_accel_offset)."""
 
     def __init__(self, vehicle: VehicleConfig, config: ControllerConfig) -> None:
         self.vehicle, self.config = vehicle, config
@@ -42,7 +42,7 @@ class _ReferenceTick:
         self.adapt = AdaptiveLaw(AdaptiveLawConfig(config.ckf, config.k_min, config.k_max))
         self.indi = IndiController(config.indi)
         self.outer_cfg = outer_loop_config_array(config.outer)
-        self.front_state = _k.FST.zeros()
+        self.front_state = front_end.FST.zeros()
         self.obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
         self.last_u_cmd: np.ndarray | None = None
         self.last_saturated = False
@@ -53,25 +53,25 @@ class _ReferenceTick:
         m_obj_est = 0.0 if m_hat is None else max(m_hat - self.vehicle.uam_mass_kg, 0.0)
         inertia, rate = np.empty((3, 3)), np.empty((3, 3))
         gc, gc_inv = np.empty((5, 5)), np.empty((5, 5))
-        uo, fo = _k.UO.zeros(), _k.FO.zeros()
-        sens = _k.TIN.zeros()
-        t = _k.TIN.views(sens)
+        uo, fo = g_c.UO.zeros(), front_end.FO.zeros()
+        sens = front_end.TIN.zeros()
+        t = front_end.TIN.views(sens)
         t.gyro[:], t.accel[:], t.tilt[:], t.speed[:] = s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s
         t.jpos[:], t.jrate[:] = s.joint_pos_rad, s.joint_rate_rad_s
         m = self.model
-        _k.fc_front(self.front_state, cfg.dt_s, self.obs_gain, 1.0 / cfg.dt_s, sens, float(m_obj_est), m.geometry,
-                    m.force_per_input, m.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
-        f = _k.FO.views(fo)
-        mass = uo[_k.UO.MASS]
+        front_end.fc_front(self.front_state, cfg.dt_s, self.obs_gain, 1.0 / cfg.dt_s, sens, float(m_obj_est),
+                           m.geometry, m.force_per_input, m.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
+        f = front_end.FO.views(fo)
+        mass = uo[g_c.UO.MASS]
         acc_m = f.acc_m.tolist()
         if cfg.ckf.acc_at_com and not cfg.acc_ref:
-            dx, dz = _k.com_accel_offset(*s.gyro_frd, acc_m[1], uo[_k.UO.CEX], uo[_k.UO.CEZ])
+            dx, dz = front_end.com_accel_offset(*s.gyro_frd, acc_m[1], uo[g_c.UO.CEX], uo[g_c.UO.CEZ])
             acc_m[3] += dx
             acc_m[4] += dz
         gc_law_inv = gc_inv
         if cfg.ckf.gc_at_com and s.gripper_closed and m_obj_est > 0.0:  # the law's G_C about the estimated CoM
             gc_law_inv = np.empty((5, 5))
-            assert _k.gc_inv_about(m.force_per_input, m.moment_o_per_input, uo[_k.UO.CEX], uo[_k.UO.CEZ],
+            assert g_c.gc_inv_about(m.force_per_input, m.moment_o_per_input, uo[g_c.UO.CEX], uo[g_c.UO.CEZ],
                                    np.empty((5, 5)), gc_law_inv)
         gi_hat, adapt_status = self.adapt.step(AdaptiveLawInputs(
             t_s=s.t_s, u_meas=f.u_meas.tolist(), acc_m=acc_m, gc_uam_inv=gc_law_inv, inertia_uam=inertia,
@@ -85,7 +85,7 @@ class _ReferenceTick:
                                                          outer.accel_cmd, gc, gi_hat, gc_inv))
             cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
             self.last_u_cmd = np.empty(5)
-            _k.actuators_to_u(*cmd.tilt_rad, *cmd.speed_rad_s, self.last_u_cmd, 0)
+            g_c.actuators_to_u(*cmd.tilt_rad, *cmd.speed_rad_s, self.last_u_cmd, 0)
             self.last_saturated = indi_status.saturated
         else:
             self.last_u_cmd, self.last_saturated = None, False

@@ -1,5 +1,6 @@
-"""The compiled controller kernels (navig8_fc/core/_kernels.py) against independent checks: numpy's inverse and
-solve, the textbook filters of core/filters.py, the vector-form model oracle and finite differences."""
+"""The compiled controller kernels (navig8_fc/core: linalg.py, g_c.py, front_end.py, indi.py) against independent
+checks: numpy's inverse and solve, the textbook filters of core/filters.py, the vector-form model oracle and finite
+differences."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import model_oracle as oracle
 import numpy as np
 import pytest
 
-from navig8_fc.core import _kernels as k
+from navig8_fc.core import front_end, g_c, linalg
 from navig8_fc.core.filters import BackwardDifference, LowPass1
 from navig8_fc.core.indi import ActuatorLimits, IndiConfig, IndiController, IndiInputs
 from navig8_fc.core.vehicle import UamModel, VehicleConfig, estimated_gi
@@ -27,10 +28,10 @@ def test_inverse_matches_numpy() -> None:
         for _ in range(50):
             a = rng.normal(size=(n, n)) * rng.uniform(0.1, 1e4)
             out = np.empty((n, n))
-            assert k.inv_gauss_jordan(a, out)
+            assert linalg.inv_gauss_jordan(a, out)
             _close(out @ a, np.eye(n), rtol=0.0, atol=1e-9)
             _close(out, np.linalg.inv(a), rtol=1e-8, atol=1e-12 * np.abs(np.linalg.inv(a)).max())
-    assert not k.inv_gauss_jordan(np.zeros((3, 3)), np.empty((3, 3)))
+    assert not linalg.inv_gauss_jordan(np.zeros((3, 3)), np.empty((3, 3)))
 
 
 def test_uam_model_inverse_and_slots(cfg: VehicleConfig) -> None:
@@ -41,18 +42,18 @@ def test_uam_model_inverse_and_slots(cfg: VehicleConfig) -> None:
         q, qd, qdd = rng.uniform(-2, 2, 3), rng.uniform(-3, 3, 3), rng.uniform(-10, 10, 3)
         mo = float(rng.uniform(-0.5, 2.0))
         inertia, rate, gc, gc_inv, uo = (np.empty((3, 3)), np.empty((3, 3)), np.empty((5, 5)), np.empty((5, 5)),
-                                         k.UO.zeros())
-        k.uam_model(q, qd, qdd, mo, model.geometry, model.force_per_input, model.moment_o_per_input, inertia, rate,
+                                         g_c.UO.zeros())
+        g_c.uam_model(q, qd, qdd, mo, model.geometry, model.force_per_input, model.moment_o_per_input, inertia, rate,
                     gc, gc_inv, uo)
         _close(gc_inv, np.linalg.inv(gc), rtol=1e-9, atol=1e-12 * np.abs(gc_inv).max())
         m, c, j, _ = oracle.dumbbell_mass_properties(cfg, q)
-        assert uo[k.UO.SINGULAR] == 0.0
-        _close(uo[[k.UO.MASS, k.UO.CX, k.UO.CZ]], [m, c[0], c[2]])
+        assert uo[g_c.UO.SINGULAR] == 0.0
+        _close(uo[[g_c.UO.MASS, g_c.UO.CX, g_c.UO.CZ]], [m, c[0], c[2]])
         _close(inertia, j)
         kin = oracle.arm_kinematics(cfg, q, qd, qdd)
         mo = max(mo, 0.0)  # a negative estimate counts as no object
         want = (cfg.link_mass_kg * kin.link_com_acc.sum(axis=0) + mo * kin.tip_acc) / (cfg.uam_mass_kg + mo)
-        _close(uo[[k.UO.ARM_AX, k.UO.ARM_AZ]], want[[0, 2]], atol=1e-9)
+        _close(uo[[g_c.UO.ARM_AX, g_c.UO.ARM_AZ]], want[[0, 2]], atol=1e-9)
 
 
 @pytest.mark.parametrize("scale", [0.05, 1.0])
@@ -113,20 +114,20 @@ def test_front_end_against_textbook_parts(cfg: VehicleConfig) -> None:
     g = dt / (JOINT_OBS_TAU_S + dt)
     model = UamModel(cfg)
     rng = np.random.default_rng(23)
-    fst, fo, uo = k.FST.zeros(), k.FO.zeros(), k.UO.zeros()
+    fst, fo, uo = front_end.FST.zeros(), front_end.FO.zeros(), g_c.UO.zeros()
     for run in range(2):
         fst[:] = 0.0
         q_est = None
         gyro_diff, qd_diff = BackwardDifference(dt, 3), BackwardDifference(dt, 3)
         for _ in range(50):
-            sens = k.TIN.zeros()
-            t = k.TIN.views(sens)
+            sens = front_end.TIN.zeros()
+            t = front_end.TIN.views(sens)
             t.gyro[:], t.accel[:] = rng.normal(size=3), rng.normal(size=3) + [0, 0, -9.8]
             t.tilt[:], t.speed[:] = rng.uniform(0, 1.5, 2), rng.uniform(0, 900, 3) * [1, rng.choice([-1, 1]), 1]
             t.jpos[:], t.jrate[:] = rng.uniform(-1, 1, 3), rng.normal(size=3)
             mo = float(rng.uniform(0, 1)) * run
             inertia, rate, gc, gc_inv = np.empty((3, 3)), np.empty((3, 3)), np.empty((5, 5)), np.empty((5, 5))
-            k.fc_front(fst, dt, g, 1.0 / dt, sens, mo, model.geometry, model.force_per_input,
+            front_end.fc_front(fst, dt, g, 1.0 / dt, sens, mo, model.geometry, model.force_per_input,
                        model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
             q_meas, qd = t.jpos.tolist(), t.jrate.tolist()
             if q_est is None:
@@ -141,7 +142,7 @@ def test_front_end_against_textbook_parts(cfg: VehicleConfig) -> None:
             (a1, a3), (w1, w2, w3) = t.tilt.tolist(), t.speed.tolist()
             u = [math.cos(a1) * w1**2, math.sin(a1) * w1**2, math.cos(a3) * w3**2, math.sin(a3) * w3**2,
                  math.copysign(w2**2, w2)]
-            f = k.FO.views(fo)
+            f = front_end.FO.views(fo)
             _close(f.qest, q_est)
             _close(f.qdd, qdd)
             _close(f.acc_m, acc_m, atol=1e-9)

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from model_oracle import dumbbell_mass_properties
 
-from navig8_fc.core import _kernels as k
+from navig8_fc.core import front_end, g_c
 from navig8_fc.core.vehicle import (
     UamModel,
     VehicleConfig,
@@ -40,16 +40,16 @@ def cfg() -> VehicleConfig:
 
 def _front(model: UamModel, acc_ref: float, gyros, accel, tilt, speed, jpos, mo: float, dt: float):
     """fc_front over the gyro samples (joints still); returns Acc_m and uo after the last."""
-    fst, fo, uo = k.FST.zeros(), k.FO.zeros(), k.UO.zeros()
-    sens = k.TIN.zeros()
-    t = k.TIN.views(sens)
+    fst, fo, uo = front_end.FST.zeros(), front_end.FO.zeros(), g_c.UO.zeros()
+    sens = front_end.TIN.zeros()
+    t = front_end.TIN.views(sens)
     t.accel[:], t.tilt[:], t.speed[:], t.jpos[:], t.jrate[:] = accel, tilt, speed, jpos, 0.0
     for gyro in gyros:
         t.gyro[:] = gyro
         bufs = np.empty((3, 3)), np.empty((3, 3)), np.empty((5, 5)), np.empty((5, 5))
-        k.fc_front(fst, dt, 0.0, 1.0 / dt, sens, mo, model.geometry, model.force_per_input,
+        front_end.fc_front(fst, dt, 0.0, 1.0 / dt, sens, mo, model.geometry, model.force_per_input,
                    model.moment_o_per_input, *bufs, uo, fo, acc_ref)
-    return fo[k.FO.ACC_M.sl].copy(), uo.copy()
+    return fo[front_end.FO.ACC_M.sl].copy(), uo.copy()
 
 
 def test_front_end_reference_point_correction(cfg: VehicleConfig) -> None:
@@ -63,7 +63,7 @@ def test_front_end_reference_point_correction(cfg: VehicleConfig) -> None:
         a0, _ = _front(model, 0.0, *inputs)
         a1, uo1 = _front(model, 1.0, *inputs)
         _, c, _, _ = dumbbell_mass_properties(cfg, inputs[4], inputs[5])  # UAM + the point object (estimated mass)
-        assert [uo1[k.UO.CEX], uo1[k.UO.CEZ]] == pytest.approx([c[0], c[2]], abs=1e-12)
+        assert [uo1[g_c.UO.CEX], uo1[g_c.UO.CEZ]] == pytest.approx([c[0], c[2]], abs=1e-12)
         wdot = (w1 - w0) / dt  # the front end's backward difference of the gyro
         corr = np.cross(wdot, c) + np.cross(w1, np.cross(w1, c))
         np.testing.assert_array_equal(a1[:3], a0[:3])
@@ -143,20 +143,20 @@ def test_reference_point_changes_the_flown_eigenvalues(cfg: VehicleConfig) -> No
 def test_stability_analysis_of_the_flown_matrix(cfg: VehicleConfig) -> None:
     """k_bounds_analysis(reference="o") analyses K Xi T^-1, i.e. G_hat (T(O - c) G)^-1 built from the
     finite-difference-checked flown_effectiveness; reference="com" is Eq. 14."""
-    from navig8_fc.core import stability as st
+    from navig8_fc.core import k_xi
     from navig8_fc.core.vehicle import effectiveness_pair, k_matrix, mass_properties
 
     q = np.radians([[20.0, 20.0, 20.0]])
     k = np.array([0.5, 1.0, 0.5, 1.0])
-    r_o = st.k_bounds_analysis(cfg, 0.5, 1.0, poses_rad=q, object_masses_kg=[2.0], n_k=2, reference="o")
-    r_c = st.k_bounds_analysis(cfg, 0.5, 1.0, poses_rad=q, object_masses_kg=[2.0], n_k=2, reference="com")
+    r_o = k_xi.k_bounds_analysis(cfg, 0.5, 1.0, poses_rad=q, object_masses_kg=[2.0], n_k=2, reference="o")
+    r_c = k_xi.k_bounds_analysis(cfg, 0.5, 1.0, poses_rad=q, object_masses_kg=[2.0], n_k=2, reference="com")
     pair = effectiveness_pair(cfg, q[0], 2.0)
     c = mass_properties(cfg, q[0], 2.0).com_frd_m
     g_hat_inv = np.linalg.solve(k_matrix(k) @ np.linalg.inv(pair.gi_uam) @ pair.gc_uam, np.eye(5))  # (K G_I^-1 G_C)^-1
     g_flown = flown_effectiveness(pair.gc_true, pair.gi_true, -c)
     lam = np.sort(np.linalg.eigvals(np.linalg.inv(g_hat_inv) @ np.linalg.inv(g_flown)).real)
-    xi_o = st.xi_batch(cfg, q, np.array([2.0]), "o")[0, 0]
+    xi_o = k_xi.xi_batch(cfg, q, np.array([2.0]), "o")[0, 0]
     np.testing.assert_allclose(np.sort(np.linalg.eigvals(k_matrix(k) @ xi_o).real), lam, rtol=1e-9)
     assert r_o.min_eigenvalue != pytest.approx(r_c.min_eigenvalue, abs=1e-3)
     with pytest.raises(ValueError):
-        st.xi_batch(cfg, q, np.array([2.0]), "x")
+        k_xi.xi_batch(cfg, q, np.array([2.0]), "x")

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 from scipy import optimize, signal
 
+from navig8_fc.core import k_xi
 from navig8_fc.core import stability as st
 from navig8_fc.core.vehicle import (
     VehicleConfig,
@@ -232,9 +233,9 @@ def test_eq15_xi_eigenvalues_point_mass_object(cfg):
 
 
 def test_xi_is_block_triangular_and_surfaces_match_full_eig(cfg):
-    q = np.radians(st.POSE_STRETCHED_DEG)
+    q = np.radians(k_xi.POSE_STRETCHED_DEG)
     k = np.linspace(0.5, 1.0, 4)
-    s = st.lateral_eigenvalue_surfaces(cfg, q, 2.0, k, k)
+    s = k_xi.lateral_eigenvalue_surfaces(cfg, q, 2.0, k, k)
     assert s.xi_block_coupling < 1e-12
     pair = effectiveness_pair(cfg, q, 2.0)
     for i in range(k.size):
@@ -250,22 +251,22 @@ def test_fig7_paper_poses(cfg):
     """Fig. 7: min lam_4 close to 0.5 for both poses with 2 kg (paper: slightly below / exactly 0.5; our
     geometry differs, notes 6.1 item 3: 0.506 / 0.505), and lam_5 >= lam_4."""
     k = np.linspace(0.5, 1.0, 21)
-    for pose in (st.POSE_STRETCHED_DEG, st.POSE_CURLED_DEG):
-        s = st.lateral_eigenvalue_surfaces(cfg, np.radians(pose), st.FIG7_OBJECT_MASS_KG, k, k)
+    for pose in (k_xi.POSE_STRETCHED_DEG, k_xi.POSE_CURLED_DEG):
+        s = k_xi.lateral_eigenvalue_surfaces(cfg, np.radians(pose), k_xi.FIG7_OBJECT_MASS_KG, k, k)
         assert 0.48 <= s.lam4.real.min() <= 0.52
         assert np.all(s.lam5.real >= s.lam4.real)
 
 
 def test_k_bounds_without_object_is_k_min(cfg):
     """m_o = 0: Xi = I, so the eigenvalues of K Xi are the K entries and the minimum is k_min."""
-    r = st.k_bounds_analysis(cfg, 0.6, 0.9, poses_rad=st.paper_poses_rad(), object_masses_kg=[0.0], n_k=3)
+    r = k_xi.k_bounds_analysis(cfg, 0.6, 0.9, poses_rad=k_xi.paper_poses_rad(), object_masses_kg=[0.0], n_k=3)
     assert r.min_eigenvalue == pytest.approx(0.6, abs=1e-12)
     assert r.max_eigenvalue == pytest.approx(0.9, abs=1e-12)
     assert r.max_abs_imag < 1e-12
 
 
 def test_k_bounds_default_and_workspace_floor(cfg):
-    r = st.k_bounds_analysis(cfg, 0.5, 1.0)  # its speed: navig8-bench --stability (a timed test would flake)
+    r = k_xi.k_bounds_analysis(cfg, 0.5, 1.0)  # its speed: navig8-bench --stability (a timed test would flake)
     assert 0.45 < r.min_eigenvalue < 0.5  # notes 6.1 item 3: ~0.485 over +-90 deg poses
     assert r.max_xi_block_coupling < 1e-12
     # The reported worst case reproduces with the vehicle module's own Xi and eigen-solver.
@@ -276,10 +277,10 @@ def test_k_bounds_default_and_workspace_floor(cfg):
     assert r.max_abs_imag > 0.0 and 0.0 < r.complex_fraction < 0.2
     assert st.max_real_pole(r.max_imag_eigenvalue, *PAPER) < 0.0
 
-    floor = st.min_eigenvalue_over_workspace(cfg, 0.5, 1.0)
+    floor = k_xi.min_eigenvalue_over_workspace(cfg, 0.5, 1.0)
     assert r.min_eigenvalue - 0.02 <= floor <= 0.5
     with pytest.raises(ValueError):
-        st.min_eigenvalue_over_workspace(cfg, 1.0, 0.5)
+        k_xi.min_eigenvalue_over_workspace(cfg, 1.0, 0.5)
 
 
 # --------------------------------------------------------------------------------------------

@@ -16,6 +16,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 from scipy import optimize, signal
 
+from navig8_fc.core import sampled_loop
 from navig8_fc.core import stability as st
 from navig8_fc.gcs.params import ParamProtocol, decode_param_value
 from navig8_fc.params.registry import ParamRegistry, StabilityFloor
@@ -171,10 +172,10 @@ def test_sampled_force_mode_against_scipy_zero_order_hold() -> None:
         return float(np.max(np.abs(np.roots(char)))) - 1.0
 
     lam_z = optimize.brentq(rho, 0.02, 0.5, xtol=1e-12)
-    assert st.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "force", u0_source="measured") == pytest.approx(lam_z,
-                                                                                                         abs=1e-8)
+    lam_sampled = sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "force", u0_source="measured")
+    assert lam_sampled == pytest.approx(lam_z, abs=1e-8)
     # With the model right, the model-based U0 is the same loop.
-    assert st.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "force") == pytest.approx(lam_z, abs=1e-8)
+    assert sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "force") == pytest.approx(lam_z, abs=1e-8)
 
 
 @pytest.mark.parametrize("loop", [PAPER, FLOWN, (120.0, 1.0, 0.02, 0.02), (120.0, 1.0, 0.01, 0.005)])
@@ -183,16 +184,16 @@ def test_the_pade_lambda_crit_is_at_or_above_the_sampled_loops(loop: tuple[float
     sampled rotational mode (backward difference of the filtered gyro) and force mode lose stability lower."""
     wn, zeta, ts, tl = loop
     pade = st.lambda_crit(*loop)
-    rot = st.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "rotational")
-    force = st.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "force")
+    rot = sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "rotational")
+    force = sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "force")
     assert force < rot <= pade + 1e-3
 
 
 def test_sampled_loop_time_domain_decays_above_and_grows_below() -> None:
     wn, zeta, ts, tl = FLOWN
-    lc = st.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "rotational", 0.6 * wn, zeta, "model", 0.2)
+    lc = sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "rotational", 0.6 * wn, zeta, "model", 0.2)
     for lam, grows in ((lc * 1.02, False), (lc * 0.98, True)):
-        m = st.sampled_loop_matrix(lam, wn, zeta, 1.0 / ts, tl, "rotational", 0.6 * wn, zeta, "model", 0.2)
+        m = sampled_loop.sampled_loop_matrix(lam, wn, zeta, 1.0 / ts, tl, "rotational", 0.6 * wn, zeta, "model", 0.2)
         x = np.zeros(7)
         x[4] = 1.0  # a unit command held from the last tick
         norms = []

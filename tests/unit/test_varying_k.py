@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 from scipy import linalg
 
+from navig8_fc.core import k_xi, sampled_loop
 from navig8_fc.core import lyapunov as ly
-from navig8_fc.core import stability as st
 from navig8_fc.core import varying_k as vk
 from navig8_fc.core.vehicle import VehicleConfig
 
@@ -48,17 +48,17 @@ def _spectrum_close(a: np.ndarray, b: np.ndarray, tol: float) -> bool:
 @pytest.mark.parametrize("plant_wn", [None, 80.0])
 def test_coupled_loop_with_diagonal_lambda_is_the_block_diagonal_of_the_decoupled_modes(u0, plant_wn) -> None:
     lams = (0.3, 0.7, 1.0, 1.6, 2.5)
-    parts = st.coupled_loop_parts(*LOOP, st.INDI_CHANNELS, plant_wn, None, *u0)
-    a = st.coupled_loop_matrix(np.diag(lams), parts)
-    for i, (lam, ch) in enumerate(zip(lams, st.INDI_CHANNELS, strict=True)):
-        ref = st.sampled_loop_matrix(lam, *LOOP, ch, plant_wn, None, *u0)
+    parts = sampled_loop.coupled_loop_parts(*LOOP, sampled_loop.INDI_CHANNELS, plant_wn, None, *u0)
+    a = sampled_loop.coupled_loop_matrix(np.diag(lams), parts)
+    for i, (lam, ch) in enumerate(zip(lams, sampled_loop.INDI_CHANNELS, strict=True)):
+        ref = sampled_loop.sampled_loop_matrix(lam, *LOOP, ch, plant_wn, None, *u0)
         blk = slice(7 * i, 7 * i + 7)
         np.testing.assert_allclose(a[blk, blk], ref, atol=1e-12)
         off = np.delete(a[blk], np.arange(7 * i, 7 * i + 7), axis=1)
         assert np.all(off == 0.0)
 
 
-@pytest.mark.parametrize("channels", [("rotational",) * 5, ("force",) * 5, st.INDI_CHANNELS])
+@pytest.mark.parametrize("channels", [("rotational",) * 5, ("force",) * 5, sampled_loop.INDI_CHANNELS])
 def test_coupled_loop_spectrum_is_the_union_of_the_modes(channels) -> None:
     """Lambda = T diag(lam) T^-1, T neither orthogonal nor triangular (Lambda not normal); complex lam included.
     With mixed channels T may only mix rows with the same feedback (rotational rows 0-2, force rows 3-4)."""
@@ -74,16 +74,16 @@ def test_coupled_loop_spectrum_is_the_union_of_the_modes(channels) -> None:
     lams = np.array([0.45, a + 1j * w, a - 1j * w, 0.8, 2.2])
     lam_matrix = t @ form @ np.linalg.inv(t)
     assert np.abs(lam_matrix @ lam_matrix.T - lam_matrix.T @ lam_matrix).max() > 0.1  # not normal
-    parts = st.coupled_loop_parts(*LOOP, channels, None, None, "model", 0.2)
-    coupled = np.linalg.eigvals(st.coupled_loop_matrix(lam_matrix, parts))
+    parts = sampled_loop.coupled_loop_parts(*LOOP, channels, None, None, "model", 0.2)
+    coupled = np.linalg.eigvals(sampled_loop.coupled_loop_matrix(lam_matrix, parts))
     union = np.concatenate([np.linalg.eigvals(_mode_matrix(lam, ch)) for lam, ch in zip(lams, channels, strict=True)])
     assert _spectrum_close(coupled, union, 1e-6)
 
 
 def _mode_matrix(lam: complex, channel: str) -> np.ndarray:
     """sampled_loop_matrix at a complex lam: it is affine in 1/lam (the increment), so extend it from two real ones."""
-    a1 = st.sampled_loop_matrix(1.0, *LOOP, channel, None, None, "model", 0.2)
-    a2 = st.sampled_loop_matrix(0.5, *LOOP, channel, None, None, "model", 0.2)
+    a1 = sampled_loop.sampled_loop_matrix(1.0, *LOOP, channel, None, None, "model", 0.2)
+    a2 = sampled_loop.sampled_loop_matrix(0.5, *LOOP, channel, None, None, "model", 0.2)
     return a1 + (1.0 / lam - 1.0) * (a2 - a1)  # 1/0.5 - 1/1 = 1
 
 
@@ -92,16 +92,17 @@ def test_coupling_enters_as_the_inverse_of_ghat_ginv_row_by_row() -> None:
     channel j's acceleration with weight -(Lambda^-1)_ij, not (Lambda^-1)_ji or Lambda_ij."""
     lam = np.array([[1.0, 0.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0, 0.0],
                     [0.0, 0.7, 0.0, 1.5, 0.0], [0.0, -0.4, 0.0, 0.3, 2.0]])
-    parts = st.coupled_loop_parts(*LOOP)
-    a = st.coupled_loop_matrix(lam, parts)
+    parts = sampled_loop.coupled_loop_parts(*LOOP)
+    a = sampled_loop.coupled_loop_matrix(lam, parts)
     inv = np.linalg.inv(lam)
     for i in range(5):
         for j in range(5):
             if i == j:
                 continue
-            ch = st.INDI_CHANNELS[j]
+            ch = sampled_loop.INDI_CHANNELS[j]
             # c_j: how channel j's filtered acceleration depends on its states (decoupled loop, affine in 1/lam)
-            c_j = (st.sampled_loop_matrix(0.5, *LOOP, ch)[4] - st.sampled_loop_matrix(1.0, *LOOP, ch)[4]) * -1.0
+            c_j = (sampled_loop.sampled_loop_matrix(0.5, *LOOP, ch)[4]
+                   - sampled_loop.sampled_loop_matrix(1.0, *LOOP, ch)[4]) * -1.0
             np.testing.assert_allclose(a[7 * i + 4, 7 * j : 7 * j + 7], -inv[i, j] * c_j, atol=1e-12)
 
 
@@ -170,16 +171,16 @@ def test_vertices_are_lifted_in_k_inverse_and_interior_k_is_inside(cfg) -> None:
     """The loop is affine in K^-1 (u = U0 - Xi^-1 K^-1 Acc_f), so a K inside the box gives a matrix that is a convex
     combination of the corner matrices at the same pose and object: checked through the P of the corners (the
     lateral block, rows P_dot and R_dot, K1 and K3, to keep the SDP small)."""
-    poses = st.paper_poses_rad()[:1]
-    xi = st.xi_batch(cfg, poses, np.array([2.0]))[0, 0]
-    lat = np.ix_(st.LATERAL_IDX, st.LATERAL_IDX)
+    poses = k_xi.paper_poses_rad()[:1]
+    xi = k_xi.xi_batch(cfg, poses, np.array([2.0]))[0, 0]
+    lat = np.ix_(k_xi.LATERAL_IDX, k_xi.LATERAL_IDX)
     parts = vk.loop_parts(DEFAULT_LOOP, ("rotational", "rotational"))
     corners = np.array([[k1, k3] for k1 in (0.5, 1.0) for k3 in (0.5, 1.0)])
-    mats = st.coupled_loop_matrix(corners[:, :, None] * xi[lat][None], parts)
+    mats = sampled_loop.coupled_loop_matrix(corners[:, :, None] * xi[lat][None], parts)
     r = ly.common_lyapunov(mats, bisection_steps=2)
     assert r.feasible is True
     ks = np.random.default_rng(5).uniform(0.5, 1.0, size=(256, 2))
-    inner = st.coupled_loop_matrix(ks[:, :, None] * xi[lat][None], parts)
+    inner = sampled_loop.coupled_loop_matrix(ks[:, :, None] * xi[lat][None], parts)
     assert np.max(ly.contraction_factors(inner, r.p)) <= r.rate + 1e-9
     # the lateral block of the full vertex set is the same family (Xi is block triangular)
     vs = vk.lmi_vertices(cfg, DEFAULT_LOOP, poses, np.array([2.0]), np.array([0.0]))
@@ -189,7 +190,7 @@ def test_vertices_are_lifted_in_k_inverse_and_interior_k_is_inside(cfg) -> None:
 def test_small_grid_feasible_and_verified_on_the_full_coupled_matrices(cfg) -> None:
     """Light objects at the tip: the lateral and longitudinal families have a common P each, and the assembled
     35-state P contracts every full vertex (the check is plain linear algebra on the coupled matrices)."""
-    poses = st.paper_poses_rad()
+    poses = k_xi.paper_poses_rad()
     r = vk.varying_k_lmi(cfg, DEFAULT_LOOP, poses, np.array([0.0, 1.0]), np.array([0.0]), bisection_steps=2)
     assert r.feasible is True and r.xi_block_coupling < 1e-12
     vs = vk.lmi_vertices(cfg, DEFAULT_LOOP, poses, np.array([0.0, 1.0]), np.array([0.0]))
