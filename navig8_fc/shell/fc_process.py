@@ -1,40 +1,26 @@
-"""navig8-fc: the flight-controller process. The only FC code that touches sockets and clocks.
-
-Links (PX4 SITL layout, ports offset per instance N):
-- sim link: binds 127.0.0.1:4561+2N, talks to the bridge at 127.0.0.1:4560+2N (lockstep, docs/bridge.md);
-- GCS link: binds :18570+N, sends to 14550 (QGroundControl, MAVProxy) until a GCS talks, then replies to it;
-- API link: binds :14580+N, sends to 14540+N (MAVSDK, scripts).
-
-Time: control, estimator, modes and sensor timeouts run on the bundle's time_usec (sim time, lockstep);
-GCS telemetry, heartbeats and parameter pacing run on the wall clock, so a GCS sees 1 Hz heartbeats
-whatever the simulation speed (mavlink_notes §1.3).
-"""
+"""navig8-fc: the flight-controller process, the only FC code that touches sockets and clocks (its options and
+ports: navig8_fc/shell/fc_options.py). One loop: the sim link's frames become control steps through two
+strategies (what the sim link carries, when a step runs: navig8_fc/shell/sim_peer.py), the GCS and API links go to
+the GCS service, and the log is written after each step's answer has gone out (navig8_fc/shell/fc_log.py)."""
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
 import gc
 import secrets
 import select
 import signal
 import sys
 import time
-from dataclasses import dataclass, replace
-from pathlib import Path
+from dataclasses import replace
 from typing import Any
 
-import numpy as np
-
 from navig8_fc.core import vehicle as vm
-from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FlightControllerCore, warm_up_kernels
-from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.core.controller import FlightControllerCore, warm_up_kernels
 from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
 from navig8_fc.links.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.links.signing import LinkSigning
-from navig8_fc.links.sim_guard import BAD_DATA_FAILSAFE_S, SensorLimits, SimGuard, SimInput, StreamRegrouper
+from navig8_fc.links.sim_guard import BAD_DATA_FAILSAFE_S, SensorLimits, SimGuard, SimInput
 from navig8_fc.links.transport import StreamTransport, parse_connection
-from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
 from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mavlink.px4sim import PX4_SIM_MESSAGES, ActuatorModel, Px4SimAssembler
@@ -42,7 +28,8 @@ from navig8_fc.mission.executor import planned_path
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.params.registry import ParamRegistry, StabilityStatus
 from navig8_fc.params.store import ParamStore, default_state_path
-from navig8_fc.shell.foxglove_out import DEFAULT_PORT as FOXGLOVE_DEFAULT_PORT
+from navig8_fc.shell.fc_log import FcLog, StepRecord
+from navig8_fc.shell.fc_options import FcOptions, build_arg_parser, options_from_args
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, LiveServer, script_waypoints
 from navig8_fc.shell.gcs_service import (
     MAV_AUTOPILOT_GENERIC,
@@ -55,7 +42,8 @@ from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.mcap_log import open_logger
 from navig8_fc.shell.realtime import TIMING_REALTIME, RealtimeClock
 from navig8_fc.shell.signing_keys import KeyFile
-from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m, waypoint_poses
+from navig8_fc.shell.sim_peer import BundlePeer, Lockstep, Px4Peer, Realtime
+from navig8_fc.viz import VehicleViz, packaged_uav_size_m, waypoint_poses
 
 FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
@@ -64,57 +52,6 @@ WALL_TICK_S = 0.001  # GCS services (telemetry schedule, paced parameter list) r
 _GRIPPER_CODES = {None: seam.GRIPPER_NONE, "grab": seam.GRIPPER_GRAB, "release": seam.GRIPPER_RELEASE}
 EXIT_USAGE = 2  # bad arguments, or a port in use
 _PORT_OPTIONS = {"sim": "--sim-port", "gcs": "--gcs-bind-port", "api": "--api-bind-port"}
-
-
-@dataclass(frozen=True)
-class FcOptions:
-    instance: int = 0
-    scenario: str = "ground"
-    host: str = "127.0.0.1"
-    gcs_host: str = "127.0.0.1"
-    bind_host: str = "127.0.0.1"
-    sim_port: int | None = None
-    bridge_port: int | None = None
-    gcs_bind_port: int | None = None
-    gcs_port: int = 14550
-    api_bind_port: int | None = None
-    api_port: int | None = None
-    log_path: Path | None = None
-    state_dir: Path | None = None
-    defaults: bool = False
-    ports_file: Path | None = None  # written after binding: {"sim": p, "gcs": p, "api": p}
-    autopilot: str = "generic"  # HEARTBEAT.autopilot: "generic" or "px4" (docs/gcs.md, "Autopilot identity")
-    foxglove_port: int | None = None  # --foxglove[=PORT]: serve the Foxglove channels live (0: any free port)
-    foxglove_host: str = "127.0.0.1"
-    log_max_mb: float = 1024.0  # --log-max-mb: rotate the log at this size (0: no cap)
-    log_keep: int = 4  # --log-keep: rotated parts kept (the oldest is deleted)
-    # connection strings (navig8_fc/links/transport.py: udpin:, udpout:, tcp:, tcpin:, serial:) replacing a link's
-    # host/port options; None: UDP as the port options say
-    sim_link: str | None = None
-    gcs_link: str | None = None
-    api_link: str | None = None
-    sim_messages: str = "navig8"  # --sim-messages: navig8 (the private bundle) or px4 (PX4's simulator messages)
-    timing: str | None = None  # --timing lockstep|realtime: overrides the FC_TIMING parameter (docs/hil.md)
-    vehicle_path: Path | None = None  # --vehicle: its constants (vehicle.yaml format); None: packaged
-
-    @property
-    def sysid(self) -> int:
-        return self.instance + 1
-
-    def port(self, name: str) -> int:
-        n = self.instance
-        defaults = {"sim": 4561 + 2 * n, "bridge": 4560 + 2 * n, "gcs_bind": 18570 + n, "api_bind": 14580 + n,
-                    "api": 14540 + n}
-        v = getattr(self, f"{name}_port")
-        return int(v) if v is not None else defaults[name]
-
-
-def _eig_record(model: vm.UamModel, st: ControllerStatus, truth: Any, lam_min: float, lam_crit: float
-                ) -> dict[str, Any]:
-    i = truth.inertia  # NAVIG8_TRUTH: xx, yy, zz, xy, xz, yz about the composite CoM
-    j = np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]], dtype=float)
-    return vm.ghat_ginv_eig_record(model, st.q_est_rad, st.gi_hat, truth.com_frd, j, truth.mass, lam_min, lam_crit,
-                                   st.gc_uam, st.ref_frd_m)
 
 
 class FlightControllerProcess:
@@ -127,33 +64,28 @@ class FlightControllerProcess:
         self.vehicle = vm.VehicleConfig.load(opts.vehicle_path)
         self.registry = ParamRegistry.from_defaults()
         self._stop = False
+        self.model = vm.UamModel(self.vehicle)
+        self._last_step_time_us: int | None = None
         # A log that cannot be opened (read-only dir, full disk) is reported and the FC flies without one.
-        self.logger, self._log_open_error = open_logger(opts.log_path, opts.log_max_mb, opts.log_keep)
-        self._log_fail_reported = False
-        self.n_log_errors = 0  # exceptions while logging a step (contained: reported, never an exit)
+        logger, open_error = open_logger(opts.log_path, opts.log_max_mb, opts.log_keep)
+        if open_error is not None:
+            print(f"navig8-fc: cannot open the log: {open_error}; flying without a log", file=sys.stderr)
+        script = load_flight_script(opts.scenario)  # the scenario's setpoint script (a scripted run: AUTO.MISSION)
+        self.log = FcLog(logger, open_error, self._mk_foxglove(script, logger), self.model, self._sim_ns)
         self.n_tick_errors = 0  # exceptions in the control tick (contained: last command held, land requested)
         self._bad_data_fs = False  # the invalid-sensor-data failsafe is in force
         self._last_cmd: tuple[Any, bool] | None = None  # (command, armed) of the last good tick
         self.guard = SimGuard(opts.sysid, SensorLimits.from_vehicle(self.vehicle), lambda: secrets.randbits(32))
-        if self._log_open_error is not None:
-            print(f"navig8-fc: cannot open the log: {self._log_open_error}; flying without a log", file=sys.stderr)
-        # (topic, raw datagram or decoded message, peer for a datagram / None for a message, sim ns, wall ns)
-        self._frame_queue: list[tuple[str, Any, str | None, int, int]] = []
-        self._pending_tick: tuple[Any, ...] | None = None
-        self._sim_channels: dict[tuple[str, str], int] = {}
-        self._raw_topics: dict[tuple[str, str], str] = {}  # (link, direction) -> /mavlink/<link>/<direction>
+        self._pending_tick: StepRecord | None = None
         self._spin_until = 0.0
-        script = load_flight_script(opts.scenario)  # the scenario's setpoint script (a scripted run: AUTO.MISSION)
-        self.fox = self._mk_foxglove(script)  # before the links: the ports file names its port
         self._mk_links()
         self.stack = FlightStack(self.vehicle, self.registry, script)
-        self.model = vm.UamModel(self.vehicle)
         self.sim_status: Any = None
-        self._last_step_time_us: int | None = None
-        # PX4's simulator messages (--sim-messages px4): their own assembler, no pairing (docs/hil.md)
-        self._px4: Px4SimAssembler | None = None if opts.sim_messages == "navig8" else self._mk_px4_assembler()
-        if self._px4 is not None:
-            self._sim_to = None  # no pairing: answers go to the link's peer (the simulator that connected)
+        # what the sim link carries: the bridge's bundle, or PX4's simulator messages (their own assembler, no
+        # pairing: answers go to the link's peer, the simulator that connected; docs/hil.md)
+        stream = isinstance(self.sim.sock, StreamTransport)
+        self.peer = (BundlePeer(self.sim, self.guard, self._bridge_target, stream) if opts.sim_messages == "navig8"
+                     else Px4Peer(self.sim, self.guard, self._bridge_target, self._mk_px4_assembler()))
         self._last_answer: bytes | None = None  # the frame answering the last step (re-sent on duplicates)
         self.n_ticks = 0
         self.watchdog = LoopWatchdog()
@@ -191,13 +123,22 @@ class FlightControllerProcess:
         elif opts.defaults:
             self.log_event("starting from default parameters (--defaults)")
         self.stack.reconfigure()
-        self.rt = self._mk_timing()
-        self.guard.monotonic = self.rt is not None
+        self.timing = self._mk_timing()
+        self.guard.monotonic = self.timing.realtime
         warm_up_kernels(self.vehicle, self.core.config)  # numba's cache loads before the first step, not in it
         if self.logger:
             self.logger.metadata("run", {"scenario": opts.scenario, "controller": self._controller_name(),
                                          "sysid": opts.sysid, "process": "navig8-fc"})
             self.logger.metadata("params", self.registry.as_dict())
+
+    @property
+    def logger(self) -> Any:
+        """The MCAP logger (None: no log, or it could not be opened)."""
+        return self.log.logger
+
+    @property
+    def fox(self) -> FoxgloveOutput | None:
+        return self.log.fox
 
     # --- setup -----------------------------------------------------------------------------------
     def _mk_px4_assembler(self) -> Px4SimAssembler:
@@ -209,34 +150,34 @@ class FlightControllerProcess:
                        "modelled unless NAVIG8_ACTUATOR_STATE comes)")
         return Px4SimAssembler(origin_from_params(reg), model)
 
-    def _mk_timing(self) -> RealtimeClock | None:
-        """The real-time mode's clock (navig8_fc/shell/realtime.py), or None in lockstep (FC_TIMING, --timing)."""
+    def _mk_timing(self) -> Lockstep | Realtime:
+        """When a step runs (FC_TIMING, --timing): lockstep, or the real-time mode's clock (shell/realtime.py)."""
         reg = self.registry
         if self.opts.timing is not None:
             reg.set("FC_TIMING", 1.0 if self.opts.timing == "realtime" else 0.0)
         if int(reg["FC_TIMING"]) != TIMING_REALTIME:
-            return None
+            return Lockstep()
         self.log_event(f"real-time timing: own clock at {int(reg['INDI_RATE_HZ'])} Hz, newest bundle per tick")
-        return RealtimeClock(float(reg["INDI_RATE_HZ"]), float(reg["RT_LATE_S"]), float(reg["RT_SPACING_TOL"]),
-                             time.monotonic())
+        return Realtime(RealtimeClock(float(reg["INDI_RATE_HZ"]), float(reg["RT_LATE_S"]),
+                                      float(reg["RT_SPACING_TOL"]), time.monotonic()))
 
     def _mav(self) -> Any:
         m = self.d.MAVLink(None, srcSystem=self.opts.sysid, srcComponent=FC_COMPID)
         m.robust_parsing = True
         return m
 
-    def _mk_foxglove(self, script: Any) -> FoxgloveOutput | None:
+    def _mk_foxglove(self, script: Any, logger: Any) -> FoxgloveOutput | None:
         """The Foxglove 3D channels: into the log, and live with --foxglove (docs/foxglove.md)."""
         o = self.opts
         live = None
+        self._fox_plan_generation: int | None = None  # the uploaded plan last drawn on /foxglove/mission
         if o.foxglove_port is not None:
             live = LiveServer(o.foxglove_host, o.foxglove_port, f"navig8-fc sysid {o.sysid}")
             print(f"navig8-fc: Foxglove WebSocket ws://{o.foxglove_host}:{live.port}", file=sys.stderr)
-        if self.logger is None and live is None:
+        if logger is None and live is None:
             return None
-        fox = FoxgloveOutput(VehicleViz(self.vehicle, packaged_uav_size_m()), self.logger, live, "navig8-fc")
+        fox = FoxgloveOutput(VehicleViz(self.vehicle, packaged_uav_size_m()), logger, live, "navig8-fc")
         self._script_waypoints = script_waypoints(script)
-        self._fox_plan_generation: int | None = None  # the uploaded plan last drawn on /foxglove/mission
         fox.set_mission(self._script_waypoints)
         return fox
 
@@ -281,14 +222,11 @@ class FlightControllerProcess:
             write_ports_file(o.ports_file, ports)
         # where the announcement goes: the bridge's port, or the connection string's peer (a stream has only one)
         self._bridge_target = self.sim.targets[0] if o.sim_link and self.sim.targets else (o.host, o.port("bridge"))
-        self._stream_sim = isinstance(self.sim.sock, StreamTransport)
-        self._regroup = StreamRegrouper().split  # a stream's reads cut anywhere between frames: one bundle each
-        self._sim_to: list[tuple[str, int]] | None = []  # answers go to the paired bridge only (sim_guard)
         self.sim.send(self.guard.announce_record(), [self._bridge_target])  # before the log hooks are set up
         for link in (self.sim, self.gcs, self.api):
-            link.on_datagram = self._log_datagram
+            link.on_datagram = self.log.datagram
         for link in (self.gcs, self.api):  # the sim link's messages are logged decoded as /truth, /fc/...
-            link.on_frame = self._log_decoded
+            link.on_frame = self.log.decoded
         self.links = (self.sim, self.gcs, self.api)
 
     def _controller_name(self) -> str:
@@ -303,91 +241,36 @@ class FlightControllerProcess:
     def lambda_crit(self) -> float:
         return self.stack.lambda_crit
 
-    # --- logging ---------------------------------------------------------------------------------
-    def _log_datagram(self, link: str, direction: str, raw: bytes, peer: str) -> None:
-        """Queue a datagram (raw, as it crossed the link) for the log; `_flush_frames` writes the queue after the
-        step's answer has gone out, so logging overlaps with the bridge's physics step instead of delaying the
-        lockstep round trip."""
-        if self.logger:
-            topic = self._raw_topics.get((link, direction))
-            if topic is None:
-                topic = self._raw_topics[(link, direction)] = f"/mavlink/{link}/{direction}"
-            self._frame_queue.append((topic, raw, peer, self._sim_ns(), time.time_ns()))
-
-    def _log_decoded(self, link: str, direction: str, raw: bytes, msg: Any, peer: tuple[str, int]) -> None:
-        """Queue a decoded GCS/API message for its /mavlink/<link>/<dir>/<TYPE> channel."""
-        if self.logger:
-            self._frame_queue.append((f"/mavlink/{link}/{direction}/{msg.get_type()}", msg, None, self._sim_ns(),
-                                      time.time_ns()))
-
-    def _flush_frames(self) -> None:
-        q, self._frame_queue = self._frame_queue, []
-        if not self.logger:
-            return
-        for topic, item, peer, t_ns, wall_ns in q:
-            if peer is not None:  # a raw datagram
-                self.logger.log_raw(topic, t_ns, item, publish_ns=wall_ns, peer=peer)
-            else:  # a decoded GCS message (pymavlink)
-                self.logger.log(topic, t_ns, item.to_dict(), publish_ns=wall_ns, schema=mavlink_json_schema(type(item)))
-
+    # --- lockstep --------------------------------------------------------------------------------
     def _sim_ns(self) -> int:
         return seam.sim_us_from_time_usec(self._last_step_time_us) * 1000 if self._last_step_time_us else 0
 
-    # --- lockstep --------------------------------------------------------------------------------
     def _on_sim(self, received: list[Any]) -> None:
-        """The sim link's datagrams (codec.Message records per datagram) through the guard (pairing, sequencing,
-        validation: navig8_fc/links/sim_guard.py): steps to _on_step, the paired bridge's status kept."""
-        guard = self.guard
+        """The sim link's frames through the peer (the guard's pairing, sequencing, validation, or PX4's assembler):
+        steps to the timing (now in lockstep, at the next tick in real time), the simulator's status kept."""
         now = time.monotonic()
-        for r in received:
-            if self._px4 is not None:  # PX4's simulator messages: no pairing or sequencing (docs/hil.md)
-                self._on_px4(r.msg, now)
-                continue
-            for msgs in (self._regroup(r.msg) if self._stream_sim else (r.msg,)):
-                inp, announce_to = guard.on_datagram(msgs, r.addr, now)
-                if announce_to is not None:  # a bridge asked to pair: our announcement with a fresh nonce
-                    self.sim.send(guard.announce_record(), [announce_to])
-                if guard.peer is not None and self._sim_to[:1] != [guard.peer]:
-                    self._sim_to = [guard.peer]
-                kind = inp.kind
-                if kind == "step":
-                    if self.rt is not None:  # real time: the newest step waits for the FC's next tick
-                        self.last_bundle_wall = now
-                        self.rt.offer(inp.bundle, inp, now)
-                    else:
-                        self._on_step(inp)
-                elif kind == "duplicate":
-                    self.n_duplicates += 1  # a re-sent bundle: answer with the same command, do not re-run control
-                    if self._last_answer is not None and self.rt is None:
-                        self.sim.send_raw(self._last_answer, self._sim_to)
-                elif kind == "status":
-                    self._on_sim_status(inp.status)
-        if guard.has_reports:  # refusals: the first of each kind at once, then one per kind and period
-            for severity, text in guard.reports(now):
-                self.statustext(text, severity)
+        peer, timing = self.peer, self.timing
+        for inp in peer.inputs(received, now):
+            kind = inp.kind
+            if kind == "step":
+                if timing.realtime:  # the newest step waits for the FC's next tick
+                    self.last_bundle_wall = now
+                run = timing.offer(inp, now)
+                if run is not None:
+                    self._on_step(*run)
+            elif kind == "duplicate":
+                self.n_duplicates += 1  # a re-sent bundle: answer with the same command, do not re-run control
+                if self._last_answer is not None and not timing.realtime and peer.answers_duplicates:
+                    self.sim.send_raw(self._last_answer, peer.sim_to)
+            elif kind == "status":
+                self._on_sim_status(inp.status)
+        for severity, text in peer.reports(now):
+            self.statustext(text, severity)
 
     def _on_sim_status(self, status: seam.SimStatus) -> None:
         self.sim_status = status
         if status.state == seam.SIM_STATE_DONE:
             self.sim_done = True
-
-    def _on_px4(self, msgs: list[Any], now: float) -> None:
-        """PX4's simulator messages (navig8_fc/mavlink/px4sim.py): HIL_SENSOR completes a step."""
-        asm = self._px4
-        assert asm is not None
-        for m in msgs:
-            if m.name == "NAVIG8_SIM_STATUS":
-                self._on_sim_status(seam.decode_sim_status(m.fields))
-                continue
-            bundle = asm.add(m)
-            if bundle is None:
-                continue
-            inp = SimInput("step", bundle, dict(asm.completed))
-            if self.rt is not None:
-                self.last_bundle_wall = now
-                self.rt.offer(bundle, inp, now)
-            else:
-                self._on_step(inp)
 
     def _on_step(self, inp: SimInput, clock_us: int | None = None) -> None:
         """One lockstep step: control, answer, and queue the step's log records (written after the answer).
@@ -416,19 +299,17 @@ class FlightControllerProcess:
         self._last_cmd = (cmd, res.armed)
         out = seam.pack_actuator_controls(self.sim.mav, t_us, cmd, self.vehicle, armed=res.armed)
         self._last_answer = out
+        sim_to = self.peer.sim_to
         if res.arm_request is not None:  # before the step's answer, so the bridge applies it on this step
-            self.sim.send(seam.encode_arm_cmd(_arm_command(res.arm_request, t_us)), self._sim_to)
-        self.sim.send_raw(out, self._sim_to)
-        if self._px4 is not None:  # the actuator model's input: what the simulator will hold
-            self._px4.command(cmd.tilt_rad, cmd.speed_rad_s)
-            if res.arm_request is not None and res.arm_request.joint_target_rad is not None:
-                self._px4.joint_target_rad = res.arm_request.joint_target_rad
+            self.sim.send(seam.encode_arm_cmd(_arm_command(res.arm_request, t_us)), sim_to)
+        self.sim.send_raw(out, sim_to)
+        self.peer.commanded(cmd, res.arm_request)
         self.n_ticks += 1
         self.announce(res.notices)
         paced = self.sim_status is not None and self.sim_status.speed > 0.0
         self._watch(self.watchdog.step(self.last_bundle_wall, paced))
-        if self.logger or self.fox:
-            self._pending_tick = (t_us, b.truth, res.status, cmd, res.setpoint, inp.wire, out, sensors)
+        if self.log.active:
+            self._pending_tick = StepRecord(t_us, b.truth, res.status, cmd, res.setpoint, inp.wire, out, sensors)
 
     def _check_bad_data(self, groups: tuple[str, ...]) -> None:
         """Invalid sensor data for BAD_DATA_FAILSAFE_S of sim time: land (the guard holds the last good values)."""
@@ -453,7 +334,7 @@ class FlightControllerProcess:
         if self._last_cmd is not None:
             cmd, armed = self._last_cmd
             self._last_answer = seam.pack_actuator_controls(self.sim.mav, t_us, cmd, self.vehicle, armed=armed)
-            self.sim.send_raw(self._last_answer, self._sim_to)
+            self.sim.send_raw(self._last_answer, self.peer.sim_to)
 
     def _watch(self, note: str | None) -> None:
         """The watchdog's rate-limited report: /fc/event and stderr (a loaded host overruns too: not a STATUSTEXT)."""
@@ -463,52 +344,7 @@ class FlightControllerProcess:
     def statustext(self, text: str, severity: int = 6) -> None:
         """STATUSTEXT to every GCS (and the log keeps it)."""
         self.gcs_service.statustext(text, severity)
-        if self.logger:
-            self.logger.log("/fc/statustext", self._sim_ns(), {"severity": severity, "text": text},
-                            publish_ns=time.time_ns())
-
-
-    def _sim_channel(self, direction: str, name: str) -> int:
-        """The decoded /mavlink/sim/<direction>/<NAME> channel (schema from the message definition)."""
-        cid = self._sim_channels.get((direction, name))
-        if cid is None:
-            assert self.logger is not None
-            cid = self._sim_channels[(direction, name)] = self.logger.json_channel(
-                f"/mavlink/sim/{direction}/{name}", dialect_json_schema(name))
-        return cid
-
-    def _log_tick(self, t_us: int, tr: Any, st: ControllerStatus, cmd: ActuatorCommand, sp: Setpoint,
-                  wire: dict[str, Any] | None = None, answer: bytes | None = None, sensors: Any = None) -> None:
-        t_ns = seam.sim_us_from_time_usec(t_us) * 1000
-        w = time.time_ns()
-        fox = self.fox
-        if fox is not None and tr is not None and t_ns >= fox.next_due_ns:  # the Foxglove 3D channels, rate-limited
-            act = tr.actuators  # NAVIG8_TRUTH: alpha1, alpha3, w1, w2, w3
-            est = None if sensors is None else VehiclePose(sensors.pos_ned, sensors.quat_wxyz, sensors.tilt_rad,
-                                                           st.q_est_rad)
-            fox.step(t_ns, VehiclePose(tr.pos_ned, tr.quat, act[:2], tr.joint_pos), act[2:], tr.object_mass, est,
-                     sp, w)
-        if self.logger is None:
-            return
-        # The sim link decoded, as the GCS links are: the FC's raw sensor inputs and its answer, plottable.
-        # NAVIG8_TRUTH's decoded form is /truth. Lean path: channel ids cached, orjson straight to the writer.
-        if wire:
-            for name, m in wire.items():  # codec.Message records (BundleAssembler.completed)
-                if name != "NAVIG8_TRUTH":
-                    self.logger.log_json_bytes(self._sim_channel("in", name), t_ns, mavlink_record_json(m), w)
-        if answer is not None:
-            got = self.sim.codec.decode_frame(answer) if self.sim.codec is not None else None
-            if got is not None:
-                self.logger.log_json_bytes(self._sim_channel("out", got.name), t_ns, mavlink_record_json(got), w)
-        if tr is not None:
-            self.logger.log("/truth", t_ns, wire_truth_record(tr), publish_ns=w)
-            self.logger.log("/analysis/eig", t_ns, _eig_record(self.model, st, tr,
-                                                               float(self.registry["INDI_LAMBDA_MIN"]),
-                                                               self.lambda_crit), publish_ns=w)
-        self.logger.log("/fc/status", t_ns, st, publish_ns=w)
-        self.logger.log("/fc/setpoint", t_ns, {"pos_ned": sp.pos_ned, "pitch_rad": sp.pitch_rad,
-                                               "yaw_rad": sp.yaw_rad}, publish_ns=w)
-        self.logger.log("/fc/command", t_ns, cmd, publish_ns=w)
+        self.log.statustext(text, severity)
 
     def _spin_for_sim(self) -> list[Any]:
         """Busy-poll the sim socket until the next bundle arrives or the spin window closes.
@@ -543,7 +379,7 @@ class FlightControllerProcess:
             while not self._stop:
                 ready = self._spin_for_sim() if self._spin_until > time.perf_counter() else []
                 if not ready:
-                    wait = 0.05 if self.rt is None else min(0.05, self.rt.timeout_s(time.monotonic()))
+                    wait = self.timing.timeout_s(time.monotonic())
                     ready, _, _ = select.select(sock_list, [], [], wait)
                 for sock in ready:
                     link = socks[sock]
@@ -554,13 +390,13 @@ class FlightControllerProcess:
                         t0 = time.monotonic()
                         self.on_gcs(link, got)
                         self._watch(self.watchdog.gcs_work(time.monotonic() - t0, t0))
-                if self.rt is not None and (due := self.rt.tick(time.monotonic())) is not None:
-                    self._on_step(due[1], due[2])  # (bundle, its SimInput, the FC's clock)
+                if (due := self.timing.due(time.monotonic())) is not None:
+                    self._on_step(*due)  # (its SimInput, the FC's clock)
                 # The step's answer is out: now log (this overlaps with the bridge's physics step).
                 if self._pending_tick is not None:
                     tick, self._pending_tick = self._pending_tick, None
                     self._log_step(tick)
-                    if self.rt is None and (self.sim_status is None or self.sim_status.speed == 0.0):
+                    if not self.timing.realtime and (self.sim_status is None or self.sim_status.speed == 0.0):
                         self._spin_until = time.perf_counter() + SPIN_S  # the next bundle is due very soon
                 self._log_step(None)
                 now = time.monotonic()
@@ -639,20 +475,15 @@ class FlightControllerProcess:
             link.send(m, dest)
 
     def on_wall_second(self, now: float) -> None:
-        if self.guard.needs_announce(now):  # unpaired or the bridge silent: announce, for a bridge started after us
-            self.sim.send(self.guard.announce_record(), [self._bridge_target])
-        for severity, text in self.guard.reports(now):  # counts held back within a period
+        for severity, text in self.peer.on_wall_second(now):  # announcements; counts held back within a period
             self.statustext(text, severity)
-        if self._log_open_error is not None and not self._log_fail_reported:
-            self._log_fail_reported = True  # at the first wall second: a GCS that is already listening hears it
-            self.statustext(f"Log disabled: {self._log_open_error}", 3)
-        if self.logger is not None:
-            try:
-                self.logger.log("/fc/sim_guard", self._sim_ns(), self._guard_stats(), publish_ns=time.time_ns())
-            except Exception as e:  # noqa: BLE001 - logging must never end the flight
-                self.n_log_errors += 1
-                self.logger.fail(f"{type(e).__name__}: {e}")
-        if self.rt is not None and (text := self.rt.report(now)) is not None:
+        log = self.log
+        if log.open_error is not None and not log.fail_reported:
+            log.fail_reported = True  # at the first wall second: a GCS that is already listening hears it
+            self.statustext(f"Log disabled: {log.open_error}", 3)
+        if log.logger is not None:
+            log.record_contained("/fc/sim_guard", self._guard_stats())
+        if (text := self.timing.report(now)) is not None:
             self.statustext(text, 4)  # MAV_SEVERITY_WARNING
 
     def on_wall_tick(self, now: float) -> None:
@@ -665,145 +496,52 @@ class FlightControllerProcess:
         self._show_plan()
 
     def log_stability(self, stab: StabilityStatus) -> None:
-        """/fc/stability: lambda_crit, the guaranteed min eigenvalue and the margin of the configuration in force
-        (LAM_CRIT, LAM_MARGIN), once at start and again whenever a parameter they depend on changes them."""
-        if self.logger:
-            rec = {**dataclasses.asdict(stab), "meets_margin": stab.meets_margin}
-            self.logger.log("/fc/stability", self._sim_ns(), rec, publish_ns=time.time_ns())
+        self.log.stability(stab)
 
     def log_event(self, text: str) -> None:
         print(f"navig8-fc: {text}", file=sys.stderr)
-        if self.logger:
-            self.logger.log("/fc/event", self._sim_ns(), {"text": text}, publish_ns=time.time_ns())
+        self.log.record("/fc/event", {"text": text})
 
     def log_param_change(self, change: Any) -> None:
-        if self.logger:
-            self.logger.log("/fc/param_change", self._sim_ns(), change, publish_ns=time.time_ns())
+        self.log.record("/fc/param_change", change)
 
-    def _log_step(self, tick: tuple[Any, ...] | None) -> None:
-        """Log a step's records (tick) or the queued datagrams (None). Contained: an exception here is counted
-        and reported and logging stops; a logger that lost its file (disk full) drops and counts by itself."""
-        try:
-            if tick is not None:
-                self._log_tick(*tick)
-                if self.logger is not None:
-                    self.logger.maybe_rotate()  # once per step: the size check is a syscall
-            else:
-                self._flush_frames()
-        except Exception as e:  # noqa: BLE001 - logging must never end the flight
-            self.n_log_errors += 1
-            self._frame_queue.clear()
-            if self.logger is not None:
-                self.logger.fail(f"{type(e).__name__}: {e}")
-        lg = self.logger
-        if lg is not None and lg.error is not None and not self._log_fail_reported:
-            self._log_fail_reported = True
-            self.statustext(f"Log stopped: {lg.error}", 3)
-            print(f"navig8-fc: logging stopped ({lg.error}); records from now on are dropped and counted",
-                  file=sys.stderr)
+    def _log_step(self, tick: StepRecord | None) -> None:
+        """Log a step's records (tick) or the queued datagrams (None); contained (FcLog.step)."""
+        if tick is None:
+            text = self.log.step(None)
+        else:
+            text = self.log.step(tick, self.sim.codec, float(self.registry["INDI_LAMBDA_MIN"]), self.lambda_crit)
+        if text is not None:
+            self.statustext(text, 3)
 
     def _guard_stats(self) -> dict[str, Any]:
-        lg = self.logger
-        return {**vars(self.guard.counters), "tick_errors": self.n_tick_errors, "log_errors": self.n_log_errors,
-                "log_dropped": lg.dropped if lg is not None else 0, "log_rotations": lg.rotations if lg else 0,
-                "log_error": (lg.error if lg is not None else self._log_open_error)}
+        return {**vars(self.guard.counters), "tick_errors": self.n_tick_errors, **self.log.stats()}
 
     def close(self) -> None:
         self.gcs_service.close()
         self.signing.save_timestamp()
-        if self._pending_tick is not None and (self.logger or self.fox):
+        if self._pending_tick is not None and self.log.active:
             tick, self._pending_tick = self._pending_tick, None
             self._log_step(tick)
         self._log_step(None)
-        if self.logger and self.logger.error is not None:
-            print(f"navig8-fc: log {self.logger.path}: {self.logger.dropped} records dropped after "
-                  f"{self.logger.error}", file=sys.stderr)
+        meta: dict[str, Any] = {}
         if self.logger:
-            counters = {link.name: vars(link.counters) for link in self.links}
-            self.logger.metadata("link_counters", counters)
+            meta["link_counters"] = {link.name: vars(link.counters) for link in self.links}
             if self.sim_status is not None:
-                self.logger.metadata("bridge_status", self.sim_status)
-            self.logger.metadata("fc_stats", {"ticks": self.n_ticks, "duplicates": self.n_duplicates,
-                                              "sim_guard": self._guard_stats(),
-                                              "incomplete_bundles": self._px4.incomplete if self._px4 else 0,
-                                              **self.watchdog.stats()})
-            if self.rt is not None:
-                self.logger.metadata("realtime_stats", vars(self.rt.stats))
-            self.logger.metadata("params_final", self.registry.as_dict())
-            self.logger.close()
-            self.logger = None
-        if self.fox is not None:
-            self.fox.close()
-            self.fox = None
+                meta["bridge_status"] = self.sim_status
+            meta["fc_stats"] = {"ticks": self.n_ticks, "duplicates": self.n_duplicates,
+                                "sim_guard": self._guard_stats(), "incomplete_bundles": self.peer.incomplete,
+                                **self.watchdog.stats()}
+            if (rt_stats := self.timing.stats()) is not None:
+                meta["realtime_stats"] = rt_stats
+            meta["params_final"] = self.registry.as_dict()
+        self.log.close(meta)
         for link in self.links:
             link.close()
 
 
 def _arm_command(req: ArmRequest, t_us: int) -> seam.ArmCommand:
     return seam.ArmCommand(t_us, req.joint_target_rad, _GRIPPER_CODES[req.gripper])
-
-
-def build_arg_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="navig8-fc", description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--instance", type=int, default=0, help="sysid N+1, all ports offset by N")
-    ap.add_argument("--scenario", default="ground")
-    ap.add_argument("--host", default="127.0.0.1", help="sim-link host (bridge)")
-    ap.add_argument("--gcs-host", default="127.0.0.1", help="where to send GCS/API traffic before a peer talks")
-    ap.add_argument("--bind-host", default="127.0.0.1", help="address the GCS/API links bind (0.0.0.0 in Docker)")
-    ap.add_argument("--sim-port", type=int, default=None)
-    ap.add_argument("--bridge-port", type=int, default=None)
-    ap.add_argument("--gcs-bind-port", type=int, default=None)
-    ap.add_argument("--gcs-port", type=int, default=14550)
-    ap.add_argument("--api-bind-port", type=int, default=None)
-    ap.add_argument("--api-port", type=int, default=None)
-    ap.add_argument("--log", default=None, help="MCAP log path")
-    ap.add_argument("--log-max-mb", type=float, default=FcOptions.log_max_mb,
-                    help="rotate the log at this size in MB: PATH, PATH-stem.1.mcap, ... (0: no cap; docs/logs.md)")
-    ap.add_argument("--log-keep", type=int, default=FcOptions.log_keep,
-                    help="log parts kept when rotating (the oldest is deleted)")
-    ap.add_argument("--state-dir", default=None, help="directory for persisted parameters")
-    ap.add_argument("--defaults", action="store_true", help="start from default parameters (ignore stored)")
-    ap.add_argument("--autopilot", choices=["generic", "px4"], default="generic",
-                    help="HEARTBEAT.autopilot: generic (default) or px4 (QGroundControl's mode menu; docs/gcs.md)")
-    ap.add_argument("--until-done", action="store_true", help="exit when the bridge reports the scenario done")
-    ap.add_argument("--ports-file", default=None,
-                    help='after binding, write {"sim": p, "gcs": p, "api": p} here as JSON (for ports given as 0; '
-                         'with --foxglove also "foxglove")')
-    ap.add_argument("--foxglove", nargs="?", type=int, const=FOXGLOVE_DEFAULT_PORT, default=None, metavar="PORT",
-                    help=f"serve the Foxglove 3D channels live over WebSocket (default port {FOXGLOVE_DEFAULT_PORT}; "
-                         "0: any free port)")
-    ap.add_argument("--foxglove-host", default="127.0.0.1", help="address the Foxglove server binds")
-    conn = ("a connection string instead of the port options: udpin:H:P, udpout:H:P, tcp:H:P, tcpin:H:P, "
-            "serial:DEVICE:BAUD (docs/hil.md)")
-    ap.add_argument("--sim-link", default=None, metavar="CONN", help=f"the bridge/simulator link as {conn}; PX4's "
-                    "simulator interface is tcp:127.0.0.1:4560")
-    ap.add_argument("--gcs-link", default=None, metavar="CONN", help=f"the GCS link as {conn}")
-    ap.add_argument("--api-link", default=None, metavar="CONN", help=f"the API link as {conn}")
-    ap.add_argument("--sim-messages", choices=["navig8", "px4"], default="navig8",
-                    help="what the sim link carries: navig8 (the private bundle, docs/bridge.md) or px4 (PX4's "
-                         "simulator messages HIL_SENSOR + HIL_STATE_QUATERNION; docs/hil.md)")
-    ap.add_argument("--vehicle", default=None, metavar="FILE",
-                    help="the vehicle's constants (params/vehicle.yaml's format; default the packaged file): a board's "
-                         "own airframe, or the world navig8-sitl --world gives the bridge (navig8-bridge "
-                         "--write-fc-vehicle)")
-    ap.add_argument("--timing", choices=["lockstep", "realtime"], default=None,
-                    help="timing mode, overriding the FC_TIMING parameter: lockstep (one step per bundle) or realtime "
-                         "(own clock at INDI_RATE_HZ; the bridge then runs --free-run; docs/hil.md)")
-    return ap
-
-
-def options_from_args(a: argparse.Namespace) -> FcOptions:
-    return FcOptions(
-        instance=a.instance, scenario=a.scenario, host=a.host, gcs_host=a.gcs_host, bind_host=a.bind_host,
-        sim_port=a.sim_port, bridge_port=a.bridge_port, gcs_bind_port=a.gcs_bind_port, gcs_port=a.gcs_port,
-        api_bind_port=a.api_bind_port, api_port=a.api_port, log_path=Path(a.log) if a.log else None,
-        state_dir=Path(a.state_dir) if a.state_dir else None, defaults=a.defaults,
-        ports_file=Path(a.ports_file) if a.ports_file else None, autopilot=a.autopilot, foxglove_port=a.foxglove,
-        foxglove_host=a.foxglove_host, log_max_mb=a.log_max_mb, log_keep=a.log_keep, sim_link=a.sim_link,
-        gcs_link=a.gcs_link, api_link=a.api_link, timing=a.timing, sim_messages=a.sim_messages,
-        vehicle_path=Path(a.vehicle) if a.vehicle else None,
-    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -836,7 +574,7 @@ def main(argv: list[str] | None = None) -> int:
     if stop_early:
         proc.request_stop()
     rc = proc.run(until_done=args.until_done)
-    if proc.opts.log_path and proc._log_open_error is None:
+    if proc.opts.log_path and proc.log.open_error is None:
         print(f"navig8-fc: log {proc.opts.log_path}", file=sys.stderr)
     return rc
 
@@ -845,4 +583,4 @@ if __name__ == "__main__":
     raise SystemExit(main())
 
 
-__all__ = ["FcOptions", "FlightControllerProcess", "main"]
+__all__ = ["FlightControllerProcess", "main"]

@@ -10,16 +10,17 @@ import pytest
 from sitl_helpers import free_udp_ports
 
 from navig8_fc.core.outer_loop import OuterLoopConfig, outer_loop_config_array
+from navig8_fc.shell import fc_options as fo
 from navig8_fc.shell import fc_process as fp
 
 
 def test_accepted_parameters_reach_the_controller_at_the_next_step(tmp_path: Path) -> None:
     bridge, gcs, api = free_udp_ports(3)  # where the FC sends; it binds port 0
-    args = fp.build_arg_parser().parse_args([
+    args = fo.build_arg_parser().parse_args([
         "--sim-port", "0", "--bridge-port", str(bridge), "--gcs-bind-port", "0",
         "--api-bind-port", "0", "--gcs-port", str(gcs), "--api-port", str(api),
         "--state-dir", str(tmp_path), "--defaults"])
-    fc = fp.FlightControllerProcess(fp.options_from_args(args))
+    fc = fp.FlightControllerProcess(fo.options_from_args(args))
     try:
         core = fc.stack.core
         # Gains: swapped in place (filters and estimator keep their state), and what the tick reads changes.

@@ -17,6 +17,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 from sitl_helpers import FcTarget, free_udp_ports, gcs_client, sitl, wait_for, wait_heartbeat
 
+from navig8_fc.shell import fc_options as fo
 from navig8_fc.shell import fc_process as fp
 from navig8_fc.shell.mcap_log import read_mcap, read_mcap_records
 
@@ -32,7 +33,7 @@ def _fc_in_process(tmp_path: Path, log: Path | None = None) -> fp.FlightControll
             "--state-dir", str(tmp_path), "--defaults"]
     if log is not None:
         argv += ["--log", str(log)]
-    return fp.FlightControllerProcess(fp.options_from_args(fp.build_arg_parser().parse_args(argv)))
+    return fp.FlightControllerProcess(fo.options_from_args(fo.build_arg_parser().parse_args(argv)))
 
 
 def _command(conn: Any, command: int, *params: float, timeout_s: float = 5.0) -> int:

@@ -17,7 +17,8 @@ from test_sim_guard import Wire, _set
 
 from navig8_fc.links.sim_guard import pairing_heartbeat
 from navig8_fc.mavlink import codec, dialect, seam
-from navig8_fc.shell.fc_process import FcOptions, FlightControllerProcess
+from navig8_fc.shell.fc_options import FcOptions
+from navig8_fc.shell.fc_process import FlightControllerProcess
 from navig8_fc.shell.mcap_log import read_mcap, read_metadata
 
 TIMEOUT_S = 30.0

@@ -28,8 +28,8 @@ def test_dockerfile_uses_make_install_and_valid_sitl_options() -> None:
         published = set(re.findall(r"-p (\d+):\d+/udp", run))
         assert published == {"18570", "14580"}, published
     assert re.search(r"^EXPOSE 18570/udp 14580/udp$", text, flags=re.M)
-    from navig8_fc.shell.fc_process import FcOptions, options_from_args
-    from navig8_fc.shell.fc_process import build_arg_parser as fc_arg_parser
+    from navig8_fc.shell.fc_options import FcOptions, options_from_args
+    from navig8_fc.shell.fc_options import build_arg_parser as fc_arg_parser
 
     opts: FcOptions = options_from_args(fc_arg_parser().parse_args([]))
     assert {str(opts.port("gcs_bind")), str(opts.port("api_bind"))} == {"18570", "14580"}

@@ -1,0 +1,204 @@
+"""The flight-controller process's log (docs/logs.md): every datagram on every link (raw, queued and written after
+the step's answer has gone out), the decoded GCS and sim-link messages, and the per-step records (/truth,
+/analysis/eig, /fc/status, /fc/setpoint, /fc/command) with the Foxglove 3D channels; events, STATUSTEXT, parameter
+changes and the stability record. Logging never ends the flight: an exception is counted, reported once and
+logging stops; a logger that lost its file (disk full) drops and counts by itself."""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from navig8_fc.core import vehicle as vm
+from navig8_fc.core.controller import ActuatorCommand, ControllerStatus
+from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
+from navig8_fc.mavlink import seam
+from navig8_fc.params.registry import StabilityStatus
+from navig8_fc.shell.foxglove_out import FoxgloveOutput
+from navig8_fc.viz import VehiclePose
+
+
+def _eig_record(model: vm.UamModel, st: ControllerStatus, truth: Any, lam_min: float, lam_crit: float
+                ) -> dict[str, Any]:
+    i = truth.inertia  # NAVIG8_TRUTH: xx, yy, zz, xy, xz, yz about the composite CoM
+    j = np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]], dtype=float)
+    return vm.ghat_ginv_eig_record(model, st.q_est_rad, st.gi_hat, truth.com_frd, j, truth.mass, lam_min, lam_crit,
+                                   st.gc_uam, st.ref_frd_m)
+
+
+@dataclasses.dataclass(frozen=True)
+class StepRecord:
+    """What one control step leaves for the log (written after its answer went out)."""
+
+    t_us: int
+    truth: Any  # the bundle's NAVIG8_TRUTH (None from a board)
+    status: ControllerStatus
+    command: ActuatorCommand
+    setpoint: Setpoint
+    wire: dict[str, Any] | None  # the bundle's messages (codec.Message records)
+    answer: bytes | None  # the step's answer frame
+    sensors: Any  # the controller's input (FcSensors)
+
+
+class FcLog:
+    """The MCAP log and the Foxglove output of one FC process, on the sim time `sim_ns()` gives."""
+
+    def __init__(self, logger: Any, open_error: str | None, fox: FoxgloveOutput | None, model: vm.UamModel,
+                 sim_ns: Callable[[], int]) -> None:
+        self.logger = logger
+        self.open_error = open_error  # why the log could not be opened (the FC flies without one)
+        self.fox = fox
+        self._model = model
+        self._sim_ns = sim_ns
+        self.n_errors = 0  # exceptions while logging (contained: reported, never an exit)
+        self.fail_reported = False
+        # (topic, raw datagram or decoded message, peer for a datagram / None for a message, sim ns, wall ns)
+        self._frame_queue: list[tuple[str, Any, str | None, int, int]] = []
+        self._sim_channels: dict[tuple[str, str], int] = {}
+        self._raw_topics: dict[tuple[str, str], str] = {}  # (link, direction) -> /mavlink/<link>/<direction>
+
+    @property
+    def active(self) -> bool:
+        """A log or a live Foxglove view wants the step records."""
+        return bool(self.logger or self.fox)
+
+    # --- link frames -------------------------------------------------------------------------------
+    def datagram(self, link: str, direction: str, raw: bytes, peer: str) -> None:
+        """Queue a datagram (raw, as it crossed the link); `flush_frames` writes the queue after the step's answer
+        has gone out, so logging overlaps with the bridge's physics step instead of delaying the lockstep round
+        trip."""
+        if self.logger:
+            topic = self._raw_topics.get((link, direction))
+            if topic is None:
+                topic = self._raw_topics[(link, direction)] = f"/mavlink/{link}/{direction}"
+            self._frame_queue.append((topic, raw, peer, self._sim_ns(), time.time_ns()))
+
+    def decoded(self, link: str, direction: str, raw: bytes, msg: Any, peer: tuple[str, int]) -> None:
+        """Queue a decoded GCS/API message for its /mavlink/<link>/<dir>/<TYPE> channel."""
+        if self.logger:
+            self._frame_queue.append((f"/mavlink/{link}/{direction}/{msg.get_type()}", msg, None, self._sim_ns(),
+                                      time.time_ns()))
+
+    def flush_frames(self) -> None:
+        q, self._frame_queue = self._frame_queue, []
+        if not self.logger:
+            return
+        for topic, item, peer, t_ns, wall_ns in q:
+            if peer is not None:  # a raw datagram
+                self.logger.log_raw(topic, t_ns, item, publish_ns=wall_ns, peer=peer)
+            else:  # a decoded GCS message (pymavlink)
+                self.logger.log(topic, t_ns, item.to_dict(), publish_ns=wall_ns, schema=mavlink_json_schema(type(item)))
+
+    # --- the step ----------------------------------------------------------------------------------
+    def _sim_channel(self, direction: str, name: str) -> int:
+        """The decoded /mavlink/sim/<direction>/<NAME> channel (schema from the message definition)."""
+        cid = self._sim_channels.get((direction, name))
+        if cid is None:
+            assert self.logger is not None
+            cid = self._sim_channels[(direction, name)] = self.logger.json_channel(
+                f"/mavlink/sim/{direction}/{name}", dialect_json_schema(name))
+        return cid
+
+    def _tick(self, r: StepRecord, sim_codec: Any, lam_min: float, lam_crit: float) -> None:
+        t_ns = seam.sim_us_from_time_usec(r.t_us) * 1000
+        w = time.time_ns()
+        fox, tr, st, sp = self.fox, r.truth, r.status, r.setpoint
+        if fox is not None and tr is not None and t_ns >= fox.next_due_ns:  # the Foxglove 3D channels, rate-limited
+            act = tr.actuators  # NAVIG8_TRUTH: alpha1, alpha3, w1, w2, w3
+            s = r.sensors
+            est = None if s is None else VehiclePose(s.pos_ned, s.quat_wxyz, s.tilt_rad, st.q_est_rad)
+            fox.step(t_ns, VehiclePose(tr.pos_ned, tr.quat, act[:2], tr.joint_pos), act[2:], tr.object_mass, est,
+                     sp, w)
+        lg = self.logger
+        if lg is None:
+            return
+        # The sim link decoded, as the GCS links are: the FC's raw sensor inputs and its answer, plottable.
+        # NAVIG8_TRUTH's decoded form is /truth. Lean path: channel ids cached, orjson straight to the writer.
+        if r.wire:
+            for name, m in r.wire.items():  # codec.Message records (BundleAssembler.completed)
+                if name != "NAVIG8_TRUTH":
+                    lg.log_json_bytes(self._sim_channel("in", name), t_ns, mavlink_record_json(m), w)
+        if r.answer is not None:
+            got = sim_codec.decode_frame(r.answer) if sim_codec is not None else None
+            if got is not None:
+                lg.log_json_bytes(self._sim_channel("out", got.name), t_ns, mavlink_record_json(got), w)
+        if tr is not None:
+            lg.log("/truth", t_ns, wire_truth_record(tr), publish_ns=w)
+            lg.log("/analysis/eig", t_ns, _eig_record(self._model, st, tr, lam_min, lam_crit), publish_ns=w)
+        lg.log("/fc/status", t_ns, st, publish_ns=w)
+        lg.log("/fc/setpoint", t_ns, {"pos_ned": sp.pos_ned, "pitch_rad": sp.pitch_rad, "yaw_rad": sp.yaw_rad},
+               publish_ns=w)
+        lg.log("/fc/command", t_ns, r.command, publish_ns=w)
+
+    def step(self, record: StepRecord | None, sim_codec: Any = None, lam_min: float = 0.0, lam_crit: float = 0.0
+             ) -> str | None:
+        """Log a step's records, or the queued datagrams (None). Contained: an exception here is counted and logging
+        stops. Returns the STATUSTEXT to send when logging has just stopped (once), else None."""
+        try:
+            if record is not None:
+                self._tick(record, sim_codec, lam_min, lam_crit)
+                if self.logger is not None:
+                    self.logger.maybe_rotate()  # once per step: the size check is a syscall
+            else:
+                self.flush_frames()
+        except Exception as e:  # noqa: BLE001 - logging must never end the flight
+            self.n_errors += 1
+            self._frame_queue.clear()
+            if self.logger is not None:
+                self.logger.fail(f"{type(e).__name__}: {e}")
+        lg = self.logger
+        if lg is not None and lg.error is not None and not self.fail_reported:
+            self.fail_reported = True
+            print(f"navig8-fc: logging stopped ({lg.error}); records from now on are dropped and counted",
+                  file=sys.stderr)
+            return f"Log stopped: {lg.error}"
+        return None
+
+    # --- records -------------------------------------------------------------------------------------
+    def record(self, topic: str, data: Any) -> None:
+        """One record on the current sim time, published now (/fc/event, /fc/statustext, /fc/param_change...)."""
+        if self.logger:
+            self.logger.log(topic, self._sim_ns(), data, publish_ns=time.time_ns())
+
+    def record_contained(self, topic: str, data: Any) -> None:
+        """`record`, an exception counted and reported to the logger (the once-a-second /fc/sim_guard record)."""
+        if self.logger is not None:
+            try:
+                self.record(topic, data)
+            except Exception as e:  # noqa: BLE001 - logging must never end the flight
+                self.n_errors += 1
+                self.logger.fail(f"{type(e).__name__}: {e}")
+
+    def stability(self, stab: StabilityStatus) -> None:
+        """/fc/stability: lambda_crit, the guaranteed min eigenvalue and the margin of the configuration in force
+        (LAM_CRIT, LAM_MARGIN), once at start and again whenever a parameter they depend on changes them."""
+        self.record("/fc/stability", {**dataclasses.asdict(stab), "meets_margin": stab.meets_margin})
+
+    def statustext(self, text: str, severity: int) -> None:
+        self.record("/fc/statustext", {"severity": severity, "text": text})
+
+    def stats(self) -> dict[str, Any]:
+        lg = self.logger
+        return {"log_errors": self.n_errors, "log_dropped": lg.dropped if lg is not None else 0,
+                "log_rotations": lg.rotations if lg else 0,
+                "log_error": (lg.error if lg is not None else self.open_error)}
+
+    def close(self, metadata: dict[str, Any]) -> None:
+        """Write the closing metadata (name -> record, in order) and close the log and the Foxglove output."""
+        lg = self.logger
+        if lg and lg.error is not None:
+            print(f"navig8-fc: log {lg.path}: {lg.dropped} records dropped after {lg.error}", file=sys.stderr)
+        if lg:
+            for name, rec in metadata.items():
+                lg.metadata(name, rec)
+            lg.close()
+            self.logger = None
+        if self.fox is not None:
+            self.fox.close()
+            self.fox = None

@@ -1,0 +1,156 @@
+"""The FC process's two strategies around its control step (docs/hil.md):
+
+- what the sim link carries: `BundlePeer` (navig8-bridge's private bundle: pairing, sequencing and validation by the
+  SimGuard, a stream's reads regrouped into one bundle each) or `Px4Peer` (PX4's simulator messages, HIL_SENSOR +
+  HIL_STATE_QUATERNION, assembled into bundles; no pairing, actuator states modelled unless the simulator sends
+  them). Both turn received frames into `SimInput`s.
+- when a step runs: `Lockstep` (at once, one per bundle; a duplicate is answered with the same command) or
+  `Realtime` (the FC's own clock at INDI_RATE_HZ takes the newest bundle per tick: navig8_fc/shell/realtime.py).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from navig8_fc.core.controller import ActuatorCommand
+from navig8_fc.flight import ArmRequest
+from navig8_fc.links.mavlink_link import UdpLink
+from navig8_fc.links.sim_guard import SimGuard, SimInput, StreamRegrouper
+from navig8_fc.mavlink import seam
+from navig8_fc.mavlink.px4sim import Px4SimAssembler
+from navig8_fc.shell.realtime import RealtimeClock
+
+
+class BundlePeer:
+    """navig8-bridge's bundle over the sim link, through the SimGuard (navig8_fc/links/sim_guard.py)."""
+
+    answers_duplicates = True  # a re-sent bundle is answered with the same command (lockstep)
+
+    def __init__(self, link: UdpLink, guard: SimGuard, bridge_target: tuple[str, int], stream: bool) -> None:
+        self._link = link
+        self.guard = guard
+        self._bridge_target = bridge_target  # where the announcement goes until a bridge pairs
+        self._stream = stream
+        self._regroup = StreamRegrouper().split  # a stream's reads cut anywhere between frames: one bundle each
+        self.sim_to: list[tuple[str, int]] | None = []  # answers go to the paired bridge only
+
+    @property
+    def incomplete(self) -> int:
+        """Bundles dropped incomplete (PX4's assembler counts them; the private bundle comes whole)."""
+        return 0
+
+    def announce(self) -> None:
+        self._link.send(self.guard.announce_record(), [self._bridge_target])
+
+    def inputs(self, received: list[Any], now: float) -> list[SimInput]:
+        """The link's datagrams (codec.Message records per datagram) as SimInputs; a bridge that asks to pair gets
+        our announcement with a fresh nonce."""
+        guard = self.guard
+        out = []
+        for r in received:
+            for msgs in (self._regroup(r.msg) if self._stream else (r.msg,)):
+                inp, announce_to = guard.on_datagram(msgs, r.addr, now)
+                if announce_to is not None:
+                    self._link.send(guard.announce_record(), [announce_to])
+                if guard.peer is not None and self.sim_to[:1] != [guard.peer]:  # type: ignore[index]
+                    self.sim_to = [guard.peer]
+                out.append(inp)
+        return out
+
+    def reports(self, now: float) -> list[tuple[int, str]]:
+        """The guard's refusals: the first of each kind at once, then one per kind and period."""
+        return self.guard.reports(now) if self.guard.has_reports else []
+
+    def on_wall_second(self, now: float) -> list[tuple[int, str]]:
+        if self.guard.needs_announce(now):  # unpaired or the bridge silent: announce, for a bridge started after us
+            self.announce()
+        return self.guard.reports(now)  # counts held back within a period
+
+    def commanded(self, cmd: ActuatorCommand, arm: ArmRequest | None) -> None:
+        """The bridge applies the command itself (nothing to model here)."""
+
+
+class Px4Peer(BundlePeer):
+    """PX4's simulator messages (navig8_fc/mavlink/px4sim.py): HIL_SENSOR completes a step; no pairing, no
+    sequencing (answers go to the link's peer, the simulator that connected)."""
+
+    answers_duplicates = False
+
+    def __init__(self, link: UdpLink, guard: SimGuard, bridge_target: tuple[str, int], assembler: Px4SimAssembler
+                 ) -> None:
+        super().__init__(link, guard, bridge_target, stream=False)
+        self._asm = assembler
+        self.sim_to = None
+
+    @property
+    def incomplete(self) -> int:
+        return self._asm.incomplete
+
+    def inputs(self, received: list[Any], now: float) -> list[SimInput]:
+        asm = self._asm
+        out = []
+        for r in received:
+            for m in r.msg:
+                if m.name == "NAVIG8_SIM_STATUS":
+                    out.append(SimInput("status", status=seam.decode_sim_status(m.fields)))
+                    continue
+                bundle = asm.add(m)
+                if bundle is not None:
+                    out.append(SimInput("step", bundle, dict(asm.completed)))
+        return out
+
+    def reports(self, now: float) -> list[tuple[int, str]]:
+        return []
+
+    def commanded(self, cmd: ActuatorCommand, arm: ArmRequest | None) -> None:
+        """The actuator model's input: what the simulator will hold (its actuator states are modelled)."""
+        self._asm.command(cmd.tilt_rad, cmd.speed_rad_s)
+        if arm is not None and arm.joint_target_rad is not None:
+            self._asm.joint_target_rad = arm.joint_target_rad
+
+
+class Lockstep:
+    """One control step per bundle, at once."""
+
+    realtime = False
+
+    def offer(self, inp: SimInput, now: float) -> tuple[SimInput, int | None] | None:
+        return inp, None
+
+    def timeout_s(self, now: float) -> float:
+        return 0.05
+
+    def due(self, now: float) -> tuple[SimInput, int | None] | None:
+        return None
+
+    def report(self, now: float) -> str | None:
+        return None
+
+    def stats(self) -> dict[str, Any] | None:
+        return None
+
+
+class Realtime:
+    """The FC's own clock (RealtimeClock): a bundle waits for the next tick, the newest one is flown."""
+
+    realtime = True
+
+    def __init__(self, clock: RealtimeClock) -> None:
+        self.clock = clock
+
+    def offer(self, inp: SimInput, now: float) -> tuple[SimInput, int | None] | None:
+        self.clock.offer(inp.bundle, inp, now)
+        return None
+
+    def timeout_s(self, now: float) -> float:
+        return min(0.05, self.clock.timeout_s(now))
+
+    def due(self, now: float) -> tuple[SimInput, int | None] | None:
+        got = self.clock.tick(now)
+        return None if got is None else (got[1], got[2])  # (its SimInput, the FC's clock)
+
+    def report(self, now: float) -> str | None:
+        return self.clock.report(now)
+
+    def stats(self) -> dict[str, Any] | None:
+        return vars(self.clock.stats)
