@@ -25,41 +25,33 @@ Home is the position at arming (PX4); before the first arming it is where the ve
 step, so a GCS has a home to show (MAVSDK examples wait for home before arming). For an air start, home is
 the start position projected onto `ModeConfig.air_start_home_z_ned_m` (the plant's ground is NED z = 0).
 
-Land detector (needed for pre-arm "on ground", disarm checks, touchdown and EXTENDED_SYS_STATE): the vehicle
-is a landed candidate while it is slow (|v_down| < landed_max_vz_m_s and horizontal speed below
-landed_max_vxy_m_s) and carries little thrust (thrust/weight < landed_max_thrust_ratio); when the caller does
-not know the thrust (NaN), "near home altitude" (height above home < landed_max_height_m) replaces the
-thrust cue. The candidate must hold for landed_hold_s (except at the very first sample, so a vehicle that
-boots on the ground is landed at once). Thrust is the strongest cue because on touchdown the landing
-setpoint keeps descending below the ground (bounded by land_setpoint_floor_m), so INDI drives the thrust
-down within a few steps while the ground holds the vehicle still, the same signature PX4's multicopter land
-detector looks for (low thrust + no vertical motion).
+The land detector is navig8_fc.modes.land_detector, Hold's braking distance navig8_fc.modes.braking, the
+records (config, inputs, outputs, verdict, script, offboard target) navig8_fc.modes.records.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import NamedTuple
+from dataclasses import dataclass
 
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.mission.executor import ExecConfig, MissionExecutor
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Cmd, MissionItem, Plan, Progress
+from navig8_fc.modes.braking import braking_distance_m
+from navig8_fc.modes.land_detector import LandDetector
 from navig8_fc.modes.px4 import FlightMode, MavLandedState, MavModeFlag, MavState, Px4AutoSubMode, Px4MainMode
-
-Vec3 = tuple[float, float, float]
-
+from navig8_fc.modes.records import (
+    MissionScript,
+    ModeConfig,
+    ModeInputs,
+    ModeOutput,
+    OffboardTarget,
+    Vec3,
+    Verdict,
+)
 
 LAND_CONTACT_LAG_M = 0.2  # LAND: the setpoint this far below a slow vehicle near home height = ground contact
-
-
-class Verdict(NamedTuple):
-    """Answer to a command: accepted, or refused with a reason for STATUSTEXT. Unpacks as (ok, reason)."""
-
-    ok: bool
-    reason: str = ""
 
 
 TASK_RUNNING, TASK_DONE, TASK_FAILED, TASK_CANCELLED = 0, 1, 2, 3  # TaskStatus.state
@@ -83,214 +75,6 @@ class TaskStatus:
     def running(self) -> bool:
         return self.state == TASK_RUNNING
 
-
-@dataclass(frozen=True)
-class ModeConfig:
-    takeoff_climb_rate_m_s: float = 1.0
-    takeoff_default_alt_m: float = 2.5  # used when NAV_TAKEOFF carries no altitude (NaN), as PX4 MIS_TAKEOFF_ALT
-    takeoff_max_alt_m: float = 20.0  # the vehicle flies in confined spaces
-    takeoff_reached_tol_m: float = 0.2
-    land_descent_rate_m_s: float = 0.5
-    land_setpoint_floor_m: float = 0.5  # the landing setpoint stops this far below home (keeps errors bounded)
-    land_disarm_delay_s: float = 1.0  # disarm this long after touchdown
-    landed_max_vz_m_s: float = 0.25
-    landed_max_vxy_m_s: float = 0.5
-    landed_max_thrust_ratio: float = 0.5  # thrust / weight below this: the ground carries the vehicle
-    landed_max_height_m: float = 0.3  # fallback cue when the thrust is unknown
-    landed_hold_s: float = 0.5
-    # LAND touches down at once when the vehicle is this close to home height and no longer descending: the
-    # ground stopped it. The thrust cue needs landed_hold_s, and within that time an INDI with a prioritised
-    # allocation answers the impact by tilting the ducts past 90 deg to push down (the vertical force ranks
-    # above the forward one), which drives the vehicle along the ground.
-    land_contact_height_m: float = 0.1
-    air_start_home_z_ned_m: float = 0.0  # ground under an air-started vehicle (the plant's ground plane)
-    rtl_alt_m: float = 2.5  # Return (mode and plan item): climb to this height above home first if lower
-    manual_speed_m_s: float = 1.0  # Position mode: full stick = this horizontal speed
-    manual_climb_m_s: float = 0.5  # full throttle travel = this vertical speed
-    manual_yaw_rate_rad_s: float = 0.8  # full yaw stick
-    manual_deadband: float = 0.05  # of full stick travel
-    manual_lead_m: float = 1.0  # velocity-driven setpoints (sticks, offboard velocity) stay this close to the vehicle
-    # Offboard on the ground: idle until the target is this far above the vehicle (PX4's takeoff state machine keeps
-    # the motors at idle while landed and no climb is asked; pushing a target into the ground must not fly)
-    offboard_liftoff_m: float = 0.2
-    reposition_reached_tol_m: float = 0.3  # DO_REPOSITION is complete within this distance ...
-    reposition_reached_speed_m_s: float = 0.3  # ... and below this speed
-
-    def __post_init__(self) -> None:
-        positive = (
-            "takeoff_climb_rate_m_s",
-            "takeoff_default_alt_m",
-            "takeoff_max_alt_m",
-            "takeoff_reached_tol_m",
-            "land_descent_rate_m_s",
-            "landed_max_vz_m_s",
-            "landed_max_vxy_m_s",
-        )
-        for name in positive:
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"ModeConfig.{name} must be > 0, got {getattr(self, name)}")
-        if not self.takeoff_default_alt_m <= self.takeoff_max_alt_m:
-            raise ValueError("ModeConfig.takeoff_default_alt_m must not exceed takeoff_max_alt_m")
-
-
-@dataclass(frozen=True)
-class MissionScript:
-    """A scripted flight: `setpoint_at(mission_time_s)` gives the setpoint (NED, rad)."""
-
-    name: str
-    setpoint_at: Callable[[float], Setpoint]
-    starts_armed_in_air: bool = False
-    duration_s: float | None = None  # after this the manager holds at setpoint_at(duration_s)
-    start_t_s: float = 0.0  # sim time at which an air-started mission's clock reads 0
-    yields_to_plan: bool = False  # only an air start holding its initial setpoint: an uploaded plan replaces it
-
-
-@dataclass(frozen=True)
-class OffboardTarget:
-    """One streamed offboard target (NED, rad), each part optional (NaN: not given), as PX4's trajectory setpoint:
-    - position given on an axis: the reference there (a client streaming a moving position gets it);
-    - velocity only on an axis: the reference is integrated from it, kept within manual_lead_m of the vehicle;
-    - velocity with position: velocity feed-forward (the reference is offset by v / OL_POS_K, so the outer loop's
-      velocity command K_p (p_ref - p) + v equals v on the trajectory: no steady lag);
-    - neither: that axis holds where its reference is;
-    - yaw given: that heading; else yaw_rate given: integrated; else kept. pitch given: held (the paper's 45 deg
-      pitch hover); else kept. Roll is never commanded: the outer loop chooses it to null the body-y force;
-    - throttle (0..1, an attitude target's thrust) with neither z position nor z velocity: a vertical-speed
-      demand as Position mode's throttle stick (0.5 = hold altitude, manual_climb_m_s at the ends)."""
-
-    pos_ned: Vec3 = (math.nan, math.nan, math.nan)
-    vel_ned: Vec3 = (math.nan, math.nan, math.nan)
-    yaw_rad: float = math.nan
-    yaw_rate_rad_s: float = math.nan
-    pitch_rad: float = math.nan
-    throttle: float = math.nan
-
-    @staticmethod
-    def of(sp: Setpoint) -> OffboardTarget:
-        """A plain position setpoint as a target (position, pitch and yaw given)."""
-        return OffboardTarget(sp.pos_ned, yaw_rad=sp.yaw_rad, pitch_rad=sp.pitch_rad)
-
-    def problem(self) -> str:
-        """Why this target cannot be flown ('' when it can): no part given, or an infinite value."""
-        values = (*self.pos_ned, *self.vel_ned, self.yaw_rad, self.yaw_rate_rad_s, self.pitch_rad, self.throttle)
-        if any(math.isinf(v) for v in values):
-            return "Offboard target must be finite (NaN = not given)"
-        if all(math.isnan(v) for v in (*self.pos_ned, *self.vel_ned, self.pitch_rad, self.throttle)):
-            return "Offboard target has no position, velocity or attitude"
-        return ""
-
-
-@dataclass(frozen=True)
-class ModeInputs:
-    """One state sample (sim time, NED, rad) for the mode manager."""
-
-    t_s: float
-    pos_ned: Vec3
-    vel_ned: Vec3
-    yaw_rad: float
-    thrust_ratio: float = math.nan  # total thrust / weight (commanded or measured); NaN = unknown
-    sensors_ok: bool = True  # every sensor the controller needs is alive and fresh
-    estimator_ready: bool = True  # the adaptive law / estimator has a usable estimate
-    # the acceleration the vehicle is being driven with (the command shaper's reference, NED, m/s^2): where Hold
-    # stops depends on it (a vehicle still speeding up stops further on)
-    accel_ned: Vec3 = (0.0, 0.0, 0.0)
-
-
-@dataclass(frozen=True)
-class ModeOutput:
-    t_s: float
-    armed: bool
-    engaged: bool  # run the controller (False: motors off / idle)
-    setpoint: Setpoint
-    flight_mode: FlightMode
-    custom_mode: int  # PX4 encoding
-    base_mode: int  # MAV_MODE_FLAG: CUSTOM_MODE_ENABLED | SAFETY_ARMED when armed
-    landed_state: int  # MAV_LANDED_STATE
-    system_status: int  # MAV_STATE
-    landed: bool  # land detector
-    home_ned: Vec3 | None
-    home_yaw_rad: float
-    mission_time_s: float | None  # None outside MISSION
-    events: tuple[str, ...] = field(default_factory=tuple)  # for STATUSTEXT (INFO)
-    mission: Progress = Progress()  # the uploaded plan's progress (navig8_fc.mission.executor)
-    actions: tuple[tuple[str, object], ...] = ()  # arm/gripper actions of plan items (MissionExecutor.step)
-    entries: int = 0  # mode entries so far: a change means a fresh reference (also on re-entering the same mode)
-
-
-class LandDetector:
-    """Landed / not landed from speed, thrust (or height above home) held for a while (module docstring)."""
-
-    def __init__(self, config: ModeConfig) -> None:
-        self._cfg = config
-        # The (frozen) config's thresholds, read once per step.
-        self._max_vz = config.landed_max_vz_m_s
-        self._max_vxy = config.landed_max_vxy_m_s
-        self._max_thrust_ratio = config.landed_max_thrust_ratio
-        self._max_height = config.landed_max_height_m
-        self._hold_s = config.landed_hold_s
-        self._candidate_since_s: float | None = None
-        self._seen_sample = False
-        self.landed = False
-
-    def slow(self, inp: ModeInputs) -> bool:
-        """Below the landed speeds (vertical and horizontal)."""
-        vx, vy, vz = inp.vel_ned
-        return abs(vz) < self._max_vz and math.hypot(vx, vy) < self._max_vxy
-
-    def candidate(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
-        if not self.slow(inp):
-            return False
-        thrust_ratio = inp.thrust_ratio
-        if _isfinite(thrust_ratio):
-            return thrust_ratio < self._max_thrust_ratio
-        return home_z_ned_m is not None and (home_z_ned_m - inp.pos_ned[2]) < self._max_height
-
-    def step(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
-        if self.candidate(inp, home_z_ned_m):
-            t = inp.t_s
-            since = self._candidate_since_s
-            if since is None:
-                # At the very first sample there is no history: a vehicle that boots resting is landed at once.
-                since = self._candidate_since_s = t if self._seen_sample else t - self._hold_s
-            self.landed = t - since >= self._hold_s
-        else:
-            self._candidate_since_s = None
-            self.landed = False
-        self._seen_sample = True
-        return self.landed
-
-
-def braking_distance_m(v_m_s: float, a_m_s2: float, acc_max_m_s2: float, jerk_max_m_s3: float,
-                       lag_s: float = 0.0) -> float:
-    """The distance a 1-D motion at speed v > 0 and acceleration a (along v) flies before it rests, braking at most at
-    acc_max with the acceleration changing at most at jerk_max (inf: at once), after reacting lag_s late (the
-    command shaper's jerk stage). The braking is time-optimal: the acceleration ramps from a to -a_p, holds -a_p
-    while the speed needs it, and ramps back to zero as the speed reaches zero, with a_p = min(acc_max,
-    sqrt(j v + a^2 / 2)) (the peak at which the two ramps alone take the speed to zero). With a = 0 and no lag it
-    is v^2 / (2 A) + v A / (2 j) once the speed reaches the plateau (PX4's computeBrakingDistanceFromVelocity has
-    the same two terms)."""
-    big_a, j = acc_max_m_s2, jerk_max_m_s3
-    if not math.isfinite(big_a):
-        return 0.0
-    s = v_m_s * lag_s + 0.5 * a_m_s2 * lag_s * lag_s  # the reaction
-    v = v_m_s + a_m_s2 * lag_s
-    if v <= 0.0:
-        return max(0.0, s)
-    if not math.isfinite(j):
-        return max(0.0, s + v * v / (2.0 * big_a))
-    a0 = max(a_m_s2, -big_a)
-    a_p = min(big_a, math.sqrt(j * v + 0.5 * a0 * a0))
-    a = a0
-    if a_p < -a0:  # already braking harder than needed: only the ramp out
-        t = -a0 / j
-        return max(0.0, s + v * t + 0.5 * a * t * t + j * t ** 3 / 6.0)
-    for jerk, t in ((-j, (a0 + a_p) / j), (0.0, math.nan), (j, a_p / j)):
-        if jerk == 0.0:  # the plateau: until the speed the ramp out removes is what is left
-            t = max(0.0, (v - a_p * a_p / (2.0 * j)) / a_p) if a_p > 0.0 else 0.0
-        s += v * t + 0.5 * a * t * t + jerk * t ** 3 / 6.0
-        v += a * t + 0.5 * jerk * t * t
-        a += jerk * t
-    return max(0.0, s)
 
 
 class ModeManager:
