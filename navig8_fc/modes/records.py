@@ -154,3 +154,16 @@ class ModeOutput:
     actions: tuple[tuple[str, object], ...] = ()  # arm/gripper actions of plan items (MissionExecutor.step)
     entries: int = 0  # mode entries so far: a change means a fresh reference (also on re-entering the same mode)
 
+
+def sanitised(inp: ModeInputs, last: ModeInputs | None) -> ModeInputs:
+    """A sample with NaN/Inf state must not become a setpoint: reuse the last good state, flag sensors."""
+    pos, vel = inp.pos_ned, inp.vel_ned
+    # One NaN or Inf term makes the sum NaN or Inf, so a finite sum means every term is finite (the common
+    # case, one check); a non-finite sum is either a bad sample or finite terms that overflowed: look closer.
+    total = pos[0] + pos[1] + pos[2] + vel[0] + vel[1] + vel[2] + inp.yaw_rad + inp.t_s
+    if total - total == 0.0 or all(map(math.isfinite, (*pos, *vel, inp.yaw_rad, inp.t_s))):
+        return inp
+    pos = last.pos_ned if last is not None else (0.0, 0.0, 0.0)
+    yaw = last.yaw_rad if last is not None else 0.0
+    t = inp.t_s if math.isfinite(inp.t_s) else (last.t_s if last is not None else 0.0)
+    return ModeInputs(t, pos, (0.0, 0.0, 0.0), yaw, inp.thrust_ratio, False, inp.estimator_ready)
