@@ -1,15 +1,9 @@
-"""Flight modes and arming: a pure state machine on sim time (navig8_fc.modes.manager), PX4 mode encoding."""
+"""Flight modes and arming: a pure state machine on sim time (navig8_fc.modes.manager: arming, the mode switch,
+faults), one module per mode (takeoff, hold, land, position, offboard, rtl, mission), the land detector, the
+long-running command tracking (tasks), Hold's braking distance (braking), PX4 mode encoding (px4)."""
 
-from navig8_fc.modes.manager import (
-    LandDetector,
-    MissionScript,
-    ModeConfig,
-    ModeInputs,
-    ModeManager,
-    ModeOutput,
-    OffboardTarget,
-    Verdict,
-)
+from navig8_fc.modes.land_detector import LandDetector
+from navig8_fc.modes.manager import ModeManager
 from navig8_fc.modes.px4 import (
     FlightMode,
     MavLandedState,
@@ -20,6 +14,7 @@ from navig8_fc.modes.px4 import (
     decode_px4_custom_mode,
     px4_custom_mode,
 )
+from navig8_fc.modes.records import MissionScript, ModeConfig, ModeInputs, ModeOutput, OffboardTarget, Verdict
 
 __all__ = [
     "FlightMode",

@@ -1,296 +1,53 @@
-"""Flight-mode and arming state machine of the flight controller (pure, on sim time).
+"""Flight-mode and arming state machine of the flight controller (pure, on sim time): arming and its checks, the
+commands that choose modes, and the fault registry.
 
 One `step(ModeInputs) -> ModeOutput` per control tick, on the sensor bundle's time (lockstep: the bridge is
 the time master, DESIGN §4). Commands (`arm`, `disarm`, `takeoff`, `land`, `set_mode`) arrive between steps
 from the GCS side; they answer at once with a `Verdict` (accepted, or the reason for STATUSTEXT) and change
 `armed`/the mode at once, while everything that needs a fresh state sample (where a ramp starts, where to
-hold) happens at the next step. The manager never touches sockets, clocks or pymavlink.
+hold) happens at the next step: the new mode's `enter`. The manager never touches sockets, clocks or pymavlink.
 
-Modes (PX4 encoding, navig8_fc.modes.px4; docs/gcs.md):
-- READY (AUTO.READY): on the ground, armed or not; controller idle (motors off in the model).
-- TAKEOFF (AUTO.TAKEOFF): the altitude setpoint ramps from where the vehicle is at `takeoff_climb_rate_m_s`
-  to home + alt; done when the ramp has arrived and the vehicle is within `takeoff_reached_tol_m` -> HOLD.
-- HOLD (AUTO.LOITER, MAVSDK "Hold"): position hold where the vehicle comes to rest when the mode is entered (its
-  horizontal stopping point at the position reference's braking limits, as PX4's Loiter `calculate_breaking_stop`
-  and ArduPilot's `get_stopping_point_xy`), or at the takeoff target. Holding the entry point itself would fly
-  past it and back (docs/gcs.md "Hold").
-  Entered on the ground it stays idle (PX4 behaves the same: Hold does not take off).
-- LAND (AUTO.LAND): descend at `land_descent_rate_m_s` where the mode was entered; on touchdown (land
-  detector) the controller goes idle and the vehicle disarms `land_disarm_delay_s` later -> READY.
-- MISSION (AUTO.MISSION): follow a scripted setpoint function (a scenario such as the paper's). A script that
-  starts armed in the air starts the manager in MISSION, armed, with the mission clock equal to sim time
-  minus `MissionScript.start_t_s`, so the SITL run commands exactly what the in-process run commands.
+The manager decides; the mode switch (`switch.ModeSwitch`) holds the mode state and runs the step. Modes (PX4
+encoding, navig8_fc.modes.px4; docs/gcs.md), each a small class in its own module of this package
+(navig8_fc.modes.context describes what they share and hand back):
+- READY (AUTO.READY): on the ground, armed or not; controller idle (motors off in the model). No class.
+- TAKEOFF `takeoff.Takeoff`, HOLD `hold.Hold`, LAND `land.Land`, POSCTL `position.Position`, OFFBOARD
+  `offboard.Offboard`, RTL `rtl.Return`, MISSION `mission.Mission` (a scenario script or an uploaded plan).
+The land detector is `land_detector.LandDetector`, Hold's stopping point `braking`, the long-running commands'
+tracking `tasks.TaskTracker`, the records (config, inputs, outputs) `records`, the MAVLink encodings `px4`.
 
 Home is the position at arming (PX4); before the first arming it is where the vehicle stood at the first
 step, so a GCS has a home to show (MAVSDK examples wait for home before arming). For an air start, home is
 the start position projected onto `ModeConfig.air_start_home_z_ned_m` (the plant's ground is NED z = 0).
-
-Land detector (needed for pre-arm "on ground", disarm checks, touchdown and EXTENDED_SYS_STATE): the vehicle
-is a landed candidate while it is slow (|v_down| < landed_max_vz_m_s and horizontal speed below
-landed_max_vxy_m_s) and carries little thrust (thrust/weight < landed_max_thrust_ratio); when the caller does
-not know the thrust (NaN), "near home altitude" (height above home < landed_max_height_m) replaces the
-thrust cue. The candidate must hold for landed_hold_s (except at the very first sample, so a vehicle that
-boots on the ground is landed at once). Thrust is the strongest cue because on touchdown the landing
-setpoint keeps descending below the ground (bounded by land_setpoint_floor_m), so INDI drives the thrust
-down within a few steps while the ground holds the vehicle still, the same signature PX4's multicopter land
-detector looks for (low thrust + no vertical motion).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import NamedTuple
 
 from navig8_fc.core.outer_loop import Setpoint
-from navig8_fc.mission.executor import ExecConfig, MissionExecutor
 from navig8_fc.mission.geo import GeoOrigin
-from navig8_fc.mission.plan import Cmd, MissionItem, Plan, Progress
-from navig8_fc.modes.px4 import FlightMode, MavLandedState, MavModeFlag, MavState, Px4AutoSubMode, Px4MainMode
+from navig8_fc.mission.plan import Plan, Progress
+from navig8_fc.modes.braking import braking_distance_m
+from navig8_fc.modes.land_detector import LandDetector
+from navig8_fc.modes.px4 import (
+    BASE_MODE_ARMED,
+    BASE_MODE_DISARMED,
+    STATE_STANDBY,
+    FlightMode,
+    Px4AutoSubMode,
+    Px4MainMode,
+    px4_mode_name,
+    system_status,
+)
+from navig8_fc.modes.records import MissionScript, ModeConfig, ModeInputs, ModeOutput, OffboardTarget, Vec3, Verdict
+from navig8_fc.modes.switch import ModeSwitch
+from navig8_fc.modes.tasks import TASK_CANCELLED, TASK_DONE, TASK_FAILED, TASK_RUNNING, TaskStatus
 
-Vec3 = tuple[float, float, float]
-
-
-LAND_CONTACT_LAG_M = 0.2  # LAND: the setpoint this far below a slow vehicle near home height = ground contact
-
-
-class Verdict(NamedTuple):
-    """Answer to a command: accepted, or refused with a reason for STATUSTEXT. Unpacks as (ok, reason)."""
-
-    ok: bool
-    reason: str = ""
-
-
-TASK_RUNNING, TASK_DONE, TASK_FAILED, TASK_CANCELLED = 0, 1, 2, 3  # TaskStatus.state
-
-
-@dataclass(frozen=True)
-class TaskStatus:
-    """A long-running command's progress (COMMAND_ACK IN_PROGRESS, then its final result; docs/gcs.md).
-
-    task_id grows with every task started; kind names the command ("takeoff", "land", "return", "reposition",
-    "arm_joints"); progress_pct 0..100, never decreasing. A task ends DONE (it got there), CANCELLED (COMMAND_CANCEL,
-    or another command took over) or FAILED (a failsafe took over, or it could not complete)."""
-
-    task_id: int
-    kind: str
-    state: int = TASK_RUNNING
-    progress_pct: float = 0.0
-    reason: str = ""
-
-    @property
-    def running(self) -> bool:
-        return self.state == TASK_RUNNING
-
-
-@dataclass(frozen=True)
-class ModeConfig:
-    takeoff_climb_rate_m_s: float = 1.0
-    takeoff_default_alt_m: float = 2.5  # used when NAV_TAKEOFF carries no altitude (NaN), as PX4 MIS_TAKEOFF_ALT
-    takeoff_max_alt_m: float = 20.0  # the vehicle flies in confined spaces
-    takeoff_reached_tol_m: float = 0.2
-    land_descent_rate_m_s: float = 0.5
-    land_setpoint_floor_m: float = 0.5  # the landing setpoint stops this far below home (keeps errors bounded)
-    land_disarm_delay_s: float = 1.0  # disarm this long after touchdown
-    landed_max_vz_m_s: float = 0.25
-    landed_max_vxy_m_s: float = 0.5
-    landed_max_thrust_ratio: float = 0.5  # thrust / weight below this: the ground carries the vehicle
-    landed_max_height_m: float = 0.3  # fallback cue when the thrust is unknown
-    landed_hold_s: float = 0.5
-    # LAND touches down at once when the vehicle is this close to home height and no longer descending: the
-    # ground stopped it. The thrust cue needs landed_hold_s, and within that time an INDI with a prioritised
-    # allocation answers the impact by tilting the ducts past 90 deg to push down (the vertical force ranks
-    # above the forward one), which drives the vehicle along the ground.
-    land_contact_height_m: float = 0.1
-    air_start_home_z_ned_m: float = 0.0  # ground under an air-started vehicle (the plant's ground plane)
-    rtl_alt_m: float = 2.5  # Return (mode and plan item): climb to this height above home first if lower
-    manual_speed_m_s: float = 1.0  # Position mode: full stick = this horizontal speed
-    manual_climb_m_s: float = 0.5  # full throttle travel = this vertical speed
-    manual_yaw_rate_rad_s: float = 0.8  # full yaw stick
-    manual_deadband: float = 0.05  # of full stick travel
-    manual_lead_m: float = 1.0  # velocity-driven setpoints (sticks, offboard velocity) stay this close to the vehicle
-    # Offboard on the ground: idle until the target is this far above the vehicle (PX4's takeoff state machine keeps
-    # the motors at idle while landed and no climb is asked; pushing a target into the ground must not fly)
-    offboard_liftoff_m: float = 0.2
-    reposition_reached_tol_m: float = 0.3  # DO_REPOSITION is complete within this distance ...
-    reposition_reached_speed_m_s: float = 0.3  # ... and below this speed
-
-    def __post_init__(self) -> None:
-        positive = (
-            "takeoff_climb_rate_m_s",
-            "takeoff_default_alt_m",
-            "takeoff_max_alt_m",
-            "takeoff_reached_tol_m",
-            "land_descent_rate_m_s",
-            "landed_max_vz_m_s",
-            "landed_max_vxy_m_s",
-        )
-        for name in positive:
-            if not getattr(self, name) > 0.0:
-                raise ValueError(f"ModeConfig.{name} must be > 0, got {getattr(self, name)}")
-        if not self.takeoff_default_alt_m <= self.takeoff_max_alt_m:
-            raise ValueError("ModeConfig.takeoff_default_alt_m must not exceed takeoff_max_alt_m")
-
-
-@dataclass(frozen=True)
-class MissionScript:
-    """A scripted flight: `setpoint_at(mission_time_s)` gives the setpoint (NED, rad)."""
-
-    name: str
-    setpoint_at: Callable[[float], Setpoint]
-    starts_armed_in_air: bool = False
-    duration_s: float | None = None  # after this the manager holds at setpoint_at(duration_s)
-    start_t_s: float = 0.0  # sim time at which an air-started mission's clock reads 0
-    yields_to_plan: bool = False  # only an air start holding its initial setpoint: an uploaded plan replaces it
-
-
-@dataclass(frozen=True)
-class OffboardTarget:
-    """One streamed offboard target (NED, rad), each part optional (NaN: not given), as PX4's trajectory setpoint:
-    - position given on an axis: the reference there (a client streaming a moving position gets it);
-    - velocity only on an axis: the reference is integrated from it, kept within manual_lead_m of the vehicle;
-    - velocity with position: velocity feed-forward (the reference is offset by v / OL_POS_K, so the outer loop's
-      velocity command K_p (p_ref - p) + v equals v on the trajectory: no steady lag);
-    - neither: that axis holds where its reference is;
-    - yaw given: that heading; else yaw_rate given: integrated; else kept. pitch given: held (the paper's 45 deg
-      pitch hover); else kept. Roll is never commanded: the outer loop chooses it to null the body-y force;
-    - throttle (0..1, an attitude target's thrust) with neither z position nor z velocity: a vertical-speed
-      demand as Position mode's throttle stick (0.5 = hold altitude, manual_climb_m_s at the ends)."""
-
-    pos_ned: Vec3 = (math.nan, math.nan, math.nan)
-    vel_ned: Vec3 = (math.nan, math.nan, math.nan)
-    yaw_rad: float = math.nan
-    yaw_rate_rad_s: float = math.nan
-    pitch_rad: float = math.nan
-    throttle: float = math.nan
-
-    @staticmethod
-    def of(sp: Setpoint) -> OffboardTarget:
-        """A plain position setpoint as a target (position, pitch and yaw given)."""
-        return OffboardTarget(sp.pos_ned, yaw_rad=sp.yaw_rad, pitch_rad=sp.pitch_rad)
-
-    def problem(self) -> str:
-        """Why this target cannot be flown ('' when it can): no part given, or an infinite value."""
-        values = (*self.pos_ned, *self.vel_ned, self.yaw_rad, self.yaw_rate_rad_s, self.pitch_rad, self.throttle)
-        if any(math.isinf(v) for v in values):
-            return "Offboard target must be finite (NaN = not given)"
-        if all(math.isnan(v) for v in (*self.pos_ned, *self.vel_ned, self.pitch_rad, self.throttle)):
-            return "Offboard target has no position, velocity or attitude"
-        return ""
-
-
-@dataclass(frozen=True)
-class ModeInputs:
-    """One state sample (sim time, NED, rad) for the mode manager."""
-
-    t_s: float
-    pos_ned: Vec3
-    vel_ned: Vec3
-    yaw_rad: float
-    thrust_ratio: float = math.nan  # total thrust / weight (commanded or measured); NaN = unknown
-    sensors_ok: bool = True  # every sensor the controller needs is alive and fresh
-    estimator_ready: bool = True  # the adaptive law / estimator has a usable estimate
-    # the acceleration the vehicle is being driven with (the command shaper's reference, NED, m/s^2): where Hold
-    # stops depends on it (a vehicle still speeding up stops further on)
-    accel_ned: Vec3 = (0.0, 0.0, 0.0)
-
-
-@dataclass(frozen=True)
-class ModeOutput:
-    t_s: float
-    armed: bool
-    engaged: bool  # run the controller (False: motors off / idle)
-    setpoint: Setpoint
-    flight_mode: FlightMode
-    custom_mode: int  # PX4 encoding
-    base_mode: int  # MAV_MODE_FLAG: CUSTOM_MODE_ENABLED | SAFETY_ARMED when armed
-    landed_state: int  # MAV_LANDED_STATE
-    system_status: int  # MAV_STATE
-    landed: bool  # land detector
-    home_ned: Vec3 | None
-    home_yaw_rad: float
-    mission_time_s: float | None  # None outside MISSION
-    events: tuple[str, ...] = field(default_factory=tuple)  # for STATUSTEXT (INFO)
-    mission: Progress = Progress()  # the uploaded plan's progress (navig8_fc.mission.executor)
-    actions: tuple[tuple[str, object], ...] = ()  # arm/gripper actions of plan items (MissionExecutor.step)
-    entries: int = 0  # mode entries so far: a change means a fresh reference (also on re-entering the same mode)
-
-
-class LandDetector:
-    """Landed / not landed from speed, thrust (or height above home) held for a while (module docstring)."""
-
-    def __init__(self, config: ModeConfig) -> None:
-        self._cfg = config
-        # The (frozen) config's thresholds, read once per step.
-        self._max_vz = config.landed_max_vz_m_s
-        self._max_vxy = config.landed_max_vxy_m_s
-        self._max_thrust_ratio = config.landed_max_thrust_ratio
-        self._max_height = config.landed_max_height_m
-        self._hold_s = config.landed_hold_s
-        self._candidate_since_s: float | None = None
-        self._seen_sample = False
-        self.landed = False
-
-    def slow(self, inp: ModeInputs) -> bool:
-        """Below the landed speeds (vertical and horizontal)."""
-        vx, vy, vz = inp.vel_ned
-        return abs(vz) < self._max_vz and math.hypot(vx, vy) < self._max_vxy
-
-    def candidate(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
-        if not self.slow(inp):
-            return False
-        thrust_ratio = inp.thrust_ratio
-        if _isfinite(thrust_ratio):
-            return thrust_ratio < self._max_thrust_ratio
-        return home_z_ned_m is not None and (home_z_ned_m - inp.pos_ned[2]) < self._max_height
-
-    def step(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
-        if self.candidate(inp, home_z_ned_m):
-            t = inp.t_s
-            since = self._candidate_since_s
-            if since is None:
-                # At the very first sample there is no history: a vehicle that boots resting is landed at once.
-                since = self._candidate_since_s = t if self._seen_sample else t - self._hold_s
-            self.landed = t - since >= self._hold_s
-        else:
-            self._candidate_since_s = None
-            self.landed = False
-        self._seen_sample = True
-        return self.landed
-
-
-def braking_distance_m(v_m_s: float, a_m_s2: float, acc_max_m_s2: float, jerk_max_m_s3: float,
-                       lag_s: float = 0.0) -> float:
-    """The distance a 1-D motion at speed v > 0 and acceleration a (along v) flies before it rests, braking at most at
-    acc_max with the acceleration changing at most at jerk_max (inf: at once), after reacting lag_s late (the
-    command shaper's jerk stage). The braking is time-optimal: the acceleration ramps from a to -a_p, holds -a_p
-    while the speed needs it, and ramps back to zero as the speed reaches zero, with a_p = min(acc_max,
-    sqrt(j v + a^2 / 2)) (the peak at which the two ramps alone take the speed to zero). With a = 0 and no lag it
-    is v^2 / (2 A) + v A / (2 j) once the speed reaches the plateau (PX4's computeBrakingDistanceFromVelocity has
-    the same two terms)."""
-    big_a, j = acc_max_m_s2, jerk_max_m_s3
-    if not math.isfinite(big_a):
-        return 0.0
-    s = v_m_s * lag_s + 0.5 * a_m_s2 * lag_s * lag_s  # the reaction
-    v = v_m_s + a_m_s2 * lag_s
-    if v <= 0.0:
-        return max(0.0, s)
-    if not math.isfinite(j):
-        return max(0.0, s + v * v / (2.0 * big_a))
-    a0 = max(a_m_s2, -big_a)
-    a_p = min(big_a, math.sqrt(j * v + 0.5 * a0 * a0))
-    a = a0
-    if a_p < -a0:  # already braking harder than needed: only the ramp out
-        t = -a0 / j
-        return max(0.0, s + v * t + 0.5 * a * t * t + j * t ** 3 / 6.0)
-    for jerk, t in ((-j, (a0 + a_p) / j), (0.0, math.nan), (j, a_p / j)):
-        if jerk == 0.0:  # the plateau: until the speed the ramp out removes is what is left
-            t = max(0.0, (v - a_p * a_p / (2.0 * j)) / a_p) if a_p > 0.0 else 0.0
-        s += v * t + 0.5 * a * t * t + jerk * t ** 3 / 6.0
-        v += a * t + 0.5 * jerk * t * t
-        a += jerk * t
-    return max(0.0, s)
+__all__ = [  # the manager's API, and the names callers import from here
+    "TASK_CANCELLED", "TASK_DONE", "TASK_FAILED", "TASK_RUNNING", "LandDetector", "MissionScript", "ModeConfig",
+    "ModeInputs", "ModeManager", "ModeOutput", "OffboardTarget", "TaskStatus", "Verdict", "braking_distance_m",
+]
 
 
 class ModeManager:
@@ -298,52 +55,10 @@ class ModeManager:
 
     def __init__(self, config: ModeConfig | None = None, script: MissionScript | None = None) -> None:
         self._cfg = config or ModeConfig()
-        self._script = script
-        self._detector = LandDetector(self._cfg)
-        air_start = script is not None and script.starts_armed_in_air
-        self._armed = air_start
-        self._mode = FlightMode.MISSION if air_start else FlightMode.READY
-        self._entry_pending = True
-        self._entries = 0  # mode entries (ModeOutput.entries)
-        self._last: ModeInputs | None = None
-        self._last_output: ModeOutput | None = None
-        self._home: Vec3 | None = None
-        self._home_yaw_rad = 0.0
-        self._events: list[str] = []
-        # Mode state, set on entry.
-        self._sp: Setpoint | None = None  # HOLD target; ramp modes keep x, y, pitch, yaw here
-        self._ob_ref = Setpoint((0.0, 0.0, 0.0))  # Offboard's reference (set on entry)
-        self._ramp_z: float = 0.0
-        self._target_z: float = 0.0
-        self._takeoff_alt_m: float = self._cfg.takeoff_default_alt_m
-        self._touchdown_t_s: float | None = None
-        self._hold_on_ground = False
-        # Mission clock: mission time = t_s - _mission_t0_s while in MISSION; _mission_elapsed_s when paused.
-        self._mission_t0_s: float | None = script.start_t_s if air_start and script else None
-        self._mission_elapsed_s = 0.0
+        sw = self._sw = ModeSwitch(self._cfg, script)  # the mode state and its step
+        self._ctx, self._tasks, self._detector = sw.ctx, sw.tasks, sw.detector
         # Faults reported from outside the step (the FlightStack's link checks, rate check): name -> reason.
         self._faults: dict[str, str] = {}
-        # An uploaded plan (flown in MISSION when there is no script) and its executor.
-        self._plan: Plan | None = None
-        self._origin = GeoOrigin()
-        self._exec: MissionExecutor | None = None
-        self._progress = Progress()
-        self._reached_count = 0
-        self._land_xy: tuple[float, float] | None = None  # where a mission's landing goes down (else: here)
-        self._actions: list[tuple[str, object]] = []
-        self._rtl: MissionExecutor | None = None  # Return mode flies a one-item plan (NAV_RETURN_TO_LAUNCH)
-        self._offboard: OffboardTarget | None = None  # the last streamed target while it is fresh (None: lost)
-        self._pos_gain_1_s = 1.0  # the outer loop's OL_POS_K: velocity feed-forward as a position offset v / K_p
-        self._brake_acc_m_s2 = math.inf  # the position reference's braking limits (set_braking; inf: stops at once)
-        self._brake_jerk_m_s3 = math.inf
-        self._brake_lag_s = 0.0
-        self._reposition: tuple[Vec3, float] | None = None  # DO_REPOSITION target for Hold's entry
-        self._sticks: tuple[float, float, float, float] = (0.0, 0.0, 0.5, 0.0)  # x fwd, y right, z 0..1, r
-        # The long-running flight command in progress (takeoff, land, return, reposition) and its geometry.
-        self._task: TaskStatus | None = None
-        self._task_n = 0
-        self._task_from: Vec3 = (0.0, 0.0, 0.0)
-        self._task_to: Vec3 = (0.0, 0.0, 0.0)
 
     # --- read access ---------------------------------------------------------------------------------
     @property
@@ -352,23 +67,23 @@ class ModeManager:
 
     @property
     def script(self) -> MissionScript | None:
-        return self._script
+        return self._sw.mission.script
 
     @property
     def armed(self) -> bool:
-        return self._armed
+        return self._sw.armed
 
     @property
     def flight_mode(self) -> FlightMode:
-        return self._mode
+        return self._sw.mode
 
     @property
     def custom_mode(self) -> int:
-        return self._mode.custom_mode
+        return self._sw.mode.custom_mode
 
     @property
     def base_mode(self) -> int:
-        return _BASE_MODE_ARMED if self._armed else _BASE_MODE_DISARMED
+        return BASE_MODE_ARMED if self._sw.armed else BASE_MODE_DISARMED
 
     @property
     def landed(self) -> bool:
@@ -376,15 +91,34 @@ class ModeManager:
 
     @property
     def home_ned(self) -> Vec3 | None:
-        return self._home
+        return self._ctx.home
 
     @property
     def home_yaw_rad(self) -> float:
-        return self._home_yaw_rad
+        return self._sw.home_yaw_rad
 
     @property
     def last_output(self) -> ModeOutput | None:
-        return self._last_output
+        return self._ctx.last_output
+
+    @property
+    def sticks(self) -> tuple[float, float, float, float]:
+        """The last MANUAL_CONTROL sticks as Position mode flies them (x, y, r in [-1, 1], z in [0, 1])."""
+        return self._sw.position.sticks
+
+    @property
+    def offboard_target(self) -> OffboardTarget | None:
+        """The streamed offboard target in force (None: no stream, or lost)."""
+        return self._sw.offboard.target
+
+    @property
+    def task(self) -> TaskStatus | None:
+        """The last long-running flight command (running or how it ended); None before the first."""
+        return self._tasks.task
+
+    @property
+    def mission_progress(self) -> Progress:
+        return self._sw.mission.progress
 
     @property
     def faults(self) -> dict[str, str]:
@@ -404,13 +138,13 @@ class ModeManager:
     @property
     def system_status(self) -> int:
         """MAV_STATE now, including faults set since the last step (HEARTBEAT reads this, not the last step's)."""
-        if self._last is None:
-            return _STANDBY
-        return self._system_status(self._last)
+        if self._sw.last is None:
+            return STATE_STANDBY
+        return system_status(self._sw.armed, self._sw.last.sensors_ok, bool(self._faults))
 
     def prearm_check(self) -> Verdict:
         """Would `arm()` pass its checks now? (Also drives SYS_STATUS's PREARM_CHECK health bit.)"""
-        inp = self._last
+        inp = self._sw.last
         if inp is None:
             return Verdict(False, "no sensor data yet")
         if self._faults:
@@ -425,29 +159,29 @@ class ModeManager:
 
     # --- commands ------------------------------------------------------------------------------------
     def arm(self, force: bool = False) -> Verdict:
-        if self._armed:
+        if self._sw.armed:
             return Verdict(True, "already armed")
-        if self._last is None:
+        if self._sw.last is None:
             return Verdict(False, "Arming denied: no sensor data yet")
         if not force:
             check = self.prearm_check()
             if not check.ok:
                 return Verdict(False, f"Arming denied: {check.reason}")
-        inp = self._last
-        self._armed = True
-        self._home = inp.pos_ned
-        self._home_yaw_rad = inp.yaw_rad
+        inp = self._sw.last
+        self._sw.armed = True
+        self._ctx.home = inp.pos_ned
+        self._sw.home_yaw_rad = inp.yaw_rad
         # Armed in Mission: the mission starts. A forced arm in the air must not leave the controller idle: hold
         # where the vehicle is.
-        if self._mode is FlightMode.MISSION:
-            self._switch(FlightMode.MISSION)
+        if self._sw.mode is FlightMode.MISSION:
+            self._sw.switch(FlightMode.MISSION)
         else:
-            self._switch(FlightMode.READY if self._detector.landed else FlightMode.HOLD)
-        self._events.append("Armed" + (" (forced)" if force else ""))
+            self._sw.switch(FlightMode.READY if self._detector.landed else FlightMode.HOLD)
+        self._ctx.events.append("Armed" + (" (forced)" if force else ""))
         return Verdict(True)
 
     def disarm(self, force: bool = False) -> Verdict:
-        if not self._armed:
+        if not self._sw.armed:
             return Verdict(True, "already disarmed")
         if not force and not self._detector.landed:
             return Verdict(False, "Disarming denied: not landed")
@@ -455,37 +189,36 @@ class ModeManager:
         return Verdict(True)
 
     def takeoff(self, alt_above_home_m: float = math.nan) -> Verdict:
-        if not self._armed:
+        if not self._sw.armed:
             return Verdict(False, "Takeoff denied: not armed")
         alt = self._cfg.takeoff_default_alt_m if math.isnan(alt_above_home_m) else float(alt_above_home_m)
         if not (0.0 < alt <= self._cfg.takeoff_max_alt_m):
             return Verdict(False, f"Takeoff denied: altitude {alt:g} m outside (0, {self._cfg.takeoff_max_alt_m:g}]")
-        if self._last is not None and not self._last.sensors_ok:
+        if self._sw.last is not None and not self._sw.last.sensors_ok:
             return Verdict(False, "Takeoff denied: sensors not ready")
         if self._faults:
             return Verdict(False, f"Takeoff denied: {next(iter(self._faults.values()))}")
-        self._takeoff_alt_m = alt
-        if self._mode is FlightMode.TAKEOFF and not self._entry_pending:
-            self._target_z = self._home_z() - alt  # retarget; the ramp carries on from where it is
+        self._sw.takeoff.alt_m = alt
+        if self._sw.mode is FlightMode.TAKEOFF and not self._sw.entry_pending:
+            self._sw.takeoff.retarget(self._sw.home_z())  # the ramp carries on from where it is
         else:
-            self._switch(FlightMode.TAKEOFF)
-        here = self._here()
-        self._start_task("takeoff", (here[0], here[1], self._home_z() - alt))
-        self._events.append(f"Takeoff to {alt:.1f} m above home")
+            self._sw.switch(FlightMode.TAKEOFF)
+        here = self._sw.here()
+        self._tasks.start("takeoff", here, (here[0], here[1], self._sw.home_z() - alt))
+        self._ctx.events.append(f"Takeoff to {alt:.1f} m above home")
         return Verdict(True)
 
     def land(self) -> Verdict:
-        if not self._armed:
+        if not self._sw.armed:
             return Verdict(False, "Land denied: not armed")
-        if self._mode is FlightMode.RTL and self._task is not None and self._task.running:
-            self._end_task(TASK_CANCELLED, "replaced by land")  # land here, not at home
-        if self._mode is not FlightMode.LAND:
-            self._switch(FlightMode.LAND)
-            self._events.append("Landing")
-        if not self._detector.landed and not (self._task is not None and self._task.running
-                                                and self._task.kind in ("land", "return")):
-            here = self._here()
-            self._start_task("land", (here[0], here[1], self._home_z()))
+        if self._sw.mode is FlightMode.RTL and self._tasks.running:
+            self._tasks.end(TASK_CANCELLED, "replaced by land")  # land here, not at home
+        if self._sw.mode is not FlightMode.LAND:
+            self._sw.switch(FlightMode.LAND)
+            self._ctx.events.append("Landing")
+        if not self._detector.landed and not self._tasks.running_kind("land", "return"):
+            here = self._sw.here()
+            self._tasks.start("land", here, (here[0], here[1], self._sw.home_z()))
         return Verdict(True)
 
     def set_mode(self, custom_main: int, custom_sub: int) -> Verdict:
@@ -493,7 +226,7 @@ class ModeManager:
         mode = FlightMode.from_px4(int(custom_main), int(custom_sub))
         if mode is None:
             return Verdict(
-                False, f"Mode {_px4_name(custom_main, custom_sub)} not supported "
+                False, f"Mode {px4_mode_name(custom_main, custom_sub)} not supported "
                 "(Ready, Takeoff, Hold, Land, Mission, Return, Offboard, Position)"
             )
         if mode is FlightMode.TAKEOFF:
@@ -501,12 +234,10 @@ class ModeManager:
         if mode is FlightMode.LAND:
             return self.land()
         if mode is FlightMode.READY:
-            if self._armed and not self._detector.landed:
+            if self._sw.armed and not self._detector.landed:
                 return Verdict(False, "Mode Ready denied: only on the ground")
-            if self._mode is not FlightMode.READY:
-                self._switch(FlightMode.READY)
-            return Verdict(True)
-        flying = self._armed and not self._detector.landed
+            return self._enter_mode(mode)
+        flying = self._sw.armed and not self._detector.landed
         if mode is FlightMode.RTL:
             return self._enter_mode(mode, "Returning to launch") if flying else Verdict(
                 False, "Return denied: not flying")
@@ -514,27 +245,23 @@ class ModeManager:
             return self._enter_mode(mode, "Position") if flying else Verdict(
                 False, "Position denied: not flying (take off first)")
         if mode is FlightMode.OFFBOARD:
-            if self._offboard is None:
+            if self._sw.offboard.target is None:
                 return Verdict(False, "Offboard denied: no setpoint stream (send SET_POSITION_TARGET_* first)")
-            return self._enter_mode(mode, "Offboard") if self._armed else Verdict(False, "Offboard denied: not armed")
+            return self._enter_mode(mode, "Offboard") if self._sw.armed else Verdict(
+                False, "Offboard denied: not armed")
         # Hold and Mission can be selected while disarmed, as on PX4 (arming then starts the mission).
         if mode is FlightMode.HOLD:
-            if self._mode is not FlightMode.HOLD:
-                self._switch(FlightMode.HOLD)
-                self._events.append("Hold")
-            return Verdict(True)
-        # MISSION
-        if self._script is None and self._plan is None:
+            return self._enter_mode(mode, "Hold")
+        if self._sw.mission.script is None and self._sw.mission.plan is None:
             return Verdict(False, "Mode Mission denied: no mission loaded")
-        if self._mode is not FlightMode.MISSION:
-            self._switch(FlightMode.MISSION)
-        return Verdict(True)
+        return self._enter_mode(mode)
 
-    def _enter_mode(self, mode: FlightMode, event: str) -> Verdict:
-        """Switch to `mode` (announcing `event`) unless already in it."""
-        if self._mode is not mode:
-            self._switch(mode)
-            self._events.append(event)
+    def _enter_mode(self, mode: FlightMode, event: str = "") -> Verdict:
+        """Switch to `mode` (announcing `event`, if any) unless already in it."""
+        if self._sw.mode is not mode:
+            self._sw.switch(mode)
+            if event:
+                self._ctx.events.append(event)
         return Verdict(True)
 
     def set_custom_mode(self, custom_mode: int) -> Verdict:
@@ -544,402 +271,69 @@ class ModeManager:
     def load_plan(self, plan: Plan, origin: GeoOrigin) -> None:
         """An uploaded mission plan (or a new start item): flown in MISSION when there is no script. A mission
         in flight continues on the new plan from its start item at the next step."""
-        self._plan = plan if plan.items else None
-        self._origin = origin
-        if self._plan is not None and self._script is not None and self._script.yields_to_plan:
-            self._script = None  # the air start's hold gives way to the plan (flown from where the vehicle is)
-            self._mission_t0_s = None
-        self._exec = None
-        self._progress = Progress(plan.current, reached_log=self._progress.reached_log)
-        if self._mode is FlightMode.MISSION and self._script is None:
-            if self._plan is None:
-                self._switch(FlightMode.HOLD)
-                self._events.append("Mission cleared: holding")
+        self._sw.mission.load(plan, origin)
+        if self._sw.mode is FlightMode.MISSION and self._sw.mission.script is None:
+            if self._sw.mission.plan is None:
+                self._sw.switch(FlightMode.HOLD)
+                self._ctx.events.append("Mission cleared: holding")
             else:
-                self._entry_pending = True
+                self._sw.entry_pending = True
 
     def offboard_setpoint(self, sp: Setpoint | OffboardTarget | None) -> None:
         """The latest streamed offboard target (a Setpoint: position, pitch, yaw; None: the stream is lost, the
         FlightStack decides on timeouts). Offboard mode flies it; losing it in Offboard switches to Hold where the
         vehicle is."""
-        self._offboard = OffboardTarget.of(sp) if isinstance(sp, Setpoint) else sp
-        if sp is None and self._mode is FlightMode.OFFBOARD:
-            self._switch(FlightMode.HOLD)
+        self._sw.offboard.set_target(sp)
+        if sp is None and self._sw.mode is FlightMode.OFFBOARD:
+            self._sw.switch(FlightMode.HOLD)
 
     def manual_input(self, x: float, y: float, z: float, r: float) -> None:
         """MANUAL_CONTROL sticks, normalised: x forward, y right, r yaw right in [-1, 1], z throttle in [0, 1]
         (0.5 = hold altitude). Position mode flies them; centred sticks hold."""
-        def clip(v: float, lo: float) -> float:
-            return 0.0 if not math.isfinite(v) else min(1.0, max(lo, v))
-
-        self._sticks = (clip(x, -1.0), clip(y, -1.0), clip(z, 0.0) if math.isfinite(z) else 0.5, clip(r, -1.0))
+        self._sw.position.set_sticks(x, y, z, r)
 
     def reposition(self, pos_ned: Vec3, yaw_rad: float = math.nan) -> Verdict:
         """DO_REPOSITION (MAVSDK goto_location, QGC Go to / Pause): Hold at pos_ned (a NaN component: where the
         vehicle is), yaw_rad (NaN: keep)."""
-        if not self._armed or self._detector.landed:
+        if not self._sw.armed or self._detector.landed:
             return Verdict(False, "Reposition denied: not flying")
-        self._reposition = (pos_ned, yaw_rad)
-        if self._mode is FlightMode.HOLD and not self._entry_pending:
-            self._apply_reposition()
+        self._sw.hold.reposition_to(pos_ned, yaw_rad)
+        if self._sw.mode is FlightMode.HOLD and not self._sw.entry_pending:
+            self._sw.hold.apply_reposition()
         else:
-            self._switch(FlightMode.HOLD)
-        here = self._here()
-        self._start_task("reposition", tuple(h if math.isnan(p) else p  # type: ignore[arg-type]
-                                             for p, h in zip(pos_ned, here, strict=True)))
+            self._sw.switch(FlightMode.HOLD)
+        here = self._sw.here()
+        self._tasks.start("reposition", here, tuple(h if math.isnan(p) else p  # type: ignore[arg-type]
+                                                    for p, h in zip(pos_ned, here, strict=True)))
         return Verdict(True)
 
     def return_to_launch(self) -> Verdict:
         """MAV_CMD_NAV_RETURN_TO_LAUNCH: Return mode, reported as a long command (done at touchdown at home)."""
         verdict = self.set_mode(int(Px4MainMode.AUTO), int(Px4AutoSubMode.RTL))
-        if verdict.ok and not (self._task is not None and self._task.running and self._task.kind == "return"):
-            self._start_task("return", self._home or self._here())
+        if verdict.ok and not self._tasks.running_kind("return"):
+            here = self._sw.here()
+            self._tasks.start("return", here, self._ctx.home or here)
         return verdict
-
-    # --- long-running commands -----------------------------------------------------------------------------
-    @property
-    def task(self) -> TaskStatus | None:
-        """The last long-running flight command (running or how it ended); None before the first."""
-        return self._task
 
     def cancel_task(self) -> bool:
         """COMMAND_CANCEL: stop the running flight command and hold where the vehicle is; False when none runs."""
-        tk = self._task
+        tk = self._tasks.task
         if tk is None or not tk.running:
             return False
-        self._end_task(TASK_CANCELLED, "cancelled")
-        self._reposition = None
-        self._switch(FlightMode.HOLD)  # entry: hold here (on the ground: stays idle)
-        self._events.append(f"{tk.kind.capitalize()} cancelled: holding")
+        self._tasks.end(TASK_CANCELLED, "cancelled")
+        self._sw.hold.drop_reposition()
+        self._sw.switch(FlightMode.HOLD)  # entry: hold here (on the ground: stays idle)
+        self._ctx.events.append(f"{tk.kind.capitalize()} cancelled: holding")
         return True
 
     def fail_task(self, reason: str) -> None:
         """A failsafe takes over: the running flight command ends FAILED (before the failsafe changes the mode)."""
-        if self._task is not None and self._task.running:
-            self._end_task(TASK_FAILED, reason)
-
-    def _here(self) -> Vec3:
-        return self._last.pos_ned if self._last is not None else (0.0, 0.0, 0.0)
-
-    def _start_task(self, kind: str, to: Vec3) -> None:
-        if self._task is not None and self._task.running:
-            self._end_task(TASK_CANCELLED, f"replaced by {kind}")
-        self._task_n += 1
-        self._task = TaskStatus(self._task_n, kind)
-        self._task_from, self._task_to = self._here(), to
-
-    def _end_task(self, state: int, reason: str = "") -> None:
-        tk = self._task
-        assert tk is not None
-        self._task = TaskStatus(tk.task_id, tk.kind, state, 100.0 if state == TASK_DONE else tk.progress_pct, reason)
-
-    def _update_task(self, inp: ModeInputs) -> None:
-        """Progress (the share of the start-to-target distance covered, never decreasing) and the end of the running
-        task when its mode was left (a command's own ending is set where it happens: touchdown, takeoff done)."""
-        tk = self._task
-        if tk is None or not tk.running:
-            return
-        mode = self._mode
-        own = {"takeoff": (FlightMode.TAKEOFF,), "land": (FlightMode.LAND,), "reposition": (FlightMode.HOLD,),
-               "return": (FlightMode.RTL, FlightMode.LAND)}[tk.kind]
-        if mode not in own or not self._armed:
-            self._end_task(TASK_FAILED, f"mode changed to {mode.label}")
-            return
-        d = math.dist(inp.pos_ned, self._task_to)
-        if tk.kind == "reposition" and d < self._cfg.reposition_reached_tol_m and math.hypot(
-                *inp.vel_ned) < self._cfg.reposition_reached_speed_m_s:
-            self._end_task(TASK_DONE)
-            return
-        d0 = math.dist(self._task_from, self._task_to)
-        pct = 100.0 * min(1.0, max(0.0, 1.0 - d / d0)) if d0 > 1e-6 else 0.0
-        if pct > tk.progress_pct:
-            self._task = TaskStatus(tk.task_id, tk.kind, TASK_RUNNING, pct)
-
-    def _apply_reposition(self) -> None:
-        assert self._sp is not None and self._reposition is not None
-        (n, e, d), yaw = self._reposition
-        self._reposition = None
-        x, y, z = self._sp.pos_ned
-        pos = (x if math.isnan(n) else n, y if math.isnan(e) else e, z if math.isnan(d) else d)
-        self._sp = Setpoint(pos, self._sp.pitch_rad, self._sp.yaw_rad if math.isnan(yaw) else yaw)
-        self._hold_on_ground = False
-        self._events.append(f"Reposition to N {pos[0]:.2f} E {pos[1]:.2f} D {pos[2]:.2f} m")
-
-    @property
-    def mission_progress(self) -> Progress:
-        return self._progress
-
-    # --- the step ------------------------------------------------------------------------------------
-    def step(self, inp: ModeInputs) -> ModeOutput:
-        inp = self._sanitise(inp)
-        t = inp.t_s
-        prev = self._last
-        if prev is None:
-            dt = 0.0
-        else:
-            dt = t - prev.t_s
-            if dt < 0.0:  # max(dt, 0.0)
-                dt = 0.0
-        home = self._home
-        if home is None:
-            if self._script is not None and self._script.starts_armed_in_air:
-                home = (inp.pos_ned[0], inp.pos_ned[1], self._cfg.air_start_home_z_ned_m)
-            else:
-                home = inp.pos_ned
-            self._home = home
-            self._home_yaw_rad = inp.yaw_rad
-        landed = self._detector.step(inp, home[2])
-        self._last = inp
-        if not self._armed and self._mode is not FlightMode.READY and self._mode not in _SELECTABLE_DISARMED:
-            self._switch(FlightMode.READY)
-        if self._entry_pending:
-            self._enter(inp)
-        setpoint, engaged, mission_time = self._run(inp, dt)
-        self._update_task(inp)
-        armed = self._armed
-        mode = self._mode
-        events = self._events
-        out = ModeOutput(
-            t,
-            armed,
-            engaged,
-            setpoint,
-            mode,
-            mode.custom_mode,
-            _BASE_MODE_ARMED if armed else _BASE_MODE_DISARMED,
-            self._landed_state(),
-            self._system_status(inp),
-            landed,
-            self._home,
-            self._home_yaw_rad,
-            mission_time,
-            tuple(events) if events else (),
-            self._mission_progress_now(),
-            tuple(self._actions) if self._actions else (),
-            self._entries,
-        )
-        if events:
-            events.clear()
-        if self._actions:
-            self._actions.clear()
-        self._last_output = out
-        return out
-
-    # --- internals -----------------------------------------------------------------------------------
-    def _sanitise(self, inp: ModeInputs) -> ModeInputs:
-        """A sample with NaN/Inf state must not become a setpoint: reuse the last good state, flag sensors."""
-        pos, vel = inp.pos_ned, inp.vel_ned
-        # One NaN or Inf term makes the sum NaN or Inf, so a finite sum means every term is finite (the common
-        # case, one check); a non-finite sum is either a bad sample or finite terms that overflowed: look closer.
-        total = pos[0] + pos[1] + pos[2] + vel[0] + vel[1] + vel[2] + inp.yaw_rad + inp.t_s
-        if total - total == 0.0 or all(map(_isfinite, (*pos, *vel, inp.yaw_rad, inp.t_s))):
-            return inp
-        last = self._last
-        pos = last.pos_ned if last is not None else (0.0, 0.0, 0.0)
-        yaw = last.yaw_rad if last is not None else 0.0
-        t = inp.t_s if math.isfinite(inp.t_s) else (last.t_s if last is not None else 0.0)
-        return ModeInputs(t, pos, (0.0, 0.0, 0.0), yaw, inp.thrust_ratio, False, inp.estimator_ready)
-
-    def _home_z(self) -> float:
-        if self._home is not None:
-            return self._home[2]
-        return self._last.pos_ned[2] if self._last is not None else 0.0
-
-    def _switch(self, mode: FlightMode) -> None:
-        tk = self._task
-        if tk is not None and tk.running and mode is not self._mode and not (
-                tk.kind == "return" and mode is FlightMode.LAND):
-            self._end_task(TASK_CANCELLED, f"mode changed to {mode.label}")
-        if self._mode is FlightMode.MISSION and mode is not FlightMode.MISSION and self._mission_t0_s is not None:
-            if self._last is not None:
-                self._mission_elapsed_s = max(self._last.t_s - self._mission_t0_s, 0.0)
-            self._mission_t0_s = None
-        self._mode = mode
-        self._entry_pending = True
-
-    def _disarm(self, event: str) -> None:
-        self._armed = False
-        self._switch(FlightMode.READY)
-        self._events.append(event)
-
-    def _current_pitch(self) -> float:
-        out = self._last_output
-        return out.setpoint.pitch_rad if out is not None and out.engaged else 0.0
-
-    def _enter(self, inp: ModeInputs) -> None:
-        """Entry actions that need a state sample (where to hold, where a ramp starts)."""
-        self._entry_pending = False
-        self._entries += 1
-        x, y, z = inp.pos_ned
-        mode = self._mode
-        if mode is FlightMode.HOLD:
-            self._hold_on_ground = self._detector.landed
-            if not self._hold_on_ground:
-                x, y = self._stopping_point(x, y, inp.vel_ned, inp.accel_ned)
-            self._sp = Setpoint((x, y, z), self._current_pitch(), inp.yaw_rad)
-            if self._reposition is not None:
-                self._apply_reposition()
-        elif mode is FlightMode.POSCTL:
-            self._sp = Setpoint((x, y, z), self._current_pitch(), inp.yaw_rad)
-        elif mode is FlightMode.OFFBOARD:  # the reference starts where the vehicle was being held
-            out = self._last_output
-            self._sp = (Setpoint(out.setpoint.pos_ned, out.setpoint.pitch_rad, out.setpoint.yaw_rad)
-                        if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad))
-            self._ob_ref = self._sp
-        elif mode is FlightMode.RTL:
-            out = self._last_output
-            start = out.setpoint if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad)
-            self._rtl = MissionExecutor(_RTL_PLAN, self._origin, self._home or inp.pos_ned,
-                                        Setpoint(start.pos_ned, 0.0, start.yaw_rad), self._exec_config())
-        elif mode is FlightMode.TAKEOFF:
-            self._sp = Setpoint((x, y, z), 0.0, inp.yaw_rad)
-            self._ramp_z = z
-            self._target_z = self._home_z() - self._takeoff_alt_m
-        elif mode is FlightMode.LAND:
-            if self._land_xy is not None:
-                x, y = self._land_xy
-                self._land_xy = None
-            self._sp = Setpoint((x, y, z), 0.0, inp.yaw_rad)
-            self._ramp_z = z
-            self._target_z = max(self._home_z(), z) + self._cfg.land_setpoint_floor_m
-            self._touchdown_t_s = None
-        elif mode is FlightMode.MISSION and self._script is None:
-            if not self._armed:
-                return  # selected on the ground: starts when armed
-            out = self._last_output
-            start = out.setpoint if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad)
-            assert self._plan is not None
-            if self._exec is None or self._exec.finished:
-                self._exec = MissionExecutor(self._plan, self._origin, self._home or inp.pos_ned, start,
-                                             self._exec_config(), self._reached_count)
-                self._events.append(f"Mission started at item {self._exec.progress.current}")
-            else:
-                self._events.append(f"Mission resumed at item {self._exec.progress.current}")
-        elif mode is FlightMode.MISSION:
-            assert self._script is not None
-            duration = self._script.duration_s
-            if self._mission_t0_s is None:
-                if duration is not None and self._mission_elapsed_s >= duration:
-                    self._mission_elapsed_s = 0.0  # a finished mission starts again
-                self._mission_t0_s = inp.t_s - self._mission_elapsed_s
-                verb = "resumed" if self._mission_elapsed_s > 0.0 else "started"
-                self._events.append(f"Mission {self._script.name} {verb}")
-            else:
-                self._events.append(f"Mission {self._script.name} started (armed in the air)")
-        else:
-            self._sp = None
-
-    def _run(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
-        mode = self._mode
-        if mode is FlightMode.MISSION and self._armed:
-            if self._script is None:
-                return self._run_plan(inp, dt)
-            return self._run_mission(inp.t_s)
-        if not self._armed or mode is FlightMode.READY:
-            return _idle(inp), False, None
-        if mode is FlightMode.HOLD:
-            assert self._sp is not None
-            if self._hold_on_ground:
-                return _idle(inp), False, None
-            return self._sp, True, None
-        if mode is FlightMode.RTL:
-            return self._run_rtl(inp, dt)
-        if mode is FlightMode.POSCTL:
-            return self._run_position(inp, dt), True, None
-        if mode is FlightMode.OFFBOARD:
-            if self._offboard is None:  # lost between the stack's check and this step
-                self._switch(FlightMode.HOLD)
-                return self._last_output.setpoint if self._last_output else _idle(inp), True, None
-            sp = self._run_offboard(inp, dt)
-            if self._detector.landed and sp.pos_ned[2] > inp.pos_ned[2] - self._cfg.offboard_liftoff_m:
-                return _idle(inp), False, None  # on the ground and not asked to climb: idle, as PX4's takeoff state
-            return sp, True, None
-        if mode is FlightMode.TAKEOFF:
-            assert self._sp is not None
-            self._ramp_z = _approach(self._ramp_z, self._target_z, self._cfg.takeoff_climb_rate_m_s * dt)
-            sp = Setpoint((self._sp.pos_ned[0], self._sp.pos_ned[1], self._ramp_z), 0.0, self._sp.yaw_rad)
-            if (
-                self._ramp_z == self._target_z
-                and abs(inp.pos_ned[2] - self._target_z) < self._cfg.takeoff_reached_tol_m
-            ):
-                if self._task is not None and self._task.running and self._task.kind == "takeoff":
-                    self._end_task(TASK_DONE)
-                self._switch(FlightMode.HOLD)
-                self._entry_pending = False
-                self._hold_on_ground = False
-                self._sp = sp
-                self._events.append(f"Takeoff complete: holding at {self._takeoff_alt_m:.1f} m")
-            return sp, True, None
-        if mode is FlightMode.LAND:
-            assert self._sp is not None
-            if self._touchdown_t_s is None:
-                if self._detector.landed or self._ground_contact(inp):
-                    self._touchdown_t_s = inp.t_s
-                    self._events.append("Landed")
-                    if self._task is not None and self._task.running and self._task.kind in ("land", "return"):
-                        self._end_task(TASK_DONE)
-                    return _idle(inp), False, None
-                self._ramp_z = _approach(self._ramp_z, self._target_z, self._cfg.land_descent_rate_m_s * dt)
-                return (
-                    Setpoint((self._sp.pos_ned[0], self._sp.pos_ned[1], self._ramp_z), 0.0, self._sp.yaw_rad),
-                    True,
-                    None,
-                )
-            if inp.t_s - self._touchdown_t_s >= self._cfg.land_disarm_delay_s:
-                self._disarm("Disarmed after landing")
-                self._entry_pending = False
-            return _idle(inp), False, None
-        raise AssertionError(f"unhandled mode {mode}")  # MISSION is handled first
-
-    def _ground_contact(self, inp: ModeInputs) -> bool:
-        """LAND's touchdown without the detector's hold: within land_contact_height_m of home height, slow, and held
-        up by something: the descending setpoint is LAND_CONTACT_LAG_M below the vehicle. Without that last
-        condition a slow hover anywhere below home height (home on a roof) was taken for touchdown."""
-        home = self._home
-        z = inp.pos_ned[2]
-        return (home is not None and abs(home[2] - z) < self._cfg.land_contact_height_m
-                and self._ramp_z > z + LAND_CONTACT_LAG_M and self._detector.slow(inp))
-
-    def _run_mission(self, t_s: float) -> tuple[Setpoint, bool, float | None]:
-        script = self._script
-        assert script is not None and self._mission_t0_s is not None
-        mission_t = t_s - self._mission_t0_s
-        duration = script.duration_s
-        if duration is not None and mission_t >= duration:
-            final = script.setpoint_at(duration)
-            self._mission_elapsed_s = duration
-            self._mission_t0_s = None
-            self._mode = FlightMode.HOLD
-            self._hold_on_ground = False
-            self._sp = final
-            self._events.append(f"Mission {script.name} complete: holding")
-            return final, True, None
-        return script.setpoint_at(mission_t), True, mission_t
-
-    def _run_position(self, inp: ModeInputs, dt: float) -> Setpoint:
-        """Sticks -> velocities in the heading frame, integrated into the position setpoint (PX4's Position mode:
-        centred sticks hold), the setpoint kept within manual_lead_m of the vehicle."""
-        assert self._sp is not None
-        cfg = self._cfg
-        db = cfg.manual_deadband
-        x, y, r = (0.0 if abs(v) < db else v for v in (self._sticks[0], self._sticks[1], self._sticks[3]))
-        sp = self._sp
-        yaw = _wrap_pi(sp.yaw_rad + r * cfg.manual_yaw_rate_rad_s * dt)
-        c, s_ = math.cos(yaw), math.sin(yaw)
-        v = cfg.manual_speed_m_s
-        vn, ve, vd = (c * x - s_ * y) * v, (s_ * x + c * y) * v, self._climb_rate_down(self._sticks[2])
-        self._sp = Setpoint(_integrate_led(sp.pos_ned, (vn, ve, vd), inp.pos_ned, dt, cfg.manual_lead_m),
-                            sp.pitch_rad, yaw)
-        return self._sp
-
-    def _climb_rate_down(self, throttle: float) -> float:
-        """A throttle in [0, 1] (0.5 = hold altitude, deadband around it) -> NED down speed, m/s."""
-        z = throttle - 0.5
-        return 0.0 if abs(z) < self._cfg.manual_deadband else -2.0 * z * self._cfg.manual_climb_m_s
+        if self._tasks.running:
+            self._tasks.end(TASK_FAILED, reason)
 
     def set_position_gain(self, pos_k_1_s: float) -> None:
         """The outer loop's position gain OL_POS_K (1/s): offboard velocity feed-forward is the offset v / K_p."""
-        self._pos_gain_1_s = float(pos_k_1_s)
+        self._sw.offboard.pos_gain_1_s = float(pos_k_1_s)
 
     def set_braking(self, acc_m_s2: float, jerk_m_s3: float, lag_s: float = 0.0) -> None:
         """The limits the position reference brakes with (OL_ACC_REF and OL_JERK_MAX when shaping, with its jerk
@@ -947,146 +341,12 @@ class ModeManager:
         vehicle to rest."""
         if not (acc_m_s2 > 0.0 and jerk_m_s3 > 0.0 and lag_s >= 0.0):
             raise ValueError(f"braking limits must be positive (inf = none), got {acc_m_s2}, {jerk_m_s3}, {lag_s}")
-        self._brake_acc_m_s2, self._brake_jerk_m_s3, self._brake_lag_s = float(acc_m_s2), float(jerk_m_s3), float(lag_s)
+        self._sw.hold.set_braking(float(acc_m_s2), float(jerk_m_s3), float(lag_s))
 
-    def _stopping_point(self, x: float, y: float, vel_ned: Vec3, accel_ned: Vec3) -> tuple[float, float]:
-        """Where the horizontal motion comes to rest under the position reference's braking limits
-        (braking_distance_m); holding any nearer point flies past it and back."""
-        vx, vy = vel_ned[0], vel_ned[1]
-        v = math.hypot(vx, vy)
-        if not v > 0.0:  # also NaN
-            return x, y
-        ux, uy = vx / v, vy / v
-        a_along = accel_ned[0] * ux + accel_ned[1] * uy
-        d = braking_distance_m(v, a_along if math.isfinite(a_along) else 0.0, self._brake_acc_m_s2,
-                               self._brake_jerk_m_s3, self._brake_lag_s)
-        return x + ux * d, y + uy * d
+    # --- the step ------------------------------------------------------------------------------------
+    def step(self, inp: ModeInputs) -> ModeOutput:
+        return self._sw.step(inp, bool(self._faults))
 
-    def _run_offboard(self, inp: ModeInputs, dt: float) -> Setpoint:
-        """The streamed target -> this step's setpoint (OffboardTarget's docstring). The reference (self._ob_ref)
-        integrates velocity-only axes and yaw rate; the flown setpoint adds the velocity feed-forward."""
-        tgt = self._offboard
-        assert tgt is not None
-        ref = self._ob_ref
-        pos, vel = tgt.pos_ned, tgt.vel_ned
-        if not math.isnan(tgt.throttle) and math.isnan(pos[2]) and math.isnan(vel[2]):
-            vel = (vel[0], vel[1], self._climb_rate_down(tgt.throttle))
-        v_int = tuple(0.0 if math.isnan(v) or not math.isnan(p) else v for p, v in zip(pos, vel, strict=True))
-        moved = _integrate_led(ref.pos_ned, v_int, inp.pos_ned, dt, self._cfg.manual_lead_m)  # type: ignore[arg-type]
-        ref_pos = tuple(m if math.isnan(p) else p for p, m in zip(pos, moved, strict=True))
-        if not math.isnan(tgt.yaw_rad):
-            yaw = tgt.yaw_rad
-        elif not math.isnan(tgt.yaw_rate_rad_s):
-            yaw = _wrap_pi(ref.yaw_rad + tgt.yaw_rate_rad_s * dt)
-        else:
-            yaw = ref.yaw_rad
-        pitch = ref.pitch_rad if math.isnan(tgt.pitch_rad) else tgt.pitch_rad
-        self._ob_ref = Setpoint(ref_pos, pitch, yaw)  # type: ignore[arg-type]
-        k = self._pos_gain_1_s
-        if k <= 0.0 or all(math.isnan(v) for v in vel):
-            return self._ob_ref
-        ff = tuple(r if math.isnan(v) else r + v / k for r, v in zip(ref_pos, vel, strict=True))
-        return Setpoint(ff, pitch, yaw)  # type: ignore[arg-type]
-
-    def _exec_config(self) -> ExecConfig:
-        cfg = self._cfg
-        return ExecConfig(cfg.takeoff_climb_rate_m_s, cfg.takeoff_reached_tol_m, rtl_alt_m=cfg.rtl_alt_m)
-
-    def _run_rtl(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
-        ex = self._rtl
-        assert ex is not None
-        st = ex.step(inp.t_s, inp.pos_ned, inp.yaw_rad, dt)
-        if st.land:
-            self._land_xy = (st.setpoint.pos_ned[0], st.setpoint.pos_ned[1])
-            self._switch(FlightMode.LAND)
-            self._events.append("Return: landing at home")
-        return st.setpoint, True, None
-
-    def _run_plan(self, inp: ModeInputs, dt: float) -> tuple[Setpoint, bool, float | None]:
-        ex = self._exec
-        assert ex is not None
-        st = ex.step(inp.t_s, inp.pos_ned, inp.yaw_rad, dt)
-        self._reached_count = ex.reached_count
-        self._progress = ex.progress
-        self._actions += st.actions
-        self._events += st.events
-        if st.land:
-            self._land_xy = (st.setpoint.pos_ned[0], st.setpoint.pos_ned[1])
-            self._switch(FlightMode.LAND)
-            self._events.append("Mission: landing")
-        elif ex.finished:
-            self._switch(FlightMode.HOLD)
-            self._entry_pending = False
-            self._hold_on_ground = self._detector.landed
-            self._sp = st.setpoint
-        return st.setpoint, True, None
-
-    def _mission_progress_now(self) -> Progress:
-        p = self._progress
-        active = self._mode is FlightMode.MISSION and self._script is None
-        return p if p.active == active else Progress(p.current, p.reached, active, p.finished, p.reached_log)
-
-    def _landed_state(self) -> int:
-        """MAV_LANDED_STATE (as a plain int, the way ModeOutput carries it)."""
-        mode = self._mode
-        if not self._armed or mode is FlightMode.READY:
-            return _ON_GROUND if self._detector.landed else _IN_AIR
-        if mode is FlightMode.MISSION:
-            return _ON_GROUND if self._detector.landed else _IN_AIR
-        if mode is FlightMode.TAKEOFF:
-            return _TAKEOFF
-        if mode is FlightMode.LAND:
-            return _LANDING if self._touchdown_t_s is None else _ON_GROUND
-        if mode is FlightMode.HOLD and self._hold_on_ground:
-            return _ON_GROUND
-        return _IN_AIR
-
-    def _system_status(self, inp: ModeInputs) -> int:
-        """MAV_STATE (as a plain int, the way ModeOutput carries it)."""
-        if not self._armed:
-            return _STANDBY
-        return _ACTIVE if inp.sensors_ok and not self._faults else _CRITICAL
-
-
-_isfinite = math.isfinite
-
-
-def _wrap_pi(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-_SELECTABLE_DISARMED = (FlightMode.HOLD, FlightMode.MISSION)
-_RTL_PLAN = Plan(0, (MissionItem(2, int(Cmd.NAV_RETURN_TO_LAUNCH), 1, 0.0, 0.0, 0.0, 0.0, 0, 0, 0.0),))
-_BASE_MODE_DISARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED)
-_BASE_MODE_ARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED) | int(MavModeFlag.SAFETY_ARMED)
-_ON_GROUND = int(MavLandedState.ON_GROUND)
-_IN_AIR = int(MavLandedState.IN_AIR)
-_TAKEOFF = int(MavLandedState.TAKEOFF)
-_LANDING = int(MavLandedState.LANDING)
-_STANDBY = int(MavState.STANDBY)
-_ACTIVE = int(MavState.ACTIVE)
-_CRITICAL = int(MavState.CRITICAL)
-def _idle(inp: ModeInputs) -> Setpoint:
-    """The setpoint reported while the controller is idle: where the vehicle is."""
-    return Setpoint(inp.pos_ned, 0.0, inp.yaw_rad)
-
-
-def _integrate_led(sp: Vec3, vel: Vec3, pos: Vec3, dt: float, lead_m: float) -> Vec3:
-    """A velocity-driven setpoint one step on (sp + vel dt per axis), kept within lead_m of the vehicle on each
-    axis so it cannot wind up while the vehicle lags (Position mode's sticks, offboard velocity targets)."""
-    return tuple(min(p + lead_m, max(p - lead_m, s + v * dt))  # type: ignore[return-value]
-                 for s, v, p in zip(sp, vel, pos, strict=True))
-
-
-def _approach(value: float, target: float, max_step: float) -> float:
-    """Move `value` toward `target` by at most `max_step`; lands exactly on the target."""
-    if abs(target - value) <= max_step:
-        return target
-    return value + math.copysign(max_step, target - value)
-
-
-def _px4_name(main: int, sub: int) -> str:
-    try:
-        main_name = Px4MainMode(int(main)).name
-    except ValueError:
-        main_name = str(int(main))
-    return f"{main_name}.{int(sub)}" if int(sub) else main_name
+    def _disarm(self, event: str) -> None:
+        self._sw.disarm()
+        self._ctx.events.append(event)

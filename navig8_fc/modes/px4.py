@@ -165,3 +165,47 @@ def mode_for_standard(standard_mode: int) -> FlightMode | None:
         if std == standard_mode and std != StandardMode.NON_STANDARD:
             return mode
     return None
+
+
+# --- what the mode manager reports (plain ints, the way ModeOutput carries them) ------------------------------
+BASE_MODE_DISARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED)
+BASE_MODE_ARMED = int(MavModeFlag.CUSTOM_MODE_ENABLED) | int(MavModeFlag.SAFETY_ARMED)
+_ON_GROUND = int(MavLandedState.ON_GROUND)
+_IN_AIR = int(MavLandedState.IN_AIR)
+_TAKEOFF = int(MavLandedState.TAKEOFF)
+_LANDING = int(MavLandedState.LANDING)
+STATE_STANDBY = int(MavState.STANDBY)
+_ACTIVE = int(MavState.ACTIVE)
+_CRITICAL = int(MavState.CRITICAL)
+
+
+def landed_state(mode: FlightMode, armed: bool, landed: bool, touched_down: bool, hold_on_ground: bool) -> int:
+    """MAV_LANDED_STATE: from the land detector, except in the modes that know better (Takeoff, Land, Hold idle
+    on the ground)."""
+    if not armed or mode is FlightMode.READY:
+        return _ON_GROUND if landed else _IN_AIR
+    if mode is FlightMode.MISSION:
+        return _ON_GROUND if landed else _IN_AIR
+    if mode is FlightMode.TAKEOFF:
+        return _TAKEOFF
+    if mode is FlightMode.LAND:
+        return _ON_GROUND if touched_down else _LANDING
+    if mode is FlightMode.HOLD and hold_on_ground:
+        return _ON_GROUND
+    return _IN_AIR
+
+
+def system_status(armed: bool, sensors_ok: bool, faulted: bool) -> int:
+    """MAV_STATE: STANDBY disarmed; armed ACTIVE, CRITICAL with a sensor problem or a fault set."""
+    if not armed:
+        return STATE_STANDBY
+    return _ACTIVE if sensors_ok and not faulted else _CRITICAL
+
+
+def px4_mode_name(main: int, sub: int) -> str:
+    """A PX4 main/sub mode's name for messages ("AUTO.3"; unknown main modes by number)."""
+    try:
+        main_name = Px4MainMode(int(main)).name
+    except ValueError:
+        main_name = str(int(main))
+    return f"{main_name}.{int(sub)}" if int(sub) else main_name

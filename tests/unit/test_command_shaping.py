@@ -24,7 +24,7 @@ from navig8_fc.core.outer_loop import (
 )
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.modes import FlightMode, ModeInputs, Px4AutoSubMode, Px4MainMode
-from navig8_fc.modes.manager import braking_distance_m
+from navig8_fc.modes.braking import braking_distance_m
 from navig8_fc.params.registry import ParamRegistry
 
 DT = 0.01

@@ -18,7 +18,7 @@ from navig8_fc.flight.stack import ARM_JOINT_TIMEOUT_S, TASK_ARM
 from navig8_fc.gcs.commands import MAV_CMD_NAVIG8_ARM_JOINTS, MAV_RESULT_CANCELLED, PROGRESS_PERIOD_S, CommandHandler
 from navig8_fc.mavlink import dialect
 from navig8_fc.modes import FlightMode
-from navig8_fc.modes.manager import TASK_CANCELLED, TASK_DONE, TASK_FAILED, TASK_RUNNING
+from navig8_fc.modes.tasks import TASK_CANCELLED, TASK_DONE, TASK_FAILED, TASK_RUNNING
 from navig8_fc.params.registry import ParamRegistry
 
 D = dialect.load()  # has COMMAND_CANCEL and MAV_RESULT_CANCELLED (navig8.xml)

@@ -1,0 +1,169 @@
+"""The mode manager's records: its configuration, its inputs and outputs, the command verdict, the scenario script
+and the offboard target (pure data; navig8_fc.modes.manager uses them, the modes read them)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.mission.plan import Progress
+from navig8_fc.modes.px4 import FlightMode
+
+Vec3 = tuple[float, float, float]
+
+
+class Verdict(NamedTuple):
+    """Answer to a command: accepted, or refused with a reason for STATUSTEXT. Unpacks as (ok, reason)."""
+
+    ok: bool
+    reason: str = ""
+
+
+@dataclass(frozen=True)
+class ModeConfig:
+    takeoff_climb_rate_m_s: float = 1.0
+    takeoff_default_alt_m: float = 2.5  # used when NAV_TAKEOFF carries no altitude (NaN), as PX4 MIS_TAKEOFF_ALT
+    takeoff_max_alt_m: float = 20.0  # the vehicle flies in confined spaces
+    takeoff_reached_tol_m: float = 0.2
+    land_descent_rate_m_s: float = 0.5
+    land_setpoint_floor_m: float = 0.5  # the landing setpoint stops this far below home (keeps errors bounded)
+    land_disarm_delay_s: float = 1.0  # disarm this long after touchdown
+    landed_max_vz_m_s: float = 0.25
+    landed_max_vxy_m_s: float = 0.5
+    landed_max_thrust_ratio: float = 0.5  # thrust / weight below this: the ground carries the vehicle
+    landed_max_height_m: float = 0.3  # fallback cue when the thrust is unknown
+    landed_hold_s: float = 0.5
+    # LAND touches down at once when the vehicle is this close to home height and no longer descending: the
+    # ground stopped it. The thrust cue needs landed_hold_s, and within that time an INDI with a prioritised
+    # allocation answers the impact by tilting the ducts past 90 deg to push down (the vertical force ranks
+    # above the forward one), which drives the vehicle along the ground.
+    land_contact_height_m: float = 0.1
+    air_start_home_z_ned_m: float = 0.0  # ground under an air-started vehicle (the plant's ground plane)
+    rtl_alt_m: float = 2.5  # Return (mode and plan item): climb to this height above home first if lower
+    manual_speed_m_s: float = 1.0  # Position mode: full stick = this horizontal speed
+    manual_climb_m_s: float = 0.5  # full throttle travel = this vertical speed
+    manual_yaw_rate_rad_s: float = 0.8  # full yaw stick
+    manual_deadband: float = 0.05  # of full stick travel
+    manual_lead_m: float = 1.0  # velocity-driven setpoints (sticks, offboard velocity) stay this close to the vehicle
+    # Offboard on the ground: idle until the target is this far above the vehicle (PX4's takeoff state machine keeps
+    # the motors at idle while landed and no climb is asked; pushing a target into the ground must not fly)
+    offboard_liftoff_m: float = 0.2
+    reposition_reached_tol_m: float = 0.3  # DO_REPOSITION is complete within this distance ...
+    reposition_reached_speed_m_s: float = 0.3  # ... and below this speed
+
+    def __post_init__(self) -> None:
+        positive = (
+            "takeoff_climb_rate_m_s",
+            "takeoff_default_alt_m",
+            "takeoff_max_alt_m",
+            "takeoff_reached_tol_m",
+            "land_descent_rate_m_s",
+            "landed_max_vz_m_s",
+            "landed_max_vxy_m_s",
+        )
+        for name in positive:
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"ModeConfig.{name} must be > 0, got {getattr(self, name)}")
+        if not self.takeoff_default_alt_m <= self.takeoff_max_alt_m:
+            raise ValueError("ModeConfig.takeoff_default_alt_m must not exceed takeoff_max_alt_m")
+
+
+@dataclass(frozen=True)
+class MissionScript:
+    """A scripted flight: `setpoint_at(mission_time_s)` gives the setpoint (NED, rad)."""
+
+    name: str
+    setpoint_at: Callable[[float], Setpoint]
+    starts_armed_in_air: bool = False
+    duration_s: float | None = None  # after this the manager holds at setpoint_at(duration_s)
+    start_t_s: float = 0.0  # sim time at which an air-started mission's clock reads 0
+    yields_to_plan: bool = False  # only an air start holding its initial setpoint: an uploaded plan replaces it
+
+
+@dataclass(frozen=True)
+class OffboardTarget:
+    """One streamed offboard target (NED, rad), each part optional (NaN: not given), as PX4's trajectory setpoint:
+    - position given on an axis: the reference there (a client streaming a moving position gets it);
+    - velocity only on an axis: the reference is integrated from it, kept within manual_lead_m of the vehicle;
+    - velocity with position: velocity feed-forward (the reference is offset by v / OL_POS_K, so the outer loop's
+      velocity command K_p (p_ref - p) + v equals v on the trajectory: no steady lag);
+    - neither: that axis holds where its reference is;
+    - yaw given: that heading; else yaw_rate given: integrated; else kept. pitch given: held (the paper's 45 deg
+      pitch hover); else kept. Roll is never commanded: the outer loop chooses it to null the body-y force;
+    - throttle (0..1, an attitude target's thrust) with neither z position nor z velocity: a vertical-speed
+      demand as Position mode's throttle stick (0.5 = hold altitude, manual_climb_m_s at the ends)."""
+
+    pos_ned: Vec3 = (math.nan, math.nan, math.nan)
+    vel_ned: Vec3 = (math.nan, math.nan, math.nan)
+    yaw_rad: float = math.nan
+    yaw_rate_rad_s: float = math.nan
+    pitch_rad: float = math.nan
+    throttle: float = math.nan
+
+    @staticmethod
+    def of(sp: Setpoint) -> OffboardTarget:
+        """A plain position setpoint as a target (position, pitch and yaw given)."""
+        return OffboardTarget(sp.pos_ned, yaw_rad=sp.yaw_rad, pitch_rad=sp.pitch_rad)
+
+    def problem(self) -> str:
+        """Why this target cannot be flown ('' when it can): no part given, or an infinite value."""
+        values = (*self.pos_ned, *self.vel_ned, self.yaw_rad, self.yaw_rate_rad_s, self.pitch_rad, self.throttle)
+        if any(math.isinf(v) for v in values):
+            return "Offboard target must be finite (NaN = not given)"
+        if all(math.isnan(v) for v in (*self.pos_ned, *self.vel_ned, self.pitch_rad, self.throttle)):
+            return "Offboard target has no position, velocity or attitude"
+        return ""
+
+
+@dataclass(frozen=True)
+class ModeInputs:
+    """One state sample (sim time, NED, rad) for the mode manager."""
+
+    t_s: float
+    pos_ned: Vec3
+    vel_ned: Vec3
+    yaw_rad: float
+    thrust_ratio: float = math.nan  # total thrust / weight (commanded or measured); NaN = unknown
+    sensors_ok: bool = True  # every sensor the controller needs is alive and fresh
+    estimator_ready: bool = True  # the adaptive law / estimator has a usable estimate
+    # the acceleration the vehicle is being driven with (the command shaper's reference, NED, m/s^2): where Hold
+    # stops depends on it (a vehicle still speeding up stops further on)
+    accel_ned: Vec3 = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class ModeOutput:
+    t_s: float
+    armed: bool
+    engaged: bool  # run the controller (False: motors off / idle)
+    setpoint: Setpoint
+    flight_mode: FlightMode
+    custom_mode: int  # PX4 encoding
+    base_mode: int  # MAV_MODE_FLAG: CUSTOM_MODE_ENABLED | SAFETY_ARMED when armed
+    landed_state: int  # MAV_LANDED_STATE
+    system_status: int  # MAV_STATE
+    landed: bool  # land detector
+    home_ned: Vec3 | None
+    home_yaw_rad: float
+    mission_time_s: float | None  # None outside MISSION
+    events: tuple[str, ...] = field(default_factory=tuple)  # for STATUSTEXT (INFO)
+    mission: Progress = Progress()  # the uploaded plan's progress (navig8_fc.mission.executor)
+    actions: tuple[tuple[str, object], ...] = ()  # arm/gripper actions of plan items (MissionExecutor.step)
+    entries: int = 0  # mode entries so far: a change means a fresh reference (also on re-entering the same mode)
+
+
+def sanitised(inp: ModeInputs, last: ModeInputs | None) -> ModeInputs:
+    """A sample with NaN/Inf state must not become a setpoint: reuse the last good state, flag sensors."""
+    pos, vel = inp.pos_ned, inp.vel_ned
+    # One NaN or Inf term makes the sum NaN or Inf, so a finite sum means every term is finite (the common
+    # case, one check); a non-finite sum is either a bad sample or finite terms that overflowed: look closer.
+    total = pos[0] + pos[1] + pos[2] + vel[0] + vel[1] + vel[2] + inp.yaw_rad + inp.t_s
+    if total - total == 0.0 or all(map(math.isfinite, (*pos, *vel, inp.yaw_rad, inp.t_s))):
+        return inp
+    pos = last.pos_ned if last is not None else (0.0, 0.0, 0.0)
+    yaw = last.yaw_rad if last is not None else 0.0
+    t = inp.t_s if math.isfinite(inp.t_s) else (last.t_s if last is not None else 0.0)
+    return ModeInputs(t, pos, (0.0, 0.0, 0.0), yaw, inp.thrust_ratio, False, inp.estimator_ready)
