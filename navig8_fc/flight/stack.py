@@ -33,6 +33,8 @@ filter or estimator settings rebuilds the core (its filters depend on them).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from typing import Any
 
 from navig8_fc.core import stability
 from navig8_fc.core.arm_preview import hold_plan, plan_rows
@@ -48,6 +50,23 @@ from navig8_fc.core.outer_loop import JERK_K_PER_VEL_K, OuterLoopConfig, Setpoin
 from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.battery import BatteryState, battery_initial, battery_step
+from navig8_fc.flight.commands import (
+    Arm,
+    ArmJoints,
+    CancelTask,
+    Disarm,
+    Gripper,
+    Land,
+    LoadFence,
+    LoadMission,
+    ManualInput,
+    OffboardSetpoint,
+    Reposition,
+    ReturnToLaunch,
+    SetMode,
+    Takeoff,
+    VehicleCommand,
+)
 from navig8_fc.flight.script import FlightScript
 from navig8_fc.flight.state import (
     SEVERITY_CRITICAL,
@@ -55,14 +74,11 @@ from navig8_fc.flight.state import (
     SEVERITY_INFO,
     SEVERITY_WARNING,
     ArmRequest,
-    GripperAction,
     Notice,
     StepResult,
     VehicleState,
 )
 from navig8_fc.mission.fence import Fence
-from navig8_fc.mission.geo import GeoOrigin
-from navig8_fc.mission.plan import Plan
 from navig8_fc.modes.manager import (
     TASK_CANCELLED,
     TASK_DONE,
@@ -71,7 +87,6 @@ from navig8_fc.modes.manager import (
     ModeInputs,
     ModeManager,
     ModeOutput,
-    OffboardTarget,
     TaskStatus,
     Verdict,
 )
@@ -129,6 +144,7 @@ class FlightStack:
                           if script is not None and script.arm_plan else None)
         self.reconfigure()
         self._modes = ModeManager(mode_config or ModeConfig(), script.mission() if script is not None else None)
+        self._handlers = self._command_handlers()  # command record type -> what applies it
         self._set_mode_limits(self.core.config.outer)
         self._weight_n = vehicle.uam_mass_kg * vehicle.gravity_m_s2
         self._n_steps = 0
@@ -245,7 +261,7 @@ class FlightStack:
         if out.events:
             notices += [Notice(SEVERITY_INFO, ev) for ev in out.events]
         for kind, value in out.actions:  # plan items acting on the arm: checked and applied as the commands are
-            ok, reason = self.gripper(value) if kind == "gripper" else self.arm_joints(value)  # type: ignore[arg-type]
+            ok, reason = self.command(Gripper(value) if kind == "gripper" else ArmJoints(value))  # type: ignore[arg-type]
             if not ok:
                 notices.append(Notice(SEVERITY_WARNING, f"Mission item refused: {reason}"))
         if notices:
@@ -447,31 +463,39 @@ class FlightStack:
         """The failsafes in force (names), for HEARTBEAT/SYS_STATUS."""
         return tuple(sorted(self._failsafes))
 
-    def load_fence(self, plan: Plan, origin: GeoOrigin) -> None:
-        """The uploaded FENCE plan (inclusion circles and polygons), checked in flight with FS_FENCE_ACT."""
-        self._fence = Fence.from_plan(plan, origin)
+    # --- commands -------------------------------------------------------------------------------------
+    def command(self, cmd: VehicleCommand) -> Verdict:
+        """Apply one command record (navig8_fc/flight/commands.py) between two steps: accepted, or the reason."""
+        handler = self._handlers.get(type(cmd))
+        if handler is None:
+            return Verdict(False, f"{type(cmd).__name__}: not a vehicle command")
+        return handler(cmd)
 
-    # --- VehicleCommands -------------------------------------------------------------------------------
-    def arm(self, force: bool = False) -> Verdict:
-        return self._modes.arm(force)
+    def _command_handlers(self) -> dict[type, Callable[[Any], Verdict]]:
+        m = self._modes
+        return {
+            Arm: lambda c: m.arm(c.force),
+            Disarm: lambda c: m.disarm(c.force),
+            Takeoff: lambda c: m.takeoff(c.alt_m),
+            Land: lambda c: m.land(),
+            ReturnToLaunch: lambda c: m.return_to_launch(),
+            SetMode: lambda c: m.set_custom_mode(int(c.custom_mode)),
+            Reposition: lambda c: m.reposition(c.pos_ned, c.yaw_rad),
+            Gripper: self._gripper,
+            ArmJoints: self._arm_joints,
+            CancelTask: self._cancel_task,
+            OffboardSetpoint: self._offboard_setpoint,
+            ManualInput: self._manual_input,
+            LoadMission: self._load_mission,
+            LoadFence: self._load_fence,
+        }
 
-    def disarm(self, force: bool = False) -> Verdict:
-        return self._modes.disarm(force)
-
-    def takeoff(self, alt_m: float = math.nan) -> Verdict:
-        return self._modes.takeoff(alt_m)
-
-    def land(self) -> Verdict:
-        return self._modes.land()
-
-    def set_mode(self, base_mode: int, custom_mode: int) -> Verdict:
-        return self._modes.set_custom_mode(int(custom_mode))
-
-    def gripper(self, action: GripperAction) -> Verdict:
-        self._queue(ArmRequest(gripper=action))
+    def _gripper(self, cmd: Gripper) -> Verdict:
+        self._queue(ArmRequest(gripper=cmd.action))
         return Verdict(True)
 
-    def arm_joints(self, q_rad: tuple[float, float, float]) -> Verdict:
+    def _arm_joints(self, cmd: ArmJoints) -> Verdict:
+        q_rad = cmd.q_rad
         if not all(math.isfinite(q) for q in q_rad):
             return Verdict(False, "arm joints: targets must be finite")
         lim = self.vehicle.joint_limit_rad
@@ -496,22 +520,20 @@ class FlightStack:
         arm-joint moves), running or how it ended; None before the first."""
         return self._modes.task if channel == TASK_FLIGHT else self._arm_task
 
-    def cancel_task(self, channel: str) -> bool:
-        """COMMAND_CANCEL: stop the running command of `channel` and hold (the vehicle where it is, the joints where
-        they are); False when nothing runs there."""
-        if channel == TASK_FLIGHT:
-            return self._modes.cancel_task()
+    def _cancel_task(self, cmd: CancelTask) -> Verdict:
+        """COMMAND_CANCEL: stop the running command of the channel and hold (the vehicle where it comes to rest, the
+        joints where they are); refused when nothing runs there."""
+        if cmd.channel == TASK_FLIGHT:
+            return Verdict(True) if self._modes.cancel_task() else Verdict(False, "no flight command running")
         tk, s = self._arm_task, self._sensors
         if tk is None or not tk.running or s is None:
-            return False
+            return Verdict(False, "no arm move running")
         self._queue(ArmRequest(joint_target_rad=tuple(s.joint_pos_rad)))  # type: ignore[arg-type]
         self._arm_task = TaskStatus(tk.task_id, tk.kind, TASK_CANCELLED, tk.progress_pct, "cancelled")
-        return True
+        return Verdict(True)
 
-    def return_to_launch(self) -> Verdict:
-        return self._modes.return_to_launch()
-
-    def offboard_setpoint(self, sp: Setpoint | OffboardTarget) -> Verdict:
+    def _offboard_setpoint(self, cmd: OffboardSetpoint) -> Verdict:
+        sp = cmd.target
         if isinstance(sp, Setpoint):
             if not all(math.isfinite(v) for v in (*sp.pos_ned, sp.pitch_rad, sp.yaw_rad)):
                 return Verdict(False, "Offboard setpoint must be finite")
@@ -522,14 +544,18 @@ class FlightStack:
         self._failsafes.discard("Offboard setpoints lost")
         return Verdict(True)
 
-    def manual_input(self, x: float, y: float, z: float, r: float) -> None:
-        self._modes.manual_input(x, y, z, r)
+    def _manual_input(self, cmd: ManualInput) -> Verdict:
+        self._modes.manual_input(cmd.x, cmd.y, cmd.z, cmd.r)
+        return Verdict(True)
 
-    def reposition(self, pos_ned: tuple[float, float, float], yaw_rad: float) -> Verdict:
-        return self._modes.reposition(pos_ned, yaw_rad)
+    def _load_mission(self, cmd: LoadMission) -> Verdict:
+        self._modes.load_plan(cmd.plan, cmd.origin)
+        return Verdict(True)
 
-    def load_mission(self, plan: Plan, origin: GeoOrigin) -> None:
-        self._modes.load_plan(plan, origin)
+    def _load_fence(self, cmd: LoadFence) -> Verdict:
+        """The uploaded FENCE plan (inclusion circles and polygons), checked in flight with FS_FENCE_ACT."""
+        self._fence = Fence.from_plan(cmd.plan, cmd.origin)
+        return Verdict(True)
 
     def _queue(self, req: ArmRequest) -> None:
         p = self._arm_request

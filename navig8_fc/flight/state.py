@@ -4,78 +4,32 @@ publishes (`VehicleState`), and what the shell announces for it (`Notice`). Plai
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, NamedTuple, Protocol
+from typing import NamedTuple, Protocol
 
 from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FcSensors
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.flight.battery import BatteryState
-from navig8_fc.mission.geo import GeoOrigin
-from navig8_fc.mission.plan import Plan, Progress
-from navig8_fc.modes.manager import OffboardTarget, TaskStatus, Verdict
+from navig8_fc.flight.commands import GripperAction, VehicleCommand
+from navig8_fc.mission.plan import Progress
+from navig8_fc.modes.manager import TaskStatus, Verdict
 from navig8_fc.modes.px4 import FlightMode
 
 Vec3 = tuple[float, float, float]
-GripperAction = Literal["grab", "release"]
 
 # MAV_SEVERITY values (common.xml), so the stack needs no MAVLink import.
 SEVERITY_CRITICAL, SEVERITY_ERROR, SEVERITY_WARNING, SEVERITY_INFO = 2, 3, 4, 6
 
 
 class VehicleCommands(Protocol):
-    """What a ground station can ask of the vehicle; `FlightStack` implements it.
+    """What a ground station can ask of the vehicle; `FlightStack` implements it."""
 
-    Each returns (ok, reason): reason is shown as STATUSTEXT when ok is False."""
-
-    def arm(self, force: bool) -> tuple[bool, str]: ...
-
-    def disarm(self, force: bool) -> tuple[bool, str]: ...
-
-    def takeoff(self, alt_m: float) -> tuple[bool, str]:
-        """Climb to alt_m above home (NaN: the default takeoff altitude)."""
-        ...
-
-    def land(self) -> tuple[bool, str]: ...
-
-    def set_mode(self, base_mode: int, custom_mode: int) -> tuple[bool, str]:
-        """custom_mode in PX4 encoding (main << 16 | sub << 24)."""
-        ...
-
-    def gripper(self, action: GripperAction) -> tuple[bool, str]: ...
-
-    def arm_joints(self, q_rad: tuple[float, float, float]) -> tuple[bool, str]: ...
-
-    def offboard_setpoint(self, sp: Setpoint | OffboardTarget) -> tuple[bool, str]:
-        """A streamed offboard setpoint or target (NED, rad; OffboardTarget: NaN parts not given); Offboard mode
-        flies the latest."""
-        ...
-
-    def manual_input(self, x: float, y: float, z: float, r: float) -> None:
-        """MANUAL_CONTROL sticks, normalised (x, y, r in [-1, 1], z in [0, 1], 0.5 = hold altitude)."""
-        ...
-
-    def reposition(self, pos_ned: Vec3, yaw_rad: float) -> tuple[bool, str]:
-        """DO_REPOSITION: hold at pos_ned (NaN components: keep), yaw_rad (NaN: keep)."""
-        ...
-
-    def return_to_launch(self) -> tuple[bool, str]:
-        """MAV_CMD_NAV_RETURN_TO_LAUNCH: Return mode, tracked as a long-running command."""
+    def command(self, cmd: VehicleCommand) -> Verdict:
+        """Apply one command record (navig8_fc/flight/commands.py); a refusal's reason is shown as STATUSTEXT."""
         ...
 
     def task_status(self, channel: str) -> TaskStatus | None:
         """The last long-running command of a channel ("flight": takeoff, land, return, reposition; "arm": arm-joint
         moves), running or ended; None before the first."""
-        ...
-
-    def cancel_task(self, channel: str) -> bool:
-        """COMMAND_CANCEL: stop the running command of the channel and hold; False when none runs."""
-        ...
-
-    def load_fence(self, plan: Plan, origin: GeoOrigin) -> None:
-        """The uploaded FENCE plan, checked in flight."""
-        ...
-
-    def load_mission(self, plan: Plan, origin: GeoOrigin) -> None:
-        """The uploaded mission plan in force (or its new start item), flown in Mission mode."""
         ...
 
 

@@ -51,6 +51,17 @@ from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import common as mavlink2
 
+from navig8_fc.flight.commands import (
+    Arm,
+    ArmJoints,
+    CancelTask,
+    Disarm,
+    Gripper,
+    Land,
+    ReturnToLaunch,
+    SetMode,
+    Takeoff,
+)
 from navig8_fc.flight.state import VehicleCommands
 from navig8_fc.gcs.params import is_for_us
 from navig8_fc.gcs.statustext import StatusTextEncoder
@@ -84,8 +95,8 @@ _TASK_RESULT = {TASK_DONE: CMD.MAV_RESULT_ACCEPTED, TASK_FAILED: CMD.MAV_RESULT_
 
 
 class CommandTarget(VehicleCommands, Protocol):
-    """What the command handler needs: the vehicle's commands (`VehicleCommands`, the FlightStack answers them)
-    and the GCS service's own (message requests and intervals, parameter storage); the shell's GCS service
+    """What the command handler needs: the vehicle's commands as records (`VehicleCommands.command`, routed to the
+    FlightStack) and the GCS service's own (message requests and intervals, parameter storage); the shell's GCS service
     implements it."""
 
     def request_message(self, msg_id: int, params: tuple[float, ...]) -> list[Any] | None:
@@ -200,8 +211,8 @@ class CommandHandler:
         self._handlers = {
             CMD.MAV_CMD_COMPONENT_ARM_DISARM: self._arm_disarm,
             CMD.MAV_CMD_NAV_TAKEOFF: self._takeoff,
-            CMD.MAV_CMD_NAV_LAND: lambda r: self._verdict(self._vehicle.land()),
-            CMD.MAV_CMD_NAV_RETURN_TO_LAUNCH: lambda r: self._verdict(self._vehicle.return_to_launch()),
+            CMD.MAV_CMD_NAV_LAND: lambda r: self._verdict(self._vehicle.command(Land())),
+            CMD.MAV_CMD_NAV_RETURN_TO_LAUNCH: lambda r: self._verdict(self._vehicle.command(ReturnToLaunch())),
             CMD.MAV_CMD_DO_SET_MODE: self._set_mode,
             CMD.MAV_CMD_REQUEST_MESSAGE: self._request_message,
             CMD.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: lambda r: self._produce(MSG_ID_AUTOPILOT_VERSION, ()),
@@ -348,7 +359,7 @@ class CommandHandler:
             return
         for channel, run in self._running.items():
             if run.req.command == int(msg.command):
-                self._vehicle.cancel_task(channel)
+                self._vehicle.command(CancelTask(channel))
                 return
 
     def _remember(self, key: tuple[int, int, int], pkey: tuple[float | None, ...], now_s: float, result: int) -> None:
@@ -370,15 +381,15 @@ class CommandHandler:
         force = math.isfinite(p2) and int(round(p2)) == ARM_FORCE_MAGIC
         arm = _int_param(p1, "param1")
         if arm == 1:
-            return self._verdict(self._vehicle.arm(force))
+            return self._verdict(self._vehicle.command(Arm(force)))
         if arm == 0:
-            return self._verdict(self._vehicle.disarm(force))
+            return self._verdict(self._vehicle.command(Disarm(force)))
         raise _BadParam(f"param1 must be 1 (arm) or 0 (disarm), got {p1:g}")
 
     def _takeoff(self, req: CommandRequest) -> _Outcome:
         if req.is_int and req.frame not in _RELATIVE_ALT_FRAMES:
             raise _BadParam(f"frame {req.frame} unsupported; use GLOBAL_RELATIVE_ALT(_INT), z = altitude above home")
-        return self._verdict(self._vehicle.takeoff(req.params[6]))
+        return self._verdict(self._vehicle.command(Takeoff(req.params[6])))
 
     def _set_mode(self, req: CommandRequest) -> _Outcome:
         base = _int_param(req.params[0], "param1 (base_mode)")
@@ -390,7 +401,7 @@ class CommandHandler:
             custom = px4_custom_mode(main, sub)
         except ValueError as exc:
             raise _BadParam(str(exc)) from None
-        return self._verdict(self._vehicle.set_mode(base, custom))
+        return self._verdict(self._vehicle.command(SetMode(base, custom)))
 
     def _produce(self, msg_id: int, params: tuple[float, ...], unknown_result: int = CMD.MAV_RESULT_DENIED) -> _Outcome:
         msgs = self._vehicle.request_message(msg_id, params)
@@ -430,9 +441,9 @@ class CommandHandler:
             raise _BadParam(f"no gripper {instance} (0 = all, 1 = the arm's gripper)")
         action = _int_param(req.params[1], "param2 (action)")
         if action == CMD.GRIPPER_ACTION_GRAB:
-            return self._verdict(self._vehicle.gripper("grab"), "Gripper: grab")
+            return self._verdict(self._vehicle.command(Gripper("grab")), "Gripper: grab")
         if action == CMD.GRIPPER_ACTION_RELEASE:
-            return self._verdict(self._vehicle.gripper("release"), "Gripper: release")
+            return self._verdict(self._vehicle.command(Gripper("release")), "Gripper: release")
         raise _BadParam(f"action {action} unsupported (0 release, 1 grab)")
 
     def _arm_joints(self, req: CommandRequest) -> _Outcome:
@@ -443,7 +454,7 @@ class CommandHandler:
             raise _BadParam("joint targets p1..p3 must be numbers (degrees)")
         q_rad = (math.radians(q_deg[0]), math.radians(q_deg[1]), math.radians(q_deg[2]))
         info = "Arm joints: target " + " ".join(f"{q:.1f}" for q in q_deg[:3]) + " deg"
-        return self._verdict(self._vehicle.arm_joints(q_rad), info)
+        return self._verdict(self._vehicle.command(ArmJoints(q_rad)), info)
 
     def _reposition(self, req: CommandRequest) -> _Outcome:
         p = req.params

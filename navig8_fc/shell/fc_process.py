@@ -17,6 +17,7 @@ from typing import Any
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import FlightControllerCore, warm_up_kernels
 from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
+from navig8_fc.flight.commands import Land
 from navig8_fc.links.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.links.signing import LinkSigning
 from navig8_fc.links.sim_guard import BAD_DATA_FAILSAFE_S, SensorLimits, SimGuard, SimInput
@@ -316,7 +317,7 @@ class FlightControllerProcess:
         if self._bad_data_fs or self.guard.bad_data_s() < BAD_DATA_FAILSAFE_S:
             return
         self._bad_data_fs = True
-        verb = "landing" if self.stack.state().armed and self.stack.land().ok else "no action"
+        verb = "landing" if self.stack.state().armed and self.stack.command(Land()).ok else "no action"
         self.statustext(f"Bad sensor data ({','.join(groups)}) {self.guard.bad_data_s():.2f} s: {verb}", 2)
 
     def _tick_failed(self, e: Exception, t_us: int) -> None:
@@ -327,7 +328,7 @@ class FlightControllerProcess:
             print(f"navig8-fc: control tick failed at t={seam.sim_us_from_time_usec(t_us) * 1e-6:.3f} s "
                   f"({self.n_tick_errors}x): {type(e).__name__}: {e}", file=sys.stderr)
             try:
-                verb = "landing" if self.stack.land().ok else "holding the last command"
+                verb = "landing" if self.stack.command(Land()).ok else "holding the last command"
             except Exception:  # noqa: BLE001 - the stack itself is failing: the held command is all there is
                 verb = "holding the last command"
             self.statustext(f"Control error {type(e).__name__} ({self.n_tick_errors}x): {verb}", 2)

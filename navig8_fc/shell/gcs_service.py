@@ -47,8 +47,17 @@ from typing import Any, Protocol
 
 from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.flight.commands import (
+    LoadFence,
+    LoadMission,
+    ManualInput,
+    OffboardSetpoint,
+    Reposition,
+    SetMode,
+    VehicleCommand,
+)
 from navig8_fc.flight.stack import throttle_pct
-from navig8_fc.flight.state import GripperAction, VehicleCommands, VehicleState
+from navig8_fc.flight.state import VehicleCommands, VehicleState
 from navig8_fc.gcs import offboard
 from navig8_fc.gcs.commands import CommandHandler
 from navig8_fc.gcs.ftp import FtpServer, FtpService
@@ -67,7 +76,7 @@ from navig8_fc.gcs.telemetry import (
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import MissionType
 from navig8_fc.mission.store import MissionStore
-from navig8_fc.modes.manager import TaskStatus
+from navig8_fc.modes.manager import TaskStatus, Verdict
 from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
 from navig8_fc.params.registry import ParamRegistry, SetResult, StabilityStatus, run_floor
 from navig8_fc.params.store import ParamStore
@@ -343,7 +352,7 @@ class GcsService:
                 out += self._set_origin(m)
             if kind == "MANUAL_CONTROL" and m.target in (0, self.sysid):
                 # PX4's scaling: x/y/r -1000..1000, z 0..1000 (500 = hold altitude); missing sticks are centred.
-                self._vehicle.manual_input(m.x / 1000.0, m.y / 1000.0, m.z / 1000.0, m.r / 1000.0)
+                self._vehicle.command(ManualInput(m.x / 1000.0, m.y / 1000.0, m.z / 1000.0, m.r / 1000.0))
                 self._last_manual = now_wall
             self._route(kind, source, out)
         return self.params.drain_changes()
@@ -508,7 +517,7 @@ class GcsService:
                                            float(m.yaw), float(m.yaw_rate), yaw_now)
         if dec.target is None:
             return self.text.warning(dec.refusal)
-        ok, reason = self._vehicle.offboard_setpoint(dec.target)
+        ok, reason = self._vehicle.command(OffboardSetpoint(dec.target))
         if not ok:
             return self.text.warning(reason)
         self.last_offboard_setpoint = now_wall
@@ -554,7 +563,7 @@ class GcsService:
 
     def reposition_global(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool,
                           yaw_rad: float) -> tuple[bool, str]:
-        return self._vehicle.reposition(self._to_ned(lat_deg, lon_deg, alt_m, relative_alt), yaw_rad)
+        return self._vehicle.command(Reposition(self._to_ned(lat_deg, lon_deg, alt_m, relative_alt), yaw_rad))
 
     def poll(self, now_wall: float) -> list[SetResult]:
         """Wall-clock work (telemetry, paced downloads, queued PARAM_SETs); returns the parameter changes the
@@ -567,11 +576,11 @@ class GcsService:
         self._save_params()
         if self._last_manual is not None and now_wall - self._last_manual > MANUAL_CONTROL_TIMEOUT_S:
             self._last_manual = None
-            self._vehicle.manual_input(0.0, 0.0, 0.5, 0.0)  # sticks no longer received: centred (hold)
+            self._vehicle.command(ManualInput(0.0, 0.0, 0.5, 0.0))  # sticks no longer received: centred (hold)
         if self.mission.generation != self._plan_generation:  # a new plan, clear or start item: to the vehicle
             self._plan_generation = self.mission.generation
-            self._vehicle.load_mission(self.mission.plan(), self.origin)
-            self._vehicle.load_fence(self.mission.plan(MissionType.FENCE), self.origin)
+            self._vehicle.command(LoadMission(self.mission.plan(), self.origin))
+            self._vehicle.command(LoadFence(self.mission.plan(MissionType.FENCE), self.origin))
         # one VehicleState per poll (~5 us to build): nothing below until CURRENT_MODE changes the vehicle's mode
         # (parameter, mission and command progress and the sends only read it)
         state = self._state()
@@ -605,43 +614,22 @@ class GcsService:
         """STATUSTEXT to every GCS (chunked when longer than one message)."""
         self._outbox.broadcast(self.text.encode(severity, text))
 
-    # --- CommandTarget: the vehicle's commands, passed on ------------------------------------------
-    def arm(self, force: bool) -> tuple[bool, str]:
-        return self._vehicle.arm(force)
-
-    def disarm(self, force: bool) -> tuple[bool, str]:
-        return self._vehicle.disarm(force)
-
-    def takeoff(self, alt_m: float) -> tuple[bool, str]:
-        return self._vehicle.takeoff(alt_m)
-
-    def land(self) -> tuple[bool, str]:
-        return self._vehicle.land()
-
-    def return_to_launch(self) -> tuple[bool, str]:
-        return self._vehicle.return_to_launch()
+    # --- CommandTarget: the vehicle's commands, routed ----------------------------------------------------
+    def command(self, cmd: VehicleCommand) -> Verdict:
+        """A command record for the vehicle (the FlightStack applies it); a mode change is also remembered as the
+        intended mode (CURRENT_MODE)."""
+        if isinstance(cmd, SetMode):
+            self._intended_custom_mode = int(cmd.custom_mode)
+        return self._vehicle.command(cmd)
 
     def task_status(self, channel: str) -> TaskStatus | None:
         return self._vehicle.task_status(channel)
-
-    def cancel_task(self, channel: str) -> bool:
-        return self._vehicle.cancel_task(channel)
-
-    def set_mode(self, base_mode: int, custom_mode: int) -> tuple[bool, str]:
-        self._intended_custom_mode = int(custom_mode)
-        return self._vehicle.set_mode(base_mode, custom_mode)
 
     def set_standard_mode(self, standard_mode: int) -> tuple[bool, str]:
         mode = mode_for_standard(standard_mode)
         if mode is None:
             return False, f"Standard mode {standard_mode} not supported"
-        return self.set_mode(1, mode.custom_mode)
-
-    def gripper(self, action: GripperAction) -> tuple[bool, str]:
-        return self._vehicle.gripper(action)
-
-    def arm_joints(self, q_rad: tuple[float, float, float]) -> tuple[bool, str]:
-        return self._vehicle.arm_joints(q_rad)
+        return self.command(SetMode(1, mode.custom_mode))
 
     # --- CommandTarget: the GCS service's own ------------------------------------------------------
     def request_message(self, msg_id: int, params: tuple[float, ...]) -> list[Any] | None:

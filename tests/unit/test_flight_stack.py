@@ -16,6 +16,7 @@ import pytest
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import ControllerConfig, FcSensors, FlightControllerCore
 from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script, rotor_thrusts_n
+from navig8_fc.flight.commands import Arm, ArmJoints, Gripper, LoadFence, OffboardSetpoint, SetMode, Takeoff
 from navig8_fc.flight.state import SEVERITY_CRITICAL, SEVERITY_ERROR, SEVERITY_INFO, SEVERITY_WARNING
 from navig8_fc.modes import FlightMode
 from navig8_fc.params.registry import ParamRegistry
@@ -60,7 +61,7 @@ def _hovering_in_hold(vehicle: vm.VehicleConfig) -> tuple[FlightStack, Feed]:
     stack = FlightStack(vehicle, ParamRegistry.from_defaults())
     feed = Feed(stack, vehicle, in_air=True)
     feed.run(60)
-    assert stack.arm(force=True).ok
+    assert stack.command(Arm(force=True)).ok
     feed.run(1)
     assert stack.state().flight_mode is FlightMode.HOLD and not stack.state().landed
     return stack, feed
@@ -100,7 +101,7 @@ def test_gcs_loss_only_logs_in_a_mission_or_on_the_ground(vehicle, case: str) ->
         mode = FlightMode.READY
     feed.run(60)
     if case == "on the ground":
-        assert stack.arm().ok
+        assert stack.command(Arm()).ok
         feed.run(1)
     got = stack.check_links(0.0, float(stack.registry["FS_GCS_TOUT"]) + 1.0)
     assert got == (Notice(SEVERITY_WARNING, None, "GCS link lost"),)
@@ -122,7 +123,7 @@ def test_stale_sensors_fail_prearm_once_per_outage_and_clear(vehicle) -> None:
     assert stack.check_links(tout + 0.7, None) == ()  # one report per outage
     st = stack.state()
     assert not st.sensors_ok and not st.prearm.ok and "navig8-bridge" in st.prearm.reason
-    ok, why = stack.arm(False)
+    ok, why = stack.command(Arm(False))
     assert not ok and "navig8-bridge" in why
     (back,) = stack.check_links(0.01, None)
     assert back.severity == SEVERITY_INFO and back.statustext == "Sensor data from navig8-bridge back after 1.2 s"
@@ -150,28 +151,29 @@ def test_arm_and_gripper_requests_reach_the_next_step_merged(vehicle) -> None:
     stack = FlightStack(vehicle, ParamRegistry.from_defaults())
     feed = Feed(stack, vehicle, in_air=False)
     feed.run(1)
-    assert stack.gripper("grab").ok and stack.arm_joints((0.1, 0.2, -0.3)).ok
+    assert stack.command(Gripper("grab")).ok and stack.command(ArmJoints((0.1, 0.2, -0.3))).ok
     assert stack.state().pending_arm_request == ArmRequest((0.1, 0.2, -0.3), "grab")
     res = stack.step(_sensors(feed.t_us, 0.0, 0.0), True, feed.t_us)
     assert res.arm_request == ArmRequest((0.1, 0.2, -0.3), "grab")
     assert stack.step(_sensors(feed.t_us + DT_US, 0.0, 0.0), True, feed.t_us + DT_US).arm_request is None
     lim = vehicle.joint_limit_rad
-    assert not stack.arm_joints((lim + 0.01, 0.0, 0.0)).ok and not stack.arm_joints((math.nan, 0.0, 0.0)).ok
+    assert not stack.command(ArmJoints((lim + 0.01, 0.0, 0.0))).ok
+    assert not stack.command(ArmJoints((math.nan, 0.0, 0.0))).ok
     assert stack.state().pending_arm_request is None
 
 
 def test_commands_answer_and_mode_events_come_with_the_next_step(vehicle) -> None:
     stack = FlightStack(vehicle, ParamRegistry.from_defaults())
     feed = Feed(stack, vehicle, in_air=False)
-    ok, why = stack.arm(False)
+    ok, why = stack.command(Arm(False))
     assert not ok and why == "Arming denied: no sensor data yet"
     feed.run(10)
-    ok, why = stack.arm(False)
+    ok, why = stack.command(Arm(False))
     assert not ok and why == "Arming denied: estimator not ready"  # ESTIMATOR_WARMUP_S of steps first
     feed.run(50)
-    assert stack.arm(False).ok and stack.state().armed
+    assert stack.command(Arm(False)).ok and stack.state().armed
     assert feed.run(1) == [Notice(SEVERITY_INFO, "Armed")]
-    assert stack.takeoff(2.0).ok
+    assert stack.command(Takeoff(2.0)).ok
     res = stack.step(_sensors(feed.t_us, 0.0, 0.0), True, feed.t_us)
     assert res.engaged and res.armed and Notice(SEVERITY_INFO, "Takeoff to 2.0 m above home") in res.notices
 
@@ -238,10 +240,10 @@ def test_offboard_setpoint_loss_holds_after_fs_offb_tout(vehicle) -> None:
 
     stack, feed = _hovering_in_hold(vehicle)
     here = stack.state().setpoint
-    assert not stack.set_mode(1, px4_custom_mode(6, 0)).ok  # no stream yet
-    assert stack.offboard_setpoint(Setpoint(here.pos_ned, 0.0, here.yaw_rad)).ok
-    assert not stack.offboard_setpoint(Setpoint((math.nan, 0.0, 0.0), 0.0, 0.0)).ok
-    assert stack.set_mode(1, px4_custom_mode(6, 0)).ok
+    assert not stack.command(SetMode(1, px4_custom_mode(6, 0))).ok  # no stream yet
+    assert stack.command(OffboardSetpoint(Setpoint(here.pos_ned, 0.0, here.yaw_rad))).ok
+    assert not stack.command(OffboardSetpoint(Setpoint((math.nan, 0.0, 0.0), 0.0, 0.0))).ok
+    assert stack.command(SetMode(1, px4_custom_mode(6, 0))).ok
     feed.run(1)
     assert stack.state().flight_mode is FlightMode.OFFBOARD
     tout = float(stack.registry["FS_OFFB_TOUT"])
@@ -292,7 +294,8 @@ def test_fence_breach_radius_altitude_and_uploaded_circle(vehicle) -> None:
     stack2, feed2 = _hovering_in_hold(vehicle)
     origin = GeoOrigin()
     lat, lon, _ = origin.to_global((home[0] + 50.0, home[1], 0.0))
-    stack2.load_fence(Plan(1, (MissionItem(Frame.GLOBAL_INT, Cmd.NAV_FENCE_CIRCLE_INCLUSION, 1, 10.0, 0, 0, 0,
-                                           round(lat * 1e7), round(lon * 1e7), 0.0),)), origin)
+    fence = Plan(1, (MissionItem(Frame.GLOBAL_INT, Cmd.NAV_FENCE_CIRCLE_INCLUSION, 1, 10.0, 0, 0, 0,
+                                 round(lat * 1e7), round(lon * 1e7), 0.0),))
+    assert stack2.command(LoadFence(fence, origin)).ok
     texts = [n.statustext for n in feed2.run(1) if n.statustext]
     assert any("inclusion circle" in t and t.endswith("holding") for t in texts), texts

@@ -9,15 +9,28 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
+from navig8_fc.flight.commands import (
+    Arm,
+    ArmJoints,
+    CancelTask,
+    Disarm,
+    Gripper,
+    Land,
+    ReturnToLaunch,
+    SetMode,
+    Takeoff,
+)
 from navig8_fc.gcs.commands import ARM_FORCE_MAGIC, MAV_CMD_NAVIG8_ARM_JOINTS, CommandHandler, CommandTarget
 from navig8_fc.modes import FlightMode, ModeInputs, ModeManager
+from navig8_fc.modes.records import Verdict
 
 M = mavlink2
 NAN = math.nan
 
 
 class FakeVehicle:
-    """Records calls; arm/takeoff/land/set_mode go to a real ModeManager so the checks are the real ones."""
+    """Records the command records it gets; the flight commands go to a real ModeManager so the checks are the real
+    ones."""
 
     def __init__(self) -> None:
         self.modes = ModeManager()
@@ -26,46 +39,34 @@ class FakeVehicle:
         self.home_ready = True
         self.mav = M.MAVLink(BytesIO(), 1, 1)
 
-    def arm(self, force: bool):
-        self.calls.append(("arm", force))
-        return self.modes.arm(force)
-
-    def disarm(self, force: bool):
-        self.calls.append(("disarm", force))
-        return self.modes.disarm(force)
-
-    def takeoff(self, alt_m: float):
-        self.calls.append(("takeoff", alt_m))
-        return self.modes.takeoff(alt_m)
-
-    def land(self):
-        self.calls.append(("land",))
-        return self.modes.land()
-
-    def set_mode(self, base_mode: int, custom_mode: int):
-        self.calls.append(("set_mode", base_mode, custom_mode))
-        return self.modes.set_custom_mode(custom_mode)
-
-    def return_to_launch(self):
-        self.calls.append(("return",))
-        return self.modes.return_to_launch()
+    def command(self, cmd: Any) -> Verdict:
+        self.calls.append(cmd)
+        mm = self.modes
+        match cmd:
+            case Arm(force=force):
+                return mm.arm(force)
+            case Disarm(force=force):
+                return mm.disarm(force)
+            case Takeoff(alt_m=alt):
+                return mm.takeoff(alt)
+            case Land():
+                return mm.land()
+            case SetMode(custom_mode=custom):
+                return mm.set_custom_mode(custom)
+            case ReturnToLaunch():
+                return mm.return_to_launch()
+            case CancelTask(channel=channel):  # arm moves are not tracked here
+                return Verdict(channel == "flight" and mm.cancel_task())
+            case Gripper():
+                return Verdict(True)
+            case ArmJoints(q_rad=q_rad):
+                if any(abs(q) > 1.75 for q in q_rad):
+                    return Verdict(False, "joint target outside +-100 deg")
+                return Verdict(True)
+        return Verdict(False, f"{type(cmd).__name__} not simulated here")
 
     def task_status(self, channel: str):
         return self.modes.task if channel == "flight" else None  # arm moves are not tracked here
-
-    def cancel_task(self, channel: str) -> bool:
-        self.calls.append(("cancel", channel))
-        return channel == "flight" and self.modes.cancel_task()
-
-    def gripper(self, action):
-        self.calls.append(("gripper", action))
-        return True, ""
-
-    def arm_joints(self, q_rad):
-        self.calls.append(("arm_joints", q_rad))
-        if any(abs(q) > 1.75 for q in q_rad):
-            return False, "joint target outside +-100 deg"
-        return True, ""
 
     def request_message(self, msg_id: int, params):
         self.calls.append(("request_message", msg_id, params))
@@ -134,7 +135,7 @@ def texts(out: list[Any]) -> str:
 
 def test_fake_vehicle_satisfies_protocol() -> None:
     v: CommandTarget = FakeVehicle()  # type-checks structurally
-    assert callable(v.arm)
+    assert callable(v.command)
 
 
 def test_unknown_command_unsupported_without_statustext(rig) -> None:
@@ -158,7 +159,7 @@ def test_arm_disarm_and_force(rig) -> None:
     assert the_ack(out, M.MAV_CMD_COMPONENT_ARM_DISARM).result == M.MAV_RESULT_ACCEPTED and vehicle.modes.armed
     out = cmd_long(rig, M.MAV_CMD_COMPONENT_ARM_DISARM, 0.0, ARM_FORCE_MAGIC)
     assert the_ack(out, M.MAV_CMD_COMPONENT_ARM_DISARM).result == M.MAV_RESULT_ACCEPTED
-    assert vehicle.calls[-1] == ("disarm", True) and not vehicle.modes.armed
+    assert vehicle.calls[-1] == Disarm(True) and not vehicle.modes.armed
     out = cmd_long(rig, M.MAV_CMD_COMPONENT_ARM_DISARM, 3.0)
     assert the_ack(out, M.MAV_CMD_COMPONENT_ARM_DISARM).result == M.MAV_RESULT_DENIED and "param1" in texts(out)
 
@@ -180,10 +181,10 @@ def test_takeoff_long_p7_and_int_z(rig) -> None:
     cmd_long(rig, M.MAV_CMD_COMPONENT_ARM_DISARM, 1.0)
     out = cmd_long(rig, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, NAN, NAN, NAN, 2.0)
     assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_IN_PROGRESS  # long-running (docs/gcs.md)
-    assert vehicle.calls[-1] == ("takeoff", 2.0) and vehicle.modes.flight_mode is FlightMode.TAKEOFF
+    assert vehicle.calls[-1] == Takeoff(2.0) and vehicle.modes.flight_mode is FlightMode.TAKEOFF
     out = cmd_int(rig, M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, p4=NAN, z=3.0)
     assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_IN_PROGRESS
-    assert vehicle.calls[-1] == ("takeoff", 3.0)
+    assert vehicle.calls[-1] == Takeoff(3.0)
     out = cmd_int(rig, M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_INT, z=1100.0)
     assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_DENIED and "frame" in texts(out)
 
@@ -194,7 +195,7 @@ def test_land_and_set_mode_px4(rig) -> None:
     base = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | M.MAV_MODE_FLAG_SAFETY_ARMED
     out = cmd_long(rig, M.MAV_CMD_DO_SET_MODE, base, 4, 3)  # AUTO.LOITER = Hold
     assert the_ack(out, M.MAV_CMD_DO_SET_MODE).result == M.MAV_RESULT_ACCEPTED
-    assert vehicle.calls[-1] == ("set_mode", base, 0x03040000)
+    assert vehicle.calls[-1] == SetMode(base, 0x03040000)
     out = cmd_long(rig, M.MAV_CMD_DO_SET_MODE, 0, 4, 3)
     assert the_ack(out, M.MAV_CMD_DO_SET_MODE).result == M.MAV_RESULT_DENIED and "CUSTOM_MODE_ENABLED" in texts(out)
     out = cmd_long(rig, M.MAV_CMD_DO_SET_MODE, 1, 2, 0)  # ALTCTL
@@ -250,9 +251,10 @@ def test_gripper(rig) -> None:
     _, vehicle, _, _ = rig
     out = cmd_long(rig, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_GRAB)
     assert the_ack(out, M.MAV_CMD_DO_GRIPPER).result == M.MAV_RESULT_ACCEPTED
-    assert vehicle.calls[-1] == ("gripper", "grab")
+    assert vehicle.calls[-1] == Gripper("grab")
     out = cmd_long(rig, M.MAV_CMD_DO_GRIPPER, 0, M.GRIPPER_ACTION_RELEASE)
-    assert the_ack(out, M.MAV_CMD_DO_GRIPPER).result == M.MAV_RESULT_ACCEPTED and vehicle.calls[-1][1] == "release"
+    assert the_ack(out, M.MAV_CMD_DO_GRIPPER).result == M.MAV_RESULT_ACCEPTED
+    assert vehicle.calls[-1] == Gripper("release")
     out = cmd_long(rig, M.MAV_CMD_DO_GRIPPER, 1, M.GRIPPER_ACTION_HOLD)
     assert the_ack(out, M.MAV_CMD_DO_GRIPPER).result == M.MAV_RESULT_DENIED
     out = cmd_long(rig, M.MAV_CMD_DO_GRIPPER, 3, 1)
@@ -264,7 +266,7 @@ def test_arm_joints_user_1(rig) -> None:
     assert MAV_CMD_NAVIG8_ARM_JOINTS == M.MAV_CMD_USER_1 == 31010
     out = cmd_long(rig, 31010, 20.0, -20.0, 10.0, 1.0)
     assert the_ack(out, 31010).result == M.MAV_RESULT_ACCEPTED
-    assert vehicle.calls[-1][1] == pytest.approx((math.radians(20), math.radians(-20), math.radians(10)))
+    assert vehicle.calls[-1].q_rad == pytest.approx((math.radians(20), math.radians(-20), math.radians(10)))
     out = cmd_long(rig, 31010, 20.0, -20.0, 10.0, 0.0)  # p4 must be 1
     assert the_ack(out, 31010).result == M.MAV_RESULT_DENIED and "param4" in texts(out)
     out = cmd_long(rig, 31010, 200.0, 0.0, 0.0, 1.0)  # refused by the vehicle
@@ -325,10 +327,10 @@ def test_denied_duplicate_keeps_denied(rig) -> None:
 def test_vehicle_exception_becomes_failed(rig) -> None:
     handler, vehicle, _, _ = rig
 
-    def boom(force: bool):
+    def boom(cmd: Any):
         raise RuntimeError("kaboom")
 
-    vehicle.arm = boom  # type: ignore[method-assign]
+    vehicle.command = boom  # type: ignore[method-assign]
     out = cmd_long(rig, 400, 1.0)
     assert the_ack(out, 400).result == M.MAV_RESULT_FAILED and "kaboom" in texts(out)
 

@@ -13,12 +13,24 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
+from navig8_fc.flight.commands import (
+    Arm,
+    ArmJoints,
+    CancelTask,
+    Disarm,
+    Gripper,
+    Land,
+    ReturnToLaunch,
+    SetMode,
+    Takeoff,
+)
 from navig8_fc.gcs.commands import CommandHandler
 from navig8_fc.gcs.misc import MiscProtocols
 from navig8_fc.gcs.params import ParamProtocol
 from navig8_fc.gcs.statustext import StatusTextEncoder
 from navig8_fc.gcs.telemetry import TelemetryBuilder, TelemetryScheduler, VehicleSnapshot, sensor_bits
 from navig8_fc.modes import ModeInputs, ModeManager, ModeOutput
+from navig8_fc.modes.records import Verdict
 from navig8_fc.params.registry import ParamRegistry, StabilityFloor
 from navig8_fc.params.store import ParamStore
 
@@ -60,37 +72,33 @@ class SimVehicle:
         self.out: ModeOutput | None = None
         self.gripper_closed = False
 
-    # VehicleCommands
-    def arm(self, force: bool):
-        return self.modes.arm(force)
-
-    def disarm(self, force: bool):
-        return self.modes.disarm(force)
-
-    def takeoff(self, alt_m: float):
-        return self.modes.takeoff(alt_m)
-
-    def land(self):
-        return self.modes.land()
-
-    def set_mode(self, base_mode: int, custom_mode: int):
-        return self.modes.set_custom_mode(custom_mode)
-
-    def return_to_launch(self):
-        return self.modes.return_to_launch()
+    # VehicleCommands: the flight commands go to a real ModeManager
+    def command(self, cmd: Any) -> Verdict:
+        mm = self.modes
+        match cmd:
+            case Arm(force=force):
+                return mm.arm(force)
+            case Disarm(force=force):
+                return mm.disarm(force)
+            case Takeoff(alt_m=alt):
+                return mm.takeoff(alt)
+            case Land():
+                return mm.land()
+            case SetMode(custom_mode=custom):
+                return mm.set_custom_mode(custom)
+            case ReturnToLaunch():
+                return mm.return_to_launch()
+            case CancelTask(channel=channel):
+                return Verdict(channel == "flight" and mm.cancel_task())
+            case Gripper(action=action):
+                self.gripper_closed = action == "grab"
+                return Verdict(True)
+            case ArmJoints():
+                return Verdict(True)
+        return Verdict(False, f"{type(cmd).__name__} not simulated here")
 
     def task_status(self, channel: str):
         return self.modes.task if channel == "flight" else None
-
-    def cancel_task(self, channel: str) -> bool:
-        return channel == "flight" and self.modes.cancel_task()
-
-    def gripper(self, action):
-        self.gripper_closed = action == "grab"
-        return True, ""
-
-    def arm_joints(self, q_rad):
-        return True, ""
 
     def request_message(self, msg_id: int, params):
         if msg_id not in self.builder.supported_ids:

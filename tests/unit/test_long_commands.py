@@ -14,6 +14,7 @@ from test_modes import DT, PointMass
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import FcSensors
 from navig8_fc.flight import FlightStack
+from navig8_fc.flight.commands import ArmJoints, CancelTask
 from navig8_fc.flight.stack import ARM_JOINT_TIMEOUT_S, TASK_ARM
 from navig8_fc.gcs.commands import MAV_CMD_NAVIG8_ARM_JOINTS, MAV_RESULT_CANCELLED, PROGRESS_PERIOD_S, CommandHandler
 from navig8_fc.mavlink import dialect
@@ -160,7 +161,7 @@ def test_arm_joint_move_progress_done_cancel_and_timeout() -> None:
     stack = FlightStack(vm.VehicleConfig.load(), ParamRegistry.from_defaults())
     stack.step(_sensors(0.0, (0.0, 0.0, 0.0)))
     target = (math.radians(40), 0.0, math.radians(-20))
-    assert stack.arm_joints(target).ok
+    assert stack.command(ArmJoints(target)).ok
     ts = stack.task_status(TASK_ARM)
     assert ts.state == TASK_RUNNING and ts.kind == "arm_joints"
     stack.step(_sensors(0.01, (math.radians(20), 0.0, math.radians(-10))))  # half way (largest error 40 -> 20)
@@ -168,13 +169,13 @@ def test_arm_joint_move_progress_done_cancel_and_timeout() -> None:
     stack.step(_sensors(0.02, (math.radians(39.5), 0.0, math.radians(-19.5))))  # within 2 deg
     assert stack.task_status(TASK_ARM).state == TASK_DONE
     # Cancel: the joints are told to stay where they are.
-    assert stack.arm_joints((0.0, 0.0, 0.0)).ok
+    assert stack.command(ArmJoints((0.0, 0.0, 0.0))).ok
     stack.step(_sensors(0.03, (0.5, 0.0, -0.3)))
-    assert stack.cancel_task(TASK_ARM)
+    assert stack.command(CancelTask(TASK_ARM)).ok
     assert stack.state().pending_arm_request.joint_target_rad == (0.5, 0.0, -0.3)
-    assert stack.task_status(TASK_ARM).state == TASK_CANCELLED and not stack.cancel_task(TASK_ARM)
+    assert stack.task_status(TASK_ARM).state == TASK_CANCELLED and not stack.command(CancelTask(TASK_ARM)).ok
     # A move that never gets there fails after ARM_JOINT_TIMEOUT_S.
-    assert stack.arm_joints((1.0, 0.0, 0.0)).ok
+    assert stack.command(ArmJoints((1.0, 0.0, 0.0))).ok
     stack.step(_sensors(0.04 + ARM_JOINT_TIMEOUT_S + 0.01, (0.5, 0.0, -0.3)))
     ts = stack.task_status(TASK_ARM)
     assert ts.state == TASK_FAILED and "off after" in ts.reason
