@@ -487,7 +487,7 @@ class GcsService:
         as PX4 does; there is no ACK in that protocol, so a refusal is reported by STATUSTEXT."""
         if m.get_type() != "SET_MODE" or m.target_system not in (0, self.sysid):
             return []
-        ok, reason = self.set_mode(int(m.base_mode), int(m.custom_mode))
+        ok, reason = self.command(SetMode(int(m.base_mode), int(m.custom_mode)))
         return [] if ok else self.text.warning(reason or f"SET_MODE {int(m.custom_mode):#x} refused")
 
     def _offboard(self, m: Any, now_wall: float) -> list[Any]:

@@ -10,7 +10,16 @@ import subprocess
 import sys
 from pathlib import Path
 
-from sitl_helpers import fly_from_gcs, gcs_client, mcap_metadata, sitl, wait_for, wait_heartbeat, wait_ports_file
+from sitl_helpers import (
+    PARAM_SET_WAIT_S,
+    fly_from_gcs,
+    gcs_client,
+    mcap_metadata,
+    sitl,
+    wait_for,
+    wait_heartbeat,
+    wait_ports_file,
+)
 
 SIM = Path(__file__).with_name("px4_test_sim.py")
 
@@ -32,7 +41,7 @@ def test_fc_hovers_on_px4_simulator_messages_alone(tmp_path: Path) -> None:
             try:
                 wait_heartbeat(gcs, 15.0)
                 gcs.mav.param_set_send(gcs.target_system, 1, b"INDI_LPF_TAU", 0.1, 9)
-                pv = wait_for(gcs, "PARAM_VALUE", 10.0, lambda m: m.param_id == "INDI_LPF_TAU")
+                pv = wait_for(gcs, "PARAM_VALUE", PARAM_SET_WAIT_S, lambda m: m.param_id == "INDI_LPF_TAU")
                 assert pv is not None and abs(pv.param_value - 0.1) < 1e-6, pv
             finally:
                 gcs.close()

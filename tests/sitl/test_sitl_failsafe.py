@@ -10,7 +10,7 @@ import math
 import time
 
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import FcTarget, wait_for
+from sitl_helpers import PARAM_SET_WAIT_S, FcTarget, wait_for
 
 from navig8_fc.gcs.params import decode_param_value, encode_param_value
 from navig8_fc.modes import px4_custom_mode
@@ -42,7 +42,7 @@ def _until(gcs, pred, timeout_s: float, beat: bool, texts: list[str] | None = No
 
 def _read(gcs, name: str) -> float:
     gcs.mav.param_request_read_send(gcs.target_system, 1, name.encode(), -1)
-    pv = wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == name)
+    pv = wait_for(gcs, "PARAM_VALUE", PARAM_SET_WAIT_S, lambda m: m.param_id == name)
     assert pv is not None, f"no PARAM_VALUE {name}"
     return decode_param_value(pv.param_value, pv.param_type)  # INT32 values travel bytewise
 
@@ -83,7 +83,7 @@ def _set_param(gcs, name: str, value: float, int32: bool = False) -> None:
         gcs.mav.param_set_send(gcs.target_system, 1, name.encode(), wire, M.MAV_PARAM_TYPE_INT32)
     else:
         gcs.mav.param_set_send(gcs.target_system, 1, name.encode(), value, M.MAV_PARAM_TYPE_REAL32)
-    assert wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == name) is not None
+    assert wait_for(gcs, "PARAM_VALUE", PARAM_SET_WAIT_S, lambda m: m.param_id == name) is not None
 
 
 def _arm_and_take_off(gcs, alt_m: float, beat: bool = False) -> None:

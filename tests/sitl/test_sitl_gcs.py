@@ -9,7 +9,7 @@ import math
 import time
 
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import FcTarget, wait_for
+from sitl_helpers import PARAM_SET_WAIT_S, FcTarget, wait_for
 
 from navig8_fc.modes import px4_custom_mode
 from navig8_fc.modes.px4 import Px4AutoSubMode, Px4MainMode
@@ -50,7 +50,7 @@ def _wait_state(gcs, pred, timeout_s: float, what: str):
 
 def _read(gcs, name: str) -> float:
     gcs.mav.param_request_read_send(gcs.target_system, 1, name.encode(), -1)
-    pv = wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == name)
+    pv = wait_for(gcs, "PARAM_VALUE", PARAM_SET_WAIT_S, lambda m: m.param_id == name)
     assert pv is not None, f"no PARAM_VALUE {name}"
     return pv.param_value
 
@@ -78,7 +78,7 @@ def test_pymavlink_gcs_session(fc: FcTarget) -> None:
             # refused set (stability floor) -> old value echoed + STATUSTEXT; accepted set -> new value
             k_min = _read(gcs, "INDI_K_MIN")  # 0.5 by default
             gcs.mav.param_set_send(gcs.target_system, 1, b"INDI_K_MIN", 0.1, M.MAV_PARAM_TYPE_REAL32)
-            pv = wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == "INDI_K_MIN")
+            pv = wait_for(gcs, "PARAM_VALUE", PARAM_SET_WAIT_S, lambda m: m.param_id == "INDI_K_MIN")
             assert pv is not None and abs(pv.param_value - k_min) < 1e-6
             st = wait_for(gcs, "STATUSTEXT", 5.0, lambda m: "INDI_K_MIN" in m.text)
             assert st is not None and "stability floor" in st.text

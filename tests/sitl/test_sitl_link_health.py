@@ -15,7 +15,7 @@ from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import FcTarget, free_udp_ports, gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import PARAM_SET_WAIT_S, FcTarget, free_udp_ports, gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.shell import fc_options as fo
 from navig8_fc.shell import fc_process as fp
@@ -46,7 +46,7 @@ def _command(conn: Any, command: int, *params: float, timeout_s: float = 5.0) ->
 
 def _set_param(conn: Any, name: str, value: float, param_type: int = M.MAV_PARAM_TYPE_REAL32) -> None:
     conn.mav.param_set_send(conn.target_system, 1, name.encode(), value, param_type)
-    pv = wait_for(conn, "PARAM_VALUE", 5.0, lambda m: m.param_id == name)
+    pv = wait_for(conn, "PARAM_VALUE", PARAM_SET_WAIT_S, lambda m: m.param_id == name)
     assert pv is not None, f"no PARAM_VALUE for {name}"
 
 

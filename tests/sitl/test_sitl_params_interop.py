@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import FcTarget, gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import PARAM_SET_WAIT_S, FcTarget, gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.params.registry import ParamRegistry
 from navig8_tools.mcap_to_tlog import export
@@ -28,7 +28,7 @@ FC_LOCAL = {"scenario": "ground"}  # the local pair for MAVProxy's session (conf
 
 def _set(gcs, name: str, value: float):
     gcs.mav.param_set_send(gcs.target_system, 1, name.encode(), value, M.MAV_PARAM_TYPE_REAL32)
-    return wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == name)
+    return wait_for(gcs, "PARAM_VALUE", PARAM_SET_WAIT_S, lambda m: m.param_id == name)
 
 
 def _read(gcs, name: str):
