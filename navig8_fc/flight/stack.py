@@ -1,31 +1,14 @@
 """FlightStack: the flight controller as one pure object (mode manager + failsafe decisions + controller core).
 
-`step(sensors, imu_fresh, time_us) -> StepResult` runs one control tick on the sensor bundle's time; the
-`VehicleCommands` methods (arm, takeoff, land, set_mode, gripper, arm joints) answer a ground station between
-steps; `check_links(sensor_age_s, gcs_heartbeat_age_s)` takes the link ages the shell measures on its own clock
-and decides the failsafes; `state()` publishes a frozen `VehicleState`. navig8-fc (lockstep SITL), navig8-sim
+`step(sensors, imu_fresh, time_us) -> StepResult` runs one control tick on the sensor bundle's time;
+`command(record)` answers a ground station between steps (navig8_fc/flight/commands.py); `check_links`,
+`sensor_data` and `tick_failed` take what the shell measures (link ages on its own clock, invalid sensor data, a
+tick that raised) for the failsafes; `state()` publishes a frozen `VehicleState`. navig8-fc (lockstep SITL), navig8-sim
 (in-process) and the tests drive this same object, so they fly the same code path. No sockets, clocks, prints
 or pymavlink here: the caller sends, logs and keeps time.
 
-Failsafes and faults (STATUSTEXT texts are part of the interface: docs/gcs.md):
-- sensor data stale: no bundle for FS_SENS_TOUT (the shell's wall clock: lockstep has no sim time without
-  bundles) -> CRITICAL notice once per outage, pre-arm fails, an armed vehicle reports MAV_STATE_CRITICAL;
-  cleared (INFO notice) when bundles arrive again. The vehicle cannot be commanded without bundles;
-- failsafe actions (parameters FS_*_ACT: 0 none, 1 hold, 2 land, 3 return, Return falling back to Land): each
-  says `<what>: <holding|landing|returning|no action>` (STATUSTEXT WARNING) and, while in force, HEARTBEAT
-  system_status is CRITICAL (armed) and SYS_STATUS's battery bit is unhealthy below FS_BAT_LOW_PCT;
-- offboard setpoints lost: none for FS_OFFB_TOUT (wall clock) -> Offboard can no longer be entered, a vehicle in
-  Offboard holds where it is, then FS_OFFB_ACT (PX4's COM_OF_LOSS_T / COM_OBL_RC_ACT);
-- battery low / critical: remaining below FS_BAT_LOW_PCT / FS_BAT_CRIT_PCT while flying -> FS_BAT_LOW_ACT /
-  FS_BAT_CRIT_ACT, once each;
-- fence breach: outside an uploaded inclusion circle/polygon, beyond FENCE_RADIUS or above FENCE_ALT_MAX from
-  home while flying -> FS_FENCE_ACT, once per breach (navig8_fc.mission.fence);
-- GCS link lost: a ground station that sent heartbeats goes silent for FS_GCS_TOUT while the vehicle is armed
-  in the air in a GCS-commanded mode (not a mission) -> FS_GCS_ACT (default land; PX4's data-link-loss failsafe); a GCS
-  that never sent a heartbeat is never lost;
-- control-rate mismatch: RATE_MISMATCH_STEPS bundle spacings in a row that are not 1/INDI_RATE_HZ -> ERROR
-  notice once, pre-arm fails until the spacings agree again (the filters, rate limits and the stability
-  analysis all assume 1/INDI_RATE_HZ).
+The failsafe decisions live in navig8_fc/flight/failsafe.py (`Failsafes`), fed by the step and by the shell's
+`check_links`, `sensor_data` and `tick_failed`.
 Parameter changes in the registry apply at the next step: gains and bounds swap in place; a change of rate,
 filter or estimator settings rebuilds the core (its filters depend on them).
 """
@@ -67,10 +50,9 @@ from navig8_fc.flight.commands import (
     Takeoff,
     VehicleCommand,
 )
+from navig8_fc.flight.failsafe import Failsafes, FailsafeSettings
 from navig8_fc.flight.script import FlightScript
 from navig8_fc.flight.state import (
-    SEVERITY_CRITICAL,
-    SEVERITY_ERROR,
     SEVERITY_INFO,
     SEVERITY_WARNING,
     ArmRequest,
@@ -90,15 +72,10 @@ from navig8_fc.modes.manager import (
     TaskStatus,
     Verdict,
 )
-from navig8_fc.modes.px4 import FlightMode
 from navig8_fc.params.registry import ParamRegistry
 
 SYSTEM_STATUS_CRITICAL = 5  # MAV_STATE_CRITICAL: a failsafe is in force (PX4 reports the same)
-FS_NONE, FS_HOLD, FS_LAND, FS_RETURN = 0, 1, 2, 3  # failsafe actions (FS_*_ACT parameters)
 ESTIMATOR_WARMUP_S = 0.5  # 5 time constants of the INDI feedback filter before arming is allowed
-RATE_MISMATCH_STEPS = 3  # consecutive bundle spacings != 1/INDI_RATE_HZ before it is reported (not a glitch)
-FAULT_SENSORS = "sensors"  # ModeManager fault names
-FAULT_RATE = "rate"
 # Induced power of one rotor, P = T^1.5 / sqrt(2 rho A) / FM (momentum theory with a figure of merit; sea-level
 # air, the duct's disk area): a simple load model for the simulated battery (docs/gcs.md, hover ~0.6 kW at 8 kg).
 AIR_DENSITY_KG_M3 = 1.225
@@ -142,14 +119,17 @@ class FlightStack:
         # targets of arm-joint commands
         self._arm_plan = (plan_rows(tuple((g.t0_s, g.t1_s, g.q_start_rad, g.q_end_rad) for g in script.arm_plan))
                           if script is not None and script.arm_plan else None)
-        self.reconfigure()
         self._modes = ModeManager(mode_config or ModeConfig(), script.mission() if script is not None else None)
         self._handlers = self._command_handlers()  # command record type -> what applies it
-        self._set_mode_limits(self.core.config.outer)
+        self._fs = Failsafes(self._modes, FailsafeSettings.from_params(registry.as_dict()), sensor_source)
+        # what the feed-forward notices last announced (_feedforward_notices)
+        wn = float(registry["ACT_WN"])
+        self._ff_announced: dict = {"arm_drops": 0, "arm_idents": 0, "u0_trusted": True, "act_wn": (wn, wn),
+                                    "arm_servo": (float(registry["ARM_SERVO_VMAX"]), float(registry["ARM_SERVO_AMAX"]))}
+        self.reconfigure()
         self._weight_n = vehicle.uam_mass_kg * vehicle.gravity_m_s2
         self._n_steps = 0
         self._last_time_us: int | None = None
-        self._dt_bad_n = 0  # consecutive bundle spacings that disagree with 1/INDI_RATE_HZ
         self._sensors: FcSensors | None = None
         self._status: ControllerStatus | None = None
         self._command: ActuatorCommand = MOTORS_OFF
@@ -160,17 +140,6 @@ class FlightStack:
         self._battery_energy_j = 0.0  # drawn since _battery_t_s
         self._arm_request: ArmRequest | None = None
         self._notices: list[Notice] = []  # decided in the step before the mode manager runs (the rate check)
-        # what the feed-forward notices last announced (_feedforward_notices)
-        wn = float(registry["ACT_WN"])
-        self._ff_announced: dict = {"arm_drops": 0, "arm_idents": 0, "u0_trusted": True, "act_wn": (wn, wn),
-                                    "arm_servo": (float(registry["ARM_SERVO_VMAX"]), float(registry["ARM_SERVO_AMAX"]))}
-        self._sensors_stale = False
-        self._stale_age_s = 0.0  # the longest sensor age seen in the current outage
-        self._gcs_lost = False
-        self._offboard_live = False  # offboard setpoints are arriving (newer than FS_OFFB_TOUT)
-        self._failsafes: set[str] = set()  # failsafes in force (battery, fence, link losses)
-        self._fence = Fence()
-        self._battery_checked: BatteryState | None = None  # the pack state the battery failsafe last looked at
         # The long-running arm-joint move (COMMAND_ACK IN_PROGRESS): its status, start and target (rad), start time.
         self._arm_task: TaskStatus | None = None
         self._arm_move: tuple[tuple[float, ...], tuple[float, ...], float] = ((), (), 0.0)
@@ -203,18 +172,12 @@ class FlightStack:
                 or cfg.acc_ref != core.config.acc_ref or cfg.arm_wrench != core.config.arm_wrench):
             self._core = FlightControllerCore(self.vehicle, cfg)
             self._core.set_arm_plan(self._arm_plan)
-            if hasattr(self, "_ff_announced"):  # a new core counts its checks' events from zero
-                self._ff_announced.update(arm_drops=0, arm_idents=0)
+            self._ff_announced.update(arm_drops=0, arm_idents=0)  # a new core counts its checks' events from zero
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
-        if hasattr(self, "_modes"):
-            self._set_mode_limits(cfg.outer)
+        self._set_mode_limits(cfg.outer)
         self._cfg_generation = reg.generation
-        # The step's failsafe limits, read once per registry change (a lookup per step would cost ~1 us each).
-        self._fs_limits = (float(reg["FS_BAT_LOW_PCT"]), float(reg["FS_BAT_CRIT_PCT"]), float(reg["FENCE_RADIUS"]),
-                           float(reg["FENCE_ALT_MAX"]))
-        step_us = 1e6 / float(reg["INDI_RATE_HZ"])  # the bundle spacing this rate needs
-        self._dt_lo_us, self._dt_hi_us = math.floor(step_us), math.ceil(step_us)
+        self._fs.configure(FailsafeSettings.from_params(reg.as_dict()))  # typed once per change, not per step
         self.lambda_crit = stability.lambda_crit(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), cfg.dt_s,
                                                  float(reg["INDI_LPF_TAU"]))
         return True
@@ -227,10 +190,8 @@ class FlightStack:
         t_us = round(sensors.t_s * 1e6) if time_us is None else int(time_us)
         prev_us = self._last_time_us
         self._last_time_us = t_us
-        if prev_us is not None and not self._dt_lo_us <= t_us - prev_us <= self._dt_hi_us:
-            self._spacing_off(t_us - prev_us)  # rare: the bridge's --dt disagrees with INDI_RATE_HZ
-        elif self._dt_bad_n:
-            self._spacing_ok()
+        if (rate_notice := self._fs.spacing(prev_us, t_us)) is not None:  # the bridge's --dt against INDI_RATE_HZ
+            self._notices.append(rate_notice)
         core = self._core
         assert core is not None
         modes = self._modes
@@ -249,10 +210,8 @@ class FlightStack:
         if st.ff is not None or st.indi is not None:
             self._feedforward_notices(st)
         self._discharge(sensors.t_s, t1, t2, t3)
-        if out.armed:
-            self._check_battery_and_fence(sensors.pos_ned)
-        elif self._failsafes:
-            self._failsafes.clear()  # disarmed: a new flight starts clean (the battery re-triggers if still low)
+        if fs_notices := self._fs.after_step(out.armed, self._battery, sensors.pos_ned):  # battery, fence
+            self._notices += fs_notices
         self._sensors, self._status, self._command, self._mode_out = sensors, st, cmd, out
         if self._arm_task is not None and self._arm_task.running:
             self._update_arm_task(sensors)
@@ -342,126 +301,31 @@ class FlightStack:
         self._battery = battery_step(self._battery, self._battery_energy_j / (t1 - t0), t1 - t0)
         self._battery_t_s, self._battery_energy_j = t1, 0.0
 
-    def _spacing_off(self, d_us: int) -> None:
-        if d_us <= 0:  # time went back: a restarted bridge (a new run, not a spacing)
-            self._dt_bad_n = 0
-            return
-        self._dt_bad_n += 1
-        if self._dt_bad_n != RATE_MISMATCH_STEPS:
-            return
-        rate = int(self.registry["INDI_RATE_HZ"])
-        bridge_ms, need_ms = d_us * 1e-3, 1e3 / rate
-        fix = f"{self._sensor_source} --dt {1.0 / rate:g}"
-        if 1_000_000 % d_us == 0 and 20 <= 1_000_000 // d_us <= 1000:
-            fix += f" or restore INDI_RATE_HZ {1_000_000 // d_us}"
-        text = (f"Control rate mismatch: {self._sensor_source} steps {bridge_ms:g} ms, INDI_RATE_HZ {rate} needs "
-                f"{need_ms:g} ms; fix: {fix}")
-        self._modes.set_fault(FAULT_RATE, f"control rate mismatch (bridge {bridge_ms:g} ms, INDI_RATE_HZ {rate}"
-                                          f" needs {need_ms:g} ms)")
-        self._notices.append(Notice(SEVERITY_ERROR, text, text))
-
-    def _spacing_ok(self) -> None:
-        if self._dt_bad_n >= RATE_MISMATCH_STEPS and self._modes.clear_fault(FAULT_RATE):
-            text = (f"Control rate matches {self._sensor_source} again "
-                    f"({1e3 / float(self.registry['INDI_RATE_HZ']):g} ms)")
-            self._notices.append(Notice(SEVERITY_INFO, text, text))
-        self._dt_bad_n = 0
-
-    # --- failsafe inputs -------------------------------------------------------------------------------
+    # --- failsafe inputs from the shell (navig8_fc/flight/failsafe.py decides) -----------------------------
     def check_links(self, sensor_age_s: float | None, gcs_heartbeat_age_s: float | None,
                     offboard_age_s: float | None = None) -> tuple[Notice, ...]:
-        """The failsafes (module docstring) from link ages measured on the caller's clock: the time since the
-        last sensor bundle (None before the first), since the last GCS heartbeat (None: no GCS ever sent
-        one) and since the last offboard setpoint (None: none yet). Returns the notices to announce now; call it
-        often (every loop of the shell)."""
-        notices: list[Notice] = []
-        if self._offboard_live and offboard_age_s is not None and offboard_age_s > float(self.registry["FS_OFFB_TOUT"]):
-            self._offboard_live = False
-            in_offboard = self._modes.flight_mode is FlightMode.OFFBOARD
-            self._modes.offboard_setpoint(None)  # Offboard holds at once; then the configured action
-            if in_offboard:
-                notices.append(self._failsafe("Offboard setpoints lost", int(self.registry["FS_OFFB_ACT"]),
-                                              f" for {offboard_age_s:.1f} s", none_verb="holding"))
-        if sensor_age_s is not None:
-            tout = float(self.registry["FS_SENS_TOUT"])
-            if sensor_age_s > tout:
-                self._stale_age_s = max(self._stale_age_s, sensor_age_s)
-                if not self._sensors_stale:
-                    self._sensors_stale = True
-                    text = f"no sensor data from {self._sensor_source} for {tout:.1f} s"
-                    self._modes.set_fault(FAULT_SENSORS, f"sensors stale: {text}")
-                    t_s = self._sensors.t_s if self._sensors is not None else 0.0
-                    notices.append(Notice(SEVERITY_CRITICAL, text.capitalize(),
-                                          f"{text} (last step t = {t_s:.3f} s); waiting"))
-            elif self._sensors_stale:
-                self._sensors_stale = False
-                self._modes.clear_fault(FAULT_SENSORS)
-                text = f"sensor data from {self._sensor_source} back after {self._stale_age_s:.1f} s"
-                self._stale_age_s = 0.0
-                notices.append(Notice(SEVERITY_INFO, text.capitalize(), text))
-        if gcs_heartbeat_age_s is not None:
-            if gcs_heartbeat_age_s > float(self.registry["FS_GCS_TOUT"]):
-                if not self._gcs_lost:
-                    self._gcs_lost = True
-                    m = self._modes
-                    if m.armed and m.flight_mode is not FlightMode.MISSION and not m.landed:
-                        notices.append(self._failsafe("GCS link lost", int(self.registry["FS_GCS_ACT"])))
-                    else:
-                        notices.append(Notice(SEVERITY_WARNING, None, "GCS link lost"))
-            elif self._gcs_lost:
-                self._gcs_lost = False
-                self._failsafes.discard("GCS link lost")
-                notices.append(Notice(SEVERITY_INFO, None, "GCS link regained"))
-        return tuple(notices)
+        """The link ages the shell measures on its own clock: since the last sensor bundle (None before the first),
+        the last GCS heartbeat (None: no GCS ever sent one), the last offboard setpoint (None: none yet). Returns
+        the notices to announce now; call it often (every loop of the shell)."""
+        self.reconfigure()  # a timeout changed between steps (or with no steps at all) applies now
+        t_s = self._sensors.t_s if self._sensors is not None else 0.0
+        return tuple(self._fs.links(sensor_age_s, gcs_heartbeat_age_s, offboard_age_s, t_s))
 
-    # --- failsafe actions ------------------------------------------------------------------------------
-    def _failsafe(self, name: str, action: int, detail: str = "", none_verb: str = "no action") -> Notice:
-        """Run a failsafe action (0 none, 1 hold, 2 land, 3 return; PX4's numbering of NAV_DLL_ACT's useful
-        subset) and say so (STATUSTEXT WARNING, `<name><detail>: <verb>`); `name` is in force from now on (HEARTBEAT
-        CRITICAL while armed). Return falls back to Land when refused."""
-        m = self._modes
-        verb = none_verb
-        if action != FS_NONE:
-            m.fail_task(f"failsafe: {name}")
-        if action == FS_HOLD:
-            verb = "holding" if m.set_mode(4, 3).ok else verb
-        elif action == FS_LAND:
-            verb = "landing" if m.land().ok else verb
-        elif action == FS_RETURN:
-            verb = "returning" if m.set_mode(4, 5).ok else ("landing" if m.land().ok else verb)
-        self._failsafes.add(name)
-        return Notice(SEVERITY_WARNING, f"{name}{detail}: {verb}")
+    def sensor_data(self, bad_groups: tuple[str, ...], bad_for_s: float) -> tuple[Notice, ...]:
+        """The sensor groups the sim guard replaced by their last good values in this bundle, and for how long some
+        group has failed (sim s)."""
+        notice = self._fs.sensor_data(bad_groups, bad_for_s)
+        return () if notice is None else (notice,)
 
-    def _check_battery_and_fence(self, pos_ned: tuple[float, float, float]) -> None:
-        """Battery low/critical and fence breach while armed and flying; each acts once per occurrence. Runs every
-        step: the thresholds are read from the registry only when it changed (reconfigure), the battery only when
-        the pack model advanced."""
-        m = self._modes
-        if m.landed:
-            return
-        bat_low, bat_crit, fence_radius, fence_alt = self._fs_limits
-        if self._battery is not self._battery_checked:
-            self._battery_checked = self._battery
-            pct = self._battery.remaining_pct
-            reg = self.registry
-            if pct <= bat_crit and "Battery critical" not in self._failsafes:
-                self._failsafes.add("Battery low")  # critical acts; low has nothing left to add
-                self._notices.append(self._failsafe("Battery critical", int(reg["FS_BAT_CRIT_ACT"]), f" ({pct}% left)"))
-            elif pct <= bat_low and "Battery low" not in self._failsafes:
-                self._notices.append(self._failsafe("Battery low", int(reg["FS_BAT_LOW_ACT"]), f" ({pct}% left)"))
-        home = m.home_ned
-        if home is None or not (fence_radius > 0.0 or fence_alt > 0.0 or self._fence.circles or self._fence.polygons):
-            return
-        why = self._fence.breach(pos_ned, home, fence_radius, fence_alt)
-        if why is None:
-            self._failsafes.discard("Fence breach")
-        elif "Fence breach" not in self._failsafes:
-            self._notices.append(self._failsafe("Fence breach", int(self.registry["FS_FENCE_ACT"]), f": {why}"))
+    def tick_failed(self, error: str, n_errors: int) -> tuple[Notice, ...]:
+        """The control tick raised `error` (its n_errors-th time); the shell holds the last good command."""
+        notice = self._fs.tick_failed(error, n_errors)
+        return () if notice is None else (notice,)
 
     @property
     def failsafes(self) -> tuple[str, ...]:
         """The failsafes in force (names), for HEARTBEAT/SYS_STATUS."""
-        return tuple(sorted(self._failsafes))
+        return self._fs.in_force
 
     # --- commands -------------------------------------------------------------------------------------
     def command(self, cmd: VehicleCommand) -> Verdict:
@@ -540,8 +404,7 @@ class FlightStack:
         elif sp.problem():
             return Verdict(False, sp.problem())
         self._modes.offboard_setpoint(sp)
-        self._offboard_live = True
-        self._failsafes.discard("Offboard setpoints lost")
+        self._fs.offboard_alive()
         return Verdict(True)
 
     def _manual_input(self, cmd: ManualInput) -> Verdict:
@@ -554,7 +417,7 @@ class FlightStack:
 
     def _load_fence(self, cmd: LoadFence) -> Verdict:
         """The uploaded FENCE plan (inclusion circles and polygons), checked in flight with FS_FENCE_ACT."""
-        self._fence = Fence.from_plan(cmd.plan, cmd.origin)
+        self._fs.load_fence(Fence.from_plan(cmd.plan, cmd.origin))
         return Verdict(True)
 
     def _queue(self, req: ArmRequest) -> None:
@@ -574,14 +437,14 @@ class FlightStack:
             base_mode=mo.base_mode if mo is not None else m.base_mode,
             custom_mode=mo.custom_mode if mo is not None else m.custom_mode,
             flight_mode=mo.flight_mode if mo is not None else m.flight_mode,
-            system_status=SYSTEM_STATUS_CRITICAL if m.armed and self._failsafes else m.system_status,
+            system_status=SYSTEM_STATUS_CRITICAL if m.armed and self._fs.in_force else m.system_status,
             landed_state=mo.landed_state if mo is not None else 0,
             landed=m.landed,
             home_ned=mo.home_ned if mo is not None else None,
             home_yaw_rad=mo.home_yaw_rad if mo is not None else 0.0,
             mission_time_s=mo.mission_time_s if mo is not None else None,
             sensors=self._sensors,
-            sensors_ok=self._sensors is not None and not self._sensors_stale,
+            sensors_ok=self._sensors is not None and not self._fs.sensors_stale,
             status=self._status,
             command=self._command,
             setpoint=mo.setpoint if mo is not None else None,
@@ -589,7 +452,7 @@ class FlightStack:
             faults=tuple(faults.items()),
             prearm=m.prearm_check(),
             battery=self._battery,
-            gcs_lost=self._gcs_lost,
+            gcs_lost=self._fs.gcs_lost,
             pending_arm_request=self._arm_request,
             lambda_crit=self.lambda_crit,
             n_steps=self._n_steps,

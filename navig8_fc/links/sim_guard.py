@@ -20,8 +20,9 @@ controller, the current step again is a duplicate (the FC re-sends its answer), 
 
 Validation: every value finite, in the range a sensor of this vehicle can report, and (position) no faster than
 MAX_SPEED_M_S from the last accepted sample. A group that fails (IMU, motion capture, actuators, arm) is replaced
-by its last accepted values and counted; BAD_DATA_FAILSAFE_S of sim time with a failing group is the caller's
-failsafe. Truth that is not finite is dropped from the log (it never reaches control).
+by its last accepted values and counted; how long a group has been failing (`bad_data_s`) feeds the FC's
+failsafe (navig8_fc/flight/failsafe.py, BAD_DATA_FAILSAFE_S). Truth that is not finite is dropped from the log
+(it never reaches control).
 """
 
 from __future__ import annotations
@@ -38,7 +39,6 @@ from navig8_fc.mavlink.dialect import COMPID_BRIDGE
 REPAIR_SILENCE_S = 3.0  # wall s the paired bridge must be silent before another may pair
 REPORT_PERIOD_S = 10.0  # wall s between STATUSTEXT reports of one kind of refusal
 SEVERITY_WARNING, SEVERITY_INFO = 4, 6  # MAV_SEVERITY
-BAD_DATA_FAILSAFE_S = 0.2  # sim s of continuously invalid sensor data before the failsafe
 # Physical limits of the sensors and the vehicle (a value outside is not a measurement of this vehicle):
 GYRO_MAX_RAD_S = 35.0  # 2000 deg/s, the range of common MEMS gyros (ICM-42688: +-2000 dps)
 ACCEL_MAX_M_S2 = 16 * 9.80665  # +-16 g, the same IMU's largest range
@@ -386,5 +386,5 @@ _NONE = SimInput("none")
 _DUPLICATE = SimInput("duplicate")
 
 
-__all__ = ["BAD_DATA_FAILSAFE_S", "COMPID_BRIDGE", "GROUPS", "REPAIR_SILENCE_S", "SensorLimits", "SimGuard",
+__all__ = ["COMPID_BRIDGE", "GROUPS", "REPAIR_SILENCE_S", "SensorLimits", "SimGuard",
            "SimGuardCounters", "SimInput", "pairing_heartbeat"]

@@ -17,10 +17,9 @@ from typing import Any
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import FlightControllerCore, warm_up_kernels
 from navig8_fc.flight import ArmRequest, FlightStack, Notice, load_flight_script
-from navig8_fc.flight.commands import Land
 from navig8_fc.links.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.links.signing import LinkSigning
-from navig8_fc.links.sim_guard import BAD_DATA_FAILSAFE_S, SensorLimits, SimGuard, SimInput
+from navig8_fc.links.sim_guard import SensorLimits, SimGuard, SimInput
 from navig8_fc.links.transport import StreamTransport, parse_connection
 from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink import dialect as dialect_mod
@@ -74,7 +73,6 @@ class FlightControllerProcess:
         script = load_flight_script(opts.scenario)  # the scenario's setpoint script (a scripted run: AUTO.MISSION)
         self.log = FcLog(logger, open_error, self._mk_foxglove(script, logger), self.model, self._sim_ns)
         self.n_tick_errors = 0  # exceptions in the control tick (contained: last command held, land requested)
-        self._bad_data_fs = False  # the invalid-sensor-data failsafe is in force
         self._last_cmd: tuple[Any, bool] | None = None  # (command, armed) of the last good tick
         self.guard = SimGuard(opts.sysid, SensorLimits.from_vehicle(self.vehicle), lambda: secrets.randbits(32))
         self._pending_tick: StepRecord | None = None
@@ -280,13 +278,10 @@ class FlightControllerProcess:
         b = inp.bundle
         assert b is not None
         t_us = int(b.time_usec)
-        if inp.bad_groups:
-            if not self.guard.has_good:
-                return  # nothing valid to fly on yet: no answer (the bridge re-sends; counted by the guard)
-            self._check_bad_data(inp.bad_groups)
-        elif self._bad_data_fs:
-            self._bad_data_fs = False
-            self.statustext("Sensor data valid again", 6)
+        if inp.bad_groups and not self.guard.has_good:
+            return  # nothing valid to fly on yet: no answer (the bridge re-sends; counted by the guard)
+        # invalid sensor data (the guard holds the last good values): the stack's failsafe decides
+        self.announce(self.stack.sensor_data(inp.bad_groups, self.guard.bad_data_s() if inp.bad_groups else 0.0))
         self._last_step_time_us = t_us
         sensors = b.fc_sensors()
         if clock_us is not None:  # real time: the control step runs on the FC's clock (realtime.py)
@@ -312,26 +307,19 @@ class FlightControllerProcess:
         if self.log.active:
             self._pending_tick = StepRecord(t_us, b.truth, res.status, cmd, res.setpoint, inp.wire, out, sensors)
 
-    def _check_bad_data(self, groups: tuple[str, ...]) -> None:
-        """Invalid sensor data for BAD_DATA_FAILSAFE_S of sim time: land (the guard holds the last good values)."""
-        if self._bad_data_fs or self.guard.bad_data_s() < BAD_DATA_FAILSAFE_S:
-            return
-        self._bad_data_fs = True
-        verb = "landing" if self.stack.state().armed and self.stack.command(Land()).ok else "no action"
-        self.statustext(f"Bad sensor data ({','.join(groups)}) {self.guard.bad_data_s():.2f} s: {verb}", 2)
-
     def _tick_failed(self, e: Exception, t_us: int) -> None:
         """The tick raised: answer the step with the last good command (the bridge must not stall), ask the stack to
         land, and report (the first error at once, then every 100th)."""
         self.n_tick_errors += 1
-        if self.n_tick_errors == 1 or self.n_tick_errors % 100 == 0:
+        n, what = self.n_tick_errors, type(e).__name__
+        if n == 1 or n % 100 == 0:
             print(f"navig8-fc: control tick failed at t={seam.sim_us_from_time_usec(t_us) * 1e-6:.3f} s "
-                  f"({self.n_tick_errors}x): {type(e).__name__}: {e}", file=sys.stderr)
-            try:
-                verb = "landing" if self.stack.command(Land()).ok else "holding the last command"
-            except Exception:  # noqa: BLE001 - the stack itself is failing: the held command is all there is
-                verb = "holding the last command"
-            self.statustext(f"Control error {type(e).__name__} ({self.n_tick_errors}x): {verb}", 2)
+                  f"({n}x): {what}: {e}", file=sys.stderr)
+        try:
+            notices = self.stack.tick_failed(what, n)  # the failsafe: land, said at the first and every 100th
+        except Exception:  # noqa: BLE001 - the stack itself is failing: the held command is all there is
+            notices = (Notice(2, f"Control error {what} ({n}x): holding the last command"),) if n == 1 else ()
+        self.announce(notices)
         if self._last_cmd is not None:
             cmd, armed = self._last_cmd
             self._last_answer = seam.pack_actuator_controls(self.sim.mav, t_us, cmd, self.vehicle, armed=armed)

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.flight.failsafe import BAD_DATA_FAILSAFE_S
 from navig8_fc.links.sim_guard import (
-    BAD_DATA_FAILSAFE_S,
     REPAIR_SILENCE_S,
     REPORT_PERIOD_S,
     SensorLimits,
