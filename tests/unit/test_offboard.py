@@ -8,7 +8,7 @@ import math
 
 import pytest
 from test_gcs_service import API, GCS, Rig
-from test_mission_executor import _flying
+from test_mission_executor import flying
 from test_modes import DT, PointMass, fly
 
 from navig8_fc.gcs import offboard as ob
@@ -85,7 +85,7 @@ def test_attitude_target_maps_pitch_yaw_and_thrust_and_names_what_it_cannot_fly(
 
 # --- flying them -------------------------------------------------------------------------------------------
 def _offboard(target: OffboardTarget):
-    mm, body, t = _flying()
+    mm, body, t = flying()
     mm.set_position_gain(KP_BODY)
     mm.offboard_setpoint(target)
     assert mm.set_mode(Px4MainMode.OFFBOARD, 0).ok
