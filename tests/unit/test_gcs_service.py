@@ -192,11 +192,11 @@ def test_manual_control_reaches_position_mode_and_stale_sticks_centre() -> None:
     rig.step(60)
     assert rig.command(API, M.MAV_CMD_COMPONENT_ARM_DISARM, 1, 21196).result == M.MAV_RESULT_ACCEPTED
     rig.send(rig.client.manual_control_encode(1, 500, -250, 1000, 0, 0), GCS, 1.0)
-    assert rig.stack._modes.sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
+    assert rig.stack.state().sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
     rig.gcs.poll(1.2)
-    assert rig.stack._modes.sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
+    assert rig.stack.state().sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
     rig.gcs.poll(1.6)  # > 0.5 s without MANUAL_CONTROL: centred
-    assert rig.stack._modes.sticks == (0.0, 0.0, 0.5, 0.0)
+    assert rig.stack.state().sticks == (0.0, 0.0, 0.5, 0.0)
 
 
 def test_set_gps_global_origin_sets_the_origin_parameters() -> None:
