@@ -14,6 +14,8 @@ import time
 
 import pytest
 
+WARM_S = pytest.StashKey[float]()  # how long the warm-up took, for the report header
+
 
 def pytest_configure(config: pytest.Config) -> None:
     if hasattr(config, "workerinput"):  # an xdist worker: the controller has warmed the cache already
@@ -24,9 +26,9 @@ def pytest_configure(config: pytest.Config) -> None:
 
     t0 = time.perf_counter()
     run("hover", duration_s=0.05, log_path=None)
-    config._navig8_warm_s = time.perf_counter() - t0  # type: ignore[attr-defined]
+    config.stash[WARM_S] = time.perf_counter() - t0
 
 
 def pytest_report_header(config: pytest.Config) -> str | None:
-    warm = getattr(config, "_navig8_warm_s", None)
+    warm = config.stash.get(WARM_S, None)
     return None if warm is None else f"navig8: numba kernels warmed in {warm:.1f} s (tests/conftest.py)"

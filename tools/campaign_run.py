@@ -104,11 +104,11 @@ def _inprocess(row: Row, tmp: Path) -> dict[str, Any]:
               world=dict(row.world))
     summary = dict(res.summary)
     if row.authority:
-        summary |= _authority_columns(res.run_log, scenario, row.world)
+        summary |= authority_columns(res.run_log, scenario, row.world)
     return summary
 
 
-def _authority_columns(run_log: Any, scenario: str, world: Mapping[str, float]) -> dict[str, Any]:
+def authority_columns(run_log: Any, scenario: str, world: Mapping[str, float]) -> dict[str, Any]:
     """navig8_tools.authority.bound_from_log(run_log, vehicle) on this run's log and true vehicle, as columns:
     the smallest peak pitch excursion any controller could reach on the logged arm motion (deg), whether the
     trim is feasible, when the bound's worst moment falls. NaN (and `authority_error` saying why) while that

@@ -205,7 +205,7 @@ def servo_track(steps: Sequence[Mapping[str, Any]], duration_s: float, v_max: fl
     return out
 
 
-def _arrival_s(track: np.ndarray, pose_rad: np.ndarray, t_from_s: float) -> float:
+def arrival_s(track: np.ndarray, pose_rad: np.ndarray, t_from_s: float) -> float:
     """The first time >= t_from_s from which the track stays within ARRIVE_TOL_RAD of pose on every joint (inf if
     it never settles there)."""
     far = np.any(np.abs(track[:, 1:] - pose_rad) > ARRIVE_TOL_RAD, axis=1) | (track[:, 0] < t_from_s - 1e-9)
@@ -332,7 +332,7 @@ def draw(sample_index: int, rng_seed: int, spec: EnvelopeSpec
     if grasping:
         steps.append({"t_s": t, "q_deg": _pose(grasp_pose, lim), "ramp_s": _r(rng.uniform(0.0, 1.5), 3) or 0.001})
         track = servo_track(steps, duration, v_max, a_max)
-        t_grasp = _r(_arrival_s(track, np.radians(grasp_pose), t) + margins[0], 3)
+        t_grasp = _r(arrival_s(track, np.radians(grasp_pose), t) + margins[0], 3)
         t = _r(t_grasp + rng.uniform(0.3, 1.0), 3)
     q_from = _target_deg_at(steps, t) if steps else [0.0, 0.0, 0.0]
     t_end_shape = duration - post if releasing else duration
@@ -348,7 +348,7 @@ def draw(sample_index: int, rng_seed: int, spec: EnvelopeSpec
         while t_cmd >= t - 1e-9:
             cut = [s for s in shape_steps if s["t_s"] < t_cmd - 1e-9]
             trial = [*steps, *cut, {"t_s": _r(t_cmd, 3), "q_deg": _pose(release_pose, lim), "ramp_s": release_ramp}]
-            arrive = _arrival_s(servo_track(trial, duration, v_max, a_max), np.radians(release_pose), t_cmd)
+            arrive = arrival_s(servo_track(trial, duration, v_max, a_max), np.radians(release_pose), t_cmd)
             if arrive + margins[1] <= t_release + 1e-9:
                 chosen = trial
                 break

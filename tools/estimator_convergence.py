@@ -25,7 +25,7 @@ from navig8_fc.core.controller import warm_up_kernels
 from navig8_fc.flight import FlightStack
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import read_overrides
-from navig8_tools.sim import _sensors_to_fc
+from navig8_tools.sim import sensors_to_fc
 from sim_bridge.messages import ActuatorCommand as PlantCommand
 from sim_bridge.plant import Plant
 from sim_bridge.world import load_world, parse_world_items
@@ -55,7 +55,7 @@ def k_trace(overrides: dict[str, float], duration_s: float, seed: int = 1,
     ts, ks, kts = [], [], []
     for k in range(n + 1):
         sb = plant.sense()
-        s = _sensors_to_fc(sb)
+        s = sensors_to_fc(sb)
         res = stack.step(s, True, sb.time_us)
         st, tr = res.status, plant.truth()
         j, i_true = st.inertia_uam_diag, np.asarray(tr.inertia_com_kgm2)

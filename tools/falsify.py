@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from navig8_tools.envelope import _arrival_s, servo_track
+from navig8_tools.envelope import arrival_s, servo_track
 
 LOSS_SCORE_DEG = 200.0  # a lost flight scores above any flight held (attitude errors top out at 180 deg)
 LOSS_BONUS_PER_S = 10.0  # + this per second of the flight left at the loss: the sooner lost, the worse
@@ -215,7 +215,7 @@ def flight(x: Sequence[float], spec: FalsifySpec | None = None, name: str = "fal
     t_move = f["grasp_move_t_s"]
     steps: list[dict[str, Any]] = [{"t_s": t_move, "q_deg": grasp}]
     track = servo_track(steps, dur, v_max, a_max)
-    arrived = _arrival_s(track, np.radians(grasp), t_move)
+    arrived = arrival_s(track, np.radians(grasp), t_move)
     in_place = arrived + spec.grasp_margin_s > spec.latest_grasp_s
     t_grasp = _r3(spec.latest_grasp_s if in_place else arrived + spec.grasp_margin_s)
     # the swing to the second pose and back (each a ramp of swing_ramp_s; the servo's limits shape it further)

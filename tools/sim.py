@@ -56,7 +56,7 @@ def _floats(v: Any) -> tuple[float, ...]:
     return tuple(v.tolist()) if hasattr(v, "tolist") else tuple(float(x) for x in v)
 
 
-def _sensors_to_fc(sb: Any) -> FcSensors:
+def sensors_to_fc(sb: Any) -> FcSensors:
     """The plant's SensorBundle as the FC's input (what the bridge seam delivers over MAVLink)."""
     return FcSensors(
         t_s=sb.time_us * 1e-6,
@@ -150,7 +150,7 @@ def run(
     try:
         for k in range(n_steps + 1):
             sb = plant.sense()
-            s = _sensors_to_fc(sb)
+            s = sensors_to_fc(sb)
             if tick_times_s is not None:
                 t_tick = time.perf_counter()
                 res = stack.step(s, True, sb.time_us)

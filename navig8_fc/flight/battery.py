@@ -19,8 +19,8 @@ import math
 from dataclasses import dataclass
 
 # Typical LiPo open-circuit voltage per cell (V) against state of charge (0..1).
-_SOC_POINTS = (0.0, 0.05, 0.10, 0.20, 0.30, 0.40, 0.50, 0.60, 0.70, 0.80, 0.90, 1.00)
-_CELL_OCV_V = (3.27, 3.61, 3.69, 3.73, 3.77, 3.79, 3.82, 3.87, 3.92, 3.98, 4.06, 4.20)
+SOC_POINTS = (0.0, 0.05, 0.10, 0.20, 0.30, 0.40, 0.50, 0.60, 0.70, 0.80, 0.90, 1.00)
+CELL_OCV_V = (3.27, 3.61, 3.69, 3.73, 3.77, 3.79, 3.82, 3.87, 3.92, 3.98, 4.06, 4.20)
 
 
 @dataclass(frozen=True)
@@ -53,10 +53,10 @@ _DEFAULT_CONFIG = BatteryConfig()  # frozen: one shared default instead of one p
 _INF = math.inf
 _sqrt = math.sqrt
 _bisect_right = bisect.bisect_right
-_LAST = len(_SOC_POINTS) - 1
+_LAST = len(SOC_POINTS) - 1
 # Indexed like the tables by the segment's upper end i: (soc0, cell V0, V1 - V0, soc1 - soc0) of [i - 1, i].
 _SEGMENTS = tuple(
-    (_SOC_POINTS[i - 1], _CELL_OCV_V[i - 1], _CELL_OCV_V[i] - _CELL_OCV_V[i - 1], _SOC_POINTS[i] - _SOC_POINTS[i - 1])
+    (SOC_POINTS[i - 1], CELL_OCV_V[i - 1], CELL_OCV_V[i] - CELL_OCV_V[i - 1], SOC_POINTS[i] - SOC_POINTS[i - 1])
     for i in range(_LAST + 1)
 )
 def open_circuit_voltage(soc: float, config: BatteryConfig) -> float:
@@ -66,7 +66,7 @@ def open_circuit_voltage(soc: float, config: BatteryConfig) -> float:
         s = 0.0
     elif s > 1.0:
         s = 1.0
-    s0, v0, dv, ds = _SEGMENTS[min(_bisect_right(_SOC_POINTS, s), _LAST)]
+    s0, v0, dv, ds = _SEGMENTS[min(_bisect_right(SOC_POINTS, s), _LAST)]
     return config.cells * (v0 + dv * (s - s0) / ds)
 
 

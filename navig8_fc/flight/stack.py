@@ -458,4 +458,6 @@ class FlightStack:
             n_steps=self._n_steps,
             mission=mo.mission if mo is not None else m.mission_progress,
             failsafes=self.failsafes,
+            sticks=m.sticks,
+            offboard_target=m.offboard_target,
         )

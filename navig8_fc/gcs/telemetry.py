@@ -217,6 +217,7 @@ class TelemetryScheduler:
         defaults = dict(DEFAULT_RATES_HZ if defaults_hz is None else defaults_hz)
         if any(not (hz >= 0.0 and math.isfinite(hz)) for hz in defaults.values()):
             raise ValueError("default rates must be finite and >= 0 Hz")
+        self._defaults_hz = defaults
         self._min_interval_us = int(min_interval_us)
         self._default_us = {i: (max(int(round(1e6 / hz)), self._min_interval_us) if hz > 0 else -1)
                             for i, hz in defaults.items()}  # fmt: skip
@@ -229,9 +230,10 @@ class TelemetryScheduler:
 
     def copy(self) -> TelemetryScheduler:
         """A table with the same defaults and the same current rates, its streams due at the next call."""
-        c = TelemetryScheduler({}, self._min_interval_us)
-        c._default_us, c._interval_us = dict(self._default_us), dict(self._interval_us)
-        c._next_s = dict.fromkeys(self._default_us)
+        c = TelemetryScheduler(self._defaults_hz, self._min_interval_us)
+        for msg_id, interval_us in self._interval_us.items():
+            if interval_us != self._default_us[msg_id]:  # a rate set since: the same through set_interval
+                c.set_interval(msg_id, interval_us)
         return c
 
     def set_interval(self, msg_id: int, interval_us: int) -> bool:

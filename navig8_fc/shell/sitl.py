@@ -114,7 +114,7 @@ def build_arg_parser() -> argparse.ArgumentParser:
     return ap
 
 
-def _store_params(state_dir: str, instance: int, items: list[str], files: Sequence[str] = (),
+def store_params(state_dir: str, instance: int, items: list[str], files: Sequence[str] = (),
                   from_defaults: bool = False) -> str | None:
     """Merge the parameter files' values, then NAME=VALUE items, into the instance's stored parameters (into the
     defaults when from_defaults); the reason of the first refusal, else None (nothing is stored on a refusal)."""
@@ -149,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     a = build_arg_parser().parse_args(argv)
     stored = bool(a.set or a.params)
     if stored:
-        err = _store_params(a.state_dir, a.instance, a.set, a.params, from_defaults=a.defaults)
+        err = store_params(a.state_dir, a.instance, a.set, a.params, from_defaults=a.defaults)
         if err:
             print(f"navig8-sitl: {err}", file=sys.stderr)
             return 2

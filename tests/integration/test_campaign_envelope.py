@@ -81,12 +81,12 @@ def test_the_authority_columns_come_from_bound_from_log_and_are_nan_without_it(m
         return {"bound_deg": 71.5, "trim_feasible": True, "worst_t_s": 3.25, "other": 1}
 
     monkeypatch.setattr(authority, "bound_from_log", fake_bound, raising=False)
-    cols = campaign_run._authority_columns(object(), "hover", {"tail_max_thrust_n": 80.0})
+    cols = campaign_run.authority_columns(object(), "hover", {"tail_max_thrust_n": 80.0})
     assert cols == {"authority_bound_deg": 71.5, "authority_trim_feasible": True, "authority_worst_t_s": 3.25,
                     "authority_error": None}
     assert seen["cfg"].k_thrust_tail * seen["cfg"].tail_speed_max**2 == pytest.approx(80.0)  # the run's true vehicle
     monkeypatch.delattr(authority, "bound_from_log")
-    cols = campaign_run._authority_columns(object(), "hover", {})
+    cols = campaign_run.authority_columns(object(), "hover", {})
     assert all(math.isnan(cols[k]) for k in campaign_run.AUTHORITY_COLUMNS)
     assert "not available" in cols["authority_error"]
 
@@ -94,7 +94,7 @@ def test_the_authority_columns_come_from_bound_from_log_and_are_nan_without_it(m
         raise RuntimeError("no arm motion")
 
     monkeypatch.setattr(authority, "bound_from_log", broken, raising=False)
-    cols = campaign_run._authority_columns(object(), "hover", {})
+    cols = campaign_run.authority_columns(object(), "hover", {})
     assert math.isnan(cols["authority_bound_deg"]) and "no arm motion" in cols["authority_error"]
 
 

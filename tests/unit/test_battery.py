@@ -10,8 +10,8 @@ from dataclasses import fields
 import pytest
 
 from navig8_fc.flight.battery import (
-    _CELL_OCV_V,
-    _SOC_POINTS,
+    CELL_OCV_V,
+    SOC_POINTS,
     BatteryConfig,
     BatteryState,
     battery_initial,
@@ -22,9 +22,9 @@ from navig8_fc.flight.battery import (
 
 def _ref_ocv(soc: float, config: BatteryConfig) -> float:
     s = min(max(soc, 0.0), 1.0)
-    i = min(bisect.bisect_right(_SOC_POINTS, s), len(_SOC_POINTS) - 1)
-    s0, s1 = _SOC_POINTS[i - 1], _SOC_POINTS[i]
-    v0, v1 = _CELL_OCV_V[i - 1], _CELL_OCV_V[i]
+    i = min(bisect.bisect_right(SOC_POINTS, s), len(SOC_POINTS) - 1)
+    s0, s1 = SOC_POINTS[i - 1], SOC_POINTS[i]
+    v0, v1 = CELL_OCV_V[i - 1], CELL_OCV_V[i]
     return config.cells * (v0 + (v1 - v0) * (s - s0) / (s1 - s0))
 
 

@@ -10,7 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-from test_modes import _armed_on_ground, fly
+from test_modes import armed_on_ground, fly
 
 from navig8_fc.core import outer_loop
 from navig8_fc.core.controller import ControllerConfig, FcSensors, FlightControllerCore
@@ -201,7 +201,7 @@ def test_hold_entered_at_speed_stops_ahead_without_turning_back(v0: float, a0: f
     reference's braking limits: the shaped reference brakes to it and stays (backs up by at most 5 cm, against
     12-30 cm for the time-optimal distance without the jerk stage's lag); holding the entry point itself would fly
     past it and back by most of the braking distance."""
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     mm.set_braking(A_REF, J_MAX, 1.0 / (JERK_K_PER_VEL_K * OL.vel_k))
     mm.takeoff(3.0)
     _outs, t = fly(mm, body, t, 1.5)  # still climbing: Hold is a mode change

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from test_sim_guard import Wire, _set
+from test_sim_guard import Wire, set_field
 
 from navig8_fc.links.sim_guard import pairing_heartbeat
 from navig8_fc.mavlink import codec, dialect, seam
@@ -127,14 +127,14 @@ def test_bad_sensor_data_is_rejected_reported_and_lands(tmp_path: Path) -> None:
         # how much the command moves from one good step to the next (the open-loop plant drifts from trim)
         normal = max(abs(x - y) for a, b in zip(good[60:-1], good[61:], strict=True)
                      for x, y in zip(a.speed_rad_s, b.speed_rad_s, strict=True))
-        bad = [side.step(_set("joint_pos_rad", 0, math.nan)), side.step(_set("gyro_frd", 1, math.inf)),
-               side.step(_set("pos_ned", 0, 1e6))]
+        bad = [side.step(set_field("joint_pos_rad", 0, math.nan)), side.step(set_field("gyro_frd", 1, math.inf)),
+               side.step(set_field("pos_ned", 0, 1e6))]
         # every step answered, from the last good values: the command stays where the good data had it
         assert all(_finite(a) for a in bad)
         # (a 1e6 m position error would saturate the rotors: 950 rad/s away)
         assert max(abs(x - y) for a in bad for x, y in zip(a.speed_rad_s, ref, strict=True)) < 3 * normal + 5.0, normal
         for _ in range(25):  # 0.25 s of NaN in the arm state: the failsafe lands
-            assert _finite(side.step(_set("joint_rate_rad_s", 1, math.nan)))
+            assert _finite(side.step(set_field("joint_rate_rad_s", 1, math.nan)))
         assert proc.stack.state().flight_mode.name == "LAND"
         side.step()
         # an exception in the tick (fault injection: no real input makes the stack raise any more) is contained

@@ -209,7 +209,7 @@ def test_battery_discharges_with_the_hover_load(vehicle) -> None:
 def test_stack_flies_the_script_as_the_scripted_core_did(vehicle) -> None:
     """Closed loop with the plant on the paper scenario: the stack's setpoint is the script's and its command is
     what a bare core commands with that setpoint, engaged (the in-process loop before the stack), bit for bit."""
-    from navig8_tools.sim import _sensors_to_fc
+    from navig8_tools.sim import sensors_to_fc
     from sim_bridge.messages import ActuatorCommand
     from sim_bridge.params import PlantParams
     from sim_bridge.plant import Plant
@@ -223,7 +223,7 @@ def test_stack_flies_the_script_as_the_scripted_core_did(vehicle) -> None:
     texts = []
     for _ in range(700):  # 7 s: the arm's ramp, two square-wave edges, the mass step and the first setpoint step
         sb = plant.sense()
-        s = _sensors_to_fc(sb)
+        s = sensors_to_fc(sb)
         res = stack.step(s, True, sb.time_us)
         sp = sc.script.setpoint_at(s.t_s)
         cmd, st = bare.step(s, sp, engaged=True)

@@ -56,7 +56,7 @@ def _sensors(t_us: int, z: float, w: float, gripper_closed: bool = False) -> FcS
 
 
 class Rig:
-    def __init__(self, state_override: dict[str, Any] | None = None) -> None:
+    def __init__(self, state_override: dict[str, Any] | None = None, signing: Any = None) -> None:
         self.vehicle = vm.VehicleConfig.load()
         self.registry = ParamRegistry.from_defaults()
         self.stack = FlightStack(self.vehicle, self.registry)
@@ -68,7 +68,7 @@ class Rig:
             return replace(s, **state_override) if state_override else s
 
         self.gcs = GcsService(self.mav, 1, state, self.stack, self.outbox, self.registry, self.vehicle,
-                              trusted_sources=[API, GCS])  # the links' configured targets, as the process gives
+                              trusted_sources=[API, GCS], signing=signing)  # the links' targets, as the process gives
         self.client = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
         self.t_us = 0
         self.z, self.w = 0.0, 0.0
@@ -192,11 +192,11 @@ def test_manual_control_reaches_position_mode_and_stale_sticks_centre() -> None:
     rig.step(60)
     assert rig.command(API, M.MAV_CMD_COMPONENT_ARM_DISARM, 1, 21196).result == M.MAV_RESULT_ACCEPTED
     rig.send(rig.client.manual_control_encode(1, 500, -250, 1000, 0, 0), GCS, 1.0)
-    assert rig.stack._modes.sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
+    assert rig.stack.state().sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
     rig.gcs.poll(1.2)
-    assert rig.stack._modes.sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
+    assert rig.stack.state().sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
     rig.gcs.poll(1.6)  # > 0.5 s without MANUAL_CONTROL: centred
-    assert rig.stack._modes.sticks == (0.0, 0.0, 0.5, 0.0)
+    assert rig.stack.state().sticks == (0.0, 0.0, 0.5, 0.0)
 
 
 def test_set_gps_global_origin_sets_the_origin_parameters() -> None:
@@ -254,9 +254,8 @@ class _Signing:
 
 
 def test_signing_required_refuses_commands_until_a_key_is_set_and_the_key_never_leaves() -> None:
-    rig = Rig()
     signing = _Signing()
-    rig.gcs._signing = signing
+    rig = Rig(signing=signing)
     rig.registry.set("GCS_SIGN_REQ", 1)
     rig.step(60)
     assert rig.command(GCS, M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_DENIED

@@ -102,7 +102,8 @@ def test_a_plan_ending_without_land_holds_and_reports_finished() -> None:
     assert body.pos == pytest.approx([1.0, 0.0, -2.0], abs=0.05)
 
 
-def _flying() -> tuple[ModeManager, PointMass, float]:
+def flying() -> tuple[ModeManager, PointMass, float]:
+    """A manager that has taken off, its point mass and time (test_offboard.py uses it too)."""
     mm = ModeManager()
     body = PointMass()
     mm.step(body.inputs(0.0))
@@ -113,7 +114,7 @@ def _flying() -> tuple[ModeManager, PointMass, float]:
 
 
 def test_return_mode_climbs_flies_home_lands_and_disarms() -> None:
-    mm, body, t = _flying()
+    mm, body, t = flying()
     assert mm.reposition((2.0, -1.0, -1.5)).ok
     _, t = fly(mm, body, t, 5.0)
     assert body.pos == pytest.approx([2.0, -1.0, -1.5], abs=0.05)
@@ -128,7 +129,7 @@ def test_return_mode_climbs_flies_home_lands_and_disarms() -> None:
 
 
 def test_offboard_needs_a_stream_follows_it_and_holds_when_it_stops() -> None:
-    mm, body, t = _flying()
+    mm, body, t = flying()
     ok, reason = mm.set_mode(Px4MainMode.OFFBOARD, 0)
     assert not ok and "setpoint" in reason
     mm.offboard_setpoint(Setpoint((1.0, 1.0, -2.0), 0.0, 0.5))
@@ -147,14 +148,14 @@ def test_reposition_denied_on_the_ground_and_nan_keeps_coordinates() -> None:
     body = PointMass()
     mm.step(body.inputs(0.0))
     assert not mm.reposition((1.0, 1.0, -1.0)).ok
-    mm, body, t = _flying()
+    mm, body, t = flying()
     assert mm.reposition((math.nan, 1.0, math.nan), math.nan).ok
     outs, t = fly(mm, body, t, 3.0)
     assert outs[-1].flight_mode is FlightMode.HOLD and outs[-1].setpoint.pos_ned == pytest.approx((0.0, 1.0, -1.5))
 
 
 def test_position_mode_sticks_move_the_setpoint_and_centred_sticks_hold() -> None:
-    mm, body, t = _flying()
+    mm, body, t = flying()
     assert mm.set_mode(Px4MainMode.POSCTL, 0).ok
     mm.manual_input(1.0, 0.0, 0.5, 0.0)  # full forward; heading 0 = north
     outs, t = fly(mm, body, t, 2.0)

@@ -165,7 +165,7 @@ def test_arm_sets_home_and_base_mode() -> None:
 
 
 def test_disarm_in_air_denied_unless_forced() -> None:
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     assert mm.takeoff(2.0).ok
     _, t = fly(mm, body, t, 4.0)
     ok, reason = mm.disarm()
@@ -173,7 +173,8 @@ def test_disarm_in_air_denied_unless_forced() -> None:
     assert mm.disarm(force=True).ok and not mm.armed
 
 
-def _armed_on_ground():
+def armed_on_ground():
+    """A manager armed on the ground with its point mass and time (test_command_shaping.py uses it too)."""
     mm = ModeManager()
     body = PointMass()
     mm.step(body.inputs(0.0))
@@ -195,7 +196,7 @@ def test_takeoff_requires_armed_and_valid_altitude() -> None:
 
 
 def test_takeoff_climbs_then_holds() -> None:
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     assert mm.takeoff(2.0).ok
     body_z: list[float] = []
     outs, t = fly(mm, body, t, 6.0, body_z)
@@ -216,7 +217,7 @@ def test_takeoff_climbs_then_holds() -> None:
 
 
 def test_land_descends_then_disarms_after_touchdown_plus_delay() -> None:
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     mm.takeoff(2.0)
     _, t = fly(mm, body, t, 6.0)
     assert mm.land().ok
@@ -246,7 +247,7 @@ class ThrustingAtContact(PointMass):
 def test_land_touches_down_at_ground_contact_without_waiting_for_the_thrust_cue() -> None:
     # The thrust cue never comes here (thrust/weight stays 1 on the ground), and the detector's hold would come
     # too late for a real INDI anyway: at home height and no longer descending, LAND idles within one step.
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     body.__class__ = ThrustingAtContact
     mm.takeoff(2.0)
     _, t = fly(mm, body, t, 6.0)
@@ -265,7 +266,7 @@ def test_land_touches_down_at_ground_contact_without_waiting_for_the_thrust_cue(
 ])
 def test_land_below_home_height_does_not_cut_the_motors_in_the_air(z: float, ticks: int) -> None:
     # The vehicle hovers still at z (NED, home at 0) with its thrust carrying its weight while LAND descends.
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     mm.takeoff(2.0)
     _, t = fly(mm, body, t, 6.0)
     assert mm.land().ok
@@ -278,7 +279,7 @@ def test_land_denied_when_disarmed_and_idempotent() -> None:
     mm = ModeManager()
     mm.step(PointMass().inputs(0.0))
     assert not mm.land().ok
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     mm.takeoff(2.0)
     _, t = fly(mm, body, t, 6.0)
     assert mm.land().ok and mm.land().ok
@@ -317,7 +318,7 @@ def test_set_mode_hold_and_denials() -> None:
 
 
 def test_hold_in_air_keeps_position_where_entered() -> None:
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     mm.takeoff(3.0)
     outs, t = fly(mm, body, t, 1.5)  # still climbing
     assert outs[-1].flight_mode is FlightMode.TAKEOFF
@@ -395,7 +396,7 @@ def test_land_detector_uses_height_when_thrust_unknown() -> None:
 
 
 def test_nan_state_never_becomes_a_setpoint() -> None:
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     mm.takeoff(2.0)
     _, t = fly(mm, body, t, 6.0)
     out = mm.step(ModeInputs(t, (math.nan, 0.0, -2.0), (0.0, 0.0, 0.0), math.nan, 1.0))
@@ -404,7 +405,7 @@ def test_nan_state_never_becomes_a_setpoint() -> None:
 
 
 def test_outputs_carry_plain_ints_in_every_mode() -> None:
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     mm.takeoff(2.0)
     outs, t = fly(mm, body, t, 6.0)
     mm.land()
@@ -434,7 +435,7 @@ def test_mission_resting_on_the_ground_reports_on_ground() -> None:
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
 @pytest.mark.parametrize("where", range(8))
 def test_every_non_finite_state_value_is_caught(where: int, bad: float) -> None:
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     mm.takeoff(2.0)
     _, t = fly(mm, body, t, 6.0)
     good = mm.step(body.inputs(t))
@@ -457,7 +458,7 @@ def test_huge_finite_state_is_not_mistaken_for_a_bad_sample() -> None:
 
 
 def test_time_going_back_does_not_move_a_ramp() -> None:
-    mm, body, t = _armed_on_ground()
+    mm, body, t = armed_on_ground()
     mm.takeoff(2.0)
     outs, t = fly(mm, body, t, 0.5)
     z = outs[-1].setpoint.pos_ned[2]

@@ -8,7 +8,7 @@ import math
 
 import pytest
 from test_gcs_service import API, GCS, Rig
-from test_mission_executor import _flying
+from test_mission_executor import flying
 from test_modes import DT, PointMass, fly
 
 from navig8_fc.gcs import offboard as ob
@@ -85,7 +85,7 @@ def test_attitude_target_maps_pitch_yaw_and_thrust_and_names_what_it_cannot_fly(
 
 # --- flying them -------------------------------------------------------------------------------------------
 def _offboard(target: OffboardTarget):
-    mm, body, t = _flying()
+    mm, body, t = flying()
     mm.set_position_gain(KP_BODY)
     mm.offboard_setpoint(target)
     assert mm.set_mode(Px4MainMode.OFFBOARD, 0).ok
@@ -148,7 +148,7 @@ def test_messages_reach_the_stack_and_refusals_and_ignored_parts_are_said() -> N
     assert rig.command(API, 400, 1, 21196).result == 0  # forced arm on the bench
     c = rig.client
     rig.send(c.set_position_target_local_ned_encode(0, 1, 1, 1, ALL_BUT["vel"], 0, 0, 0, 0.3, 0, 0, 0, 0, 0, 0, 0), GCS)
-    assert rig.stack._modes.offboard_target.vel_ned == (pytest.approx(0.3), 0.0, 0.0)
+    assert rig.stack.state().offboard_target.vel_ned == (pytest.approx(0.3), 0.0, 0.0)
     assert not rig.outbox.pop("STATUSTEXT")
     accel = ALL_BUT["vel"] & ~ob.PT_AX
     for _ in range(3):  # named once, not per message
@@ -158,11 +158,11 @@ def test_messages_reach_the_stack_and_refusals_and_ignored_parts_are_said() -> N
     rig.send(c.set_position_target_local_ned_encode(0, 1, 1, 1, 0xFFF, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0), GCS)
     assert "invalid" in rig.outbox.pop("STATUSTEXT")[0][1].text
     rig.send(c.set_attitude_target_encode(0, 1, 1, ob.AT_RATES, _quat(0, 0.5, 0.2), 0, 0, 0, 0.5), GCS)
-    got = rig.stack._modes.offboard_target
+    got = rig.stack.state().offboard_target
     assert got.pitch_rad == pytest.approx(0.5) and got.yaw_rad == pytest.approx(0.2) and got.throttle == 0.5
     rig.send(c.set_attitude_target_encode(0, 1, 1, ob.AT_ATTITUDE, (1, 0, 0, 0), 0, 0, 0.2, 0.5), GCS)
     assert "body-rate" in rig.outbox.pop("STATUSTEXT")[0][1].text
-    assert rig.stack._modes.offboard_target.pitch_rad == pytest.approx(0.5)  # a refusal changes nothing
+    assert rig.stack.state().offboard_target.pitch_rad == pytest.approx(0.5)  # a refusal changes nothing
 
 
 def test_offboard_on_the_ground_idles_until_a_target_above_asks_to_climb() -> None:

@@ -137,7 +137,8 @@ def test_fragments_and_mixed_datagrams_never_make_a_step() -> None:
     assert inp.kind == "step"
 
 
-def _set(name: str, i: int, value: float):
+def set_field(name: str, i: int, value: float):
+    """A bundle edit setting one sample's field[i] (test_fc_sim_guard.py uses it too)."""
     def f(sw):
         getattr(sw, name)[i] = value
     return f
@@ -157,7 +158,7 @@ def _set(name: str, i: int, value: float):
 def test_a_bad_value_is_replaced_by_the_last_good_one(name: str, i: int, value: float, group: str) -> None:
     g, w = paired()
     good = g.on_datagram(parse(w.next()), BRIDGE, 0.0)[0].bundle
-    inp, _ = g.on_datagram(parse(w.next(_set(name, i, value))), BRIDGE, 0.0)
+    inp, _ = g.on_datagram(parse(w.next(set_field(name, i, value))), BRIDGE, 0.0)
     assert inp.kind == "step" and inp.bad_groups == (group,) and inp.wire is None  # never logged decoded
     field = {"arm": "joint_pos_rad", "imu": "gyro_frd", "mocap": "pos_ned", "actuators": "prop_speed_rad_s"}[group]
     assert getattr(inp.bundle, field) == getattr(good, field)
@@ -180,12 +181,12 @@ def test_a_position_jump_faster_than_the_vehicle_can_fly_is_implausible() -> Non
 def test_persistent_bad_data_reaches_the_failsafe_time_and_truth_is_checked() -> None:
     g, w = paired()
     assert not g.has_good
-    first, _ = g.on_datagram(parse(w.next(_set("gyro_frd", 0, math.nan))), BRIDGE, 0.0)
+    first, _ = g.on_datagram(parse(w.next(set_field("gyro_frd", 0, math.nan))), BRIDGE, 0.0)
     assert first.bad_groups == ("imu",) and not g.has_good  # nothing good to fly on yet
     g.on_datagram(parse(w.next()), BRIDGE, 0.0)
     n = 0
     while g.bad_data_s() < BAD_DATA_FAILSAFE_S:
-        g.on_datagram(parse(w.next(_set("accel_frd", 0, math.nan))), BRIDGE, 0.0)
+        g.on_datagram(parse(w.next(set_field("accel_frd", 0, math.nan))), BRIDGE, 0.0)
         n += 1
     assert n == round(BAD_DATA_FAILSAFE_S / 0.01) + 1
     inp, _ = g.on_datagram(parse(w.next(truth_mutate=lambda t: t.pos_ned_m.__setitem__(2, math.nan))), BRIDGE, 0.0)

@@ -27,26 +27,26 @@ def test_refused_value_stops_before_anything_starts_and_stores_nothing(tmp_path:
 
 
 def test_accepted_values_merge_into_the_instance_file(tmp_path: Path) -> None:
-    from navig8_fc.shell.sitl import _store_params
+    from navig8_fc.shell.sitl import store_params
 
-    assert _store_params(str(tmp_path), 4, ["CKF_MODE=1"]) is None
-    assert _store_params(str(tmp_path), 4, ["INDI_LAMBDA_MIN=0.25"]) is None  # a second --set keeps the first
+    assert store_params(str(tmp_path), 4, ["CKF_MODE=1"]) is None
+    assert store_params(str(tmp_path), 4, ["INDI_LAMBDA_MIN=0.25"]) is None  # a second --set keeps the first
     values = ParamStore(default_state_path(tmp_path, 4)).load().values
     assert values["CKF_MODE"] == 1 and values["INDI_LAMBDA_MIN"] == 0.25  # 0.25: exact in REAL32
 
 
 def test_params_file_then_set_and_defaults_start_clean(tmp_path: Path) -> None:
-    from navig8_fc.shell.sitl import _store_params
+    from navig8_fc.shell.sitl import store_params
 
     f = tmp_path / "p.parm"
     f.write_text("# a comment\nINDI_LAMBDA_MIN 0.25\nCKF_MODE,1  # ArduPilot's comma form\n\n")
     st = tmp_path / "st"
-    assert _store_params(str(st), 0, ["OL_POS_K=1.5"]) is None
-    assert _store_params(str(st), 0, ["CKF_MODE=2"], [str(f)]) is None  # --set wins over the file
+    assert store_params(str(st), 0, ["OL_POS_K=1.5"]) is None
+    assert store_params(str(st), 0, ["CKF_MODE=2"], [str(f)]) is None  # --set wins over the file
     values = ParamStore(default_state_path(st, 0)).load().values
     assert values["INDI_LAMBDA_MIN"] == 0.25 and values["CKF_MODE"] == 2 and values["OL_POS_K"] == 1.5
     # --defaults with --params: the defaults plus the file, whatever was stored before
-    assert _store_params(str(st), 0, [], [str(f)], from_defaults=True) is None
+    assert store_params(str(st), 0, [], [str(f)], from_defaults=True) is None
     values = ParamStore(default_state_path(st, 0)).load().values
     assert values["OL_POS_K"] == ParamRegistry.from_defaults()["OL_POS_K"] and values["CKF_MODE"] == 1
 
