@@ -54,8 +54,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numba import njit
 
+from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig, CkfMode
 from navig8_fc.core.filters import lpf_alpha
-from navig8_fc.core.kalman import N_MEAS, N_STATE, CkfConfig, CkfMode, ConstrainedKalmanFilter, inertia_ratios
+from navig8_fc.core.kalman import ConstrainedKalmanFilter, inertia_ratios
 from navig8_fc.core.layout import layout
 from navig8_fc.core.lms import LmsEstimator
 

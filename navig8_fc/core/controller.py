@@ -36,6 +36,7 @@ from navig8_fc.core.arm_preview import (
     preview_supervise,
     reference_advance,
 )
+from navig8_fc.core.ckf_config import CkfConfig
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.front_end import FO, FST, TIN, com_accel_offset, fc_front
 from navig8_fc.core.g_c import UO, actuators_to_u, gc_inv_about
@@ -46,7 +47,6 @@ from navig8_fc.core.indi import (
     IndiInputs,
     IndiStatus,
 )
-from navig8_fc.core.kalman import CkfConfig
 from navig8_fc.core.outer_loop import (
     OFF,
     OO,
