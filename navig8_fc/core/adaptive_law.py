@@ -54,8 +54,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numba import njit
 
+from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig, CkfMode
 from navig8_fc.core.filters import lpf_alpha
-from navig8_fc.core.kalman import N_MEAS, N_STATE, CkfConfig, CkfMode, ConstrainedKalmanFilter, inertia_ratios
+from navig8_fc.core.kalman import ConstrainedKalmanFilter, KfStepResult, inertia_ratios
 from navig8_fc.core.layout import layout
 from navig8_fc.core.lms import LmsEstimator
 
@@ -324,43 +325,17 @@ class AdaptiveLaw:
         du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
         ready, window_sat = inc[LO_READY] != 0.0, inc[LO_SAT] != 0.0
         if not started:
-            x_fixed, k_fixed = base, _ONES4
-            if self._pinned:  # Eq. 4 with a constant K, clipped to the Eq. 20 box (the guarantee's K)
-                k_fixed = tuple(min(max(k, k_min), k_max) for k in self.config.ckf.k_pin)
-                x_fixed = (j11 / k_fixed[0], j22 / k_fixed[1], j33 / k_fixed[2], m / k_fixed[3])
-                self._mass_hat = x_fixed[3]  # the arm term's object: the constant model's extra mass
-            g, gl = _gi_hat_flat(j11, j13, j33, x_fixed)
-            return g, gl, AdaptiveLawStatus(
-                running=False, x_hat=x_fixed, x_unconstrained=x_fixed, k=k_fixed,
-                lower=lower, upper=upper, active_lower=_FALSE4, active_upper=_FALSE4,
-                innovation=_ZERO5, p_diag=_ZERO4, n_updates=0, n_projection_fallbacks=0,
-                delta_u=du, delta_acc=da, saturated=window_sat,
-            )
+            return self._not_started(base, j13, lower, upper, du, da, window_sat)
         kf = self._kf
         idot: tuple[float, float, float] | None = None  # no predict on the first KF tick: x0 is this pose
         if self._running:
-            # Eq. 22. CKF_PRED_DJ: the drift is the tick's own change of J plus the estimated object's I-dot (it
-            # moves with the arm), so that x follows the model exactly where it is right. The model's I-dot of J
-            # from the measured joint rates integrates to less or more than J's change, because J is evaluated at
-            # the joint observer's q, which also moves by its correction toward the measured q: each 40 deg arm
-            # reversal of the paper scenario moved K3 by -0.05 (K3 0.74 at 23 s with no object); and it leaves out
-            # the held object, whose inertia changes most with the arm's pose. The object's share is its rate at the
-            # estimated mass (a change of the mass estimate itself moves no inertia).
-            if self._pred_dj:
-                jp, inv_dt = self._j_prev, self._inv_dt
-                ob = object_inertia_rate or (0.0, 0.0, 0.0)
-                idot = ((j11 - jp[0]) * inv_dt + ob[0], (j22 - jp[1]) * inv_dt + ob[1], (j33 - jp[2]) * inv_dt + ob[2])
-            else:
-                idot = (inertia_rate.item(0), inertia_rate.item(4), inertia_rate.item(8))
+            idot = self._drift(j11, j22, j33, inertia_rate, object_inertia_rate)
         else:
             kf.initialise(base)  # K = 1 at the start (Sec. 4)
             self._running = True
         if self._grip_reset and gripper_closed is not None:
             self._on_gripper(bool(gripper_closed), t_s, base, lower, upper)
-        correct = ready and t_s >= self._hold_until_s
-        if ready and window_sat and self._sat_gate:  # no learning from saturated steps (Paparazzi learns from
-            correct = False  # the actuator state, which WLS keeps inside its limits; we skip such windows)
-            self._n_sat_skips += 1
+        correct = self._gate(ready, window_sat, t_s)
         self._j_prev = (j11, j22, j33)
         rho_x, rho_z = inertia_ratios(j11, j13, j33)
         du_kf = self._du
@@ -368,6 +343,63 @@ class AdaptiveLaw:
         if self.config.arm_wrench and dhd != 0.0:
             du_kf = self._du - gc_inv[:, 1] * dhd  # z = Delta U - G_C^-1 [0, Delta h', 0, 0, 0]
         r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
+        return self._estimated(r, base, j13, lower, upper, du, da, window_sat)
+
+    def _not_started(
+        self, base: tuple[float, float, float, float], j13: float, lower: tuple[float, ...],
+        upper: tuple[float, ...], du: tuple[float, ...], da: tuple[float, ...], window_sat: bool,
+    ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
+        """Before the start, and in the modes without an estimator: G_I,UAM (K = 1), or the pinned K's (PINNED)."""
+        j11, j22, j33, m = base
+        x_fixed, k_fixed = base, _ONES4
+        if self._pinned:  # Eq. 4 with a constant K, clipped to the Eq. 20 box (the guarantee's K)
+            k_min, k_max = self._k_min, self._k_max
+            k_fixed = tuple(min(max(k, k_min), k_max) for k in self.config.ckf.k_pin)
+            x_fixed = (j11 / k_fixed[0], j22 / k_fixed[1], j33 / k_fixed[2], m / k_fixed[3])
+            self._mass_hat = x_fixed[3]  # the arm term's object: the constant model's extra mass
+        g, gl = _gi_hat_flat(j11, j13, j33, x_fixed)
+        return g, gl, AdaptiveLawStatus(
+            running=False, x_hat=x_fixed, x_unconstrained=x_fixed, k=k_fixed,
+            lower=lower, upper=upper, active_lower=_FALSE4, active_upper=_FALSE4,
+            innovation=_ZERO5, p_diag=_ZERO4, n_updates=0, n_projection_fallbacks=0,
+            delta_u=du, delta_acc=da, saturated=window_sat,
+        )
+
+    def _drift(
+        self, j11: float, j22: float, j33: float, inertia_rate: np.ndarray,
+        object_inertia_rate: tuple[float, float, float] | None,
+    ) -> tuple[float, float, float]:
+        """Eq. 22's drift [I_dot_11, I_dot_22, I_dot_33]: the model's I-dot, or (CKF_PRED_DJ) the tick's change of J
+        plus the estimated object's I-dot."""
+        # CKF_PRED_DJ: the drift is the tick's own change of J plus the estimated object's I-dot (it moves with the
+        # arm), so that x follows the model exactly where it is right. The model's I-dot of J from the measured joint
+        # rates integrates to less or more than J's change, because J is evaluated at the joint observer's q, which
+        # also moves by its correction toward the measured q: each 40 deg arm reversal of the paper scenario moved K3
+        # by -0.05 (K3 0.74 at 23 s with no object); and it leaves out the held object, whose inertia changes most
+        # with the arm's pose. The object's share is its rate at the estimated mass (a change of the mass estimate
+        # itself moves no inertia).
+        if self._pred_dj:
+            jp, inv_dt = self._j_prev, self._inv_dt
+            ob = object_inertia_rate or (0.0, 0.0, 0.0)
+            return ((j11 - jp[0]) * inv_dt + ob[0], (j22 - jp[1]) * inv_dt + ob[1], (j33 - jp[2]) * inv_dt + ob[2])
+        return (inertia_rate.item(0), inertia_rate.item(4), inertia_rate.item(8))
+
+    def _gate(self, ready: bool, window_sat: bool, t_s: float) -> bool:
+        """Whether this step corrects: a window closed, outside the hold after a gripper event, and (CKF_SAT_GATE) no
+        saturation in the window (counted as a skip)."""
+        correct = ready and t_s >= self._hold_until_s
+        if ready and window_sat and self._sat_gate:  # no learning from saturated steps (Paparazzi learns from
+            correct = False  # the actuator state, which WLS keeps inside its limits; we skip such windows)
+            self._n_sat_skips += 1
+        return correct
+
+    def _estimated(
+        self, r: KfStepResult, base: tuple[float, float, float, float], j13: float, lower: tuple[float, ...],
+        upper: tuple[float, ...], du: tuple[float, ...], da: tuple[float, ...], window_sat: bool,
+    ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
+        """G_hat_I (Eq. 4) from the estimator's step r, and the status."""
+        j11, j22, j33, m = base
+        kf = self._kf
         x = r.x_hat
         x0, x1, x2, x3 = x
         self._mass_hat = x3

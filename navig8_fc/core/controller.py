@@ -36,6 +36,7 @@ from navig8_fc.core.arm_preview import (
     preview_supervise,
     reference_advance,
 )
+from navig8_fc.core.ckf_config import CkfConfig
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.front_end import FO, FST, TIN, com_accel_offset, fc_front
 from navig8_fc.core.g_c import UO, actuators_to_u, gc_inv_about
@@ -46,7 +47,6 @@ from navig8_fc.core.indi import (
     IndiInputs,
     IndiStatus,
 )
-from navig8_fc.core.kalman import CkfConfig
 from navig8_fc.core.outer_loop import (
     OFF,
     OO,
@@ -303,140 +303,41 @@ class FlightControllerCore:
     def step(
         self, s: FcSensors, sp: Setpoint, engaged: bool = True
     ) -> tuple[ActuatorCommand, ControllerStatus]:
-        cfg = self.config
+        """One control tick: the front end, the adaptive law, the arm's feed-forward, then the outer loops and the
+        INDI when engaged (the INDI's filters kept warm when not); the module docstring's signal flow."""
         io = self._tick_io
         if io is None:
             io = self._tick_buffers()
-        sens, gyro, pos, vel, quat, spv, u_meas, acc_m, uam_mass = io
+        sens, _, _, _, _, _, u_meas, acc_m, uam_mass = io
         # The arm term uses a point object of the estimated extra mass at the tip (notes §3.3 option b).
         m_obj_est = 0.0
-        adapt = self._adapt
-        m_hat = adapt.mass_estimate_kg
+        m_hat = self._adapt.mass_estimate_kg
         if m_hat is not None:
             m_obj_est = max(m_hat - uam_mass, 0.0)
-        # Front end in one kernel: joint observer (complementary filter, JOINT_OBS_TAU_S), q-ddot and
-        # omega-dot by backward differences, the UAM model (UamModel.evaluate) with G_C and G_C^-1, Acc_m
-        # (Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM) and U0 from the measured actuators.
-        # Fresh output arrays each tick (callers of the reference APIs may keep them).
-        inertia, rate = np.empty((3, 3)), np.empty((3, 3))
-        gc, gc_inv = np.empty((5, 5)), np.empty((5, 5))
-        uo, fo = self._uo, self._fo
-        # The sensor values packed as float64 into the persistent input vector (TIN's sensor part is all fc_front
-        # reads); when engaged the outer loops' inputs follow, read through views.
-        if engaged:
-            sp_pos = sp.pos_ned
-            _PACK_ENGAGED(sens, 0, *s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
-                          *s.joint_rate_rad_s, *s.pos_ned, *s.vel_ned, *s.quat_wxyz,
-                          sp_pos[0], sp_pos[1], sp_pos[2], sp.pitch_rad, sp.yaw_rad)
-        else:
-            _PACK_SENSORS(sens, 0, *s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
-                          *s.joint_rate_rad_s)
-        model = self._model
-        acc_ref = cfg.acc_ref
-        fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, m_obj_est, model.geometry,
-                    model.force_per_input, model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo,
-                    float(acc_ref))
-        ul = uo.tolist()
-        if ul[_UO_SINGULAR]:
-            gc_inv = np.linalg.inv(gc)  # raises LinAlgError as before
+        inertia, rate, gc, gc_inv, ul = self._front_end(s, sp, engaged, m_obj_est, sens)
         mass = ul[_UO_MASS]
-        acc_law = acc_m
-        gc_law_inv = gc_inv
-        if cfg.ckf.acc_at_com and not acc_ref:  # CKF_ACC_REF: the law's force rows at the estimated CoM (the
-            am = acc_m.tolist()  # INDI's already are with INDI_ACC_REF = 1)
-            dx, dz = com_accel_offset(*s.gyro_frd, am[1], ul[_UO_CEX], ul[_UO_CEZ])
-            acc_law = np.array((am[0], am[1], am[2], am[3] + dx, am[4] + dz))
-        if cfg.ckf.gc_at_com and s.gripper_closed:  # CKF_GC_REF: the law's moment rows about the estimated CoM
-            # (an object at the gripper only while it reports closed: with it open, a mass estimate above m_UAM is
-            # not an object there, and a CoM moved toward the tip on it made the estimate, and the flight, wander:
-            # a cancelled reposition in SITL overshot by 1.8 m in half the runs)
-            if m_obj_est > 0.0:
-                # and its moment rows: the body turns about the composite CoM, so G_C's moments are taken about it
-                # (M_c = M_O - c x F). About the UAM's CoM, a force increment (the ducts tilting to hold position
-                # through a pitch doublet) made a pitch moment the model did not have, correlated with Delta Q-dot:
-                # K2 stayed at 0.9 against a true 0.63 with a 0.5 kg object (docs/model.md, "Estimator").
-                gc_law_inv = self._gc_law_inv
-                if not gc_inv_about(model.force_per_input, model.moment_o_per_input, ul[_UO_CEX], ul[_UO_CEZ],
-                                       self._gc_law, gc_law_inv):
-                    gc_law_inv = gc_inv
-        gi_hat, gi_flat, adapt_status = adapt.step_arrays(s.t_s, u_meas, acc_law, gc_law_inv, inertia, mass, rate,
-                                                          fo.item(_FO_ARM_HDC), self._indi_saturated,
-                                                          self._u_cmd if self._u_cmd_ok else None, s.gripper_closed,
-                                                          tuple(ul[_UO_OBJ_RATE:_UO_OBJ_RATE + 3]))
-        outer: OuterLoopStatus | None = None
-        indi_status: IndiStatus | None = None
+        acc_law, gc_law_inv = self._law_inputs(s, ul, gc_inv, m_obj_est, acc_m)
+        fo = self._fo
+        gi_hat, gi_flat, adapt_status = self._adapt.step_arrays(
+            s.t_s, u_meas, acc_law, gc_law_inv, inertia, mass, rate, fo.item(_FO_ARM_HDC), self._indi_saturated,
+            self._u_cmd if self._u_cmd_ok else None, s.gripper_closed, tuple(ul[_UO_OBJ_RATE:_UO_OBJ_RATE + 3]))
         ref: tuple[float, float, float] | None = None
-        if acc_ref:
+        sf_x = sf_z = 0.0  # the INDI's force-row feedback: f_O's (read from the sensors) or, here, the CoM's
+        if self.config.acc_ref:
             # the INDI force rows feed back the CoM's acceleration (Acc_m's, before its low-pass) instead of f_O
             ref = (ul[_UO_CEX], 0.0, ul[_UO_CEZ])
             am = acc_m.tolist()
             sf_x, sf_z = am[3], am[4]
         ff_q = 0.0
         ff_status: FeedForwardStatus | None = None
-        arm_ff = cfg.indi.arm_ff
-        if arm_ff:
-            # The INDI feeds back the low-passed Q-dot, which carries the arm's reaction -h'/I_yy with the filter's
-            # lag; the part of h' the filter has not passed yet is fed forward: Delta Q-dot += (h' - h'_f) / I_yy
-            # (pitch row of G_C U = G_I Acc + [0, h', 0, 0, 0], adaptive_law.py), with I_yy = G_hat_I[1, 1].
-            hdc = fo.item(_FO_ARM_HDC)
-            hf = hdc if self._hdc_f is None else self._hdc_f + self._ff_alpha * (hdc - self._hdc_f)
-            self._hdc_f = hf
-            plan = self._arm_plan
-            if arm_ff == 2 and plan is not None:
-                # The INDI delivers I_yy v + LPF(h') after the actuators' lag; commanding I_yy v + h'(t + lead) instead
-                # has the counter-moment there when the arm's reaction is (arm_preview.py; G_C U = G_I Acc + h' e_M).
-                # The servo model is checked against the measured joints every tick (preview_supervise): the preview
-                # is blended in by the trust it has earned, the measured h' (INDI_ARM_FF = 1) flies the rest.
-                pv = cfg.indi.arm_preview
-                sup = self._arm_sup
-                h_s = 1.0 / pv.servo_hz
-                v_hat, a_hat = sup.item(_PS_V_HAT), sup.item(_PS_A_HAT)
-                qd_meas = sens[_IN_JRATE:_IN_JRATE + 3]
-                err = reference_advance(plan, s.t_s, cfg.dt_s, fo[_FO_QEST], qd_meas, h_s, a_hat, v_hat,
-                                        self._arm_ref)
-                preview_supervise(sup, self._arm_sup_cfg, err, qd_meas, self._arm_ref, cfg.dt_s)
-                trust = sup.item(_PS_TRUST)
-                if trust > 0.0:
-                    hp = preview_ahead(plan, s.t_s, pv.lead_s, h_s, a_hat, v_hat, m_obj_est, model.geometry,
-                                       self._arm_ref, self._arm_ahead)
-                    hdc = trust * hp + (1.0 - trust) * hdc
-                su = sup.tolist()
-                ff_status = FeedForwardStatus(su[_PS_TRUST], su[_PS_ERR], su[_PS_V_HAT], su[_PS_A_HAT],
-                                              int(su[_PS_DROPS]), int(su[_PS_IDENTS]), self._shape_ff_scale)
-            ff_q = (hdc - hf) / gi_hat.item(6)
+        if self.config.indi.arm_ff:
+            ff_q, ff_status = self._arm_feedforward(s, m_obj_est, gi_hat, sens)
+        outer: OuterLoopStatus | None = None
+        indi_status: IndiStatus | None = None
         if engaged:
-            sl = sens.tolist()
-            if not acc_ref:
-                sf_x, sf_z = sl[_IN_ACCEL], sl[_IN_ACCEL + 2]
-            ffv = self._shape_ff
-            if cfg.outer.shaping:
-                shape_reference(self._shape_cfg, self._shape_st, spv, pos, vel, quat, self._shape_sp, ffv)
-                spv = self._shape_sp
-                ffv = self._check_shaping_ff(ffv, quat)
-                if ff_status is None:
-                    ff_status = FeedForwardStatus(0.0, 0.0, 0.0, 0.0, 0, 0, self._shape_ff_scale)
-                else:
-                    ff_status = replace(ff_status, shaping_ff_scale=self._shape_ff_scale)
-            outer, ol_out = _outer_loop_arrays(self._outer_cfg, spv, pos, vel, quat, gyro, ffv)
-            v_cmd = ol_out[_OO_ACCEL]
-            if ff_q != 0.0:
-                v_cmd = v_cmd.copy()
-                v_cmd[1] += ff_q
-            out, indi_status = self._indi._step(gyro, sf_x, sf_z, sl[_IN_TILT],
-                                                sl[_IN_TILT + 1], sl[_IN_SPEED], sl[_IN_SPEED + 1],
-                                                sl[_IN_SPEED + 2], v_cmd, gc_inv, gi_hat)
-            cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
-            self._indi_saturated = indi_status.saturated
-            actuators_to_u(*out.tilt_cmd_rad, *out.speed_cmd_rad_s, self._u_cmd, 0)
-            self._u_cmd_ok = True
+            cmd, outer, indi_status, ff_status = self._fly(io, sf_x, sf_z, gc_inv, gi_hat, ff_q, ff_status)
         else:
-            self._indi_saturated = False
-            self._u_cmd_ok = False
-            self._shape_st[SH.INIT] = 0.0
-            # Keep the INDI filters warm so engaging does not start from a transient.
-            acc = s.accel_frd if not acc_ref else (sf_x, s.accel_frd[1], sf_z)
-            self._indi.measure(IndiInputs(s.gyro_frd, acc, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))
-            cmd = MOTORS_OFF
+            cmd = self._idle(s, sf_x, sf_z, gc, gi_hat)
         ft = tuple(fo.tolist())
         status = ControllerStatus(
             t_s=s.t_s,
@@ -455,23 +356,145 @@ class FlightControllerCore:
         )
         return cmd, status
 
-    def _check_shaping_ff(self, ffv: np.ndarray, quat: np.ndarray) -> np.ndarray:
-        """The shaped reference's feed-forward, scaled by its check (SHAPING_FF_*): a scaled copy, or ffv itself."""
-        sh = self._shape_st.tolist()
-        cp, sp_, cy, sy = math.cos(sh[_SH_PITCH]), math.sin(sh[_SH_PITCH]), math.cos(sh[_SH_YAW]), math.sin(sh[_SH_YAW])
-        # the reference attitude's body x axis against the measured one (roll is the outer loop's choice: not
-        # compared); both in NED: x_ref = (cos pitch cos yaw, cos pitch sin yaw, -sin pitch)
-        w, x, y, z = quat.tolist()
-        bx = (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y))
-        c = max(-1.0, min(1.0, bx[0] * cp * cy + bx[1] * cp * sy - bx[2] * sp_))
-        off = math.acos(c) > SHAPING_FF_ATT_RAD
-        scale = self._shape_ff_scale
-        if off:
-            scale *= 0.5
+    def _front_end(
+        self, s: FcSensors, sp: Setpoint, engaged: bool, m_obj_est: float, sens: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[float]]:
+        """The sensors into the input vector, then the front end's kernel: joint observer (complementary filter,
+        JOINT_OBS_TAU_S), q-ddot and omega-dot by backward differences, the UAM model (UamModel.evaluate) with G_C
+        and G_C^-1, Acc_m (Eq. 23: Delta Acc_m = Delta Acc_UAV + Delta Acc_ARM) and U0 from the measured actuators.
+        Returns (inertia, inertia rate, G_C, G_C^-1, the UO outputs as a list): fresh arrays each tick (callers of
+        the reference APIs may keep them)."""
+        cfg = self.config
+        inertia, rate = np.empty((3, 3)), np.empty((3, 3))
+        gc, gc_inv = np.empty((5, 5)), np.empty((5, 5))
+        # The sensor values packed as float64 into the persistent input vector (TIN's sensor part is all fc_front
+        # reads); when engaged the outer loops' inputs follow, read through views.
+        if engaged:
+            sp_pos = sp.pos_ned
+            _PACK_ENGAGED(sens, 0, *s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
+                          *s.joint_rate_rad_s, *s.pos_ned, *s.vel_ned, *s.quat_wxyz,
+                          sp_pos[0], sp_pos[1], sp_pos[2], sp.pitch_rad, sp.yaw_rad)
         else:
-            scale = min(1.0, scale + self._shape_rise)
-        self._shape_ff_scale = scale
-        return ffv if scale >= 1.0 else ffv * scale
+            _PACK_SENSORS(sens, 0, *s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
+                          *s.joint_rate_rad_s)
+        model = self._model
+        fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, m_obj_est, model.geometry,
+                 model.force_per_input, model.moment_o_per_input, inertia, rate, gc, gc_inv, self._uo, self._fo,
+                 float(cfg.acc_ref))
+        ul = self._uo.tolist()
+        if ul[_UO_SINGULAR]:
+            gc_inv = np.linalg.inv(gc)  # raises LinAlgError as before
+        return inertia, rate, gc, gc_inv, ul
+
+    def _law_inputs(
+        self, s: FcSensors, ul: list[float], gc_inv: np.ndarray, m_obj_est: float, acc_m: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The adaptive law's Acc_m and G_C^-1: the INDI's, or referred to the estimated CoM (CKF_ACC_REF: the
+        force rows; CKF_GC_REF: the moment rows)."""
+        cfg = self.config
+        acc_law = acc_m
+        gc_law_inv = gc_inv
+        if cfg.ckf.acc_at_com and not cfg.acc_ref:  # CKF_ACC_REF: the law's force rows at the estimated CoM (the
+            am = acc_m.tolist()  # INDI's already are with INDI_ACC_REF = 1)
+            dx, dz = com_accel_offset(*s.gyro_frd, am[1], ul[_UO_CEX], ul[_UO_CEZ])
+            acc_law = np.array((am[0], am[1], am[2], am[3] + dx, am[4] + dz))
+        if cfg.ckf.gc_at_com and s.gripper_closed:  # CKF_GC_REF: the law's moment rows about the estimated CoM
+            # (an object at the gripper only while it reports closed: with it open, a mass estimate above m_UAM is
+            # not an object there, and a CoM moved toward the tip on it made the estimate, and the flight, wander:
+            # a cancelled reposition in SITL overshot by 1.8 m in half the runs)
+            if m_obj_est > 0.0:
+                # and its moment rows: the body turns about the composite CoM, so G_C's moments are taken about it
+                # (M_c = M_O - c x F). About the UAM's CoM, a force increment (the ducts tilting to hold position
+                # through a pitch doublet) made a pitch moment the model did not have, correlated with Delta Q-dot:
+                # K2 stayed at 0.9 against a true 0.63 with a 0.5 kg object (docs/model.md, "Estimator").
+                gc_law_inv = self._gc_law_inv
+                model = self._model
+                if not gc_inv_about(model.force_per_input, model.moment_o_per_input, ul[_UO_CEX], ul[_UO_CEZ],
+                                    self._gc_law, gc_law_inv):
+                    gc_law_inv = gc_inv
+        return acc_law, gc_law_inv
+
+    def _arm_feedforward(
+        self, s: FcSensors, m_obj_est: float, gi_hat: np.ndarray, sens: np.ndarray
+    ) -> tuple[float, FeedForwardStatus | None]:
+        """INDI_ARM_FF: the pitch-acceleration feed-forward of the arm's reaction (ff_q, added to the outer loops'
+        Q-dot command) and, with the preview (INDI_ARM_FF = 2 and a plan), its supervision's status."""
+        # The INDI feeds back the low-passed Q-dot, which carries the arm's reaction -h'/I_yy with the filter's
+        # lag; the part of h' the filter has not passed yet is fed forward: Delta Q-dot += (h' - h'_f) / I_yy
+        # (pitch row of G_C U = G_I Acc + [0, h', 0, 0, 0], adaptive_law.py), with I_yy = G_hat_I[1, 1].
+        cfg = self.config
+        fo = self._fo
+        ff_status: FeedForwardStatus | None = None
+        hdc = fo.item(_FO_ARM_HDC)
+        hf = hdc if self._hdc_f is None else self._hdc_f + self._ff_alpha * (hdc - self._hdc_f)
+        self._hdc_f = hf
+        plan = self._arm_plan
+        if cfg.indi.arm_ff == 2 and plan is not None:
+            # The INDI delivers I_yy v + LPF(h') after the actuators' lag; commanding I_yy v + h'(t + lead) instead
+            # has the counter-moment there when the arm's reaction is (arm_preview.py; G_C U = G_I Acc + h' e_M).
+            # The servo model is checked against the measured joints every tick (preview_supervise): the preview
+            # is blended in by the trust it has earned, the measured h' (INDI_ARM_FF = 1) flies the rest.
+            pv = cfg.indi.arm_preview
+            sup = self._arm_sup
+            h_s = 1.0 / pv.servo_hz
+            v_hat, a_hat = sup.item(_PS_V_HAT), sup.item(_PS_A_HAT)
+            qd_meas = sens[_IN_JRATE:_IN_JRATE + 3]
+            err = reference_advance(plan, s.t_s, cfg.dt_s, fo[_FO_QEST], qd_meas, h_s, a_hat, v_hat, self._arm_ref)
+            preview_supervise(sup, self._arm_sup_cfg, err, qd_meas, self._arm_ref, cfg.dt_s)
+            trust = sup.item(_PS_TRUST)
+            if trust > 0.0:
+                hp = preview_ahead(plan, s.t_s, pv.lead_s, h_s, a_hat, v_hat, m_obj_est, self._model.geometry,
+                                   self._arm_ref, self._arm_ahead)
+                hdc = trust * hp + (1.0 - trust) * hdc
+            su = sup.tolist()
+            ff_status = FeedForwardStatus(su[_PS_TRUST], su[_PS_ERR], su[_PS_V_HAT], su[_PS_A_HAT],
+                                          int(su[_PS_DROPS]), int(su[_PS_IDENTS]), self._shape_ff_scale)
+        return (hdc - hf) / gi_hat.item(6), ff_status
+
+    def _fly(
+        self, io: tuple, sf_x: float, sf_z: float, gc_inv: np.ndarray, gi_hat: np.ndarray, ff_q: float,
+        ff_status: FeedForwardStatus | None,
+    ) -> tuple[ActuatorCommand, OuterLoopStatus, IndiStatus, FeedForwardStatus | None]:
+        """Engaged: the command shaper (when on), the outer loops, the INDI (sf_x, sf_z: the CoM's force-row
+        feedback with INDI_ACC_REF = 1, else read here from the sensors). Returns (command, outer loop status, INDI
+        status, the feed-forwards' status with the shaper's scale)."""
+        cfg = self.config
+        sens, gyro, pos, vel, quat, spv, _, _, _ = io
+        sl = sens.tolist()
+        if not cfg.acc_ref:
+            sf_x, sf_z = sl[_IN_ACCEL], sl[_IN_ACCEL + 2]
+        ffv = self._shape_ff
+        if cfg.outer.shaping:
+            shape_reference(self._shape_cfg, self._shape_st, spv, pos, vel, quat, self._shape_sp, ffv)
+            spv = self._shape_sp
+            scale = self._shape_ff_scale = shaping_ff_check(self._shape_st, quat, self._shape_ff_scale,
+                                                            self._shape_rise)
+            ffv = ffv if scale >= 1.0 else ffv * scale
+            if ff_status is None:
+                ff_status = FeedForwardStatus(0.0, 0.0, 0.0, 0.0, 0, 0, self._shape_ff_scale)
+            else:
+                ff_status = replace(ff_status, shaping_ff_scale=self._shape_ff_scale)
+        outer, ol_out = _outer_loop_arrays(self._outer_cfg, spv, pos, vel, quat, gyro, ffv)
+        v_cmd = ol_out[_OO_ACCEL]
+        if ff_q != 0.0:
+            v_cmd = v_cmd.copy()
+            v_cmd[1] += ff_q
+        out, indi_status = self._indi._step(gyro, sf_x, sf_z, sl[_IN_TILT], sl[_IN_TILT + 1], sl[_IN_SPEED],
+                                            sl[_IN_SPEED + 1], sl[_IN_SPEED + 2], v_cmd, gc_inv, gi_hat)
+        self._indi_saturated = indi_status.saturated
+        actuators_to_u(*out.tilt_cmd_rad, *out.speed_cmd_rad_s, self._u_cmd, 0)
+        self._u_cmd_ok = True
+        return ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s), outer, indi_status, ff_status
+
+    def _idle(self, s: FcSensors, sf_x: float, sf_z: float, gc: np.ndarray, gi_hat: np.ndarray) -> ActuatorCommand:
+        """Disengaged: motors off; the INDI's filters are kept warm so engaging does not start from a transient, and
+        the command shaper seeds afresh at the next engaged tick."""
+        self._indi_saturated = False
+        self._u_cmd_ok = False
+        self._shape_st[SH.INIT] = 0.0
+        acc = s.accel_frd if not self.config.acc_ref else (sf_x, s.accel_frd[1], sf_z)
+        self._indi.measure(IndiInputs(s.gyro_frd, acc, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))
+        return MOTORS_OFF
 
     def _tick_buffers(self) -> tuple:
         """Built on the first step and kept (`_tick_io`): the input vector the sensors are packed into, the
@@ -484,6 +507,25 @@ class FlightControllerCore:
         io = (sens, t.gyro, t.pos, t.vel, t.quat, t.sp, f.u_meas, f.acc_m, self.vehicle.uam_mass_kg)
         self._tick_io = io
         return io
+
+
+def shaping_ff_check(shape_st: np.ndarray, quat: np.ndarray, scale: float, rise: float) -> float:
+    """The check of the shaped reference's feed-forward (SHAPING_FF_*): its scale (shaping_ff_scale of
+    FeedForwardStatus) halved while the measured attitude is more than SHAPING_FF_ATT_RAD off the shaper's reference
+    (shape_st: SH), raised by `rise` up to 1 while they agree."""
+    sh = shape_st.tolist()
+    cp, sp_, cy, sy = math.cos(sh[_SH_PITCH]), math.sin(sh[_SH_PITCH]), math.cos(sh[_SH_YAW]), math.sin(sh[_SH_YAW])
+    # the reference attitude's body x axis against the measured one (roll is the outer loop's choice: not
+    # compared); both in NED: x_ref = (cos pitch cos yaw, cos pitch sin yaw, -sin pitch)
+    w, x, y, z = quat.tolist()
+    bx = (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + w * z), 2.0 * (x * z - w * y))
+    c = max(-1.0, min(1.0, bx[0] * cp * cy + bx[1] * cp * sy - bx[2] * sp_))
+    off = math.acos(c) > SHAPING_FF_ATT_RAD
+    if off:
+        scale *= 0.5
+    else:
+        scale = min(1.0, scale + rise)
+    return scale
 
 
 def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: int = 8) -> None:

@@ -77,11 +77,10 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from navig8_fc.core import kalman
+from navig8_fc.core import ckf_config, kalman
+from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig
 from navig8_fc.core.jit import njit_cached
 from navig8_fc.core.kalman import (
-    N_MEAS,
-    N_STATE,
     SO_CORRECTED,
     SO_EXCITED,
     SO_INNOV,
@@ -89,7 +88,6 @@ from navig8_fc.core.kalman import (
     SO_X_HAT,
     SO_X_UNC,
     STEP_OUT,
-    CkfConfig,
     KfStepResult,
 )
 
@@ -101,7 +99,7 @@ CLIP_MOVED = 1  # the clipping moved it
 CLIP_EMPTY_BOX = -1  # lower > upper (or a NaN bound)
 
 
-@njit_cached(kalman)
+@njit_cached(kalman, ckf_config)
 def lms_step(x, scale2, mu, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc_rot, exc_lin, gc_inv, du, da,
              rho_x, rho_z, lo, hi, out):
     """Drift (Eq. 22, if do_predict), one LMS step on the Eq. 24 equation error (if do_correct and some state passes

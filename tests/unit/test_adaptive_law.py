@@ -24,8 +24,9 @@ from navig8_fc.core.adaptive_law import (
     AdaptiveLawStatus,
     lpf_increments,
 )
+from navig8_fc.core.ckf_config import CkfConfig, CkfMode
 from navig8_fc.core.filters import LowPass1
-from navig8_fc.core.kalman import CkfConfig, CkfMode, ConstrainedKalmanFilter
+from navig8_fc.core.kalman import ConstrainedKalmanFilter
 
 DT = 0.01
 

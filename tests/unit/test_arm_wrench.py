@@ -16,7 +16,7 @@ import pytest
 
 from navig8_fc.core import g_c
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig
-from navig8_fc.core.kalman import CkfConfig
+from navig8_fc.core.ckf_config import CkfConfig
 from navig8_fc.core.vehicle import UamModel, VehicleConfig, inertia_matrix_gi, model_geometry
 from navig8_tools.authority_excursion import arm_momentum_y
 

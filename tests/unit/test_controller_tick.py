@@ -13,6 +13,7 @@ import pytest
 
 from navig8_fc.core import front_end, g_c
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig, AdaptiveLawInputs
+from navig8_fc.core.ckf_config import CkfMode
 from navig8_fc.core.controller import (
     JOINT_OBS_TAU_S,
     MOTORS_OFF,
@@ -23,7 +24,6 @@ from navig8_fc.core.controller import (
     FlightControllerCore,
 )
 from navig8_fc.core.indi import IndiController, IndiInputs
-from navig8_fc.core.kalman import CkfMode
 from navig8_fc.core.outer_loop import Setpoint, outer_loop_config_array, outer_loop_step
 from navig8_fc.core.vehicle import UamModel, VehicleConfig
 from navig8_fc.params.registry import ParamRegistry

@@ -13,10 +13,8 @@ import pytest
 from scipy.optimize import lsq_linear
 
 from navig8_fc.core import vehicle as veh
+from navig8_fc.core.ckf_config import CKF_PARAM_NAMES, CkfConfig, CkfMode
 from navig8_fc.core.kalman import (
-    CKF_PARAM_NAMES,
-    CkfConfig,
-    CkfMode,
     ConstrainedKalmanFilter,
     inertia_ratios,
     measurement_matrix,

@@ -16,7 +16,7 @@ from test_kalman import Pose  # the model quantities at a fixed arm pose
 
 from navig8_fc.core import vehicle as veh
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig, AdaptiveLawInputs
-from navig8_fc.core.kalman import CKF_PARAM_NAMES, CkfConfig, CkfMode
+from navig8_fc.core.ckf_config import CKF_PARAM_NAMES, CkfConfig, CkfMode
 from navig8_fc.core.lms import LmsEstimator
 from navig8_fc.params.registry import ParamRegistry
 

@@ -1,0 +1,205 @@
+"""The estimator's configuration: the CKF_* parameters (CKF_PARAM_NAMES), CkfMode and CkfConfig, and the sizes
+of the state and measurement vectors the filters share.
+
+x = [I_hat_xx, I_hat_yy, I_hat_zz, m_hat] (N_STATE = 4: kg m^2, kg m^2, kg m^2, kg); z = Delta U (N_MEAS = 5,
+Eq. 24). Q (q_diag) and P0 are per state, R (r_diag) per measurement. The filters that read it: the constrained
+KF (kalman.py), the LMS baseline (lms.py) and the adaptive law around either (adaptive_law.py).
+
+Pure core: no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Literal
+
+__all__ = [
+    "CKF_PARAM_NAMES",
+    "N_MEAS",
+    "N_STATE",
+    "CkfConfig",
+    "CkfMode",
+]
+
+N_STATE = 4
+N_MEAS = 5
+
+ProjectionWeight = Literal["inv_p", "identity"]
+# CKF_LMS_MU1..4's defaults (lms.py; chosen on the ident scenario, seeds 1-2, docs/model.md "Estimator baselines")
+LMS_MU_DEFAULT: tuple[float, ...] = (0.003, 0.05, 0.003, 0.001)
+
+CKF_PARAM_NAMES: tuple[str, ...] = (
+    "CKF_MODE", "CKF_LPF_TAU", "CKF_START_DLY",
+    "CKF_Q_IXX", "CKF_Q_IYY", "CKF_Q_IZZ", "CKF_Q_M",
+    "CKF_R_U1", "CKF_R_U2", "CKF_R_U3", "CKF_R_U4", "CKF_R_U5",
+    "CKF_P0_SCALE", "CKF_PROJ_W",
+    "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
+    "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
+    "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4",
+)
+
+
+class CkfMode(IntEnum):
+    """CKF_MODE: 0 fixed G_I,UAM (K = 1), 1 unconstrained KF (previous-work proxy), 2 proposed constrained KF,
+    3 pinned: a constant K vector (CKF_K_PIN1..4, inside the Eq. 20 box), the non-adaptive baseline a search over
+    constant K can make as strong as it gets, 4 LMS with clipping to the Eq. 21 box (Smeur, Chu & de Croon 2016 as
+    Paparazzi flies it; lms.py), the published adaptive baseline."""
+
+    FIXED = 0
+    UNCONSTRAINED = 1
+    CONSTRAINED = 2
+    PINNED = 3
+    LMS = 4
+
+
+def _floats(values: Sequence[float], n: int, name: str) -> tuple[float, ...]:
+    out = tuple(float(v) for v in values)
+    if len(out) != n:
+        raise ValueError(f"{name} needs {n} values, got {len(out)}")
+    if not all(math.isfinite(v) for v in out):
+        raise ValueError(f"{name} must be finite, got {out}")
+    return out
+
+
+@dataclass(frozen=True)
+class CkfConfig:
+    """Configuration of the constrained KF and the adaptive law's filters (the CKF_* parameters). Defaults are
+    the paper's Sec. 4 settings. The K bounds of Eq. 20-21 are the adaptive law's (AdaptiveLawConfig).
+
+    q_diag: process-noise variances per control step of [I_xx, I_yy, I_zz, m] (Eq. 22; notes 6.3 item 12).
+    r_diag: measurement-noise variances of Delta U1..U5 (Eq. 24), (rad/s)^4.
+    p0_scale: P0 = p0_scale * diag(q_diag) [A].
+    projection_weight: "inv_p" (W = P^-1, minimum variance) or "identity" (W = I, i.e. clipping).
+    mode: fixed / unconstrained / constrained / pinned / lms (CKF_MODE).
+    lpf_tau_s: time constant of the adaptive law's low-pass filters on U0 and Acc_m.
+    start_delay_s: the estimator starts this long after the first sample (Sec. 4: 0.5 s).
+    dt_s: control period (filters and the predict step use it).
+    inc_window: CKF_INC_N, the increment window in control steps: the law corrects every inc_window steps with
+        Delta = filtered[k] - filtered[k - inc_window] (1: one-step increments every step, our reading of the
+        paper; adaptive_law.py explains why a longer window is the better band-pass). Predict runs every step.
+    exc_rot_rad_s2, exc_lin_m_s2: CKF_EXC_ROT, CKF_EXC_LIN, excitation gate: a state is corrected only when its
+        regressor's increment is at least this large (|Delta P-dot|, |Delta Q-dot|, |Delta R-dot| for I_xx,
+        I_yy, I_zz; |(Delta a_x, Delta a_z)| for m); the others are held (Schmidt: their gain rows are zero).
+        0: every state, every correction (the paper).
+    sat_gate: CKF_SAT_GATE, skip the correction of a window in which the INDI saturated (no learning from
+        saturated steps). False: the paper.
+    u_from_command: CKF_U_SRC = 1, the law's U is the INDI's previous command (the actuators it commanded, as
+        Paparazzi's estimator without RPM feedback); False (0): U0 from the measured actuators (the paper). Why:
+        the measured U carries the actuator sensor noise, which the INDI feeds back into the next command, so the
+        accelerations the regressor sees are correlated with the measurement noise in z (closed-loop bias).
+    acc_at_com: CKF_ACC_REF = 1, the law's Acc_m force rows are the acceleration of the estimated composite CoM
+        (a_c = f_O + omega-dot x c + omega x (omega x c) + c-ddot_rel, the point G_C's force rows refer to) whatever
+        INDI_ACC_REF the INDI flies with; False (0): the INDI's Acc_m (the paper: f_O + c-ddot_rel, which puts
+        Q-dot c_z into the mass equation as error correlated with the pitch excitation).
+    """
+
+    q_diag: tuple[float, ...] = (1.0e-4, 5.0e-5, 1.0e-4, 5.0e-4)
+    r_diag: tuple[float, ...] = (1500.0**2, 2000.0**2, 1500.0**2, 2000.0**2, 10000.0**2)
+    p0_scale: float = 100.0
+    projection_weight: ProjectionWeight = "inv_p"
+    mode: CkfMode = CkfMode.CONSTRAINED
+    lpf_tau_s: float = 0.7
+    start_delay_s: float = 0.5
+    dt_s: float = 0.01
+    inc_window: int = 1
+    exc_rot_rad_s2: float = 0.0
+    exc_lin_m_s2: float = 0.0
+    sat_gate: bool = False
+    u_from_command: bool = False
+    acc_at_com: bool = False
+    k_pin: tuple[float, ...] = (1.0, 1.0, 1.0, 1.0)  # CKF_K_PIN1..4: K of mode PINNED (Eq. 3's diagonal, K4 on mass)
+    grip_reset: bool = False  # CKF_GRIP_RST: forget on the gripper's reported grasp / release (AdaptiveLaw)
+    predict_from_dj: bool = False  # CKF_PRED_DJ: Eq. 22's drift from the tick's change of J, not the model's I-dot
+    gc_at_com: bool = False  # CKF_GC_REF: the law's G_C moment rows about the estimated composite CoM (controller.py)
+    # CKF_LMS_MU1..4: the per-state rates of mode LMS (dimensionless, in lms.py's normalised coordinates)
+    lms_mu: tuple[float, ...] = LMS_MU_DEFAULT
+
+    def __post_init__(self) -> None:
+        lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
+        if any(v < 0.0 for v in lms_mu):
+            raise ValueError(f"lms_mu must be >= 0, got {lms_mu}")
+        object.__setattr__(self, "lms_mu", lms_mu)
+        k_pin = _floats(self.k_pin, N_STATE, "k_pin")
+        if not all(v > 0.0 and math.isfinite(v) for v in k_pin):
+            raise ValueError(f"k_pin must be finite and > 0, got {k_pin}")
+        object.__setattr__(self, "k_pin", k_pin)
+        q = _floats(self.q_diag, N_STATE, "q_diag")
+        r = _floats(self.r_diag, N_MEAS, "r_diag")
+        if any(v < 0.0 for v in q):
+            raise ValueError(f"q_diag must be >= 0, got {q}")
+        if any(v <= 0.0 for v in r):
+            raise ValueError(f"r_diag must be > 0, got {r}")
+        object.__setattr__(self, "q_diag", q)
+        object.__setattr__(self, "r_diag", r)
+        object.__setattr__(self, "mode", CkfMode(int(self.mode)))
+        if self.projection_weight not in ("inv_p", "identity"):
+            raise ValueError(f"projection_weight must be 'inv_p' or 'identity', got {self.projection_weight!r}")
+        n = self.inc_window
+        if isinstance(n, bool) or int(n) != n or int(n) < 1:
+            raise ValueError(f"inc_window must be an integer >= 1, got {n!r}")
+        object.__setattr__(self, "inc_window", int(n))
+        object.__setattr__(self, "sat_gate", bool(self.sat_gate))
+        object.__setattr__(self, "u_from_command", bool(self.u_from_command))
+        object.__setattr__(self, "acc_at_com", bool(self.acc_at_com))
+        object.__setattr__(self, "grip_reset", bool(self.grip_reset))
+        object.__setattr__(self, "predict_from_dj", bool(self.predict_from_dj))
+        object.__setattr__(self, "gc_at_com", bool(self.gc_at_com))
+        for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2"):
+            v = float(getattr(self, name))
+            if not (v >= 0.0 and math.isfinite(v)):
+                raise ValueError(f"{name} must be finite and >= 0, got {v}")
+            object.__setattr__(self, name, v)
+        dt = float(self.dt_s)
+        if not (dt > 0.0 and math.isfinite(dt)):
+            raise ValueError(f"dt_s must be finite and > 0, got {dt}")
+        object.__setattr__(self, "dt_s", dt)
+
+    @property
+    def constrained(self) -> bool:
+        """True when the estimate is projected onto the Eq. 21 box (CKF_MODE = 2)."""
+        return self.mode == CkfMode.CONSTRAINED
+
+    @property
+    def adaptive(self) -> bool:
+        """True when an estimator runs at all (CKF_MODE 1, 2: the KF; 4: the LMS)."""
+        return self.mode in (CkfMode.UNCONSTRAINED, CkfMode.CONSTRAINED, CkfMode.LMS)
+
+    @staticmethod
+    def from_params(values: Mapping[str, float | int], dt_s: float) -> CkfConfig:
+        """Build from the parameter set (params/fc_params.yaml). Every name in CKF_PARAM_NAMES is required."""
+        missing = [n for n in CKF_PARAM_NAMES if n not in values]
+        if missing:
+            raise KeyError(f"missing CKF parameters: {', '.join(missing)}")
+        for flag in ("CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF"):
+            if int(values[flag]) not in (0, 1):
+                raise ValueError(f"{flag} must be 0 or 1, got {values[flag]}")
+        proj = int(values["CKF_PROJ_W"])
+        if proj not in (0, 1):
+            raise ValueError(f"CKF_PROJ_W must be 0 (P^-1) or 1 (identity), got {proj}")
+        mode = int(values["CKF_MODE"])
+        if mode not in tuple(CkfMode):
+            raise ValueError(f"CKF_MODE must be one of {[int(m) for m in CkfMode]}, got {mode}")
+        return CkfConfig(
+            q_diag=tuple(float(values[n]) for n in ("CKF_Q_IXX", "CKF_Q_IYY", "CKF_Q_IZZ", "CKF_Q_M")),
+            r_diag=tuple(float(values[f"CKF_R_U{i}"]) for i in range(1, 6)),
+            p0_scale=float(values["CKF_P0_SCALE"]),
+            projection_weight="inv_p" if proj == 0 else "identity",
+            mode=CkfMode(mode),
+            lpf_tau_s=float(values["CKF_LPF_TAU"]),
+            start_delay_s=float(values["CKF_START_DLY"]),
+            dt_s=float(dt_s),
+            inc_window=int(values["CKF_INC_N"]),
+            exc_rot_rad_s2=float(values["CKF_EXC_ROT"]),
+            exc_lin_m_s2=float(values["CKF_EXC_LIN"]),
+            sat_gate=bool(int(values["CKF_SAT_GATE"])),
+            u_from_command=bool(int(values["CKF_U_SRC"])),
+            acc_at_com=bool(int(values["CKF_ACC_REF"])),
+            k_pin=tuple(float(values[f"CKF_K_PIN{i}"]) for i in range(1, 5)),
+            grip_reset=bool(int(values["CKF_GRIP_RST"])),
+            predict_from_dj=bool(int(values["CKF_PRED_DJ"])),
+            gc_at_com=bool(int(values["CKF_GC_REF"])),
+            lms_mu=tuple(float(values[f"CKF_LMS_MU{i}"]) for i in range(1, 5)),
+        )
