@@ -145,19 +145,8 @@ def store_params(state_dir: str, instance: int, items: list[str], files: Sequenc
     return None
 
 
-def main(argv: list[str] | None = None) -> int:
-    a = build_arg_parser().parse_args(argv)
-    stored = bool(a.set or a.params)
-    if stored:
-        err = store_params(a.state_dir, a.instance, a.set, a.params, from_defaults=a.defaults)
-        if err:
-            print(f"navig8-sitl: {err}", file=sys.stderr)
-            return 2
-    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
-    log_dir = Path(a.log_dir)
-    log_dir.mkdir(parents=True, exist_ok=True)
-    scen_name = Path(a.scenario).stem
-    log = log_dir / f"navig8_{scen_name}_i{a.instance}_{stamp}_{os.getpid()}.mcap"
+def _child_args(a: argparse.Namespace, log: Path, stored: bool) -> tuple[list[str], list[str]] | str:
+    """navig8-fc's and navig8-bridge's arguments, or why the run cannot start (a bad --world)."""
     fc_args = ["--instance", str(a.instance), "--scenario", a.scenario, "--log", str(log),
                "--state-dir", a.state_dir, "--bind-host", a.bind_host, "--gcs-host", a.gcs_host, *a.fc_arg]
     if a.defaults and not stored:  # with --params/--set the stored file is already the defaults plus those
@@ -173,9 +162,7 @@ def main(argv: list[str] | None = None) -> int:
                             "--write-fc-vehicle", str(vfile)], stdin=subprocess.DEVNULL, capture_output=True,
                            text=True, timeout=120)
         if p.returncode != 0:
-            print(f"navig8-sitl: {p.stderr.strip().splitlines()[-1] if p.stderr.strip() else 'bad --world'}",
-                  file=sys.stderr)
-            return 2
+            return p.stderr.strip().splitlines()[-1] if p.stderr.strip() else "bad --world"
         fc_args += ["--vehicle", str(vfile)]
     br_args = ["--instance", str(a.instance), "--scenario", a.scenario, "--speed", str(a.speed),
                "--seed", str(a.seed), *world, *a.bridge_arg]
@@ -183,7 +170,14 @@ def main(argv: list[str] | None = None) -> int:
         br_args.append("--until-done")
     if a.duration is not None:
         br_args += ["--duration", str(a.duration)]
+    return fc_args, br_args
 
+
+def _run_pair(fc_args: list[str], br_args: list[str], until_done: bool) -> tuple[int, int, tuple[str, int] | None,
+                                                                                    bool, float]:
+    """Start the FC, then the bridge; wait until one ends (or Ctrl-C / SIGTERM), stop the other. Returns the exit
+    codes (FC, bridge), the child that ended by itself before the run was done (name, code), whether we were
+    stopped by a signal, and the wall time."""
     stopping = {"flag": False}
 
     def _on_signal(signum: int, _frame: Any) -> None:
@@ -201,11 +195,11 @@ def main(argv: list[str] | None = None) -> int:
         while not stopping["flag"]:
             if bridge.poll() is not None:
                 rc_bridge = bridge.returncode
-                if not (a.until_done and rc_bridge == 0):
+                if not (until_done and rc_bridge == 0):
                     died = ("navig8-bridge", rc_bridge)
                 break
             if fc.poll() is not None:
-                if a.until_done and fc.returncode == 0:  # done: the bridge is finishing too, let it
+                if until_done and fc.returncode == 0:  # done: the bridge is finishing too, let it
                     try:
                         rc_bridge = bridge.wait(timeout=STOP_TIMEOUT_S)
                     except subprocess.TimeoutExpired:
@@ -215,15 +209,57 @@ def main(argv: list[str] | None = None) -> int:
                 break
             time.sleep(0.05)
     finally:
-        if a.until_done and rc_bridge == 0:
+        if until_done and rc_bridge == 0:
             try:  # the FC exits by itself once the bridge reports done; give it time to flush the log
                 fc.wait(timeout=STOP_TIMEOUT_S)
             except subprocess.TimeoutExpired:
                 pass
         rc_fc = _stop(fc, "navig8-fc")
         rc_b = _stop(bridge, "navig8-bridge") if rc_bridge is None else rc_bridge
-    wall = time.perf_counter() - wall0
-    if stopping["flag"]:  # Ctrl-C / SIGTERM to us: a child that went first went by the same signal
+    return rc_fc, rc_b, died, stopping["flag"], time.perf_counter() - wall0
+
+
+def _write_summary(a: argparse.Namespace, log: Path, scen_name: str, wall: float) -> dict[str, Any]:
+    """The run's summary from its log (--until-done), printed and written to --summary."""
+    from navig8_fc.shell.mcap_log import read_metadata
+    from navig8_tools.logdata import load_run
+    from navig8_tools.summary import summarize
+
+    # wall_time_s / real_time_factor: the lockstep's own (the bridge's, from its first answered step to the
+    # end), as navig8-sim times its loop; process_wall_time_s: the whole command, start-up included.
+    bridge_rtf = float(read_metadata(log).get("bridge_status", {}).get("rtf") or 0.0)
+    summary = summarize(load_run(log), wall)
+    if bridge_rtf > 0.0:
+        summary.update(wall_time_s=summary["sim_time_s"] / bridge_rtf, real_time_factor=bridge_rtf)
+    summary.update({"scenario": scen_name, "transport": "mavlink-udp", "speed": a.speed, "seed": a.seed,
+                    "process_wall_time_s": wall, "log": str(log)})
+    text = json.dumps(summary, indent=2)
+    print(text)
+    if a.summary:
+        Path(a.summary).parent.mkdir(parents=True, exist_ok=True)
+        Path(a.summary).write_text(text + "\n")
+    return summary
+
+
+def main(argv: list[str] | None = None) -> int:
+    a = build_arg_parser().parse_args(argv)
+    stored = bool(a.set or a.params)
+    if stored:
+        err = store_params(a.state_dir, a.instance, a.set, a.params, from_defaults=a.defaults)
+        if err:
+            print(f"navig8-sitl: {err}", file=sys.stderr)
+            return 2
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
+    log_dir = Path(a.log_dir)
+    log_dir.mkdir(parents=True, exist_ok=True)
+    scen_name = Path(a.scenario).stem
+    log = log_dir / f"navig8_{scen_name}_i{a.instance}_{stamp}_{os.getpid()}.mcap"
+    args = _child_args(a, log, stored)
+    if isinstance(args, str):
+        print(f"navig8-sitl: {args}", file=sys.stderr)
+        return 2
+    rc_fc, rc_b, died, signalled, wall = _run_pair(*args, a.until_done)
+    if signalled:  # Ctrl-C / SIGTERM to us: a child that went first went by the same signal
         died = None
         rc_fc = 0 if stopped_cleanly(rc_fc) else rc_fc
         rc_b = 0 if stopped_cleanly(rc_b) else rc_b
@@ -238,23 +274,7 @@ def main(argv: list[str] | None = None) -> int:
         print("navig8-sitl: no log was written, so no summary", file=sys.stderr)
         return 0 if rc_b == 0 and rc_fc == 0 else 1
     if a.until_done and died is None:
-        from navig8_fc.shell.mcap_log import read_metadata
-        from navig8_tools.logdata import load_run
-        from navig8_tools.summary import summarize
-
-        # wall_time_s / real_time_factor: the lockstep's own (the bridge's, from its first answered step to the
-        # end), as navig8-sim times its loop; process_wall_time_s: the whole command, start-up included.
-        bridge_rtf = float(read_metadata(log).get("bridge_status", {}).get("rtf") or 0.0)
-        summary = summarize(load_run(log), wall)
-        if bridge_rtf > 0.0:
-            summary.update(wall_time_s=summary["sim_time_s"] / bridge_rtf, real_time_factor=bridge_rtf)
-        summary.update({"scenario": scen_name, "transport": "mavlink-udp", "speed": a.speed, "seed": a.seed,
-                        "process_wall_time_s": wall, "log": str(log)})
-        text = json.dumps(summary, indent=2)
-        print(text)
-        if a.summary:
-            Path(a.summary).parent.mkdir(parents=True, exist_ok=True)
-            Path(a.summary).write_text(text + "\n")
+        summary = _write_summary(a, log, scen_name, wall)
         return 0 if rc_b == 0 and rc_fc == 0 and not summary.get("lost_control") else 1
     if died is not None:
         return exit_code_of(died[1]) or EXIT_CHILD_DIED
