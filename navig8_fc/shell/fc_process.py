@@ -31,18 +31,13 @@ from navig8_fc.params.store import ParamStore, default_state_path
 from navig8_fc.shell.fc_log import FcLog, StepRecord
 from navig8_fc.shell.fc_options import FcOptions, build_arg_parser, options_from_args
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, LiveServer, script_waypoints
-from navig8_fc.shell.gcs_service import (
-    MAV_AUTOPILOT_GENERIC,
-    MAV_AUTOPILOT_PX4,
-    GcsService,
-    Source,
-    origin_from_params,
-)
+from navig8_fc.shell.gcs_service import GcsService
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.mcap_log import open_logger
 from navig8_fc.shell.realtime import TIMING_REALTIME, RealtimeClock
 from navig8_fc.shell.signing_keys import KeyFile
 from navig8_fc.shell.sim_peer import BundlePeer, Lockstep, Px4Peer, Realtime
+from navig8_fc.shell.telemetry_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4, Source, origin_from_params
 from navig8_fc.viz import VehicleViz, packaged_uav_size_m, waypoint_poses
 
 FC_COMPID = 1

@@ -14,7 +14,8 @@ from navig8_fc.flight import FlightStack
 from navig8_fc.mavlink import dialect
 from navig8_fc.modes.px4 import AVAILABLE_MODES, FlightMode
 from navig8_fc.params.registry import ParamRegistry
-from navig8_fc.shell.gcs_service import MAV_AUTOPILOT_PX4, GcsService
+from navig8_fc.shell.gcs_service import GcsService
+from navig8_fc.shell.telemetry_service import MAV_AUTOPILOT_PX4
 
 GCS = ("gcs", ("127.0.0.1", 14550))
 

@@ -1,0 +1,143 @@
+"""The GCS service's telemetry: the streams a ground station gets on the wall clock (each peer that sets its own
+rates gets its own table), built from a snapshot of the vehicle's latest state only when something is due
+(navig8_fc/gcs/telemetry.py builds the messages; docs/gcs.md, "Telemetry")."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Hashable
+from typing import Any
+
+from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.flight.stack import throttle_pct
+from navig8_fc.flight.state import VehicleState
+from navig8_fc.gcs.telemetry import (
+    TelemetryBuilder,
+    TelemetryScheduler,
+    VehicleSnapshot,
+    eig_margin_lower_bound,
+    sensor_bits,
+)
+from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.params.registry import ParamRegistry
+
+MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4 = 0, 12  # HEARTBEAT.autopilot: the identity navig8-fc announces
+Source = Hashable  # who sent a message, as the Outbox knows how to answer it (the process: (link name, address))
+
+
+def origin_from_params(reg: ParamRegistry) -> GeoOrigin:
+    """The global origin from ORIGIN_LAT_E7 / ORIGIN_LON_E7 / ORIGIN_ALT."""
+    return GeoOrigin(int(reg["ORIGIN_LAT_E7"]) * 1e-7, int(reg["ORIGIN_LON_E7"]) * 1e-7, float(reg["ORIGIN_ALT"]))
+
+
+class Telemetry:
+    """Streams on the wall clock from a snapshot of the vehicle's latest state (built only when something is due)."""
+
+    MAX_PEER_TABLES = 8  # as many as a link keeps peers
+    EIG_MARGIN_PERIOD_S = 0.5  # the bound-based margin costs ~1.4 ms: refresh it at 2 Hz
+
+    def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], registry: ParamRegistry,
+                 vehicle_config: VehicleConfig, autopilot: int = MAV_AUTOPILOT_GENERIC) -> None:
+        self._state = state
+        self._registry = registry
+        self._vehicle = vehicle_config
+        self.scheduler = TelemetryScheduler()  # the shared stream table (defaults and SET_MESSAGE_INTERVAL
+        # from in-process callers); peers that set their own rates get a copy (scheduler_for)
+        self._peer_sched: dict[Source, TelemetryScheduler] = {}
+        # Announced as PX4 (option), QGroundControl's PX4 plugin wants flight_sw_version >= 1.4.1 and warns about
+        # an old release when the type is OFFICIAL: 1.15.0 DEV (docs/gcs.md, "Autopilot identity").
+        sw = (1, 15, 0) if autopilot == MAV_AUTOPILOT_PX4 else (0, 1, 0)
+        self.builder = TelemetryBuilder(mav, sysid, 1, autopilot=autopilot, sw_version=sw)
+        self.boot_wall = time.monotonic()
+        self._eig_margin = math.nan
+        self._eig_t = -1e9
+
+    def snapshot(self, now_wall: float) -> VehicleSnapshot:
+        v = self._state()
+        s = v.sensors
+        st = v.status
+        if st is not None and now_wall - self._eig_t > self.EIG_MARGIN_PERIOD_S:
+            self._eig_t = now_wall
+            reg = self._registry
+            self._eig_margin = eig_margin_lower_bound(self._vehicle, st.q_est_rad, float(reg["INDI_K_MIN"]),
+                                                      float(reg["INDI_K_MAX"]), v.lambda_crit)
+        stab = self._registry.stability_status()
+        zero3 = (0.0, 0.0, 0.0)
+        ok = v.sensors_ok
+        bat_low_pct = float(self._registry["FS_BAT_LOW_PCT"])  # below it: unhealthy (the low-battery failsafe)
+        return VehicleSnapshot(
+            armed=v.armed,
+            base_mode=v.base_mode,
+            custom_mode=v.custom_mode,
+            system_status=v.system_status,
+            landed_state=v.landed_state,
+            pos_ned=s.pos_ned if s else zero3,
+            vel_ned=s.vel_ned if s else zero3,
+            quat_wxyz=s.quat_wxyz if s else (1.0, 0.0, 0.0, 0.0),
+            rates_frd=s.gyro_frd if s else zero3,
+            state_valid=s is not None,  # no made-up pose before the first sensor data
+            home_ned=v.home_ned,
+            home_yaw_rad=v.home_yaw_rad,
+            battery=v.battery,
+            tilt_rad=s.tilt_rad if s else (0.0, 0.0),
+            speed_rad_s=s.speed_rad_s if s else zero3,
+            joint_pos_rad=s.joint_pos_rad if s else zero3,
+            gripper_closed=s.gripper_closed if s else False,
+            origin=origin_from_params(self._registry),
+            sensors=sensor_bits(imu_ok=ok, pose_ok=ok, actuators_ok=ok, estimator_ok=st is not None,
+                                battery_ok=v.battery.remaining_pct > bat_low_pct, prearm_ok=bool(v.prearm.ok)),
+            ckf_x_hat=st.adapt.x_hat if st else (math.nan,) * 4,  # type: ignore[arg-type]
+            ckf_k=st.adapt.k if st else (math.nan,) * 4,  # type: ignore[arg-type]
+            eig_margin=self._eig_margin,
+            lam_crit=v.lambda_crit,
+            lam_margin=stab.margin if stab is not None else math.nan,
+            time_unix_usec=time.time_ns() // 1000,
+            throttle_pct=throttle_pct(self._vehicle, s.speed_rad_s) if s else 0.0,
+        )
+
+    def boot_ms(self, now_wall: float) -> int:
+        return int((now_wall - self.boot_wall) * 1000)
+
+    def scheduler_for(self, source: Source | None, create: bool = False) -> TelemetryScheduler:
+        """The stream table of one peer (as PX4 keeps one per link, but per peer: a SET_MESSAGE_INTERVAL from one
+        ground station changes only the rates it receives; docs/security.md). Without a table of its own a peer
+        gets the shared defaults; `create` gives it one (a copy of the defaults), at most MAX_PEER_TABLES, the
+        oldest dropped (that peer falls back to the shared table)."""
+        if source is None:
+            return self.scheduler
+        sched = self._peer_sched.get(source)
+        if sched is None:
+            if not create:
+                return self.scheduler
+            if len(self._peer_sched) >= self.MAX_PEER_TABLES:
+                del self._peer_sched[next(iter(self._peer_sched))]
+            sched = self._peer_sched[source] = self.scheduler.copy()
+        return sched
+
+    @property
+    def peers_with_own_rates(self) -> frozenset[Source]:
+        return frozenset(self._peer_sched)
+
+    def due_messages(self, now_wall: float) -> list[Any]:
+        """The shared table's streams that are due (for every peer without a table of its own)."""
+        due = self.scheduler.due(now_wall)
+        if not due:
+            return []
+        return self.builder.build_many(due, self.snapshot(now_wall), self.boot_ms(now_wall))
+
+    def due_per_peer(self, now_wall: float) -> list[tuple[Source, list[Any]]]:
+        """Each peer table's due streams (the snapshot built once for all of them)."""
+        out: list[tuple[Source, list[Any]]] = []
+        snap = None
+        for source, sched in self._peer_sched.items():
+            due = sched.due(now_wall)
+            if due:
+                snap = snap or self.snapshot(now_wall)
+                out.append((source, self.builder.build_many(due, snap, self.boot_ms(now_wall))))
+        return out
+
+    def build_now(self, msg_id: int, now_wall: float) -> list[Any] | None:
+        if msg_id not in self.builder.supported_ids:
+            return None
+        return self.builder.build(msg_id, self.snapshot(now_wall), self.boot_ms(now_wall))
