@@ -27,9 +27,10 @@ from navig8_fc.core.vehicle import (
     inertia_matrix_gi,
     u_to_actuators,
 )
-from sim_bridge import _kernels as K
+from sim_bridge.integrator import evaluate
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant
+from sim_bridge.plant_layout import X
 from sim_bridge.scenario import load_scenario
 
 
@@ -72,19 +73,19 @@ def test_front_end_reference_point_correction(cfg: VehicleConfig) -> None:
 
 def _plant_at(cfg: VehicleConfig, q_rad, object_kg: float) -> Plant:
     plant = Plant(cfg, PlantParams.load().without_noise(), load_scenario("hover"), np.random.default_rng(0))
-    plant._x[K.X.Q.sl] = q_rad
-    plant._x[K.X.QTGT.sl] = q_rad
-    plant._x[K.X.QD.sl] = 0.0
-    plant._x[K.X.MOBJ] = object_kg
-    K.evaluate(plant._x, plant._p, plant._base_mode, plant._d, plant._work)  # truth() reads the derived values
+    plant._x[X.Q.sl] = q_rad
+    plant._x[X.QTGT.sl] = q_rad
+    plant._x[X.QD.sl] = 0.0
+    plant._x[X.MOBJ] = object_kg
+    evaluate(plant._x, plant._p, plant._base_mode, plant._d, plant._work)  # truth() reads the derived values
     return plant
 
 
 def _acc_at(plant: Plant, u: np.ndarray, p: np.ndarray) -> np.ndarray:
     """[omega-dot, (f_O + omega-dot x p)_x, _z] of the plant with its actuators at U (body at rest, arm still)."""
-    plant._x[K.X.ACT.sl] = u_to_actuators(u)
-    plant._x[K.X.ACTD.sl] = 0.0
-    K.evaluate(plant._x, plant._p, plant._base_mode, plant._d, plant._work)
+    plant._x[X.ACT.sl] = u_to_actuators(u)
+    plant._x[X.ACTD.sl] = 0.0
+    evaluate(plant._x, plant._p, plant._base_mode, plant._d, plant._work)
     tr = plant.truth()
     a = tr.specific_force_frd_m_s2 + np.cross(tr.ang_accel_frd_rad_s2, p)
     return np.array([*tr.ang_accel_frd_rad_s2, a[0], a[2]])
