@@ -433,9 +433,29 @@ class Plant:
         # positional: the S layout lists SensorBundle's array fields in its order (test_plant_io checks the fields)
         return SensorBundle(t, *_S_GROUPS(s), self._gripper_closed, groups)
 
-    def truth(self) -> Truth:
+    @property
+    def state_vector(self) -> np.ndarray:
+        """The state x (plant_layout.X: `x[X.Q.sl]` the joint angles, ...), a read-only copy."""
         x = self._x.copy()
-        d = self._d.copy()
+        x.flags.writeable = False
+        return x
+
+    def truth(self) -> Truth:
+        return self._truth_of(self._x.copy(), self._d.copy())
+
+    def truth_at(self, state: np.ndarray) -> Truth:
+        """The truth the plant's dynamics give at the state x (plant_layout.X, e.g. a copy of `state_vector` with
+        some slots changed), with this plant's parameters, base mode and command: accelerations, mass properties,
+        wrenches. Time, gripper and counters are the plant's now; the plant itself does not change."""
+        x = np.array(state, dtype=np.float64)
+        if x.shape != (N_X,):
+            raise ValueError(f"state must have {N_X} entries (plant_layout.X), got shape {x.shape}")
+        d = np.zeros(N_D)
+        evaluate(x, self._p, self._base_mode, d, np.zeros(N_WORK))
+        return self._truth_of(x, d)
+
+    def _truth_of(self, x: np.ndarray, d: np.ndarray) -> Truth:
+        """Truth of the state x and derived quantities d (both owned by the caller; made read-only here)."""
         x.flags.writeable = False
         d.flags.writeable = False
         cmd = self._cmd[_C_ACT].copy()

@@ -37,7 +37,7 @@ def test_wire_views_encode_byte_identical_to_sense_and_truth() -> None:
         a.step_us(cmd, 10_000)
         b.step_us(cmd, 10_000)
     assert (ma.seq, ma.frames_out, ma.bytes_out) == (mb.seq, mb.frames_out, mb.bytes_out)
-    assert np.array_equal(a._x, b._x)
+    assert np.array_equal(a.state_vector, b.state_vector)
 
 
 FC_ADDR = ("127.0.0.1", 40001)
