@@ -11,6 +11,8 @@ Public API (used in process by the flight-controller runner and, later, behind M
     plant.step(cmd, 0.01)                               # advance 10 ms, zero-order-hold command
     bundle = plant.sense()                              # SensorBundle (noisy, seeded rng)
     truth = plant.truth()                               # Truth (state, mass properties, reaction wrench)
+    x = plant.state_vector                              # the state (plant_layout.X), read-only copy
+    plant.truth_at(x)                                   # Truth at another state (the plant does not move)
     plant.t_us, plant.t_s                               # plant time (the lockstep master clock)
 
 - `step(cmd, dt_s)` / `step_us(cmd, dt_us)`: dt must be a whole number of physics steps (1 ms by
