@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import math
 
-from navig8_fc.core.jit import njit_cached
-from sim_bridge import plant_layout
+from numba import njit
+
 from sim_bridge.plant_layout import N_ACT, C, P, X
 
 
-@njit_cached(plant_layout)
+@njit(inline="always")  # the step's hot path: inlined into its njit_cached callers
 def act_at(x, p, cmd, phi, gam, out):
     """Exact second-order actuator outputs after tau (phi, gam = P.PHI_H or P.PHI_H2 offsets)."""
     for i in range(N_ACT):
@@ -27,7 +27,7 @@ def act_at(x, p, cmd, phi, gam, out):
         out[i] = p[phi + 4 * i] * y + p[phi + 4 * i + 1] * yd + p[gam + 2 * i] * u
 
 
-@njit_cached(plant_layout)
+@njit(inline="always")  # the step's hot path: inlined into its njit_cached callers
 def actuator_step(x, p, cmd, act1) -> None:
     """The actuator outputs and rates of x one physics step on (outputs act1 = act_at over h), then the hard stops:
     an output beyond a limit is held at it and its rate into the stop zeroed."""
@@ -47,7 +47,7 @@ def actuator_step(x, p, cmd, act1) -> None:
         x[X.ACTD + i] = yd
 
 
-@njit_cached(plant_layout)
+@njit(inline="always")  # the step's hot path: inlined into its njit_cached callers
 def propulsion(act, p):
     """Propulsive force (N, FRD) and moment about O (N m) of the actuator outputs act (5): (fx, fy, fz, mx, my, mz).
     Thrust grows with w|w|, so a reversed propeller pushes back."""

@@ -15,9 +15,7 @@ import math
 
 from numba import njit
 
-from navig8_fc.core.jit import njit_cached
 from navig8_fc.core.layout import layout
-from sim_bridge import plant_layout
 from sim_bridge.plant_layout import D, P, put3
 
 N_BODIES = 4  # links 1-3 and the object
@@ -49,13 +47,13 @@ def euler_moment(ixx, iyy, izz, ixz, wx, wy, wz, thd, ax, ay, az):
             ixz * ax + izz * az + (Wx * iWy - Wy * iWx))
 
 
-@njit_cached(plant_layout)
+@njit(inline="always")  # the step's hot path: inlined into its njit_cached callers
 def object_inertia(mobj, p) -> float:
     """The held object's own inertia, a sphere's 0.4 m r^2 (kg m^2)."""
     return 0.4 * mobj * p[P.OBJ_R] * p[P.OBJ_R]
 
 
-@njit_cached(plant_layout)
+@njit(inline="always")  # the step's hot path: inlined into its njit_cached callers
 def arm_sums(q, qd, qdd, mobj, p, wx, wy, wz, sc, jxx, jxy, jxz, jyy, jyz, jzz, bmx, bmy, bmz):
     """The arm's bodies added to the composite sums, at joint motion q, qd, qdd and base rate w (body axes).
 
@@ -161,7 +159,7 @@ def arm_sums(q, qd, qdd, mobj, p, wx, wy, wz, sc, jxx, jxy, jxz, jyy, jyz, jzz, 
     return mcx, mcy, mcz, jxx, jxy, jxz, jyy, jyz, jzz, bfx, bfy, bfz, bmx, bmy, bmz
 
 
-@njit_cached(plant_layout)
+@njit(inline="always")  # the step's hot path: inlined into its njit_cached callers
 def arm_reaction(sc, p, mobj, wx, wy, wz, aox, aoy, aoz, dwx, dwy, dwz, gbx, gby, gbz, d) -> None:
     """The arm's reaction wrench on the UAV into d (D.FR_*, D.MR_*), from arm_sums' per-body data sc, the base's
     rate w, its solved accelerations a_O and w' and gravity g_b in body axes.

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import math
 
-from navig8_fc.core.jit import njit_cached
-from sim_bridge import plant_layout
+from numba import njit
+
 from sim_bridge.plant_layout import P, X
 
 
-@njit_cached(plant_layout)
+@njit(inline="always")  # the step's hot path: inlined into its njit_cached callers
 def contact_wrench(xb, p, wx, wy, wz, r):
     """Contact force (N, body FRD) and moment about O (N m) at the base state xb (X layout) with body rate w and
     R = r (body -> NED, rows, 9 entries): (fx, fy, fz, mx, my, mz, number of points touching)."""

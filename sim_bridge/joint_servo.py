@@ -16,8 +16,6 @@ import math
 
 from numba import njit
 
-from navig8_fc.core.jit import njit_cached
-from sim_bridge import plant_layout
 from sim_bridge.plant_layout import C, P, X
 
 N_SCHED_COLS = 8
@@ -77,7 +75,7 @@ def schedule_target(sched, t_us: float, j: int) -> float:
     return sched[lo, 2 + j] + (sched[lo, 5 + j] - sched[lo, 2 + j]) * (t_us - t0) / (t1 - t0)
 
 
-@njit_cached(plant_layout)
+@njit(inline="always")  # the step's hot path: inlined into its njit_cached callers
 def servo_update(x, p, cmd, sched, t_us) -> None:
     """The servo's new period at t_us: every joint's target into x[X.QTGT] and its q'' for the period into x[X.QDD]
     (a joint at rest on its target is snapped onto it)."""
@@ -110,7 +108,7 @@ def servo_update(x, p, cmd, sched, t_us) -> None:
             x[X.QDD + j] = servo_accel(tgt - x[X.Q + j], x[X.QD + j], hs, amax, vmax)
 
 
-@njit_cached(plant_layout)
+@njit(inline="always")  # the step's hot path: inlined into its njit_cached callers
 def joints_at(x, qdd, tau, q, qd) -> None:
     """Joint angles and rates tau after the state x with q'' held (exact for constant acceleration)."""
     for j in range(3):

@@ -4,8 +4,11 @@ The plant's hot path (docs/plant.md, "Speed") works on flat float64 arrays whose
 (navig8_fc.core.layout: one table gives the kernels their slot constants, X.POS, and plant.py its slices,
 X.POS.sl). The vectors here are read by the kernels of several modules (rigid_body, arm_dynamics, actuators,
 ground_contact, joint_servo, integrator, sensors), so they sit below all of them; a layout that one module alone
-indexes stays beside its kernels (arm_dynamics.SC, integrator.W, the sensors' S, NOISE, SIG). A kernel that reads
-these layouts or calls put3/put_sym3 is decorated `njit_cached(plant_layout, ...)`: a change here recompiles it.
+indexes stays beside its kernels (arm_dynamics.SC, integrator.W, the sensors' S, NOISE, SIG). A cached kernel that
+reads these layouts or calls put3/put_sym3 is decorated `njit_cached(plant_layout, ...)`: a change here recompiles
+it. The physics step's helpers in the other modules (arm_sums, propulsion, contact_wrench, act_at, servo_update,
+...) are `njit(inline="always")`: no cache of their own, compiled into their njit_cached callers (rigid_body.dynamics,
+integrator.advance), which list their modules; as separate calls the step was ~10 % slower.
 """
 
 from __future__ import annotations
