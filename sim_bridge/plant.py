@@ -11,6 +11,8 @@ Public API (used in process by the flight-controller runner and, later, behind M
     plant.step(cmd, 0.01)                               # advance 10 ms, zero-order-hold command
     bundle = plant.sense()                              # SensorBundle (noisy, seeded rng)
     truth = plant.truth()                               # Truth (state, mass properties, reaction wrench)
+    x = plant.state_vector                              # the state (plant_layout.X), read-only copy
+    plant.truth_at(x)                                   # Truth at another state (the plant does not move)
     plant.t_us, plant.t_s                               # plant time (the lockstep master clock)
 
 - `step(cmd, dt_s)` / `step_us(cmd, dt_us)`: dt must be a whole number of physics steps (1 ms by
@@ -28,7 +30,8 @@ Public API (used in process by the flight-controller runner and, later, behind M
 - `command_gripper(close, object_mass_kg)`: grasp/release now (the bridge's NAVIG8_ARM_CMD gripper).
 
 Model (notes §1-3, docs/plant.md): floating base with prescribed joint motion solved by the composite
-6x6 Newton-Euler system (notes §3.4) in `_kernels.py` (numba), RK4 at the physics rate with the exact
+6x6 Newton-Euler system (notes §3.4) in numba kernels (`rigid_body`, `arm_dynamics`, `actuators`,
+`ground_contact`, `joint_servo`, `integrator`, `sensors`), RK4 at the physics rate with the exact
 actuator and joint trajectories inside each step, exact second-order actuator discretisation, a
 time-optimal rate/acceleration-limited joint servo, skid contact with the NED z = 0 ground.
 """
@@ -45,7 +48,8 @@ import scipy.linalg
 from navig8_fc.core import rotation
 from navig8_fc.core.rotation import euler_to_quat, quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig, hover_trim, propulsion_per_input, u_to_actuators
-from sim_bridge import _kernels as K
+from sim_bridge import sensors
+from sim_bridge.integrator import N_WORK, advance, evaluate
 from sim_bridge.messages import (
     ActuatorCommand,
     SensorBundle,
@@ -54,19 +58,33 @@ from sim_bridge.messages import (
     WireTruth,
 )
 from sim_bridge.params import ActuatorDynamics, PlantParams
+from sim_bridge.plant_layout import (
+    BASE_ATTITUDE_LOCKED,
+    BASE_FIXED,
+    BASE_FREE,
+    N_C,
+    N_CONTACT_MAX,
+    N_D,
+    N_X,
+    C,
+    D,
+    P,
+    X,
+)
 from sim_bridge.scenario import Scenario
+from sim_bridge.sensors import N_GROUPS, N_NOISE, N_S, SIG, S
 
 _R = TypeVar("_R")
-BASE_MODES = {"free": K.BASE_FREE, "attitude_locked": K.BASE_ATTITUDE_LOCKED, "fixed": K.BASE_FIXED}
+BASE_MODES = {"free": BASE_FREE, "attitude_locked": BASE_ATTITUDE_LOCKED, "fixed": BASE_FIXED}
 
 
 # sense / sense_wire: the sensor vector's groups (SensorBundle's fields in order); truth_wire: the wire truth's
 # parts of the state and derived vectors (the inertia about the CoM as three rows). Cut in one C call each.
-_S_GROUPS = itemgetter(*(m.sl for m in K.S.fields()))
-_X_WIRE = itemgetter(*(m.sl for m in (K.X.POS, K.X.VEL, K.X.QUAT, K.X.RATE, K.X.ACT, K.X.Q, K.X.QD, K.X.QDD)),
-                     int(K.X.MOBJ))
-_D_WIRE = itemgetter(K.D.ACC.sl, int(K.D.MASS), K.D.COM.sl,
-                     *(slice(K.D.JC + 3 * r, K.D.JC + 3 * r + 3) for r in range(3)), K.D.FR_G.sl, K.D.MR_MOUNT_G.sl)
+_S_GROUPS = itemgetter(*(m.sl for m in S.fields()))
+_X_WIRE = itemgetter(*(m.sl for m in (X.POS, X.VEL, X.QUAT, X.RATE, X.ACT, X.Q, X.QD, X.QDD)),
+                     int(X.MOBJ))
+_D_WIRE = itemgetter(D.ACC.sl, int(D.MASS), D.COM.sl,
+                     *(slice(D.JC + 3 * r, D.JC + 3 * r + 3) for r in range(3)), D.FR_G.sl, D.MR_MOUNT_G.sl)
 
 
 def _fill(record: _R, **fields: Any) -> _R:
@@ -74,15 +92,15 @@ def _fill(record: _R, **fields: Any) -> _R:
     for name, value in fields.items():
         setattr(record, name, value)
     return record
-_C_ACT, _C_JOVR, _C_JTGT = K.C.ACT.sl, int(K.C.JOVR), int(K.C.JTGT)
+_C_ACT, _C_JOVR, _C_JTGT = C.ACT.sl, int(C.JOVR), int(C.JTGT)
 # truth(): its views of the state and derived vectors, cut in one C call each
-_TRUTH_X = itemgetter(*(m.sl for m in (K.X.POS, K.X.VEL, K.X.QUAT, K.X.RATE, K.X.ACT, K.X.ACTD, K.X.Q, K.X.QD,
-                                       K.X.QDD, K.X.QTGT)))
-_TRUTH_D = itemgetter(*(m.sl for m in (K.D.ACC, K.D.WDOT, K.D.SPF, K.D.COM, K.D.FR_G, K.D.MR_MOUNT_G, K.D.MR_O_G,
-                                       K.D.FR_NOG, K.D.MR_MOUNT_NOG, K.D.MR_O_NOG, K.D.FPROP, K.D.MPROP, K.D.FCONT,
-                                       K.D.MCONT)))
-_X_MOBJ, _X_QUAT = int(K.X.MOBJ), K.X.QUAT.sl
-_D_MASS, _D_NCONT, _D_JC, _D_JO = int(K.D.MASS), int(K.D.NCONT), K.D.JC.sl, K.D.JO.sl
+_TRUTH_X = itemgetter(*(m.sl for m in (X.POS, X.VEL, X.QUAT, X.RATE, X.ACT, X.ACTD, X.Q, X.QD,
+                                       X.QDD, X.QTGT)))
+_TRUTH_D = itemgetter(*(m.sl for m in (D.ACC, D.WDOT, D.SPF, D.COM, D.FR_G, D.MR_MOUNT_G, D.MR_O_G,
+                                       D.FR_NOG, D.MR_MOUNT_NOG, D.MR_O_NOG, D.FPROP, D.MPROP, D.FCONT,
+                                       D.MCONT)))
+_X_MOBJ, _X_QUAT = int(X.MOBJ), X.QUAT.sl
+_D_MASS, _D_NCONT, _D_JC, _D_JO = int(D.MASS), int(D.NCONT), D.JC.sl, D.JO.sl
 
 
 class PlantDivergedError(RuntimeError):
@@ -116,7 +134,7 @@ def duct_input_scale(efficiency: tuple[float, float]) -> np.ndarray:
 
 def build_param_vector(vehicle: VehicleConfig, params: PlantParams,
                        efficiency: tuple[float, float] = (1.0, 1.0)) -> np.ndarray:
-    """The kernel's parameter vector (_kernels.P layout); `efficiency`: the ducts' thrust factors (a fault)."""
+    """The kernels' parameter vector (plant_layout.P); `efficiency`: the ducts' thrust factors (a fault)."""
     h = 1.0 / params.physics_rate_hz
     # Per-input force and moment about O from the FC's own propulsion model (notes §2.1-2.2), so the
     # plant and vehicle.hover_trim / G_C agree exactly; the kernel only multiplies by U. A duct fault scales its
@@ -129,9 +147,9 @@ def build_param_vector(vehicle: VehicleConfig, params: PlantParams,
     disc = {tau: [_actuator_discretisation(dyn, tau) for dyn in dyns] for tau in (h, 0.5 * h)}
     lo, hi = actuator_limits(vehicle)
     g = params.ground
-    cp = np.zeros((K.N_CONTACT_MAX, 3))
+    cp = np.zeros((N_CONTACT_MAX, 3))
     cp[:len(g.contact_points_frd_m)] = g.contact_points_frd_m
-    return K.P.pack(
+    return P.pack(
         g=vehicle.gravity_m_s2, m0=vehicle.uav_mass_kg, j0=vehicle.uav_inertia_array, ml=vehicle.link_mass_kg,
         ia=vehicle.link_inertia_kgm2, l=vehicle.link_length_m, mount=vehicle.mount_frd_m,
         obj_d=vehicle.object_offset_m, obj_r=vehicle.object_radius_m, pf=f, pm=mom,
@@ -200,13 +218,13 @@ class Plant:
         self._act_lo, self._act_hi = actuator_limits(vehicle)
         self._act_lo_list, self._act_hi_list = self._act_lo.tolist(), self._act_hi.tolist()
         self._qlim = vehicle.joint_limit_rad
-        self._cmd = np.zeros(K.N_C)
+        self._cmd = np.zeros(N_C)
         self._valid_cmd = [0.0] * 5  # last valid value per actuator channel
         self._valid_joint = [0.0, 0.0, 0.0]
         self._nonfinite = 0
         self._clamped = 0
-        self._d = np.zeros(K.N_D)
-        self._work = np.zeros(K.N_WORK)
+        self._d = np.zeros(N_D)
+        self._work = np.zeros(N_WORK)
         # events on the physics grid: the first step at or after their time
         self._events = [
             (-(-round(ev.t_s * 1e6) // self._h_us) * self._h_us, ev) for ev in scenario.events
@@ -214,7 +232,7 @@ class Plant:
         self._ev_i = 0
         # sensors
         s = params.sensors
-        self._sig = K.SIG.pack(gyro=s.gyro_sigma_rad_s, acc=s.accel_sigma_m_s2, pos=s.mocap_pos_sigma_m,
+        self._sig = SIG.pack(gyro=s.gyro_sigma_rad_s, acc=s.accel_sigma_m_s2, pos=s.mocap_pos_sigma_m,
                                vel=s.mocap_vel_sigma_m_s, att=s.mocap_att_sigma_rad, duct=s.duct_tilt_sigma_rad,
                                prop=s.prop_speed_sigma_rad_s, jq=s.joint_pos_sigma_rad, jqd=s.joint_rate_sigma_rad_s,
                                gyro_bias=s.gyro_bias_rad_s, acc_bias=s.accel_bias_m_s2)
@@ -222,9 +240,9 @@ class Plant:
         self._sensor_period_us = np.array([round(1e6 / r) for r in (s.imu_rate_hz, s.mocap_rate_hz,
                                                                      s.actuator_rate_hz, s.joint_rate_hz)],
                                           dtype=np.int64)
-        self._sensor_due_us = np.zeros(K.N_GROUPS, dtype=np.int64)
-        self._noise = np.empty(K.N_NOISE)  # the draws of one sample (refilled in place)
-        self._meas = np.zeros(K.N_S)  # last sample of every sensor group (kernel-owned, writable)
+        self._sensor_due_us = np.zeros(N_GROUPS, dtype=np.int64)
+        self._noise = np.empty(N_NOISE)  # the draws of one sample (refilled in place)
+        self._meas = np.zeros(N_S)  # last sample of every sensor group (kernel-owned, writable)
         self._t_us = 0
         self._apply_due_fault()
         self._init_state(scenario)
@@ -232,43 +250,43 @@ class Plant:
     # ---- initial state ----------------------------------------------------------------------
     def _init_state(self, scn: Scenario) -> None:
         ini = scn.initial
-        x = np.zeros(K.N_X)
-        x[K.X.POS.sl] = ini.pos_ned_m
-        x[K.X.VEL.sl] = ini.vel_ned_m_s
+        x = np.zeros(N_X)
+        x[X.POS.sl] = ini.pos_ned_m
+        x[X.VEL.sl] = ini.vel_ned_m_s
         quat = euler_to_quat(*ini.euler_rad)
-        x[K.X.QUAT.sl] = quat
-        if self._base_mode == K.BASE_FREE:
-            x[K.X.RATE.sl] = ini.rate_frd_rad_s
+        x[X.QUAT.sl] = quat
+        if self._base_mode == BASE_FREE:
+            x[X.RATE.sl] = ini.rate_frd_rad_s
         q0 = np.clip(np.array(ini.joint_pos_rad), -self._qlim, self._qlim)
-        x[K.X.Q.sl] = q0
-        x[K.X.QTGT.sl] = q0
+        x[X.Q.sl] = q0
+        x[X.QTGT.sl] = q0
         self._gripper_closed = scn.gripper_closed
-        x[K.X.MOBJ] = scn.object_mass_kg if scn.gripper_closed else 0.0
+        x[X.MOBJ] = scn.object_mass_kg if scn.gripper_closed else 0.0
         self._x = x
         self._apply_due_events()  # events at t = 0
         if ini.on_ground:
             self._place_on_ground()
         if ini.actuators == "trim":
-            act = np.clip(trim_actuators(self.vehicle, q0, x[K.X.MOBJ], self._efficiency), self._act_lo,
+            act = np.clip(trim_actuators(self.vehicle, q0, x[X.MOBJ], self._efficiency), self._act_lo,
                           self._act_hi)
         else:
             act = np.zeros(5)
-        x[K.X.ACT.sl] = act
-        self._cmd[K.C.ACT.sl] = act
+        x[X.ACT.sl] = act
+        self._cmd[C.ACT.sl] = act
         self._valid_cmd = [float(v) for v in act]
         self._valid_joint = [float(v) for v in q0]
-        K.evaluate(self._x, self._p, self._base_mode, self._d, self._work)
+        evaluate(self._x, self._p, self._base_mode, self._d, self._work)
 
     def _place_on_ground(self) -> None:
         """Skids on the ground with the static sag of the springs (the lowest contact point touches)."""
         pts = np.array(self.params.ground.contact_points_frd_m)
         if len(pts) == 0:
             raise ValueError("scenario starts on the ground but there are no contact points")
-        r = quat_to_dcm(self._x[K.X.QUAT.sl])
+        r = quat_to_dcm(self._x[X.QUAT.sl])
         lowest = float(np.max(pts @ r[2]))
-        mass = self.vehicle.uam_mass_kg + self._x[K.X.MOBJ]
+        mass = self.vehicle.uam_mass_kg + self._x[X.MOBJ]
         sag = mass * self.vehicle.gravity_m_s2 / (len(pts) * self.params.ground.stiffness_n_m)
-        self._x[K.X.POS + 2] = -lowest + sag
+        self._x[X.POS + 2] = -lowest + sag
 
     # ---- time ---------------------------------------------------------------------------------
     @property
@@ -351,14 +369,14 @@ class Plant:
             if fault:
                 t_stop = self._fault_us  # type: ignore[assignment]
             n = (t_stop - self._t_us) // h_us
-            if K.advance(
+            if advance(
                 self._x, self._p, self._cmd, self._sched, n, self._t_us, self._base_mode, self._d, self._work
             ):
                 raise PlantDivergedError(f"non-finite plant state in ({self._t_us}, {t_stop}] us")
             self._t_us = t_stop
             changed = pending and self._apply_due_events()
             if (fault and self._apply_due_fault()) or changed:
-                K.evaluate(self._x, self._p, self._base_mode, self._d, self._work)
+                evaluate(self._x, self._p, self._base_mode, self._d, self._work)
 
     def _apply_due_fault(self) -> bool:
         """Switch to the faulty propulsion when its time has come (once)."""
@@ -375,11 +393,11 @@ class Plant:
             ev = self._events[self._ev_i][1]
             if ev.kind == "release":
                 self._gripper_closed = False
-                self._x[K.X.MOBJ] = 0.0
+                self._x[X.MOBJ] = 0.0
             else:
                 # the new mass appears at the gripper moving with it: the base velocities are continuous
                 self._gripper_closed = True
-                self._x[K.X.MOBJ] = ev.mass_kg
+                self._x[X.MOBJ] = ev.mass_kg
             self._ev_i += 1
             applied = True
         return applied
@@ -397,8 +415,8 @@ class Plant:
         if bool(close) == self._gripper_closed:
             return False
         self._gripper_closed = bool(close)
-        self._x[K.X.MOBJ] = m if close else 0.0
-        K.evaluate(self._x, self._p, self._base_mode, self._d, self._work)
+        self._x[X.MOBJ] = m if close else 0.0
+        evaluate(self._x, self._p, self._base_mode, self._d, self._work)
         return True
 
     # ---- outputs --------------------------------------------------------------------------------
@@ -406,7 +424,7 @@ class Plant:
         """Sample the sensor groups that are due into self._meas (the others hold); the groups sampled."""
         self._rng.standard_normal(out=self._noise)  # every call draws the same number: a seed fixes the run
         # in place: the groups not due keep their previous sample (sample and hold)
-        return K.sense(self._x, self._d, self._sig, self._noise, self._meas, self._t_us, self._sensor_due_us,
+        return sensors.sense(self._x, self._d, self._sig, self._noise, self._meas, self._t_us, self._sensor_due_us,
                        self._sensor_period_us, self._meas)
 
     def sense(self) -> SensorBundle:
@@ -417,9 +435,29 @@ class Plant:
         # positional: the S layout lists SensorBundle's array fields in its order (test_plant_io checks the fields)
         return SensorBundle(t, *_S_GROUPS(s), self._gripper_closed, groups)
 
-    def truth(self) -> Truth:
+    @property
+    def state_vector(self) -> np.ndarray:
+        """The state x (plant_layout.X: `x[X.Q.sl]` the joint angles, ...), a read-only copy."""
         x = self._x.copy()
-        d = self._d.copy()
+        x.flags.writeable = False
+        return x
+
+    def truth(self) -> Truth:
+        return self._truth_of(self._x.copy(), self._d.copy())
+
+    def truth_at(self, state: np.ndarray) -> Truth:
+        """The truth the plant's dynamics give at the state x (plant_layout.X, e.g. a copy of `state_vector` with
+        some slots changed), with this plant's parameters, base mode and command: accelerations, mass properties,
+        wrenches. Time, gripper and counters are the plant's now; the plant itself does not change."""
+        x = np.array(state, dtype=np.float64)
+        if x.shape != (N_X,):
+            raise ValueError(f"state must have {N_X} entries (plant_layout.X), got shape {x.shape}")
+        d = np.zeros(N_D)
+        evaluate(x, self._p, self._base_mode, d, np.zeros(N_WORK))
+        return self._truth_of(x, d)
+
+    def _truth_of(self, x: np.ndarray, d: np.ndarray) -> Truth:
+        """Truth of the state x and derived quantities d (both owned by the caller; made read-only here)."""
         x.flags.writeable = False
         d.flags.writeable = False
         cmd = self._cmd[_C_ACT].copy()
@@ -464,7 +502,7 @@ class Plant:
         """Level hover trim for the current arm pose and object (vehicle.hover_trim) of the ducts as they are now (a
         duct fault once it has struck), clamped to limits."""
         act = np.clip(
-            trim_actuators(self.vehicle, self._x[K.X.Q.sl], float(self._x[K.X.MOBJ]), self._efficiency),
+            trim_actuators(self.vehicle, self._x[X.Q.sl], float(self._x[X.MOBJ]), self._efficiency),
             self._act_lo,
             self._act_hi,
         )

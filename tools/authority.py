@@ -38,7 +38,7 @@ the arm moves: during the paper's arm reversal, or during every move of a flown 
    `bound_from_log` for what each number means and where it is not a strict bound.
 
 Everything is the model of navig8_fc.core.vehicle (the same G_C and mass properties the controller uses) and the
-plant's joint servo (sim_bridge._kernels._servo_accel). See docs/model.md ("Pitch authority", "Authority bound of
+plant's joint servo (sim_bridge.joint_servo.servo_accel). See docs/model.md ("Pitch authority", "Authority bound of
 a flown run").
 
 The code: tools/authority_static.py (1.: the LP, AuthorityMap), tools/authority_excursion.py (2.-3.: the arm's

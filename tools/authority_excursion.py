@@ -32,15 +32,15 @@ SERVO_STEP_S = 0.001  # the plant's joint-servo period (params/plant.yaml servo_
 
 def servo_profile(q_from: float, q_to: float, v_max: float, a_max: float, h_s: float,
                   duration_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Joint angle and rate of the plant's servo (sim_bridge._kernels._servo_accel) after a step command,
+    """Joint angle and rate of the plant's servo (sim_bridge.joint_servo.servo_accel) after a step command,
     sampled every h_s (its servo period; exact constant-acceleration steps, as the plant integrates them)."""
-    from sim_bridge._kernels import _servo_accel
+    from sim_bridge.joint_servo import servo_accel
 
     n = int(round(duration_s / h_s)) + 1
     q, qd = np.empty(n), np.empty(n)
     q[0], qd[0] = q_from, 0.0
     for k in range(n - 1):
-        a = _servo_accel(q_to - q[k], qd[k], h_s, a_max, v_max)
+        a = servo_accel(q_to - q[k], qd[k], h_s, a_max, v_max)
         q[k + 1] = q[k] + qd[k] * h_s + 0.5 * a * h_s * h_s
         qd[k + 1] = qd[k] + a * h_s
     return q, qd

@@ -60,8 +60,7 @@ def _plant_section(args: argparse.Namespace) -> SectionResult:
     """The 30 s paper scenario, arm moving (Eq. 26), actuators held at the initial trim, sensors sampled
     once per control period (the closed loop's calling pattern: step(cmd, dt) + sense())."""
     from navig8_fc.core.vehicle import VehicleConfig
-    from sim_bridge import Plant, PlantParams, load_scenario
-    from sim_bridge import _kernels as K
+    from sim_bridge import Plant, PlantParams, integrator, load_scenario, sensors
 
     vehicle = VehicleConfig.load()
     params = PlantParams.load()
@@ -74,7 +73,8 @@ def _plant_section(args: argparse.Namespace) -> SectionResult:
     warm.sense()
     warm.truth()
     first_call_s = time.perf_counter() - t0
-    cache_misses = sum(sum(f.stats.cache_misses.values()) for f in (K.advance, K.evaluate, K.sense))
+    kernels = (integrator.advance, integrator.evaluate, sensors.sense)
+    cache_misses = sum(sum(f.stats.cache_misses.values()) for f in kernels)
     gc.collect()  # a fresh compile leaves garbage whose collection would otherwise land in the timed loop
 
     plant = Plant(vehicle, params, scenario, np.random.default_rng(args.seed))

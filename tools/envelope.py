@@ -43,8 +43,8 @@ import numpy as np
 
 from navig8_fc.core.jit import njit_cached
 from navig8_fc.flight.script import arm_segments, target_at
-from sim_bridge import _kernels
-from sim_bridge._kernels import _schedule_target, _servo_accel
+from sim_bridge import joint_servo
+from sim_bridge.joint_servo import schedule_target, servo_accel
 
 Vec3 = tuple[float, float, float]
 SHAPES = ("square", "sweep", "steps", "random")
@@ -154,10 +154,10 @@ def nominal_values() -> dict[str, float]:
 # ---------------------------------------------------------------------------------------------
 
 
-@njit_cached(_kernels)  # it calls the plant's kernels: a change there recompiles it
+@njit_cached(joint_servo)  # it calls the plant's servo kernels: a change there recompiles it
 def _servo_track(sched: np.ndarray, q0: np.ndarray, qd0: np.ndarray, t0_us: int, h_us: int, n: int, v_max: float,
                  a_max: float, every: int) -> np.ndarray:
-    """Joint angles every `every` servo periods from t0_us, the plant's servo law (sim_bridge._kernels.advance:
+    """Joint angles every `every` servo periods from t0_us, the plant's servo law (sim_bridge.joint_servo.servo_update:
     the target of the schedule, the rate/acceleration-limited law, exact constant-acceleration steps, the snap at
     rest) from the state (q0, qd0). Rows: t_us, q1, q2, q3."""
     h = h_us * 1e-6
@@ -175,12 +175,12 @@ def _servo_track(sched: np.ndarray, q0: np.ndarray, qd0: np.ndarray, t0_us: int,
         if k == n:
             break
         for j in range(3):
-            tgt = _schedule_target(sched, float(t_us), j)
+            tgt = schedule_target(sched, float(t_us), j)
             if abs(tgt - q[j]) <= 1e-12 and abs(qd[j]) <= 1e-9:
                 q[j] = tgt
                 qd[j] = 0.0
             else:
-                a = _servo_accel(tgt - q[j], qd[j], h, a_max, v_max)
+                a = servo_accel(tgt - q[j], qd[j], h, a_max, v_max)
                 q[j] += qd[j] * h + 0.5 * a * h * h
                 qd[j] += a * h
     return out

@@ -1,7 +1,7 @@
 """INDI_ARM_FF = 2: the arm preview, checked against independent references.
 
 - The FC's servo model against the closed-form time-optimal trapezoid (accelerate at a_max to v_max, coast,
-  brake at a_max) and against the plant's servo (`sim_bridge._kernels._servo_accel`, written separately).
+  brake at a_max) and against the plant's servo (`sim_bridge.joint_servo.servo_accel`, written separately).
 - The preview's ḣ at t + lead against ḣ (`g_c.mass_props`, itself checked against tools/authority_excursion's
   h in test_arm_wrench.py) at the state the plant's servo reaches at t + lead.
 - The scenario's arm plan as the FC parses it against the bridge's own target lookup (`Scenario.arm_targets`).
@@ -29,7 +29,7 @@ from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.core.vehicle import VehicleConfig, model_geometry
 from navig8_fc.flight.script import load_flight_script
 from navig8_fc.params.registry import ParamRegistry
-from sim_bridge._kernels import _servo_accel
+from sim_bridge.joint_servo import servo_accel
 from sim_bridge.scenario import load_scenario
 
 A_MAX, V_MAX, H = 42.0, 4.0, 1e-3
@@ -61,7 +61,7 @@ def _plant_servo(q0: np.ndarray, qd0: np.ndarray, plan: np.ndarray, t0: float, n
     """The plant's servo law (sim_bridge) run n periods: [q, q', q'' of the next period]."""
     q, v = q0.astype(float).copy(), qd0.astype(float).copy()
     for i in range(n + 1):
-        a = np.array([_servo_accel(plan_target(plan, t0 + i * H, j) - q[j], v[j], H, A_MAX, V_MAX) for j in range(3)])
+        a = np.array([servo_accel(plan_target(plan, t0 + i * H, j) - q[j], v[j], H, A_MAX, V_MAX) for j in range(3)])
         if i < n:
             q, v = q + v * H + 0.5 * a * H * H, v + a * H
     return np.concatenate([q, v, a])
@@ -172,7 +172,7 @@ def _plant_joints(plan: np.ndarray, n_ticks: int, amax: float = A_MAX, vmax: flo
         out.append(np.concatenate([q, v]))
         for sub in range(10):
             t = i * 0.01 + sub * H
-            a = np.array([_servo_accel(plan_target(plan, t, j) - q[j], v[j], H, amax, vmax) for j in range(3)])
+            a = np.array([servo_accel(plan_target(plan, t, j) - q[j], v[j], H, amax, vmax) for j in range(3)])
             if stall is not None and t >= stall[1]:
                 a[stall[0]], v[stall[0]] = 0.0, 0.0
             q, v = q + v * H + 0.5 * a * H * H, v + a * H

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from navig8_fc.flight.script import ArmSegment, arm_segments, read_scenario_file, vec3
-from sim_bridge import _kernels as K
+from sim_bridge.joint_servo import schedule_target
 from sim_bridge.scenario import Scenario, load_scenario
 
 
@@ -52,7 +52,7 @@ def test_the_plants_kernel_reads_the_same_targets() -> None:
                                                 {"t_s": 6.0, "q_deg": [0.0, 0.0, 0.0]}]})
     sched = scn.arm_schedule()
     for t in np.linspace(0.0, 8.0, 161):
-        got = [K._schedule_target.py_func(sched, float(round(t * 1e6)), j) for j in range(3)]
+        got = [schedule_target.py_func(sched, float(round(t * 1e6)), j) for j in range(3)]
         np.testing.assert_allclose(got, scn.arm_targets(float(round(t * 1e6)) * 1e-6), rtol=1e-12, atol=1e-15)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import socket
+import time
 
 import numpy as np
 import pytest
@@ -12,7 +13,9 @@ import pytest
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.links.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat
 from navig8_fc.mavlink import codec, dialect, seam
-from sim_bridge.bridge import Bridge, BridgeCounters, BridgeOptions
+from sim_bridge.bridge_options import BridgeOptions
+from sim_bridge.fc_link import BridgeCounters
+from sim_bridge.lockstep import Bridge
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant
 from sim_bridge.scenario import load_scenario
@@ -37,10 +40,15 @@ def test_wire_views_encode_byte_identical_to_sense_and_truth() -> None:
         a.step_us(cmd, 10_000)
         b.step_us(cmd, 10_000)
     assert (ma.seq, ma.frames_out, ma.bytes_out) == (mb.seq, mb.frames_out, mb.bytes_out)
-    assert np.array_equal(a._x, b._x)
+    assert np.array_equal(a.state_vector, b.state_vector)
 
 
 FC_ADDR = ("127.0.0.1", 40001)
+
+
+def _feed(br: Bridge, data: bytes, addr: tuple[str, int], now: float | None = None) -> seam.ActuatorControls | None:
+    """One datagram from addr into the bridge's link, as its socket loop hands it over (for the current step)."""
+    return br.link.handle_datagram(data, addr, br.time_usec, now)
 
 
 def _announce(br: Bridge, nonce: int) -> bytes:
@@ -50,8 +58,8 @@ def _announce(br: Bridge, nonce: int) -> bytes:
 @pytest.fixture()
 def bridge():
     br = Bridge(BridgeOptions(scenario="paper", speed=0.0, bridge_port=0, fc_port=1))
-    br._handle(_announce(br, 0x1234), FC_ADDR)  # paired with the FC at FC_ADDR
-    assert (br.fc_addr, br.fc_nonce, br.counters.sessions) == (FC_ADDR, 0x1234, 1)
+    _feed(br, _announce(br, 0x1234), FC_ADDR)  # paired with the FC at FC_ADDR
+    assert (br.link.fc_addr, br.link.fc_nonce, br.counters.sessions) == (FC_ADDR, 0x1234, 1)
     yield br
     br.close()
 
@@ -88,8 +96,8 @@ def test_handle_answers_and_counts_as_pymavlink_reads_the_bytes(bridge: Bridge) 
         "garbage": dict(garbage_bytes=5), "arm": dict(arm_cmds=1),
     }
     for label, data in _answers(bridge).items():
-        bridge.counters = BridgeCounters()
-        got = bridge._handle(data, FC_ADDR)
+        bridge.link.counters = BridgeCounters()
+        got = _feed(bridge, data, FC_ADDR)
         assert dataclasses.asdict(bridge.counters) == dataclasses.asdict(
             BridgeCounters(datagrams_in=1, **want_counts[label])), label
         ref = dialect.new_mav(1, 1).parse_buffer(data) or []
@@ -118,27 +126,27 @@ def test_pairing_with_one_fc() -> None:
     listener.settimeout(5.0)
     fc_addr = listener.getsockname()
     try:
-        assert br.fc_addr is None
-        br._send(b"nothing to send to")  # no address: dropped quietly
+        assert br.link.fc_addr is None
+        br.link.send(b"nothing to send to")  # no address: dropped quietly
         data = _answers(br)
-        br._handle(data["foreign"], ("127.0.0.1", 40001))
-        br._handle(data["bad_crc"], ("127.0.0.1", 40002))
-        br._handle(data["good"], fc_addr)  # an answer before pairing: not from a paired FC
-        assert br.fc_addr is None and br.counters.wrong_sender == 1
-        br._handle(_announce(br, 77), fc_addr)  # the FC's announcement: pair, echo the nonce
-        assert (br.fc_addr, br.fc_nonce) == (fc_addr, 77)
+        _feed(br, data["foreign"], ("127.0.0.1", 40001))
+        _feed(br, data["bad_crc"], ("127.0.0.1", 40002))
+        _feed(br, data["good"], fc_addr)  # an answer before pairing: not from a paired FC
+        assert br.link.fc_addr is None and br.counters.wrong_sender == 1
+        _feed(br, _announce(br, 77), fc_addr)  # the FC's announcement: pair, echo the nonce
+        assert (br.link.fc_addr, br.link.fc_nonce) == (fc_addr, 77)
         echo = codec.seam_codec().parse(listener.recvfrom(4096)[0], codec.ParseCounters())
         assert [(m.name, m.compid, m.fields["custom_mode"]) for m in echo] == [("HEARTBEAT", dialect.COMPID_BRIDGE, 77)]
-        assert br._handle(data["good"], ("127.0.0.1", 40004)) is None  # the right ids from the wrong address
-        assert br.counters.wrong_sender == 2 and br.fc_addr == fc_addr
-        assert br._handle(data["good"], fc_addr) is not None
-        br._handle(_announce(br, 99), ("127.0.0.1", 40005))  # another "FC" while ours is live
-        assert br.counters.pair_refused == 1 and (br.fc_addr, br.fc_nonce) == (fc_addr, 77)
-        br._handle(_announce(br, 5), fc_addr)  # our FC restarted on its port: a new session at once
-        assert (br.fc_addr, br.fc_nonce, br.counters.sessions) == (fc_addr, 5, 2)
-        br._fc_heard -= REPAIR_SILENCE_S  # ours silent that long: another may pair
-        br._handle(_announce(br, 6), ("127.0.0.1", 40006))
-        assert (br.fc_addr, br.fc_nonce, br.counters.sessions) == (("127.0.0.1", 40006), 6, 3)
+        assert _feed(br, data["good"], ("127.0.0.1", 40004)) is None  # the right ids from the wrong address
+        assert br.counters.wrong_sender == 2 and br.link.fc_addr == fc_addr
+        assert _feed(br, data["good"], fc_addr) is not None
+        _feed(br, _announce(br, 99), ("127.0.0.1", 40005))  # another "FC" while ours is live
+        assert br.counters.pair_refused == 1 and (br.link.fc_addr, br.link.fc_nonce) == (fc_addr, 77)
+        _feed(br, _announce(br, 5), fc_addr)  # our FC restarted on its port: a new session at once
+        assert (br.link.fc_addr, br.link.fc_nonce, br.counters.sessions) == (fc_addr, 5, 2)
+        later = time.perf_counter() + REPAIR_SILENCE_S  # ours silent that long: another may pair
+        _feed(br, _announce(br, 6), ("127.0.0.1", 40006), now=later)
+        assert (br.link.fc_addr, br.link.fc_nonce, br.counters.sessions) == (("127.0.0.1", 40006), 6, 3)
     finally:
         br.close()
         listener.close()

@@ -22,6 +22,7 @@ from sim_bridge import (
     load_scenario,
 )
 from sim_bridge.plant import trim_actuators
+from sim_bridge.plant_layout import X
 
 
 @pytest.fixture(scope="module")
@@ -208,6 +209,24 @@ def test_messages_are_complete_and_frozen(cfg, params):
         for v in msg._asdict().values():
             if isinstance(v, np.ndarray):
                 assert not v.flags.writeable
+
+
+def test_state_vector_and_truth_at_a_state(cfg, params):
+    """state_vector is a read-only copy of the state; truth_at(state) is truth() at that state and moves nothing."""
+    plant = Plant(cfg, params, load_scenario("paper"), np.random.default_rng(0))
+    plant.step(plant.trim_command(), 0.05)
+    x = plant.state_vector
+    assert not x.flags.writeable and x.shape == (int(X.SIZE),)
+    np.testing.assert_array_equal(x[X.Q.sl], plant.truth().joint_pos_rad)
+    now, at = plant.truth(), plant.truth_at(x)
+    for name, v in now._asdict().items():
+        np.testing.assert_array_equal(getattr(at, name), v, err_msg=name)
+    moved = x.copy()
+    moved[X.MOBJ] = 2.0
+    assert plant.truth_at(moved).mass_kg == pytest.approx(now.mass_kg - now.object_mass_kg + 2.0, rel=1e-12)
+    np.testing.assert_array_equal(plant.state_vector, x)  # the plant did not change
+    with pytest.raises(ValueError):
+        plant.truth_at(x[:-1])
 
 
 def test_grasp_and_release_events(cfg, params):

@@ -27,9 +27,9 @@ from navig8_fc.core.vehicle import (
     inertia_matrix_gi,
     u_to_actuators,
 )
-from sim_bridge import _kernels as K
 from sim_bridge.params import PlantParams
 from sim_bridge.plant import Plant
+from sim_bridge.plant_layout import X
 from sim_bridge.scenario import load_scenario
 
 
@@ -70,22 +70,24 @@ def test_front_end_reference_point_correction(cfg: VehicleConfig) -> None:
         np.testing.assert_allclose(a1[3:] - a0[3:], corr[[0, 2]], rtol=1e-12, atol=1e-12)
 
 
-def _plant_at(cfg: VehicleConfig, q_rad, object_kg: float) -> Plant:
+def _plant_at(cfg: VehicleConfig, q_rad, object_kg: float) -> tuple[Plant, np.ndarray]:
+    """A noise-free hover plant and its state at rest with the arm at q_rad holding object_kg."""
     plant = Plant(cfg, PlantParams.load().without_noise(), load_scenario("hover"), np.random.default_rng(0))
-    plant._x[K.X.Q.sl] = q_rad
-    plant._x[K.X.QTGT.sl] = q_rad
-    plant._x[K.X.QD.sl] = 0.0
-    plant._x[K.X.MOBJ] = object_kg
-    K.evaluate(plant._x, plant._p, plant._base_mode, plant._d, plant._work)  # truth() reads the derived values
-    return plant
+    x = plant.state_vector.copy()
+    x[X.Q.sl] = q_rad
+    x[X.QTGT.sl] = q_rad
+    x[X.QD.sl] = 0.0
+    x[X.MOBJ] = object_kg
+    return plant, x
 
 
-def _acc_at(plant: Plant, u: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """[omega-dot, (f_O + omega-dot x p)_x, _z] of the plant with its actuators at U (body at rest, arm still)."""
-    plant._x[K.X.ACT.sl] = u_to_actuators(u)
-    plant._x[K.X.ACTD.sl] = 0.0
-    K.evaluate(plant._x, plant._p, plant._base_mode, plant._d, plant._work)
-    tr = plant.truth()
+def _acc_at(plant: Plant, x: np.ndarray, u: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """[omega-dot, (f_O + omega-dot x p)_x, _z] of the plant at state x with its actuators at U (body at rest, arm
+    still)."""
+    x = x.copy()
+    x[X.ACT.sl] = u_to_actuators(u)
+    x[X.ACTD.sl] = 0.0
+    tr = plant.truth_at(x)
     a = tr.specific_force_frd_m_s2 + np.cross(tr.ang_accel_frd_rad_s2, p)
     return np.array([*tr.ang_accel_frd_rad_s2, a[0], a[2]])
 
@@ -93,8 +95,8 @@ def _acc_at(plant: Plant, u: np.ndarray, p: np.ndarray) -> np.ndarray:
 @pytest.mark.parametrize("pose_deg,object_kg", [((20, 20, 20), 2.0), ((-20, -20, -20), 1.0), ((80, 10, 10), 2.0)])
 def test_flown_effectiveness_matches_plant_finite_difference(cfg: VehicleConfig, pose_deg, object_kg) -> None:
     q = np.radians(pose_deg)
-    plant = _plant_at(cfg, q, object_kg)
-    tr = plant.truth()
+    plant, x = _plant_at(cfg, q, object_kg)
+    tr = plant.truth_at(x)
     c = np.asarray(tr.com_frd_m)
     gc_true = control_effectiveness_gc(cfg, c)
     gi_true = inertia_matrix_gi(np.asarray(tr.inertia_com_kgm2), tr.mass_kg)
@@ -108,7 +110,7 @@ def test_flown_effectiveness_matches_plant_finite_difference(cfg: VehicleConfig,
             h = 1e-3 * max(abs(u0[j]), 1e4)
             e = np.zeros(5)
             e[j] = h
-            g_fd[:, j] = (_acc_at(plant, u0 + e, p) - _acc_at(plant, u0 - e, p)) / (2 * h)
+            g_fd[:, j] = (_acc_at(plant, x, u0 + e, p) - _acc_at(plant, x, u0 - e, p)) / (2 * h)
         g_model = flown_effectiveness(gc_true, gi_true, p - c)
         # rounding of the central difference only: the maps are linear in U at rest
         np.testing.assert_allclose(g_model, g_fd, rtol=1e-6, atol=1e-9 * np.abs(g_fd).max())
@@ -126,8 +128,8 @@ def test_reference_point_changes_the_flown_eigenvalues(cfg: VehicleConfig) -> No
     """The paper's loop (p = O) flies T(-c) G, not G: at +20 deg x 3 with 2 kg its smallest eigenvalue (K = 1)
     differs from the Eq. 14 matrix's; with p = the true CoM the two agree (T = I)."""
     q = [math.radians(20.0)] * 3
-    plant = _plant_at(cfg, q, 2.0)
-    tr = plant.truth()
+    plant, x = _plant_at(cfg, q, 2.0)
+    tr = plant.truth_at(x)
     c = np.asarray(tr.com_frd_m)
     model = UamModel(cfg)
     uam = model.evaluate(q, (0.0, 0.0, 0.0))

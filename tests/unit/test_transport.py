@@ -19,8 +19,9 @@ from navig8_fc.links.transport import (
 )
 from navig8_fc.mavlink import codec, seam
 from navig8_tools.nullmodem import NullModem
-from sim_bridge.bridge import Bridge, BridgeOptions
+from sim_bridge.bridge_options import BridgeOptions
 from sim_bridge.link_budget import link_budget
+from sim_bridge.lockstep import Bridge
 
 
 @pytest.mark.parametrize(("text", "want"), [

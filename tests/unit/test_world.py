@@ -121,13 +121,13 @@ def test_arm_servo_speed_scale_slows_the_servo_in_time(scale: float) -> None:
 
 
 def _servo_step_response(v_max: float, a_max: float, q_to: float, h_s: float, n: int) -> np.ndarray:
-    """The plant's joint servo law (sim_bridge._kernels._servo_accel) after a step command, every h_s."""
-    from sim_bridge._kernels import _servo_accel
+    """The plant's joint servo law (sim_bridge.joint_servo.servo_accel) after a step command, every h_s."""
+    from sim_bridge.joint_servo import servo_accel
 
     q, qd, out = 0.0, 0.0, np.empty(n)
     for k in range(n):
         out[k] = q
-        a = _servo_accel(q_to - q, qd, h_s, a_max, v_max)
+        a = servo_accel(q_to - q, qd, h_s, a_max, v_max)
         q, qd = q + qd * h_s + 0.5 * a * h_s * h_s, qd + a * h_s
     return out
 
