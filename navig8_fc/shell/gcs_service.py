@@ -41,8 +41,9 @@ import os
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import Any, Protocol
 
 from navig8_fc.core.rotation import quat_to_euler
@@ -151,6 +152,24 @@ def is_broadcast_reply(request_type: str, reply_type: str) -> bool:
     return reply_type == "PARAM_VALUE" and request_type != "PARAM_REQUEST_READ"
 
 
+@dataclass(frozen=True)
+class GcsSettings:
+    """The GCS service's parameters, typed once per parameter change (GcsService.settings)."""
+
+    enforce_sysid: bool  # GCS_ENFORCE: only GCS_SYSID..GCS_SYSID_HI may command
+    sysid_lo: int  # GCS_SYSID
+    sysid_hi: int  # GCS_SYSID_HI
+    signing_required: bool  # GCS_SIGN_REQ
+    param_set_rate_hz: float  # PARAM_SET_RATE: PARAM_SETs per second and source
+    stream_rate_max_hz: float  # GCS_RATE_MAX: the fastest stream SET_MESSAGE_INTERVAL may ask for
+
+    @staticmethod
+    def from_params(values: Mapping[str, float]) -> GcsSettings:
+        return GcsSettings(int(values["GCS_ENFORCE"]) != 0, int(values["GCS_SYSID"]), int(values["GCS_SYSID_HI"]),
+                           int(values["GCS_SIGN_REQ"]) != 0, float(values["PARAM_SET_RATE"]),
+                           float(values["GCS_RATE_MAX"]))
+
+
 class GcsService:
     def __init__(self, mav: Any, sysid: int, state: Callable[[], VehicleState], vehicle: VehicleCommands,
                  outbox: Outbox, registry: ParamRegistry, vehicle_config: VehicleConfig,
@@ -168,6 +187,8 @@ class GcsService:
         self._outbox = outbox
         self.text = StatusTextEncoder(mav)
         self._registry = registry
+        self._settings_generation = -1  # the registry generation `settings` was typed from
+        self._settings = GcsSettings.from_params(registry.as_dict())
         self.params = ParamProtocol(registry, mav, store, statustext=self.text, armed=lambda: self._state().armed,
                                     defer_saves=background_params)
         self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text)
@@ -255,13 +276,21 @@ class GcsService:
         return loaded
 
     # --- authorisation ---------------------------------------------------------------------------
+    @property
+    def settings(self) -> GcsSettings:
+        """The parameters in force, typed again only after a change."""
+        reg = self._registry
+        if reg.generation != self._settings_generation:
+            self._settings = GcsSettings.from_params(reg.as_dict())
+            self._settings_generation = reg.generation
+        return self._settings
+
     def authorised(self, sysid: int) -> bool:
         """Whether a sender with this system id may command (GCS_SYSID..GCS_SYSID_HI, unless GCS_ENFORCE 0)."""
-        reg = self._registry
-        if int(reg["GCS_ENFORCE"]) == 0:
+        s = self.settings
+        if not s.enforce_sysid:
             return True
-        lo = int(reg["GCS_SYSID"])
-        return lo <= int(sysid) <= max(lo, int(reg["GCS_SYSID_HI"]))
+        return s.sysid_lo <= int(sysid) <= max(s.sysid_lo, s.sysid_hi)
 
     def admits_peer(self, msg: Any, addr: Any = None) -> bool:
         """Whether a link may start sending telemetry to the sender of `msg`: a HEARTBEAT from an allowed id."""
@@ -315,7 +344,7 @@ class GcsService:
             elif not self.confirmed(source):
                 self._route(kind, source, self._refuse(m, "send a HEARTBEAT first"))
                 continue
-            if (int(self._registry["GCS_SIGN_REQ"]) and not (self._signing is not None and self._signing.active)
+            if (self.settings.signing_required and not (self._signing is not None and self._signing.active)
                     and kind not in _WITHOUT_SIGNING):
                 self._route(kind, source, self._refuse(m, "signing required: set a key with SETUP_SIGNING"))
                 continue
@@ -366,7 +395,7 @@ class GcsService:
     # --- PARAM_SET off the control path -----------------------------------------------------------
     def _param_set(self, m: Any, source: Source | None, now_wall: float) -> list[Any]:
         """Rate limit, then at once when nothing is queued and no stability sweep is needed; else queued."""
-        rate = float(self._registry["PARAM_SET_RATE"])
+        rate = self.settings.param_set_rate_hz
         tokens, last = self._param_tokens.get(source, (rate, now_wall))
         tokens = min(rate, tokens + (now_wall - last) * rate)
         if tokens < 1.0:
@@ -657,7 +686,7 @@ class GcsService:
     def set_message_interval(self, msg_id: int, interval_us: int) -> bool:
         """Clamped to GCS_RATE_MAX (a floor on the interval: one request cannot ask for 500 Hz streams)."""
         if interval_us > 0:
-            interval_us = max(int(interval_us), int(math.ceil(1e6 / float(self._registry["GCS_RATE_MAX"]))))
+            interval_us = max(int(interval_us), int(math.ceil(1e6 / self.settings.stream_rate_max_hz)))
         return self.telemetry.scheduler_for(self._command_source, create=True).set_interval(msg_id, interval_us)
 
     def message_interval_us(self, msg_id: int) -> int:

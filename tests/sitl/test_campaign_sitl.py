@@ -53,10 +53,11 @@ def test_sitl_rows_fly_an_uploaded_plan_each_on_its_own_instance(tmp_path: Path)
     assert (t["mission_items"] == 2).all() and (t["mission_reached"] == 2).all()
     # flown, not only accepted: the setpoint stepped 1 m away (the position error right after the step is the step)
     # and the vehicle went there and came back: fly() sums the LOCAL_POSITION_NED path until the plan completes,
-    # at least (STEP - r) out and (STEP - 2 r) back with r the acceptance radius, less a little for the chords
-    # between telemetry samples
+    # at least (STEP - r) out and (STEP - 2 r) back with r the acceptance radius, less the chords between telemetry
+    # samples (10 Hz on the wall clock at --speed 2: 0.2 s of flight apart, up to 0.2 m at the turn and the ends;
+    # 1.44 m against 1.55 m was measured once)
     assert t["max_pos_error_m"].between(0.9 * STEP_M, 1.3 * STEP_M).all(), t["max_pos_error_m"].tolist()
-    low = 2 * STEP_M - 3 * RADIUS_M - 0.1
+    low = 2 * STEP_M - 3 * RADIUS_M - 0.2
     assert t["mission_path_m"].between(low, 3.0 * STEP_M).all(), t["mission_path_m"].tolist()
     assert not t["lost_control"].any()
     # each run on its own instance, and each replays with navig8-sitl + navig8-mission fly
