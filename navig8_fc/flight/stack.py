@@ -32,6 +32,7 @@ from navig8_fc.core.controller import (
 from navig8_fc.core.outer_loop import JERK_K_PER_VEL_K, OuterLoopConfig, Setpoint
 from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig
+from navig8_fc.flight.arm_task import ArmJointTask
 from navig8_fc.flight.battery import BatteryState, battery_initial, battery_step
 from navig8_fc.flight.commands import (
     Arm,
@@ -51,6 +52,7 @@ from navig8_fc.flight.commands import (
     VehicleCommand,
 )
 from navig8_fc.flight.failsafe import Failsafes, FailsafeSettings
+from navig8_fc.flight.ff_notices import FeedforwardNotices
 from navig8_fc.flight.script import FlightScript
 from navig8_fc.flight.state import (
     SEVERITY_INFO,
@@ -62,9 +64,6 @@ from navig8_fc.flight.state import (
 )
 from navig8_fc.mission.fence import Fence
 from navig8_fc.modes.manager import (
-    TASK_CANCELLED,
-    TASK_DONE,
-    TASK_FAILED,
     ModeConfig,
     ModeInputs,
     ModeManager,
@@ -83,8 +82,6 @@ ROTOR_DISK_AREA_M2 = 0.07
 FIGURE_OF_MERIT = 0.6
 BATTERY_PERIOD_S = 0.1  # the pack model's update period (BATTERY_STATUS streams at 1 Hz)
 _POWER_DIVISOR = math.sqrt(2 * AIR_DENSITY_KG_M3 * ROTOR_DISK_AREA_M2) * FIGURE_OF_MERIT
-ARM_JOINT_REACHED_RAD = math.radians(2.0)  # an arm-joint move is complete when every joint is this close ...
-ARM_JOINT_TIMEOUT_S = 10.0  # ... and FAILED when it is not within this (sim time; a 120 deg move takes ~3 s)
 TASK_FLIGHT, TASK_ARM = "flight", "arm"  # the two kinds of long-running command that can run side by side
 
 
@@ -122,10 +119,8 @@ class FlightStack:
         self._modes = ModeManager(mode_config or ModeConfig(), script.mission() if script is not None else None)
         self._handlers = self._command_handlers()  # command record type -> what applies it
         self._fs = Failsafes(self._modes, FailsafeSettings.from_params(registry.as_dict()), sensor_source)
-        # what the feed-forward notices last announced (_feedforward_notices)
-        wn = float(registry["ACT_WN"])
-        self._ff_announced: dict = {"arm_drops": 0, "arm_idents": 0, "u0_trusted": True, "act_wn": (wn, wn),
-                                    "arm_servo": (float(registry["ARM_SERVO_VMAX"]), float(registry["ARM_SERVO_AMAX"]))}
+        self._ff_notices = FeedforwardNotices(float(registry["ACT_WN"]), float(registry["ARM_SERVO_VMAX"]),
+                                              float(registry["ARM_SERVO_AMAX"]))
         self.reconfigure()
         self._weight_n = vehicle.uam_mass_kg * vehicle.gravity_m_s2
         self._n_steps = 0
@@ -141,8 +136,7 @@ class FlightStack:
         self._arm_request: ArmRequest | None = None
         self._notices: list[Notice] = []  # decided in the step before the mode manager runs (the rate check)
         # The long-running arm-joint move (COMMAND_ACK IN_PROGRESS): its status, start and target (rad), start time.
-        self._arm_task: TaskStatus | None = None
-        self._arm_move: tuple[tuple[float, ...], tuple[float, ...], float] = ((), (), 0.0)
+        self._arm_task = ArmJointTask()
 
     # --- configuration ---------------------------------------------------------------------------------
     @property
@@ -172,7 +166,7 @@ class FlightStack:
                 or cfg.acc_ref != core.config.acc_ref or cfg.arm_wrench != core.config.arm_wrench):
             self._core = FlightControllerCore(self.vehicle, cfg)
             self._core.set_arm_plan(self._arm_plan)
-            self._ff_announced.update(arm_drops=0, arm_idents=0)  # a new core counts its checks' events from zero
+            self._ff_notices.new_core()
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
         self._set_mode_limits(cfg.outer)
@@ -208,13 +202,13 @@ class FlightStack:
             core.resync_reference()
         cmd, st = core.step(sensors, out.setpoint, engaged=out.engaged)
         if st.ff is not None or st.indi is not None:
-            self._feedforward_notices(st)
+            self._notices += self._ff_notices.notices(st)
         self._discharge(sensors.t_s, t1, t2, t3)
         if fs_notices := self._fs.after_step(out.armed, self._battery, sensors.pos_ned):  # battery, fence
             self._notices += fs_notices
         self._sensors, self._status, self._command, self._mode_out = sensors, st, cmd, out
-        if self._arm_task is not None and self._arm_task.running:
-            self._update_arm_task(sensors)
+        if self._arm_task.running:
+            self._arm_task.update(sensors.joint_pos_rad, sensors.t_s)
         self._n_steps += 1
         notices = self._notices
         if out.events:
@@ -227,58 +221,6 @@ class FlightStack:
             self._notices = []
         req, self._arm_request = self._arm_request, None
         return StepResult(cmd, st, out.setpoint, out.armed, out.engaged, tuple(notices), req)
-
-    def _feedforward_notices(self, st: ControllerStatus) -> None:
-        """STATUSTEXTs for the model-based feed-forwards' checks (docs/model.md, "Feed-forward that cannot hurt"):
-        the arm preview withdrawn (a WARNING when its trust falls to 0 from above it, the servo model's error named),
-        the arm servo and the actuators re-identified (INFO, when an estimate moved by more than 10 % from the one
-        last announced), the actuator model distrusted and trusted again."""
-        last = self._ff_announced
-        ff, ind = st.ff, st.indi
-        if ff is not None and ff.arm_drops > last["arm_drops"]:
-            last["arm_drops"] = ff.arm_drops
-            self._notices.append(Notice(SEVERITY_WARNING, f"Arm preview off: the joints move {ff.arm_err_rad_s:.2f} "
-                                        "rad/s off the servo model; flying the measured reaction"))
-        if ff is not None and ff.arm_idents > last["arm_idents"]:
-            last["arm_idents"] = ff.arm_idents
-            v0, a0 = last["arm_servo"]
-            if abs(ff.arm_v_hat_rad_s - v0) > 0.1 * v0 or abs(ff.arm_a_hat_rad_s2 - a0) > 0.1 * a0:
-                last["arm_servo"] = (ff.arm_v_hat_rad_s, ff.arm_a_hat_rad_s2)
-                self._notices.append(Notice(SEVERITY_INFO, f"Arm servo identified: {ff.arm_v_hat_rad_s:.2f} rad/s, "
-                                            f"{ff.arm_a_hat_rad_s2:.1f} rad/s^2"))
-        if ind is not None and ind.act_wn_rad_s[0] > 0.0:
-            wt, ws = ind.act_wn_rad_s
-            t0, s0 = last["act_wn"]
-            if abs(wt - t0) > 0.1 * t0 or abs(ws - s0) > 0.1 * s0:
-                last["act_wn"] = (wt, ws)
-                self._notices.append(Notice(SEVERITY_INFO, f"Actuator bandwidth identified: tilt {wt:.0f} rad/s, "
-                                            f"speed {ws:.0f} rad/s"))
-            if ind.u0_model_trusted != last["u0_trusted"]:
-                last["u0_trusted"] = ind.u0_model_trusted
-                rt, rs = ind.act_innov_rms
-                self._notices.append(
-                    Notice(SEVERITY_INFO, "Actuator model agrees with the measurement again: model U0") if
-                    ind.u0_model_trusted else
-                    Notice(SEVERITY_WARNING, f"Actuator model off (innovation {rt:.2f} rad, {rs:.0f} rad/s): "
-                           "flying the measured U0"))
-
-    def _update_arm_task(self, sensors: FcSensors) -> None:
-        """Progress of the arm-joint move: the share of the largest joint error removed; DONE within
-        ARM_JOINT_REACHED_RAD of the target, FAILED after ARM_JOINT_TIMEOUT_S."""
-        tk = self._arm_task
-        assert tk is not None
-        q0, target, t0 = self._arm_move
-        err = max(abs(q - t) for q, t in zip(sensors.joint_pos_rad, target, strict=True))
-        if err < ARM_JOINT_REACHED_RAD:
-            self._arm_task = TaskStatus(tk.task_id, tk.kind, TASK_DONE, 100.0)
-        elif sensors.t_s - t0 > ARM_JOINT_TIMEOUT_S:
-            self._arm_task = TaskStatus(tk.task_id, tk.kind, TASK_FAILED, tk.progress_pct,
-                                        f"joints {math.degrees(err):.1f} deg off after {ARM_JOINT_TIMEOUT_S:g} s")
-        else:
-            err0 = max(abs(q - t) for q, t in zip(q0, target, strict=True))
-            pct = 100.0 * max(0.0, 1.0 - err / err0) if err0 > 0.0 else 0.0
-            if pct > tk.progress_pct:
-                self._arm_task = TaskStatus(tk.task_id, tk.kind, progress_pct=pct)
 
     def _discharge(self, t_s: float, t1: float, t2: float, t3: float) -> None:
         """The simulated battery on sim time, loaded with the rotors' induced power (module constants). The
@@ -371,29 +313,23 @@ class FlightStack:
         self.core.set_arm_plan(self._arm_plan)
         s = self._sensors
         if s is not None:  # tracked once the joints are measured (a long-running command)
-            n = self._arm_task.task_id + 1 if self._arm_task is not None else 1
-            if self._arm_task is not None and self._arm_task.running:
-                self._arm_task = TaskStatus(n - 1, "arm_joints", TASK_CANCELLED, self._arm_task.progress_pct,
-                                            "replaced by a new target")
-            self._arm_task = TaskStatus(n, "arm_joints")
-            self._arm_move = (tuple(s.joint_pos_rad), target, s.t_s)
+            self._arm_task.start(s.joint_pos_rad, target, s.t_s)
         return Verdict(True)
 
     def task_status(self, channel: str) -> TaskStatus | None:
         """The last long-running command of `channel` (TASK_FLIGHT: takeoff, land, return, reposition; TASK_ARM:
         arm-joint moves), running or how it ended; None before the first."""
-        return self._modes.task if channel == TASK_FLIGHT else self._arm_task
+        return self._modes.task if channel == TASK_FLIGHT else self._arm_task.status
 
     def _cancel_task(self, cmd: CancelTask) -> Verdict:
         """COMMAND_CANCEL: stop the running command of the channel and hold (the vehicle where it comes to rest, the
         joints where they are); refused when nothing runs there."""
         if cmd.channel == TASK_FLIGHT:
             return Verdict(True) if self._modes.cancel_task() else Verdict(False, "no flight command running")
-        tk, s = self._arm_task, self._sensors
-        if tk is None or not tk.running or s is None:
+        s = self._sensors
+        if s is None or not self._arm_task.cancel():
             return Verdict(False, "no arm move running")
         self._queue(ArmRequest(joint_target_rad=tuple(s.joint_pos_rad)))  # type: ignore[arg-type]
-        self._arm_task = TaskStatus(tk.task_id, tk.kind, TASK_CANCELLED, tk.progress_pct, "cancelled")
         return Verdict(True)
 
     def _offboard_setpoint(self, cmd: OffboardSetpoint) -> Verdict:

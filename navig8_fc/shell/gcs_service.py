@@ -36,13 +36,10 @@ Without `background_params` (in-process callers) everything runs inline.
 from __future__ import annotations
 
 import math
-import multiprocessing
-import os
-import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -70,8 +67,9 @@ from navig8_fc.mission.plan import MissionType
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.modes.manager import TaskStatus, Verdict
 from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
-from navig8_fc.params.registry import ParamRegistry, SetResult, StabilityStatus, run_floor
+from navig8_fc.params.registry import ParamRegistry, SetResult, StabilityStatus
 from navig8_fc.params.store import ParamStore
+from navig8_fc.shell.floor_worker import FloorWorker
 from navig8_fc.shell.telemetry_service import (
     MAV_AUTOPILOT_GENERIC,
     Source,
@@ -93,42 +91,6 @@ _COMMANDS = frozenset({"COMMAND_LONG", "COMMAND_INT"})
 _WITHOUT_SIGNING = frozenset({"HEARTBEAT", "SETUP_SIGNING", "RADIO_STATUS"})  # what GCS_SIGN_REQ lets through
 
 _BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
-
-
-FLOOR_IDLE_GRACE_S = 10.0  # a floor pending this long (wall) at idle priority: the worker is raised to normal
-
-
-def _idle_priority() -> None:
-    """The calling thread at idle priority (Linux SCHED_IDLE, per thread; a process it starts inherits it). Idle, not
-    a nice level: in lockstep the FC and the bridge wake each other every tick, and a nice-10 worker on the other
-    core still delayed each wake-up enough to halve the real-time factor; an idle-class task is preempted at once."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
-    except (AttributeError, OSError):  # not Linux
-        try:
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
-        except (AttributeError, OSError):
-            pass
-
-
-def _floor_worker_init(parent_pid: int) -> None:
-    """The stability-floor worker lives only as long as the FC: a killed FC (SIGKILL, no shutdown) must not leave
-    it running, nor leave it holding the FC's stdout/stderr (a supervisor reading them would wait forever). It runs
-    at idle priority from birth (_start_floor_pool): its start-up (a spawned interpreter importing the FC's modules
-    and scipy, ~3 s of CPU) and the analysis (~1.5 s for a new configuration) must not take CPU from the control loop
-    and the simulator (at normal priority they had cut the lockstep real-time factor to a third on two cores)."""
-    _idle_priority()
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, 1)  # its results and errors go back through the futures, not the console
-    os.dup2(devnull, 2)
-    os.close(devnull)
-
-    def watch() -> None:
-        while os.getppid() == parent_pid:
-            time.sleep(0.2)
-        os._exit(0)  # re-parented: the FC is gone
-
-    threading.Thread(target=watch, name="navig8-floor-parent-watch", daemon=True).start()
 
 
 class Outbox(Protocol):
@@ -218,50 +180,12 @@ class GcsService:
         self._operator_reports: list[str] = []  # told at the first ground-station contact
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="navig8-params") if background_params else None
         self._param_queue: deque[tuple[Any, Source | None]] = deque()
-        self._floor_job: tuple[dict[str, float | int], Future[Any]] | None = None
         self._save_job: Future[str | None] | None = None
         self._param_tokens: dict[Source | None, tuple[float, float]] = {}  # source -> (tokens, last time)
-        self._floor_pool: Executor | None = None  # started with the background worker, else at the first floor
-        self._floor_pool_failed = False
-        self._floor_job_t0 = math.inf  # wall time the pending floor job was submitted
-        self._floor_raised = False  # the worker left idle priority (a PARAM_SET waits, or it starved)
-        if background_params:
-            # Spawning the worker and importing the stability analysis (scipy) takes seconds, more on a busy
-            # machine: done at start-up, with the current configuration's floor computed once, so the first
-            # PARAM_SET that needs a floor is answered in the analysis' own time, not in the worker's start-up.
-            self._start_floor_pool()
-            assert self._floor_pool is not None
-            self._floor_pool.submit(run_floor, self._registry.stability_check, self._registry.as_dict())
-
-    def _start_floor_pool(self) -> None:
-        # A spawned process: nothing of this one (threads, sockets) is inherited. It is started from a thread set to
-        # idle priority, which the worker (and multiprocessing's resource tracker) inherit from their first
-        # instruction: the import of the FC's modules in a spawned interpreter then runs on idle CPU only.
-        made: list[Executor | BaseException] = []
-
-        def spawn() -> None:
-            _idle_priority()
-            try:
-                pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                                           initializer=_floor_worker_init, initargs=(os.getpid(),))
-                pool.submit(os.getpid)  # the worker starts now, from this thread
-                made.append(pool)
-            except (OSError, ValueError) as exc:
-                made.append(exc)
-
-        t = threading.Thread(target=spawn, name="navig8-floor-spawn", daemon=True)
-        t.start()
-        t.join()
-        got = made[0] if made else None
-        # no processes here: a thread still keeps the sweep off the loop
-        self._floor_pool = got if isinstance(got, Executor) else self._pool
-
-    def _submit_floor(self, values: dict[str, float | int]) -> None:
-        if self._floor_pool is None:
-            self._start_floor_pool()
-        assert self._floor_pool is not None
-        self._floor_job = (values, self._floor_pool.submit(run_floor, self._registry.stability_check, values))
-        self._floor_job_t0 = self._now
+        # the stability floors of PARAM_SETs, off the control thread (started with the background worker)
+        self._floor = FloorWorker(registry, self._pool) if self._pool is not None else None
+        if self._floor is not None:
+            self._floor.start()
 
     @property
     def last_gcs_heartbeat(self) -> float | None:
@@ -412,18 +336,7 @@ class GcsService:
         return []
 
     def _floor_job_done(self) -> bool:
-        """Store the worker's finished floor in the registry; False while one is still being computed."""
-        if self._floor_job is None:
-            return True
-        values, job = self._floor_job
-        if not job.done():
-            return False
-        self._floor_job = None
-        try:
-            self._registry.store_floor(values, job.result())
-        except Exception:  # noqa: BLE001 - a dead worker: from now on floors are computed inline
-            self._floor_pool_failed = True
-        return True
+        return self._floor is None or self._floor.done()
 
     def _run_param_queue(self, now_wall: float) -> None:
         """Queued PARAM_SETs in order, each once its floor is computed (the worker); called between steps."""
@@ -432,25 +345,12 @@ class GcsService:
             if not self._floor_job_done():
                 return
             need = self.params.floor_needed(m)
-            if need is not None and self._pool is not None and not self._floor_pool_failed:
-                self._submit_floor(need)
-                self._raise_floor_worker()  # a ground station waits for this answer
+            if need is not None and self._floor is not None and not self._floor.failed:
+                self._floor.submit(need, self._now)
+                self._floor.raise_priority()  # a ground station waits for this answer
                 return
             self._param_queue.popleft()
             self._route("PARAM_SET", source, self.params.handle(m, now_wall, source))
-
-    def _raise_floor_worker(self) -> None:
-        """The floor worker from idle to normal priority, once: a PARAM_SET waits on it, or a floor has been pending
-        FLOOR_IDLE_GRACE_S (a busy machine starves an idle-class task). Needs CAP_SYS_NICE (root) or an RLIMIT_NICE
-        that allows it; without, the worker stays idle and answers when the machine has a spare moment."""
-        if self._floor_raised:
-            return
-        self._floor_raised = True
-        for pid in list(getattr(self._floor_pool, "_processes", None) or {}):  # a process pool's workers
-            try:
-                os.sched_setscheduler(pid, os.SCHED_OTHER, os.sched_param(0))
-            except (AttributeError, OSError):
-                pass
 
     def _floor_in_force(self) -> None:
         """The stability floor of the values in force for LAM_MARGIN and the log (`stability`), when no PARAM_SET
@@ -461,8 +361,8 @@ class GcsService:
         if reg.floor_in_force() is not None:
             return
         values = reg.as_dict()
-        if self._pool is not None and not self._floor_pool_failed:
-            self._submit_floor(values)
+        if self._floor is not None and not self._floor.failed:
+            self._floor.submit(values, self._now)
         else:
             reg.store_floor(values, reg.compute_floor(values))
 
@@ -497,9 +397,8 @@ class GcsService:
                 self._pool.submit(self.params.write_values, values)
             self._pool.shutdown(wait=True)
             self._pool = None
-        if self._floor_pool is not None:
-            self._floor_pool.shutdown(wait=False, cancel_futures=True)
-            self._floor_pool = None
+        if self._floor is not None:
+            self._floor.close()
 
     def _set_mode_message(self, m: Any) -> list[Any]:
         """The legacy SET_MODE message (what `mode X` in MAVProxy sends), read in PX4's custom_mode encoding
@@ -590,8 +489,8 @@ class GcsService:
         self._now = now_wall
         self._run_param_queue(now_wall)
         self._floor_in_force()
-        if self._floor_job is not None and now_wall - self._floor_job_t0 > FLOOR_IDLE_GRACE_S:
-            self._raise_floor_worker()
+        if self._floor is not None and self._floor.starved(now_wall):
+            self._floor.raise_priority()
         self._save_params()
         if self._last_manual is not None and now_wall - self._last_manual > MANUAL_CONTROL_TIMEOUT_S:
             self._last_manual = None

@@ -2,8 +2,9 @@
 - navig8_fc/core, navig8_fc/flight, navig8_fc/modes (and the pure parameter registry) import no I/O libraries,
   call no print/open/input and read or write no file (a path's read_text/open, np.load, json.load, ...; the reads
   left are listed by name);
-- the FlightStack, modes, the GCS protocol pieces and GcsService import no shell module but GcsService's telemetry
-  (GcsService depends on VehicleState, VehicleCommands and an Outbox, never on the process);
+- the FlightStack, modes, the GCS protocol pieces and GcsService import no shell module but GcsService's parts (its
+  telemetry, its floor worker: GcsService depends on VehicleState, VehicleCommands and an Outbox, never on the
+  process);
 - navig8_fc imports nothing from sim_bridge (the bridge may import the FC's pure model, not the other way);
 - navig8_fc/links (transports, MAVLink link, signing, sim guard) names nothing of the FC but itself and the dialect,
   codec and seam, and reaches (through everything it imports) no shell, GCS, flight, modes, mission or params
@@ -184,13 +185,16 @@ def test_core_flight_and_modes_have_no_io() -> None:
     assert not stale, f"listed file reads that are gone (take them off FILE_READS_LEFT): {stale}"
 
 
+GCS_SERVICE_PARTS = ("telemetry_service", "floor_worker")  # shell modules GcsService is built from
+
+
 def test_stack_modes_gcs_and_gcs_service_import_no_shell_module() -> None:
     files = (_modules(FC / "flight") + _modules(FC / "modes") + _modules(FC / "gcs") + _modules(FC / "mission")
-             + [FC / "shell" / "gcs_service.py", FC / "shell" / "telemetry_service.py"])
-    # GcsService is built from its telemetry (shell/telemetry_service.py), never from the process's modules
+             + [FC / "shell" / f"{m}.py" for m in ("gcs_service", *GCS_SERVICE_PARTS)])
+    # GcsService is built from its parts (its telemetry, its floor worker), never from the process's modules
     problems = {_rel(p): bad for p in files
                 if (bad := [m for m in _imported(p) if m.startswith("navig8_fc.shell")
-                            and not m.startswith("navig8_fc.shell.telemetry_service")])}
+                            and not m.startswith(tuple(f"navig8_fc.shell.{p}" for p in GCS_SERVICE_PARTS))])}
     assert not problems, f"a pure piece (or GcsService) imports the shell: {problems}"
 
 
@@ -355,7 +359,7 @@ PRIVATE_READS_LEFT_IN_CORE_AND_BRIDGE = (
 )
 # Other libraries' privates where the library offers no public way, each with why.
 PRIVATE_READS_OF_LIBRARIES = {
-    "navig8_fc/shell/gcs_service.py:430: getattr(self._floor_pool, '_processes')":
+    "navig8_fc/shell/floor_worker.py:127: getattr(self._pool, '_processes')":
         "concurrent.futures publishes no worker pid; a waiting PARAM_SET raises the starting worker's priority",
     "tests/sitl/test_sitl_mavsdk.py:25: drone._stop_mavsdk_server":
         "mavsdk_grpc.System starts its mavsdk_server and has no public stop (it stops it in __del__ or at exit)",

@@ -14,8 +14,9 @@ from test_modes import DT, PointMass
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import FcSensors
 from navig8_fc.flight import FlightStack
+from navig8_fc.flight.arm_task import ARM_JOINT_TIMEOUT_S
 from navig8_fc.flight.commands import ArmJoints, CancelTask
-from navig8_fc.flight.stack import ARM_JOINT_TIMEOUT_S, TASK_ARM
+from navig8_fc.flight.stack import TASK_ARM
 from navig8_fc.gcs.commands import MAV_CMD_NAVIG8_ARM_JOINTS, MAV_RESULT_CANCELLED, PROGRESS_PERIOD_S, CommandHandler
 from navig8_fc.mavlink import dialect
 from navig8_fc.modes import FlightMode
