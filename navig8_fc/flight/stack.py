@@ -160,7 +160,8 @@ class FlightStack:
         reg = self.registry
         if reg.generation == self._cfg_generation:
             return False
-        cfg = ControllerConfig.from_params(reg.as_dict(), self.vehicle)
+        values = reg.as_dict()  # one snapshot types every component's settings
+        cfg = ControllerConfig.from_params(values, self.vehicle)
         core = self._core
         if (core is None or cfg.indi != core.config.indi or cfg.ckf != core.config.ckf
                 or cfg.acc_ref != core.config.acc_ref or cfg.arm_wrench != core.config.arm_wrench):
@@ -171,7 +172,7 @@ class FlightStack:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
         self._set_mode_limits(cfg.outer)
         self._cfg_generation = reg.generation
-        self._fs.configure(FailsafeSettings.from_params(reg.as_dict()))  # typed once per change, not per step
+        self._fs.configure(FailsafeSettings.from_params(values))  # typed once per change, not per step
         self.lambda_crit = stability.lambda_crit(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), cfg.dt_s,
                                                  float(reg["INDI_LPF_TAU"]))
         return True

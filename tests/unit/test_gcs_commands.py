@@ -8,15 +8,12 @@ from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
+from test_modes import modes_command
 
 from navig8_fc.flight.commands import (
-    Arm,
     ArmJoints,
-    CancelTask,
     Disarm,
     Gripper,
-    Land,
-    ReturnToLaunch,
     SetMode,
     Takeoff,
 )
@@ -41,22 +38,10 @@ class FakeVehicle:
 
     def command(self, cmd: Any) -> Verdict:
         self.calls.append(cmd)
-        mm = self.modes
+        verdict = modes_command(self.modes, cmd)
+        if verdict is not None:
+            return verdict
         match cmd:
-            case Arm(force=force):
-                return mm.arm(force)
-            case Disarm(force=force):
-                return mm.disarm(force)
-            case Takeoff(alt_m=alt):
-                return mm.takeoff(alt)
-            case Land():
-                return mm.land()
-            case SetMode(custom_mode=custom):
-                return mm.set_custom_mode(custom)
-            case ReturnToLaunch():
-                return mm.return_to_launch()
-            case CancelTask(channel=channel):  # arm moves are not tracked here
-                return Verdict(channel == "flight" and mm.cancel_task())
             case Gripper():
                 return Verdict(True)
             case ArmJoints(q_rad=q_rad):

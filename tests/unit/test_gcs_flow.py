@@ -12,17 +12,11 @@ from typing import Any
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
+from test_modes import modes_command
 
 from navig8_fc.flight.commands import (
-    Arm,
     ArmJoints,
-    CancelTask,
-    Disarm,
     Gripper,
-    Land,
-    ReturnToLaunch,
-    SetMode,
-    Takeoff,
 )
 from navig8_fc.gcs.commands import CommandHandler
 from navig8_fc.gcs.misc import MiscProtocols
@@ -74,22 +68,10 @@ class SimVehicle:
 
     # VehicleCommands: the flight commands go to a real ModeManager
     def command(self, cmd: Any) -> Verdict:
-        mm = self.modes
+        verdict = modes_command(self.modes, cmd)
+        if verdict is not None:
+            return verdict
         match cmd:
-            case Arm(force=force):
-                return mm.arm(force)
-            case Disarm(force=force):
-                return mm.disarm(force)
-            case Takeoff(alt_m=alt):
-                return mm.takeoff(alt)
-            case Land():
-                return mm.land()
-            case SetMode(custom_mode=custom):
-                return mm.set_custom_mode(custom)
-            case ReturnToLaunch():
-                return mm.return_to_launch()
-            case CancelTask(channel=channel):
-                return Verdict(channel == "flight" and mm.cancel_task())
             case Gripper(action=action):
                 self.gripper_closed = action == "grab"
                 return Verdict(True)

@@ -8,6 +8,7 @@ import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
 from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.flight.commands import Arm, CancelTask, Disarm, Land, ReturnToLaunch, SetMode, Takeoff
 from navig8_fc.modes import (
     FlightMode,
     MavLandedState,
@@ -22,6 +23,7 @@ from navig8_fc.modes import (
     decode_px4_custom_mode,
     px4_custom_mode,
 )
+from navig8_fc.modes.records import Verdict
 
 DT = 0.01
 GROUND_Z = 0.0
@@ -53,6 +55,27 @@ class PointMass:
             if self.vel[2] > 0:
                 self.vel[2] = 0.0
                 self.thrust_ratio = 0.1 if engaged else 0.0
+
+
+def modes_command(mm: ModeManager, cmd: object) -> Verdict | None:
+    """A flight command record applied to a ModeManager as FlightStack.command does (the fakes of the GCS tests);
+    None for a record the mode manager does not take (arm and gripper, offboard, missions)."""
+    match cmd:
+        case Arm(force=force):
+            return mm.arm(force)
+        case Disarm(force=force):
+            return mm.disarm(force)
+        case Takeoff(alt_m=alt):
+            return mm.takeoff(alt)
+        case Land():
+            return mm.land()
+        case SetMode(custom_mode=custom):
+            return mm.set_custom_mode(custom)
+        case ReturnToLaunch():
+            return mm.return_to_launch()
+        case CancelTask(channel=channel):  # arm moves are not tracked by the mode manager
+            return Verdict(channel == "flight" and mm.cancel_task())
+    return None
 
 
 def fly(mm: ModeManager, body: PointMass, t0: float, seconds: float, zs: list[float] | None = None, **kw):
