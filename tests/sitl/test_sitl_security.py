@@ -152,9 +152,11 @@ def test_strangers_reflection_corrupt_file_and_a_thousand_param_sets_in_flight(t
     rec = [(d["time_usec"], pub) for _, _, pub, d in read_mcap_records(run.log, ["/mavlink/sim/in/HIL_SENSOR"])]
     sets_ns = [t for _, t, _ in read_mcap(run.log, ["/mavlink/gcs/in/PARAM_SET"])]
     assert len(sets_ns) >= N_SETS and len(rec) > 100
-    # The sets arrived in flight (hover is armed in the air from the first step), steps went on between them
-    # (their log times, the sim time of the step in force, take many values) and after the last one.
-    assert len(set(sets_ns)) >= 10 and rec[-1][0] >= max(sets_ns) / 1000
+    # The sets arrived in flight (hover is armed in the air from the first step), over more than one step (their
+    # log times are the sim time of the step in force; how many steps a burst spans depends on the sender's pace,
+    # as every datagram waiting is read each step) and steps went on after the last one.
+    print(f"{N_SETS} PARAM_SETs received over {len(set(sets_ns))} control steps")
+    assert len(set(sets_ns)) >= 2 and rec[-1][0] >= max(sets_ns) / 1000 + 1e6
     sim_gaps = [(b[0] - a[0]) * 1e-6 for a, b in zip(rec, rec[1:], strict=False)]
     wall_gaps = sorted((b[1] - a[1]) * 1e-9 for a, b in zip(rec, rec[1:], strict=False))
     assert max(sim_gaps) <= 0.020, max(sim_gaps)
