@@ -64,7 +64,7 @@ class FcLink:
     `on_paired(now)` is called when an FC pairs (after the echo of its nonce), so the loop can send its status at
     once; `resend_due` is then set: the loop sends the current bundle at once."""
 
-    def __init__(self, opts: BridgeOptions, dt_us: int, limits: seam.ActuatorLimits,
+    def __init__(self, opts: BridgeOptions, dt_us: int, limits: seam.ControlsScale,
                  on_paired: Callable[[float], None]) -> None:
         self.opts = opts
         self.limits = limits

@@ -69,7 +69,7 @@ class Bridge:
                              f"{self.plant.physics_step_us} us")
         duration = self.scenario.duration_s if opts.duration_s is None else float(opts.duration_s)
         self.n_steps = int(round(duration * 1e6 / self.dt_us))
-        self.limits = seam.ActuatorLimits.from_vehicle(self.vehicle)
+        self.limits = seam.ControlsScale.from_vehicle(self.vehicle)
         self.grab_mass_kg = default_grab_mass(self.scenario) if opts.grab_mass_kg is None else opts.grab_mass_kg
         self.link = FcLink(opts, self.dt_us, self.limits, self._send_status)
         self.arm = self.link.arm  # the FC's arm commands, applied at the next step

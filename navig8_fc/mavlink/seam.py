@@ -10,7 +10,7 @@ Both processes import this module, so the meaning of the wire lives in one place
   turn received messages back into a `StepBundle`.
 - FC -> bridge, exactly one per bundle: HIL_ACTUATOR_CONTROLS whose time_usec echoes the bundle's
   (`actuator_controls_record` / `pack_actuator_controls`, `decode_actuator_controls`: the five channels
-  normalised by `ActuatorLimits`).
+  normalised by `ControlsScale`).
 - FC -> bridge, any time: NAVIG8_ARM_CMD (`encode_arm_cmd` / `decode_arm_cmd`, `arm_command_from_mav_cmd`
   for the GCS's MAV_CMD_NAVIG8_ARM_JOINTS in degrees); HEARTBEAT at start (the FC announces itself, so a
   bridge that does not know the FC's port learns it from the datagram's source).
@@ -75,7 +75,7 @@ def sim_us_from_time_usec(time_usec: int) -> int:
 
 # ---- actuator answer ------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class ActuatorLimits:
+class ControlsScale:
     """Normalisation of HIL_ACTUATOR_CONTROLS: controls = value / limit (so |controls| <= 1 in range)."""
 
     tilt_max_abs_rad: float  # max(|tilt_min|, |tilt_max|): controls[0], controls[1]
@@ -86,10 +86,10 @@ class ActuatorLimits:
         for name in ("tilt_max_abs_rad", "duct_speed_max_rad_s", "tail_speed_max_rad_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"ActuatorLimits.{name} must be finite and > 0, got {v}")
+                raise ValueError(f"ControlsScale.{name} must be finite and > 0, got {v}")
 
     @staticmethod
-    def from_vehicle(vehicle: Any) -> ActuatorLimits:
+    def from_vehicle(vehicle: Any) -> ControlsScale:
         """From a navig8_fc.core.vehicle.VehicleConfig (duck-typed: tilt_min/max_rad, *_speed_max)."""
         return _limits_from(float(vehicle.tilt_min_rad), float(vehicle.tilt_max_rad), float(vehicle.duct_speed_max),
                             float(vehicle.tail_speed_min), float(vehicle.tail_speed_max))
@@ -97,16 +97,16 @@ class ActuatorLimits:
 
 @functools.lru_cache(maxsize=16)
 def _limits_from(tilt_min: float, tilt_max: float, duct_max: float, tail_min: float, tail_max: float
-                 ) -> ActuatorLimits:
+                 ) -> ControlsScale:
     # memoised: the FC passes its VehicleConfig with every answer (validation would cost ~1 us of each step)
-    return ActuatorLimits(tilt_max_abs_rad=max(abs(tilt_min), abs(tilt_max)), duct_speed_max_rad_s=duct_max,
+    return ControlsScale(tilt_max_abs_rad=max(abs(tilt_min), abs(tilt_max)), duct_speed_max_rad_s=duct_max,
                           tail_speed_max_rad_s=max(abs(tail_max), abs(tail_min)))
 
 
-def _limits(limits_or_vehicle: Any) -> ActuatorLimits:
-    if isinstance(limits_or_vehicle, ActuatorLimits):
+def _limits(limits_or_vehicle: Any) -> ControlsScale:
+    if isinstance(limits_or_vehicle, ControlsScale):
         return limits_or_vehicle
-    return ActuatorLimits.from_vehicle(limits_or_vehicle)
+    return ControlsScale.from_vehicle(limits_or_vehicle)
 
 
 class HasActuators(Protocol):
@@ -132,7 +132,7 @@ class ActuatorControls(NamedTuple):
 
 
 def actuator_controls_record(time_usec: int, cmd: HasActuators, limits: Any, *, armed: bool) -> Record:
-    """HIL_ACTUATOR_CONTROLS answering the bundle stamped time_usec (limits: ActuatorLimits or VehicleConfig).
+    """HIL_ACTUATOR_CONTROLS answering the bundle stamped time_usec (limits: ControlsScale or VehicleConfig).
 
     Values are divided by the limits but not clipped: the plant clamps and counts out-of-range commands,
     which would be hidden if the encoder clipped them. Non-finite values pass through (the plant holds).
@@ -152,7 +152,7 @@ def pack_actuator_controls(enc: Encoder, time_usec: int, cmd: HasActuators, limi
 
 
 def decode_actuator_controls(fields: Mapping[str, Any], limits: Any) -> ActuatorControls:
-    """SI command from HIL_ACTUATOR_CONTROLS fields (limits: ActuatorLimits or VehicleConfig)."""
+    """SI command from HIL_ACTUATOR_CONTROLS fields (limits: ControlsScale or VehicleConfig)."""
     lim = _limits(limits)
     c = fields["controls"]
     return ActuatorControls(
@@ -454,7 +454,7 @@ __all__ = [
     "SIM_STATE_STALLED",
     "SIM_STATE_WAITING_FOR_FC",
     "ActuatorControls",
-    "ActuatorLimits",
+    "ControlsScale",
     "ArmCommand",
     "BundleAssembler",
     "Record",

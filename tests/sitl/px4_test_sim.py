@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     w = load_world(a.scenario, {})
     plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(a.seed))
-    limits = seam.ActuatorLimits.from_vehicle(w.vehicle)
+    limits = seam.ControlsScale.from_vehicle(w.vehicle)
     origin = GeoOrigin()  # the FC's default ORIGIN_* parameters: both ends must agree on it
     stop = []
     signal.signal(signal.SIGINT, lambda *_: stop.append(1))

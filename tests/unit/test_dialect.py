@@ -186,7 +186,7 @@ def test_generate_reports_mavgen_errors(tmp_path: Path, monkeypatch: pytest.Monk
 
 # ---- seam: actuator answer ---------------------------------------------------------------------------
 def test_actuator_controls_normalisation_and_roundtrip(d, vehicle: VehicleConfig) -> None:
-    lim = seam.ActuatorLimits.from_vehicle(vehicle)
+    lim = seam.ControlsScale.from_vehicle(vehicle)
     assert lim.tilt_max_abs_rad == max(abs(vehicle.tilt_min_rad), abs(vehicle.tilt_max_rad))
     assert lim.duct_speed_max_rad_s == vehicle.duct_speed_max
     assert lim.tail_speed_max_rad_s == vehicle.tail_speed_max
@@ -219,9 +219,9 @@ def test_actuator_controls_not_clipped_and_nonfinite_pass(vehicle: VehicleConfig
 
 def test_limits_reject_nonsense() -> None:
     with pytest.raises(ValueError):
-        seam.ActuatorLimits(0.0, 1.0, 1.0)
+        seam.ControlsScale(0.0, 1.0, 1.0)
     with pytest.raises(ValueError):
-        seam.ActuatorLimits(1.0, float("nan"), 1.0)
+        seam.ControlsScale(1.0, float("nan"), 1.0)
 
 
 # ---- seam: the step bundle ---------------------------------------------------------------------------

@@ -91,7 +91,7 @@ def test_pack_actuator_controls_matches_pymavlink_pack(d) -> None:
     from navig8_fc.core.vehicle import VehicleConfig
 
     veh = VehicleConfig.load()
-    lim = seam.ActuatorLimits.from_vehicle(veh)
+    lim = seam.ControlsScale.from_vehicle(veh)
     rng = np.random.default_rng(3)
     enc, ref = codec.Encoder(codec.seam_codec(), 2, 1), dialect.new_mav(2, 1)
     for i in range(100):
