@@ -92,17 +92,14 @@ def read_qgc_plan(doc: dict) -> PlanFile:
     fence = []
     geo = doc.get("geoFence", {})
     for c in geo.get("circles", []):
-        if not c.get("inclusion", True):
-            raise ValueError("exclusion circles are not supported")
         lat, lon = c["circle"]["center"]
-        fence.append(_item(Frame.GLOBAL_INT, Cmd.NAV_FENCE_CIRCLE_INCLUSION, 1, [c["circle"]["radius"], 0, 0, 0],
-                           lat, lon, 0.0))
+        cmd = Cmd.NAV_FENCE_CIRCLE_INCLUSION if c.get("inclusion", True) else Cmd.NAV_FENCE_CIRCLE_EXCLUSION
+        fence.append(_item(Frame.GLOBAL_INT, cmd, 1, [c["circle"]["radius"], 0, 0, 0], lat, lon, 0.0))
     for poly in geo.get("polygons", []):
-        if not poly.get("inclusion", True):
-            raise ValueError("exclusion polygons are not supported")
         n = len(poly["polygon"])
-        fence += [_item(Frame.GLOBAL_INT, Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, 1, [n, 0, 0, 0], lat, lon, 0.0)
-                  for lat, lon in poly["polygon"]]
+        cmd = (Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION if poly.get("inclusion", True)
+               else Cmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION)
+        fence += [_item(Frame.GLOBAL_INT, cmd, 1, [n, 0, 0, 0], lat, lon, 0.0) for lat, lon in poly["polygon"]]
     return PlanFile(tuple(items), tuple(fence))
 
 

@@ -95,6 +95,7 @@ class Failsafes:
         self._offboard_live = False  # offboard setpoints are arriving (newer than FS_OFFB_TOUT)
         self._bad_data = False  # the invalid-sensor-data failsafe is in force
         self._fence = Fence()
+        self._fence_home: tuple[Fence, tuple[float, float, float]] | None = None  # the fence and home last told about
         self._battery_checked: BatteryState | None = None  # the pack state the battery check last looked at
         self._dt_bad_n = 0  # consecutive bundle spacings that disagree with 1/INDI_RATE_HZ
         self.configure(settings)
@@ -198,9 +199,15 @@ class Failsafes:
                 notices.append(self.act("Battery low", s.battery_low_action, f" ({pct}% left)"))
         home = m.home_ned
         fence = self._fence
-        if home is None or not (s.fence_radius_m > 0.0 or s.fence_alt_max_m > 0.0 or fence.circles
-                                or fence.polygons):
+        if home is None or not (s.fence_radius_m > 0.0 or s.fence_alt_max_m > 0.0 or fence.has_zones):
             return notices
+        if fence.has_zones and (self._fence_home is None or self._fence_home[0] is not fence
+                                or self._fence_home[1] != home):
+            self._fence_home = (fence, home)  # once per fence and home: zones on the wrong side are not enforced
+            k = fence.zones_not_enforced(home)
+            if k:
+                text = f"Geofence: {k} zone(s) on the wrong side of home, not enforced"
+                notices.append(Notice(SEVERITY_CRITICAL, text, text))
         why = fence.breach(pos_ned, home, s.fence_radius_m, s.fence_alt_max_m)
         if why is None:
             self._in_force.discard("Fence breach")

@@ -10,8 +10,10 @@ A legacy MISSION_ITEM (float x/y) is converted on receipt and back on download (
 Validation (`check_item`, `check_plan`) names the problem with the MAV_MISSION_RESULT the spec defines for it:
 an unsupported command -> MAV_MISSION_UNSUPPORTED, a frame the command cannot use -> UNSUPPORTED_FRAME, a
 parameter that is not finite or out of range -> INVALID_PARAM1..7 (5..7 = x, y, z), a DO_JUMP to no item ->
-INVALID_PARAM1; `reason` is the STATUSTEXT. NaN is accepted only where the spec gives it a meaning ("keep the
-current value": the yaw of NAV_WAYPOINT/NAV_LOITER_*/NAV_TAKEOFF/NAV_LAND).
+INVALID_PARAM1; `reason` is the STATUSTEXT. NaN is accepted where the spec gives it a meaning ("keep the
+current value": the yaw of NAV_WAYPOINT/NAV_LOITER_*/NAV_TAKEOFF/NAV_LAND) and in every parameter the command does
+not use ("not given": MAVSDK sends NAV_RETURN_TO_LAUNCH with p1..p4 NaN; PX4 stores them unchecked); a parameter the
+command uses must be a number.
 
 Commands (docs/gcs.md has the parameter table):
 - MISSION: NAV_WAYPOINT (p1 hold s, p2 acceptance radius m, p4 yaw deg), NAV_LOITER_UNLIM (p4 yaw),
@@ -21,8 +23,10 @@ Commands (docs/gcs.md has the parameter table):
   0/1), DO_GRIPPER (p1 instance 0/1, p2 0 release / 1 grab), NAVIG8_ARM_JOINTS (31010 = MAV_CMD_USER_1: p1..p3
   joint targets deg, p4 = 1), NAVIG8_PITCH_HOLD (31011 = MAV_CMD_USER_2: p1 pitch deg, p2 hold time s: the
   paper's pitched hover).
-- FENCE: NAV_FENCE_POLYGON_VERTEX_INCLUSION (p1 vertex count >= 3, x/y lat/lon; consecutive items with the same
-  count form one polygon), NAV_FENCE_CIRCLE_INCLUSION (p1 radius m, x/y centre).
+- FENCE: NAV_FENCE_POLYGON_VERTEX_INCLUSION / _EXCLUSION (p1 vertex count >= 3, x/y lat/lon; consecutive items of
+  the same command and count form one polygon), NAV_FENCE_CIRCLE_INCLUSION / _EXCLUSION (p1 radius m >= 0, x/y
+  centre), NAV_FENCE_RETURN_POINT (stored, not used: Return flies home). As PX4, an area is stored whatever its
+  place; the fence does not enforce an area on the wrong side of home (mission.fence).
 - RALLY: not supported (MAV_MISSION_UNSUPPORTED).
 """
 
@@ -89,8 +93,11 @@ class Cmd(IntEnum):
     DO_JUMP = 177
     DO_CHANGE_SPEED = 178
     DO_GRIPPER = 211
+    NAV_FENCE_RETURN_POINT = 5000
     NAV_FENCE_POLYGON_VERTEX_INCLUSION = 5001
+    NAV_FENCE_POLYGON_VERTEX_EXCLUSION = 5002
     NAV_FENCE_CIRCLE_INCLUSION = 5003
+    NAV_FENCE_CIRCLE_EXCLUSION = 5004
     NAVIG8_ARM_JOINTS = 31010  # MAV_CMD_USER_1 (navig8.xml)
     NAVIG8_PITCH_HOLD = 31011  # MAV_CMD_USER_2 (navig8.xml)
 
@@ -107,10 +114,24 @@ MISSION_COMMANDS = NAV_COMMANDS | {
     Cmd.NAV_RETURN_TO_LAUNCH, Cmd.CONDITION_DELAY, Cmd.CONDITION_YAW, Cmd.DO_JUMP, Cmd.DO_CHANGE_SPEED,
     Cmd.DO_GRIPPER, Cmd.NAVIG8_ARM_JOINTS, Cmd.NAVIG8_PITCH_HOLD,
 }  # fmt: skip
-FENCE_COMMANDS = frozenset({Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, Cmd.NAV_FENCE_CIRCLE_INCLUSION})
+FENCE_POLYGON_COMMANDS = frozenset({Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, Cmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION})
+FENCE_CIRCLE_COMMANDS = frozenset({Cmd.NAV_FENCE_CIRCLE_INCLUSION, Cmd.NAV_FENCE_CIRCLE_EXCLUSION})
+FENCE_COMMANDS = FENCE_POLYGON_COMMANDS | FENCE_CIRCLE_COMMANDS | {Cmd.NAV_FENCE_RETURN_POINT}
 MAX_ITEMS = {MissionType.MISSION: 500, MissionType.FENCE: 64}  # storage per type (NO_SPACE above)
 # Yaw (p4) may be NaN = keep the current heading.
 _YAW_P4 = frozenset({Cmd.NAV_WAYPOINT, Cmd.NAV_LOITER_UNLIM, Cmd.NAV_LOITER_TIME, Cmd.NAV_LAND, Cmd.NAV_TAKEOFF})
+# The parameters (0-based p1..p4) each command uses: the executor and the fence read these and nothing else, so
+# the others may be anything finite or NaN ("not given").
+_USED_PARAMS: dict[int, frozenset[int]] = {
+    Cmd.NAV_WAYPOINT: frozenset({0, 1, 3}), Cmd.NAV_LOITER_UNLIM: frozenset({3}),
+    Cmd.NAV_LOITER_TIME: frozenset({0, 3}), Cmd.NAV_LAND: frozenset({3}), Cmd.NAV_TAKEOFF: frozenset({3}),
+    Cmd.NAV_RETURN_TO_LAUNCH: frozenset(), Cmd.CONDITION_DELAY: frozenset({0}),
+    Cmd.CONDITION_YAW: frozenset({0, 1, 2, 3}), Cmd.DO_JUMP: frozenset({0, 1}), Cmd.DO_CHANGE_SPEED: frozenset({1}),
+    Cmd.DO_GRIPPER: frozenset({0, 1}), Cmd.NAVIG8_ARM_JOINTS: frozenset({0, 1, 2, 3}),
+    Cmd.NAVIG8_PITCH_HOLD: frozenset({0, 1}), Cmd.NAV_FENCE_RETURN_POINT: frozenset(),
+    **{c: frozenset({0}) for c in (Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, Cmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
+                                   Cmd.NAV_FENCE_CIRCLE_INCLUSION, Cmd.NAV_FENCE_CIRCLE_EXCLUSION)},
+}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -215,9 +236,11 @@ def check_item(item: MissionItem, mission_type: int, count: int) -> Problem | No
     if item.autocontinue not in (0, 1):
         return Problem(Result.INVALID, f"{name}: autocontinue must be 0 or 1")
     p = item.params
+    used = _USED_PARAMS[cmd]
     for i, v in enumerate(p):
-        if not _finite(v) and not (i == 3 and cmd in _YAW_P4 and math.isnan(v)):
-            return Problem(Result(Result.INVALID_PARAM1 + i), f"{name}: param{i + 1} must be a number")
+        if _finite(v) or (math.isnan(v) and (i not in used or (i == 3 and cmd in _YAW_P4))):
+            continue
+        return Problem(Result(Result.INVALID_PARAM1 + i), f"{name}: param{i + 1} must be a number")
     if positional:
         if not _finite(item.z):
             return Problem(Result.INVALID_PARAM7, f"{name}: z must be a number")
@@ -263,10 +286,10 @@ def _check_params(item: MissionItem, cmd: Cmd, count: int) -> Problem | None:
         checks = [(0, -180, 180, "q1 deg"), (1, -180, 180, "q2 deg"), (2, -180, 180, "q3 deg"), (3, 1, 1, "apply")]
     elif cmd == Cmd.NAVIG8_PITCH_HOLD:
         checks = [(0, -PITCH_HOLD_MAX_DEG, PITCH_HOLD_MAX_DEG, "pitch deg"), (1, 0, 86400, "hold time s")]
-    elif cmd == Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION:
+    elif cmd in FENCE_POLYGON_COMMANDS:
         checks = [(0, 3, 64, "vertex count")]
-    elif cmd == Cmd.NAV_FENCE_CIRCLE_INCLUSION:
-        checks = [(0, 0.1, 1e5, "radius m")]
+    elif cmd in FENCE_CIRCLE_COMMANDS:
+        checks = [(0, 0.0, 1e5, "radius m")]  # 0: the empty circle MAVSDK's geofence example sends (never enforced)
     for index, lo, hi, what in checks:
         problem = _range(item, index, lo, hi, what)
         if problem is not None:
@@ -283,7 +306,7 @@ def check_plan(items: tuple[MissionItem, ...], mission_type: int) -> Problem | N
     i = 0
     while i < len(items):
         it = items[i]
-        if it.command == Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION:
+        if it.command in FENCE_POLYGON_COMMANDS:
             n = int(it.param1)
             group = items[i:i + n]
             if len(group) < n or any(g.command != it.command or int(g.param1) != n for g in group):

@@ -34,9 +34,9 @@ def _hover_speed(vehicle: vm.VehicleConfig, thrust_ratio: float) -> float:
     return math.sqrt(thrust_ratio * vehicle.uam_mass_kg * vehicle.gravity_m_s2 / (2.0 * vehicle.k_thrust_duct))
 
 
-def _sensors(t_us: int, z_ned_m: float, duct_speed: float) -> FcSensors:
+def _sensors(t_us: int, z_ned_m: float, duct_speed: float, n_ned_m: float = 0.0) -> FcSensors:
     return FcSensors(t_s=t_us * 1e-6, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -9.81),
-                     pos_ned=(0.0, 0.0, z_ned_m), vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
+                     pos_ned=(n_ned_m, 0.0, z_ned_m), vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
                      tilt_rad=(0.0, 0.0), speed_rad_s=(duct_speed, 0.0, duct_speed), joint_pos_rad=(0.0, 0.0, 0.0),
                      joint_rate_rad_s=(0.0, 0.0, 0.0))
 
@@ -47,11 +47,12 @@ class Feed:
     def __init__(self, stack: FlightStack, vehicle: vm.VehicleConfig, in_air: bool) -> None:
         self.stack, self.t_us = stack, 0
         self.z, self.w = (-2.0, _hover_speed(vehicle, 1.0)) if in_air else (0.0, 0.0)
+        self.n = 0.0  # north of the start (m)
 
     def run(self, n: int, dt_us: int = DT_US) -> list[Notice]:
         notices: list[Notice] = []
         for _ in range(n):
-            notices += self.stack.step(_sensors(self.t_us, self.z, self.w), True, self.t_us).notices
+            notices += self.stack.step(_sensors(self.t_us, self.z, self.w, self.n), True, self.t_us).notices
             self.t_us += dt_us
         return notices
 
@@ -290,12 +291,30 @@ def test_fence_breach_radius_altitude_and_uploaded_circle(vehicle) -> None:
     texts = [n.statustext for _ in range(2) for n in feed.run(1) if n.statustext]
     assert any(t.startswith("Fence breach") and "above home" in t and t.endswith("landing") for t in texts), texts
     assert stack.state().flight_mode is FlightMode.LAND
-    # An uploaded inclusion circle that does not contain the vehicle.
+    # Uploaded zones: an inclusion circle of 10 m around home, an exclusion circle 30 m north; and two zones on the
+    # wrong side of home (an inclusion circle 50 m away, an exclusion circle around home), which PX4 drops.
     stack2, feed2 = _hovering_in_hold(vehicle)
     origin = GeoOrigin()
-    lat, lon, _ = origin.to_global((home[0] + 50.0, home[1], 0.0))
-    fence = Plan(1, (MissionItem(Frame.GLOBAL_INT, Cmd.NAV_FENCE_CIRCLE_INCLUSION, 1, 10.0, 0, 0, 0,
-                                 round(lat * 1e7), round(lon * 1e7), 0.0),))
+
+    def circle(cmd: Cmd, north_m: float, radius_m: float) -> MissionItem:
+        lat, lon, _ = origin.to_global((home[0] + north_m, home[1], 0.0))
+        return MissionItem(Frame.GLOBAL_INT, cmd, 1, radius_m, 0, 0, 0, round(lat * 1e7), round(lon * 1e7), 0.0)
+
+    inc, exc = Cmd.NAV_FENCE_CIRCLE_INCLUSION, Cmd.NAV_FENCE_CIRCLE_EXCLUSION
+    fence = Plan(1, (circle(inc, 0.0, 10.0), circle(exc, 30.0, 5.0), circle(inc, 50.0, 10.0), circle(exc, 0.0, 3.0)))
     assert stack2.command(LoadFence(fence, origin)).ok
+    texts = [n.statustext for n in feed2.run(10) if n.statustext]
+    assert texts == ["Geofence: 2 zone(s) on the wrong side of home, not enforced"], texts  # told once, no breach
+    feed2.n = 8.0  # inside every enforced zone (and 5 m outside the dropped exclusion circle around home)
+    assert not [n for n in feed2.run(5) if n.statustext]
+    feed2.n = 12.0  # outside the inclusion circle around home
     texts = [n.statustext for n in feed2.run(1) if n.statustext]
     assert any("inclusion circle" in t and t.endswith("holding") for t in texts), texts
+    # The exclusion zone 30 m north, on its own
+    stack3, feed3 = _hovering_in_hold(vehicle)
+    assert stack3.command(LoadFence(Plan(1, (circle(Cmd.NAV_FENCE_CIRCLE_EXCLUSION, 30.0, 5.0),)), origin)).ok
+    feed3.n = 20.0
+    assert not [n for n in feed3.run(5) if n.statustext]
+    feed3.n = 28.0
+    texts = [n.statustext for n in feed3.run(1) if n.statustext]
+    assert any("exclusion circle" in t and t.endswith("holding") for t in texts), texts

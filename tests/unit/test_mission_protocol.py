@@ -205,6 +205,10 @@ def test_out_of_order_and_duplicate_items_are_ignored_and_the_request_repeated()
     (MissionItem(Frame.MISSION, Cmd.DO_GRIPPER, 1, 1, 3, 0, 0, 0, 0, 0), Result.INVALID_PARAM2, "action"),
     (MissionItem(Frame.MISSION, Cmd.NAVIG8_PITCH_HOLD, 1, 75, 3, 0, 0, 0, 0, 0), Result.INVALID_PARAM1, "pitch"),
     (MissionItem(Frame.MISSION, Cmd.NAVIG8_ARM_JOINTS, 1, 0, 0, 0, 0, 0, 0, 0), Result.INVALID_PARAM4, "apply"),
+    (MissionItem(Frame.MISSION, Cmd.DO_CHANGE_SPEED, 1, 1, math.nan, -1, 0, 0, 0, 0), Result.INVALID_PARAM2,
+     "param2"),  # NaN where the command reads it
+    (MissionItem(Frame.MISSION, Cmd.NAV_RETURN_TO_LAUNCH, 1, math.inf, 0, 0, 0, 0, 0, 0), Result.INVALID_PARAM1,
+     "param1"),  # an unused parameter may be NaN ("not given"), not infinite
 ])  # fmt: skip
 def test_a_bad_item_refuses_the_whole_upload_with_the_result_that_names_it(bad, result, word) -> None:
     rig = Rig()
@@ -216,6 +220,39 @@ def test_a_bad_item_refuses_the_whole_upload_with_the_result_that_names_it(bad, 
     assert texts and texts[0].get_type() == "STATUSTEXT" and word in texts[0].text and "Item 3" in texts[0].text
     assert not rig.proto.busy and rig.proto.opaque_id() == old_id  # the old plan is in force
     assert len(download(rig)) == 8
+
+
+def test_mavsdk_mission_items_with_nan_in_what_they_do_not_use_are_stored_as_sent() -> None:
+    """The items MAVSDK's Mission plugin builds for examples/mission.py (MissionImpl::convert_to_int_items):
+    waypoints with a NaN yaw, DO_CHANGE_SPEED with a NaN z, and the return-to-launch item with p1..p4 NaN."""
+    rig = Rig()
+    nan = math.nan
+    items = (MissionItem(Frame.GLOBAL_RELATIVE_ALT_INT, Cmd.NAV_WAYPOINT, 1, 0, 3.0, 0, nan, LAT0, LON0, 25.0),
+             MissionItem(Frame.MISSION, Cmd.DO_CHANGE_SPEED, 1, 1, 10, -1, 0, 0, 0, nan),
+             MissionItem(Frame.GLOBAL_RELATIVE_ALT_INT, Cmd.NAV_TAKEOFF, 1, nan, nan, nan, nan, LAT0, LON0, 2.0),
+             MissionItem(Frame.MISSION, Cmd.NAV_RETURN_TO_LAUNCH, 1, nan, nan, nan, nan, 0, 0, 0))
+    (ack,) = upload(rig, items)
+    assert ack.type == M.MAV_MISSION_ACCEPTED
+    back = download(rig)
+    assert len(back) == 4 and all(same(as_item(a), b) for a, b in zip(back, items, strict=True))
+
+
+def test_fence_kinds_px4_accepts_exclusions_return_point_and_the_empty_circle() -> None:
+    """MAVSDK's geofence example adds an empty circle (radius 0 at 0, 0); QGC's plans have exclusion zones and a
+    return point. All are stored (PX4 stores them unchecked but for the vertex count)."""
+    rig = Rig()
+    g = Frame.GLOBAL_INT
+    poly = [MissionItem(g, Cmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION, 1, 3, 0, 0, 0, LAT0 + d, LON0, 0)
+            for d in (0, 100, 200)]
+    items = (MissionItem(g, Cmd.NAV_FENCE_CIRCLE_INCLUSION, 0, 0.0, 0, 0, 0, 0, 0, 0),
+             MissionItem(g, Cmd.NAV_FENCE_CIRCLE_EXCLUSION, 0, 5.0, 0, 0, 0, LAT0, LON0, 0), *poly,
+             MissionItem(Frame.GLOBAL_RELATIVE_ALT_INT, Cmd.NAV_FENCE_RETURN_POINT, 0, 0, 0, 0, 0, LAT0, LON0, 10))
+    (ack,) = upload(rig, items, mission_type=1)
+    assert ack.type == M.MAV_MISSION_ACCEPTED and len(download(rig, 1)) == 6
+    mixed = (*poly[:2], MissionItem(g, Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, 1, 3, 0, 0, 0, LAT0, LON0, 0))
+    assert upload(rig, mixed, mission_type=1)[0].type == M.MAV_MISSION_INVALID_PARAM1  # a polygon of one kind
+    bad = MissionItem(g, Cmd.NAV_FENCE_CIRCLE_EXCLUSION, 0, -1.0, 0, 0, 0, LAT0, LON0, 0)
+    assert upload(rig, (bad,), mission_type=1)[0].type == M.MAV_MISSION_INVALID_PARAM1
 
 
 def test_upload_limits_types_and_busy() -> None:
