@@ -22,7 +22,10 @@ failsafe took over or it could not complete (with a STATUSTEXT). A command that 
 (landing on the ground) is ACCEPTED at once. The same command with the same parameters from the same sender while
 it runs is a retry (MAVSDK re-sends when no ACK came for 1.5 s): it gets IN_PROGRESS again, not a second start.
 MAVSDK's Action waits for the final ACK (takeoff() returns at the takeoff altitude); a client that reads only the
-first ACK sees IN_PROGRESS, "accepted and running".
+first ACK sees IN_PROGRESS, "accepted and running". With `flight_progress` off (PX4's way, the default of the PX4
+identity: PX4's Commander answers take-off, land, return and reposition ACCEPTED at once and the client watches
+telemetry), the flight task's commands are ACCEPTED when started and nothing follows; the arm-joint target keeps
+the protocol (no PX4 command does it).
 
 Duplicates: a COMMAND_LONG with confirmation > 0 that repeats the same command with the same parameters from
 the same sender within `duplicate_window_s` (default 2 s, on the caller's clock: wall time) is the client
@@ -32,7 +35,8 @@ executed again instead, since the client most likely missed the message, not the
 confirmation field, so every COMMAND_INT executes; all commands here are idempotent anyway.
 
 Parameters (docs/gcs.md has the table): COMPONENT_ARM_DISARM p1 1/0, p2 21196 = force; NAV_TAKEOFF altitude
-above home from p7 (COMMAND_LONG) or z (COMMAND_INT, frame GLOBAL_RELATIVE_ALT[_INT]), NaN = default;
+from p7 (COMMAND_LONG: above home, or AMSL with `takeoff_p7_amsl` as PX4 reads it) or z (COMMAND_INT: frame
+GLOBAL_RELATIVE_ALT[_INT] above home, GLOBAL[_INT] AMSL), NaN = default;
 NAV_LAND here; DO_SET_MODE p1 base_mode with CUSTOM_MODE_ENABLED, p2 PX4 main mode, p3 sub mode;
 DO_SET_STANDARD_MODE p1 MAV_STANDARD_MODE; REQUEST_MESSAGE p1 message id; SET/GET_MESSAGE_INTERVAL; DO_GRIPPER
 p1 instance (0 or 1), p2 0 release / 1 grab; MAV_CMD_USER_1 (31010, MAV_CMD_NAVIG8_ARM_JOINTS in navig8.xml)
@@ -124,6 +128,10 @@ class CommandTarget(VehicleCommands, Protocol):
         when relative_alt."""
         ...
 
+    def takeoff_amsl(self, alt_amsl_m: float) -> tuple[bool, str]:
+        """MAV_CMD_NAV_TAKEOFF to an altitude above mean sea level (PX4's p7; GLOBAL frames)."""
+        ...
+
     def set_mission_current(self, seq: int, reset: bool) -> tuple[bool, str]:
         """MAV_CMD_DO_SET_MISSION_CURRENT: fly item `seq` next (-1: keep it; reset: forget what was reached)."""
         ...
@@ -197,6 +205,8 @@ class CommandHandler:
         *,
         statustext: StatusTextEncoder | None = None,
         duplicate_window_s: float = 2.0,
+        flight_progress: bool = True,
+        takeoff_p7_amsl: bool = False,
     ) -> None:
         self._mav = mav
         self._sysid = int(sysid)
@@ -204,6 +214,8 @@ class CommandHandler:
         self._vehicle = vehicle
         self._text = statustext or StatusTextEncoder(mav)
         self._window_s = float(duplicate_window_s)
+        self.flight_progress = bool(flight_progress)  # the flight task's commands: IN_PROGRESS + final ACK (or at once)
+        self._takeoff_p7_amsl = bool(takeoff_p7_amsl)  # PX4: COMMAND_LONG NAV_TAKEOFF p7 is AMSL
         # (src_system, src_component, command) -> (params key, time, result) of the last execution.
         self._recent: dict[tuple[int, int, int], tuple[tuple[float | None, ...], float, int]] = {}
         self._running: dict[str, _Running] = {}  # task channel -> the long command being reported
@@ -245,6 +257,8 @@ class CommandHandler:
         key = (req.src_system, req.src_component, req.command)
         pkey = tuple(None if math.isnan(p) else p for p in req.params) + (req.frame,)
         channel = LONG_COMMANDS.get(req.command)
+        if channel == "flight" and not self.flight_progress:
+            channel = None  # ACCEPTED at once (PX4); a retry within the window gets the same answer below
         if channel is not None:
             self._report(channel, now_s)  # the running one may have ended: its final ACK before a new start
             run = self._running.get(channel)
@@ -387,9 +401,14 @@ class CommandHandler:
         raise _BadParam(f"param1 must be 1 (arm) or 0 (disarm), got {p1:g}")
 
     def _takeoff(self, req: CommandRequest) -> _Outcome:
-        if req.is_int and req.frame not in _RELATIVE_ALT_FRAMES:
-            raise _BadParam(f"frame {req.frame} unsupported; use GLOBAL_RELATIVE_ALT(_INT), z = altitude above home")
-        return self._verdict(self._vehicle.command(Takeoff(req.params[6])))
+        alt = req.params[6]
+        if req.is_int and req.frame not in _REPOSITION_FRAMES:
+            raise _BadParam(f"frame {req.frame} unsupported; use GLOBAL_RELATIVE_ALT(_INT) (z above home) or "
+                            "GLOBAL(_INT) (z AMSL)")
+        amsl = req.frame not in _RELATIVE_ALT_FRAMES if req.is_int else self._takeoff_p7_amsl
+        if amsl and not math.isnan(alt):  # NaN: the default height (PX4: MIS_TAKEOFF_ALT)
+            return self._verdict(self._vehicle.takeoff_amsl(alt))
+        return self._verdict(self._vehicle.command(Takeoff(alt)))
 
     def _set_mode(self, req: CommandRequest) -> _Outcome:
         base = _int_param(req.params[0], "param1 (base_mode)")

@@ -52,6 +52,7 @@ from navig8_fc.flight.commands import (
     OffboardSetpoint,
     Reposition,
     SetMode,
+    Takeoff,
     VehicleCommand,
 )
 from navig8_fc.flight.state import VehicleCommands, VehicleState
@@ -72,6 +73,7 @@ from navig8_fc.params.store import ParamStore
 from navig8_fc.shell.floor_worker import FloorWorker
 from navig8_fc.shell.telemetry_service import (
     MAV_AUTOPILOT_GENERIC,
+    MAV_AUTOPILOT_PX4,
     Source,
     Telemetry,
     origin_from_params,
@@ -124,12 +126,17 @@ class GcsSettings:
     signing_required: bool  # GCS_SIGN_REQ
     param_set_rate_hz: float  # PARAM_SET_RATE: PARAM_SETs per second and source
     stream_rate_max_hz: float  # GCS_RATE_MAX: the fastest stream SET_MESSAGE_INTERVAL may ask for
+    command_progress: int  # GCS_CMD_PROG: 0 as the identity's autopilot, 1 IN_PROGRESS + final ACK, 2 ACCEPTED at once
 
     @staticmethod
     def from_params(values: Mapping[str, float]) -> GcsSettings:
         return GcsSettings(int(values["GCS_ENFORCE"]) != 0, int(values["GCS_SYSID"]), int(values["GCS_SYSID_HI"]),
                            int(values["GCS_SIGN_REQ"]) != 0, float(values["PARAM_SET_RATE"]),
-                           float(values["GCS_RATE_MAX"]))
+                           float(values["GCS_RATE_MAX"]), int(values["GCS_CMD_PROG"]))
+
+    def flight_progress(self, autopilot: int) -> bool:
+        """Whether the flight task's commands get IN_PROGRESS and a final ACK (else ACCEPTED at once, as PX4)."""
+        return self.command_progress == 1 or (self.command_progress == 0 and autopilot != MAV_AUTOPILOT_PX4)
 
 
 class GcsService:
@@ -153,7 +160,10 @@ class GcsService:
         self._settings = GcsSettings.from_params(registry.as_dict())
         self.params = ParamProtocol(registry, mav, store, statustext=self.text, armed=lambda: self._state().armed,
                                     defer_saves=background_params)
-        self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text)
+        self._autopilot = int(autopilot)
+        self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text,
+                                       flight_progress=self._settings.flight_progress(self._autopilot),
+                                       takeoff_p7_amsl=self._autopilot == MAV_AUTOPILOT_PX4)
         self.misc = MiscProtocols(mav, statustext=self.text)
         self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text)
         self.origin = origin_from_params(registry)
@@ -207,6 +217,7 @@ class GcsService:
         if reg.generation != self._settings_generation:
             self._settings = GcsSettings.from_params(reg.as_dict())
             self._settings_generation = reg.generation
+            self.commands.flight_progress = self._settings.flight_progress(self._autopilot)
         return self._settings
 
     def authorised(self, sysid: int) -> bool:
@@ -478,6 +489,11 @@ class GcsService:
         home_z = home[2] if home is not None else 0.0
         d = home_z - alt_m if relative_alt else self.origin.alt_amsl_m - alt_m
         return n, e, d
+
+    def takeoff_amsl(self, alt_amsl_m: float) -> tuple[bool, str]:
+        home = self._state().home_ned
+        home_z = home[2] if home is not None else 0.0
+        return self._vehicle.command(Takeoff(home_z - (self.origin.alt_amsl_m - alt_amsl_m)))
 
     def reposition_global(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool,
                           yaw_rad: float) -> tuple[bool, str]:

@@ -53,6 +53,10 @@ class FakeVehicle:
     def task_status(self, channel: str):
         return self.modes.task if channel == "flight" else None  # arm moves are not tracked here
 
+    def takeoff_amsl(self, alt_amsl_m: float) -> Verdict:
+        self.calls.append(("takeoff_amsl", alt_amsl_m))
+        return self.command(Takeoff(alt_amsl_m - 1100.0))  # home at 1100 m AMSL here
+
     def request_message(self, msg_id: int, params):
         self.calls.append(("request_message", msg_id, params))
         if msg_id == 148:
@@ -170,7 +174,10 @@ def test_takeoff_long_p7_and_int_z(rig) -> None:
     out = cmd_int(rig, M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, p4=NAN, z=3.0)
     assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_IN_PROGRESS
     assert vehicle.calls[-1] == Takeoff(3.0)
-    out = cmd_int(rig, M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_INT, z=1100.0)
+    out = cmd_int(rig, M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_GLOBAL_INT, z=1104.0)  # a GLOBAL frame: z AMSL
+    assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_IN_PROGRESS
+    assert vehicle.calls[-2:] == [("takeoff_amsl", 1104.0), Takeoff(4.0)]
+    out = cmd_int(rig, M.MAV_CMD_NAV_TAKEOFF, M.MAV_FRAME_LOCAL_NED, z=-3.0)
     assert the_ack(out, M.MAV_CMD_NAV_TAKEOFF).result == M.MAV_RESULT_DENIED and "frame" in texts(out)
 
 

@@ -21,6 +21,7 @@ from navig8_fc.flight import FlightStack, VehicleState
 from navig8_fc.modes import FlightMode
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.shell.gcs_service import GcsService
+from navig8_fc.shell.telemetry_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4
 
 M = mavlink2
 API = ("api", ("127.0.0.1", 14540))
@@ -56,7 +57,8 @@ def _sensors(t_us: int, z: float, w: float, gripper_closed: bool = False) -> FcS
 
 
 class Rig:
-    def __init__(self, state_override: dict[str, Any] | None = None, signing: Any = None) -> None:
+    def __init__(self, state_override: dict[str, Any] | None = None, signing: Any = None,
+                 autopilot: int = MAV_AUTOPILOT_GENERIC) -> None:
         self.vehicle = vm.VehicleConfig.load()
         self.registry = ParamRegistry.from_defaults()
         self.stack = FlightStack(self.vehicle, self.registry)
@@ -68,7 +70,8 @@ class Rig:
             return replace(s, **state_override) if state_override else s
 
         self.gcs = GcsService(self.mav, 1, state, self.stack, self.outbox, self.registry, self.vehicle,
-                              trusted_sources=[API, GCS], signing=signing)  # the links' targets, as the process gives
+                              trusted_sources=[API, GCS], signing=signing,  # the links' targets, as the process gives
+                              autopilot=autopilot)
         self.client = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
         self.t_us = 0
         self.z, self.w = 0.0, 0.0
@@ -197,6 +200,33 @@ def test_manual_control_reaches_position_mode_and_stale_sticks_centre() -> None:
     assert rig.stack.state().sticks == pytest.approx((0.5, -0.25, 1.0, 0.0))
     rig.gcs.poll(1.6)  # > 0.5 s without MANUAL_CONTROL: centred
     assert rig.stack.state().sticks == (0.0, 0.0, 0.5, 0.0)
+
+
+def test_px4_identity_reads_takeoff_p7_as_amsl_and_acknowledges_flight_commands_at_once() -> None:
+    """As PX4's Commander and Navigator: NAV_TAKEOFF p7 above mean sea level (QGC's PX4 plugin sends home + the
+    height), COMMAND_INT in a GLOBAL frame too, ACCEPTED at once; GCS_CMD_PROG 1 brings the long-running protocol
+    back. The generic identity reads p7 above home."""
+    for autopilot, p7, expect_alt in ((MAV_AUTOPILOT_PX4, 1100.0 + 3.0, 3.0), (MAV_AUTOPILOT_GENERIC, 3.0, 3.0)):
+        rig = Rig(autopilot=autopilot)
+        rig.step(60)
+        assert rig.command(API, M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+        ack = rig.command(API, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, p7)
+        px4 = autopilot == MAV_AUTOPILOT_PX4
+        assert ack.result == (M.MAV_RESULT_ACCEPTED if px4 else M.MAV_RESULT_IN_PROGRESS)
+        rig.step(1)
+        texts = [m.text for _, m in rig.outbox.pop("STATUSTEXT")]
+        assert f"Takeoff to {expect_alt:.1f} m above home" in texts, texts
+    rig = Rig(autopilot=MAV_AUTOPILOT_PX4)
+    rig.step(60)
+    rig.command(API, M.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    rig.send(rig.client.command_int_encode(1, 1, M.MAV_FRAME_GLOBAL_INT, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0,
+                                           math.nan, 0, 0, 1100.0 + 25.0), API)
+    ((_, ack),) = rig.outbox.pop("COMMAND_ACK")
+    assert ack.result == M.MAV_RESULT_DENIED  # 25 m above home: past the takeoff limit, so AMSL was read
+    assert "25" in rig.outbox.pop("STATUSTEXT")[0][1].text
+    rig.registry.set("GCS_CMD_PROG", 1)
+    ack = rig.command(API, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, 1100.0 + 2.0)
+    assert ack.result == M.MAV_RESULT_IN_PROGRESS
 
 
 def test_set_gps_global_origin_sets_the_origin_parameters() -> None:

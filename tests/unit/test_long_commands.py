@@ -31,12 +31,12 @@ API, GCS = "api", "gcs"
 class Bench:
     """The handler, a vehicle whose commands go to a real ModeManager, the point mass it flies, two clients."""
 
-    def __init__(self) -> None:
+    def __init__(self, flight_progress: bool = True) -> None:
         self.vehicle = FakeVehicle()
         self.body = PointMass()
         self.mav = D.MAVLink(BytesIO(), srcSystem=1, srcComponent=1)
         self.clients = {API: D.MAVLink(BytesIO(), 245, 190), GCS: D.MAVLink(BytesIO(), 255, 190)}
-        self.handler = CommandHandler(self.mav, 1, 1, self.vehicle)
+        self.handler = CommandHandler(self.mav, 1, 1, self.vehicle, flight_progress=flight_progress)
         self.t = 0.0
         self.sent: list[tuple[Any, Any]] = []  # (source, message) from poll
         self.fly(DT)
@@ -93,6 +93,26 @@ def test_takeoff_reports_progress_then_accepted_and_a_retry_does_not_restart_it(
     assert [p for *_, p in updates] == sorted(p for *_, p in updates)
     assert acks[-1][2:] == (D.MAV_RESULT_ACCEPTED, 100) and len(acks) - len(updates) == 1
     assert b.body.pos[2] == pytest.approx(-2.0, abs=0.2) and b.vehicle.modes.flight_mode is FlightMode.HOLD
+
+
+def test_without_flight_progress_flight_commands_are_accepted_at_once_as_px4_does() -> None:
+    """PX4's Commander: take-off, reposition, land and return ACCEPTED when started, nothing after; the vehicle does
+    them all the same (seen in telemetry); a retry gets the same answer without a second start."""
+    b = Bench(flight_progress=False)
+    b.command(API, D.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+    ack = b.command(API, D.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, NAN, NAN, NAN, 2.0)
+    assert (ack.result, ack.target_system) == (D.MAV_RESULT_ACCEPTED, 245)
+    b.fly(5.0)
+    assert b.acks() == [] and b.body.pos[2] == pytest.approx(-2.0, abs=0.2)
+    assert b.vehicle.modes.flight_mode is FlightMode.HOLD
+    for cmd in (D.MAV_CMD_NAV_RETURN_TO_LAUNCH, D.MAV_CMD_NAV_LAND):
+        first = b.command(API, cmd)
+        calls = len(b.vehicle.calls)
+        again = b.send(API, b.clients[API].command_long_encode(1, 1, cmd, 1, 0, 0, 0, 0, 0, 0, 0))[0]
+        assert first.result == again.result == D.MAV_RESULT_ACCEPTED and len(b.vehicle.calls) == calls
+        b.fly(0.5)
+    b.fly(8.0)
+    assert b.acks() == [] and b.vehicle.modes.landed
 
 
 def test_cancel_stops_a_landing_holds_where_the_vehicle_is_and_acks_the_requester() -> None:
@@ -182,7 +202,8 @@ def test_arm_joint_move_progress_done_cancel_and_timeout() -> None:
     assert ts.state == TASK_FAILED and "off after" in ts.reason
 
 
-def test_arm_joint_command_is_long_through_the_handler() -> None:
+@pytest.mark.parametrize("flight_progress", [True, False])  # the arm-joint target keeps the protocol either way
+def test_arm_joint_command_is_long_through_the_handler(flight_progress: bool) -> None:
     stack = FlightStack(vm.VehicleConfig.load(), ParamRegistry.from_defaults())
     stack.step(_sensors(0.0, (0.0, 0.0, 0.0)))
     mav = D.MAVLink(BytesIO(), 1, 1)
@@ -192,7 +213,7 @@ def test_arm_joint_command_is_long_through_the_handler() -> None:
         def __getattr__(self, name: str) -> Any:
             return getattr(stack, name)
 
-    handler = CommandHandler(mav, 1, 1, Target())  # type: ignore[arg-type]
+    handler = CommandHandler(mav, 1, 1, Target(), flight_progress=flight_progress)  # type: ignore[arg-type]
     msg = mav.decode(bytearray(client.command_long_encode(1, 1, MAV_CMD_NAVIG8_ARM_JOINTS, 0, 30, 0, 0, 1, 0, 0, 0)
                                .pack(client)))
     (ack, *_) = handler.handle(msg, 0.0, GCS)
