@@ -102,7 +102,7 @@ class SensorLimits:
 
     @staticmethod
     def from_vehicle(vehicle: Any) -> SensorLimits:
-        lim = seam.ActuatorLimits.from_vehicle(vehicle)
+        lim = seam.ControlsScale.from_vehicle(vehicle)
         return SensorLimits(lim.tilt_max_abs_rad * ACTUATOR_MARGIN, lim.duct_speed_max_rad_s * ACTUATOR_MARGIN,
                             lim.tail_speed_max_rad_s * ACTUATOR_MARGIN, float(vehicle.joint_limit_rad)
                             + JOINT_MARGIN_RAD)
