@@ -142,6 +142,9 @@ SENSOR_BATTERY = M.MAV_SYS_STATUS_SENSOR_BATTERY
 SENSOR_PREARM = M.MAV_SYS_STATUS_PREARM_CHECK  # health bit = pre-arm checks pass (MAVSDK is_armable)
 
 
+GPS_SIM_SATELLITES = 10  # GPS_RAW_INT.satellites_visible: PX4 SITL's SIM_GPS_USED default
+
+
 @dataclass(frozen=True)
 class SensorBits:
     present: int
@@ -434,7 +437,9 @@ class TelemetryBuilder:
 
     def gps_raw_int(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
         """The global position source as a GPS: motion capture + the origin is an RTK-grade fix (3D_FIX... RTK
-        would claim a receiver; 3D fix, 1 cm accuracy figures from the pose noise), so GPS widgets work."""
+        would claim a receiver; 3D fix, 1 cm accuracy figures from the pose noise), so GPS widgets work. Satellites:
+        GPS_SIM_SATELLITES (10), what PX4 SITL reports (its SIM_GPS_USED default), not 255 "unknown", which
+        MAVSDK's telemetry example prints as is."""
         if not snap.state_valid:
             return []
         lat, lon, alt = snap.origin.to_global(snap.pos_ned)
@@ -443,7 +448,8 @@ class TelemetryBuilder:
         cog = _i(math.degrees(math.atan2(ve, vn)) % 360.0 * 100.0, 0, 35999, 0) if math.hypot(vn, ve) > 0.1 else 65535
         return [self._mav.gps_raw_int_encode(
             now_boot_ms * 1000, M.GPS_FIX_TYPE_3D_FIX, _i(lat * 1e7, *i32, 0), _i(lon * 1e7, *i32, 0),
-            _i(alt * 1000.0, *i32, 0), 100, 100, _i(math.hypot(vn, ve) * 100.0, 0, 65534, 0), cog, 255)]
+            _i(alt * 1000.0, *i32, 0), 100, 100, _i(math.hypot(vn, ve) * 100.0, 0, 65534, 0), cog,
+            GPS_SIM_SATELLITES)]
 
     def gps_global_origin(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
         o = snap.origin

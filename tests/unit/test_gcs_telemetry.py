@@ -289,5 +289,6 @@ def test_gps_raw_int_and_origin_follow_the_origin(mavs) -> None:
     lat, lon, alt = origin.to_global((10.0, -5.0, -2.0))
     assert (gps.lat, gps.lon, gps.alt) == (round(lat * 1e7), round(lon * 1e7), round(alt * 1000))
     assert gps.fix_type == M.GPS_FIX_TYPE_3D_FIX and gps.vel == 100 and gps.cog == 9000
+    assert gps.satellites_visible == 10  # as PX4 SITL (MAVSDK's telemetry example prints it)
     (o,) = roundtrip(tb.build(M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, snap, 0), mavs)
     assert (o.latitude, o.longitude, o.altitude) == (470000000, 80000000, 500000)
