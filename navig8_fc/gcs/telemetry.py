@@ -93,6 +93,10 @@ MSG_ACTUATOR_OUTPUT_STATUS = M.MAVLINK_MSG_ID_ACTUATOR_OUTPUT_STATUS
 MSG_PROTOCOL_VERSION = 300  # not in every common.xml; built only when the dialect has it
 MSG_GPS_RAW_INT = M.MAVLINK_MSG_ID_GPS_RAW_INT
 MSG_GPS_GLOBAL_ORIGIN = M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN
+MSG_HIGHRES_IMU = M.MAVLINK_MSG_ID_HIGHRES_IMU
+# HIGHRES_IMU.fields_updated: the accelerometer (bits 0-2) and gyro (3-5) are sampled; there is no magnetometer,
+# barometer or temperature sensor on the simulated vehicle, so those fields are 0 and not flagged.
+HIGHRES_IMU_ACCEL_GYRO = 0x3F
 
 DEFAULT_RATES_HZ: dict[int, float] = {
     MSG_HEARTBEAT: 1.0,
@@ -111,6 +115,7 @@ DEFAULT_RATES_HZ: dict[int, float] = {
     MSG_ACTUATOR_OUTPUT_STATUS: 5.0,
     MSG_GPS_RAW_INT: 5.0,
     MSG_GPS_GLOBAL_ORIGIN: 0.2,
+    MSG_HIGHRES_IMU: 0.0,  # off until asked (SET_MESSAGE_INTERVAL; MAVSDK's set_rate_imu)
 }
 
 # Capabilities this flight controller really has (AUTOPILOT_VERSION). MISSION_INT: the mission protocol is
@@ -189,6 +194,7 @@ class VehicleSnapshot:
     vel_ned: Vec3
     quat_wxyz: Vec4
     rates_frd: Vec3
+    accel_frd: Vec3 = (0.0, 0.0, 0.0)  # specific force as the IMU measures it (m/s^2)
     state_valid: bool = True  # pos/vel/attitude come from sensor data (False before the first: no state streams)
     home_ned: Vec3 | None = None
     home_yaw_rad: float = 0.0
@@ -333,6 +339,7 @@ class TelemetryBuilder:
             MSG_EXTENDED_SYS_STATE: self.extended_sys_state,
             MSG_NAMED_VALUE_FLOAT: self.stability_values,
             MSG_ACTUATOR_OUTPUT_STATUS: self.actuator_output_status,
+            MSG_HIGHRES_IMU: self.highres_imu,
         }
         if hasattr(mav, "protocol_version_encode"):
             self._builders[MSG_PROTOCOL_VERSION] = lambda snap, now_boot_ms: self.protocol_version()
@@ -405,6 +412,15 @@ class TelemetryBuilder:
         roll, pitch, yaw = euler_from_quat(snap.quat_wxyz)
         p, q, r = snap.rates_frd
         return [self._mav.attitude_encode(now_boot_ms, roll, pitch, yaw, p, q, r)]
+
+    def highres_imu(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        """The IMU's latest sample (FRD body axes, as PX4 streams it): accelerometer and gyro only."""
+        if not snap.state_valid:
+            return []
+        ax, ay, az = snap.accel_frd
+        p, q, r = snap.rates_frd
+        return [self._mav.highres_imu_encode(now_boot_ms * 1000, ax, ay, az, p, q, r, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                             0.0, HIGHRES_IMU_ACCEL_GYRO)]
 
     def attitude_quaternion(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
         if not snap.state_valid:

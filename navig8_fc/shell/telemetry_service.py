@@ -76,6 +76,7 @@ class Telemetry:
             vel_ned=s.vel_ned if s else zero3,
             quat_wxyz=s.quat_wxyz if s else (1.0, 0.0, 0.0, 0.0),
             rates_frd=s.gyro_frd if s else zero3,
+            accel_frd=s.accel_frd if s else zero3,
             state_valid=s is not None,  # no made-up pose before the first sensor data
             home_ned=v.home_ned,
             home_yaw_rad=v.home_yaw_rad,

@@ -132,7 +132,8 @@ def test_every_supported_message_packs(mavs) -> None:
 def test_no_state_streams_before_the_first_sensor_data(mavs) -> None:
     tb = TelemetryBuilder(mavs[0], 1, 1)
     state_ids = {M.MAVLINK_MSG_ID_ATTITUDE, M.MAVLINK_MSG_ID_ATTITUDE_QUATERNION, M.MAVLINK_MSG_ID_LOCAL_POSITION_NED,
-                 M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_VFR_HUD, M.MAVLINK_MSG_ID_GPS_RAW_INT}
+                 M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT, M.MAVLINK_MSG_ID_VFR_HUD, M.MAVLINK_MSG_ID_GPS_RAW_INT,
+                 M.MAVLINK_MSG_ID_HIGHRES_IMU}
     snap = snapshot(state_valid=False)
     for msg_id in sorted(tb.supported_ids):
         got = tb.build(msg_id, snap, 0)
@@ -292,3 +293,17 @@ def test_gps_raw_int_and_origin_follow_the_origin(mavs) -> None:
     assert gps.satellites_visible == 10  # as PX4 SITL (MAVSDK's telemetry example prints it)
     (o,) = roundtrip(tb.build(M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN, snap, 0), mavs)
     assert (o.latitude, o.longitude, o.altitude) == (470000000, 80000000, 500000)
+
+
+def test_highres_imu_is_off_until_asked_and_carries_the_imu_sample(mavs) -> None:
+    """MAVSDK's set_rate_imu asks for HIGHRES_IMU by SET_MESSAGE_INTERVAL (its highres_imu example); the message has
+    the IMU's accelerometer and gyro in FRD and flags only those as updated (no magnetometer or barometer here)."""
+    sched = TelemetryScheduler()
+    assert sched.interval_us(M.MAVLINK_MSG_ID_HIGHRES_IMU) == -1
+    assert sched.set_interval(M.MAVLINK_MSG_ID_HIGHRES_IMU, 20_000)
+    tb = TelemetryBuilder(mavs[0], 1, 1)
+    snap = snapshot(accel_frd=(0.5, -0.25, -9.75))
+    (imu,) = roundtrip(tb.build(M.MAVLINK_MSG_ID_HIGHRES_IMU, snap, 1234), mavs)
+    assert (imu.xacc, imu.yacc, imu.zacc) == (0.5, -0.25, -9.75)
+    assert (imu.xgyro, imu.ygyro, imu.zgyro) == pytest.approx((0.01, -0.02, 0.03))
+    assert imu.time_usec == 1_234_000 and imu.fields_updated == 0b111111 and imu.xmag == 0.0
