@@ -47,7 +47,6 @@ from navig8_fc.core.indi import (
     IndiInputs,
     IndiStatus,
 )
-from navig8_fc.core.k_xi import flown_k
 from navig8_fc.core.outer_loop import (
     OFF,
     OO,
@@ -328,7 +327,7 @@ class FlightControllerCore:
             s.t_s, u_meas, acc_law, gc_law_inv, inertia, mass, rate, fo.item(_FO_ARM_HDC), self._indi_saturated,
             self._u_cmd if self._u_cmd_ok else None, s.gripper_closed, tuple(ul[_UO_OBJ_RATE:_UO_OBJ_RATE + 3]))
         if self._flown_gain:  # INDI_LAM_REF / INDI_KFL_MIN: the INDI (and the status, the eigenvalue monitor) fly
-            gi_hat, gi_flat = flown_gi_hat(gi_hat, adapt_status.k, self.config.indi.lam_ref,  # K_flown, not K_hat
+            gi_hat, gi_flat = flown_gi_hat(gi_flat, adapt_status.k, self.config.indi.lam_ref,  # K_flown, not K_hat
                                            self.config.indi.k_flown_min)
         ref: tuple[float, float, float] | None = None
         sf_x = sf_z = 0.0  # the INDI's force-row feedback: f_O's (read from the sensors) or, here, the CoM's
@@ -518,17 +517,24 @@ class FlightControllerCore:
         return io
 
 
-def flown_gi_hat(gi_hat: np.ndarray, k_hat: Sequence[float], lam_ref: float,
+def flown_gi_hat(gi_flat: Sequence[float], k_hat: Sequence[float], lam_ref: float,
                  k_flown_min: float) -> tuple[np.ndarray, tuple[float, ...]]:
-    """G_hat_I (Eq. 4) rebuilt for the flown K (k_xi.flown_k): column i of G_hat_I holds only x_i = J_ii / K_i
-    (the roll/yaw cross terms of row 0 and 2 scale with their column's x), so x_i,flown = x_i K_hat,i / K_flown,i is
-    a column scaling of the rotational columns; the mass columns are untouched. Returns the new 5x5 array and its
-    row-major tuple."""
-    kf = flown_k(k_hat, lam_ref, k_flown_min)
+    """G_hat_I (Eq. 4) rebuilt for the flown K (k_xi.flown_k: K_flown,i = max(lam_ref K_hat,i, k_flown_min), i = 1..3):
+    column i of G_hat_I holds only x_i = J_ii / K_i (the roll/yaw cross terms of rows 0 and 2 scale with their
+    column's x, vehicle.estimated_gi), so x_i,flown = x_i K_hat,i / K_flown,i is a scaling of the three rotational
+    columns; the mass columns are untouched. gi_flat: G_hat_I row-major. Returns the new 5x5 array and its row-major
+    tuple. Plain floats: 15 products cost less than numpy's per-call overhead on a 5x5."""
     k1, k2, k3 = float(k_hat[0]), float(k_hat[1]), float(k_hat[2])
-    scale = np.array((k1 / kf[0], k2 / kf[1], k3 / kf[2], 1.0, 1.0))
-    g = gi_hat * scale  # broadcasts over the columns
-    return g, tuple(g.ravel().tolist())
+    a, b, c = lam_ref * k1, lam_ref * k2, lam_ref * k3
+    s1 = k1 / (a if a > k_flown_min else k_flown_min)
+    s2 = k2 / (b if b > k_flown_min else k_flown_min)
+    s3 = k3 / (c if c > k_flown_min else k_flown_min)
+    f = list(gi_flat)
+    for r in (0, 5, 10, 15, 20):
+        f[r] *= s1
+        f[r + 1] *= s2
+        f[r + 2] *= s3
+    return np.array(f).reshape(5, 5), tuple(f)
 
 
 def shaping_ff_check(shape_st: np.ndarray, quat: np.ndarray, scale: float, rise: float) -> float:
