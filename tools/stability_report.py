@@ -45,7 +45,7 @@ PAPER_LOOP = (120.0, 1.0, 0.01, 0.1)
 # Plant actuator bandwidth / ACT_WN for the mismatch table (the plant's actuators +-40 % off the FC's model).
 MISMATCH_FACTORS = (0.6, 0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3, 1.4)
 CONFIG_PARAMS = ("ACT_WN", "ACT_ZETA", "INDI_RATE_HZ", "INDI_LPF_TAU", "INDI_K_MIN", "INDI_K_MAX", "INDI_LAMBDA_MIN",
-                 "INDI_LAM_MARGIN", "INDI_U0_SRC", "INDI_U0_TAU", "INDI_ACC_REF")
+                 "INDI_LAM_MARGIN", "INDI_U0_SRC", "INDI_U0_TAU", "INDI_ACC_REF", "INDI_LAM_REF", "INDI_KFL_MIN")
 
 
 @dataclass(frozen=True)
@@ -101,8 +101,14 @@ def configuration(files: Sequence[str] = (), set_items: Sequence[str] = ()) -> C
 
 
 def inputs_of(values: dict[str, float | int]) -> Inputs:
+    """The analysis inputs of a configuration. K's range is the box of the K the INDI flies (registry.flown_k_bounds:
+    INDI_LAM_REF and INDI_KFL_MIN move it off the estimate's Eq. 20 box), which the eigenvalue sweep, the margin and
+    the LMI's corners analyse; at the defaults it is [INDI_K_MIN, INDI_K_MAX]."""
+    from navig8_fc.params.registry import flown_k_bounds
+
+    k_lo, k_hi = flown_k_bounds(values)
     return Inputs(float(values["ACT_WN"]), float(values["ACT_ZETA"]), 1.0 / float(values["INDI_RATE_HZ"]),
-                  float(values["INDI_LPF_TAU"]), float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"]),
+                  float(values["INDI_LPF_TAU"]), k_lo, k_hi,
                   float(values["INDI_LAMBDA_MIN"]), float(values["INDI_LAM_MARGIN"]), int(values["INDI_U0_SRC"]),
                   float(values["INDI_U0_TAU"]))
 

@@ -44,6 +44,10 @@ def render_text(r: dict[str, Any]) -> str:
     conf = r.get("configuration")
     if conf is not None:
         v = conf["values"]
+        if v.get("INDI_LAM_REF", 1.0) != 1.0 or v.get("INDI_KFL_MIN", 0.0) > 0.0:
+            lines.append(f"  K is the flown K: max(INDI_LAM_REF {v['INDI_LAM_REF']:g} x K_hat, INDI_KFL_MIN "
+                         f"{v['INDI_KFL_MIN']:g}) on the rotational axes, K_hat in [{v['INDI_K_MIN']:g}, "
+                         f"{v['INDI_K_MAX']:g}] (the estimate's Eq. 20 box)")
         lines += [
             "  configured values (defaults, then --params, then --set): "
             + ", ".join(f"{n} {v[n]:g}" for n in v),

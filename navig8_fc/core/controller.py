@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -100,6 +100,7 @@ PARAMS_USED = (
     "INDI_ARM_LEAD", "ARM_SERVO_HZ", "ARM_SERVO_VMAX", "ARM_SERVO_AMAX",
     "INDI_U0_SRC", "INDI_U0_TAU", "ACT_WN", "ACT_ZETA",
     "ARM_CHK_TOL", "ARM_TRUST_RISE", "ARM_SERVO_ID", "ACT_ID", "ACT_CHK_TILT", "ACT_CHK_SPD",
+    "INDI_LAM_REF", "INDI_KFL_MIN",
 )
 
 
@@ -164,7 +165,8 @@ class ControllerConfig:
                             act_wn_rad_s=float(values["ACT_WN"]), act_zeta=float(values["ACT_ZETA"]),
                             act_identify=bool(int(values["ACT_ID"])),
                             act_check_tilt_rad=float(values["ACT_CHK_TILT"]),
-                            act_check_speed_rad_s=float(values["ACT_CHK_SPD"])),
+                            act_check_speed_rad_s=float(values["ACT_CHK_SPD"]),
+                            lam_ref=float(values["INDI_LAM_REF"]), k_flown_min=float(values["INDI_KFL_MIN"])),
             outer=OuterLoopConfig.from_params(values, vehicle.gravity_m_s2),  # type: ignore[arg-type]
             ckf=CkfConfig.from_params(values, dt),
             acc_ref=int(values["INDI_ACC_REF"]),
@@ -249,6 +251,9 @@ class FlightControllerCore:
         self._arm_sup = pv.supervisor_state()  # kept across resets: the identified servo stays identified
         self._u_cmd = np.zeros(5)
         self._gc_law, self._gc_law_inv = np.empty((5, 5)), np.empty((5, 5))  # CKF_ACC_REF: G_C about the est. CoM
+        # the flown loop gain (INDI_LAM_REF != 1 or a floor INDI_KFL_MIN): off, G_hat_I is the adaptive law's, bit
+        # for bit
+        self._flown_gain = config.indi.lam_ref != 1.0 or config.indi.k_flown_min > 0.0
         assert N_LINKS == 3
 
     def update_gains(self, outer: OuterLoopConfig, k_min: float, k_max: float) -> None:
@@ -321,6 +326,9 @@ class FlightControllerCore:
         gi_hat, gi_flat, adapt_status = self._adapt.step_arrays(
             s.t_s, u_meas, acc_law, gc_law_inv, inertia, mass, rate, fo.item(_FO_ARM_HDC), self._indi_saturated,
             self._u_cmd if self._u_cmd_ok else None, s.gripper_closed, tuple(ul[_UO_OBJ_RATE:_UO_OBJ_RATE + 3]))
+        if self._flown_gain:  # INDI_LAM_REF / INDI_KFL_MIN: the INDI (and the status, the eigenvalue monitor) fly
+            gi_hat, gi_flat = flown_gi_hat(gi_flat, adapt_status.k, self.config.indi.lam_ref,  # K_flown, not K_hat
+                                           self.config.indi.k_flown_min)
         ref: tuple[float, float, float] | None = None
         sf_x = sf_z = 0.0  # the INDI's force-row feedback: f_O's (read from the sensors) or, here, the CoM's
         if self.config.acc_ref:
@@ -507,6 +515,26 @@ class FlightControllerCore:
         io = (sens, t.gyro, t.pos, t.vel, t.quat, t.sp, f.u_meas, f.acc_m, self.vehicle.uam_mass_kg)
         self._tick_io = io
         return io
+
+
+def flown_gi_hat(gi_flat: Sequence[float], k_hat: Sequence[float], lam_ref: float,
+                 k_flown_min: float) -> tuple[np.ndarray, tuple[float, ...]]:
+    """G_hat_I (Eq. 4) rebuilt for the flown K (k_xi.flown_k: K_flown,i = max(lam_ref K_hat,i, k_flown_min), i = 1..3):
+    column i of G_hat_I holds only x_i = J_ii / K_i (the roll/yaw cross terms of rows 0 and 2 scale with their
+    column's x, vehicle.estimated_gi), so x_i,flown = x_i K_hat,i / K_flown,i is a scaling of the three rotational
+    columns; the mass columns are untouched. gi_flat: G_hat_I row-major. Returns the new 5x5 array and its row-major
+    tuple. Plain floats: 15 products cost less than numpy's per-call overhead on a 5x5."""
+    k1, k2, k3 = float(k_hat[0]), float(k_hat[1]), float(k_hat[2])
+    a, b, c = lam_ref * k1, lam_ref * k2, lam_ref * k3
+    s1 = k1 / (a if a > k_flown_min else k_flown_min)
+    s2 = k2 / (b if b > k_flown_min else k_flown_min)
+    s3 = k3 / (c if c > k_flown_min else k_flown_min)
+    f = list(gi_flat)
+    for r in (0, 5, 10, 15, 20):
+        f[r] *= s1
+        f[r + 1] *= s2
+        f[r + 2] *= s3
+    return np.array(f).reshape(5, 5), tuple(f)
 
 
 def shaping_ff_check(shape_st: np.ndarray, quat: np.ndarray, scale: float, rise: float) -> float:

@@ -118,6 +118,11 @@ class IndiConfig:
     act_identify: bool = False
     act_check_tilt_rad: float = 0.25
     act_check_speed_rad_s: float = 60.0
+    # The flown loop gain (FlightControllerCore applies it; k_xi.flown_k): the INDI's G_hat_I is built from
+    # K_flown,i = max(lam_ref K_hat,i, k_flown_min) on the rotational axes (INDI_LAM_REF, INDI_KFL_MIN), K4 as
+    # estimated; 1 and 0 fly K_hat itself (the paper)
+    lam_ref: float = 1.0
+    k_flown_min: float = 0.0
 
 
 @dataclass(frozen=True)

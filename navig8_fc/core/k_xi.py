@@ -255,3 +255,23 @@ def lateral_eigenvalue_surfaces(
     order = np.argsort(lam.real, axis=-1, kind="stable")
     lam = np.take_along_axis(lam, order, axis=-1)
     return LateralSurfaces(k1g, k3g, lam[..., 0], lam[..., 1], xi_block_coupling(xi))
+
+
+def flown_k(k_hat: Sequence[float], lam_ref: float, k_flown_min: float) -> tuple[float, float, float, float]:
+    """The K the INDI flies (INDI_LAM_REF, INDI_KFL_MIN): K_flown,i = max(lam_ref K_hat,i, k_flown_min) on the
+    rotational axes i = 1..3, K4 (the mass axis) = K_hat,4 untouched. The eigenvalue of G_hat G^-1 on an axis is
+    K / K_true (Eq. 14-17 with Xi = I), so lam_ref is the flown loop gain's target once K_hat converges to the truth;
+    the estimate K_hat itself (its box, Eq. 20-21, and its update, Eq. 22-24) is not changed."""
+    k1, k2, k3, k4 = (float(v) for v in k_hat)
+    return (max(lam_ref * k1, k_flown_min), max(lam_ref * k2, k_flown_min), max(lam_ref * k3, k_flown_min), k4)
+
+
+def flown_k_box(k_min: float, k_max: float, lam_ref: float, k_flown_min: float) -> tuple[float, float]:
+    """A box [lo, hi] that holds every flown K (flown_k) for K_hat in the Eq. 20 box [k_min, k_max]^4: the rotational
+    axes span [max(lam_ref k_min, k_flown_min), max(lam_ref k_max, k_flown_min)], the mass axis [k_min, k_max]; the
+    union is returned (one box for all four axes, as the floor's sweep and the LMI's corners take it: a superset,
+    so the guarantee computed on it holds for the K flown). lam_ref = 1 and k_flown_min <= k_min give the Eq. 20 box
+    itself."""
+    lo_rot = max(lam_ref * k_min, k_flown_min)
+    hi_rot = max(lam_ref * k_max, k_flown_min)
+    return (min(lo_rot, k_min), max(hi_rot, k_max))

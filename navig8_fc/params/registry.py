@@ -40,11 +40,14 @@ TYPES = ("REAL32", "INT32")
 # Parameters the stability floor depends on: a change to any of them re-runs the check.
 STABILITY_PARAMS = frozenset(
     {"INDI_K_MIN", "INDI_K_MAX", "INDI_LAMBDA_MIN", "INDI_LAM_MARGIN", "ACT_WN", "ACT_ZETA", "INDI_RATE_HZ",
-     "INDI_LPF_TAU"}
+     "INDI_LPF_TAU", "INDI_LAM_REF", "INDI_KFL_MIN"}
 )
 # What the floor itself depends on (INDI_LAMBDA_MIN and INDI_LAM_MARGIN are compared against it afterwards): the
 # cache key.
-FLOOR_INPUTS = ("INDI_K_MIN", "INDI_K_MAX", "ACT_WN", "ACT_ZETA", "INDI_RATE_HZ", "INDI_LPF_TAU")
+FLOOR_INPUTS = ("INDI_K_MIN", "INDI_K_MAX", "ACT_WN", "ACT_ZETA", "INDI_RATE_HZ", "INDI_LPF_TAU", "INDI_LAM_REF",
+                "INDI_KFL_MIN")
+# The flown-gain parameters (INDI_LAM_REF, INDI_KFL_MIN) when a caller's values lack them: the paper's K_hat flown
+FLOWN_GAIN_DEFAULTS = {"INDI_LAM_REF": 1.0, "INDI_KFL_MIN": 0.0}
 FLOOR_CACHE_SIZE = 256
 
 
@@ -161,7 +164,7 @@ class WorkspaceStabilityCheck:
             1.0 / float(values["INDI_RATE_HZ"]),
             float(values["INDI_LPF_TAU"]),
         )
-        k_min, k_max = float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"])
+        k_min, k_max = flown_k_bounds(values)  # the K the INDI flies (INDI_LAM_REF, INDI_KFL_MIN), not K_hat's box
         min_eig = k_xi.min_eigenvalue_over_workspace(self._cfg, k_min, k_max)
         lam_up = stability.lambda_upper(
             float(values["ACT_WN"]), float(values["ACT_ZETA"]), 1.0 / float(values["INDI_RATE_HZ"]),
@@ -191,7 +194,17 @@ def run_floor(check: StabilityCheck, values: Mapping[str, float | int]) -> Stabi
 
 def floor_key(values: Mapping[str, float | int]) -> tuple[float, ...]:
     """The values the stability floor depends on, as a cache key."""
-    return tuple(float(values[n]) for n in FLOOR_INPUTS)
+    return tuple(float(values[n] if n in values else FLOWN_GAIN_DEFAULTS[n]) for n in FLOOR_INPUTS)
+
+
+def flown_k_bounds(values: Mapping[str, float | int]) -> tuple[float, float]:
+    """The box of the K the INDI flies (k_xi.flown_k_box): the Eq. 20 box [INDI_K_MIN, INDI_K_MAX] at the defaults
+    (INDI_LAM_REF 1, INDI_KFL_MIN 0), else widened to hold lambda* K_hat and the flown floor."""
+    from navig8_fc.core import k_xi
+
+    lam = float(values.get("INDI_LAM_REF", FLOWN_GAIN_DEFAULTS["INDI_LAM_REF"]))
+    floor = float(values.get("INDI_KFL_MIN", FLOWN_GAIN_DEFAULTS["INDI_KFL_MIN"]))
+    return k_xi.flown_k_box(float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"]), lam, floor)
 
 
 def load_definitions(text: str) -> tuple[ParamDef, ...]:
