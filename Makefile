@@ -4,7 +4,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-hil bench lint docs clean install
+.PHONY: demo test test-hil test-clients bench lint docs clean install
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -35,7 +35,11 @@ test: $(STAMP)
 	# 4.7 min instead of 7.8 (docs/results.md, "Test suite time"); --dist loadfile keeps a module's shared pair in
 	# one worker. tests/conftest.py warms numba's cache once before xdist starts its workers. Exit 5 fails.
 	$(PY) -m pytest -q -m 'not slow' -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: fast lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
-	$(PY) -m pytest -q -m slow -n 2 --dist loadfile; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; exit $$rc
+	$(PY) -m pytest -q -m 'slow and not clients_all' -n 2 --dist loadfile; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; exit $$rc
+
+# MAVSDK-Python's own examples, all of them (tests/clients; make test runs the quick ones): about 4 min on 2 workers.
+test-clients: $(STAMP)
+	$(PY) -m pytest -q tests/clients -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test-clients: no tests' >&2; fi; exit $$rc
 
 # The MAVLink-only SITL tests against an FC running elsewhere, by connection string (docs/hil.md); without FC the
 # local pairs (one per module); `python tests/sitl/hil_pair.py` runs it against a pair started outside pytest:

@@ -35,7 +35,7 @@ CASES: dict[str, Case] = {
     "offboard_velocity_body": Case(120, climbs_m=1.5, expect="-- Stopping offboard"),
     "offboard_position_velocity_ned": Case(120, climbs_m=1.5, expect="-- Stopping offboard"),
     "mission_raw": Case(30),
-    "mission": Case(150, climbs_m=20.0, expect="Mission progress: 6/6"),
+    "mission": Case(150, climbs_m=20.0, expect="Mission progress: 3/3"),
     "goto": Case(90, until=r"Staying connected", exits=False, climbs_m=1.0),
     "gripper": Case(30, until=r"Staying connected", exits=False, expect="-- Gripper Release"),
     "firmware_version": Case(30, expect="flight_sw_major: 1"),
@@ -56,6 +56,10 @@ NOT_YET = {  # example: (how it fails today, why; whose the gap is)
     "calibration": ("CalibrationError: UNSUPPORTED", "PREFLIGHT_CALIBRATION is not answered (PX4 SITL runs gyro)"),
     "do_orbit": ("ActionError: UNSUPPORTED", "DO_ORBIT is not flown yet"),
 }
+# In `make test` (each about 10 s with its pair): a flight, the gripper, telemetry, the IMU stream, the version and a
+# mission upload. The rest (the offboard and mission flights run 30-80 s on their own sleeps, and the documented
+# failures) run in `make test-clients`: all of them would add about 4 min to a suite kept under 10 (docs/gcs.md).
+QUICK = frozenset({"takeoff_and_land", "gripper", "telemetry", "highres_imu", "firmware_version", "mission_raw"})
 STOP_ON = r"Traceback \(most recent call last\)"  # a failed example stays alive (its mavsdk_server): stop it
 
 
@@ -76,7 +80,11 @@ def _judge(r: ExampleRun, case: Case) -> None:
         assert _rise_m(r.fc_log) >= case.climbs_m, (_rise_m(r.fc_log), tail)
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+def _params(names: object) -> list:
+    return [pytest.param(n, marks=() if n in QUICK else pytest.mark.clients_all) for n in sorted(names)]
+
+
+@pytest.mark.parametrize("name", _params(CASES))
 def test_example_runs_unmodified(name: str, tmp_path: Path) -> None:
     case = CASES[name]
     until = f"{case.until}|{STOP_ON}" if case.until else STOP_ON
@@ -85,7 +93,7 @@ def test_example_runs_unmodified(name: str, tmp_path: Path) -> None:
     _judge(r, case)
 
 
-@pytest.mark.parametrize("name", sorted(NOT_YET))
+@pytest.mark.parametrize("name", _params(NOT_YET))
 def test_example_fails_as_documented(name: str, tmp_path: Path) -> None:
     """The gaps, pinned: each fails exactly the documented way (one that passes, or fails otherwise, fails here)."""
     error, why = NOT_YET[name]
