@@ -104,7 +104,7 @@ def kf_predict(x, p, q_diag, dt, id0, id1, id2):
 
 
 @njit_cached(box_qp, linalg)
-def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation):
+def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r=0.0):
     """Measurement update z = Delta U = H(Delta Acc_m) x + nu (Eq. 24): K = P H^T S^-1, S = H P H^T + R
     (a solve, no inverse), x += K (z - H x), P = (I - K H) P (I - K H)^T + K R K^T (Joseph form: PSD under
     rounding), symmetrised. x (4,), p (4, 4) in place; innovation (5,) written.
@@ -113,7 +113,11 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation):
     with it, and the Joseph form gives the exact covariance of the masked, suboptimal gain), 1 is the KF.
 
     S >= R > 0 for finite inputs, so it always factorises; a non-finite S (a NaN/inf measurement) cannot, and
-    x and P become NaN, as the LAPACK solve's result was. Returns False then."""
+    x and P become NaN, as the LAPACK solve's result was. Returns False then.
+
+    pitch_r > 0 (CKF_R_PITCH, (N m)^2): I_yy is held in the Delta U update above and corrected instead from the pitch
+    row of Eq. 24 taken back to moment space, G_C[M, :] Delta U = I_yy Delta Q-dot (G_I's pitch row has I_yy alone),
+    a scalar update with noise variance pitch_r (kf_correct_pitch)."""
     h = np.empty((5, 4))
     _regressor(gc_inv, da, rho_x, rho_z, h)
     pht = np.empty((4, 5))
@@ -135,9 +139,13 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation):
         p[:, :] = np.nan
         return False
     gain = aug[:, 5:].T  # K (4x5), a view
+    m1 = mask[1]
+    if pitch_r > 0.0:
+        m1 = 0.0  # I_yy: the pitch-moment row below
     for i in range(4):
+        mi = m1 if i == 1 else mask[i]
         for k in range(5):
-            gain[i, k] *= mask[i]
+            gain[i, k] *= mi
     for i in range(4):
         acc = 0.0
         for k in range(5):
@@ -164,6 +172,42 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation):
     for i in range(4):
         for j in range(4):
             p[i, j] = 0.5 * (pn[i, j] + pn[j, i])
+    if pitch_r > 0.0 and mask[1] != 0.0:
+        return kf_correct_pitch(x, p, pitch_r, gc_inv, du, da[1])
+    return True
+
+
+@njit_cached(linalg)
+def kf_correct_pitch(x, p, pitch_r, gc_inv, du, dq_dot):
+    """The pitch row of Eq. 24 in moment space: y = G_C[M, :] Delta U = I_yy Delta Q-dot + nu, nu ~ (0, pitch_r)
+    (G_C = (G_C^-1)^-1, the moments about the point the caller's G_C refers to; G_I's pitch row is [0, I_yy, 0, 0,
+    0]). A scalar update of I_yy alone (the other states held, Schmidt; Joseph form keeps P exact). Why not in
+    Delta U space with the others: there the pitch column G_C^-1[:, M] Delta Q-dot spreads over all five rows, so the
+    force rows' errors (the accelerometer noise the INDI feeds back as force commands, the mass still converging)
+    are read as pitch information through the diagonal R; in moment space the pitch row has I_yy alone.
+    Returns False (x, P unchanged) when G_C^-1 is singular."""
+    gc = np.empty((5, 5))
+    if not linalg.inv_gauss_jordan(gc_inv, gc):
+        return False
+    y = 0.0
+    for j in range(5):
+        y += gc[1, j] * du[j]
+    s = dq_dot * dq_dot * p[1, 1] + pitch_r
+    g = np.zeros(4)
+    g[1] = p[1, 1] * dq_dot / s
+    x[1] += g[1] * (y - dq_dot * x[1])
+    # Joseph form with H = dq_dot e_1: P = (I - g H) P (I - g H)^T + g r g^T
+    a = np.empty((4, 4))
+    for i in range(4):
+        for j in range(4):
+            a[i, j] = (1.0 if i == j else 0.0) - (g[i] * dq_dot if j == 1 else 0.0)
+    t1 = np.empty((4, 4))
+    _mul(a, p, t1)
+    pn = np.empty((4, 4))
+    _mul(t1, a.T, pn)
+    for i in range(4):
+        for j in range(4):
+            p[i, j] = 0.5 * (pn[i, j] + pn[j, i]) + g[i] * pitch_r * g[j]
     return True
 
 
@@ -247,7 +291,7 @@ def excitation_mask(da, exc_rot, exc_lin, mask):
 
 @njit_cached(box_qp, linalg, ckf_config)
 def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc_rot, exc_lin, gc_inv, du, da,
-            rho_x, rho_z, constrained, identity, lo, hi, out):
+            rho_x, rho_z, constrained, identity, lo, hi, out, pitch_r=0.0):
     """predict (if do_predict), correct (if do_correct and some state passes the excitation gate; the others
     held), project (if constrained) on x, p in place; results into out (STEP_OUT). Returns the PROJ_* code."""
     if do_predict:
@@ -256,7 +300,7 @@ def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc
     innovation = out[SO_INNOV:SO_INNOV + N_MEAS]
     n_exc = excitation_mask(da, exc_rot, exc_lin, mask) if do_correct else 0
     if n_exc > 0:
-        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation)
+        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r)
         out[SO_CORRECTED] = 1.0
     else:
         mask[:] = 0.0
@@ -316,6 +360,7 @@ class ConstrainedKalmanFilter:
         self._constrained = config.constrained
         self._identity_weight = config.projection_weight == "identity"
         self._exc_rot, self._exc_lin = config.exc_rot_rad_s2, config.exc_lin_m_s2
+        self._pitch_r = config.pitch_r_nm2
         self._x = np.zeros(N_STATE)
         self._p = np.diag(config.p0_scale * self._q)
         self._out = STEP_OUT.zeros()
@@ -398,7 +443,7 @@ class ConstrainedKalmanFilter:
         innovation = np.empty(N_MEAS)
         kf_correct(self._x, self._p, self._r, np.ascontiguousarray(gc_uam_inv, dtype=float),
                    np.asarray(delta_u, dtype=float), np.asarray(delta_acc, dtype=float), float(rho_x),
-                   float(rho_z), _ONES4, innovation)
+                   float(rho_z), _ONES4, innovation, self._pitch_r)
         self.n_updates += 1
         return innovation
 
@@ -436,7 +481,7 @@ class ConstrainedKalmanFilter:
         i0, i1, i2 = inertia_rate_diag if do_predict else _ZERO3  # type: ignore[misc]
         code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, bool(correct),
                        self._exc_rot, self._exc_lin, gc_uam_inv, delta_u, delta_acc, rho_x, rho_z, self._constrained,
-                       self._identity_weight, lower, upper, self._out)
+                       self._identity_weight, lower, upper, self._out, self._pitch_r)
         self._account(code, lower, upper)
         o = self._out.tolist()
         corrected = o[SO_CORRECTED] != 0.0
