@@ -389,7 +389,7 @@ def _pitch_row_data(n: int, seed: int = 3) -> tuple[np.ndarray, np.ndarray, np.n
     data = []
     for _ in range(n):
         da = rng.standard_normal(5) * np.array([0.3, 0.3, 0.3, 0.5, 0.5])
-        gi_da = np.array([x_true[0] * da[0], x_true[1] * da[1], x_true[2] * da[2], x_true[3] * da[3], x_true[3] * da[4]])
+        gi_da = np.array([x_true[0], x_true[1], x_true[2], x_true[3], x_true[3]]) * da  # rho = 0: G_I diagonal
         e = 0.01 * rng.standard_normal(5)
         e[3] += 2.0 * da[1]
         du = gc_inv @ (gi_da + e)
