@@ -243,6 +243,9 @@ class AdaptiveLaw:
         self._grip_reset = ckf.grip_reset
         self._event_hold_s = ckf.lpf_tau_s  # no correction this long after a grasp / release (the low-passes carry it)
         self._pred_dj = ckf.predict_from_dj
+        # the pitch row's prior while an object is held (CKF_CZ_SIG; only with the moment-space row, CKF_R_PITCH)
+        self._com_sigma = ckf.com_sigma_m if (ckf.pitch_r_nm2 > 0.0 and isinstance(self._kf, ConstrainedKalmanFilter)) \
+            else 0.0
         self._inv_dt = 1.0 / ckf.dt_s
         self._j_prev = (0.0, 0.0, 0.0)  # J's diagonal at the previous tick (CKF_PRED_DJ; set before it is read)
         # Constants of the tick, looked up once: the config is frozen.
@@ -268,6 +271,7 @@ class AdaptiveLaw:
         self._running = False
         self._mass_hat: float | None = None
         self._grip_prev: bool | None = None
+        self._held_prev: bool | None = None
         self._k_before_grasp: tuple[float, ...] | None = None
         self._hold_until_s = -math.inf
         self._n_forgets = 0
@@ -335,6 +339,11 @@ class AdaptiveLaw:
             self._running = True
         if self._grip_reset and gripper_closed is not None:
             self._on_gripper(bool(gripper_closed), t_s, base, lower, upper)
+        if self._com_sigma > 0.0 and gripper_closed is not None and gripper_closed != self._held_prev:
+            # a grasp or a release (or the first report): the pitch row's nuisance CoM error, and at a grasp I_yy's
+            # variance at least (half the box's width)^2, the object's inertia being unknown within the box
+            self._held_prev = bool(gripper_closed)
+            kf.object_held(self._held_prev, self._com_sigma, (0.5 * (upper[1] - lower[1])) ** 2)
         correct = self._gate(ready, window_sat, t_s)
         self._j_prev = (j11, j22, j33)
         rho_x, rho_z = inertia_ratios(j11, j13, j33)
