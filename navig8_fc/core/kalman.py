@@ -117,9 +117,9 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pit
 
     pitch_r > 0 (CKF_R_PITCH, (N m)^2): I_yy is held in the Delta U update above and corrected instead from the pitch
     row of Eq. 24 taken back to moment space, G_C[M, :] Delta U = I_yy Delta Q-dot (G_I's pitch row has I_yy alone),
-    a scalar update with noise variance pitch_r (kf_correct_pitch). nz (NZ_SIZE,): the pitch row's nuisance state, the
-    CoM-height error of a held object (kf_correct_pitch); its cross-covariance with x follows this update too. None:
-    no nuisance state."""
+    a scalar update with noise variance pitch_r (kf_correct_pitch); pitch_r < 0: I_yy held (not corrected).
+    nz (NZ_SIZE,): the pitch row's nuisance state, the CoM-height error of a held object (kf_correct_pitch); its
+    cross-covariance with x follows this update too. None: no nuisance state."""
     h = np.empty((5, 4))
     _regressor(gc_inv, da, rho_x, rho_z, h)
     pht = np.empty((4, 5))
@@ -142,8 +142,8 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pit
         return False
     gain = aug[:, 5:].T  # K (4x5), a view
     m1 = mask[1]
-    if pitch_r > 0.0:
-        m1 = 0.0  # I_yy: the pitch-moment row below
+    if pitch_r != 0.0:
+        m1 = 0.0  # I_yy: the pitch-moment row below (pitch_r > 0), or held (< 0)
     for i in range(4):
         mi = m1 if i == 1 else mask[i]
         for k in range(5):
@@ -534,6 +534,7 @@ class ConstrainedKalmanFilter:
         lower: Sequence[float],
         upper: Sequence[float],
         correct: bool = True,
+        pitch: bool = True,
     ) -> KfStepResult:
         """predict (skipped when inertia_rate_diag is None, e.g. on the first tick: x0 already describes the
         current pose), correct (when `correct`; only the states that pass the excitation gate of the config),
@@ -541,7 +542,8 @@ class ConstrainedKalmanFilter:
 
         delta_u, delta_acc: float64 arrays (5,); gc_uam_inv (5, 5) float64; lower/upper: 4 floats each (a tuple
         is the cheap form: the kernel is compiled for it), ignored unless constrained. n_updates counts the
-        corrections that ran.
+        corrections that ran. pitch False: with the moment-space pitch row (CKF_R_PITCH > 0), I_yy is not corrected
+        this step (held, as the gate holds a state).
         """
         if not self._initialised:
             raise RuntimeError("ConstrainedKalmanFilter.step before initialise()")
@@ -549,7 +551,8 @@ class ConstrainedKalmanFilter:
         i0, i1, i2 = inertia_rate_diag if do_predict else _ZERO3  # type: ignore[misc]
         code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, bool(correct),
                        self._exc_rot, self._exc_lin, gc_uam_inv, delta_u, delta_acc, rho_x, rho_z, self._constrained,
-                       self._identity_weight, lower, upper, self._out, self._pitch_r, self._nz)
+                       self._identity_weight, lower, upper, self._out,
+                       self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz)
         self._account(code, lower, upper)
         o = self._out.tolist()
         corrected = o[SO_CORRECTED] != 0.0
