@@ -416,3 +416,34 @@ def test_the_pitch_row_in_moment_space_is_not_biased_by_the_force_rows(pitch_r: 
     else:  # the Delta U update, the same data: biased (the failure the moment-space row removes)
         assert rel_err > 0.1, x
     assert abs(x[0] - x_true[0]) / x_true[0] < 0.2 and abs(x[2] - x_true[2]) / x_true[2] < 0.2, x
+
+
+@pytest.mark.parametrize("com_sigma_m", [0.0, 0.05])
+def test_the_pitch_rows_com_nuisance_removes_the_bias_of_a_wrong_reference_point(com_sigma_m: float) -> None:
+    """The law's moments about a point 3 cm off the true CoM: the pitch row is I_yy Delta Q-dot + c Delta F_x with
+    Delta F_x following the pitch excitation (correlation 0.8, as the ducts' tilt follows the doublets). Without the
+    nuisance state I_yy absorbs c Delta F_x; with it (object_held, prior sigma 5 cm) I_yy and c converge to the truth.
+    G_C = I, so Delta U is the moment/force increment itself. No projection: no bound."""
+    rng = np.random.default_rng(11)
+    x_true = np.array([0.7, 0.9, 1.1, 8.0])
+    c_true_m = 0.03
+    cfg = CkfConfig(mode=CkfMode.UNCONSTRAINED, q_diag=(0.0,) * 4, r_diag=(1e-2,) * 5, p0_scale=0.0,
+                    pitch_r_nm2=1e-3, com_sigma_m=com_sigma_m)
+    kf = ConstrainedKalmanFilter(cfg)
+    kf.initialise([0.5, 0.6, 0.9, 8.0], p0=np.diag([1.0, 0.01, 1.0, 1.0]))
+    if com_sigma_m > 0.0:
+        kf.object_held(True, com_sigma_m, 1.0)
+    eye = np.eye(5)
+    for _ in range(400):
+        da = rng.standard_normal(5) * 0.3
+        da[3] = 0.8 * da[1] + 0.6 * 0.3 * rng.standard_normal()  # a_x follows Q-dot
+        du = np.array([x_true[0] * da[0], x_true[1] * da[1] + c_true_m * x_true[3] * da[3], x_true[2] * da[2],
+                       x_true[3] * da[3], x_true[3] * da[4]]) + 0.01 * rng.standard_normal(5)
+        kf.correct(du, da, eye, 0.0, 0.0)
+    rel_err = abs(kf.x[1] - x_true[1]) / x_true[1]
+    if com_sigma_m > 0.0:
+        assert rel_err < 0.02 and abs(kf.pitch_com_offset_m - c_true_m) < 0.005, (kf.x, kf.pitch_com_offset_m)
+    else:
+        assert rel_err > 0.1, kf.x
+    kf.object_held(False, com_sigma_m, 1.0)  # a release: no object, no nuisance
+    assert kf.pitch_com_offset_m == 0.0
