@@ -209,6 +209,7 @@ class AdaptiveLawStatus:
     n_forgets: int = 0  # grasps and releases the estimator forgot on (CKF_GRIP_RST) since the start
 
 
+PITCH_EVENT_HOLD_TAU = 3.0  # the moment-space pitch row's wait after a gripper event, in CKF_LPF_TAU
 _ZERO4 = (0.0,) * N_STATE
 _ZERO5 = (0.0,) * N_MEAS
 _ONES4 = (1.0,) * N_STATE
@@ -243,6 +244,13 @@ class AdaptiveLaw:
         self._grip_reset = ckf.grip_reset
         self._event_hold_s = ckf.lpf_tau_s  # no correction this long after a grasp / release (the low-passes carry it)
         self._pred_dj = ckf.predict_from_dj
+        # the moment-space pitch row (CKF_R_PITCH; the KF only) and its prior while an object is held (CKF_CZ_SIG)
+        self._pitch_row = ckf.pitch_r_nm2 > 0.0 and isinstance(self._kf, ConstrainedKalmanFilter)
+        self._com_sigma = ckf.com_sigma_m if self._pitch_row else 0.0
+        # after a grasp or a release the pitch row waits PITCH_EVENT_HOLD_TAU filter time constants: the object's
+        # weight moment steps in the commanded pitch moment with no pitch acceleration to match, and the low-passed
+        # command carries the step's tail (exp(-1) of it after one constant, exp(-3) = 5 % after three)
+        self._pitch_event_hold_s = PITCH_EVENT_HOLD_TAU * ckf.lpf_tau_s
         self._inv_dt = 1.0 / ckf.dt_s
         self._j_prev = (0.0, 0.0, 0.0)  # J's diagonal at the previous tick (CKF_PRED_DJ; set before it is read)
         # Constants of the tick, looked up once: the config is frozen.
@@ -268,6 +276,8 @@ class AdaptiveLaw:
         self._running = False
         self._mass_hat: float | None = None
         self._grip_prev: bool | None = None
+        self._held_prev: bool | None = None
+        self._pitch_hold_until_s = -math.inf
         self._k_before_grasp: tuple[float, ...] | None = None
         self._hold_until_s = -math.inf
         self._n_forgets = 0
@@ -335,6 +345,13 @@ class AdaptiveLaw:
             self._running = True
         if self._grip_reset and gripper_closed is not None:
             self._on_gripper(bool(gripper_closed), t_s, base, lower, upper)
+        if self._pitch_row and gripper_closed is not None and gripper_closed != self._held_prev:
+            if self._held_prev and not gripper_closed:  # a release
+                self._pitch_hold_until_s = t_s + self._pitch_event_hold_s
+            self._held_prev = bool(gripper_closed)
+            if self._com_sigma > 0.0:  # the pitch row's nuisance CoM error, and at a grasp I_yy's variance at least
+                # (half the box's width)^2, the object's inertia being unknown within the box
+                kf.object_held(self._held_prev, self._com_sigma, (0.5 * (upper[1] - lower[1])) ** 2)
         correct = self._gate(ready, window_sat, t_s)
         self._j_prev = (j11, j22, j33)
         rho_x, rho_z = inertia_ratios(j11, j13, j33)
@@ -342,7 +359,11 @@ class AdaptiveLaw:
         dhd = inc[LO_DH]
         if self.config.arm_wrench and dhd != 0.0:
             du_kf = self._du - gc_inv[:, 1] * dhd  # z = Delta U - G_C^-1 [0, Delta h', 0, 0, 0]
-        r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
+        if self._pitch_row:
+            r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
+                        pitch=t_s >= self._pitch_hold_until_s)
+        else:
+            r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
         return self._estimated(r, base, j13, lower, upper, du, da, window_sat)
 
     def _not_started(

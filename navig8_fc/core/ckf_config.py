@@ -38,7 +38,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_P0_SCALE", "CKF_PROJ_W",
     "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
     "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
-    "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4",
+    "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
 )
 
 
@@ -116,6 +116,12 @@ class CkfConfig:
     gc_at_com: bool = False  # CKF_GC_REF: the law's G_C moment rows about the estimated composite CoM (controller.py)
     # CKF_LMS_MU1..4: the per-state rates of mode LMS (dimensionless, in lms.py's normalised coordinates)
     lms_mu: tuple[float, ...] = LMS_MU_DEFAULT
+    # CKF_R_PITCH: > 0, I_yy is corrected from the pitch row in moment space with this noise variance, (N m)^2
+    # (kalman.kf_correct_pitch); 0: with the other states in Delta U space (the paper's Eq. 24 as written)
+    pitch_r_nm2: float = 0.0
+    # CKF_CZ_SIG: with pitch_r_nm2 > 0, the prior sigma (m) of the held object's CoM-height error in the pitch row, and
+    # at a grasp I_yy's variance raised to (half the box's width)^2 (AdaptiveLaw, kalman.kf_correct_pitch); 0: neither
+    com_sigma_m: float = 0.0
 
     def __post_init__(self) -> None:
         lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
@@ -147,7 +153,8 @@ class CkfConfig:
         object.__setattr__(self, "grip_reset", bool(self.grip_reset))
         object.__setattr__(self, "predict_from_dj", bool(self.predict_from_dj))
         object.__setattr__(self, "gc_at_com", bool(self.gc_at_com))
-        for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2"):
+        for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2", "pitch_r_nm2",
+                     "com_sigma_m"):
             v = float(getattr(self, name))
             if not (v >= 0.0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
@@ -202,4 +209,6 @@ class CkfConfig:
             predict_from_dj=bool(int(values["CKF_PRED_DJ"])),
             gc_at_com=bool(int(values["CKF_GC_REF"])),
             lms_mu=tuple(float(values[f"CKF_LMS_MU{i}"]) for i in range(1, 5)),
+            pitch_r_nm2=float(values["CKF_R_PITCH"]),
+            com_sigma_m=float(values["CKF_CZ_SIG"]),
         )

@@ -104,7 +104,7 @@ def kf_predict(x, p, q_diag, dt, id0, id1, id2):
 
 
 @njit_cached(box_qp, linalg)
-def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation):
+def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r=0.0, nz=None):
     """Measurement update z = Delta U = H(Delta Acc_m) x + nu (Eq. 24): K = P H^T S^-1, S = H P H^T + R
     (a solve, no inverse), x += K (z - H x), P = (I - K H) P (I - K H)^T + K R K^T (Joseph form: PSD under
     rounding), symmetrised. x (4,), p (4, 4) in place; innovation (5,) written.
@@ -113,7 +113,13 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation):
     with it, and the Joseph form gives the exact covariance of the masked, suboptimal gain), 1 is the KF.
 
     S >= R > 0 for finite inputs, so it always factorises; a non-finite S (a NaN/inf measurement) cannot, and
-    x and P become NaN, as the LAPACK solve's result was. Returns False then."""
+    x and P become NaN, as the LAPACK solve's result was. Returns False then.
+
+    pitch_r > 0 (CKF_R_PITCH, (N m)^2): I_yy is held in the Delta U update above and corrected instead from the pitch
+    row of Eq. 24 taken back to moment space, G_C[M, :] Delta U = I_yy Delta Q-dot (G_I's pitch row has I_yy alone),
+    a scalar update with noise variance pitch_r (kf_correct_pitch); pitch_r < 0: I_yy held (not corrected).
+    nz (NZ_SIZE,): the pitch row's nuisance state, the CoM-height error of a held object (kf_correct_pitch); its
+    cross-covariance with x follows this update too. None: no nuisance state."""
     h = np.empty((5, 4))
     _regressor(gc_inv, da, rho_x, rho_z, h)
     pht = np.empty((4, 5))
@@ -135,9 +141,13 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation):
         p[:, :] = np.nan
         return False
     gain = aug[:, 5:].T  # K (4x5), a view
+    m1 = mask[1]
+    if pitch_r != 0.0:
+        m1 = 0.0  # I_yy: the pitch-moment row below (pitch_r > 0), or held (< 0)
     for i in range(4):
+        mi = m1 if i == 1 else mask[i]
         for k in range(5):
-            gain[i, k] *= mask[i]
+            gain[i, k] *= mi
     for i in range(4):
         acc = 0.0
         for k in range(5):
@@ -164,6 +174,89 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation):
     for i in range(4):
         for j in range(4):
             p[i, j] = 0.5 * (pn[i, j] + pn[j, i])
+    if nz is not None:  # cov(x, c) <- (I - K H) cov(x, c): c is not measured by this update
+        c = np.empty(4)
+        for i in range(4):
+            acc = 0.0
+            for j in range(4):
+                acc += ikh[i, j] * nz[NZ_COV + j]
+            c[i] = acc
+        for i in range(4):
+            nz[NZ_COV + i] = c[i]
+    if pitch_r > 0.0 and mask[1] != 0.0:
+        return kf_correct_pitch(x, p, pitch_r, gc_inv, du, da[1], nz)
+    return True
+
+
+# The pitch row's nuisance state (kf_correct_pitch): its value (m), variance (m^2) and covariance with x (4,)
+NZ_X = 0
+NZ_VAR = 1
+NZ_COV = 2
+NZ_SIZE = 6
+
+
+@njit_cached(linalg)
+def kf_correct_pitch(x, p, pitch_r, gc_inv, du, dq_dot, nz=None):
+    """The pitch row of Eq. 24 in moment space: y = G_C[M, :] Delta U = I_yy Delta Q-dot + c Delta F_x + nu,
+    nu ~ (0, pitch_r) (G_C = (G_C^-1)^-1, the moments about the point the caller's G_C refers to; G_I's pitch row is
+    [0, I_yy, 0, 0, 0]; Delta F_x = G_C[F_x, :] Delta U). c (m) is the error of that point's height against the true
+    CoM's (M_true = M_ref - (c_true - c_ref) x F), a nuisance state in nz (value, variance, covariance with x) that the
+    caller gives a prior while an object is held (its CoM follows the mass estimate, which converges last) and zero
+    otherwise; with nz None or its variance 0 the row is I_yy Delta Q-dot alone. A scalar update of I_yy and c (the
+    other states held, Schmidt; Joseph form keeps the covariance exact). Why not in Delta U space with the others:
+    there the pitch column G_C^-1[:, M] Delta Q-dot spreads over all five rows, so the force rows' errors (the
+    accelerometer noise the INDI feeds back as force commands, the mass still converging) are read as pitch
+    information through the diagonal R; in moment space the pitch row has I_yy alone.
+    Returns False (x, P unchanged) when G_C^-1 is singular."""
+    gc = np.empty((5, 5))
+    if not linalg.inv_gauss_jordan(gc_inv, gc):
+        return False
+    y = 0.0
+    fx = 0.0
+    for j in range(5):
+        y += gc[1, j] * du[j]
+        fx += gc[3, j] * du[j]
+    # the augmented state [x, c] (5,), its covariance pa, the measurement row h = [0, dq_dot, 0, 0, fx]
+    pa = np.zeros((5, 5))
+    for i in range(4):
+        for j in range(4):
+            pa[i, j] = p[i, j]
+    xc = 0.0
+    if nz is not None:
+        xc = nz[NZ_X]
+        pa[4, 4] = nz[NZ_VAR]
+        for i in range(4):
+            pa[i, 4] = nz[NZ_COV + i]
+            pa[4, i] = nz[NZ_COV + i]
+    h = np.zeros(5)
+    h[1] = dq_dot
+    h[4] = fx
+    pht = np.zeros(5)
+    for i in range(5):
+        pht[i] = pa[i, 1] * dq_dot + pa[i, 4] * fx
+    s = dq_dot * pht[1] + fx * pht[4] + pitch_r
+    g = np.zeros(5)
+    g[1] = pht[1] / s
+    g[4] = pht[4] / s
+    e = y - dq_dot * x[1] - fx * xc
+    x[1] += g[1] * e
+    # Joseph form: Pa = (I - g h) Pa (I - g h)^T + g r g^T
+    a = np.empty((5, 5))
+    for i in range(5):
+        for j in range(5):
+            a[i, j] = (1.0 if i == j else 0.0) - g[i] * h[j]
+    t1 = np.empty((5, 5))
+    _mul(a, pa, t1)
+    pn = np.empty((5, 5))
+    _mul(t1, a.T, pn)
+    for i in range(4):
+        for j in range(4):
+            p[i, j] = 0.5 * (pn[i, j] + pn[j, i]) + g[i] * pitch_r * g[j]
+    if nz is not None:
+        nz[NZ_X] = xc + g[4] * e
+        nz[NZ_VAR] = pn[4, 4] + g[4] * pitch_r * g[4]
+        for i in range(4):
+            nz[NZ_COV + i] = 0.5 * (pn[i, 4] + pn[4, i]) + g[i] * pitch_r * g[4]
     return True
 
 
@@ -247,7 +340,7 @@ def excitation_mask(da, exc_rot, exc_lin, mask):
 
 @njit_cached(box_qp, linalg, ckf_config)
 def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc_rot, exc_lin, gc_inv, du, da,
-            rho_x, rho_z, constrained, identity, lo, hi, out):
+            rho_x, rho_z, constrained, identity, lo, hi, out, pitch_r=0.0, nz=None):
     """predict (if do_predict), correct (if do_correct and some state passes the excitation gate; the others
     held), project (if constrained) on x, p in place; results into out (STEP_OUT). Returns the PROJ_* code."""
     if do_predict:
@@ -256,7 +349,7 @@ def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc
     innovation = out[SO_INNOV:SO_INNOV + N_MEAS]
     n_exc = excitation_mask(da, exc_rot, exc_lin, mask) if do_correct else 0
     if n_exc > 0:
-        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation)
+        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r, nz)
         out[SO_CORRECTED] = 1.0
     else:
         mask[:] = 0.0
@@ -316,6 +409,8 @@ class ConstrainedKalmanFilter:
         self._constrained = config.constrained
         self._identity_weight = config.projection_weight == "identity"
         self._exc_rot, self._exc_lin = config.exc_rot_rad_s2, config.exc_lin_m_s2
+        self._pitch_r = config.pitch_r_nm2
+        self._nz = np.zeros(NZ_SIZE)  # the pitch row's nuisance state (kf_correct_pitch): zero until an object is held
         self._x = np.zeros(N_STATE)
         self._p = np.diag(config.p0_scale * self._q)
         self._out = STEP_OUT.zeros()
@@ -342,6 +437,7 @@ class ConstrainedKalmanFilter:
             raise ValueError(f"x0 must have {N_STATE} components, got shape {x.shape}")
         self._x = x
         self._p = np.diag(self.config.p0_scale * self._q) if p0 is None else np.array(p0, dtype=float)
+        self._nz[:] = 0.0
         self._initialised = True
         self.n_updates = 0
         self.n_projection_fallbacks = 0
@@ -356,6 +452,23 @@ class ConstrainedKalmanFilter:
                 raise ValueError(f"x_new must be {N_STATE} finite values, got {x_new!r}")
             self._x[:] = x
         self._p[:, :] = np.diag(self.config.p0_scale * self._q)
+        self._nz[NZ_COV:] = 0.0
+
+    def object_held(self, held: bool, com_sigma_m: float, iyy_var_min: float) -> None:
+        """The pitch row's prior on a grasp (held) or a release: while an object is held, the CoM-height error of the
+        law's reference point is a nuisance state of prior N(0, com_sigma_m^2) (kf_correct_pitch) and I_yy's variance is
+        raised to at least iyy_var_min (a held object may move I_yy anywhere in the box); with none held the nuisance
+        is zero, with zero variance."""
+        self._require_initialised()
+        self._nz[:] = 0.0
+        if held:
+            self._nz[NZ_VAR] = com_sigma_m * com_sigma_m
+            self._p[1, 1] = max(self._p[1, 1], iyy_var_min)
+
+    @property
+    def pitch_com_offset_m(self) -> float:
+        """The pitch row's nuisance estimate (m): the CoM-height error of the law's reference point (0: none held)."""
+        return float(self._nz[NZ_X])
 
     def reset(self) -> None:
         """Back to the uninitialised state; initialise() starts again."""
@@ -398,7 +511,7 @@ class ConstrainedKalmanFilter:
         innovation = np.empty(N_MEAS)
         kf_correct(self._x, self._p, self._r, np.ascontiguousarray(gc_uam_inv, dtype=float),
                    np.asarray(delta_u, dtype=float), np.asarray(delta_acc, dtype=float), float(rho_x),
-                   float(rho_z), _ONES4, innovation)
+                   float(rho_z), _ONES4, innovation, self._pitch_r, self._nz)
         self.n_updates += 1
         return innovation
 
@@ -421,6 +534,7 @@ class ConstrainedKalmanFilter:
         lower: Sequence[float],
         upper: Sequence[float],
         correct: bool = True,
+        pitch: bool = True,
     ) -> KfStepResult:
         """predict (skipped when inertia_rate_diag is None, e.g. on the first tick: x0 already describes the
         current pose), correct (when `correct`; only the states that pass the excitation gate of the config),
@@ -428,7 +542,8 @@ class ConstrainedKalmanFilter:
 
         delta_u, delta_acc: float64 arrays (5,); gc_uam_inv (5, 5) float64; lower/upper: 4 floats each (a tuple
         is the cheap form: the kernel is compiled for it), ignored unless constrained. n_updates counts the
-        corrections that ran.
+        corrections that ran. pitch False: with the moment-space pitch row (CKF_R_PITCH > 0), I_yy is not corrected
+        this step (held, as the gate holds a state).
         """
         if not self._initialised:
             raise RuntimeError("ConstrainedKalmanFilter.step before initialise()")
@@ -436,7 +551,8 @@ class ConstrainedKalmanFilter:
         i0, i1, i2 = inertia_rate_diag if do_predict else _ZERO3  # type: ignore[misc]
         code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, bool(correct),
                        self._exc_rot, self._exc_lin, gc_uam_inv, delta_u, delta_acc, rho_x, rho_z, self._constrained,
-                       self._identity_weight, lower, upper, self._out)
+                       self._identity_weight, lower, upper, self._out,
+                       self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz)
         self._account(code, lower, upper)
         o = self._out.tolist()
         corrected = o[SO_CORRECTED] != 0.0

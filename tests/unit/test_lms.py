@@ -211,7 +211,9 @@ def test_registry_accepts_mode_4_refuses_5_and_the_rates_have_ranges() -> None:
     names = [f"CKF_LMS_MU{i}" for i in range(1, 5)]
     assert set(names) <= set(CKF_PARAM_NAMES)
     # appended: the parameters before them keep their MAVLink index
-    assert [reg.index_of(n) for n in names] == list(range(len(reg) - 4, len(reg)))
+    idx = [reg.index_of(n) for n in names]
+    assert idx == list(range(idx[0], idx[0] + 4))
+    assert all(reg.index_of(n) > idx[-1] for n in ("CKF_R_PITCH", "CKF_CZ_SIG"))  # appended after them
     assert reg.index_of("CKF_K_PIN4") < reg.index_of("CKF_LMS_MU1")
     for n in names:
         d = reg.definition(n)
