@@ -82,6 +82,7 @@ ROTOR_DISK_AREA_M2 = 0.07
 FIGURE_OF_MERIT = 0.6
 BATTERY_PERIOD_S = 0.1  # the pack model's update period (BATTERY_STATUS streams at 1 Hz)
 _POWER_DIVISOR = math.sqrt(2 * AIR_DENSITY_KG_M3 * ROTOR_DISK_AREA_M2) * FIGURE_OF_MERIT
+_NO_ACCEL = (0.0, 0.0, 0.0)
 TASK_FLIGHT, TASK_ARM = "flight", "arm"  # the two kinds of long-running command that can run side by side
 
 
@@ -192,9 +193,11 @@ class FlightStack:
         modes = self._modes
         t1, t2, t3 = rotor_thrusts_n(self.vehicle, sensors.speed_rad_s)
         was_armed = modes.armed
+        # the shaper's acceleration only for a mode's entry (the one reader; ~1 us a step otherwise)
+        accel = core.reference_accel_ned if modes.entry_pending else _NO_ACCEL
         out = modes.step(ModeInputs(sensors.t_s, sensors.pos_ned, sensors.vel_ned, quat_to_euler(sensors.quat_wxyz)[2],
                                     (t1 + t2 + t3) / self._weight_n, imu_fresh,
-                                    self._n_steps * core.config.dt_s >= ESTIMATOR_WARMUP_S, core.reference_accel_ned))
+                                    self._n_steps * core.config.dt_s >= ESTIMATOR_WARMUP_S, accel))
         if out.armed and not was_armed:
             core.reset()  # the estimator's start delay counts from arming
         elif self._mode_out is not None and out.entries != self._mode_out.entries:

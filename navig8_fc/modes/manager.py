@@ -78,6 +78,12 @@ class ModeManager:
         return self._sw.mode
 
     @property
+    def entry_pending(self) -> bool:
+        """A mode's entry actions run at the next step: only they read the state sample's `accel_ned` (where Hold
+        stops), so a caller may leave it at zero otherwise."""
+        return self._sw.entry_pending
+
+    @property
     def custom_mode(self) -> int:
         return self._sw.mode.custom_mode
 
