@@ -17,8 +17,10 @@ from navig8_fc.flight import ArmRequest
 from navig8_fc.links.mavlink_link import UdpLink
 from navig8_fc.links.sim_guard import SimGuard, SimInput, StreamRegrouper
 from navig8_fc.mavlink import seam
-from navig8_fc.mavlink.px4sim import Px4SimAssembler
-from navig8_fc.shell.realtime import RealtimeClock
+from navig8_fc.mavlink.px4sim import ActuatorModel, Px4SimAssembler
+from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.shell.realtime import TIMING_REALTIME, RealtimeClock
+from navig8_fc.shell.telemetry_service import origin_from_params
 
 
 class BundlePeer:
@@ -154,3 +156,23 @@ class Realtime:
 
     def stats(self) -> dict[str, Any] | None:
         return vars(self.clock.stats)
+
+
+def px4_assembler(registry: ParamRegistry) -> Px4SimAssembler:
+    """PX4's simulator messages as the sensor source (navig8_fc/mavlink/px4sim.py, docs/hil.md): the actuator states
+    modelled with the controller's actuator model unless NAVIG8_ACTUATOR_STATE comes."""
+    reg = registry
+    model = ActuatorModel(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), 1.0 / float(reg["INDI_RATE_HZ"]), (0.0,) * 5)
+    return Px4SimAssembler(origin_from_params(reg), model)
+
+
+def timing_from_params(registry: ParamRegistry, timing: str | None, now: float) -> Lockstep | Realtime:
+    """When a step runs: FC_TIMING (set first from --timing, `timing`, when given): lockstep, or the real-time mode's
+    clock at INDI_RATE_HZ (navig8_fc/shell/realtime.py)."""
+    reg = registry
+    if timing is not None:
+        reg.set("FC_TIMING", 1.0 if timing == "realtime" else 0.0)
+    if int(reg["FC_TIMING"]) != TIMING_REALTIME:
+        return Lockstep()
+    return Realtime(RealtimeClock(float(reg["INDI_RATE_HZ"]), float(reg["RT_LATE_S"]), float(reg["RT_SPACING_TOL"]),
+                                  now))
