@@ -18,9 +18,9 @@ from navig8_fc.links.mavlink_link import UdpLink
 from navig8_fc.links.sim_guard import SimGuard, SimInput, StreamRegrouper
 from navig8_fc.mavlink import seam
 from navig8_fc.mavlink.px4sim import ActuatorModel, Px4SimAssembler
+from navig8_fc.mission.geo import origin_from_params
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.shell.realtime import TIMING_REALTIME, RealtimeClock
-from navig8_fc.shell.telemetry_service import origin_from_params
 
 
 class BundlePeer:

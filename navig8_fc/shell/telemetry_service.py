@@ -19,16 +19,11 @@ from navig8_fc.gcs.telemetry import (
     eig_margin_lower_bound,
     sensor_bits,
 )
-from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.geo import origin_from_params
 from navig8_fc.params.registry import ParamRegistry
 
 MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4 = 0, 12  # HEARTBEAT.autopilot: the identity navig8-fc announces
 Source = Hashable  # who sent a message, as the Outbox knows how to answer it (the process: (link name, address))
-
-
-def origin_from_params(reg: ParamRegistry) -> GeoOrigin:
-    """The global origin from ORIGIN_LAT_E7 / ORIGIN_LON_E7 / ORIGIN_ALT."""
-    return GeoOrigin(int(reg["ORIGIN_LAT_E7"]) * 1e-7, int(reg["ORIGIN_LON_E7"]) * 1e-7, float(reg["ORIGIN_ALT"]))
 
 
 class Telemetry:
