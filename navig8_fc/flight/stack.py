@@ -120,8 +120,7 @@ class FlightStack:
         self._modes = ModeManager(mode_config or ModeConfig(), script.mission() if script is not None else None)
         self._handlers = self._command_handlers()  # command record type -> what applies it
         self._fs = Failsafes(self._modes, FailsafeSettings.from_params(registry.as_dict()), sensor_source)
-        self._ff_notices = FeedforwardNotices(float(registry["ACT_WN"]), float(registry["ARM_SERVO_VMAX"]),
-                                              float(registry["ARM_SERVO_AMAX"]))
+        self._ff_notices: FeedforwardNotices  # built with the first core (reconfigure)
         self.reconfigure()
         self._weight_n = vehicle.uam_mass_kg * vehicle.gravity_m_s2
         self._n_steps = 0
@@ -166,16 +165,20 @@ class FlightStack:
         core = self._core
         if (core is None or cfg.indi != core.config.indi or cfg.ckf != core.config.ckf
                 or cfg.acc_ref != core.config.acc_ref or cfg.arm_wrench != core.config.arm_wrench):
+            if core is None:  # what the feed-forward checks start from: the models' parameters
+                ap = cfg.indi.arm_preview
+                self._ff_notices = FeedforwardNotices(cfg.indi.act_wn_rad_s, ap.v_max_rad_s, ap.a_max_rad_s2)
+            else:
+                self._ff_notices.new_core()
             self._core = FlightControllerCore(self.vehicle, cfg)
             self._core.set_arm_plan(self._arm_plan)
-            self._ff_notices.new_core()
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
         self._set_mode_limits(cfg.outer)
         self._cfg_generation = reg.generation
         self._fs.configure(FailsafeSettings.from_params(values))  # typed once per change, not per step
-        self.lambda_crit = stability.lambda_crit(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), cfg.dt_s,
-                                                 float(reg["INDI_LPF_TAU"]))
+        indi = cfg.indi
+        self.lambda_crit = stability.lambda_crit(indi.act_wn_rad_s, indi.act_zeta, cfg.dt_s, indi.lpf_tau_s)
         return True
 
     # --- the control step ------------------------------------------------------------------------------
