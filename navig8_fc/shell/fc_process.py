@@ -309,7 +309,7 @@ class FlightControllerProcess:
         if tick is None:
             text = self.log.step(None)
         else:
-            text = self.log.step(tick, self.sim.codec, float(self.registry["INDI_LAMBDA_MIN"]), self.stack.lambda_crit)
+            text = self.log.step(tick, self.sim.codec, self.stack.lambda_min, self.stack.lambda_crit)
         if text is not None:
             self.statustext(text, 3)
 
