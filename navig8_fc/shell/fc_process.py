@@ -23,6 +23,7 @@ from navig8_fc.links.transport import StreamTransport, parse_connection
 from navig8_fc.mavlink import codec
 from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mavlink.px4sim import PX4_SIM_MESSAGES
+from navig8_fc.mission.geo import origin_from_params
 from navig8_fc.params.registry import ParamRegistry, StabilityStatus
 from navig8_fc.shell.fc_log import FcLog, StepRecord
 from navig8_fc.shell.fc_options import FcOptions, build_arg_parser, options_from_args
@@ -71,8 +72,11 @@ class FlightControllerProcess:
         # what the sim link carries: the bridge's bundle, or PX4's simulator messages (their own assembler, no
         # pairing: answers go to the link's peer, the simulator that connected; docs/hil.md)
         stream = isinstance(self.sim.sock, StreamTransport)
-        self.peer = (BundlePeer(self.sim, self.guard, self._bridge_target, stream) if opts.sim_messages == "navig8"
-                     else Px4Peer(self.sim, self.guard, self._bridge_target, px4_assembler(self.registry)))
+        if opts.sim_messages == "navig8":
+            self.peer: BundlePeer | Px4Peer = BundlePeer(self.sim, self.guard, self._bridge_target, stream)
+        else:
+            asm = px4_assembler(self.stack.core.config, origin_from_params(self.registry))
+            self.peer = Px4Peer(self.sim, self.guard, self._bridge_target, asm)
         if isinstance(self.peer, Px4Peer):
             self.log_event("sim link: PX4 simulator messages (HIL_SENSOR, HIL_STATE_QUATERNION; actuator states "
                            "modelled unless NAVIG8_ACTUATOR_STATE comes)")
@@ -91,8 +95,8 @@ class FlightControllerProcess:
         self.stack.reconfigure()
         self.timing = timing_from_params(self.registry, opts.timing, time.monotonic())
         if self.timing.realtime:
-            self.log_event(f"real-time timing: own clock at {int(self.registry['INDI_RATE_HZ'])} Hz, newest bundle "
-                           "per tick")
+            self.log_event(f"real-time timing: own clock at {round(1.0 / self.stack.core.config.dt_s)} Hz, newest "
+                           "bundle per tick")
         self.guard.monotonic = self.timing.realtime
         self.steps = SimStepper(self.sim, self.peer, self.timing, self.guard, self.stack, self.vehicle, self.watchdog,
                                 lambda: self.log.active, self.announce, self.statustext, self.log_event)
