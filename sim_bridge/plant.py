@@ -49,6 +49,7 @@ from navig8_fc.core import rotation
 from navig8_fc.core.rotation import euler_to_quat, quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig, hover_trim, propulsion_per_input, u_to_actuators
 from sim_bridge import sensors
+from sim_bridge.command_guard import CommandGuard
 from sim_bridge.integrator import N_WORK, advance, evaluate
 from sim_bridge.messages import (
     ActuatorCommand,
@@ -62,7 +63,6 @@ from sim_bridge.plant_layout import (
     BASE_ATTITUDE_LOCKED,
     BASE_FIXED,
     BASE_FREE,
-    N_C,
     N_CONTACT_MAX,
     N_D,
     N_X,
@@ -92,7 +92,7 @@ def _fill(record: _R, **fields: Any) -> _R:
     for name, value in fields.items():
         setattr(record, name, value)
     return record
-_C_ACT, _C_JOVR, _C_JTGT = C.ACT.sl, int(C.JOVR), int(C.JTGT)
+_C_ACT = C.ACT.sl
 # truth(): its views of the state and derived vectors, cut in one C call each
 _TRUTH_X = itemgetter(*(m.sl for m in (X.POS, X.VEL, X.QUAT, X.RATE, X.ACT, X.ACTD, X.Q, X.QD,
                                        X.QDD, X.QTGT)))
@@ -216,13 +216,9 @@ class Plant:
         self._sched = scenario.arm_schedule()
         self._sched[:, :2] += round(params.joint_lag_s * 1e6)  # a lagging servo: every target reached late
         self._act_lo, self._act_hi = actuator_limits(vehicle)
-        self._act_lo_list, self._act_hi_list = self._act_lo.tolist(), self._act_hi.tolist()
         self._qlim = vehicle.joint_limit_rad
-        self._cmd = np.zeros(N_C)
-        self._valid_cmd = [0.0] * 5  # last valid value per actuator channel
-        self._valid_joint = [0.0, 0.0, 0.0]
-        self._nonfinite = 0
-        self._clamped = 0
+        self._guard = CommandGuard(self._act_lo, self._act_hi, self._qlim)  # the command held, validated
+        self._cmd = self._guard.vector
         self._d = np.zeros(N_D)
         self._work = np.zeros(N_WORK)
         # events on the physics grid: the first step at or after their time
@@ -272,9 +268,7 @@ class Plant:
         else:
             act = np.zeros(5)
         x[X.ACT.sl] = act
-        self._cmd[C.ACT.sl] = act
-        self._valid_cmd = [float(v) for v in act]
-        self._valid_joint = [float(v) for v in q0]
+        self._guard.hold(act, q0)
         evaluate(self._x, self._p, self._base_mode, self._d, self._work)
 
     def _place_on_ground(self) -> None:
@@ -303,47 +297,11 @@ class Plant:
 
     @property
     def cmd_nonfinite_count(self) -> int:
-        return self._nonfinite
+        return self._guard.nonfinite
 
     @property
     def cmd_clamped_count(self) -> int:
-        return self._clamped
-
-    # ---- commands -----------------------------------------------------------------------------
-    def _set_command(self, cmd: ActuatorCommand) -> None:
-        tilt, speed = cmd.tilt_rad, cmd.speed_rad_s
-        vals = [float(tilt[0]), float(tilt[1]), float(speed[0]), float(speed[1]), float(speed[2])]
-        valid = self._valid_cmd
-        lo, hi = self._act_lo_list, self._act_hi_list
-        for i in range(5):
-            v = vals[i]
-            if not math.isfinite(v):
-                self._nonfinite += 1
-                vals[i] = v = valid[i]
-            elif v < lo[i]:
-                self._clamped += 1
-                vals[i] = v = lo[i]
-            elif v > hi[i]:
-                self._clamped += 1
-                vals[i] = v = hi[i]
-            valid[i] = v
-        c = self._cmd
-        c[_C_ACT] = vals
-        jt = cmd.joint_targets_rad
-        if jt is None:
-            c[_C_JOVR] = 0.0
-            return
-        c[_C_JOVR] = 1.0
-        for j in range(3):
-            v = float(jt[j])
-            if not math.isfinite(v):
-                self._nonfinite += 1
-                v = self._valid_joint[j]
-            elif abs(v) > self._qlim:
-                self._clamped += 1
-                v = math.copysign(self._qlim, v)
-            self._valid_joint[j] = v
-            c[_C_JTGT + j] = v
+        return self._guard.clamped
 
     # ---- stepping -----------------------------------------------------------------------------
     def step(self, cmd: ActuatorCommand, dt_s: float) -> None:
@@ -357,7 +315,7 @@ class Plant:
         h_us = self._h_us
         if dt_us < 0 or dt_us % h_us:
             raise ValueError(f"dt = {dt_us} us is not a non-negative multiple of the physics step {h_us} us")
-        self._set_command(cmd)
+        self._guard.apply(cmd)
         t_end = self._t_us + dt_us
         events = self._events
         while self._t_us < t_end:
@@ -476,7 +434,7 @@ class Plant:
             reaction_moment_o_frd_nm=mr_o, reaction_force_nog_frd_n=fr_nog, reaction_moment_mount_nog_frd_nm=mr_nog,
             reaction_moment_o_nog_frd_nm=mr_o_nog, prop_force_frd_n=fprop, prop_moment_frd_nm=mprop,
             contact_force_frd_n=fcont, contact_moment_frd_nm=mcont, contact_points_active=int(d[_D_NCONT]),
-            cmd_nonfinite_count=self._nonfinite, cmd_clamped_count=self._clamped,
+            cmd_nonfinite_count=self._guard.nonfinite, cmd_clamped_count=self._guard.clamped,
         )
 
     def sense_wire(self) -> WireSensors:
@@ -496,7 +454,7 @@ class Plant:
                      rate_frd_rad_s=rate, accel_frd_m_s2=acc, actuator_pos=act, joint_pos_rad=jq, joint_rate_rad_s=jqd,
                      joint_accel_rad_s2=jqdd, object_mass_kg=mobj, mass_kg=mass, com_frd_m=com,
                      inertia_com_kgm2=(j0, j1, j2), reaction_force_frd_n=fr, reaction_moment_mount_frd_nm=mr,
-                     cmd_nonfinite_count=self._nonfinite, cmd_clamped_count=self._clamped)
+                     cmd_nonfinite_count=self._guard.nonfinite, cmd_clamped_count=self._guard.clamped)
 
     def trim_command(self) -> ActuatorCommand:
         """Level hover trim for the current arm pose and object (vehicle.hover_trim) of the ducts as they are now (a

@@ -296,11 +296,35 @@ def _target_deg_at(steps: Sequence[Mapping[str, Any]], t_s: float) -> list[float
     return [math.degrees(x) for x in target_at(segs[i], t_s)]
 
 
-def draw(sample_index: int, rng_seed: int, spec: EnvelopeSpec
-         ) -> tuple[dict[str, Any], dict[str, float], dict[str, float], dict[str, Any]]:
-    """Sample `sample_index` of the envelope (module docstring): (scenario document, world overrides, FC
-    parameters, factor values). Pure: the same arguments give the same draw, bit for bit."""
-    rng = np.random.default_rng(np.random.SeedSequence([int(rng_seed), int(sample_index)]))
+@dataclass(frozen=True)
+class _Factors:
+    """The draw's scalar factors, in the order the generator gives them (draw's first step)."""
+
+    lim_deg: float
+    duration: float
+    seed: int
+    mass: float
+    pattern: str
+    shape: str
+    speed_scale: float
+    v_max: float
+    a_max: float
+    model_err: float
+    bandwidth: float
+    noise: float
+    tail: float
+    grasping: bool
+    releasing: bool
+    grasp_stretched: bool
+    release_stretched: bool
+    grasp_pose: list[float]
+    release_pose: list[float]
+    release_pitched: bool
+    margins: list[float]
+    post: float
+
+
+def _draw_factors(rng: np.random.Generator, spec: EnvelopeSpec) -> _Factors:
     lim = math.degrees(spec.joint_limit_rad)
     duration = _r(_u(rng, spec.duration_s), 3)
     seed = int(rng.integers(1, 2**31 - 1))
@@ -324,61 +348,59 @@ def draw(sample_index: int, rng_seed: int, spec: EnvelopeSpec
     release_pitched = releasing and bool(rng.random() < spec.release_pitched_fraction)
     margins = [_r(_u(rng, spec.arrive_margin_s), 3) for _ in range(2)]
     post = _r(_u(rng, spec.post_release_s), 3)
+    return _Factors(lim, duration, seed, mass, pattern, shape, speed_scale, v_max, a_max, model_err, bandwidth, noise,
+                    tail, grasping, releasing, grasp_stretched, release_stretched, grasp_pose, release_pose,
+                    release_pitched, margins, post)
 
-    # ---- the arm and the object ------------------------------------------------------------------------------
+
+def _release_schedule(f: _Factors, steps: list[dict[str, Any]], shape_steps: list[dict[str, Any]], t: float,
+                      release_ramp: float) -> tuple[list[dict[str, Any]], float, str]:
+    """The arm's steps up to the release: the latest command time for the release pose from which the servo is at
+    rest there `margin` before the release (the shape cut at ever earlier times, 0.25 s apart, until the move fits),
+    or a release where the arm is when even without a shape it cannot get there. (steps, release time, kind)."""
+    t_release = _r(f.duration - f.post, 3)
+    t_cmd = t_release - f.margins[1] - release_ramp
+    while t_cmd >= t - 1e-9:
+        cut = [s for s in shape_steps if s["t_s"] < t_cmd - 1e-9]
+        trial = [*steps, *cut, {"t_s": _r(t_cmd, 3), "q_deg": _pose(f.release_pose, f.lim_deg), "ramp_s": release_ramp}]
+        arrive = arrival_s(servo_track(trial, f.duration, f.v_max, f.a_max), np.radians(f.release_pose), t_cmd)
+        if arrive + f.margins[1] <= t_release + 1e-9:
+            return trial, t_release, "stretched" if f.release_stretched else "random"
+        t_cmd -= 0.25
+    return steps + [s for s in shape_steps if s["t_s"] < t_release - 1e-9], t_release, "in_place"
+
+
+def _arm_schedule(rng: np.random.Generator, spec: EnvelopeSpec, f: _Factors
+                  ) -> tuple[list[dict[str, Any]], dict[str, float], float, float, str]:
+    """The arm's steps (grasp pose, the shape, the release pose), the shape's parameters, the grasp and release
+    times and the release's kind."""
     steps: list[dict[str, Any]] = []
     t = _r(rng.uniform(0.5, 1.5), 3)
     t_grasp = math.nan
-    if grasping:
-        steps.append({"t_s": t, "q_deg": _pose(grasp_pose, lim), "ramp_s": _r(rng.uniform(0.0, 1.5), 3) or 0.001})
-        track = servo_track(steps, duration, v_max, a_max)
-        t_grasp = _r(arrival_s(track, np.radians(grasp_pose), t) + margins[0], 3)
+    if f.grasping:
+        steps.append({"t_s": t, "q_deg": _pose(f.grasp_pose, f.lim_deg),
+                      "ramp_s": _r(rng.uniform(0.0, 1.5), 3) or 0.001})
+        track = servo_track(steps, f.duration, f.v_max, f.a_max)
+        t_grasp = _r(arrival_s(track, np.radians(f.grasp_pose), t) + f.margins[0], 3)
         t = _r(t_grasp + rng.uniform(0.3, 1.0), 3)
     q_from = _target_deg_at(steps, t) if steps else [0.0, 0.0, 0.0]
-    t_end_shape = duration - post if releasing else duration
-    shape_steps, shape_par = _shape_steps(rng, shape, spec, q_from, t, max(t, t_end_shape))
+    t_end_shape = f.duration - f.post if f.releasing else f.duration
+    shape_steps, shape_par = _shape_steps(rng, f.shape, spec, q_from, t, max(t, t_end_shape))
     t_release, release_kind = math.nan, "none"
     release_ramp = _r(rng.uniform(0.0, 1.5), 3) or 0.001
-    if releasing:
-        # the latest command time for the release pose from which the servo is at rest there `margin` before the
-        # release: try the shape cut at ever earlier times (0.25 s apart) until the move fits
-        t_release = _r(duration - post, 3)
-        chosen = None
-        t_cmd = t_release - margins[1] - release_ramp
-        while t_cmd >= t - 1e-9:
-            cut = [s for s in shape_steps if s["t_s"] < t_cmd - 1e-9]
-            trial = [*steps, *cut, {"t_s": _r(t_cmd, 3), "q_deg": _pose(release_pose, lim), "ramp_s": release_ramp}]
-            arrive = arrival_s(servo_track(trial, duration, v_max, a_max), np.radians(release_pose), t_cmd)
-            if arrive + margins[1] <= t_release + 1e-9:
-                chosen = trial
-                break
-            t_cmd -= 0.25
-        if chosen is None:  # even without a shape the servo cannot get there in time: release where it is
-            release_kind = "in_place"
-            steps = steps + [s for s in shape_steps if s["t_s"] < t_release - 1e-9]
-            shape_steps = []
-        else:
-            release_kind = "stretched" if release_stretched else "random"
-            steps = chosen
+    if f.releasing:
+        steps, t_release, release_kind = _release_schedule(f, steps, shape_steps, t, release_ramp)
     else:
         steps = steps + shape_steps
     if not steps:
         steps = [{"t_s": 0.0, "q_deg": [0.0, 0.0, 0.0]}]
-    track = servo_track(steps, duration, v_max, a_max, every=1)
+    return steps, shape_par, t_grasp, t_release, release_kind
 
-    def pose_at(t_s: float) -> list[float]:
-        if not math.isfinite(t_s):
-            return [math.nan] * 3
-        k = int(np.searchsorted(track[:, 0], t_s - 1e-9))
-        return [_r(math.degrees(x), 2) for x in track[min(k, len(track) - 1), 1:]]
 
-    events: list[dict[str, Any]] = []
-    if grasping:
-        events.append({"t_s": t_grasp, "kind": "grasp", "mass_kg": mass})
-    if releasing:
-        events.append({"t_s": t_release, "kind": "release"})
-
-    # ---- the setpoints -----------------------------------------------------------------------------------------
+def _setpoint_steps(rng: np.random.Generator, spec: EnvelopeSpec, f: _Factors, t_release: float
+                    ) -> tuple[list[dict[str, Any]], dict[str, Any]]:
+    """The setpoint steps (a pitch held and levelled, a yaw step, a position step) and their factors."""
+    duration = f.duration
     pitch = _r(_u(rng, spec.pitch_deg), 2)
     yaw_step = _r(_u(rng, spec.yaw_step_deg), 2)
     step_m = _u(rng, spec.pos_step_m)
@@ -387,7 +409,7 @@ def draw(sample_index: int, rng_seed: int, spec: EnvelopeSpec
     dpos = [_r(step_m * x, 3) for x in direction]
     t_yaw = _r(rng.uniform(2.0, duration - 4.0), 3)
     t_pos = _r(rng.uniform(2.0, duration - 5.0), 3)
-    if release_pitched:
+    if f.release_pitched:
         t_pitch = _r(max(1.0, t_release - rng.uniform(2.0, 5.0)), 3)
         t_level = _r(t_release + rng.uniform(1.0, 2.0), 3)
     else:
@@ -402,13 +424,41 @@ def draw(sample_index: int, rng_seed: int, spec: EnvelopeSpec
     if t_level < duration:
         sp_steps.append({"t_s": t_level, "pitch_deg": 0.0})
     sp_steps.sort(key=lambda s: s["t_s"])
+    pitched_at_release = f.releasing and t_pitch <= t_release < t_level
+    factors = {"release_pitch_deg": pitch if pitched_at_release else (0.0 if f.releasing else math.nan),
+               "pitch_deg": pitch, "pitch_t_s": t_pitch, "yaw_step_deg": yaw_step, "yaw_t_s": t_yaw,
+               "pos_step_m": _r(math.sqrt(sum(x * x for x in dpos)), 3), "pos_t_s": t_pos}
+    return sp_steps, factors
 
-    name = f"envelope_{int(rng_seed)}_{int(sample_index):04d}"
+
+def draw(sample_index: int, rng_seed: int, spec: EnvelopeSpec
+         ) -> tuple[dict[str, Any], dict[str, float], dict[str, float], dict[str, Any]]:
+    """Sample `sample_index` of the envelope (module docstring): (scenario document, world overrides, FC
+    parameters, factor values). Pure: the same arguments give the same draw, bit for bit."""
+    rng = np.random.default_rng(np.random.SeedSequence([int(rng_seed), int(sample_index)]))
+    f = _draw_factors(rng, spec)
+    steps, shape_par, t_grasp, t_release, release_kind = _arm_schedule(rng, spec, f)
+    track = servo_track(steps, f.duration, f.v_max, f.a_max, every=1)
+
+    def pose_at(t_s: float) -> list[float]:
+        if not math.isfinite(t_s):
+            return [math.nan] * 3
+        k = int(np.searchsorted(track[:, 0], t_s - 1e-9))
+        return [_r(math.degrees(x), 2) for x in track[min(k, len(track) - 1), 1:]]
+
+    events: list[dict[str, Any]] = []
+    if f.grasping:
+        events.append({"t_s": t_grasp, "kind": "grasp", "mass_kg": f.mass})
+    if f.releasing:
+        events.append({"t_s": t_release, "kind": "release"})
+    sp_steps, sp_factors = _setpoint_steps(rng, spec, f, t_release)
+    z0 = float(spec.hover_z_ned_m)
+    pattern, mass = f.pattern, f.mass
     scenario: dict[str, Any] = {
-        "name": name,
+        "name": f"envelope_{int(rng_seed)}_{int(sample_index):04d}",
         "description": f"Robustness envelope draw {sample_index} of seed {rng_seed} (tools/envelope.py): "
-                       f"{pattern}, {shape} arm motion, {mass:g} kg object.",
-        "duration_s": duration,
+                       f"{pattern}, {f.shape} arm motion, {mass:g} kg object.",
+        "duration_s": f.duration,
         "armed": True,
         "initial": {"pos_ned_m": [0.0, 0.0, z0], "vel_ned_m_s": [0.0, 0.0, 0.0], "euler_deg": [0.0, 0.0, 0.0],
                     "rate_frd_rad_s": [0.0, 0.0, 0.0], "joint_pos_deg": [0.0, 0.0, 0.0], "actuators": "trim",
@@ -419,28 +469,26 @@ def draw(sample_index: int, rng_seed: int, spec: EnvelopeSpec
         "setpoints": {"initial": {"pos_ned_m": [0.0, 0.0, z0], "pitch_deg": 0.0, "yaw_deg": 0.0},
                       "steps": sp_steps},
     }
-    world = {"arm_servo_speed_scale": speed_scale, "actuator_bandwidth_scale": bandwidth,
-             "sensor_noise_scale": noise, "tail_max_thrust_n": tail}
-    fc_params = {"ARM_SERVO_VMAX": _r(spec.fc_servo_v_max_rad_s * model_err, 5),
-                 "ARM_SERVO_AMAX": _r(spec.fc_servo_a_max_rad_s2 * model_err**2, 5)}
-    pitched_at_release = releasing and t_pitch <= t_release < t_level
+    world = {"arm_servo_speed_scale": f.speed_scale, "actuator_bandwidth_scale": f.bandwidth,
+             "sensor_noise_scale": f.noise, "tail_max_thrust_n": f.tail}
+    fc_params = {"ARM_SERVO_VMAX": _r(spec.fc_servo_v_max_rad_s * f.model_err, 5),
+                 "ARM_SERVO_AMAX": _r(spec.fc_servo_a_max_rad_s2 * f.model_err**2, 5)}
     g_pose, r_pose = pose_at(t_grasp), pose_at(t_release)
     factors: dict[str, Any] = {
-        "seed": seed, "duration_s": duration, "pattern": pattern, "object_mass_kg": mass,
+        "seed": f.seed, "duration_s": f.duration, "pattern": pattern, "object_mass_kg": mass,
         "grasp_t_s": t_grasp, "release_t_s": t_release,
-        "grasp_pose": ("stretched" if grasp_stretched else "random") if grasping else "none",
+        "grasp_pose": ("stretched" if f.grasp_stretched else "random") if f.grasping else "none",
         "release_pose": release_kind,
         **{f"grasp_q{j + 1}_deg": g_pose[j] for j in range(3)},
         **{f"release_q{j + 1}_deg": r_pose[j] for j in range(3)},
-        "release_pitch_deg": pitch if pitched_at_release else (0.0 if releasing else math.nan),
-        "arm_shape": shape, **shape_par,
-        "arm_speed_rad_s": _r(v_max, 4), "arm_accel_rad_s2": _r(a_max, 4),
-        "servo_model_error": model_err,
+        "release_pitch_deg": sp_factors.pop("release_pitch_deg"),
+        "arm_shape": f.shape, **shape_par,
+        "arm_speed_rad_s": _r(f.v_max, 4), "arm_accel_rad_s2": _r(f.a_max, 4),
+        "servo_model_error": f.model_err,
         # the FC's servo model over the plant's servo: the drawn error times the drawn plant's departure from nominal
-        "servo_model_ratio": _r(fc_params["ARM_SERVO_VMAX"] / v_max, 4),
-        "pitch_deg": pitch, "pitch_t_s": t_pitch, "yaw_step_deg": yaw_step, "yaw_t_s": t_yaw,
-        "pos_step_m": _r(math.sqrt(sum(x * x for x in dpos)), 3), "pos_t_s": t_pos,
-        "tail_max_thrust_n": tail, "actuator_bandwidth_scale": bandwidth, "sensor_noise_scale": noise,
+        "servo_model_ratio": _r(fc_params["ARM_SERVO_VMAX"] / f.v_max, 4),
+        **sp_factors,
+        "tail_max_thrust_n": f.tail, "actuator_bandwidth_scale": f.bandwidth, "sensor_noise_scale": f.noise,
     }
     return scenario, world, fc_params, factors
 

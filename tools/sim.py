@@ -134,7 +134,7 @@ def run(
     stack = FlightStack(vehicle, reg, sc.script)
     cfg = stack.core.config
     warm_up_kernels(vehicle, cfg)  # numba's cache loads now, not inside the timed loop
-    eigmon = EigenMonitor(w.vehicle, float(reg["INDI_LAMBDA_MIN"]), stack.lambda_crit)
+    eigmon = EigenMonitor(w.vehicle, stack.lambda_min, stack.lambda_crit)
     logger = McapLogger(log_path) if log_path else None
     if logger:
         logger.metadata("run", {"scenario": sc.name, "controller": controller, "seed": seed,

@@ -96,6 +96,7 @@ class Failsafes:
         self._bad_data = False  # the invalid-sensor-data failsafe is in force
         self._fence = Fence()
         self._fence_home: tuple[Fence, tuple[float, float, float]] | None = None  # the fence and home last told about
+        self._fence_on = False  # a fence to check: FENCE_RADIUS, FENCE_ALT_MAX or an uploaded plan
         self._battery_checked: BatteryState | None = None  # the pack state the battery check last looked at
         self._dt_bad_n = 0  # consecutive bundle spacings that disagree with 1/INDI_RATE_HZ
         self.configure(settings)
@@ -104,6 +105,11 @@ class Failsafes:
         self.settings = settings
         step_us = 1e6 / settings.rate_hz  # the bundle spacing this rate needs
         self._dt_lo_us, self._dt_hi_us = math.floor(step_us), math.ceil(step_us)
+        self._fence_on = self._fence_checked()
+
+    def _fence_checked(self) -> bool:
+        s, fence = self.settings, self._fence
+        return bool(s.fence_radius_m > 0.0 or s.fence_alt_max_m > 0.0 or fence.has_zones)
 
     @property
     def in_force(self) -> tuple[str, ...]:
@@ -122,6 +128,7 @@ class Failsafes:
 
     def load_fence(self, fence: Fence) -> None:
         self._fence = fence
+        self._fence_on = self._fence_checked()
 
     # --- actions -----------------------------------------------------------------------------------------
     def act(self, name: str, action: int, detail: str = "", none_verb: str = "no action") -> Notice:
@@ -179,10 +186,13 @@ class Failsafes:
 
     def after_step(self, armed: bool, battery: BatteryState, pos_ned: tuple[float, float, float]) -> list[Notice]:
         """Battery low/critical and fence breach while armed and flying, each acting once per occurrence;
-        disarmed, a new flight starts clean (the battery re-triggers if still low)."""
+        disarmed, a new flight starts clean (the battery re-triggers if still low). Most steps have nothing to look
+        at: the pack model advances every few steps, and without a fence there is nothing else."""
         if not armed:
             if self._in_force:
                 self._in_force.clear()
+            return []
+        if battery is self._battery_checked and not self._fence_on:
             return []
         m = self._modes
         if m.landed:
@@ -199,7 +209,7 @@ class Failsafes:
                 notices.append(self.act("Battery low", s.battery_low_action, f" ({pct}% left)"))
         home = m.home_ned
         fence = self._fence
-        if home is None or not (s.fence_radius_m > 0.0 or s.fence_alt_max_m > 0.0 or fence.has_zones):
+        if home is None or not self._fence_on:
             return notices
         if fence.has_zones and (self._fence_home is None or self._fence_home[0] is not fence
                                 or self._fence_home[1] != home):

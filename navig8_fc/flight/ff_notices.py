@@ -5,7 +5,7 @@ last announced), the actuator model distrusted and trusted again. Pure: the cont
 
 from __future__ import annotations
 
-from navig8_fc.core.controller import ControllerStatus
+from navig8_fc.core.controller import ControllerConfig, ControllerStatus
 from navig8_fc.flight.state import SEVERITY_INFO, SEVERITY_WARNING, Notice
 
 
@@ -16,6 +16,12 @@ class FeedforwardNotices:
         self._last: dict = {"arm_drops": 0, "arm_idents": 0, "u0_trusted": True,
                             "act_wn": (act_wn_rad_s, act_wn_rad_s),
                             "arm_servo": (arm_servo_vmax_rad_s, arm_servo_amax_rad_s2)}
+
+    @staticmethod
+    def of(config: ControllerConfig) -> FeedforwardNotices:
+        """Starting from the models' parameters of `config` (ACT_WN, ARM_SERVO_VMAX, ARM_SERVO_AMAX)."""
+        ap = config.indi.arm_preview
+        return FeedforwardNotices(config.indi.act_wn_rad_s, ap.v_max_rad_s, ap.a_max_rad_s2)
 
     def new_core(self) -> None:
         """A rebuilt controller core counts its checks' events from zero."""

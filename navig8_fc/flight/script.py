@@ -14,7 +14,9 @@ so a file that does not script anything holds where the vehicle starts.
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from dataclasses import dataclass
+from functools import cached_property
 from importlib.resources import files
 from pathlib import Path
 from typing import Any
@@ -59,12 +61,19 @@ class FlightScript:
 
     def setpoint_at(self, t_s: float) -> Setpoint:
         """The setpoint in force at script time t_s (each step holds from its time on: u(t - t_k), Eq. 25)."""
+        times, setpoints = self._segments
+        return setpoints[bisect_right(times, t_s)]
+
+    @cached_property
+    def _segments(self) -> tuple[tuple[float, ...], tuple[Setpoint, ...]]:
+        """The step times and the setpoint in force from each on (the first before any step): worked out once, so
+        the mission's step looks its setpoint up instead of replaying the steps every control tick."""
         sp0 = self.setpoint0
         x, y, z = sp0.pos_ned
         pitch, yaw = sp0.pitch_rad, sp0.yaw_rad
+        times: list[float] = []
+        setpoints = [Setpoint((x, y, z), pitch, yaw)]
         for t, ch, v in self.steps:
-            if t > t_s:
-                break
             if ch == "x_ned_m":
                 x = v
             elif ch == "y_ned_m":
@@ -75,7 +84,13 @@ class FlightScript:
                 pitch = v
             else:
                 yaw = v
-        return Setpoint((x, y, z), pitch, yaw)
+            sp = Setpoint((x, y, z), pitch, yaw)
+            if times and times[-1] == t:  # several channels at one time: one segment
+                setpoints[-1] = sp
+            else:
+                times.append(t)
+                setpoints.append(sp)
+        return tuple(times), tuple(setpoints)
 
     def mission(self) -> MissionScript | None:
         """The script as the mode manager's AUTO.MISSION, or None when there is nothing to fly."""

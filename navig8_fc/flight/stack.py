@@ -33,7 +33,7 @@ from navig8_fc.core.outer_loop import JERK_K_PER_VEL_K, OuterLoopConfig, Setpoin
 from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.arm_task import ArmJointTask
-from navig8_fc.flight.battery import BatteryState, battery_initial, battery_step
+from navig8_fc.flight.battery import SimulatedPack
 from navig8_fc.flight.commands import (
     Arm,
     ArmJoints,
@@ -75,13 +75,7 @@ from navig8_fc.params.registry import ParamRegistry
 
 SYSTEM_STATUS_CRITICAL = 5  # MAV_STATE_CRITICAL: a failsafe is in force (PX4 reports the same)
 ESTIMATOR_WARMUP_S = 0.5  # 5 time constants of the INDI feedback filter before arming is allowed
-# Induced power of one rotor, P = T^1.5 / sqrt(2 rho A) / FM (momentum theory with a figure of merit; sea-level
-# air, the duct's disk area): a simple load model for the simulated battery (docs/gcs.md, hover ~0.6 kW at 8 kg).
-AIR_DENSITY_KG_M3 = 1.225
-ROTOR_DISK_AREA_M2 = 0.07
-FIGURE_OF_MERIT = 0.6
-BATTERY_PERIOD_S = 0.1  # the pack model's update period (BATTERY_STATUS streams at 1 Hz)
-_POWER_DIVISOR = math.sqrt(2 * AIR_DENSITY_KG_M3 * ROTOR_DISK_AREA_M2) * FIGURE_OF_MERIT
+_NO_ACCEL = (0.0, 0.0, 0.0)
 TASK_FLIGHT, TASK_ARM = "flight", "arm"  # the two kinds of long-running command that can run side by side
 
 
@@ -111,7 +105,7 @@ class FlightStack:
         self._sensor_source = sensor_source  # named in the sensor-stale notices
         self._core: FlightControllerCore | None = None
         self._cfg_generation = -1
-        self.lambda_crit = math.nan
+        self.lambda_crit = self.lambda_min = math.nan  # lambda_min: INDI_LAMBDA_MIN, the target beside lambda_crit
         # the arm's commanded trajectory the core's arm preview reads (INDI_ARM_FF = 2): the script's, then held
         # targets of arm-joint commands
         self._arm_plan = (plan_rows(tuple((g.t0_s, g.t1_s, g.q_start_rad, g.q_end_rad) for g in script.arm_plan))
@@ -119,8 +113,7 @@ class FlightStack:
         self._modes = ModeManager(mode_config or ModeConfig(), script.mission() if script is not None else None)
         self._handlers = self._command_handlers()  # command record type -> what applies it
         self._fs = Failsafes(self._modes, FailsafeSettings.from_params(registry.as_dict()), sensor_source)
-        self._ff_notices = FeedforwardNotices(float(registry["ACT_WN"]), float(registry["ARM_SERVO_VMAX"]),
-                                              float(registry["ARM_SERVO_AMAX"]))
+        self._ff_notices: FeedforwardNotices  # built with the first core (reconfigure)
         self.reconfigure()
         self._weight_n = vehicle.uam_mass_kg * vehicle.gravity_m_s2
         self._n_steps = 0
@@ -129,10 +122,7 @@ class FlightStack:
         self._status: ControllerStatus | None = None
         self._command: ActuatorCommand = MOTORS_OFF
         self._mode_out: ModeOutput | None = None
-        self._battery: BatteryState = battery_initial()
-        self._battery_t_s: float | None = None  # sim time the pack model has advanced to
-        self._battery_step_t_s: float | None = None  # the last step's sim time
-        self._battery_energy_j = 0.0  # drawn since _battery_t_s
+        self._pack = SimulatedPack()  # the battery, loaded with the rotors' induced power
         self._arm_request: ArmRequest | None = None
         self._notices: list[Notice] = []  # decided in the step before the mode manager runs (the rate check)
         # The long-running arm-joint move (COMMAND_ACK IN_PROGRESS): its status, start and target (rad), start time.
@@ -165,16 +155,20 @@ class FlightStack:
         core = self._core
         if (core is None or cfg.indi != core.config.indi or cfg.ckf != core.config.ckf
                 or cfg.acc_ref != core.config.acc_ref or cfg.arm_wrench != core.config.arm_wrench):
+            if core is None:  # what the feed-forward checks start from: the models' parameters
+                self._ff_notices = FeedforwardNotices.of(cfg)
+            else:
+                self._ff_notices.new_core()
             self._core = FlightControllerCore(self.vehicle, cfg)
             self._core.set_arm_plan(self._arm_plan)
-            self._ff_notices.new_core()
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
         self._set_mode_limits(cfg.outer)
         self._cfg_generation = reg.generation
         self._fs.configure(FailsafeSettings.from_params(values))  # typed once per change, not per step
-        self.lambda_crit = stability.lambda_crit(float(reg["ACT_WN"]), float(reg["ACT_ZETA"]), cfg.dt_s,
-                                                 float(reg["INDI_LPF_TAU"]))
+        indi = cfg.indi
+        self.lambda_crit = stability.lambda_crit(indi.act_wn_rad_s, indi.act_zeta, cfg.dt_s, indi.lpf_tau_s)
+        self.lambda_min = float(values["INDI_LAMBDA_MIN"])
         return True
 
     # --- the control step ------------------------------------------------------------------------------
@@ -192,9 +186,10 @@ class FlightStack:
         modes = self._modes
         t1, t2, t3 = rotor_thrusts_n(self.vehicle, sensors.speed_rad_s)
         was_armed = modes.armed
+        accel = core.reference_accel_ned if modes.entry_pending else _NO_ACCEL  # its one reader: a mode's entry
         out = modes.step(ModeInputs(sensors.t_s, sensors.pos_ned, sensors.vel_ned, quat_to_euler(sensors.quat_wxyz)[2],
                                     (t1 + t2 + t3) / self._weight_n, imu_fresh,
-                                    self._n_steps * core.config.dt_s >= ESTIMATOR_WARMUP_S, core.reference_accel_ned))
+                                    self._n_steps * core.config.dt_s >= ESTIMATOR_WARMUP_S, accel))
         if out.armed and not was_armed:
             core.reset()  # the estimator's start delay counts from arming
         elif self._mode_out is not None and out.entries != self._mode_out.entries:
@@ -204,8 +199,8 @@ class FlightStack:
         cmd, st = core.step(sensors, out.setpoint, engaged=out.engaged)
         if st.ff is not None or st.indi is not None:
             self._notices += self._ff_notices.notices(st)
-        self._discharge(sensors.t_s, t1, t2, t3)
-        if fs_notices := self._fs.after_step(out.armed, self._battery, sensors.pos_ned):  # battery, fence
+        self._pack.discharge(sensors.t_s, t1, t2, t3)
+        if fs_notices := self._fs.after_step(out.armed, self._pack.state, sensors.pos_ned):  # battery, fence
             self._notices += fs_notices
         self._sensors, self._status, self._command, self._mode_out = sensors, st, cmd, out
         if self._arm_task.running:
@@ -222,27 +217,6 @@ class FlightStack:
             self._notices = []
         req, self._arm_request = self._arm_request, None
         return StepResult(cmd, st, out.setpoint, out.armed, out.engaged, tuple(notices), req)
-
-    def _discharge(self, t_s: float, t1: float, t2: float, t3: float) -> None:
-        """The simulated battery on sim time, loaded with the rotors' induced power (module constants). The
-        energy is summed every step and the pack model advances every BATTERY_PERIOD_S with the mean power
-        (its state moves by ~1e-5 of charge per period; a step each tick cost ~1.5 us, 3 % of the stack's)."""
-        last = self._battery_step_t_s
-        self._battery_step_t_s = t_s
-        if last is None:
-            self._battery_t_s = t_s
-            return
-        if t_s > last:
-            self._battery_energy_j += (abs(t1) ** 1.5 + abs(t2) ** 1.5 + abs(t3) ** 1.5) / _POWER_DIVISOR * (t_s - last)
-            if t_s - self._battery_t_s >= BATTERY_PERIOD_S:
-                self._battery_flush()
-
-    def _battery_flush(self) -> None:
-        t0, t1 = self._battery_t_s, self._battery_step_t_s
-        if t0 is None or t1 is None or t1 <= t0:
-            return
-        self._battery = battery_step(self._battery, self._battery_energy_j / (t1 - t0), t1 - t0)
-        self._battery_t_s, self._battery_energy_j = t1, 0.0
 
     # --- failsafe inputs from the shell (navig8_fc/flight/failsafe.py decides) -----------------------------
     def check_links(self, sensor_age_s: float | None, gcs_heartbeat_age_s: float | None,
@@ -365,7 +339,7 @@ class FlightStack:
 
     # --- published state -------------------------------------------------------------------------------
     def state(self) -> VehicleState:
-        self._battery_flush()  # the pack up to the last step
+        battery = self._pack.flush()  # the pack up to the last step
         m = self._modes
         mo = self._mode_out
         faults = m.faults
@@ -388,7 +362,7 @@ class FlightStack:
             engaged=mo.engaged if mo is not None else False,
             faults=tuple(faults.items()),
             prearm=m.prearm_check(),
-            battery=self._battery,
+            battery=battery,
             gcs_lost=self._fs.gcs_lost,
             pending_arm_request=self._arm_request,
             lambda_crit=self.lambda_crit,

@@ -27,7 +27,8 @@ current = 1 on the plan's start item; a request for a seq >= n gets MISSION_ACK(
 MISSION_CLEAR_ALL(MISSION, FENCE, RALLY or ALL) -> MISSION_ACK(ACCEPTED) (ERROR while an upload runs).
 MISSION_SET_CURRENT(seq) and MAV_CMD_DO_SET_MISSION_CURRENT (`set_current`) move the start/current item.
 MISSION_CURRENT (seq, total = n or 65535 without a plan, mission_state, mission_mode) is broadcast at 1 Hz and at
-once when it changes; MISSION_ITEM_REACHED(seq) at once and then once a second up to 10 more times (PX4).
+once when it changes; MISSION_ITEM_REACHED(seq) at once and then once a second up to 10 more times (PX4): both
+kept by navig8_fc/gcs/mission_status.py.
 
 opaque_id: every plan has a CRC32 identity (`Plan.opaque_id`, 0 = no plan), sent in MISSION_ACK / MISSION_COUNT
 `opaque_id` and MISSION_CURRENT `mission_id` / `fence_id` whenever the dialect has those extension fields (the
@@ -37,10 +38,10 @@ reported by `opaque_id(mission_type)` either way (docs/gcs.md).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from navig8_fc.gcs.mission_status import MissionStatus
 from navig8_fc.gcs.statustext import StatusTextEncoder
 from navig8_fc.mission.plan import (
     MAX_ITEMS,
@@ -58,15 +59,7 @@ from navig8_fc.mission.plan import (
 from navig8_fc.mission.store import MissionStore
 
 MAV_COMP_ID_MISSIONPLANNER = 190
-UINT16_MAX = 65535
-REACHED_REPEATS = 10  # MISSION_ITEM_REACHED repeated once a second this many times (PX4 _reached_sent_count)
 STORED_TYPES = (MissionType.MISSION, MissionType.FENCE)
-
-
-class MissionState:
-    """MISSION_STATE (common.xml)."""
-
-    UNKNOWN, NO_MISSION, NOT_STARTED, ACTIVE, PAUSED, COMPLETE = range(6)
 
 
 @dataclass
@@ -103,21 +96,13 @@ class MissionProtocol:
         self._text = statustext or StatusTextEncoder(mav)
         self.retry_s = float(retry_s)
         self.timeout_s = float(timeout_s)
-        self._current_period_s = float(current_period_s)
         self._plans: dict[int, Plan] = {t: Plan(t) for t in STORED_TYPES}
         self._upload: _Upload | None = None
         self._download: _Download | None = None
         self._last_ack: tuple[tuple[int, int], int, int, int] | None = None  # partner, type, count, result
         self._outbox: list[tuple[Any, Any]] = []  # broadcasts decided in handle(), sent by poll()
         self.generation = 0  # changes whenever a plan or the current item changes (the executor watches it)
-        self._progress = Progress()
-        self._current_sent: tuple[int, int, int, int] | None = None
-        self._current_t = -math.inf
-        self._reached_seq = -1
-        self._reached_left = 0
-        self._reached_t = -math.inf
-        self._reached_n = 0  # the executor's reached counter already announced
-        self._now = -math.inf  # the last poll's time
+        self._status = MissionStatus(mav, self.plan, current_period_s)  # MISSION_CURRENT, MISSION_ITEM_REACHED
 
     # --- the plans ---------------------------------------------------------------------------------------
     def plan(self, mission_type: int = MissionType.MISSION) -> Plan:
@@ -149,24 +134,15 @@ class MissionProtocol:
         if not 0 <= seq < len(p.items):
             return False, f"Mission: no item {seq} (plan has {len(p.items)})"
         self._plans[MissionType.MISSION] = Plan(p.mission_type, p.items, seq)
-        if reset:
-            self._reached_seq, self._reached_left = -1, 0
         self.generation += 1
-        self._current_sent = None  # MISSION_CURRENT at once
-        self._progress = Progress(seq, self._progress.reached if not reset else -1, self._progress.active, False,
-                                  self._progress.reached_log)
+        self._status.set_current(seq, reset)
         self._save()
         return True, ""
 
     def report(self, progress: Progress) -> None:
         """The executor's progress (each service poll): MISSION_CURRENT follows it, a newly reached item is
         announced with MISSION_ITEM_REACHED."""
-        fresh = [seq for n, seq in progress.reached_log if n > self._reached_n]
-        if fresh:
-            self._outbox += [(None, self._mav.mission_item_reached_encode(seq)) for seq in fresh]
-            self._reached_n = progress.reached_log[-1][0]
-            self._reached_seq, self._reached_left, self._reached_t = fresh[-1], REACHED_REPEATS, self._now
-        self._progress = progress
+        self._outbox += [(None, m) for m in self._status.report(progress)]
 
     # --- inbound ------------------------------------------------------------------------------------------
     def handle(self, msg: Any, now_s: float, source: Any = None) -> list[Any]:
@@ -193,7 +169,6 @@ class MissionProtocol:
     def poll(self, now_s: float) -> list[tuple[Any, Any]]:
         """Re-requests and timeouts of a running transfer, MISSION_CURRENT and MISSION_ITEM_REACHED (module
         docstring); source None = broadcast."""
-        self._now = now_s
         out, self._outbox = self._outbox, []
         up = self._upload
         if up is not None:
@@ -207,46 +182,16 @@ class MissionProtocol:
         dl = self._download
         if dl is not None and now_s - dl.last_rx_s >= self.timeout_s:
             self._download = None
-        key = self._mission_current_key()
-        if key != self._current_sent or now_s - self._current_t >= self._current_period_s:
-            self._current_sent, self._current_t = key, now_s
-            out.append((None, self.mission_current()))
-        if self._reached_left > 0 and now_s - self._reached_t >= 1.0:
-            self._reached_left -= 1
-            self._reached_t = now_s
-            out.append((None, self._mav.mission_item_reached_encode(self._reached_seq)))
-        return out
+        return out + [(None, m) for m in self._status.poll(now_s)]
 
     def mission_current(self) -> Any:
-        m = self._mav.mission_current_encode(*self._mission_current_key())
-        if "mission_id" in m.fieldnames:  # the navig8 dialect's common.xml extensions (navig8_fc.mavlink.dialect)
-            m.mission_id = self.opaque_id(MissionType.MISSION)
-            m.fence_id = self.opaque_id(MissionType.FENCE)
-        return m
+        return self._status.mission_current()
 
     # --- internals ----------------------------------------------------------------------------------------
     def _for_us(self, msg: Any) -> bool:
         ts = getattr(msg, "target_system", 0)
         tc = getattr(msg, "target_component", 0)
         return ts in (0, self._sysid) and tc in (0, self._compid, MAV_COMP_ID_MISSIONPLANNER)
-
-    def _mission_current_key(self) -> tuple[int, int, int, int]:
-        p = self._plans[MissionType.MISSION]
-        pr = self._progress
-        n = len(p.items)
-        mode = 1 if pr.active else 2  # MISSION_CURRENT.mission_mode: 1 in mission mode, 2 suspended
-        if n == 0:
-            return 0, UINT16_MAX, MissionState.NO_MISSION, mode
-        if pr.finished:
-            state = MissionState.COMPLETE
-        elif pr.active:
-            state = MissionState.ACTIVE
-        elif pr.reached >= 0:
-            state = MissionState.PAUSED
-        else:
-            state = MissionState.NOT_STARTED
-        seq = pr.current if (pr.active or pr.reached >= 0 or pr.finished) else p.current
-        return min(max(seq, 0), n - 1), n, state, mode
 
     def _ack(self, partner: tuple[int, int], result: int, mission_type: int, opaque_id: int = 0) -> Any:
         m = self._mav.mission_ack_encode(partner[0], partner[1], int(result), int(mission_type))
@@ -331,9 +276,7 @@ class MissionProtocol:
         self._plans[plan.mission_type] = plan
         self.generation += 1
         if plan.mission_type == MissionType.MISSION:
-            self._reached_seq, self._reached_left = -1, 0
-            self._progress = Progress(plan.current, reached_log=self._progress.reached_log)
-            self._current_sent = None
+            self._status.new_plan(plan.current)
         return self._save()
 
     def _save(self) -> list[Any]:

@@ -6,7 +6,7 @@ alt_amsl = alt0 - d. Over the few metres this vehicle flies the error is far bel
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 EARTH_RADIUS_M = 6_371_000.0  # PX4 CONSTANTS_RADIUS_OF_EARTH
@@ -32,3 +32,9 @@ class GeoOrigin:
         n = math.radians(lat_deg - self.lat_deg) * EARTH_RADIUS_M
         e = math.radians(lon_deg - self.lon_deg) * EARTH_RADIUS_M * math.cos(math.radians(self.lat_deg))
         return n, e
+
+
+def origin_from_params(values: Mapping[str, float]) -> GeoOrigin:
+    """The global origin from ORIGIN_LAT_E7 / ORIGIN_LON_E7 / ORIGIN_ALT (a parameter registry or a snapshot)."""
+    return GeoOrigin(int(values["ORIGIN_LAT_E7"]) * 1e-7, int(values["ORIGIN_LON_E7"]) * 1e-7,
+                     float(values["ORIGIN_ALT"]))

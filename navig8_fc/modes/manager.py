@@ -78,6 +78,10 @@ class ModeManager:
         return self._sw.mode
 
     @property
+    def entry_pending(self) -> bool:  # a mode's entry runs at the next step: it alone reads ModeInputs.accel_ned
+        return self._sw.entry_pending
+
+    @property
     def custom_mode(self) -> int:
         return self._sw.mode.custom_mode
 
@@ -126,9 +130,9 @@ class ModeManager:
         return dict(self._faults)
 
     def set_fault(self, name: str, reason: str) -> None:
-        """A fault found outside the step (e.g. no sensor bundles for FS_SENS_TOUT, a control-rate mismatch):
-        pre-arm fails with `reason`, takeoff is refused and an armed vehicle reports MAV_STATE_CRITICAL until
-        `clear_fault(name)`. The flight itself is not changed (the FlightStack decides on failsafe actions)."""
+        """A fault found outside the step (e.g. no sensor bundles for FS_SENS_TOUT, a control-rate mismatch): pre-arm
+        fails with `reason`, takeoff is refused and an armed vehicle reports MAV_STATE_CRITICAL until `clear_fault`;
+        the flight itself is not changed (the FlightStack decides on failsafe actions)."""
         self._faults[name] = reason
 
     def clear_fault(self, name: str) -> bool:
@@ -264,8 +268,7 @@ class ModeManager:
                 self._ctx.events.append(event)
         return Verdict(True)
 
-    def set_custom_mode(self, custom_mode: int) -> Verdict:
-        """Same as set_mode, from a PX4-encoded custom_mode."""
+    def set_custom_mode(self, custom_mode: int) -> Verdict:  # set_mode from a PX4-encoded custom_mode
         return self.set_mode((custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF)
 
     def load_plan(self, plan: Plan, origin: GeoOrigin) -> None:
@@ -281,8 +284,7 @@ class ModeManager:
 
     def offboard_setpoint(self, sp: Setpoint | OffboardTarget | None) -> None:
         """The latest streamed offboard target (a Setpoint: position, pitch, yaw; None: the stream is lost, the
-        FlightStack decides on timeouts). Offboard mode flies it; losing it in Offboard switches to Hold where the
-        vehicle is."""
+        FlightStack decides on timeouts). Offboard flies it; losing it in Offboard holds where the vehicle is."""
         self._sw.offboard.set_target(sp)
         if sp is None and self._sw.mode is FlightMode.OFFBOARD:
             self._sw.switch(FlightMode.HOLD)
@@ -293,8 +295,7 @@ class ModeManager:
         self._sw.position.set_sticks(x, y, z, r)
 
     def reposition(self, pos_ned: Vec3, yaw_rad: float = math.nan) -> Verdict:
-        """DO_REPOSITION (MAVSDK goto_location, QGC Go to / Pause): Hold at pos_ned (a NaN component: where the
-        vehicle is), yaw_rad (NaN: keep)."""
+        """DO_REPOSITION (MAVSDK goto_location, QGC Go to / Pause): Hold at pos_ned (NaN: here), yaw_rad (NaN: keep)."""
         if not self._sw.armed or self._detector.landed:
             return Verdict(False, "Reposition denied: not flying")
         self._sw.hold.reposition_to(pos_ned, yaw_rad)
@@ -336,9 +337,8 @@ class ModeManager:
         self._sw.offboard.pos_gain_1_s = float(pos_k_1_s)
 
     def set_braking(self, acc_m_s2: float, jerk_m_s3: float, lag_s: float = 0.0) -> None:
-        """The limits the position reference brakes with (OL_ACC_REF and OL_JERK_MAX when shaping, with its jerk
-        stage's lag; else OL_ACC_MAX, no jerk limit (inf), no lag): Hold's entry point is where they bring the
-        vehicle to rest."""
+        """The limits the position reference brakes with (OL_ACC_REF, OL_JERK_MAX and its jerk stage's lag when
+        shaping; else OL_ACC_MAX, no jerk limit (inf), no lag): Hold's entry point is where they stop the vehicle."""
         if not (acc_m_s2 > 0.0 and jerk_m_s3 > 0.0 and lag_s >= 0.0):
             raise ValueError(f"braking limits must be positive (inf = none), got {acc_m_s2}, {jerk_m_s3}, {lag_s}")
         self._sw.hold.set_braking(float(acc_m_s2), float(jerk_m_s3), float(lag_s))

@@ -18,6 +18,9 @@ from typing import Any
 import orjson
 
 from navig8_fc import viz
+from navig8_fc.mission.executor import planned_path
+from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.plan import Plan
 from navig8_fc.shell.mcap_log import McapLogger
 
 _NS = 1_000_000_000
@@ -153,6 +156,30 @@ class FoxgloveOutput:
             self.live = None
 
 
+class MissionView:
+    """What /foxglove/mission shows: the uploaded plan's planned path from home, or the script's waypoints when no
+    plan is loaded; drawn again only when the plan changed (its generation)."""
+
+    def __init__(self, fox: FoxgloveOutput, script: Any) -> None:
+        self._fox = fox
+        self._script_waypoints = script_waypoints(script)
+        self._generation: int | None = None  # the uploaded plan last drawn
+        fox.set_mission(self._script_waypoints)
+
+    def show(self, generation: int, plan: Callable[[], Plan], origin: GeoOrigin,
+             home_ned: Callable[[], Sequence[float] | None]) -> None:
+        """The plan of `generation` (`plan` and `home_ned` are asked only when it is new)."""
+        if generation == self._generation:
+            return
+        self._generation = generation
+        items = plan()
+        if not items.items:
+            self._fox.set_mission(self._script_waypoints)
+            return
+        path = planned_path(items, origin, home_ned() or (0.0, 0.0, 0.0))
+        self._fox.set_mission(viz.waypoint_poses([(p, 0.0, 0.0) for p in path]))
+
+
 def script_waypoints(script: Any) -> list[tuple[Sequence[float], Sequence[float]]] | None:
     """A scripted flight's waypoints (the setpoint in force after each scripted step, from the start's), as
     poses for FoxgloveOutput.set_mission; None when the script flies nothing."""
@@ -167,4 +194,5 @@ def script_waypoints(script: Any) -> list[tuple[Sequence[float], Sequence[float]
     return viz.waypoint_poses(pts)
 
 
-__all__ = ["DEFAULT_PORT", "FoxgloveOutput", "FoxglovePortError", "LiveServer", "TOPICS", "script_waypoints"]
+__all__ = ["DEFAULT_PORT", "FoxgloveOutput", "FoxglovePortError", "LiveServer", "MissionView", "TOPICS",
+           "script_waypoints"]

@@ -37,26 +37,18 @@ from __future__ import annotations
 
 import math
 import time
-from collections import deque
 from collections.abc import Callable, Iterable, Mapping
-from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.commands import (
-    LoadFence,
-    LoadMission,
-    ManualInput,
-    OffboardSetpoint,
     Reposition,
     SetMode,
     Takeoff,
     VehicleCommand,
 )
 from navig8_fc.flight.state import VehicleCommands, VehicleState
-from navig8_fc.gcs import offboard
 from navig8_fc.gcs.commands import CommandHandler
 from navig8_fc.gcs.ftp import FtpServer, FtpService
 from navig8_fc.gcs.metadata import build_metadata, component_metadata_message
@@ -64,30 +56,26 @@ from navig8_fc.gcs.misc import MiscProtocols
 from navig8_fc.gcs.mission_protocol import MissionProtocol
 from navig8_fc.gcs.params import ParamProtocol, StoredLoad
 from navig8_fc.gcs.statustext import StatusTextEncoder
-from navig8_fc.mission.plan import MissionType
+from navig8_fc.gcs.vehicle_messages import VehicleMessages
+from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.modes.manager import TaskStatus, Verdict
 from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
 from navig8_fc.params.registry import ParamRegistry, SetResult, StabilityStatus
 from navig8_fc.params.store import ParamStore
-from navig8_fc.shell.floor_worker import FloorWorker
+from navig8_fc.shell.floor_worker import ParamSets
 from navig8_fc.shell.telemetry_service import (
     MAV_AUTOPILOT_GENERIC,
     MAV_AUTOPILOT_PX4,
     Source,
     Telemetry,
-    origin_from_params,
 )
 
 MAV_TYPE_GCS = 6
 MSG_AVAILABLE_MODES, MSG_CURRENT_MODE, MSG_AVAILABLE_MODES_MONITOR = 435, 436, 437
 AVAILABLE_MODES_SEQ = 1  # AVAILABLE_MODES_MONITOR.seq: the set of modes never changes at run time
 CURRENT_MODE_PERIOD_S = 2.0
-MAV_FRAME_LOCAL_NED, MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 1, 5, 6
-_OFFBOARD_TYPES = frozenset({"SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT", "SET_ATTITUDE_TARGET"})
-MANUAL_CONTROL_TIMEOUT_S = 0.5  # MANUAL_CONTROL older than this: sticks centred (Position mode holds)
 
-PARAM_QUEUE_MAX = 32  # PARAM_SETs waiting for a stability floor; more are refused (busy) at once
 REFUSAL_TEXT_PERIOD_S = 1.0  # at most one "not authorised" STATUSTEXT a second
 _COMMANDS = frozenset({"COMMAND_LONG", "COMMAND_INT"})
 _WITHOUT_SIGNING = frozenset({"HEARTBEAT", "SETUP_SIGNING", "RADIO_STATUS"})  # what GCS_SIGN_REQ lets through
@@ -166,11 +154,9 @@ class GcsService:
                                        takeoff_p7_amsl=self._autopilot == MAV_AUTOPILOT_PX4)
         self.misc = MiscProtocols(mav, statustext=self.text)
         self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text)
-        self.origin = origin_from_params(registry)
-        self._plan_generation = -1  # the mission plan generation the vehicle has
-        self.last_offboard_setpoint: float | None = None  # wall time of the last accepted offboard setpoint
-        self._offboard_ignored = ""  # the part of the offboard targets not flown, as last announced
-        self._last_manual: float | None = None  # wall time of the last MANUAL_CONTROL
+        # SET_MODE, offboard targets, MANUAL_CONTROL, the global origin, the plans handed to the vehicle
+        self.vehicle_msgs = VehicleMessages(mav, self.sysid, state, vehicle, self.command, registry, self.params,
+                                            self.text)
         self.metadata = build_metadata(registry.definitions)  # QGC's parameter metadata, served read-only over FTP
         self.ftp = FtpService(mav, FtpServer(self.metadata.files), sysid, 1)
         self.n_gcs_msgs = 0
@@ -188,14 +174,18 @@ class GcsService:
         self._refusal_text_t = -math.inf
         self._now = 0.0
         self._operator_reports: list[str] = []  # told at the first ground-station contact
-        self._pool = ThreadPoolExecutor(1, thread_name_prefix="navig8-params") if background_params else None
-        self._param_queue: deque[tuple[Any, Source | None]] = deque()
-        self._save_job: Future[str | None] | None = None
-        self._param_tokens: dict[Source | None, tuple[float, float]] = {}  # source -> (tokens, last time)
-        # the stability floors of PARAM_SETs, off the control thread (started with the background worker)
-        self._floor = FloorWorker(registry, self._pool) if self._pool is not None else None
-        if self._floor is not None:
-            self._floor.start()
+        self.param_sets = ParamSets(self.params, registry, background_params, self._route, self._throttled_text,
+                                    self.statustext)  # PARAM_SETs off the control path
+
+    @property
+    def origin(self) -> GeoOrigin:
+        """The global origin (ORIGIN_*) the plans and global targets are placed about."""
+        return self.vehicle_msgs.origin
+
+    @property
+    def last_offboard_setpoint(self) -> float | None:
+        """Wall time (the caller's clock) of the last accepted offboard setpoint (None: none yet)."""
+        return self.vehicle_msgs.last_offboard_setpoint
 
     @property
     def last_gcs_heartbeat(self) -> float | None:
@@ -253,11 +243,6 @@ class GcsService:
         self._refusal_text_t = self._now
         return self.text.warning(text)
 
-    def _refuse_set(self, m: Any, why: str) -> list[Any]:
-        out = self.params.refuse_set(m, why)
-        values = [r for r in out if r.get_type() == "PARAM_VALUE"]
-        return values + (self._throttled_text(f"PARAM_SET {why}") if values else [])
-
     # --- routing ---------------------------------------------------------------------------------
     def handle(self, received: list[tuple[Any, Source | None]], now_wall: float) -> list[SetResult]:
         """Inbound messages (msg, source); replies go back to the source through the outbox (module docstring).
@@ -291,7 +276,7 @@ class GcsService:
                     self._outbox.broadcast(self.text.encode(2, line))  # MAV_SEVERITY_CRITICAL
                 self._operator_reports = []
             if kind == "PARAM_SET":
-                self._route(kind, source, self._param_set(m, source, now_wall))
+                self._route(kind, source, self.param_sets.set(m, source, now_wall, self.settings.param_set_rate_hz))
                 continue
             out = self.params.handle(m, now_wall, source)
             self._command_source = source  # SET/GET_MESSAGE_INTERVAL act on this peer's stream table
@@ -300,14 +285,7 @@ class GcsService:
             out += self.misc.handle(m, now_wall)
             out += self.mission.handle(m, now_wall, source)
             out += self.ftp.handle(m)
-            out += self._set_mode_message(m)
-            out += self._offboard(m, now_wall)
-            if kind == "SET_GPS_GLOBAL_ORIGIN" and m.target_system in (0, self.sysid):
-                out += self._set_origin(m)
-            if kind == "MANUAL_CONTROL" and m.target in (0, self.sysid):
-                # PX4's scaling: x/y/r -1000..1000, z 0..1000 (500 = hold altitude); missing sticks are centred.
-                self._vehicle.command(ManualInput(m.x / 1000.0, m.y / 1000.0, m.z / 1000.0, m.r / 1000.0))
-                self._last_manual = now_wall
+            out += self.vehicle_msgs.handle(m, now_wall)
             self._route(kind, source, out)
         return self.params.drain_changes()
 
@@ -327,168 +305,20 @@ class GcsService:
             return self.text.warning("SETUP_SIGNING refused: signing not available on this link")
         return self.text.info(self._signing.set_key(bytes(m.secret_key), int(m.initial_timestamp)))
 
-    # --- PARAM_SET off the control path -----------------------------------------------------------
-    def _param_set(self, m: Any, source: Source | None, now_wall: float) -> list[Any]:
-        """Rate limit, then at once when nothing is queued and no stability sweep is needed; else queued."""
-        rate = self.settings.param_set_rate_hz
-        tokens, last = self._param_tokens.get(source, (rate, now_wall))
-        tokens = min(rate, tokens + (now_wall - last) * rate)
-        if tokens < 1.0:
-            self._param_tokens[source] = (tokens, now_wall)
-            return self._refuse_set(m, f"refused: more than {rate:g} PARAM_SET/s, retry")
-        self._param_tokens[source] = (tokens - 1.0, now_wall)
-        if len(self._param_tokens) > 64:  # forget idle sources (bounded memory under spoofed floods)
-            self._param_tokens = {k: v for k, v in self._param_tokens.items() if now_wall - v[1] < 2.0}
-        if self._pool is None or (not self._param_queue and self.params.floor_needed(m) is None):
-            return self.params.handle(m, now_wall, source)
-        if len(self._param_queue) >= PARAM_QUEUE_MAX:
-            return self._refuse_set(m, "refused: busy checking the stability floor, retry")
-        self._param_queue.append((m, source))
-        return []
-
-    def _floor_job_done(self) -> bool:
-        return self._floor is None or self._floor.done()
-
-    def _run_param_queue(self, now_wall: float) -> None:
-        """Queued PARAM_SETs in order, each once its floor is computed (the worker); called between steps."""
-        while self._param_queue:
-            m, source = self._param_queue[0]
-            if not self._floor_job_done():
-                return
-            need = self.params.floor_needed(m)
-            if need is not None and self._floor is not None and not self._floor.failed:
-                self._floor.submit(need, self._now)
-                self._floor.raise_priority()  # a ground station waits for this answer
-                return
-            self._param_queue.popleft()
-            self._route("PARAM_SET", source, self.params.handle(m, now_wall, source))
-
-    def _floor_in_force(self) -> None:
-        """The stability floor of the values in force for LAM_MARGIN and the log (`stability`), when no PARAM_SET
-        has computed it (at start, after a reset or load): on the worker, as a PARAM_SET's; inline without one."""
-        reg = self._registry
-        if reg.stability_check is None or self._param_queue or not self._floor_job_done():
-            return
-        if reg.floor_in_force() is not None:
-            return
-        values = reg.as_dict()
-        if self._floor is not None and not self._floor.failed:
-            self._floor.submit(values, self._now)
-        else:
-            reg.store_floor(values, reg.compute_floor(values))
-
     @property
     def stability(self) -> StabilityStatus | None:
         """lambda_crit, the guaranteed smallest eigenvalue and the margin of the configuration in force (None while
         its floor is being computed)."""
         return self._registry.stability_status()
 
-    def _save_params(self) -> None:
-        """A due save on the worker (its outcome reported when done); one at a time, the latest values."""
-        if self._save_job is not None:
-            if not self._save_job.done():
-                return
-            err, self._save_job = self._save_job.result(), None
-            if err:
-                self.statustext(err, 4)  # MAV_SEVERITY_WARNING
-        values = self.params.take_save()
-        if values is not None and self._pool is not None:
-            self._save_job = self._pool.submit(self.params.write_values, values)
-
     @property
     def params_busy(self) -> bool:
         """PARAM_SETs queued or a save being written (tests wait on this, bounded)."""
-        return bool(self._param_queue) or self._save_job is not None or self.params.save_due
+        return self.param_sets.busy
 
     def close(self) -> None:
         """Finish the queue's last save and stop the worker."""
-        if self._pool is not None:
-            values = self.params.take_save()
-            if values is not None:
-                self._pool.submit(self.params.write_values, values)
-            self._pool.shutdown(wait=True)
-            self._pool = None
-        if self._floor is not None:
-            self._floor.close()
-
-    def _set_mode_message(self, m: Any) -> list[Any]:
-        """The legacy SET_MODE message (what `mode X` in MAVProxy sends), read in PX4's custom_mode encoding
-        as PX4 does; there is no ACK in that protocol, so a refusal is reported by STATUSTEXT."""
-        if m.get_type() != "SET_MODE" or m.target_system not in (0, self.sysid):
-            return []
-        ok, reason = self.command(SetMode(int(m.base_mode), int(m.custom_mode)))
-        return [] if ok else self.text.warning(reason or f"SET_MODE {int(m.custom_mode):#x} refused")
-
-    def _offboard(self, m: Any, now_wall: float) -> list[Any]:
-        """SET_POSITION_TARGET_LOCAL_NED (frames LOCAL_NED, BODY_NED) / _GLOBAL_INT (GLOBAL_INT,
-        GLOBAL_RELATIVE_ALT_INT) and SET_ATTITUDE_TARGET -> the vehicle's offboard target, per type_mask
-        (navig8_fc.gcs.offboard). No ACK in this protocol: a refusal is a STATUSTEXT; a part not flown
-        (acceleration, roll, ...) is named once until a target without it arrives."""
-        kind = m.get_type()
-        if kind not in _OFFBOARD_TYPES or m.target_system not in (0, self.sysid) or m.target_component not in (0, 1):
-            return []
-        if kind == "SET_ATTITUDE_TARGET":
-            dec = offboard.attitude_target(int(m.type_mask), tuple(m.q), float(m.thrust),
-                                           (m.body_roll_rate, m.body_pitch_rate, m.body_yaw_rate))
-        else:
-            mask, frame = int(m.type_mask), int(m.coordinate_frame)
-            if kind == "SET_POSITION_TARGET_LOCAL_NED":
-                if frame not in (MAV_FRAME_LOCAL_NED, offboard.MAV_FRAME_BODY_NED):
-                    return self.text.warning(f"{kind}: frame {frame} unsupported (LOCAL_NED, BODY_NED)")
-                pos = (float(m.x), float(m.y), float(m.z))
-            else:
-                if frame not in (MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT):
-                    return self.text.warning(f"{kind}: frame {frame} unsupported (GLOBAL_INT, GLOBAL_RELATIVE_ALT_INT)")
-                pos = self._to_ned(m.lat_int * 1e-7, m.lon_int * 1e-7, float(m.alt), frame != MAV_FRAME_GLOBAL_INT)
-            sensors = self._state().sensors
-            yaw_now = quat_to_euler(sensors.quat_wxyz)[2] if sensors is not None else 0.0
-            dec = offboard.position_target(kind, mask, frame, pos, (m.vx, m.vy, m.vz), (m.afx, m.afy, m.afz),
-                                           float(m.yaw), float(m.yaw_rate), yaw_now)
-        if dec.target is None:
-            return self.text.warning(dec.refusal)
-        ok, reason = self._vehicle.command(OffboardSetpoint(dec.target))
-        if not ok:
-            return self.text.warning(reason)
-        self.last_offboard_setpoint = now_wall
-        if dec.ignored == self._offboard_ignored:
-            return []
-        self._offboard_ignored = dec.ignored
-        return self.text.warning(dec.ignored) if dec.ignored else []
-
-    def _set_origin(self, m: Any) -> list[Any]:
-        """SET_GPS_GLOBAL_ORIGIN -> the ORIGIN_* parameters (validated and saved as any PARAM_SET), then
-        GPS_GLOBAL_ORIGIN and the new PARAM_VALUEs to everyone. Refused while armed (the plan in flight and home
-        would jump)."""
-        if self._state().armed:
-            return self.text.warning("SET_GPS_GLOBAL_ORIGIN denied: vehicle armed")
-        reg = self._registry
-        names = ("ORIGIN_LAT_E7", "ORIGIN_LON_E7", "ORIGIN_ALT")
-        before = {n: reg[n] for n in names}
-        results = [reg.set(n, v) for n, v in zip(names, (int(m.latitude), int(m.longitude), m.altitude / 1000.0),
-                                                  strict=True)]
-        refused = [r for r in results if not r.accepted]
-        if refused:  # all or nothing: put back what was set
-            for n, v in before.items():
-                reg.set(n, v)
-            return [self.params.param_value(n) for n in names] + self.text.warning(
-                f"SET_GPS_GLOBAL_ORIGIN refused: {refused[0].reason or refused[0].name}")
-        out: list[Any] = [self.params.param_value(n) for n in names]
-        err = self.params.save()
-        if err:
-            out += self.text.warning(err)
-        self.origin = origin_from_params(reg)
-        self._plan_generation = -1  # global plan items move with the origin: reload them
-        return out + [self.mav.gps_global_origin_encode(round(self.origin.lat_deg * 1e7),
-                                                        round(self.origin.lon_deg * 1e7),
-                                                        round(self.origin.alt_amsl_m * 1000.0))]
-
-    def _to_ned(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool) -> tuple[float, float, float]:
-        """A WGS-84 point around the global origin (NaN stays NaN); alt AMSL, or above home when relative_alt."""
-        n, e = self.origin.to_ned_xy(lat_deg, lon_deg)
-        home = self._state().home_ned
-        home_z = home[2] if home is not None else 0.0
-        d = home_z - alt_m if relative_alt else self.origin.alt_amsl_m - alt_m
-        return n, e, d
+        self.param_sets.close()
 
     def takeoff_amsl(self, alt_amsl_m: float) -> tuple[bool, str]:
         home = self._state().home_ned
@@ -497,24 +327,15 @@ class GcsService:
 
     def reposition_global(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool,
                           yaw_rad: float) -> tuple[bool, str]:
-        return self._vehicle.command(Reposition(self._to_ned(lat_deg, lon_deg, alt_m, relative_alt), yaw_rad))
+        return self._vehicle.command(Reposition(self.vehicle_msgs.to_ned(lat_deg, lon_deg, alt_m, relative_alt),
+                                                yaw_rad))
 
     def poll(self, now_wall: float) -> list[SetResult]:
         """Wall-clock work (telemetry, paced downloads, queued PARAM_SETs); returns the parameter changes the
         queued PARAM_SETs made, for the caller's log."""
         self._now = now_wall
-        self._run_param_queue(now_wall)
-        self._floor_in_force()
-        if self._floor is not None and self._floor.starved(now_wall):
-            self._floor.raise_priority()
-        self._save_params()
-        if self._last_manual is not None and now_wall - self._last_manual > MANUAL_CONTROL_TIMEOUT_S:
-            self._last_manual = None
-            self._vehicle.command(ManualInput(0.0, 0.0, 0.5, 0.0))  # sticks no longer received: centred (hold)
-        if self.mission.generation != self._plan_generation:  # a new plan, clear or start item: to the vehicle
-            self._plan_generation = self.mission.generation
-            self._vehicle.command(LoadMission(self.mission.plan(), self.origin))
-            self._vehicle.command(LoadFence(self.mission.plan(MissionType.FENCE), self.origin))
+        self.param_sets.poll(now_wall)
+        self.vehicle_msgs.poll(now_wall, self.mission)
         # one VehicleState per poll (~5 us to build): nothing below until CURRENT_MODE changes the vehicle's mode
         # (parameter, mission and command progress and the sends only read it)
         state = self._state()

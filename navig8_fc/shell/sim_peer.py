@@ -10,15 +10,19 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
-from navig8_fc.core.controller import ActuatorCommand
+from navig8_fc.core.controller import ActuatorCommand, ControllerConfig
 from navig8_fc.flight import ArmRequest
 from navig8_fc.links.mavlink_link import UdpLink
 from navig8_fc.links.sim_guard import SimGuard, SimInput, StreamRegrouper
 from navig8_fc.mavlink import seam
-from navig8_fc.mavlink.px4sim import Px4SimAssembler
-from navig8_fc.shell.realtime import RealtimeClock
+from navig8_fc.mavlink.px4sim import ActuatorModel, Px4SimAssembler
+from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.shell.realtime import TIMING_REALTIME, RealtimeClock
 
 
 class BundlePeer:
@@ -154,3 +158,34 @@ class Realtime:
 
     def stats(self) -> dict[str, Any] | None:
         return vars(self.clock.stats)
+
+
+def px4_assembler(config: ControllerConfig, origin: GeoOrigin) -> Px4SimAssembler:
+    """PX4's simulator messages as the sensor source (navig8_fc/mavlink/px4sim.py, docs/hil.md): the actuator states
+    modelled with the controller's actuator model (ACT_WN, ACT_ZETA at its rate) unless NAVIG8_ACTUATOR_STATE comes."""
+    model = ActuatorModel(config.indi.act_wn_rad_s, config.indi.act_zeta, config.dt_s, (0.0,) * 5)
+    return Px4SimAssembler(origin, model)
+
+
+@dataclass(frozen=True)
+class TimingSettings:
+    """When a step runs, typed from the parameters (FC_TIMING and the real-time clock's)."""
+
+    realtime: bool  # FC_TIMING = 1
+    rate_hz: float  # INDI_RATE_HZ: the real-time clock's tick
+    late_s: float  # RT_LATE_S
+    spacing_tol: float  # RT_SPACING_TOL
+
+    @staticmethod
+    def from_params(values: Mapping[str, float]) -> TimingSettings:
+        return TimingSettings(int(values["FC_TIMING"]) == TIMING_REALTIME, float(values["INDI_RATE_HZ"]),
+                              float(values["RT_LATE_S"]), float(values["RT_SPACING_TOL"]))
+
+
+def timing_from_params(registry: ParamRegistry, timing: str | None, now: float) -> Lockstep | Realtime:
+    """When a step runs: FC_TIMING (set first from --timing, `timing`, when given): lockstep, or the real-time mode's
+    clock at INDI_RATE_HZ (navig8_fc/shell/realtime.py)."""
+    if timing is not None:
+        registry.set("FC_TIMING", 1.0 if timing == "realtime" else 0.0)
+    t = TimingSettings.from_params(registry.as_dict())
+    return Realtime(RealtimeClock(t.rate_hz, t.late_s, t.spacing_tol, now)) if t.realtime else Lockstep()

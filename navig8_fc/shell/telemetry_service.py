@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Hashable
+from collections.abc import Callable, Hashable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from navig8_fc.core.vehicle import VehicleConfig
@@ -19,16 +20,26 @@ from navig8_fc.gcs.telemetry import (
     eig_margin_lower_bound,
     sensor_bits,
 )
-from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.geo import GeoOrigin, origin_from_params
 from navig8_fc.params.registry import ParamRegistry
 
 MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4 = 0, 12  # HEARTBEAT.autopilot: the identity navig8-fc announces
 Source = Hashable  # who sent a message, as the Outbox knows how to answer it (the process: (link name, address))
 
 
-def origin_from_params(reg: ParamRegistry) -> GeoOrigin:
-    """The global origin from ORIGIN_LAT_E7 / ORIGIN_LON_E7 / ORIGIN_ALT."""
-    return GeoOrigin(int(reg["ORIGIN_LAT_E7"]) * 1e-7, int(reg["ORIGIN_LON_E7"]) * 1e-7, float(reg["ORIGIN_ALT"]))
+@dataclass(frozen=True)
+class TelemetrySettings:
+    """The telemetry's parameters, typed once per parameter change (Telemetry.settings)."""
+
+    k_min: float  # INDI_K_MIN, INDI_K_MAX: the K box the eigenvalue margin is bounded over
+    k_max: float
+    battery_low_pct: float  # FS_BAT_LOW_PCT: below it SYS_STATUS's battery is unhealthy (the low-battery failsafe)
+    origin: GeoOrigin  # ORIGIN_*: the global origin of GLOBAL_POSITION_INT, HOME_POSITION, ...
+
+    @staticmethod
+    def from_params(values: Mapping[str, float]) -> TelemetrySettings:
+        return TelemetrySettings(float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"]),
+                                 float(values["FS_BAT_LOW_PCT"]), origin_from_params(values))
 
 
 class Telemetry:
@@ -52,20 +63,30 @@ class Telemetry:
         self.boot_wall = time.monotonic()
         self._eig_margin = math.nan
         self._eig_t = -1e9
+        self._settings_generation = -1  # the registry generation `settings` was typed from
+        self._settings = TelemetrySettings.from_params(registry.as_dict())
+
+    @property
+    def settings(self) -> TelemetrySettings:
+        """The parameters in force, typed again only after a change."""
+        reg = self._registry
+        if reg.generation != self._settings_generation:
+            self._settings = TelemetrySettings.from_params(reg.as_dict())
+            self._settings_generation = reg.generation
+        return self._settings
 
     def snapshot(self, now_wall: float) -> VehicleSnapshot:
         v = self._state()
         s = v.sensors
         st = v.status
+        cfg = self.settings
         if st is not None and now_wall - self._eig_t > self.EIG_MARGIN_PERIOD_S:
             self._eig_t = now_wall
-            reg = self._registry
-            self._eig_margin = eig_margin_lower_bound(self._vehicle, st.q_est_rad, float(reg["INDI_K_MIN"]),
-                                                      float(reg["INDI_K_MAX"]), v.lambda_crit)
+            self._eig_margin = eig_margin_lower_bound(self._vehicle, st.q_est_rad, cfg.k_min, cfg.k_max,
+                                                      v.lambda_crit)
         stab = self._registry.stability_status()
         zero3 = (0.0, 0.0, 0.0)
         ok = v.sensors_ok
-        bat_low_pct = float(self._registry["FS_BAT_LOW_PCT"])  # below it: unhealthy (the low-battery failsafe)
         return VehicleSnapshot(
             armed=v.armed,
             base_mode=v.base_mode,
@@ -85,9 +106,9 @@ class Telemetry:
             speed_rad_s=s.speed_rad_s if s else zero3,
             joint_pos_rad=s.joint_pos_rad if s else zero3,
             gripper_closed=s.gripper_closed if s else False,
-            origin=origin_from_params(self._registry),
+            origin=cfg.origin,
             sensors=sensor_bits(imu_ok=ok, pose_ok=ok, actuators_ok=ok, estimator_ok=st is not None,
-                                battery_ok=v.battery.remaining_pct > bat_low_pct, prearm_ok=bool(v.prearm.ok)),
+                                battery_ok=v.battery.remaining_pct > cfg.battery_low_pct, prearm_ok=bool(v.prearm.ok)),
             ckf_x_hat=st.adapt.x_hat if st else (math.nan,) * 4,  # type: ignore[arg-type]
             ckf_k=st.adapt.k if st else (math.nan,) * 4,  # type: ignore[arg-type]
             eig_margin=self._eig_margin,

@@ -12,7 +12,8 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
-from navig8_fc.gcs.mission_protocol import MissionProtocol, MissionState, Progress
+from navig8_fc.gcs.mission_protocol import MissionProtocol, Progress
+from navig8_fc.gcs.mission_status import MissionState
 from navig8_fc.mission import plan as P
 from navig8_fc.mission.plan import Cmd, Frame, MissionItem, MissionType, Result, plan_crc
 from navig8_fc.mission.store import MissionStore

@@ -1,0 +1,77 @@
+"""The FC's two ground-station links (GCS, API) as the GCS service's Outbox: binding them, keeping the FC's own echo
+and other vehicles' traffic out of the service, and sending to every peer (`broadcast`) or to the one a request came
+from (`reply`). Every STATUSTEXT sent also goes to the Foxglove log panel (/foxglove/log)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from typing import Any
+
+from navig8_fc.links.mavlink_link import UdpLink
+from navig8_fc.links.transport import parse_connection
+from navig8_fc.shell.fc_options import FcOptions
+from navig8_fc.shell.foxglove_out import FoxgloveOutput
+from navig8_fc.shell.telemetry_service import Source
+
+GCS_DATAGRAMS_PER_PASS = 16  # ~2-5 ms of GCS work at most between two looks at the sim link
+
+
+class GcsLinks:
+    """The GCS and API links (GcsService's Outbox). `fox` mirrors STATUSTEXT; `sim_ns` stamps it on sim time."""
+
+    def __init__(self, opts: FcOptions, mav: Callable[[], Any], compid: int, fox: FoxgloveOutput | None,
+                 sim_ns: Callable[[], int]) -> None:
+        o = opts
+        self.sysid, self.compid = o.sysid, compid
+        self.gcs = (UdpLink.connect("gcs", mav(), parse_connection(o.gcs_link)) if o.gcs_link else
+                    UdpLink.open("gcs", mav(), (o.bind_host, o.port("gcs_bind")), [(o.gcs_host, o.gcs_port)]))
+        self.api = (UdpLink.connect("api", mav(), parse_connection(o.api_link)) if o.api_link else
+                    UdpLink.open("api", mav(), (o.bind_host, o.port("api_bind")), [(o.gcs_host, o.port("api"))]))
+        self.links = (self.gcs, self.api)
+        for link in self.links:  # a GCS flood is handled a slice per loop pass, between control steps
+            link.max_datagrams = GCS_DATAGRAMS_PER_PASS
+        self._fox, self._sim_ns = fox, sim_ns
+
+    def trusted_sources(self) -> list[Source]:
+        """The configured peers of both links (GcsService trusts them before they speak)."""
+        return [(link.name, t) for link in self.links for t in link.targets]
+
+    def mine(self, link: UdpLink, received: list[Any]) -> list[tuple[Any, Source | None]]:
+        """The received messages meant for this FC, each with its source: our own echo or another vehicle's
+        traffic is counted on the link, never acted on."""
+        out = []
+        for r in received:
+            m = r.msg
+            if m.get_srcSystem() == self.sysid and m.get_srcComponent() == self.compid:
+                link.counters.foreign += 1
+                continue
+            out.append((m, (link.name, r.addr) if r.addr is not None else None))
+        return out
+
+    # --- Outbox (GcsService) ---------------------------------------------------------------------
+    def broadcast(self, msgs: list[Any], exclude: frozenset[Source] = frozenset()) -> None:
+        """To every peer of both GCS-facing links (telemetry, HEARTBEAT, STATUSTEXT, PARAM_VALUE announcements),
+        except the sources in `exclude` (source = (link name, address)). Every STATUSTEXT (the FC's events and the
+        GCS service's refusal reasons alike) also goes to /foxglove/log."""
+        for link in self.links:
+            dest = None
+            if exclude:
+                dest = [a for a in link.destinations() if (link.name, a) not in exclude]
+                if not dest:
+                    continue
+            for m in msgs:
+                link.send(m, dest)
+        if self._fox is not None:
+            for m in msgs:
+                if m.get_type() == "STATUSTEXT":
+                    text = m.text.decode(errors="replace") if isinstance(m.text, bytes) else str(m.text)
+                    self._fox.statustext(self._sim_ns(), int(m.severity), text.rstrip("\0"), time.time_ns())
+
+    def reply(self, source: Source, msgs: list[Any]) -> None:
+        """To the one peer a request came from, on its link: source = (link name, sender address)."""
+        name, addr = source  # type: ignore[misc]
+        link = self.api if name == self.api.name else self.gcs
+        dest = [addr]
+        for m in msgs:
+            link.send(m, dest)
