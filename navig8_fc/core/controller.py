@@ -79,6 +79,8 @@ _SH_PITCH, _SH_YAW = int(SH.PITCH), int(SH.YAW)
 _PS_TRUST, _PS_ERR, _PS_V_HAT, _PS_A_HAT = int(PS.TRUST), int(PS.ERR), int(PS.V_HAT), int(PS.A_HAT)
 _PS_DROPS, _PS_IDENTS = int(PS.DROPS), int(PS.IDENTS)
 
+assert N_LINKS == 3  # the tick's arm buffers and kernels are laid out for three joints
+
 JOINT_OBS_TAU_S = 1.0  # complementary-filter time constant for the joint angles (docs/model.md)
 # The shaped reference's feed-forward assumes the vehicle follows the reference. While the vehicle's attitude is more
 # than SHAPING_FF_ATT_RAD off the reference's (the actuators cannot follow it), the feed-forward is halved each tick
@@ -226,8 +228,7 @@ class FlightControllerCore:
         self._adapt = AdaptiveLaw(AdaptiveLawConfig(config.ckf, config.k_min, config.k_max, config.arm_wrench))
         self._obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
         self._outer_cfg = outer_loop_config_array(config.outer)
-        # Command shaping (shape_reference): its configuration, state (SH; INIT = 0: seed from the
-        # measured state at the next engaged tick), the shaped setpoint and the feed-forwards it writes
+        # Command shaping: configuration, state (SH; INIT = 0: seed at the next engaged tick), setpoint, feed-forwards
         self._shape_cfg = shaper_config_array(config.outer, config.dt_s)
         self._shape_st = SH.zeros()
         self._shape_sp = OSP.zeros()
@@ -251,10 +252,8 @@ class FlightControllerCore:
         self._arm_sup = pv.supervisor_state()  # kept across resets: the identified servo stays identified
         self._u_cmd = np.zeros(5)
         self._gc_law, self._gc_law_inv = np.empty((5, 5)), np.empty((5, 5))  # CKF_ACC_REF: G_C about the est. CoM
-        # the flown loop gain (INDI_LAM_REF != 1 or a floor INDI_KFL_MIN): off, G_hat_I is the adaptive law's, bit
-        # for bit
-        self._flown_gain = config.indi.lam_ref != 1.0 or config.indi.k_flown_min > 0.0
-        assert N_LINKS == 3
+        ind = config.indi  # the flown loop gain, or None: K_hat, bit for bit
+        self._flown_gain = (ind.lam_ref, ind.k_flown_min) if ind.lam_ref != 1.0 or ind.k_flown_min > 0.0 else None
 
     def update_gains(self, outer: OuterLoopConfig, k_min: float, k_max: float) -> None:
         """New outer-loop gains and K bounds from the next tick on; filters and estimator keep their state.
@@ -326,9 +325,8 @@ class FlightControllerCore:
         gi_hat, gi_flat, adapt_status = self._adapt.step_arrays(
             s.t_s, u_meas, acc_law, gc_law_inv, inertia, mass, rate, fo.item(_FO_ARM_HDC), self._indi_saturated,
             self._u_cmd if self._u_cmd_ok else None, s.gripper_closed, tuple(ul[_UO_OBJ_RATE:_UO_OBJ_RATE + 3]))
-        if self._flown_gain:  # INDI_LAM_REF / INDI_KFL_MIN: the INDI (and the status, the eigenvalue monitor) fly
-            gi_hat, gi_flat = flown_gi_hat(gi_flat, adapt_status.k, self.config.indi.lam_ref,  # K_flown, not K_hat
-                                           self.config.indi.k_flown_min)
+        if self._flown_gain is not None:  # the INDI, the status and the eigenvalue monitor fly K_flown, not K_hat
+            gi_hat, gi_flat = flown_gi_hat(gi_flat, adapt_status.k, *self._flown_gain)
         ref: tuple[float, float, float] | None = None
         sf_x = sf_z = 0.0  # the INDI's force-row feedback: f_O's (read from the sensors) or, here, the CoM's
         if self.config.acc_ref:

@@ -193,6 +193,21 @@ def _msg_id_param(p: float, name: str) -> int:
     return _int_param(p, name, 0, 65535)
 
 
+def decode_command(msg: Any, sysid: int, compid: int) -> CommandRequest | None:
+    """The command in `msg` if it is a COMMAND_LONG/COMMAND_INT addressed to (sysid, compid), else None."""
+    kind = msg.get_type()
+    if kind not in ("COMMAND_LONG", "COMMAND_INT") or not is_for_us(msg, sysid, compid):
+        return None
+    src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
+    if kind == "COMMAND_LONG":
+        p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
+        return CommandRequest(int(msg.command), tuple(float(v) for v in p), False, 0,  # type: ignore[arg-type]
+                              int(msg.confirmation), *src)
+    p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
+    return CommandRequest(int(msg.command), tuple(float(v) for v in p), True, int(msg.frame),  # type: ignore[arg-type]
+                          0, *src)
+
+
 class CommandHandler:
     """Command microservice of one component (module docstring)."""
 
@@ -251,7 +266,7 @@ class CommandHandler:
         if msg.get_type() == "COMMAND_CANCEL":
             self._cancel(msg)
             return []
-        req = self.decode(msg)
+        req = decode_command(msg, self._sysid, self._compid)
         if req is None:
             return []
         key = (req.src_system, req.src_component, req.command)
@@ -281,32 +296,6 @@ class CommandHandler:
         if outcome.info and outcome.result == CMD.MAV_RESULT_ACCEPTED:
             out += self._text.info(outcome.info)
         return out + outcome.extra
-
-    def decode(self, msg: Any) -> CommandRequest | None:
-        """The command in `msg` if it is a COMMAND_LONG/COMMAND_INT addressed to us, else None."""
-        kind = msg.get_type()
-        if kind not in ("COMMAND_LONG", "COMMAND_INT") or not is_for_us(msg, self._sysid, self._compid):
-            return None
-        src = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
-        if kind == "COMMAND_LONG":
-            p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
-            return CommandRequest(
-                int(msg.command),
-                tuple(float(v) for v in p),
-                False,
-                0,  # type: ignore[arg-type]
-                int(msg.confirmation),
-                *src,
-            )
-        p = (msg.param1, msg.param2, msg.param3, msg.param4, msg.x, msg.y, msg.z)
-        return CommandRequest(
-            int(msg.command),
-            tuple(float(v) for v in p),
-            True,
-            int(msg.frame),  # type: ignore[arg-type]
-            0,
-            *src,
-        )
 
     # --- execution -----------------------------------------------------------------------------------
     def _execute(self, req: CommandRequest) -> _Outcome:

@@ -49,6 +49,7 @@ from navig8_fc.flight.commands import (
     VehicleCommand,
 )
 from navig8_fc.flight.state import VehicleCommands, VehicleState
+from navig8_fc.gcs import standard_modes
 from navig8_fc.gcs.commands import CommandHandler
 from navig8_fc.gcs.ftp import FtpServer, FtpService
 from navig8_fc.gcs.metadata import build_metadata, component_metadata_message
@@ -60,7 +61,7 @@ from navig8_fc.gcs.vehicle_messages import VehicleMessages
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.store import MissionStore
 from navig8_fc.modes.manager import TaskStatus, Verdict
-from navig8_fc.modes.px4 import AVAILABLE_MODES, mode_for_standard, standard_mode_of
+from navig8_fc.modes.px4 import mode_for_standard
 from navig8_fc.params.registry import ParamRegistry, SetResult, StabilityStatus
 from navig8_fc.params.store import ParamStore
 from navig8_fc.shell.floor_worker import ParamSets
@@ -354,7 +355,7 @@ class GcsService:
         if self._std_modes and (key != self._current_mode_sent
                                 or now_wall - self._current_mode_t >= CURRENT_MODE_PERIOD_S):
             self._current_mode_sent, self._current_mode_t = key, now_wall  # 0.5 Hz and at once on a change
-            msgs.append(self._current_mode())
+            msgs.append(standard_modes.current_mode(self.mav, *key))
         if msgs:
             peers = tel.peers_with_own_rates
             if peers:
@@ -391,9 +392,9 @@ class GcsService:
         if msg_id in (MSG_AVAILABLE_MODES, MSG_CURRENT_MODE, MSG_AVAILABLE_MODES_MONITOR) and not self._std_modes:
             return None  # a dialect without the standard-modes messages (pymavlink's common.xml)
         if msg_id == MSG_AVAILABLE_MODES:
-            return self._available_modes(params[0] if params else 0.0)
+            return standard_modes.available_modes(self.mav, params[0] if params else 0.0)
         if msg_id == MSG_CURRENT_MODE:
-            return [self._current_mode()]
+            return [standard_modes.current_mode(self.mav, self._state().custom_mode, self._intended_custom_mode)]
         if msg_id == MSG_AVAILABLE_MODES_MONITOR:
             return [self.mav.available_modes_monitor_encode(AVAILABLE_MODES_SEQ)]
         now = time.monotonic()
@@ -401,24 +402,6 @@ class GcsService:
         return meta if meta is not None else self.telemetry.build_now(msg_id, now)
 
     # --- standard modes ----------------------------------------------------------------------------------
-    def _available_modes(self, index_param: float) -> list[Any] | None:
-        """REQUEST_MESSAGE(AVAILABLE_MODES) param2: 0 (or NaN) = every mode, 1..N = that one, else DENIED."""
-        n = len(AVAILABLE_MODES)
-        index = 0 if math.isnan(index_param) else int(round(index_param))
-        if not 0 <= index <= n:
-            return None
-        picked = range(1, n + 1) if index == 0 else (index,)
-        out = []
-        for i in picked:
-            mode, std, props = AVAILABLE_MODES[i - 1]
-            name = mode.label.encode() if std == 0 else b""  # standard modes are named by the ground station
-            out.append(self.mav.available_modes_encode(n, i, int(std), mode.custom_mode, props, name))
-        return out
-
-    def _current_mode(self) -> Any:
-        custom = self._state().custom_mode
-        return self.mav.current_mode_encode(standard_mode_of(custom), custom, self._intended_custom_mode)
-
     def set_message_interval(self, msg_id: int, interval_us: int) -> bool:
         """Clamped to GCS_RATE_MAX (a floor on the interval: one request cannot ask for 500 Hz streams)."""
         if interval_us > 0:
