@@ -21,12 +21,14 @@ from pathlib import Path
 from pymavlink.dialects.v20 import common as mavlink2
 from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
 
+from navig8_fc.modes import FlightMode
 from navig8_fc.params.store import ParamStore, default_state_path
 from navig8_fc.shell.mcap_log import read_mcap, read_mcap_records
 
 M = mavlink2
 REAL32 = M.MAV_PARAM_TYPE_REAL32
 N_SETS = 1000
+HOLD = FlightMode.HOLD.custom_mode
 
 
 class RawPeer:
@@ -139,7 +141,8 @@ def test_strangers_reflection_corrupt_file_and_a_thousand_param_sets_in_flight(t
             assert replies == N_SETS, f"{replies} of {N_SETS} PARAM_SETs answered"
             print(f"\n{N_SETS} PARAM_SETs answered in {time.monotonic() - t_start:.1f} s wall")
             hb = wait_heartbeat(gcs, 5.0)
-            assert hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED and hb.custom_mode == hb0.custom_mode
+            # still flying its scenario, or holding once the 10 s script has ended (a slow machine's burst outlasts it)
+            assert hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED and hb.custom_mode in (hb0.custom_mode, HOLD)
             assert run.fc.poll() is None, "navig8-fc died"
         finally:
             stranger.close()
