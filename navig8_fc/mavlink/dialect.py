@@ -9,9 +9,13 @@ Only the XML is committed. The module is generated on first use and cached as
 `<cache>/navig8_<key>.py`, where the key hashes navig8.xml, the included XMLs and the pymavlink version
 (pymavlink ships common.xml, so a pymavlink upgrade regenerates). The cache directory is
 `$NAVIG8_CACHE_DIR`, else `~/.cache/navig8`, else a per-user temporary directory when neither is
-writable. Generation writes into a private temporary directory and publishes with os.replace, so
-concurrent processes (the bridge and the FC start together) never see a half-written module; the
-worst case is that both generate the same file once.
+usable. A directory is used only when it is the user's own (not a symlink, owned by the current user) and private:
+mode 0700, tightened when the user's own directory is looser. A directory someone else owns (a `/tmp/navig8-<uid>`
+planted before the first run) is never used: the cache holds code the process executes (the generated module and
+its marshalled code), so a foreign or shared directory would run whatever was planted there. When no candidate
+qualifies, a fresh private temporary directory is used for this process. Generation writes into a private
+temporary directory and publishes with os.replace, so concurrent processes (the bridge and the FC start together)
+never see a half-written module; the worst case is that both generate the same file once.
 
 mavgen resolves `<include>` relative to the dialect file, so development.xml, common.xml, standard.xml and minimal.xml
 are copied from pymavlink's package (pymavlink/dialects/v20/) beside navig8.xml in the build
@@ -26,6 +30,7 @@ import io
 import marshal
 import os
 import shutil
+import stat
 import sys
 import tempfile
 import threading
@@ -112,9 +117,20 @@ def cache_key() -> str:
     return h.hexdigest()[:16]
 
 
-def _writable_dir(p: Path) -> bool:
+def _private_dir(p: Path) -> bool:
+    """p exists (created 0700 if missing), is a real directory the current user owns with mode 0700, and is writable."""
     try:
-        p.mkdir(parents=True, exist_ok=True)
+        p.mkdir(mode=0o700, parents=True, exist_ok=True)
+        st = os.lstat(p)
+        if not stat.S_ISDIR(st.st_mode):  # a symlink (or a file): never followed
+            return False
+        if hasattr(os, "getuid"):
+            if st.st_uid != os.getuid():
+                return False
+            if st.st_mode & 0o077:
+                os.chmod(p, 0o700)  # ours but readable or writable by others: tighten it
+                if os.lstat(p).st_mode & 0o077:
+                    return False
         with tempfile.NamedTemporaryFile(dir=p, prefix=".probe-"):
             pass
         return True
@@ -123,7 +139,8 @@ def _writable_dir(p: Path) -> bool:
 
 
 def cache_dir() -> Path:
-    """The first writable of $NAVIG8_CACHE_DIR, ~/.cache/navig8, <tmp>/navig8-<uid>."""
+    """The first private, writable one of $NAVIG8_CACHE_DIR, ~/.cache/navig8, <tmp>/navig8-<uid> (module docstring);
+    else a fresh private temporary directory."""
     candidates = []
     env = os.environ.get("NAVIG8_CACHE_DIR")
     if env:
@@ -132,9 +149,9 @@ def cache_dir() -> Path:
     uid = os.getuid() if hasattr(os, "getuid") else 0
     candidates.append(Path(tempfile.gettempdir()) / f"navig8-{uid}")
     for c in candidates:
-        if _writable_dir(c):
+        if _private_dir(c):
             return c
-    return Path(tempfile.mkdtemp(prefix="navig8-"))
+    return Path(tempfile.mkdtemp(prefix="navig8-"))  # 0700, ours, new
 
 
 def generate(out_py: Path) -> None:

@@ -354,3 +354,25 @@ def test_sim_status_roundtrip() -> None:
 def test_time_stamps_are_never_zero() -> None:
     assert seam.time_usec_from_sim_us(0) == 1
     assert seam.sim_us_from_time_usec(seam.time_usec_from_sim_us(123_450_000)) == 123_450_000
+
+
+def test_cache_dir_is_never_a_directory_someone_else_owns_or_shares(tmp_path: Path,
+                                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """The cache holds code the process runs: a planted <tmp>/navig8-<uid> (another owner) or a symlink is refused; a
+    directory of ours that others may write is tightened to 0700 before use."""
+    if not hasattr(os, "getuid"):
+        pytest.skip("ownership is a POSIX notion")
+    planted = tmp_path / "planted"
+    planted.mkdir(mode=0o777)
+    os.chmod(planted, 0o777)
+    (planted / "evil.code").write_bytes(b"planted")
+    monkeypatch.setenv("NAVIG8_CACHE_DIR", str(planted))
+    monkeypatch.setattr(dialect.os, "getuid", lambda: os.stat(planted).st_uid + 1)  # as if another user owned it
+    assert dialect.cache_dir() != planted
+    monkeypatch.undo()
+    link = tmp_path / "link"
+    link.symlink_to(planted)
+    monkeypatch.setenv("NAVIG8_CACHE_DIR", str(link))
+    assert dialect.cache_dir() != link
+    monkeypatch.setenv("NAVIG8_CACHE_DIR", str(planted))  # ours after all, but world-writable: tightened, then used
+    assert dialect.cache_dir() == planted and os.stat(planted).st_mode & 0o777 == 0o700
