@@ -35,7 +35,7 @@ import os
 import tempfile
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 FORMAT_NAME = "navig8-fc-params"
 FORMAT_VERSION = 1
@@ -156,7 +156,7 @@ class ParamStore:
         if depth > MAX_DEPTH:
             return LoadResult({}, f"parameter file {path} is corrupt: nested {depth} deep (at most {MAX_DEPTH})")
         try:
-            doc = json.loads(text, parse_constant=_refuse_constant)
+            doc = json.loads(text, parse_constant=_refuse_constant, object_pairs_hook=_refuse_duplicates)
         except (json.JSONDecodeError, ValueError, RecursionError) as exc:
             return LoadResult({}, f"parameter file {path} is corrupt: {exc}")
         if not isinstance(doc, dict) or doc.get("format") != FORMAT_NAME:
@@ -231,6 +231,17 @@ def json_depth(text: str) -> int:
 
 def _refuse_constant(name: str) -> float:
     raise ValueError(f"{name} is not a parameter value")
+
+
+def _refuse_duplicates(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object whose key repeats is refused (json's default keeps the last silently: a hand-edited file
+    with a parameter twice would fly a value nobody chose knowingly)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"{key!r} is given twice")
+        out[key] = value
+    return out
 
 
 def write_atomic(path: Path, data: bytes) -> None:

@@ -31,7 +31,8 @@ def test_missing_file_gives_empty_and_reason(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     "content",
     ["{not json", '{"format": "other", "version": 1, "params": {}}', '{"format": "navig8-fc-params", "version": 99}',
-     "[1, 2]", '{"format": "navig8-fc-params", "version": 1, "params": [1]}', "\xff\xfe"],
+     "[1, 2]", '{"format": "navig8-fc-params", "version": 1, "params": [1]}', "\xff\xfe",
+     '{"format": "navig8-fc-params", "version": 1, "params": {"OL_POS_K": 1.0, "OL_POS_K": 9.0}}'],  # a name twice
 )
 def test_corrupt_file_gives_empty_and_reason(tmp_path: Path, content: str) -> None:
     p = tmp_path / "p.json"
