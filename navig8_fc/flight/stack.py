@@ -43,6 +43,7 @@ from navig8_fc.flight.commands import (
     Land,
     LoadFence,
     LoadMission,
+    LoadRally,
     ManualInput,
     OffboardSetpoint,
     Reposition,
@@ -169,6 +170,7 @@ class FlightStack:
         indi = cfg.indi
         self.lambda_crit = stability.lambda_crit(indi.act_wn_rad_s, indi.act_zeta, cfg.dt_s, indi.lpf_tau_s)
         self.lambda_min = float(values["INDI_LAMBDA_MIN"])
+        self._modes.set_altitudes(float(values["MIS_TAKEOFF_ALT"]), float(values["RTL_RETURN_ALT"]))
         return True
 
     # --- the control step ------------------------------------------------------------------------------
@@ -269,6 +271,7 @@ class FlightStack:
             ManualInput: self._manual_input,
             LoadMission: self._load_mission,
             LoadFence: self._load_fence,
+            LoadRally: self._load_rally,
         }
 
     def _gripper(self, cmd: Gripper) -> Verdict:
@@ -329,6 +332,12 @@ class FlightStack:
     def _load_fence(self, cmd: LoadFence) -> Verdict:
         """The uploaded FENCE plan (inclusion circles and polygons), checked in flight with FS_FENCE_ACT."""
         self._fs.load_fence(Fence.from_plan(cmd.plan, cmd.origin))
+        return Verdict(True)
+
+    def _load_rally(self, cmd: LoadRally) -> Verdict:
+        """The uploaded RALLY plan: Return (the mode, a plan's return item, the return failsafes) goes to the closest
+        of home and its points (navig8_fc.mission.rally)."""
+        self._modes.load_rally(cmd.plan, cmd.origin)
         return Verdict(True)
 
     def _queue(self, req: ArmRequest) -> None:

@@ -23,11 +23,13 @@ the start position projected onto `ModeConfig.air_start_home_z_ned_m` (the plant
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan, Progress
+from navig8_fc.mission.rally import return_destination
 from navig8_fc.modes.braking import braking_distance_m
 from navig8_fc.modes.land_detector import LandDetector
 from navig8_fc.modes.px4 import (
@@ -282,6 +284,21 @@ class ModeManager:
             else:
                 self._sw.entry_pending = True
 
+    def load_rally(self, plan: Plan, origin: GeoOrigin) -> None:
+        """An uploaded rally plan (empty: cleared): Return and a plan's return item choose among its points when
+        they start (navig8_fc.mission.rally)."""
+        self._ctx.rally = plan if plan.items else None
+        self._ctx.rally_origin = origin
+
+    def set_altitudes(self, takeoff_alt_m: float, rtl_alt_m: float) -> None:
+        """MIS_TAKEOFF_ALT (the takeoff height when none is given) and RTL_RETURN_ALT (Return's height above its
+        destination), live: the next takeoff and the next return use them."""
+        cfg = self._cfg
+        if cfg.takeoff_default_alt_m == takeoff_alt_m and cfg.rtl_alt_m == rtl_alt_m:
+            return
+        self._cfg = self._ctx.config = dataclasses.replace(cfg, takeoff_default_alt_m=float(takeoff_alt_m),
+                                                           rtl_alt_m=float(rtl_alt_m))
+
     def offboard_setpoint(self, sp: Setpoint | OffboardTarget | None) -> None:
         """The latest streamed offboard target (a Setpoint: position, pitch, yaw; None: the stream is lost, the
         FlightStack decides on timeouts). Offboard flies it; losing it in Offboard holds where the vehicle is."""
@@ -313,7 +330,8 @@ class ModeManager:
         verdict = self.set_mode(int(Px4MainMode.AUTO), int(Px4AutoSubMode.RTL))
         if verdict.ok and not self._tasks.running_kind("return"):
             here = self._sw.here()
-            self._tasks.start("return", here, self._ctx.home or here)
+            home = self._ctx.home or here
+            self._tasks.start("return", here, return_destination(here, home, self._ctx.rally_points()).pos_ned)
         return verdict
 
     def cancel_task(self) -> bool:
