@@ -135,6 +135,11 @@ class FlightStack:
         assert self._core is not None
         return self._core
 
+    @property
+    def mode_config(self) -> ModeConfig:
+        """The mode manager's configuration in force (MIS_TAKEOFF_ALT and RTL_RETURN_ALT applied)."""
+        return self._modes.config
+
     def _set_mode_limits(self, outer: OuterLoopConfig) -> None:
         """What the mode manager needs of the outer loop: the position gain (offboard velocity feed-forward) and the
         limits the position reference brakes with (where Hold stops)."""
