@@ -1,7 +1,7 @@
 """The MAVLink messages that steer the vehicle outside the command protocol (for GcsService; pure, wall times come
 in): the legacy SET_MODE, the offboard targets (SET_POSITION_TARGET_*, SET_ATTITUDE_TARGET), MANUAL_CONTROL (sticks
-centred when it stops), SET_GPS_GLOBAL_ORIGIN, and the uploaded mission, fence and rally plans handed to the vehicle about
-the global origin. None of them has an ACK: a refusal is a STATUSTEXT."""
+centred when it stops), SET_GPS_GLOBAL_ORIGIN, and the uploaded mission, fence and rally plans handed to the vehicle
+about the global origin. None of them has an ACK: a refusal is a STATUSTEXT."""
 
 from __future__ import annotations
 

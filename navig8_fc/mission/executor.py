@@ -28,8 +28,8 @@ Every completed item is reported reached, in order (`Progress.reached_log`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import NamedTuple
 
 from navig8_fc.core.outer_loop import Setpoint

@@ -3,9 +3,10 @@
 Each mode (`takeoff`, `hold`, `land`, `position`, `offboard`, `rtl`, `mission` in this package) is a small
 class with `enter(inputs, ...)` (the entry actions that need a state sample, run at the first step in the mode)
 and `update(inputs, dt) -> Step`. What they share with the manager comes in one `ModeContext`, owned by the
-manager and given to every mode when it is built: the configuration, the land detector, the task tracker, the
-home, the rally points, the last output and the event list (STATUSTEXT). A mode that ends (takeoff done, mission done, Return
-landing, touchdown and disarm, offboard stream lost) says where to go next in `Step.then`; the manager switches.
+manager and given to every mode when it is built: the configuration, the land detector, the task tracker,
+the home, the rally points, the last output and the event list (STATUSTEXT). A mode that ends (takeoff done,
+mission done, Return landing, touchdown and disarm, offboard stream lost) says where to go next in `Step.then`; the
+manager switches.
 """
 
 from __future__ import annotations

@@ -17,9 +17,9 @@ import time
 from pathlib import Path
 
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import FcTarget, command, wait_for
-from test_sitl_failsafe import _read, _set_param
+from sitl_helpers import PARAM_SET_WAIT_S, FcTarget, command, wait_for
 
+from navig8_fc.gcs.params import decode_param_value, encode_param_value
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import MissionType
 from navig8_fc.modes import px4_custom_mode
@@ -52,6 +52,18 @@ def _qgc_plan(home: tuple[float, float]) -> dict:
             "rallyPoints": {"version": 2, "points": [[*_ll(home, *RALLY_0), 0], [*_ll(home, 0, -15), 0]]}}
 
 
+def _fence_act(gcs, value: int | None = None) -> int:
+    """FS_FENCE_ACT (INT32, bytewise on the wire): set it when value is given; the value in force."""
+    if value is None:
+        gcs.mav.param_request_read_send(gcs.target_system, 1, b"FS_FENCE_ACT", -1)
+    else:
+        wire = encode_param_value(value, M.MAV_PARAM_TYPE_INT32)
+        gcs.mav.param_set_send(gcs.target_system, 1, b"FS_FENCE_ACT", wire, M.MAV_PARAM_TYPE_INT32)
+    pv = wait_for(gcs, "PARAM_VALUE", PARAM_SET_WAIT_S, lambda m: m.param_id == "FS_FENCE_ACT")
+    assert pv is not None, "no PARAM_VALUE FS_FENCE_ACT"
+    return int(decode_param_value(pv.param_value, pv.param_type))
+
+
 def _key(items: tuple) -> list[tuple]:
     return [tuple("nan" if isinstance(v, float) and math.isnan(v) else round(v, 4) if isinstance(v, float) else v
                   for v in (it.frame, it.command, it.autocontinue, *it.params, it.x, it.y, it.z)) for it in items]
@@ -75,7 +87,7 @@ def test_qgc_plan_with_rally_points_round_trips_and_a_fence_breach_returns_to_th
     fc.require_flight()
     rtl = px4_custom_mode(Px4MainMode.AUTO, Px4AutoSubMode.RTL)
     with fc.session() as gcs:
-        before = _read(gcs, "FS_FENCE_ACT")
+        before = _fence_act(gcs)
         try:
             hp = wait_for(gcs, "HOME_POSITION", 15.0)
             assert hp is not None
@@ -88,7 +100,7 @@ def test_qgc_plan_with_rally_points_round_trips_and_a_fence_breach_returns_to_th
                                 (MissionType.RALLY, plan.rally)):
                 assert upload(gcs, items, kind) == M.MAV_MISSION_ACCEPTED, kind
                 assert _key(download(gcs, kind)[0]) == _key(items), kind
-            _set_param(gcs, "FS_FENCE_ACT", 3, int32=True)
+            assert _fence_act(gcs, 3) == 3
             deadline = time.monotonic() + 15.0
             while command(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result != M.MAV_RESULT_ACCEPTED:
                 assert time.monotonic() < deadline, "arming never accepted"
@@ -117,6 +129,6 @@ def test_qgc_plan_with_rally_points_round_trips_and_a_fence_breach_returns_to_th
             off = math.hypot(lp.x - home[0] - RALLY_0[0], lp.y - home[1] - RALLY_0[1])
             assert off < LAND_TOL_M and abs(lp.z - hp.z) < LAND_TOL_M, (lp.x, lp.y, lp.z)
         finally:
-            _set_param(gcs, "FS_FENCE_ACT", before, int32=True)
+            _fence_act(gcs, before)
             gcs.mav.mission_clear_all_send(gcs.target_system, 1, M.MAV_MISSION_TYPE_ALL)
             wait_for(gcs, "MISSION_ACK", 5.0)

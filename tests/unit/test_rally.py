@@ -8,10 +8,12 @@ from __future__ import annotations
 import math
 
 import pytest
+from pymavlink.dialects.v20 import common as M
 from test_mission_executor import flying
 from test_mission_protocol import LAT0, LON0, Rig, as_item, download, item_msg, same, upload
 from test_modes import fly
 
+from navig8_fc.core import vehicle as vm
 from navig8_fc.flight import FlightStack
 from navig8_fc.flight.commands import Takeoff
 from navig8_fc.mission.geo import GeoOrigin
@@ -21,9 +23,7 @@ from navig8_fc.mission.store import MissionStore
 from navig8_fc.modes import FlightMode
 from navig8_fc.modes.px4 import Px4AutoSubMode, Px4MainMode
 from navig8_fc.params.registry import ParamRegistry
-from navig8_fc.core import vehicle as vm
 from navig8_tools.mission import read_qgc_plan
-from pymavlink.dialects.v20 import common as M
 
 RALLY = MissionType.RALLY
 # MAVSDK's import of example-mission.plan: frame GLOBAL_RELATIVE_ALT (3) in MISSION_ITEM_INT, x/y degE7, z 0
