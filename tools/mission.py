@@ -10,7 +10,9 @@ Plan files:
 - QGroundControl `.plan` JSON (fileType "Plan"): `mission.items` SimpleItems (command, frame, params[7],
   autoContinue; params 5/6 are latitude/longitude in degrees for global frames, x/y in metres for
   MAV_FRAME_LOCAL_NED; null = NaN; DO_JUMP param1 is the target's doJumpId, converted to its item number as QGC
-  does on upload) and `geoFence` circles/polygons (inclusion only) -> the FENCE plan.
+  does on upload), `geoFence` circles/polygons (inclusion and exclusion) -> the FENCE plan, and `rallyPoints`
+  `points` ([lat, lon, alt above home]) -> the RALLY plan (NAV_RALLY_POINT, MAV_FRAME_GLOBAL_RELATIVE_ALT, as QGC
+  and MAVSDK's import_qgroundcontrol_mission send them). `upload` sends each plan the file has.
 - MAVLink waypoint text ("QGC WPL 110"): one item per line, `seq current frame command p1 p2 p3 p4 x y z
   autocontinue`, tab-separated; every line is an item (no home line is skipped: this vehicle does not take
   item 0 as home, like PX4).
@@ -56,6 +58,7 @@ _TIMEOUT_S = 5.0
 class PlanFile:
     mission: tuple[MissionItem, ...]
     fence: tuple[MissionItem, ...] = ()
+    rally: tuple[MissionItem, ...] = ()
 
 
 def _item(frame: int, command: int, autocontinue: int, p: list[float], x: float, y: float, z: float) -> MissionItem:
@@ -100,7 +103,9 @@ def read_qgc_plan(doc: dict) -> PlanFile:
         cmd = (Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION if poly.get("inclusion", True)
                else Cmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION)
         fence += [_item(Frame.GLOBAL_INT, cmd, 1, [n, 0, 0, 0], lat, lon, 0.0) for lat, lon in poly["polygon"]]
-    return PlanFile(tuple(items), tuple(fence))
+    rally = [_item(Frame.GLOBAL_RELATIVE_ALT, Cmd.NAV_RALLY_POINT, 0, [0, 0, 0, 0], lat, lon, alt)
+             for lat, lon, alt in doc.get("rallyPoints", {}).get("points", [])]
+    return PlanFile(tuple(items), tuple(fence), tuple(rally))
 
 
 def read_wpl(text: str) -> PlanFile:
@@ -369,8 +374,9 @@ def main(argv: list[str] | None = None) -> int:
     if not a.file:
         ap.error("upload needs a plan file")
     plan = read_plan(a.file)
-    for kind, items in ((MissionType.MISSION, plan.mission), (MissionType.FENCE, plan.fence)):
-        if kind == MissionType.FENCE and not items:
+    for kind, items in ((MissionType.MISSION, plan.mission), (MissionType.FENCE, plan.fence),
+                        (MissionType.RALLY, plan.rally)):
+        if kind != MissionType.MISSION and not items:
             continue
         result = upload(conn, items, kind)
         print(f"{kind.name.lower()}: {len(items)} items -> MISSION_ACK {result}")

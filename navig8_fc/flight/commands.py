@@ -95,5 +95,11 @@ class LoadFence:
     origin: GeoOrigin
 
 
+@dataclass(frozen=True)
+class LoadRally:
+    plan: Plan  # the uploaded RALLY plan: Return goes to the closest of home and its points (mission.rally)
+    origin: GeoOrigin
+
+
 VehicleCommand = (Arm | Disarm | Takeoff | Land | ReturnToLaunch | SetMode | Reposition | Gripper | ArmJoints
-                  | CancelTask | OffboardSetpoint | ManualInput | LoadMission | LoadFence)
+                  | CancelTask | OffboardSetpoint | ManualInput | LoadMission | LoadFence | LoadRally)

@@ -43,6 +43,7 @@ from navig8_fc.flight.commands import (
     Land,
     LoadFence,
     LoadMission,
+    LoadRally,
     ManualInput,
     OffboardSetpoint,
     Reposition,
@@ -134,6 +135,11 @@ class FlightStack:
         assert self._core is not None
         return self._core
 
+    @property
+    def mode_config(self) -> ModeConfig:
+        """The mode manager's configuration in force (MIS_TAKEOFF_ALT and RTL_RETURN_ALT applied)."""
+        return self._modes.config
+
     def _set_mode_limits(self, outer: OuterLoopConfig) -> None:
         """What the mode manager needs of the outer loop: the position gain (offboard velocity feed-forward) and the
         limits the position reference brakes with (where Hold stops)."""
@@ -169,6 +175,7 @@ class FlightStack:
         indi = cfg.indi
         self.lambda_crit = stability.lambda_crit(indi.act_wn_rad_s, indi.act_zeta, cfg.dt_s, indi.lpf_tau_s)
         self.lambda_min = float(values["INDI_LAMBDA_MIN"])
+        self._modes.set_altitudes(float(values["MIS_TAKEOFF_ALT"]), float(values["RTL_RETURN_ALT"]))
         return True
 
     # --- the control step ------------------------------------------------------------------------------
@@ -269,6 +276,7 @@ class FlightStack:
             ManualInput: self._manual_input,
             LoadMission: self._load_mission,
             LoadFence: self._load_fence,
+            LoadRally: self._load_rally,
         }
 
     def _gripper(self, cmd: Gripper) -> Verdict:
@@ -329,6 +337,12 @@ class FlightStack:
     def _load_fence(self, cmd: LoadFence) -> Verdict:
         """The uploaded FENCE plan (inclusion circles and polygons), checked in flight with FS_FENCE_ACT."""
         self._fs.load_fence(Fence.from_plan(cmd.plan, cmd.origin))
+        return Verdict(True)
+
+    def _load_rally(self, cmd: LoadRally) -> Verdict:
+        """The uploaded RALLY plan: Return (the mode, a plan's return item, the return failsafes) goes to the closest
+        of home and its points (navig8_fc.mission.rally)."""
+        self._modes.load_rally(cmd.plan, cmd.origin)
         return Verdict(True)
 
     def _queue(self, req: ArmRequest) -> None:

@@ -1,4 +1,4 @@
-"""MAVLink mission microservice of the vehicle (mission types MISSION and FENCE): message in -> messages out.
+"""MAVLink mission microservice of the vehicle (mission types MISSION, FENCE and RALLY): message in -> messages out.
 
 The caller (navig8_fc.shell.gcs_service) routes: `handle(msg, now_s, source)` returns the replies for the
 sender (STATUSTEXT among them is broadcast); `poll(now_s)` returns (source, message) pairs: re-requests for the
@@ -20,7 +20,8 @@ MISSION_COUNT(n) -> MISSION_REQUEST_INT(0) -> MISSION_ITEM_INT(0) -> ... -> MISS
 - Legacy MISSION_ITEM (float x/y) is accepted; a MISSION_ACK(UNSUPPORTED) from the uploader in answer to our
   MISSION_REQUEST_INT switches that upload to MISSION_REQUEST (PX4 does the same).
 - The last item repeated after the final ACK (the ground station lost it) gets the same ACK again.
-- MISSION_COUNT(0) clears that mission type (ACK ACCEPTED); n above the storage -> NO_SPACE; RALLY -> UNSUPPORTED.
+- MISSION_COUNT(0) clears that mission type (ACK ACCEPTED); n above the storage -> NO_SPACE; another type ->
+  UNSUPPORTED.
 Download: MISSION_REQUEST_LIST -> MISSION_COUNT(n) -> MISSION_REQUEST_INT(i) -> MISSION_ITEM_INT(i) (or
 MISSION_REQUEST -> MISSION_ITEM) ... -> the ground station's MISSION_ACK. Items are sent exactly as stored, with
 current = 1 on the plan's start item; a request for a seq >= n gets MISSION_ACK(INVALID_SEQUENCE).
@@ -31,9 +32,9 @@ once when it changes; MISSION_ITEM_REACHED(seq) at once and then once a second u
 kept by navig8_fc/gcs/mission_status.py.
 
 opaque_id: every plan has a CRC32 identity (`Plan.opaque_id`, 0 = no plan), sent in MISSION_ACK / MISSION_COUNT
-`opaque_id` and MISSION_CURRENT `mission_id` / `fence_id` whenever the dialect has those extension fields (the
-FC's navig8 dialect adds them to pymavlink's common.xml, which lacks them; navig8_fc.mavlink.dialect) and
-reported by `opaque_id(mission_type)` either way (docs/gcs.md).
+`opaque_id` and MISSION_CURRENT `mission_id` / `fence_id` / `rally_points_id` whenever the dialect has those
+extension fields (the FC's navig8 dialect adds them to pymavlink's common.xml, which lacks them;
+navig8_fc.mavlink.dialect) and reported by `opaque_id(mission_type)` either way (docs/gcs.md).
 """
 
 from __future__ import annotations
@@ -59,7 +60,7 @@ from navig8_fc.mission.plan import (
 from navig8_fc.mission.store import MissionStore
 
 MAV_COMP_ID_MISSIONPLANNER = 190
-STORED_TYPES = (MissionType.MISSION, MissionType.FENCE)
+STORED_TYPES = (MissionType.MISSION, MissionType.FENCE, MissionType.RALLY)
 
 
 @dataclass
@@ -292,7 +293,7 @@ class MissionProtocol:
         if self._upload is not None:
             return self._refuse(partner, mission_type,
                                 Problem(Result.ERROR, "Mission download refused: an upload is running"))
-        count = len(self.plan(mission_type).items)  # RALLY: always empty
+        count = len(self.plan(mission_type).items)
         self._download = _Download(source, partner, mission_type, now_s) if count else None
         m = self._mav.mission_count_encode(partner[0], partner[1], count, mission_type)
         if "opaque_id" in m.fieldnames:

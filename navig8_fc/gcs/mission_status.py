@@ -79,6 +79,7 @@ class MissionStatus:
         if "mission_id" in m.fieldnames:  # the navig8 dialect's common.xml extensions (navig8_fc.mavlink.dialect)
             m.mission_id = self._plan(MissionType.MISSION).opaque_id
             m.fence_id = self._plan(MissionType.FENCE).opaque_id
+            m.rally_points_id = self._plan(MissionType.RALLY).opaque_id
         return m
 
     def _key(self) -> tuple[int, int, int, int]:

@@ -121,10 +121,11 @@ DEFAULT_RATES_HZ: dict[int, float] = {
 # Capabilities this flight controller really has (AUTOPILOT_VERSION). MISSION_INT: the mission protocol is
 # answered with the *_INT messages (and MAVSDK refuses mission upload without it); COMMAND_INT: handled;
 # SET_POSITION_TARGET_LOCAL_NED / _GLOBAL_INT: position targets fly Offboard (gcs_service); MISSION_FENCE: fence
-# plans (inclusion circles and polygons) are uploaded, stored and enforced (navig8_fc.mission.fence); MAVLINK2:
+# plans (inclusion circles and polygons) are uploaded, stored and enforced (navig8_fc.mission.fence); MISSION_RALLY:
+# rally plans are uploaded, stored and flown to by Return (navig8_fc.mission.rally); MAVLINK2:
 # always; PARAM_ENCODE_BYTEWISE: how INT32 parameters are encoded (navig8_fc.gcs.params).
 # SET_ATTITUDE_TARGET: pitch, yaw and thrust fly Offboard (navig8_fc.gcs.offboard).
-# Not set: FTP (answered with NAK only), MISSION_RALLY, GRIPPER (WIP bit).
+# Not set: FTP (answered with NAK only), GRIPPER (WIP bit).
 CAPABILITIES = (
     M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
     | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT
@@ -132,6 +133,7 @@ CAPABILITIES = (
     | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
     | M.MAV_PROTOCOL_CAPABILITY_SET_ATTITUDE_TARGET
     | M.MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+    | M.MAV_PROTOCOL_CAPABILITY_MISSION_RALLY
     | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
     | PARAM_ENCODING_CAPABILITY
 )

@@ -1,7 +1,7 @@
 """The MAVLink messages that steer the vehicle outside the command protocol (for GcsService; pure, wall times come
 in): the legacy SET_MODE, the offboard targets (SET_POSITION_TARGET_*, SET_ATTITUDE_TARGET), MANUAL_CONTROL (sticks
-centred when it stops), SET_GPS_GLOBAL_ORIGIN, and the uploaded mission and fence plans handed to the vehicle about
-the global origin. None of them has an ACK: a refusal is a STATUSTEXT."""
+centred when it stops), SET_GPS_GLOBAL_ORIGIN, and the uploaded mission, fence and rally plans handed to the vehicle
+about the global origin. None of them has an ACK: a refusal is a STATUSTEXT."""
 
 from __future__ import annotations
 
@@ -9,7 +9,15 @@ from collections.abc import Callable
 from typing import Any
 
 from navig8_fc.core.rotation import quat_to_euler
-from navig8_fc.flight.commands import LoadFence, LoadMission, ManualInput, OffboardSetpoint, SetMode, VehicleCommand
+from navig8_fc.flight.commands import (
+    LoadFence,
+    LoadMission,
+    LoadRally,
+    ManualInput,
+    OffboardSetpoint,
+    SetMode,
+    VehicleCommand,
+)
 from navig8_fc.flight.state import VehicleCommands, VehicleState
 from navig8_fc.gcs import offboard
 from navig8_fc.gcs.mission_protocol import MissionProtocol
@@ -61,6 +69,7 @@ class VehicleMessages:
             self._plan_generation = mission.generation
             self._vehicle.command(LoadMission(mission.plan(), self.origin))
             self._vehicle.command(LoadFence(mission.plan(MissionType.FENCE), self.origin))
+            self._vehicle.command(LoadRally(mission.plan(MissionType.RALLY), self.origin))
 
     def _set_mode(self, m: Any) -> list[Any]:
         """The legacy SET_MODE message (what `mode X` in MAVProxy sends), read in PX4's custom_mode encoding

@@ -14,7 +14,8 @@ Items (docs/gcs.md, "Mission execution"):
   hold, loiter time) or forever (LOITER_UNLIM). Yaw p4 (deg, NaN keep) is commanded from the item's start.
 - NAV_LAND: fly to x/y (x = y = 0 in a global frame: where the vehicle is) at the current altitude, then hand
   over to landing (`ExecStep.land`); the plan is finished.
-- NAV_RETURN_TO_LAUNCH: climb to `rtl_alt_m` above home if lower, fly to home, hand over to landing.
+- NAV_RETURN_TO_LAUNCH: choose the destination as PX4's RTL_TYPE 0 (navig8_fc.mission.rally: home, or the closest
+  rally point more than 10 m from home), climb to `rtl_alt_m` above it if lower, fly there, hand over to landing.
 - DO_CHANGE_SPEED (p2 m/s, -1 keep), DO_GRIPPER, NAVIG8_ARM_JOINTS: act and continue at once.
 - DO_JUMP: jump to p1, p2 times (-1: forever), then continue.
 - CONDITION_DELAY: hold p1 s. CONDITION_YAW: command yaw p1 deg (absolute, or relative with p3 direction when
@@ -27,6 +28,7 @@ Every completed item is reported reached, in order (`Progress.reached_log`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -41,6 +43,7 @@ from navig8_fc.mission.plan import (
     Plan,
     Progress,
 )
+from navig8_fc.mission.rally import Destination, RallyPoint, return_destination
 
 Vec3 = tuple[float, float, float]
 REACHED_LOG_LEN = 32
@@ -52,7 +55,7 @@ class ExecConfig:
     climb_rate_m_s: float = 1.0
     takeoff_tol_m: float = 0.2
     acceptance_m: float = 0.2  # waypoint acceptance radius when the item's p2 is 0
-    rtl_alt_m: float = 2.5  # return altitude above home
+    rtl_alt_m: float = 2.5  # return altitude above the return's destination (RTL_RETURN_ALT)
     yaw_tol_rad: float = 0.1
     yaw_timeout_s: float = 10.0
 
@@ -113,8 +116,11 @@ def planned_path(plan: Plan, origin: GeoOrigin, home_ned: Vec3) -> list[Vec3]:
 
 class MissionExecutor:
     def __init__(self, plan: Plan, origin: GeoOrigin, home_ned: Vec3, start_sp: Setpoint,
-                 config: ExecConfig | None = None, reached_count: int = 0) -> None:
+                 config: ExecConfig | None = None, reached_count: int = 0,
+                 rally: Callable[[], tuple[RallyPoint, ...]] | None = None) -> None:
         self._plan = plan
+        self._rally = rally  # the rally points in force, read when a return starts
+        self._dest = Destination(-1, home_ned)  # where the last return went
         self._origin = origin
         self._home = home_ned
         self._cfg = config or ExecConfig()
@@ -146,6 +152,11 @@ class MissionExecutor:
     @property
     def finished(self) -> bool:
         return self._finished
+
+    @property
+    def destination(self) -> Destination:
+        """Where the last NAV_RETURN_TO_LAUNCH went (home until one started)."""
+        return self._dest
 
     # --- positions ---------------------------------------------------------------------------------------
     def _item_pos(self, it: MissionItem, here: Vec3) -> Vec3:
@@ -225,8 +236,10 @@ class MissionExecutor:
             p = self._item_pos(it, here)
             self._target = (p[0], p[1], self._pos[2])
         elif cmd == Cmd.NAV_RETURN_TO_LAUNCH:
-            self._target = (self._pos[0], self._pos[1], min(self._pos[2], self._home[2] - self._cfg.rtl_alt_m))
-            events.append("Mission: returning to launch")
+            dest = self._dest = return_destination(here, self._home, self._rally() if self._rally else ())
+            self._target = (self._pos[0], self._pos[1], min(self._pos[2], dest.pos_ned[2] - self._cfg.rtl_alt_m))
+            events.append("Mission: returning to launch" if dest.is_home else
+                          f"Mission: returning to rally point {dest.seq}")
         elif cmd == Cmd.CONDITION_YAW:
             if int(it.param4) == 1:
                 direction = -1.0 if int(it.param3) == -1 else 1.0
@@ -266,7 +279,8 @@ class MissionExecutor:
                 self._move(self._target, dt)
                 if self._pos == self._target and abs(here[2] - self._target[2]) < cfg.takeoff_tol_m:
                     self._phase = 1
-                    self._target = (self._home[0], self._home[1], self._target[2])
+                    dest = self._dest.pos_ned
+                    self._target = (dest[0], dest[1], self._target[2])
                 return False, False
             self._move(self._target, dt)
             return self._pos == self._target and math.dist(here, self._target) <= cfg.acceptance_m, True

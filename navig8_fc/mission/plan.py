@@ -27,7 +27,9 @@ Commands (docs/gcs.md has the parameter table):
   the same command and count form one polygon), NAV_FENCE_CIRCLE_INCLUSION / _EXCLUSION (p1 radius m >= 0, x/y
   centre), NAV_FENCE_RETURN_POINT (stored, not used: Return flies home). As PX4, an area is stored whatever its
   place; the fence does not enforce an area on the wrong side of home (mission.fence).
-- RALLY: not supported (MAV_MISSION_UNSUPPORTED).
+- RALLY: NAV_RALLY_POINT (x/y lat/lon, z altitude: AMSL in GLOBAL[_INT], above home in GLOBAL_RELATIVE_ALT[_INT];
+  params unused). As PX4 (mavlink_mission.cpp), MAV_FRAME_MISSION is MAV_MISSION_UNSUPPORTED, every other non-global
+  frame UNSUPPORTED_FRAME; Return picks among them (mission.rally).
 """
 
 from __future__ import annotations
@@ -98,6 +100,7 @@ class Cmd(IntEnum):
     NAV_FENCE_POLYGON_VERTEX_EXCLUSION = 5002
     NAV_FENCE_CIRCLE_INCLUSION = 5003
     NAV_FENCE_CIRCLE_EXCLUSION = 5004
+    NAV_RALLY_POINT = 5100
     NAVIG8_ARM_JOINTS = 31010  # MAV_CMD_USER_1 (navig8.xml)
     NAVIG8_PITCH_HOLD = 31011  # MAV_CMD_USER_2 (navig8.xml)
 
@@ -117,7 +120,9 @@ MISSION_COMMANDS = NAV_COMMANDS | {
 FENCE_POLYGON_COMMANDS = frozenset({Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, Cmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION})
 FENCE_CIRCLE_COMMANDS = frozenset({Cmd.NAV_FENCE_CIRCLE_INCLUSION, Cmd.NAV_FENCE_CIRCLE_EXCLUSION})
 FENCE_COMMANDS = FENCE_POLYGON_COMMANDS | FENCE_CIRCLE_COMMANDS | {Cmd.NAV_FENCE_RETURN_POINT}
-MAX_ITEMS = {MissionType.MISSION: 500, MissionType.FENCE: 64}  # storage per type (NO_SPACE above)
+RALLY_COMMANDS = frozenset({Cmd.NAV_RALLY_POINT})
+# storage per type (NO_SPACE above); rally: PX4's DM_KEY_SAFE_POINTS_MAX
+MAX_ITEMS = {MissionType.MISSION: 500, MissionType.FENCE: 64, MissionType.RALLY: 32}
 # Yaw (p4) may be NaN = keep the current heading.
 _YAW_P4 = frozenset({Cmd.NAV_WAYPOINT, Cmd.NAV_LOITER_UNLIM, Cmd.NAV_LOITER_TIME, Cmd.NAV_LAND, Cmd.NAV_TAKEOFF})
 # The parameters (0-based p1..p4) each command uses: the executor and the fence read these and nothing else, so
@@ -129,6 +134,7 @@ _USED_PARAMS: dict[int, frozenset[int]] = {
     Cmd.CONDITION_YAW: frozenset({0, 1, 2, 3}), Cmd.DO_JUMP: frozenset({0, 1}), Cmd.DO_CHANGE_SPEED: frozenset({1}),
     Cmd.DO_GRIPPER: frozenset({0, 1}), Cmd.NAVIG8_ARM_JOINTS: frozenset({0, 1, 2, 3}),
     Cmd.NAVIG8_PITCH_HOLD: frozenset({0, 1}), Cmd.NAV_FENCE_RETURN_POINT: frozenset(),
+    Cmd.NAV_RALLY_POINT: frozenset(),
     **{c: frozenset({0}) for c in (Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, Cmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION,
                                    Cmd.NAV_FENCE_CIRCLE_INCLUSION, Cmd.NAV_FENCE_CIRCLE_EXCLUSION)},
 }  # fmt: skip
@@ -190,6 +196,10 @@ class Problem:
     reason: str
 
 
+_ALLOWED = {MissionType.MISSION: MISSION_COMMANDS, MissionType.FENCE: FENCE_COMMANDS,
+            MissionType.RALLY: RALLY_COMMANDS}
+
+
 def plan_crc(items: tuple[MissionItem, ...]) -> int:
     """CRC32 over each item's frame, command, autocontinue, params 1-4, x, y, z (PX4's crc32_for_mission_item
     fields) as the plan's opaque_id; never 0 (0 means "no plan" in the spec)."""
@@ -223,14 +233,16 @@ def _finite(v: float) -> bool:
 def check_item(item: MissionItem, mission_type: int, count: int) -> Problem | None:
     """None when `item` can be stored in a plan of `count` items of `mission_type`, else the problem."""
     cmd = item.command
-    allowed = MISSION_COMMANDS if mission_type == MissionType.MISSION else (
-        FENCE_COMMANDS if mission_type == MissionType.FENCE else frozenset())
+    allowed = _ALLOWED.get(int(mission_type), frozenset())
     if cmd not in allowed:
-        kind = {0: "mission", 1: "fence"}.get(int(mission_type), f"type {int(mission_type)}")
+        kind = {0: "mission", 1: "fence", 2: "rally plan"}.get(int(mission_type), f"type {int(mission_type)}")
         return Problem(Result.UNSUPPORTED, f"Mission item: command {cmd} not supported in a {kind}")
     name = Cmd(cmd).name
-    positional = cmd in NAV_COMMANDS or cmd in FENCE_COMMANDS
-    frames = (GLOBAL_FRAMES if cmd in FENCE_COMMANDS else POSITION_FRAMES) if positional else NON_POSITION_FRAMES
+    positional = cmd in NAV_COMMANDS or cmd in FENCE_COMMANDS or cmd in RALLY_COMMANDS
+    global_only = cmd in FENCE_COMMANDS or cmd in RALLY_COMMANDS
+    frames = (GLOBAL_FRAMES if global_only else POSITION_FRAMES) if positional else NON_POSITION_FRAMES
+    if cmd in RALLY_COMMANDS and item.frame == Frame.MISSION:  # PX4: MAV_FRAME_MISSION -> UNSUPPORTED
+        return Problem(Result.UNSUPPORTED, f"{name}: frame {item.frame} (MISSION) not supported")
     if item.frame not in frames:
         return Problem(Result.UNSUPPORTED_FRAME, f"{name}: frame {item.frame} not supported")
     if item.autocontinue not in (0, 1):

@@ -1,4 +1,4 @@
-"""Mission persistence: the plans in force (MISSION and FENCE) of one vehicle instance, one JSON file written
+"""Mission persistence: the plans in force (MISSION, FENCE and RALLY) of one vehicle instance, one JSON file written
 atomically the way the parameters are (navig8_fc.params.store.write_atomic). The only mission code that touches
 files; the protocol (navig8_fc.gcs.mission_protocol) calls `save` after every accepted upload, clear or change of the
 start item, and the process shell calls `load` at startup (`<state_dir>/fc_mission_<N>.json`).
@@ -25,7 +25,7 @@ from navig8_fc.params.store import write_atomic
 
 FORMAT_NAME = "navig8-fc-mission"
 FORMAT_VERSION = 1
-STORED_TYPES = (MissionType.MISSION, MissionType.FENCE)
+STORED_TYPES = (MissionType.MISSION, MissionType.FENCE, MissionType.RALLY)
 
 
 class MissionLoad(NamedTuple):

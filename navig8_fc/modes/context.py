@@ -3,9 +3,10 @@
 Each mode (`takeoff`, `hold`, `land`, `position`, `offboard`, `rtl`, `mission` in this package) is a small
 class with `enter(inputs, ...)` (the entry actions that need a state sample, run at the first step in the mode)
 and `update(inputs, dt) -> Step`. What they share with the manager comes in one `ModeContext`, owned by the
-manager and given to every mode when it is built: the configuration, the land detector, the task tracker, the
-home, the last output and the event list (STATUSTEXT). A mode that ends (takeoff done, mission done, Return
-landing, touchdown and disarm, offboard stream lost) says where to go next in `Step.then`; the manager switches.
+manager and given to every mode when it is built: the configuration, the land detector, the task tracker,
+the home, the rally points, the last output and the event list (STATUSTEXT). A mode that ends (takeoff done,
+mission done, Return landing, touchdown and disarm, offboard stream lost) says where to go next in `Step.then`; the
+manager switches.
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ from typing import NamedTuple
 
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.mission.executor import ExecConfig
+from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.plan import Plan
+from navig8_fc.mission.rally import RallyPoint, rally_positions
 from navig8_fc.modes.land_detector import LandDetector
 from navig8_fc.modes.px4 import FlightMode
 from navig8_fc.modes.records import ModeConfig, ModeInputs, ModeOutput, Vec3
@@ -32,6 +36,14 @@ class ModeContext:
     events: list[str] = field(default_factory=list)  # this step's STATUSTEXT (INFO) lines
     home: Vec3 | None = None
     last_output: ModeOutput | None = None
+    rally: Plan | None = None  # the uploaded rally plan (None: none), about rally_origin
+    rally_origin: GeoOrigin = field(default_factory=GeoOrigin)
+
+    def rally_points(self) -> tuple[RallyPoint, ...]:
+        """The rally points in force in local NED (their altitudes above the current home, or AMSL)."""
+        if self.rally is None or self.home is None:
+            return ()
+        return rally_positions(self.rally, self.rally_origin, self.home)
 
     def current_pitch(self) -> float:
         """The pitch being flown (the last output's when the controller was engaged, else level)."""

@@ -29,6 +29,8 @@ class Hold:
         self._brake_lag_s = 0.0
 
     def set_braking(self, acc_m_s2: float, jerk_m_s3: float, lag_s: float) -> None:
+        if not (acc_m_s2 > 0.0 and jerk_m_s3 > 0.0 and lag_s >= 0.0):
+            raise ValueError(f"braking limits must be positive (inf = none), got {acc_m_s2}, {jerk_m_s3}, {lag_s}")
         self._brake_acc_m_s2, self._brake_jerk_m_s3, self._brake_lag_s = acc_m_s2, jerk_m_s3, lag_s
 
     def enter(self, inp: ModeInputs) -> None:

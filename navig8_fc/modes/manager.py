@@ -24,6 +24,7 @@ the start position projected onto `ModeConfig.air_start_home_z_ned_m` (the plant
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.mission.geo import GeoOrigin
@@ -274,13 +275,16 @@ class ModeManager:
     def load_plan(self, plan: Plan, origin: GeoOrigin) -> None:
         """An uploaded mission plan (or a new start item): flown in MISSION when there is no script. A mission
         in flight continues on the new plan from its start item at the next step."""
-        self._sw.mission.load(plan, origin)
-        if self._sw.mode is FlightMode.MISSION and self._sw.mission.script is None:
-            if self._sw.mission.plan is None:
-                self._sw.switch(FlightMode.HOLD)
-                self._ctx.events.append("Mission cleared: holding")
-            else:
-                self._sw.entry_pending = True
+        self._sw.load_plan(plan, origin)
+
+    def load_rally(self, plan: Plan, origin: GeoOrigin) -> None:
+        """An uploaded rally plan (empty: cleared): every return chooses among its points (mission.rally)."""
+        self._ctx.rally, self._ctx.rally_origin = (plan if plan.items else None), origin
+
+    def set_altitudes(self, takeoff_alt_m: float, rtl_alt_m: float) -> None:
+        """MIS_TAKEOFF_ALT and RTL_RETURN_ALT, live: the next takeoff / return flies them."""
+        if (self._cfg.takeoff_default_alt_m, self._cfg.rtl_alt_m) != (takeoff_alt_m, rtl_alt_m):
+            self._cfg = self._ctx.config = replace(self._cfg, takeoff_default_alt_m=takeoff_alt_m, rtl_alt_m=rtl_alt_m)
 
     def offboard_setpoint(self, sp: Setpoint | OffboardTarget | None) -> None:
         """The latest streamed offboard target (a Setpoint: position, pitch, yaw; None: the stream is lost, the
@@ -312,8 +316,7 @@ class ModeManager:
         """MAV_CMD_NAV_RETURN_TO_LAUNCH: Return mode, reported as a long command (done at touchdown at home)."""
         verdict = self.set_mode(int(Px4MainMode.AUTO), int(Px4AutoSubMode.RTL))
         if verdict.ok and not self._tasks.running_kind("return"):
-            here = self._sw.here()
-            self._tasks.start("return", here, self._ctx.home or here)
+            self._tasks.start("return", self._sw.here(), self._sw.return_destination())
         return verdict
 
     def cancel_task(self) -> bool:
@@ -339,9 +342,7 @@ class ModeManager:
     def set_braking(self, acc_m_s2: float, jerk_m_s3: float, lag_s: float = 0.0) -> None:
         """The limits the position reference brakes with (OL_ACC_REF, OL_JERK_MAX and its jerk stage's lag when
         shaping; else OL_ACC_MAX, no jerk limit (inf), no lag): Hold's entry point is where they stop the vehicle."""
-        if not (acc_m_s2 > 0.0 and jerk_m_s3 > 0.0 and lag_s >= 0.0):
-            raise ValueError(f"braking limits must be positive (inf = none), got {acc_m_s2}, {jerk_m_s3}, {lag_s}")
-        self._sw.hold.set_braking(float(acc_m_s2), float(jerk_m_s3), float(lag_s))
+        self._sw.hold.set_braking(float(acc_m_s2), float(jerk_m_s3), float(lag_s))  # ValueError: not positive
 
     # --- the step ------------------------------------------------------------------------------------
     def step(self, inp: ModeInputs) -> ModeOutput:

@@ -78,7 +78,7 @@ class Mission:
         assert self.plan is not None
         if self._exec is None or self._exec.finished:
             self._exec = MissionExecutor(self.plan, self.origin, ctx.home or inp.pos_ned, start,
-                                         exec_config(ctx.config), self._reached_count)
+                                         exec_config(ctx.config), self._reached_count, ctx.rally_points)
             ctx.events.append(f"Mission started at item {self._exec.progress.current}")
         else:
             ctx.events.append(f"Mission resumed at item {self._exec.progress.current}")

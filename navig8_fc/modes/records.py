@@ -25,7 +25,7 @@ class Verdict(NamedTuple):
 @dataclass(frozen=True)
 class ModeConfig:
     takeoff_climb_rate_m_s: float = 1.0
-    takeoff_default_alt_m: float = 2.5  # used when NAV_TAKEOFF carries no altitude (NaN), as PX4 MIS_TAKEOFF_ALT
+    takeoff_default_alt_m: float = 2.5  # used when NAV_TAKEOFF carries no altitude (NaN); set from MIS_TAKEOFF_ALT
     takeoff_max_alt_m: float = 20.0  # the vehicle flies in confined spaces
     takeoff_reached_tol_m: float = 0.2
     land_descent_rate_m_s: float = 0.5
@@ -42,7 +42,8 @@ class ModeConfig:
     # above the forward one), which drives the vehicle along the ground.
     land_contact_height_m: float = 0.1
     air_start_home_z_ned_m: float = 0.0  # ground under an air-started vehicle (the plant's ground plane)
-    rtl_alt_m: float = 2.5  # Return (mode and plan item): climb to this height above home first if lower
+    rtl_alt_m: float = 2.5  # Return (mode and plan item): climb to this height above its destination first if lower
+    # (home or a rally point); set from RTL_RETURN_ALT
     manual_speed_m_s: float = 1.0  # Position mode: full stick = this horizontal speed
     manual_climb_m_s: float = 0.5  # full throttle travel = this vertical speed
     manual_yaw_rate_rad_s: float = 0.8  # full yaw stick

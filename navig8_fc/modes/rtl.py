@@ -1,6 +1,7 @@
 """RTL (AUTO.RTL, Return; pure): a one-item plan (NAV_RETURN_TO_LAUNCH) flown by the mission executor from the
-current reference: climb to rtl_alt_m above home if lower, fly home, then LAND at home (the return task goes
-on into the landing and is DONE at touchdown)."""
+current reference, as PX4's RTL_TYPE 0 (rtl.cpp; navig8_fc.mission.rally): the destination is home or the closest
+rally point more than 10 m from home; climb to rtl_alt_m (RTL_RETURN_ALT) above it if lower, fly there, then LAND
+there (the return task goes on into the landing and is DONE at touchdown)."""
 
 from __future__ import annotations
 
@@ -25,14 +26,17 @@ class Return:
         ctx = self._ctx
         start = ctx.start_setpoint(inp)
         self._exec = MissionExecutor(_RTL_PLAN, origin, ctx.home or inp.pos_ned,
-                                     Setpoint(start.pos_ned, 0.0, start.yaw_rad), exec_config(ctx.config))
+                                     Setpoint(start.pos_ned, 0.0, start.yaw_rad), exec_config(ctx.config),
+                                     rally=ctx.rally_points)
 
     def update(self, inp: ModeInputs, dt: float) -> Step:
         ex = self._exec
         assert ex is not None
         st = ex.step(inp.t_s, inp.pos_ned, inp.yaw_rad, dt)
         if st.land:
-            self._ctx.events.append("Return: landing at home")
+            dest = ex.destination
+            self._ctx.events.append("Return: landing at home" if dest.is_home else
+                                    f"Return: landing at rally point {dest.seq}")
             return Step(st.setpoint, True, None,
                         Transition(FlightMode.LAND, land_xy=(st.setpoint.pos_ned[0], st.setpoint.pos_ned[1])))
         return Step(st.setpoint, True)

@@ -10,6 +10,9 @@ controller idle) has no object: the switch idles whenever the vehicle is disarme
 
 from __future__ import annotations
 
+from navig8_fc.mission.geo import GeoOrigin
+from navig8_fc.mission.plan import Plan
+from navig8_fc.mission.rally import return_destination
 from navig8_fc.modes.context import ModeContext, Step, Transition, idle
 from navig8_fc.modes.hold import Hold
 from navig8_fc.modes.land import Land
@@ -55,12 +58,28 @@ class ModeSwitch:
         self.mode = mode
         self.entry_pending = True
 
+    def load_plan(self, plan: Plan, origin: GeoOrigin) -> None:
+        """An uploaded mission plan (ModeManager.load_plan): a mission in flight goes on with it at the next step;
+        an emptied plan holds."""
+        self.mission.load(plan, origin)
+        if self.mode is FlightMode.MISSION and self.mission.script is None:
+            if self.mission.plan is None:
+                self.switch(FlightMode.HOLD)
+                self.ctx.events.append("Mission cleared: holding")
+            else:
+                self.entry_pending = True
+
     def disarm(self) -> None:
         self.armed = False
         self.switch(FlightMode.READY)
 
     def here(self) -> Vec3:
         return self.last.pos_ned if self.last is not None else (0.0, 0.0, 0.0)
+
+    def return_destination(self) -> Vec3:
+        """Where a return started now goes: home or the closest rally point (navig8_fc.mission.rally)."""
+        here = self.here()
+        return return_destination(here, self.ctx.home or here, self.ctx.rally_points()).pos_ned
 
     def home_z(self) -> float:
         if self.ctx.home is not None:

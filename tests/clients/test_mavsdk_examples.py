@@ -47,10 +47,10 @@ CASES: dict[str, Case] = {
     "telemetry_status_text": Case(20, until=r"-- Connected to drone!", exits=False),
     "highres_imu": Case(30, until=r"Z Acceleration \(m/s\^2\): -(9|10)\.", exits=False),
     "manual_control": Case(60, until=r"-- Starting manual control", exits=False, climbs_m=1.0),
+    "mission_import": Case(30, expect="Mission uploaded"),  # 2 rally points (MAV_MISSION_TYPE_RALLY) too
+    "telemetry_takeoff_and_land": Case(90, climbs_m=9.0, expect="Altitude: 10"),  # MIS_TAKEOFF_ALT 10 m
 }
 NOT_YET = {  # example: (how it fails today, why; whose the gap is)
-    "mission_import": ("MissionRawError: UNSUPPORTED", "rally points (MAV_MISSION_TYPE_RALLY) are not stored yet"),
-    "telemetry_takeoff_and_land": ("ActionError: PARAMETER_ERROR", "no MIS_TAKEOFF_ALT parameter yet"),
     "geofence": ("GeofenceError: INVALID_ARGUMENT", "the client refuses the example's empty circle (radius 0) "
                  "before sending anything: MAVSDK 4.0.5, no MAVLink on the wire, the same against any autopilot"),
     "calibration": ("CalibrationError: UNSUPPORTED", "PREFLIGHT_CALIBRATION is not answered (PX4 SITL runs gyro)"),

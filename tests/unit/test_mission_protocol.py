@@ -260,8 +260,10 @@ def test_upload_limits_types_and_busy() -> None:
     rig = Rig()
     (ack,) = rig.send(rig.gcs.mission_count_encode(1, 1, 10_000, 0))[:1]
     assert ack.type == M.MAV_MISSION_NO_SPACE
-    (ack,) = rig.send(rig.gcs.mission_count_encode(1, 1, 1, M.MAV_MISSION_TYPE_RALLY))[:1]
-    assert ack.type == M.MAV_MISSION_UNSUPPORTED
+    (ack,) = rig.send(rig.gcs.mission_count_encode(1, 1, 33, M.MAV_MISSION_TYPE_RALLY))[:1]
+    assert ack.type == M.MAV_MISSION_NO_SPACE  # PX4's DM_KEY_SAFE_POINTS_MAX
+    (ack,) = rig.send(rig.gcs.mission_count_encode(1, 1, 1, 3))[:1]
+    assert ack.type == M.MAV_MISSION_UNSUPPORTED  # no such mission type
     rig.send(rig.gcs.mission_count_encode(1, 1, 2, 0))
     ack = rig.send(rig.other.mission_count_encode(1, 1, 2, 0), src=rig.other)[0]
     assert ack.type == M.MAV_MISSION_ERROR and ack.target_system == 254  # another GCS: busy
