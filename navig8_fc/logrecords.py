@@ -1,7 +1,8 @@
 """Log records (docs/logs.md): the one place that maps what the processes know to what the MCAP log holds.
 
-- `/truth`: `truth_record(truth)` from the plant's Truth (navig8-sim, in-process) and `wire_truth_record(t)`
-  from a decoded NAVIG8_TRUTH (navig8-fc in SITL); the same keys, so navig8-plot and the summary read both.
+- `/truth`: `log_truth_record(t)` from the plant's LogTruth (navig8-sim, in-process; the same bytes as
+  `truth_record` of its Truth) and `wire_truth_record(t)` from a decoded NAVIG8_TRUTH (navig8-fc in SITL); the
+  same keys, so navig8-plot and the summary read both.
   The wire record lacks what NAVIG8_TRUTH does not carry (ang_accel, the reaction moment about O and the
   no-gravity variants).
 - `/mavlink/<link>/<dir>/<NAME>`: `mavlink_record_json(name, fields)` (the decoded message as JSON, with
@@ -133,4 +134,5 @@ def dialect_json_schema(name: str) -> dict[str, Any]:
     return mavlink_json_schema(d.mavlink_map[getattr(d, f"MAVLINK_MSG_ID_{name}")])
 
 
-__all__ = ["dialect_json_schema", "log_truth_record", "mavlink_json_schema", "mavlink_record_json", "truth_record", "wire_truth_record"]
+__all__ = ["dialect_json_schema", "log_truth_record", "mavlink_json_schema", "mavlink_record_json", "truth_record",
+           "wire_truth_record"]

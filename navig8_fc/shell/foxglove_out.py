@@ -2,11 +2,11 @@
 WebSocket protocol (foxglove-sdk's server). One writer for navig8-fc and navig8-sim (docs/foxglove.md).
 
 Rates are on the log time (sim time), so a lockstep run faster than real time writes the same records, and
-are display rates (docs/foxglove.md, "Rates"): transforms and pose 10 Hz (the 3D panel interpolates between
-transforms), the scene 5 Hz (its entities ride on the transforms' frames; only the thrust arrows, the object
-and the setpoint ghost change), path and mission 2 Hz, every STATUSTEXT. A record is built and serialised only when a sink wants it: the log always, a live channel only while
-a client subscribes to it (`Channel.has_sinks`), so a server nobody is connected to costs one check per
-publication time.
+are display rates (docs/foxglove.md; docs/logs.md, "Rates"): transforms and pose 10 Hz (the 3D panel
+interpolates between transforms), the scene 5 Hz (its entities ride on the transforms' frames; only the thrust
+arrows, the object and the setpoint ghost change), path and mission 2 Hz, every STATUSTEXT. A record is built
+and serialised only when a sink wants it: the log always, a live channel only while a client subscribes to it
+(`Channel.has_sinks`), so a server nobody is connected to costs one check per publication time.
 """
 
 from __future__ import annotations

@@ -7,7 +7,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-
 import pytest
 
 from navig8_tools.logdata import load_run
