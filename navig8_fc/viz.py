@@ -132,6 +132,20 @@ def enu_pose(pos_ned_m: Sequence[float], quat_wxyz: Sequence[float]) -> tuple[Ve
             (k * (-x - y), k * (w + z), k * (w - z), k * (y - x)))
 
 
+def _entity(ts: dict[str, int] | None, prefix: str, frame: str, eid: str,
+            **prims: list[dict[str, Any]]) -> dict[str, Any]:
+    """A foxglove.SceneEntity on `frame` (frame-locked unless it is the world), the primitives not given empty."""
+    e: dict[str, Any] = {"timestamp": ts, "frame_id": prefix + frame if frame != WORLD_FRAME else frame,
+                         "id": prefix + eid, "lifetime": {"sec": 0, "nsec": 0},
+                         "frame_locked": frame != WORLD_FRAME, "metadata": []}
+    for kind in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models"):
+        e[kind] = prims.get(kind, [])
+    return e
+
+
+_ARROW_COLOR = {"r": 1.0, "g": 0.85, "b": 0.1, "a": 1.0}
+
+
 class VehicleViz:
     """The Foxglove records of one vehicle (its constants cfg, Table 1's body envelope, drawing sizes)."""
 
@@ -155,6 +169,11 @@ class VehicleViz:
         )
         self._link_xyz = tuple(_vec(_ZERO if i == 0 else (0.0, 0.0, self._L)) for i in range(N_LINKS))
         self._duct_xyz = tuple(_vec(p) for p in self._duct_pos)
+        self._scene_fixed: dict[str, dict[str, dict[str, Any]]] = {}  # by prefix (scene_update)
+        self._setpoint_key: tuple[Any, ...] | None = None
+        self._setpoint_entity: dict[str, Any] = {}
+        # thrust arrows along -z (R_y(pi/2) turns an arrow's +x onto -z), and +z for a negative thrust
+        self._arrow_pose = (_pose(_ZERO, _qy(0.5 * math.pi)), _pose(_ZERO, _qy(-0.5 * math.pi)))
 
     # --- transforms ------------------------------------------------------------------------------
     def transform_list(self, t_ns: int, pose: VehiclePose, prefix: str = "") -> list[dict[str, Any]]:
@@ -205,65 +224,80 @@ class VehicleViz:
                      setpoint_yaw_rad: float = 0.0, prefix: str = "") -> dict[str, Any]:
         """foxglove.SceneUpdate: one entity per frame of the tree (frame_locked: it moves with its frame), thrust
         arrows along each propeller's thrust axis (duct: -z of duct_i, K_T w^2; tail: -z of tail, K_T2 w|w|), the
-        setpoint as a ghost box in the world frame."""
-        d, cfg, ts = self.d, self.cfg, stamp(t_ns)
+        setpoint as a ghost box in the world frame.
 
-        def entity(frame: str, eid: str, **prims: list[dict[str, Any]]) -> dict[str, Any]:
-            e: dict[str, Any] = {"timestamp": ts, "frame_id": prefix + frame if frame != WORLD_FRAME else frame,
-                                 "id": prefix + eid, "lifetime": {"sec": 0, "nsec": 0},
-                                 "frame_locked": frame != WORLD_FRAME, "metadata": []}
-            for kind in ("arrows", "cubes", "spheres", "cylinders", "lines", "triangles", "texts", "models"):
-                e[kind] = prims.get(kind, [])
-            return e
+        What does not change between records (the body, the mount, the rods, the gripper, the duct and tail
+        cylinders; the setpoint ghost while the setpoint holds) is built once and shared by the records: treat
+        a record as read-only."""
+        d, cfg, ts = self.d, self.cfg, stamp(t_ns)
+        fixed = self._scene_fixed.get(prefix)
+        if fixed is None:
+            fixed = self._scene_fixed[prefix] = self._fixed_entities(prefix)
+
+        def arrow(thrust_n: float) -> list[dict[str, Any]]:
+            # An arrow points along +x of its pose; R_y(pi/2) turns +x onto -z (the thrust axis). Negative thrust
+            # (the tail spinning backwards) points the other way.
+            length = abs(thrust_n) * d.thrust_arrow_m_per_n
+            if length < 1e-4:
+                return []
+            return [{"pose": self._arrow_pose[thrust_n < 0], "shaft_length": 0.8 * length,
+                     "shaft_diameter": 0.02, "head_length": 0.2 * length, "head_diameter": 0.05,
+                     "color": _ARROW_COLOR}]
+
+        w1, w2, w3 = (_f(x) for x in speed_rad_s)
+        ents = [dict(fixed["body"], timestamp=ts),
+                dict(fixed["duct_1"], timestamp=ts, arrows=arrow(cfg.k_thrust_duct * w1 * w1)),
+                dict(fixed["duct_3"], timestamp=ts, arrows=arrow(cfg.k_thrust_duct * w3 * w3)),
+                dict(fixed["tail"], timestamp=ts, arrows=arrow(cfg.k_thrust_tail * w2 * abs(w2)))]
+        ents.extend(dict(fixed[eid], timestamp=ts)
+                    for eid in ("arm_mount", *(f"link_{i}" for i in range(1, N_LINKS + 1)), "gripper"))
+        dia = self.object_diameter_m(object_mass_kg)
+        ents.append(dict(fixed["object"], timestamp=ts,
+                         spheres=[{"pose": _pose(), "size": _vec((dia, dia, dia)),
+                                   "color": _color(0.1, 0.7, 0.2, 0.9)}] if dia > 0 else []))
+        if setpoint_pos_ned_m is not None:
+            key = (prefix, tuple(setpoint_pos_ned_m), setpoint_pitch_rad, setpoint_yaw_rad)
+            if self._setpoint_key != key:
+                p, q = enu_pose(setpoint_pos_ned_m, euler_to_quat(0.0, setpoint_pitch_rad, setpoint_yaw_rad))
+                self._setpoint_key = key
+                self._setpoint_entity = _entity(
+                    None, prefix, WORLD_FRAME, "setpoint",
+                    cubes=[{"pose": _pose(p, q), "size": _vec(self.body_size_m), "color": _color(0.2, 0.9, 0.9, 0.2)}],
+                    arrows=[{"pose": _pose(p, q), "shaft_length": 0.6, "shaft_diameter": 0.02, "head_length": 0.15,
+                             "head_diameter": 0.06, "color": _color(0.2, 0.9, 0.9, 0.5)}])
+            ents.append(dict(self._setpoint_entity, timestamp=ts))
+        return {"deletions": [], "entities": ents}
+
+    def _fixed_entities(self, prefix: str) -> dict[str, dict[str, Any]]:
+        """The scene's entities without their timestamp, by id, with what never changes drawn (scene_update)."""
+        d = self.d
 
         def cyl(radius: float, length: float, center: Vec3, color: dict[str, float]) -> dict[str, Any]:
             return {"pose": _pose(center), "size": {"x": 2 * radius, "y": 2 * radius, "z": length},
                     "bottom_scale": 1.0, "top_scale": 1.0, "color": color}
 
-        # An arrow points along +x of its pose; R_y(pi/2) turns +x onto -z (the thrust axis). Negative thrust
-        # (the tail spinning backwards) points the other way.
-        down, up = _qy(0.5 * math.pi), _qy(-0.5 * math.pi)
-
-        def arrow(thrust_n: float) -> list[dict[str, Any]]:
-            length = abs(thrust_n) * d.thrust_arrow_m_per_n
-            if length < 1e-4:
-                return []
-            return [{"pose": _pose(_ZERO, down if thrust_n >= 0 else up), "shaft_length": 0.8 * length,
-                     "shaft_diameter": 0.02, "head_length": 0.2 * length, "head_diameter": 0.05,
-                     "color": _color(1.0, 0.85, 0.1)}]
-
-        w1, w2, w3 = (_f(x) for x in speed_rad_s)
         duct_c, tail_c, arm_c = _color(0.15, 0.35, 0.75), _color(0.85, 0.45, 0.10), _color(0.2, 0.2, 0.2)
-        ents = [
-            entity("base_link", "body", cubes=[{"pose": _pose(), "size": _vec(self.body_size_m),
-                                                "color": _color(0.75, 0.75, 0.78, d.body_alpha)}]),
-            entity("duct_1", "duct_1", cylinders=[cyl(d.duct_radius_m, d.duct_length_m, _ZERO, duct_c)],
-                   arrows=arrow(cfg.k_thrust_duct * w1 * w1)),
-            entity("duct_3", "duct_3", cylinders=[cyl(d.duct_radius_m, d.duct_length_m, _ZERO, duct_c)],
-                   arrows=arrow(cfg.k_thrust_duct * w3 * w3)),
-            entity("tail", "tail", cylinders=[cyl(d.tail_prop_radius_m, d.tail_prop_thickness_m, _ZERO, tail_c)],
-                   arrows=arrow(cfg.k_thrust_tail * w2 * abs(w2))),
-            entity("arm_mount", "arm_mount", cubes=[{"pose": _pose((0.0, 0.0, -0.5 * d.mount_size_m)),
-                                                     "size": _vec((d.mount_size_m,) * 3), "color": arm_c}]),
-        ]
+        out = {
+            "body": _entity(None, prefix, "base_link", "body", cubes=[{
+                "pose": _pose(), "size": _vec(self.body_size_m), "color": _color(0.75, 0.75, 0.78, d.body_alpha)}]),
+            "duct_1": _entity(None, prefix, "duct_1", "duct_1",
+                              cylinders=[cyl(d.duct_radius_m, d.duct_length_m, _ZERO, duct_c)]),
+            "duct_3": _entity(None, prefix, "duct_3", "duct_3",
+                              cylinders=[cyl(d.duct_radius_m, d.duct_length_m, _ZERO, duct_c)]),
+            "tail": _entity(None, prefix, "tail", "tail",
+                            cylinders=[cyl(d.tail_prop_radius_m, d.tail_prop_thickness_m, _ZERO, tail_c)]),
+            "arm_mount": _entity(None, prefix, "arm_mount", "arm_mount", cubes=[{
+                "pose": _pose((0.0, 0.0, -0.5 * d.mount_size_m)), "size": _vec((d.mount_size_m,) * 3),
+                "color": arm_c}]),
+        }
         for i in range(1, N_LINKS + 1):
-            ents.append(entity(f"link_{i}", f"link_{i}",
-                               cylinders=[cyl(d.link_radius_m, self._L, (0.0, 0.0, 0.5 * self._L), arm_c)]))
+            out[f"link_{i}"] = _entity(None, prefix, f"link_{i}", f"link_{i}",
+                                       cylinders=[cyl(d.link_radius_m, self._L, (0.0, 0.0, 0.5 * self._L), arm_c)])
         gx, gy, gz = d.gripper_size_m
-        ents.append(entity("gripper", "gripper", cubes=[{"pose": _pose((0.0, 0.0, -0.5 * gz)),
-                                                         "size": _vec((gx, gy, gz)),
-                                                         "color": _color(0.8, 0.1, 0.1)}]))
-        dia = self.object_diameter_m(object_mass_kg)
-        ents.append(entity("object", "object", spheres=[{"pose": _pose(), "size": _vec((dia, dia, dia)),
-                                                        "color": _color(0.1, 0.7, 0.2, 0.9)}] if dia > 0 else []))
-        if setpoint_pos_ned_m is not None:
-            p, q = enu_pose(setpoint_pos_ned_m, euler_to_quat(0.0, setpoint_pitch_rad, setpoint_yaw_rad))
-            ents.append(entity(WORLD_FRAME, "setpoint", cubes=[{"pose": _pose(p, q), "size": _vec(self.body_size_m),
-                                                                "color": _color(0.2, 0.9, 0.9, 0.2)}],
-                               arrows=[{"pose": _pose(p, q), "shaft_length": 0.6, "shaft_diameter": 0.02,
-                                        "head_length": 0.15, "head_diameter": 0.06,
-                                        "color": _color(0.2, 0.9, 0.9, 0.5)}]))
-        return {"deletions": [], "entities": ents}
+        out["gripper"] = _entity(None, prefix, "gripper", "gripper", cubes=[{
+            "pose": _pose((0.0, 0.0, -0.5 * gz)), "size": _vec((gx, gy, gz)), "color": _color(0.8, 0.1, 0.1)}])
+        out["object"] = _entity(None, prefix, "object", "object")
+        return out
 
     # --- poses -----------------------------------------------------------------------------------
     @staticmethod

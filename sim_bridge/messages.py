@@ -160,3 +160,33 @@ class WireTruth:
     reaction_moment_mount_frd_nm: list[float]
     cmd_nonfinite_count: int
     cmd_clamped_count: int
+
+
+class LogTruth:
+    """Plant.log_truth(): the Truth fields the /truth log record holds (navig8_fc.logrecords.log_truth_record), as
+    plain Python floats (lists; the inertia about the CoM as a tuple of three rows), same names and numbers as
+    Truth, for the in-process log (orjson writes lists of floats faster than numpy views)."""
+
+    time_us: int
+    pos_ned_m: list[float]
+    vel_ned_m_s: list[float]
+    quat_wxyz: list[float]
+    euler_rad: tuple[float, float, float]
+    rate_frd_rad_s: list[float]
+    accel_frd_m_s2: list[float]
+    ang_accel_frd_rad_s2: list[float]
+    actuator_pos: list[float]
+    joint_pos_rad: list[float]
+    joint_rate_rad_s: list[float]
+    joint_accel_rad_s2: list[float]
+    object_mass_kg: float
+    mass_kg: float
+    com_frd_m: list[float]
+    inertia_com_kgm2: tuple[list[float], list[float], list[float]]
+    reaction_force_frd_n: list[float]
+    reaction_moment_mount_frd_nm: list[float]
+    reaction_moment_o_frd_nm: list[float]
+    reaction_force_nog_frd_n: list[float]
+    reaction_moment_mount_nog_frd_nm: list[float]
+    cmd_nonfinite_count: int
+    cmd_clamped_count: int

@@ -53,6 +53,7 @@ from sim_bridge.command_guard import CommandGuard
 from sim_bridge.integrator import N_WORK, advance, evaluate
 from sim_bridge.messages import (
     ActuatorCommand,
+    LogTruth,
     SensorBundle,
     Truth,
     WireSensors,
@@ -92,6 +93,11 @@ def _fill(record: _R, **fields: Any) -> _R:
     for name, value in fields.items():
         setattr(record, name, value)
     return record
+# log_truth: the /truth record's parts of the state and derived vectors
+_X_LOG = itemgetter(*(m.sl for m in (X.POS, X.VEL, X.QUAT, X.RATE, X.ACT, X.Q, X.QD, X.QDD)), int(X.MOBJ))
+_D_LOG = itemgetter(D.ACC.sl, D.WDOT.sl, int(D.MASS), D.COM.sl,
+                    *(slice(D.JC + 3 * r, D.JC + 3 * r + 3) for r in range(3)),
+                    *(m.sl for m in (D.FR_G, D.MR_MOUNT_G, D.MR_O_G, D.FR_NOG, D.MR_MOUNT_NOG)))
 _C_ACT = C.ACT.sl
 # truth(): its views of the state and derived vectors, cut in one C call each
 _TRUTH_X = itemgetter(*(m.sl for m in (X.POS, X.VEL, X.QUAT, X.RATE, X.ACT, X.ACTD, X.Q, X.QD,
@@ -455,6 +461,19 @@ class Plant:
                      joint_accel_rad_s2=jqdd, object_mass_kg=mobj, mass_kg=mass, com_frd_m=com,
                      inertia_com_kgm2=(j0, j1, j2), reaction_force_frd_n=fr, reaction_moment_mount_frd_nm=mr,
                      cmd_nonfinite_count=self._guard.nonfinite, cmd_clamped_count=self._guard.clamped)
+
+    def log_truth(self) -> LogTruth:
+        """The part of truth() the /truth log record holds, as plain Python floats (LogTruth; same values)."""
+        pos, vel, quat, rate, act, jq, jqd, jqdd, mobj = _X_LOG(self._x.tolist())
+        acc, wdot, mass, com, j0, j1, j2, fr, mr, mr_o, fr_nog, mr_nog = _D_LOG(self._d.tolist())
+        return _fill(LogTruth(), time_us=self._t_us, pos_ned_m=pos, vel_ned_m_s=vel, quat_wxyz=quat,
+                     euler_rad=quat_to_euler(quat), rate_frd_rad_s=rate, accel_frd_m_s2=acc,
+                     ang_accel_frd_rad_s2=wdot, actuator_pos=act, joint_pos_rad=jq, joint_rate_rad_s=jqd,
+                     joint_accel_rad_s2=jqdd, object_mass_kg=mobj, mass_kg=mass, com_frd_m=com,
+                     inertia_com_kgm2=(j0, j1, j2), reaction_force_frd_n=fr, reaction_moment_mount_frd_nm=mr,
+                     reaction_moment_o_frd_nm=mr_o, reaction_force_nog_frd_n=fr_nog,
+                     reaction_moment_mount_nog_frd_nm=mr_nog, cmd_nonfinite_count=self._guard.nonfinite,
+                     cmd_clamped_count=self._guard.clamped)
 
     def trim_command(self) -> ActuatorCommand:
         """Level hover trim for the current arm pose and object (vehicle.hover_trim) of the ducts as they are now (a

@@ -29,7 +29,7 @@ import numpy as np
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import ControllerStatus, FcSensors, warm_up_kernels
 from navig8_fc.flight import FlightStack, StepResult
-from navig8_fc.logrecords import truth_record
+from navig8_fc.logrecords import log_truth_record
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import read_overrides
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, script_waypoints
@@ -86,25 +86,54 @@ class EigenMonitor:
                                        tr.mass_kg, self.lambda_min, self.lambda_crit, st.gc_uam, st.ref_frd_m)
 
 
-def _log_tick(logger: McapLogger, fox: FoxgloveOutput, eigmon: EigenMonitor, plant: Plant, t_ns: int, s: FcSensors,
-              res: StepResult) -> None:
-    """One FC tick into the run's log: the truth, the FC's status, setpoint and command, the eigenvalues, what the
-    FC announced, and the Foxglove 3D channels (rate-limited, docs/foxglove.md)."""
-    fc_cmd, st, sp = res.command, res.status, res.setpoint
-    tr = plant.truth()
-    logger.log("/truth", t_ns, truth_record(tr))
-    logger.log("/fc/status", t_ns, st)
-    logger.log("/fc/setpoint", t_ns, {"pos_ned": sp.pos_ned, "pitch_rad": sp.pitch_rad, "yaw_rad": sp.yaw_rad})
-    logger.log("/fc/command", t_ns, fc_cmd)
-    logger.log("/analysis/eig", t_ns, eigmon(st, tr))
-    for n in res.notices:  # as navig8-fc logs what it announces (mode events, failsafes)
-        if n.statustext:
-            logger.log("/fc/statustext", t_ns, {"severity": n.severity, "text": n.statustext})
-            fox.statustext(t_ns, n.severity, n.statustext)
-    if t_ns >= fox.next_due_ns:  # the Foxglove 3D channels, rate-limited (docs/foxglove.md)
-        act = tr.actuator_pos
-        fox.step(t_ns, VehiclePose(tr.pos_ned_m, tr.quat_wxyz, act[:2], tr.joint_pos_rad), act[2:],
-                 tr.object_mass_kg, VehiclePose(s.pos_ned, s.quat_wxyz, s.tilt_rad, st.q_est_rad), sp)
+class TickLog:
+    """One FC tick into the run's log (docs/logs.md, "Rates"): every tick the truth, the FC's status and command and
+    the eigenvalues; the setpoint when it changes; what the FC announced; the Foxglove 3D channels at their display
+    rates (docs/foxglove.md)."""
+
+    def __init__(self, logger: McapLogger, fox: FoxgloveOutput, eigmon: EigenMonitor, plant: Plant) -> None:
+        self.logger, self.fox, self.eigmon, self.plant = logger, fox, eigmon, plant
+        self._sp: tuple[Any, ...] | None = None  # the setpoint last logged, the tick it was logged at
+        self._sp_t = -1
+        self._t_prev = -1  # the previous tick's time
+
+    def tick(self, t_ns: int, s: FcSensors, res: StepResult) -> None:
+        logger, fc_cmd, st, sp = self.logger, res.command, res.status, res.setpoint
+        tr = self.plant.log_truth()
+        logger.log("/truth", t_ns, log_truth_record(tr))
+        logger.log("/fc/status", t_ns, st)
+        self._setpoint(t_ns, (sp.pos_ned, sp.pitch_rad, sp.yaw_rad))
+        logger.log("/fc/command", t_ns, fc_cmd)
+        logger.log("/analysis/eig", t_ns, self.eigmon(st, tr))
+        fox = self.fox
+        for n in res.notices:  # as navig8-fc logs what it announces (mode events, failsafes)
+            if n.statustext:
+                logger.log("/fc/statustext", t_ns, {"severity": n.severity, "text": n.statustext})
+                fox.statustext(t_ns, n.severity, n.statustext)
+        if t_ns >= fox.next_due_ns:  # the Foxglove 3D channels, rate-limited (docs/foxglove.md)
+            act = tr.actuator_pos
+            fox.step(t_ns, VehiclePose(tr.pos_ned_m, tr.quat_wxyz, act[:2], tr.joint_pos_rad), act[2:],
+                     tr.object_mass_kg, VehiclePose(s.pos_ned, s.quat_wxyz, s.tilt_rad, st.q_est_rad), sp)
+        self._t_prev = t_ns
+
+    def _setpoint(self, t_ns: int, sp: tuple[Any, ...]) -> None:
+        """/fc/setpoint when it changes, with the held value again at the tick before the change (so a plot's lines
+        between records are the steps they were at every tick); `finish` closes the last hold. A zero-order hold of
+        these records at any tick gives the setpoint of that tick (navig8_tools.summary reads it so)."""
+        if sp == self._sp:
+            return
+        if self._sp is not None and self._sp_t != self._t_prev:
+            self._log_setpoint(self._t_prev, self._sp)
+        self._log_setpoint(t_ns, sp)
+        self._sp, self._sp_t = sp, t_ns
+
+    def _log_setpoint(self, t_ns: int, sp: tuple[Any, ...]) -> None:
+        self.logger.log("/fc/setpoint", t_ns, {"pos_ned": sp[0], "pitch_rad": sp[1], "yaw_rad": sp[2]})
+
+    def finish(self) -> None:
+        """The setpoint held to the last tick."""
+        if self._sp is not None and self._sp_t != self._t_prev:
+            self._log_setpoint(self._t_prev, self._sp)
 
 
 def run(
@@ -140,9 +169,11 @@ def run(
         logger.metadata("run", {"scenario": sc.name, "controller": controller, "seed": seed,
                                 "duration_s": duration, "world": dict(world or {})})
         logger.metadata("params", reg.as_dict())
-    fox = FoxgloveOutput(VehicleViz(vehicle, packaged_uav_size_m()), logger, None, "navig8-sim") if logger else None
-    if fox:
+    tick_log = None
+    if logger:
+        fox = FoxgloveOutput(VehicleViz(vehicle, packaged_uav_size_m()), logger, None, "navig8-sim")
         fox.set_mission(script_waypoints(sc.script))
+        tick_log = TickLog(logger, fox, eigmon, plant)
     n_steps = int(round(duration / cfg.dt_s))
     cmd = plant.trim_command()
     wall0 = time.perf_counter()
@@ -158,8 +189,8 @@ def run(
             else:
                 res = stack.step(s, True, sb.time_us)
             cmd = PlantCommand(tilt_rad=res.command.tilt_rad, speed_rad_s=res.command.speed_rad_s)
-            if logger:
-                _log_tick(logger, fox, eigmon, plant, int(sb.time_us) * 1000, s, res)
+            if tick_log:
+                tick_log.tick(int(sb.time_us) * 1000, s, res)
             if k == n_steps:
                 break
             plant.step(cmd, cfg.dt_s)
@@ -167,6 +198,8 @@ def run(
                 last_print = time.perf_counter()
                 print(f"\r  t = {s.t_s:6.2f} / {duration:.1f} s", end="", file=sys.stderr, flush=True)
     finally:
+        if tick_log:
+            tick_log.finish()
         if logger:
             logger.close()
     wall = time.perf_counter() - wall0

@@ -242,6 +242,23 @@ def ghat_ginv_eigs(gi_hat: np.ndarray, gc_uam: np.ndarray, gc_true: np.ndarray, 
 
 
 @njit(cache=True)
+def ghat_ginv_eigs_truth(gi_hat, gc_uam, f, m0, cx, cz, inertia, mass, has_ref, ref_x, ref_z, out_re, out_im):
+    """ghat_ginv_eigs with G from the truth, in one call: G_C,true about the true CoM c = (cx, 0, cz)
+    (gc_about), G_I,true = blkdiag(J, m, m) (J the 3x3 inertia about c), and with has_ref the flown
+    G_I,true (2 I - T(d)), d = ref - c: [3, 1] = m (-d_z), [4, 1] = m d_x (vehicle.ghat_ginv_eig_record)."""
+    gc_true = np.empty((5, 5))
+    gc_about(f, m0, cx, cz, gc_true)
+    gi_true = np.zeros((5, 5))
+    gi_true[:3, :3] = inertia
+    gi_true[3, 3] = mass
+    gi_true[4, 4] = mass
+    if has_ref:
+        gi_true[3, 1] = 0.0 + mass * (0.0 - (ref_z - cz))
+        gi_true[4, 1] = 0.0 + mass * (0.0 - (0.0 - (ref_x - cx)))
+    ghat_ginv_eigs(gi_hat, gc_uam, gc_true, gi_true, out_re, out_im)
+
+
+@njit(cache=True)
 def _real_eigvals_sorted(a: np.ndarray, out_re: np.ndarray) -> bool:
     """Sorted eigenvalues of `a` into out_re when all are real; False (out_re untouched) when some are not:
     numba's real eigvals raises on a complex result."""

@@ -450,24 +450,22 @@ def ghat_ginv_eig_record(
     gc_uam = (model.evaluate(q_est_rad, (0.0, 0.0, 0.0)).gc if gc_uam_flat is None
               else np.array(gc_uam_flat, dtype=float).reshape(5, 5))
     gi_hat = np.array(gi_hat_flat, dtype=float).reshape(5, 5)
-    gc_true = model.gc_about(float(com_true_frd_m[0]), float(com_true_frd_m[2]))
-    gi_true = inertia_matrix_gi(np.asarray(inertia_true, dtype=float), float(mass_true_kg))
-    gi_flown = gi_true
-    if ref_frd_m is not None:
-        # gi_true @ (2 I - T(d)) in closed form (the matrix product cost ~5 us per logged tick): G_I,true is
-        # blkdiag(J, m, m) and 2 I - T differs from I only at [3, 1] = -d_z and [4, 1] = d_x, so the product is
-        # G_I,true with [3, 1] = m (-d_z) and [4, 1] = m d_x (every other element is a product with 1 or 0 added to
-        # zeros, as the matrix product computes it: the same values)
-        m = float(mass_true_kg)
-        gi_flown = gi_true.copy()
-        gi_flown[3, 1] = 0.0 + m * (0.0 - (float(ref_frd_m[2]) - float(com_true_frd_m[2])))
-        gi_flown[4, 1] = 0.0 + m * (0.0 - (0.0 - (float(ref_frd_m[0]) - float(com_true_frd_m[0]))))
+    j = np.asarray(inertia_true, dtype=float)
+    m = float(mass_true_kg)
+    # G_I,true @ (2 I - T(d)) in closed form inside the kernel (the matrix product cost ~5 us per logged tick):
+    # G_I,true is blkdiag(J, m, m) and 2 I - T differs from I only at [3, 1] = -d_z and [4, 1] = d_x, so the
+    # product is G_I,true with [3, 1] = m (-d_z) and [4, 1] = m d_x (every other element is a product with 1 or 0
+    # added to zeros, as the matrix product computes it: the same values). One kernel call for G_C,true, G_I,true
+    # and the eigenvalues: every logged tick needs it.
     re, im = np.empty(5), np.empty(5)
-    g_c.ghat_ginv_eigs(gi_hat, gc_uam, gc_true, gi_flown, re, im)
+    rx, rz = (0.0, 0.0) if ref_frd_m is None else (float(ref_frd_m[0]), float(ref_frd_m[2]))
+    g_c.ghat_ginv_eigs_truth(gi_hat, gc_uam, model.force_per_input, model.moment_o_per_input,
+                             float(com_true_frd_m[0]), float(com_true_frd_m[2]), j, m, ref_frd_m is not None, rx, rz,
+                             re, im)
     return {
         "eig_real": re.tolist(),
         "eig_imag": im.tolist(),
         "lambda_min": float(lambda_min),
         "lambda_crit": float(lambda_crit),
-        "true_inertia_mass": [float(gi_true[0, 0]), float(gi_true[1, 1]), float(gi_true[2, 2]), float(mass_true_kg)],
+        "true_inertia_mass": [float(j[0, 0]), float(j[1, 1]), float(j[2, 2]), m],
     }

@@ -1,11 +1,12 @@
 """The Foxglove channels (navig8_fc.viz records) to the MCAP log and, with --foxglove, live over Foxglove's
 WebSocket protocol (foxglove-sdk's server). One writer for navig8-fc and navig8-sim (docs/foxglove.md).
 
-Rates are on the log time (sim time), so a lockstep run faster than real time writes the same records:
-transforms 25 Hz (the 3D panel interpolates between them), scene and pose 10 Hz, path and mission 2 Hz, every
-STATUSTEXT. A record is built and serialised only when a sink wants it: the log always, a live channel only while
-a client subscribes to it (`Channel.has_sinks`), so a server nobody is connected to costs one check per
-publication time.
+Rates are on the log time (sim time), so a lockstep run faster than real time writes the same records, and
+are display rates (docs/foxglove.md; docs/logs.md, "Rates"): transforms and pose 10 Hz (the 3D panel
+interpolates between transforms), the scene 5 Hz (its entities ride on the transforms' frames; only the thrust
+arrows, the object and the setpoint ghost change), path and mission 2 Hz, every STATUSTEXT. A record is built
+and serialised only when a sink wants it: the log always, a live channel only while a client subscribes to it
+(`Channel.has_sinks`), so a server nobody is connected to costs one check per publication time.
 """
 
 from __future__ import annotations
@@ -26,8 +27,8 @@ from navig8_fc.shell.mcap_log import McapLogger
 _NS = 1_000_000_000
 # topic: (Foxglove schema, period in ns of log time)
 TOPICS: dict[str, tuple[str, int]] = {
-    "/foxglove/tf": (viz.FRAME_TRANSFORMS, _NS // 25),
-    "/foxglove/scene": (viz.SCENE_UPDATE, _NS // 10),
+    "/foxglove/tf": (viz.FRAME_TRANSFORMS, _NS // 10),
+    "/foxglove/scene": (viz.SCENE_UPDATE, _NS // 5),
     "/foxglove/pose": (viz.POSE_IN_FRAME, _NS // 10),
     "/foxglove/path": (viz.POSES_IN_FRAME, _NS // 2),
     "/foxglove/mission": (viz.POSES_IN_FRAME, _NS // 2),

@@ -6,6 +6,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from navig8_tools.logdata import load_run
@@ -38,8 +39,13 @@ def test_proposed_flies_the_paper_scenario(paper_proposed) -> None:
 def test_log_has_the_channels_and_figures_render(paper_proposed, tmp_path: Path) -> None:
     _, log = paper_proposed
     r = load_run(log)
-    for topic in ("/truth", "/fc/status", "/fc/setpoint", "/fc/command", "/analysis/eig"):
+    for topic in ("/truth", "/fc/status", "/fc/command", "/analysis/eig"):
         assert len(r[topic].t) == 3001, topic
+    # The setpoint when it changes (docs/logs.md, "Rates"): the start, each of the script's five steps with the held
+    # value again at the step before it, and the end; a zero-order hold gives the setpoint at every step.
+    sp = r["/fc/setpoint"]
+    assert np.allclose(sp.t, [0.0, 4.99, 5.0, 9.99, 10.0, 14.99, 15.0, 19.99, 20.0, 24.99, 25.0, 30.0])
+    assert all(a == b for a, b in zip(sp.msgs[1::2], sp.msgs[0::2], strict=False))  # held until the change
     assert r.metadata["run"]["controller"] == "proposed" and "INDI_K_MIN" in r.metadata["params"]
     # The in-process loop flies the FlightStack, as navig8-fc does: the mode manager runs the script as a mission.
     texts = [m["text"] for m in r["/fc/statustext"].msgs]

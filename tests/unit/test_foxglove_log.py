@@ -25,11 +25,11 @@ def sim_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_sim_log_foxglove_channels_validate_and_transforms_match_kinematics(sim_log: Path) -> None:
     cfg = VehicleConfig.load()
-    counts = check_log(sim_log, cfg, {"/foxglove/tf": 45, "/foxglove/scene": 18, "/foxglove/pose": 18,
+    counts = check_log(sim_log, cfg, {"/foxglove/tf": 18, "/foxglove/scene": 9, "/foxglove/pose": 18,
                                       "/foxglove/path": 4, "/foxglove/mission": 4})
     assert set(counts) >= set(TOPICS) - {"/foxglove/log"}
-    # rates on sim time: 25 Hz transforms, 10 Hz scene over 2 s (both ends included)
-    assert counts["/foxglove/tf"] == 51 and counts["/foxglove/scene"] == 21
+    # display rates on sim time: 10 Hz transforms, 5 Hz scene over 2 s (both ends included)
+    assert counts["/foxglove/tf"] == 21 and counts["/foxglove/scene"] == 11
 
 
 def test_log_record_levels_and_object_sphere_volume() -> None:

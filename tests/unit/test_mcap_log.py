@@ -125,6 +125,21 @@ def test_truth_records_in_process_and_over_the_wire_agree() -> None:
     assert local["reaction_torque_o_nm"] is tr.reaction_moment_o_frd_nm
 
 
+def test_log_truth_record_is_the_truth_record_byte_for_byte() -> None:
+    """navig8-sim logs /truth from Plant.log_truth (plain floats): the same JSON bytes as from the plant's Truth."""
+    import numpy as np
+
+    from navig8_fc.core.vehicle import VehicleConfig
+    from navig8_fc.logrecords import log_truth_record, truth_record
+    from navig8_fc.shell.mcap_log import dumps_json
+    from sim_bridge import Plant, PlantParams, load_scenario
+
+    plant = Plant(VehicleConfig.load(), PlantParams.load(), load_scenario("paper"), np.random.default_rng(2))
+    for _ in range(3):
+        plant.step(plant.trim_command(), 0.25)
+        assert dumps_json(log_truth_record(plant.log_truth())) == dumps_json(truth_record(plant.truth()))
+
+
 def test_rotation_keeps_complete_parts_with_the_same_channels(tmp_path: Path) -> None:
     """A size cap: each part is a whole MCAP (the library's CRC-checking reader reads it), holds the run's start
     metadata and every channel again (the cached ids stay valid), and only the newest `keep_files` parts remain."""
