@@ -15,8 +15,9 @@ a bound), K = 1 before the grasp and after the release. Each check is also flown
   yaw step that excites K3 itself).
 K2 (the preset's pitch row in moment space, CKF_R_PITCH, with the held object's CoM-height error as its nuisance,
 CKF_CZ_SIG) is checked while held (truth 0.63: inside the box, off its bounds; within 0.07, 0.05 when the preset
-flew K_hat, before the flown gain became the default), before the grasp and from 3 s after the release; and flown where it must fail: without the nuisance it misses the held truth (0.14-0.20 off over seeds
-1-3), with the pitch row in Delta U space (CKF_R_PITCH 0) it misses after the release (0.12-0.13 off).
+flew K_hat, before the flown gain became the default), before the grasp and from 3 s after the release; and flown
+where it must fail: without the nuisance it misses the held truth (0.14-0.20 off over seeds 1-3), with the pitch
+row in Delta U space (CKF_R_PITCH 0) it misses after the release (0.12-0.13 off).
 """
 
 from __future__ import annotations
