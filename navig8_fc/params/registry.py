@@ -461,8 +461,23 @@ class ParamRegistry:
         order = sorted(values, key=lambda n: (n != "INDI_K_MAX", n))
         if "INDI_K_MAX" in values and float(values["INDI_K_MAX"]) < float(self._values["INDI_K_MIN"]):
             order = sorted(values, key=lambda n: (n != "INDI_K_MIN", n))
-        for n in order:
-            results.append(self.set(n, values[n]))
+        # The rules are checked one parameter at a time, so a set valid as a whole can pass through an invalid
+        # intermediate in the sorted order (from the defaults INDI_LAM_REF 0.5 / INDI_KFL_MIN 0.4, the paper's 1 / 0:
+        # INDI_KFL_MIN 0 first flies [0.25, 0.5], which the stability margin refuses). Refused entries are tried
+        # again after the others while a pass makes progress; what is still refused then is reported.
+        last: dict[str, SetResult] = {}
+        pending = order
+        while pending:
+            refused: list[str] = []
+            for n in pending:
+                res = self.set(n, values[n])
+                last[n] = res
+                if not res.accepted:
+                    refused.append(n)
+            if len(refused) == len(pending):
+                break
+            pending = refused
+        results.extend(last[n] for n in order)
         return results
 
     def restore(self, snapshot: Mapping[str, float | int]) -> None:

@@ -17,6 +17,11 @@ import pytest
 from navig8_fc.params.store import read_parm_file
 from navig8_tools.sim import run
 
+# the flown eigenvalue's floor: the registry's guaranteed minimum of G_hat G^-1 over the flown K box (the defaults'
+# INDI_LAM_REF 0.5, INDI_KFL_MIN 0.4: [0.4, 1]) and the workspace, 0.386 on navig8-stability's full sweep, rounded down
+# (the paper scenario flies 0.396-0.399)
+EIG_FLOOR = 0.38
+
 ATT_BOUND_DEG = 20.0
 PRESETS = Path(__file__).resolve().parents[2] / "params" / "presets"
 
@@ -34,7 +39,7 @@ def test_the_defaults_hold_the_attitude_bound(runs) -> None:
     s = runs["defaults"]
     assert s["lost_control"] is False
     assert s["bound_violations"] == 0
-    assert s["min_eigenvalue"] >= 0.45
+    assert s["min_eigenvalue"] >= EIG_FLOOR
     assert s["max_att_error_deg"] <= ATT_BOUND_DEG, s["max_att_error_deg"]
     assert all(st["settle_s"] is not None for st in s["settle"]), s["settle"]  # every commanded step settles
 

@@ -14,6 +14,11 @@ from navig8_tools.plot import plot_runs
 from navig8_tools.sim import main as sim_main
 from navig8_tools.sim import run
 
+# the flown eigenvalue's floor: the registry's guaranteed minimum of G_hat G^-1 over the flown K box (the defaults'
+# INDI_LAM_REF 0.5, INDI_KFL_MIN 0.4: [0.4, 1]) and the workspace, 0.386 on navig8-stability's full sweep, rounded down
+# (the paper scenario flies 0.396-0.399)
+EIG_FLOOR = 0.38
+
 
 @pytest.fixture(scope="module")
 def paper_proposed(tmp_path_factory) -> tuple[dict, Path]:
@@ -26,7 +31,7 @@ def test_proposed_flies_the_paper_scenario(paper_proposed) -> None:
     assert s["sim_time_s"] == pytest.approx(30.0, abs=0.02)
     assert s["lost_control"] is False
     assert s["bound_violations"] == 0
-    assert s["min_eigenvalue"] >= 0.45
+    assert s["min_eigenvalue"] >= EIG_FLOOR
     steps = {x["axis"]: x for x in s["settle"]}
     assert set(steps) == {"east", "north", "down", "pitch", "yaw"}
     for axis, x in steps.items():

@@ -14,9 +14,10 @@ a bound), K = 1 before the grasp and after the release. Each check is also flown
   -0.05 and it is 0.25 off (0.74 at 23 s), where the tick's change of J keeps it within 0.05 (5-24 s, up to the
   yaw step that excites K3 itself).
 K2 (the preset's pitch row in moment space, CKF_R_PITCH, with the held object's CoM-height error as its nuisance,
-CKF_CZ_SIG) is checked while held (truth 0.63: inside the box, off its bounds), before the grasp and from 3 s after
-the release; and flown where it must fail: without the nuisance it misses the held truth (0.14-0.20 off over seeds
-1-3), with the pitch row in Delta U space (CKF_R_PITCH 0) it misses after the release (0.12-0.13 off).
+CKF_CZ_SIG) is checked while held (truth 0.63: inside the box, off its bounds; within 0.07, 0.05 when the preset
+flew K_hat, before the flown gain became the default), before the grasp and from 3 s after the release; and flown
+where it must fail: without the nuisance it misses the held truth (0.14-0.20 off over seeds 1-3), with the pitch
+row in Delta U space (CKF_R_PITCH 0) it misses after the release (0.12-0.13 off).
 """
 
 from __future__ import annotations
@@ -89,9 +90,12 @@ def _k2(overrides: dict[str, float], seed: int) -> tuple[float, float, float]:
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_the_pitch_row_identifies_the_held_object_and_returns_after_the_release(seed: int) -> None:
+    # with the defaults' flown gain (which the preset keeps) seeds 1-3 measure held 0.064 at worst, after 0.082, before
+    # 0.098; flying K_hat (INDI_LAM_REF 1, the previous defaults) the same test held 0.05 / 0.08 / 0.1. The flights
+    # where it must fail below stay above 0.1.
     before, held, after = _k2(IDENT, seed)
-    assert held <= 0.05, held
-    assert before <= 0.1 and after <= 0.08, (before, after)
+    assert held <= 0.07, held
+    assert before <= 0.1 and after <= 0.09, (before, after)
 
 
 def test_without_the_com_nuisance_k2_misses_the_held_object() -> None:

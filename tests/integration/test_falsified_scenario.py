@@ -2,6 +2,8 @@
 regression campaign flies it, and reproduces what the search recorded for it (the header's per-seed line): the
 saved files are the case that was found, rounding and world overrides included. When a change to the controller
 moves this number, the case may no longer be its worst: run the search again (docs/campaigns.md, "Falsification").
+The search was run for the adaptive law flying its estimate K_hat (INDI_LAM_REF 1, the defaults then): the campaign's
+`proposed_khat` variant, which this test flies; `proposed` is the defaults now (the flown gain).
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ def test_the_proposed_worst_case_reproduces_the_search(tmp_path):
     recorded = re.search(rf"flight seed {SEED}: score ([0-9.]+)", text)
     assert recorded, "the scenario's header notes the search's flights"
     campaign = yaml.safe_load((files("navig8_params") / "campaigns" / f"{CASE}.yaml").read_text())
-    variant = campaign["variants"]["proposed"]
+    variant = campaign["variants"]["proposed_khat"]
     world = load_world(CASE)
     own = yaml.safe_load(text)["world"]  # the plant's side and the FC model's, from the scenario itself
     assert world.vehicle.object_offset_m == own["vehicle.object.offset_from_tip_m"]

@@ -5,7 +5,8 @@ In-process, seed 1, `stretched_grasp_release` (a 1.5 kg object grasped at the en
 yaw 60 deg, released while pitched), the default (±60 N tail) vehicle, with servos and actuators that do not match
 the FC's models (the FC's ARM_SERVO_* and ACT_WN stay at their defaults):
 - an arm servo 7x slower than its data sheet (0.6 rad/s, 6 rad/s^2 against 4 and 42): the defaults and the supervised
-  arm preview hold 20 deg; the same preview trusted blindly (no check, no identification) loses the vehicle;
+  arm preview hold 20 deg; the same preview trusted blindly (no check, no identification) exceeds the bound by more
+  than 10 deg (42 deg with the defaults' flown gain, which keeps the vehicle; flying K_hat, INDI_LAM_REF 1, it lost it);
 - joint 1 stalls in the middle of the 13 s move: the same three, the blind preview lost;
 - the duct and propeller actuators 4x slower than ACT_WN: the defaults (identification + check of the U0 model) keep
   the vehicle; the model U0 without them loses it.
@@ -47,7 +48,9 @@ def _ok(s: dict, bound: float) -> None:
 def test_a_slow_arm_servo_costs_no_control(runs) -> None:
     _ok(runs["slow_arm_defaults"], ATT_BOUND_DEG)
     _ok(runs["slow_arm_preview"], ATT_BOUND_DEG)
-    assert runs["slow_arm_blind"]["lost_control"] is True  # the preview trusted against the measured joints
+    # the preview trusted against the measured joints: 42.4 deg (lost with INDI_LAM_REF 1, the previous defaults)
+    blind = runs["slow_arm_blind"]["max_att_error_deg"]
+    assert blind > ATT_BOUND_DEG + 10.0, blind
 
 
 def test_a_stalled_joint_costs_no_control(runs) -> None:

@@ -104,8 +104,10 @@ class _ReferenceTick:
 def test_step_equals_public_api_tick_bit_for_bit(cfg: VehicleConfig, mode: CkfMode) -> None:
     values = ParamRegistry.from_defaults().as_dict()
     # The defaults without the parts the reference composition leaves out (each has its tests: test_reference_point,
-    # test_arm_wrench, test_command_shaping): the CoM as the INDI's reference point, the arm feed-forward, shaping.
-    values.update(INDI_ACC_REF=0, INDI_ARM_FF=0, OL_JERK_MAX=0.0, OL_ATT_ACC_REF=0.0)
+    # test_arm_wrench, test_command_shaping, test_flown_gain): the CoM as the INDI's reference point, the arm
+    # feed-forward, shaping, the flown loop gain (lambda* and its floor).
+    values.update(INDI_ACC_REF=0, INDI_ARM_FF=0, OL_JERK_MAX=0.0, OL_ATT_ACC_REF=0.0, INDI_LAM_REF=1.0,
+                  INDI_KFL_MIN=0.0)
     base = ControllerConfig.from_params(values, cfg)
     config = replace(base, ckf=replace(base.ckf, mode=mode, start_delay_s=0.05))
     fast, ref = FlightControllerCore(cfg, config), _ReferenceTick(cfg, config)

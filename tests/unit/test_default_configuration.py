@@ -24,11 +24,13 @@ ROBUST = (
     ("OL_ATT_ACC_REF", 1.0, 0.0), ("OL_ATT_RATE_REF", 0.6, 1.0),
 )
 CHECKS_ON = (("ACT_ID", 1), ("ARM_SERVO_ID", 1), ("OL_FF", 1))
+# the flown loop gain (lambda*, the flown floor): one row of the table
+FLOWN_GAIN = (("INDI_LAM_REF", 0.5, 1.0), ("INDI_KFL_MIN", 0.4, 0.0))
 
 
 def test_the_defaults_are_the_documented_robust_configuration() -> None:
     reg = ParamRegistry.from_defaults()
-    for name, default, _ in ROBUST:
+    for name, default, _ in ROBUST + FLOWN_GAIN:
         assert float(reg[name]) == pytest.approx(default), name
     for name, value in CHECKS_ON:
         assert int(reg[name]) == value, name
@@ -36,8 +38,19 @@ def test_the_defaults_are_the_documented_robust_configuration() -> None:
 
 def test_paper_parm_restores_the_papers_method() -> None:
     paper = read_parm_file(ROOT / "params" / "presets" / "paper.parm")
-    for name, _, value in ROBUST:
+    for name, _, value in ROBUST + FLOWN_GAIN:
         assert paper[name] == pytest.approx(value), name
+    # applied one at a time in the file's order from the defaults (navig8-sim, MAVProxy's param load) and as a stored
+    # set sorted by name (navig8-sitl --params, the FC's start): every value accepted, the paper's flown gain in force
+    names = list(paper)
+    assert names.index("INDI_LAM_REF") < names.index("INDI_KFL_MIN")
+    reg = ParamRegistry.from_defaults()
+    for name, value in paper.items():
+        assert reg.set(name, value).accepted, name
+    stored = ParamRegistry.from_defaults()
+    assert all(r.accepted for r in stored.load_values({**stored.as_dict(), **paper}))
+    for r in (reg, stored):
+        assert (float(r["INDI_LAM_REF"]), float(r["INDI_KFL_MIN"])) == (1.0, 0.0)
     # and the adaptive law's settings as printed (Sec. 4): one-step increments, measured U, no gates
     for name, value in (("CKF_INC_N", 1), ("CKF_U_SRC", 0), ("CKF_SAT_GATE", 0), ("CKF_EXC_LIN", 0),
                         ("CKF_Q_IXX", 1e-4), ("CKF_Q_IYY", 5e-5), ("CKF_Q_IZZ", 1e-4), ("CKF_Q_M", 5e-4),
@@ -66,6 +79,10 @@ def test_the_documented_table_agrees_with_the_parameter_file() -> None:
         got_default = float(re.match(r"[-0-9.e]+", cells[1]).group())
         got_paper = float(re.match(r"[-0-9.e]+", cells[2]).group())
         assert (got_default, got_paper) == pytest.approx((default, paper)), row
+    row = next(line for line in section.splitlines() if line.startswith("| `INDI_LAM_REF`, `INDI_KFL_MIN` |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert [float(x) for x in cells[1].split(",")] == pytest.approx([d for _, d, _ in FLOWN_GAIN]), row
+    assert [float(x) for x in cells[2].split(",")] == pytest.approx([p for _, _, p in FLOWN_GAIN]), row
 
 
 def test_the_default_vehicle_has_a_plausible_tail() -> None:

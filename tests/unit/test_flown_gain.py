@@ -93,7 +93,12 @@ def test_defaults_fly_k_hat_bit_for_bit() -> None:
 
 
 def test_the_stability_floor_analyses_the_flown_box() -> None:
-    reg = ParamRegistry.from_defaults()
+    reg = ParamRegistry.from_defaults()  # the defaults fly lambda* 0.5 with the floor 0.4: the flown box [0.4, 1]
+    assert flown_k_bounds(reg.as_dict()) == (pytest.approx(0.4), pytest.approx(1.0))
+    res = reg.set("INDI_KFL_MIN", 0.0)  # the paper's order reversed: K_hat at 0.5 flies 0.25, below lambda_crit 0.244
+    assert not res.accepted and "stability floor" in (res.reason or "")
+    assert reg.set("INDI_LAM_REF", 1.0).accepted  # lambda* 1 first (paper.parm's order) ...
+    assert reg.set("INDI_KFL_MIN", 0.0).accepted  # ... then no floor: K_hat's own box
     assert flown_k_bounds(reg.as_dict()) == (pytest.approx(0.5), pytest.approx(1.0))
     res = reg.set("INDI_LAM_REF", 0.6)  # K_hat at 0.5 flies 0.3: margin ~1.19 < 1.5
     assert not res.accepted and "stability margin" in (res.reason or "")
@@ -102,4 +107,18 @@ def test_the_stability_floor_analyses_the_flown_box() -> None:
     st = reg.stability_status()
     assert st is not None and st.min_eigenvalue == pytest.approx(0.3897, abs=2e-3)
     assert not reg.set("INDI_KFL_MIN", 0.3).accepted  # flown K 0.3 (K_hat 0.5 x 0.5 = 0.25 below it)
+    assert math.isclose(float(reg["INDI_KFL_MIN"]), 0.4, rel_tol=1e-6)
+
+
+def test_a_stored_set_valid_as_a_whole_loads_whatever_its_sorted_order() -> None:
+    # load_values (a stored parameter file, navig8-sitl --params) applies the entries sorted by name, one at a time:
+    # the paper's INDI_KFL_MIN 0 comes before its INDI_LAM_REF 1 and is refused on its own from the defaults; the
+    # registry tries it again once lambda* is 1. A set that is invalid as a whole is still refused.
+    reg = ParamRegistry.from_defaults()
+    res = reg.load_values({"INDI_KFL_MIN": 0.0, "INDI_LAM_REF": 1.0})
+    assert [r.name for r in res] == ["INDI_KFL_MIN", "INDI_LAM_REF"] and all(r.accepted for r in res)
+    assert float(reg["INDI_LAM_REF"]) == 1.0 and float(reg["INDI_KFL_MIN"]) == 0.0
+    reg = ParamRegistry.from_defaults()
+    res = reg.load_values({"INDI_KFL_MIN": 0.0, "INDI_LAM_REF": 0.5})
+    assert [r.accepted for r in res] == [False, True] and "stability floor" in (res[0].reason or "")
     assert math.isclose(float(reg["INDI_KFL_MIN"]), 0.4, rel_tol=1e-6)
