@@ -21,7 +21,7 @@ from navig8_fc.gcs.telemetry import (
     sensor_bits,
 )
 from navig8_fc.mission.geo import GeoOrigin, origin_from_params
-from navig8_fc.params.registry import ParamRegistry
+from navig8_fc.params.registry import ParamRegistry, flown_k_bounds
 
 MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4 = 0, 12  # HEARTBEAT.autopilot: the identity navig8-fc announces
 Source = Hashable  # who sent a message, as the Outbox knows how to answer it (the process: (link name, address))
@@ -31,15 +31,14 @@ Source = Hashable  # who sent a message, as the Outbox knows how to answer it (t
 class TelemetrySettings:
     """The telemetry's parameters, typed once per parameter change (Telemetry.settings)."""
 
-    k_min: float  # INDI_K_MIN, INDI_K_MAX: the K box the eigenvalue margin is bounded over
-    k_max: float
+    k_min: float  # the box of the K the INDI flies (registry.flown_k_bounds: INDI_K_MIN..MAX with INDI_LAM_REF and
+    k_max: float  # INDI_KFL_MIN), which the eigenvalue margin is bounded over
     battery_low_pct: float  # FS_BAT_LOW_PCT: below it SYS_STATUS's battery is unhealthy (the low-battery failsafe)
     origin: GeoOrigin  # ORIGIN_*: the global origin of GLOBAL_POSITION_INT, HOME_POSITION, ...
 
     @staticmethod
     def from_params(values: Mapping[str, float]) -> TelemetrySettings:
-        return TelemetrySettings(float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"]),
-                                 float(values["FS_BAT_LOW_PCT"]), origin_from_params(values))
+        return TelemetrySettings(*flown_k_bounds(values), float(values["FS_BAT_LOW_PCT"]), origin_from_params(values))
 
 
 class Telemetry:

@@ -306,3 +306,16 @@ def test_highres_imu_is_off_until_asked_and_carries_the_imu_sample(mavs) -> None
     assert (imu.xacc, imu.yacc, imu.zacc) == (0.5, -0.25, -9.75)
     assert (imu.xgyro, imu.ygyro, imu.zgyro) == pytest.approx((0.01, -0.02, 0.03))
     assert imu.time_usec == 1_234_000 and imu.fields_updated == 0b111111 and imu.xmag == 0.0
+
+
+def test_eig_margin_is_bounded_over_the_box_of_the_k_flown() -> None:
+    """EIG_MARGIN sweeps the K the INDI flies: at the defaults' flown gain (lambda* 0.5, floor 0.4) the box is
+    [0.4, 1], wider than the estimate's [0.5, 1]; flying K_hat (INDI_LAM_REF 1, INDI_KFL_MIN 0) it is the Eq. 20 box."""
+    from navig8_fc.params.registry import ParamRegistry
+    from navig8_fc.shell.telemetry_service import TelemetrySettings
+
+    values = ParamRegistry.from_defaults(check_stability=False).as_dict()
+    s = TelemetrySettings.from_params(values)
+    assert (s.k_min, s.k_max) == pytest.approx((0.4, 1.0))
+    s = TelemetrySettings.from_params({**values, "INDI_LAM_REF": 1.0, "INDI_KFL_MIN": 0.0})
+    assert (s.k_min, s.k_max) == pytest.approx((values["INDI_K_MIN"], values["INDI_K_MAX"]))
