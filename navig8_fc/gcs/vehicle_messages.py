@@ -145,7 +145,13 @@ class VehicleMessages:
     def to_ned(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool) -> tuple[float, float, float]:
         """A WGS-84 point around the global origin (NaN stays NaN); alt AMSL, or above home when relative_alt."""
         n, e = self.origin.to_ned_xy(lat_deg, lon_deg)
-        home = self._state().home_ned
-        home_z = home[2] if home is not None else 0.0
-        d = home_z - alt_m if relative_alt else self.origin.alt_amsl_m - alt_m
+        d = self._home_z() - alt_m if relative_alt else self.origin.alt_amsl_m - alt_m
         return n, e, d
+
+    def above_home_m(self, alt_amsl_m: float) -> float:
+        """An altitude above mean sea level as a height above home (NaN stays NaN)."""
+        return self._home_z() - (self.origin.alt_amsl_m - alt_amsl_m)
+
+    def _home_z(self) -> float:
+        home = self._state().home_ned
+        return home[2] if home is not None else 0.0

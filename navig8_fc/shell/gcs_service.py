@@ -322,9 +322,7 @@ class GcsService:
         self.param_sets.close()
 
     def takeoff_amsl(self, alt_amsl_m: float) -> tuple[bool, str]:
-        home = self._state().home_ned
-        home_z = home[2] if home is not None else 0.0
-        return self._vehicle.command(Takeoff(home_z - (self.origin.alt_amsl_m - alt_amsl_m)))
+        return self._vehicle.command(Takeoff(self.vehicle_msgs.above_home_m(alt_amsl_m)))
 
     def reposition_global(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool,
                           yaw_rad: float) -> tuple[bool, str]:
