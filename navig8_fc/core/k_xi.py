@@ -208,19 +208,31 @@ def k_bounds_analysis(
     return _worst_case(xi, _k_set(k_min, k_max, n_k), poses, masses, k_min, k_max)
 
 
+def workspace_xi(cfg: VehicleConfig) -> np.ndarray:
+    """Xi (Eq. 14) over the stability floor's coarse workspace: joints on {-90, -45, 0, 45, 90} deg (125 poses) plus
+    the Fig. 7 poses, object masses {0, 1, 2} kg; array (127, 3, 5, 5). It does not depend on K, so a caller that
+    checks many K boxes (the parameter registry's floor) computes it once (~0.1 s) and passes it to
+    min_eigenvalue_of_xi (~15 ms a box)."""
+    poses = np.vstack([pose_grid_rad(5), paper_poses_rad()])
+    return xi_batch(cfg, poses, np.array([0.0, 1.0, 2.0]))
+
+
+def min_eigenvalue_of_xi(xi: np.ndarray, k_min: float, k_max: float) -> float:
+    """Worst case of Re(eig(K Xi)) over the Xi batch `xi` (..., 5, 5) and K on the box's 3 x 3 (K1, K3) grid plus
+    its corners (_k_set)."""
+    _check_k_range(k_min, k_max)
+    lam = k_xi_eigenvalues(xi[..., None, :, :], _k_set(k_min, k_max, 3)[(None,) * (xi.ndim - 2)])
+    return float(lam.real.min())
+
+
 def min_eigenvalue_over_workspace(cfg: VehicleConfig, k_min: float, k_max: float) -> float:
     """Cheap worst case of Re(eig(K Xi)) for the parameter registry's stability floor (well under 1 s).
 
-    Coarse version of k_bounds_analysis: joints on {-90, -45, 0, 45, 90} deg (125 poses) plus the Fig. 7
-    poses, object masses {0, 1, 2} kg, (K1, K3) on a 3 x 3 grid plus the K corners.
-    At object mass 0, Xi = I and the result is exactly k_min, so the answer is never above k_min.
+    Coarse version of k_bounds_analysis: Xi over workspace_xi's poses and masses, (K1, K3) on a 3 x 3 grid plus the
+    K corners. At object mass 0, Xi = I and the result is exactly k_min, so the answer is never above k_min.
     """
     _check_k_range(k_min, k_max)
-    poses = np.vstack([pose_grid_rad(5), paper_poses_rad()])
-    masses = np.array([0.0, 1.0, 2.0])
-    xi = xi_batch(cfg, poses, masses)
-    lam = k_xi_eigenvalues(xi[:, :, None, :, :], _k_set(k_min, k_max, 3)[None, None, :, :])
-    return float(lam.real.min())
+    return min_eigenvalue_of_xi(workspace_xi(cfg), k_min, k_max)
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import optimize, signal
+from scipy import optimize
 
 SETTLING_BAND = 0.02  # 2 % band around the final value for the settling time
 _IMAG_TOL = 1e-9  # |Im| below this counts as a real pole (round-off of the polynomial roots)
@@ -338,6 +338,9 @@ def _zoh_step(num: np.ndarray, den: np.ndarray, dt_s: float, n: int) -> np.ndarr
     matrix products instead of an n-step Python loop, and no eigen-decomposition, which would fail
     for the double pole at lam = 1).
     """
+    from scipy import signal  # here, not at the top: it costs ~0.7 s to import, and the stability-floor worker
+    # (lambda_crit, no step responses) must be ready within a second of the FC's start
+
     a, b, c, d = signal.tf2ss(num, den)
     ad, bd, cd, dd, _ = signal.cont2discrete((a, b, c, d), dt_s, method="zoh")
     v = np.empty((n, a.shape[0]))

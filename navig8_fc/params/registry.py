@@ -137,10 +137,12 @@ class WorkspaceStabilityCheck:
     them), so registries of one process (the FC's, a test's) compute each configuration once."""
 
     _memo: dict[tuple[Any, tuple[float, ...]], StabilityFloor] = {}
+    # the vehicle and its workspace Xi (k_xi.workspace_xi: ~0.1 s, independent of every floor input) per vehicle file,
+    # so a new configuration costs only its eigenvalues (~15 ms): a PARAM_SET is answered at once
+    _workspace: dict[str | None, tuple[Any, np.ndarray]] = {}
 
     def __init__(self, vehicle_path: str | Path | None = None) -> None:
         self._vehicle_path = vehicle_path
-        self._cfg: Any = None
 
     def __call__(self, values: Mapping[str, float | int]) -> StabilityFloor:
         key = (None if self._vehicle_path is None else str(self._vehicle_path), floor_key(values))
@@ -156,8 +158,11 @@ class WorkspaceStabilityCheck:
         from navig8_fc.core import k_xi, stability
         from navig8_fc.core.vehicle import VehicleConfig
 
-        if self._cfg is None:
-            self._cfg = VehicleConfig.load(self._vehicle_path)
+        path = None if self._vehicle_path is None else str(self._vehicle_path)
+        if path not in self._workspace:
+            vehicle = VehicleConfig.load(self._vehicle_path)
+            self._workspace[path] = (vehicle, k_xi.workspace_xi(vehicle))
+        cfg, xi = self._workspace[path]
         lam_crit = stability.lambda_crit(
             float(values["ACT_WN"]),
             float(values["ACT_ZETA"]),
@@ -165,14 +170,14 @@ class WorkspaceStabilityCheck:
             float(values["INDI_LPF_TAU"]),
         )
         k_min, k_max = flown_k_bounds(values)  # the K the INDI flies (INDI_LAM_REF, INDI_KFL_MIN), not K_hat's box
-        min_eig = k_xi.min_eigenvalue_over_workspace(self._cfg, k_min, k_max)
+        min_eig = k_xi.min_eigenvalue_of_xi(xi, k_min, k_max)
         lam_up = stability.lambda_upper(
             float(values["ACT_WN"]), float(values["ACT_ZETA"]), 1.0 / float(values["INDI_RATE_HZ"]),
             float(values["INDI_LPF_TAU"]),
         )
         max_eig = -math.inf
         if math.isfinite(lam_up):  # rare (lightly damped, long delay): the slow side needs the full sweep
-            max_eig = k_xi.k_bounds_analysis(self._cfg, k_min, k_max).max_eigenvalue
+            max_eig = k_xi.k_bounds_analysis(cfg, k_min, k_max).max_eigenvalue
         return StabilityFloor(lam_crit, min_eig, lam_up, max_eig)
 
 

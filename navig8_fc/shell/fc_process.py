@@ -41,6 +41,7 @@ from navig8_fc.viz import VehicleViz, packaged_uav_size_m
 FC_COMPID = 1
 SPIN_S = 0.002  # busy-poll window for the next bundle in lockstep at --speed 0
 WALL_TICK_S = 0.001  # GCS services (telemetry schedule, paced parameter list) run at most this often
+FLOOR_READY_WAIT_S = 10.0  # at most this long at start for the stability-floor worker (a loaded machine)
 EXIT_USAGE = 2  # bad arguments, or a port in use
 CONTROLLERS = ("fixed", "unconstrained", "proposed", "pinned", "lms")  # by CKF_MODE (the run's metadata)
 _PORT_OPTIONS = {"sim": "--sim-port", "gcs": "--gcs-bind-port", "api": "--api-bind-port"}
@@ -199,6 +200,11 @@ class FlightControllerProcess:
         print(f"navig8-fc: sysid {self.opts.sysid}, sim link :{self.sim.local_port} -> bridge "
               f":{self.opts.port('bridge')}, GCS :{self.gcs.local_port} -> {self.opts.gcs_port}, API "
               f":{self.api.local_port} -> {self.opts.port('api')}, scenario {self.opts.scenario}", file=sys.stderr)
+        # The stability-floor worker warm before any ground station hears us: its start-up (~1 s: a spawned
+        # interpreter, its imports, the workspace) would otherwise fall on the first stability-checked PARAM_SET.
+        if not self.gcs_service.param_sets.wait_floor_in_force(FLOOR_READY_WAIT_S):
+            self.log_event(f"the stability-floor worker is not ready after {FLOOR_READY_WAIT_S:g} s; going on (the "
+                           "first stability-checked PARAM_SET waits for it)")
         socks = {link.sock: link for link in self.links}
         # Everything alive now (imports, numba, the parameter registry) lives for the whole run: a full collection
         # would walk it all (~70 ms here, a stall of several lockstep steps); freezing keeps the collector to the

@@ -1,60 +1,22 @@
 """PARAM_SETs off the control path (GcsService's): `ParamSets` limits them per source (PARAM_SET_RATE), queues those
 whose stability floor must be computed, and writes the parameter file on a worker thread; `FloorWorker` computes the
-floors off the control thread (docs/gcs.md, "Parameters"): a spawned worker
-process at idle priority (its start-up and the analysis must not take CPU from the control loop and the simulator),
-raised to normal priority when a ground station waits on it or a floor has starved; a thread when processes cannot
-be started, and inline (the caller) when the worker died."""
+floors off the control thread (docs/gcs.md, "Parameters"): a worker process (job_process.JobProcess), started and
+warm before the FC's loop (its start-up, ~1 s of CPU, then takes nothing from the control loop and the simulator; a
+configuration's floor is ~20 ms); a thread when processes cannot be started, and inline (the caller) when the worker
+died."""
 
 from __future__ import annotations
 
-import math
-import multiprocessing
-import os
-import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Executor, Future, ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from typing import Any
 
 from navig8_fc.gcs.params import ParamProtocol
 from navig8_fc.params.registry import ParamRegistry, run_floor
+from navig8_fc.shell.job_process import JobProcess
 from navig8_fc.shell.telemetry_service import Source
-
-FLOOR_IDLE_GRACE_S = 10.0  # a floor pending this long (wall) at idle priority: the worker is raised to normal
-
-
-def _idle_priority() -> None:
-    """The calling thread at idle priority (Linux SCHED_IDLE, per thread; a process it starts inherits it). Idle, not
-    a nice level: in lockstep the FC and the bridge wake each other every tick, and a nice-10 worker on the other
-    core still delayed each wake-up enough to halve the real-time factor; an idle-class task is preempted at once."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
-    except (AttributeError, OSError):  # not Linux
-        try:
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
-        except (AttributeError, OSError):
-            pass
-
-
-def _floor_worker_init(parent_pid: int) -> None:
-    """The stability-floor worker lives only as long as the FC: a killed FC (SIGKILL, no shutdown) must not leave
-    it running, nor leave it holding the FC's stdout/stderr (a supervisor reading them would wait forever). It runs
-    at idle priority from birth (_start_floor_pool): its start-up (a spawned interpreter importing the FC's modules
-    and scipy, ~3 s of CPU) and the analysis (~1.5 s for a new configuration) must not take CPU from the control loop
-    and the simulator (at normal priority they had cut the lockstep real-time factor to a third on two cores)."""
-    _idle_priority()
-    devnull = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(devnull, 1)  # its results and errors go back through the futures, not the console
-    os.dup2(devnull, 2)
-    os.close(devnull)
-
-    def watch() -> None:
-        while os.getppid() == parent_pid:
-            time.sleep(0.2)
-        os._exit(0)  # re-parented: the FC is gone
-
-    threading.Thread(target=watch, name="navig8-floor-parent-watch", daemon=True).start()
 
 
 class FloorWorker:
@@ -66,44 +28,26 @@ class FloorWorker:
         self._pool: Executor | None = None
         self.failed = False  # the worker died: from now on floors are computed inline
         self._job: tuple[dict[str, float | int], Future[Any]] | None = None
-        self._job_t0 = math.inf  # wall time the pending job was submitted
-        self._raised = False  # the worker left idle priority (a PARAM_SET waits, or it starved)
 
     def start(self) -> None:
-        """Spawn the worker and compute the configuration in force once (its start-up takes seconds, more on a busy
-        machine: the first PARAM_SET that needs a floor is then answered in the analysis' own time)."""
+        """Start the worker and compute the configuration in force once: its start-up (an interpreter, its imports,
+        the workspace's Xi: ~1 s of CPU) then falls before the first PARAM_SET (wait_floor_in_force), which is
+        answered in a configuration's own time (~20 ms)."""
         self._start()
         assert self._pool is not None
         self._pool.submit(run_floor, self._registry.stability_check, self._registry.as_dict())
 
     def _start(self) -> None:
-        # A spawned process: nothing of this one (threads, sockets) is inherited. It is started from a thread set to
-        # idle priority, which the worker (and multiprocessing's resource tracker) inherit from their first
-        # instruction: the import of the FC's modules in a spawned interpreter then runs on idle CPU only.
-        made: list[Executor | BaseException] = []
-
-        def spawn() -> None:
-            _idle_priority()
-            try:
-                pool = ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
-                                           initializer=_floor_worker_init, initargs=(os.getpid(),))
-                pool.submit(os.getpid)  # the worker starts now, from this thread
-                made.append(pool)
-            except (OSError, ValueError) as exc:
-                made.append(exc)
-
-        t = threading.Thread(target=spawn, name="navig8-floor-spawn", daemon=True)
-        t.start()
-        t.join()
-        got = made[0] if made else None
-        self._pool = got if isinstance(got, Executor) else self._fallback
+        try:
+            self._pool = JobProcess()  # idle priority from its first instruction (job_process)
+        except OSError:  # no processes here: a thread
+            self._pool = self._fallback
 
     def submit(self, values: dict[str, float | int], now_wall: float) -> None:
         if self._pool is None:
             self._start()
         assert self._pool is not None
         self._job = (values, self._pool.submit(run_floor, self._registry.stability_check, values))
-        self._job_t0 = now_wall
 
     def done(self) -> bool:
         """Store the worker's finished floor in the registry; False while one is still being computed."""
@@ -118,23 +62,6 @@ class FloorWorker:
         except Exception:  # noqa: BLE001 - a dead worker: from now on floors are computed inline
             self.failed = True
         return True
-
-    def starved(self, now_wall: float) -> bool:
-        """A floor has been pending FLOOR_IDLE_GRACE_S (a busy machine starves an idle-class task)."""
-        return self._job is not None and now_wall - self._job_t0 > FLOOR_IDLE_GRACE_S
-
-    def raise_priority(self) -> None:
-        """The worker from idle to normal priority, once: a PARAM_SET waits on it, or it starved. Needs
-        CAP_SYS_NICE (root) or an RLIMIT_NICE that allows it; without, the worker stays idle and answers when the
-        machine has a spare moment."""
-        if self._raised:
-            return
-        self._raised = True
-        for pid in list(getattr(self._pool, "_processes", None) or {}):  # a process pool's workers
-            try:
-                os.sched_setscheduler(pid, os.SCHED_OTHER, os.sched_param(0))
-            except (AttributeError, OSError):
-                pass
 
     def close(self) -> None:
         if self._pool is not None and self._pool is not self._fallback:
@@ -187,12 +114,24 @@ class ParamSets:
         return []
 
     def poll(self, now_wall: float) -> None:
-        """Between control steps: the queue, the floor in force, a starving worker's priority, a due save."""
+        """Between control steps: the queue, the floor in force, a due save."""
         self._run_queue(now_wall)
         self._floor_in_force(now_wall)
-        if self._floor is not None and self._floor.starved(now_wall):
-            self._floor.raise_priority()
         self._save()
+
+    def wait_floor_in_force(self, timeout_s: float) -> bool:
+        """Block until the stability floor of the values in force is computed (the worker started, imported and
+        warm: later PARAM_SETs are answered in its ~20 ms a configuration), at most timeout_s (wall); True when it
+        is. The FC calls this once before its loop, so no ground station hears it before (docs/gcs.md)."""
+        deadline = time.monotonic() + timeout_s
+        while self._registry.stability_check is not None and self._registry.floor_in_force() is None:
+            now = time.monotonic()
+            if now >= deadline:
+                return False
+            self._floor_in_force(now)
+            self._floor_job_done()  # stores a finished job's floor
+            time.sleep(0.005)
+        return True
 
     def _floor_job_done(self) -> bool:
         return self._floor is None or self._floor.done()
@@ -206,7 +145,6 @@ class ParamSets:
             need = self.params.floor_needed(m)
             if need is not None and self._floor is not None and not self._floor.failed:
                 self._floor.submit(need, now_wall)
-                self._floor.raise_priority()  # a ground station waits for this answer
                 return
             self._queue.popleft()
             self._route("PARAM_SET", source, self.params.handle(m, now_wall, source))

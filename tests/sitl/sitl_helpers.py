@@ -455,7 +455,7 @@ class LossyUdpProxy:
         self._fc_side.close()
         self._br_side.close()
 
-# A PARAM_SET of a stability parameter is answered once its stability floor is computed on the floor worker (~1.5 s
-# of CPU; several seconds on a loaded 2-core machine running two SITL pairs), so its PARAM_VALUE is waited for this
-# long (docs/gcs.md, "Parameters").
+# A PARAM_SET of a stability parameter is answered once its stability floor is computed on the floor worker (~20 ms;
+# the rare configurations with a finite upper edge need the full sweep, seconds on a loaded 2-core machine running
+# two SITL pairs), so its PARAM_VALUE is waited for this long (docs/security.md).
 PARAM_SET_WAIT_S = 20.0

@@ -188,7 +188,7 @@ def test_core_flight_and_modes_have_no_io() -> None:
     assert not stale, f"listed file reads that are gone (take them off FILE_READS_LEFT): {stale}"
 
 
-GCS_SERVICE_PARTS = ("telemetry_service", "floor_worker")  # shell modules GcsService is built from
+GCS_SERVICE_PARTS = ("telemetry_service", "floor_worker", "job_process")  # shell modules GcsService is built from
 
 
 def test_stack_modes_gcs_and_gcs_service_import_no_shell_module() -> None:
@@ -362,8 +362,6 @@ PRIVATE_READS_LEFT_IN_CORE_AND_BRIDGE = (
 )
 # Other libraries' privates where the library offers no public way, each with why.
 PRIVATE_READS_OF_LIBRARIES = {
-    "navig8_fc/shell/floor_worker.py:127: getattr(self._pool, '_processes')":
-        "concurrent.futures publishes no worker pid; a waiting PARAM_SET raises the starting worker's priority",
     "tests/sitl/test_sitl_mavsdk.py:25: drone._stop_mavsdk_server":
         "mavsdk_grpc.System starts its mavsdk_server and has no public stop (it stops it in __del__ or at exit)",
     "tests/sitl/test_sitl_mavsdk_guided.py:102: drone._stop_mavsdk_server":
