@@ -1,10 +1,10 @@
 """Log records (docs/logs.md): the one place that maps what the processes know to what the MCAP log holds.
 
-- `/truth`: `log_truth_record(t)` from the plant's LogTruth (navig8-sim, in-process; the same bytes as
-  `truth_record` of its Truth) and `wire_truth_record(t)` from a decoded NAVIG8_TRUTH (navig8-fc in SITL); the
-  same keys, so navig8-plot and the summary read both.
-  The wire record lacks what NAVIG8_TRUTH does not carry (ang_accel, the reaction moment about O and the
+- `/truth`: `log_truth_record(t)` from the plant's truth as plain floats (seam.TruthFloats: Plant.truth_floats in
+  navig8-sim, a decoded NAVIG8_TRUTH in navig8-fc), in Truth's vocabulary, so navig8-plot and the summary read
+  both. The FC's record lacks what NAVIG8_TRUTH does not carry (ang_accel, the reaction moment about O and the
   no-gravity variants).
+- `/analysis/eig`: `eig_record(model, status, t, ...)`, in both processes.
 - `/mavlink/<link>/<dir>/<NAME>`: `mavlink_record_json(name, fields)` (the decoded message as JSON, with
   `mavpackettype`, as pymavlink's to_dict names it) and `mavlink_json_schema(cls)` (the channel's JSON schema,
   from the message definition).
@@ -17,81 +17,57 @@ from __future__ import annotations
 import functools
 from typing import Any
 
-import numpy as np
 import orjson
 
 from navig8_fc.core.rotation import quat_to_euler
+from navig8_fc.core.vehicle import UamModel, ghat_ginv_eig_record
+from navig8_fc.mavlink.seam import TruthFloats
 
 
-def _truth(pos: Any, vel: Any, quat: Any, euler: Any, rate: Any, accel: Any, ang_accel: Any, act: Any, jq: Any,
-           jqd: Any, jqdd: Any, mobj: Any, mass: Any, com: Any, inertia_diag: Any, f_mount: Any, m_mount: Any,
-           extra: dict[str, Any], nonfinite: int, clamped: int) -> dict[str, Any]:
+def log_truth_record(t: TruthFloats) -> dict[str, Any]:
+    """The /truth record of the plant's truth as plain floats (seam.TruthFloats: Plant.truth_floats in navig8-sim,
+    a decoded NAVIG8_TRUTH in navig8-fc). The keys are Truth's field names (sim_bridge.messages.Truth), except the
+    actuator positions split into duct_tilt_rad and prop_speed_rad_s (as the sensors name them) and the inertia's
+    diagonal; the roll, pitch, yaw (ZYX) from the quaternion. What the wire does not carry (None) is left out."""
+    act, jc = t.actuator_pos, t.inertia_com_kgm2
     rec: dict[str, Any] = {
-        "pos_ned_m": pos,
-        "vel_ned_m_s": vel,
-        "quat_wxyz": quat,
-        "euler_rad": euler,
-        "rate_frd_rad_s": rate,
-        "accel_frd_m_s2": accel,
+        "pos_ned_m": t.pos_ned_m,
+        "vel_ned_m_s": t.vel_ned_m_s,
+        "quat_wxyz": t.quat_wxyz,
+        "euler_rad": quat_to_euler(t.quat_wxyz),
+        "rate_frd_rad_s": t.rate_frd_rad_s,
+        "accel_frd_m_s2": t.accel_frd_m_s2,
     }
-    if ang_accel is not None:
-        rec["ang_accel_frd_rad_s2"] = ang_accel
+    if t.ang_accel_frd_rad_s2 is not None:
+        rec["ang_accel_frd_rad_s2"] = t.ang_accel_frd_rad_s2
     rec.update({
-        "tilt_rad": act[:2],
-        "speed_rad_s": act[2:],
-        "joint_pos_rad": jq,
-        "joint_rate_rad_s": jqd,
-        "joint_accel_rad_s2": jqdd,
-        "object_mass_kg": mobj,
-        "mass_kg": mass,
-        "com_frd_m": com,
-        "inertia_diag_kgm2": inertia_diag,
-        # Headline reaction wrench (Fig. 10): about the mount, gravity included.
-        "reaction_force_mount_n": f_mount,
-        "reaction_torque_mount_nm": m_mount,
+        "duct_tilt_rad": act[:2],
+        "prop_speed_rad_s": act[2:],
+        "joint_pos_rad": t.joint_pos_rad,
+        "joint_rate_rad_s": t.joint_rate_rad_s,
+        "joint_accel_rad_s2": t.joint_accel_rad_s2,
+        "object_mass_kg": t.object_mass_kg,
+        "mass_kg": t.mass_kg,
+        "com_frd_m": t.com_frd_m,
+        "inertia_diag_kgm2": [jc[0][0], jc[1][1], jc[2][2]],
+        # the headline reaction wrench (Fig. 10): about the mount, gravity included
+        "reaction_force_frd_n": t.reaction_force_frd_n,
+        "reaction_moment_mount_frd_nm": t.reaction_moment_mount_frd_nm,
     })
-    rec.update(extra)
-    rec["cmd_nonfinite_count"] = nonfinite
-    rec["cmd_clamped_count"] = clamped
+    for key in ("reaction_moment_o_frd_nm", "reaction_force_nog_frd_n", "reaction_moment_mount_nog_frd_nm"):
+        if (v := getattr(t, key)) is not None:
+            rec[key] = v
+    rec["cmd_nonfinite_count"] = t.cmd_nonfinite_count
+    rec["cmd_clamped_count"] = t.cmd_clamped_count
     return rec
 
 
-def truth_record(tr: Any) -> dict[str, Any]:
-    """The /truth record of a plant Truth (sim_bridge.messages.Truth; numpy arrays are logged as they are)."""
-    return _truth(
-        tr.pos_ned_m, tr.vel_ned_m_s, tr.quat_wxyz, tr.euler_rad, tr.rate_frd_rad_s, tr.accel_frd_m_s2,
-        tr.ang_accel_frd_rad_s2, np.asarray(tr.actuator_pos, dtype=float), tr.joint_pos_rad, tr.joint_rate_rad_s,
-        tr.joint_accel_rad_s2, tr.object_mass_kg, tr.mass_kg, tr.com_frd_m, np.diag(np.asarray(tr.inertia_com_kgm2)),
-        tr.reaction_force_frd_n, tr.reaction_moment_mount_frd_nm,
-        {"reaction_torque_o_nm": tr.reaction_moment_o_frd_nm, "reaction_force_nog_n": tr.reaction_force_nog_frd_n,
-         "reaction_torque_mount_nog_nm": tr.reaction_moment_mount_nog_frd_nm},
-        tr.cmd_nonfinite_count, tr.cmd_clamped_count,
-    )
-
-
-def log_truth_record(t: Any) -> dict[str, Any]:
-    """The /truth record of a plant's LogTruth (sim_bridge.messages: plain floats in lists; the same keys and
-    numbers as truth_record of its Truth, at a third of the cost)."""
-    act, jc = t.actuator_pos, t.inertia_com_kgm2
-    return _truth(
-        t.pos_ned_m, t.vel_ned_m_s, t.quat_wxyz, t.euler_rad, t.rate_frd_rad_s, t.accel_frd_m_s2,
-        t.ang_accel_frd_rad_s2, act, t.joint_pos_rad, t.joint_rate_rad_s, t.joint_accel_rad_s2, t.object_mass_kg,
-        t.mass_kg, t.com_frd_m, [jc[0][0], jc[1][1], jc[2][2]], t.reaction_force_frd_n,
-        t.reaction_moment_mount_frd_nm,
-        {"reaction_torque_o_nm": t.reaction_moment_o_frd_nm, "reaction_force_nog_n": t.reaction_force_nog_frd_n,
-         "reaction_torque_mount_nog_nm": t.reaction_moment_mount_nog_frd_nm},
-        t.cmd_nonfinite_count, t.cmd_clamped_count,
-    )
-
-
-def wire_truth_record(t: Any) -> dict[str, Any]:
-    """The /truth record of a decoded NAVIG8_TRUTH (its fields as attributes: seam.StepBundle.truth; arrays as
-    tuples, which serialise as JSON arrays like lists)."""
-    return _truth(
-        t.pos_ned, t.vel_ned, t.quat, list(quat_to_euler(t.quat)), t.rate_frd, t.accel_frd, None, t.actuators,
-        t.joint_pos, t.joint_rate, t.joint_accel, t.object_mass, t.mass, t.com_frd, t.inertia[:3], t.reaction_force,
-        t.reaction_moment_mount, {}, t.cmd_nonfinite, t.cmd_clamped,
-    )
+def eig_record(model: UamModel, status: Any, t: TruthFloats, lambda_min: float, lambda_crit: float
+               ) -> dict[str, Any]:
+    """The /analysis/eig record: the eigenvalues of G_hat G^-1 (Eq. 14) with G from the plant's truth and G_hat
+    from the controller's status (core.controller.ControllerStatus) of the same step."""
+    return ghat_ginv_eig_record(model, status.q_est_rad, status.gi_hat, t.com_frd_m, t.inertia_com_kgm2, t.mass_kg,
+                                lambda_min, lambda_crit, status.gc_uam, status.ref_frd_m)
 
 
 def mavlink_record_json(msg: Any) -> bytes:
@@ -134,5 +110,4 @@ def dialect_json_schema(name: str) -> dict[str, Any]:
     return mavlink_json_schema(d.mavlink_map[getattr(d, f"MAVLINK_MSG_ID_{name}")])
 
 
-__all__ = ["dialect_json_schema", "log_truth_record", "mavlink_json_schema", "mavlink_record_json", "truth_record",
-           "wire_truth_record"]
+__all__ = ["dialect_json_schema", "eig_record", "log_truth_record", "mavlink_json_schema", "mavlink_record_json"]

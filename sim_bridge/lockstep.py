@@ -94,7 +94,7 @@ class Bridge:
     def _bundle(self) -> bytes:
         # the plain-float views of sense() and truth(): the same samples and bytes, no numpy views to convert back
         plant = self.plant
-        return seam.encode_bundle(self.link.mav, self.step, plant.sense_wire(), plant.truth_wire())
+        return seam.encode_bundle(self.link.mav, self.step, plant.sense_wire(), plant.truth_floats())
 
     def rtf(self, now: float) -> float:
         if self._wall_start is None or now <= self._wall_start:
@@ -240,7 +240,7 @@ class Bridge:
             plant.step_us(cmd, dt_us)
             self.step += 1
             c.steps += 1
-            data = encode_bundle(mav, self.step, plant.sense_wire(), plant.truth_wire())  # self._bundle()
+            data = encode_bundle(mav, self.step, plant.sense_wire(), plant.truth_floats())  # self._bundle()
             if paced:
                 self._pace()
             now = perf_counter()

@@ -48,17 +48,11 @@ import scipy.linalg
 from navig8_fc.core import rotation
 from navig8_fc.core.rotation import euler_to_quat, quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig, hover_trim, propulsion_per_input, u_to_actuators
+from navig8_fc.mavlink.seam import TruthFloats
 from sim_bridge import sensors
 from sim_bridge.command_guard import CommandGuard
 from sim_bridge.integrator import N_WORK, advance, evaluate
-from sim_bridge.messages import (
-    ActuatorCommand,
-    LogTruth,
-    SensorBundle,
-    Truth,
-    WireSensors,
-    WireTruth,
-)
+from sim_bridge.messages import ActuatorCommand, SensorBundle, Truth, WireSensors
 from sim_bridge.params import ActuatorDynamics, PlantParams
 from sim_bridge.plant_layout import (
     BASE_ATTITUDE_LOCKED,
@@ -79,25 +73,22 @@ _R = TypeVar("_R")
 BASE_MODES = {"free": BASE_FREE, "attitude_locked": BASE_ATTITUDE_LOCKED, "fixed": BASE_FIXED}
 
 
-# sense / sense_wire: the sensor vector's groups (SensorBundle's fields in order); truth_wire: the wire truth's
-# parts of the state and derived vectors (the inertia about the CoM as three rows). Cut in one C call each.
+# sense / sense_wire: the sensor vector's groups (SensorBundle's fields in order); truth_floats: TruthFloats' parts of
+# the state and derived vectors (the inertia about the CoM as three rows). Cut in one C call each.
 _S_GROUPS = itemgetter(*(m.sl for m in S.fields()))
-_X_WIRE = itemgetter(*(m.sl for m in (X.POS, X.VEL, X.QUAT, X.RATE, X.ACT, X.Q, X.QD, X.QDD)),
-                     int(X.MOBJ))
-_D_WIRE = itemgetter(D.ACC.sl, int(D.MASS), D.COM.sl,
-                     *(slice(D.JC + 3 * r, D.JC + 3 * r + 3) for r in range(3)), D.FR_G.sl, D.MR_MOUNT_G.sl)
+_X_FLOATS = itemgetter(*(m.sl for m in (X.POS, X.VEL, X.QUAT, X.RATE, X.ACT, X.Q, X.QD, X.QDD)), int(X.MOBJ))
+_D_FLOATS = itemgetter(D.ACC.sl, D.WDOT.sl, int(D.MASS), D.COM.sl,
+                       *(slice(D.JC + 3 * r, D.JC + 3 * r + 3) for r in range(3)),
+                       *(m.sl for m in (D.FR_G, D.MR_MOUNT_G, D.MR_O_G, D.FR_NOG, D.MR_MOUNT_NOG)))
 
 
 def _fill(record: _R, **fields: Any) -> _R:
-    """Set the fields of a plain record class (WireSensors, WireTruth: attributes, no __init__)."""
+    """Set the fields of a plain record class (WireSensors, TruthFloats: attributes, no __init__)."""
     for name, value in fields.items():
         setattr(record, name, value)
     return record
-# log_truth: the /truth record's parts of the state and derived vectors
-_X_LOG = itemgetter(*(m.sl for m in (X.POS, X.VEL, X.QUAT, X.RATE, X.ACT, X.Q, X.QD, X.QDD)), int(X.MOBJ))
-_D_LOG = itemgetter(D.ACC.sl, D.WDOT.sl, int(D.MASS), D.COM.sl,
-                    *(slice(D.JC + 3 * r, D.JC + 3 * r + 3) for r in range(3)),
-                    *(m.sl for m in (D.FR_G, D.MR_MOUNT_G, D.MR_O_G, D.FR_NOG, D.MR_MOUNT_NOG)))
+
+
 _C_ACT = C.ACT.sl
 # truth(): its views of the state and derived vectors, cut in one C call each
 _TRUTH_X = itemgetter(*(m.sl for m in (X.POS, X.VEL, X.QUAT, X.RATE, X.ACT, X.ACTD, X.Q, X.QD,
@@ -452,26 +443,16 @@ class Plant:
                      duct_tilt_rad=tilt, prop_speed_rad_s=speed, joint_pos_rad=jp, joint_rate_rad_s=jr,
                      gripper_closed=self._gripper_closed, updated=groups)
 
-    def truth_wire(self) -> WireTruth:
-        """The part of truth() that NAVIG8_TRUTH carries, as plain Python floats (WireTruth; same values)."""
-        pos, vel, quat, rate, act, jq, jqd, jqdd, mobj = _X_WIRE(self._x.tolist())
-        acc, mass, com, j0, j1, j2, fr, mr = _D_WIRE(self._d.tolist())
-        return _fill(WireTruth(), time_us=self._t_us, pos_ned_m=pos, vel_ned_m_s=vel, quat_wxyz=quat,
-                     rate_frd_rad_s=rate, accel_frd_m_s2=acc, actuator_pos=act, joint_pos_rad=jq, joint_rate_rad_s=jqd,
-                     joint_accel_rad_s2=jqdd, object_mass_kg=mobj, mass_kg=mass, com_frd_m=com,
-                     inertia_com_kgm2=(j0, j1, j2), reaction_force_frd_n=fr, reaction_moment_mount_frd_nm=mr,
-                     cmd_nonfinite_count=self._guard.nonfinite, cmd_clamped_count=self._guard.clamped)
-
-    def log_truth(self) -> LogTruth:
-        """The part of truth() the /truth log record holds, as plain Python floats (LogTruth; same values)."""
-        pos, vel, quat, rate, act, jq, jqd, jqdd, mobj = _X_LOG(self._x.tolist())
-        acc, wdot, mass, com, j0, j1, j2, fr, mr, mr_o, fr_nog, mr_nog = _D_LOG(self._d.tolist())
-        return _fill(LogTruth(), time_us=self._t_us, pos_ned_m=pos, vel_ned_m_s=vel, quat_wxyz=quat,
-                     euler_rad=quat_to_euler(quat), rate_frd_rad_s=rate, accel_frd_m_s2=acc,
-                     ang_accel_frd_rad_s2=wdot, actuator_pos=act, joint_pos_rad=jq, joint_rate_rad_s=jqd,
-                     joint_accel_rad_s2=jqdd, object_mass_kg=mobj, mass_kg=mass, com_frd_m=com,
-                     inertia_com_kgm2=(j0, j1, j2), reaction_force_frd_n=fr, reaction_moment_mount_frd_nm=mr,
-                     reaction_moment_o_frd_nm=mr_o, reaction_force_nog_frd_n=fr_nog,
+    def truth_floats(self) -> TruthFloats:
+        """truth() as plain Python floats (seam.TruthFloats; the same values): what NAVIG8_TRUTH carries and /truth
+        logs, without the numpy views the encoder and the log would convert back at once."""
+        pos, vel, quat, rate, act, jq, jqd, jqdd, mobj = _X_FLOATS(self._x.tolist())
+        acc, wdot, mass, com, j0, j1, j2, fr, mr, mr_o, fr_nog, mr_nog = _D_FLOATS(self._d.tolist())
+        return _fill(TruthFloats(), time_us=self._t_us, pos_ned_m=pos, vel_ned_m_s=vel, quat_wxyz=quat,
+                     rate_frd_rad_s=rate, accel_frd_m_s2=acc, ang_accel_frd_rad_s2=wdot, actuator_pos=act,
+                     joint_pos_rad=jq, joint_rate_rad_s=jqd, joint_accel_rad_s2=jqdd, object_mass_kg=mobj,
+                     mass_kg=mass, com_frd_m=com, inertia_com_kgm2=(j0, j1, j2), reaction_force_frd_n=fr,
+                     reaction_moment_mount_frd_nm=mr, reaction_moment_o_frd_nm=mr_o, reaction_force_nog_frd_n=fr_nog,
                      reaction_moment_mount_nog_frd_nm=mr_nog, cmd_nonfinite_count=self._guard.nonfinite,
                      cmd_clamped_count=self._guard.clamped)
 

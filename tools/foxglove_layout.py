@@ -49,8 +49,8 @@ def layout() -> dict[str, Any]:
                [(f"/fc/status.adapt.x_hat[{i}]", f"x_hat{i + 1}") for i in range(4)]
                + [(f"/fc/status.adapt.{b}[{i}]", f"{b}{i + 1}") for b in ("lower", "upper") for i in range(4)])
     reaction = _plot("Arm reaction on the UAV about the mount (Fig. 10)",
-                     [(f"/truth.reaction_force_mount_n[{i}]", f"F{a}") for i, a in enumerate("xyz")]
-                     + [(f"/truth.reaction_torque_mount_nm[{i}]", f"M{a}") for i, a in enumerate("xyz")])
+                     [(f"/truth.reaction_force_frd_n[{i}]", f"F{a}") for i, a in enumerate("xyz")]
+                     + [(f"/truth.reaction_moment_mount_frd_nm[{i}]", f"M{a}") for i, a in enumerate("xyz")])
     joints = _plot("Joints q, q' and the FC's estimate (Fig. 11)",
                    [(f"/truth.joint_pos_rad[{i}]", f"q{i + 1}") for i in range(3)]
                    + [(f"/truth.joint_rate_rad_s[{i}]", f"q{i + 1}'") for i in range(3)]
@@ -59,8 +59,8 @@ def layout() -> dict[str, Any]:
                      [(f"/truth.pos_ned_m[{i}]", a) for i, a in enumerate("NED")]
                      + [(f"/fc/setpoint.pos_ned[{i}]", f"{a} sp") for i, a in enumerate("NED")])
     actuators = _plot("Actuators: duct tilts and propeller speeds (Fig. 14)",
-                      [("/truth.tilt_rad[0]", "alpha1"), ("/truth.tilt_rad[1]", "alpha3")]
-                      + [(f"/truth.speed_rad_s[{i}]", f"w{i + 1}") for i in range(3)])
+                      [("/truth.duct_tilt_rad[0]", "alpha1"), ("/truth.duct_tilt_rad[1]", "alpha3")]
+                      + [(f"/truth.prop_speed_rad_s[{i}]", f"w{i + 1}") for i in range(3)])
     config = {
         "3D!navig8": three_d,
         "Plot!eig": eig, "Plot!gi": gi, "Plot!reaction": reaction, "Plot!joints": joints,

@@ -39,8 +39,8 @@ def _save(fig, out: Path, name: str) -> Path:
 def fig10_reaction(runs: list[RunLog], out: Path) -> Path:
     fig, ax = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     r = runs[0]["/truth"]
-    f = r.field("reaction_force_mount_n")
-    m = r.field("reaction_torque_mount_nm")
+    f = r.field("reaction_force_frd_n")
+    m = r.field("reaction_moment_mount_frd_nm")
     for i, lab in enumerate("xyz"):
         ax[0].plot(r.t, f[:, i], label=f"F{lab}")
         ax[1].plot(r.t, m[:, i], label=f"M{lab}")
@@ -123,7 +123,7 @@ def fig13_accels(runs: list[RunLog], out: Path) -> Path:
 def fig14_actuators(runs: list[RunLog], out: Path) -> Path:
     fig, ax = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     tr = runs[0]["/truth"]
-    tilt, speed = tr.field("tilt_rad"), tr.field("speed_rad_s")
+    tilt, speed = tr.field("duct_tilt_rad"), tr.field("prop_speed_rad_s")
     ax[0].plot(tr.t, np.degrees(tilt[:, 0]), label="α1")
     ax[0].plot(tr.t, np.degrees(tilt[:, 1]), label="α3")
     for i, lab in enumerate(["ω1", "ω2 (tail)", "ω3"]):

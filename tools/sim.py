@@ -29,7 +29,8 @@ import numpy as np
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import ControllerStatus, FcSensors, warm_up_kernels
 from navig8_fc.flight import FlightStack, StepResult
-from navig8_fc.logrecords import log_truth_record
+from navig8_fc.logrecords import eig_record, log_truth_record
+from navig8_fc.mavlink.seam import TruthFloats
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import read_overrides
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, script_waypoints
@@ -81,9 +82,8 @@ class EigenMonitor:
         self.lambda_min = lambda_min
         self.lambda_crit = lambda_crit
 
-    def __call__(self, st: ControllerStatus, tr: Any) -> dict[str, Any]:
-        return vm.ghat_ginv_eig_record(self.model, st.q_est_rad, st.gi_hat, tr.com_frd_m, tr.inertia_com_kgm2,
-                                       tr.mass_kg, self.lambda_min, self.lambda_crit, st.gc_uam, st.ref_frd_m)
+    def __call__(self, st: ControllerStatus, tr: TruthFloats) -> dict[str, Any]:
+        return eig_record(self.model, st, tr, self.lambda_min, self.lambda_crit)
 
 
 class TickLog:
@@ -99,7 +99,7 @@ class TickLog:
 
     def tick(self, t_ns: int, s: FcSensors, res: StepResult) -> None:
         logger, fc_cmd, st, sp = self.logger, res.command, res.status, res.setpoint
-        tr = self.plant.log_truth()
+        tr = self.plant.truth_floats()
         logger.log("/truth", t_ns, log_truth_record(tr))
         logger.log("/fc/status", t_ns, st)
         self._setpoint(t_ns, (sp.pos_ned, sp.pitch_rad, sp.yaw_rad))

@@ -138,8 +138,8 @@ def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
     tol_cols = np.array([POS_TOL_M] * 3 + [ATT_TOL_DEG] * 2)
     settle = settle_times(t, err_cols, steps, tol_cols, float(t[-1]) if len(t) else 0.0)
 
-    f_mount = tr.field("reaction_force_mount_n", 3)
-    m_mount = tr.field("reaction_torque_mount_nm", 3)
+    f_mount = tr.field("reaction_force_frd_n", 3)
+    m_mount = tr.field("reaction_moment_mount_frd_nm", 3)
     qd = tr.field("joint_rate_rad_s", 3)
     qdd = tr.field("joint_accel_rad_s2", 3)
 

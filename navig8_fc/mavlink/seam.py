@@ -31,7 +31,6 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from operator import itemgetter
-from types import SimpleNamespace
 from typing import Any, NamedTuple, Protocol
 
 from navig8_fc.mavlink import dialect
@@ -183,8 +182,8 @@ class StepBundle(NamedTuple):
     joint_pos_rad: Vec3
     joint_rate_rad_s: Vec3
     gripper_closed: bool
-    # NAVIG8_TRUTH's fields as attributes (for logs only; never for control), None if absent
-    truth: SimpleNamespace | None = None
+    # NAVIG8_TRUTH (for logs only; never for control), None if absent
+    truth: TruthFloats | None = None
 
     @property
     def t_us(self) -> int:
@@ -215,8 +214,56 @@ class StepBundle(NamedTuple):
         )
 
 
+class TruthFloats:
+    """The plant's ground truth (sim_bridge.messages.Truth: the same names, units and numbers) as plain Python floats
+    in lists, the inertia about the CoM as three rows: what NAVIG8_TRUTH carries (the bridge encodes it from
+    Plant.truth_floats) and what /truth logs in both processes (navig8_fc.logrecords.log_truth_record). Decoded
+    from NAVIG8_TRUTH (truth_floats_of_message, the FC's side) the quantities the wire does not carry are None.
+    Not frozen; made fresh for every step (attributes, no __init__: the plant fills it from its state)."""
+
+    time_us: int
+    pos_ned_m: Sequence[float]
+    vel_ned_m_s: Sequence[float]
+    quat_wxyz: Sequence[float]
+    rate_frd_rad_s: Sequence[float]
+    accel_frd_m_s2: Sequence[float]  # absolute acceleration of O, body axes
+    ang_accel_frd_rad_s2: Sequence[float] | None
+    actuator_pos: Sequence[float]  # alpha1, alpha3 (rad), w1, w2, w3 (rad/s)
+    joint_pos_rad: Sequence[float]
+    joint_rate_rad_s: Sequence[float]
+    joint_accel_rad_s2: Sequence[float]
+    object_mass_kg: float
+    mass_kg: float
+    com_frd_m: Sequence[float]
+    inertia_com_kgm2: tuple[Sequence[float], Sequence[float], Sequence[float]]
+    reaction_force_frd_n: Sequence[float]  # the headline: at the mount, gravity included
+    reaction_moment_mount_frd_nm: Sequence[float]
+    reaction_moment_o_frd_nm: Sequence[float] | None
+    reaction_force_nog_frd_n: Sequence[float] | None
+    reaction_moment_mount_nog_frd_nm: Sequence[float] | None
+    cmd_nonfinite_count: int
+    cmd_clamped_count: int
+
+
+def truth_floats_of_message(f: Mapping[str, Any]) -> TruthFloats:
+    """A decoded NAVIG8_TRUTH's fields (codec.Message.fields) as TruthFloats."""
+    xx, yy, zz, xy, xz, yz = f["inertia"]  # tensor entries about the composite CoM
+    t = TruthFloats()
+    t.time_us = sim_us_from_time_usec(f["time_usec"])
+    t.pos_ned_m, t.vel_ned_m_s, t.quat_wxyz = f["pos_ned"], f["vel_ned"], f["quat"]
+    t.rate_frd_rad_s, t.accel_frd_m_s2, t.ang_accel_frd_rad_s2 = f["rate_frd"], f["accel_frd"], None
+    t.actuator_pos = f["actuators"]
+    t.joint_pos_rad, t.joint_rate_rad_s, t.joint_accel_rad_s2 = f["joint_pos"], f["joint_rate"], f["joint_accel"]
+    t.object_mass_kg, t.mass_kg, t.com_frd_m = f["object_mass"], f["mass"], f["com_frd"]
+    t.inertia_com_kgm2 = ((xx, xy, xz), (xy, yy, yz), (xz, yz, zz))
+    t.reaction_force_frd_n, t.reaction_moment_mount_frd_nm = f["reaction_force"], f["reaction_moment_mount"]
+    t.reaction_moment_o_frd_nm = t.reaction_force_nog_frd_n = t.reaction_moment_mount_nog_frd_nm = None
+    t.cmd_nonfinite_count, t.cmd_clamped_count = f["cmd_nonfinite"], f["cmd_clamped"]
+    return t
+
+
 def _f(v: Any) -> Sequence[float]:
-    # a list passes as it is (Plant.sense_wire / truth_wire already give Python floats); numpy's tolist() yields
+    # a list passes as it is (Plant.sense_wire / truth_floats already give Python floats); numpy's tolist() yields
     # Python floats ~5x faster than a comprehension over the array
     if type(v) is list:
         return v
@@ -232,7 +279,7 @@ def _odometry_consts() -> tuple[int, int]:
 
 def bundle_records(step: int, sensors: Any, truth: Any) -> list[Record]:
     """The messages of step `step` in datagram order, from the plant's SensorBundle and Truth (or anything with
-    their attributes: Plant.sense_wire / truth_wire give them as plain float lists, the bridge's fast path);
+    their attributes: Plant.sense_wire / truth_floats give them as plain float lists, the bridge's fast path);
     truth None: no NAVIG8_TRUTH."""
     frame_ned, mocap = _odometry_consts()
     tu = int(sensors.time_us) + 1  # time_usec_from_sim_us
@@ -264,7 +311,7 @@ def bundle_records(step: int, sensors: Any, truth: Any) -> list[Record]:
 
 
 def truth_message_record(step: int, truth: Any) -> Record:
-    """NAVIG8_TRUTH from a plant Truth (duck-typed; WireTruth too)."""
+    """NAVIG8_TRUTH from a plant Truth or TruthFloats (the same names)."""
     j = truth.inertia_com_kgm2
     j0, j1, j2 = j[0], j[1], j[2]
     inertia = (float(j0[0]), float(j1[1]), float(j2[2]), float(j0[1]), float(j0[2]), float(j1[2]))
@@ -353,7 +400,7 @@ class BundleAssembler:
         return StepBundle(int(step), int(tu), self._gyro(h), self._accel(h),
                           (updated & HIL_SENSOR_ACCEL_GYRO) == HIL_SENSOR_ACCEL_GYRO, self._pos(o), self._vel(o),
                           o[self._quat], tilt, speed, jp, jr, bool(grip),
-                          SimpleNamespace(**truth.fields) if truth is not None else None)
+                          truth_floats_of_message(truth.fields) if truth is not None else None)
 
 
 def decode_bundle(msgs: Iterable[Message]) -> StepBundle | None:
@@ -475,4 +522,6 @@ __all__ = [
     "sim_us_from_time_usec",
     "time_usec_from_sim_us",
     "truth_message_record",
+    "TruthFloats",
+    "truth_floats_of_message",
 ]

@@ -12,24 +12,21 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import ActuatorCommand, ControllerStatus
 from navig8_fc.core.outer_loop import Setpoint
-from navig8_fc.logrecords import dialect_json_schema, mavlink_json_schema, mavlink_record_json, wire_truth_record
+from navig8_fc.logrecords import (
+    dialect_json_schema,
+    eig_record,
+    log_truth_record,
+    mavlink_json_schema,
+    mavlink_record_json,
+)
 from navig8_fc.mavlink import seam
+from navig8_fc.mavlink.seam import TruthFloats
 from navig8_fc.params.registry import StabilityStatus
 from navig8_fc.shell.foxglove_out import FoxgloveOutput
 from navig8_fc.viz import VehiclePose
-
-
-def _eig_record(model: vm.UamModel, st: ControllerStatus, truth: Any, lam_min: float, lam_crit: float
-                ) -> dict[str, Any]:
-    i = truth.inertia  # NAVIG8_TRUTH: xx, yy, zz, xy, xz, yz about the composite CoM
-    j = np.array([[i[0], i[3], i[4]], [i[3], i[1], i[5]], [i[4], i[5], i[2]]], dtype=float)
-    return vm.ghat_ginv_eig_record(model, st.q_est_rad, st.gi_hat, truth.com_frd, j, truth.mass, lam_min, lam_crit,
-                                   st.gc_uam, st.ref_frd_m)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,7 +34,7 @@ class StepRecord:
     """What one control step leaves for the log (written after its answer went out)."""
 
     t_us: int
-    truth: Any  # the bundle's NAVIG8_TRUTH (None from a board)
+    truth: TruthFloats | None  # the bundle's NAVIG8_TRUTH (None from a board)
     status: ControllerStatus
     command: ActuatorCommand
     setpoint: Setpoint
@@ -110,11 +107,11 @@ class FcLog:
         w = time.time_ns()
         fox, tr, st, sp = self.fox, r.truth, r.status, r.setpoint
         if fox is not None and tr is not None and t_ns >= fox.next_due_ns:  # the Foxglove 3D channels, rate-limited
-            act = tr.actuators  # NAVIG8_TRUTH: alpha1, alpha3, w1, w2, w3
+            act = tr.actuator_pos  # alpha1, alpha3, w1, w2, w3
             s = r.sensors
             est = None if s is None else VehiclePose(s.pos_ned, s.quat_wxyz, s.tilt_rad, st.q_est_rad)
-            fox.step(t_ns, VehiclePose(tr.pos_ned, tr.quat, act[:2], tr.joint_pos), act[2:], tr.object_mass, est,
-                     sp, w)
+            fox.step(t_ns, VehiclePose(tr.pos_ned_m, tr.quat_wxyz, act[:2], tr.joint_pos_rad), act[2:],
+                     tr.object_mass_kg, est, sp, w)
         lg = self.logger
         if lg is None:
             return
@@ -129,8 +126,8 @@ class FcLog:
             if got is not None:
                 lg.log_json_bytes(self._sim_channel("out", got.name), t_ns, mavlink_record_json(got), w)
         if tr is not None:
-            lg.log("/truth", t_ns, wire_truth_record(tr), publish_ns=w)
-            lg.log("/analysis/eig", t_ns, _eig_record(self._model, st, tr, lam_min, lam_crit), publish_ns=w)
+            lg.log("/truth", t_ns, log_truth_record(tr), publish_ns=w)
+            lg.log("/analysis/eig", t_ns, eig_record(self._model, st, tr, lam_min, lam_crit), publish_ns=w)
         lg.log("/fc/status", t_ns, st, publish_ns=w)
         lg.log("/fc/setpoint", t_ns, {"pos_ned": sp.pos_ned, "pitch_rad": sp.pitch_rad, "yaw_rad": sp.yaw_rad},
                publish_ns=w)

@@ -119,12 +119,12 @@ def main(argv: list[str] | None = None) -> int:
             break
         plant.step_us(cmd, DT_US)
         counts["steps"] += 1
-        max_alt = max(max_alt, -plant.truth_wire().pos_ned_m[2])
+        max_alt = max(max_alt, -plant.truth_floats().pos_ned_m[2])
         if a.speed > 0:  # pace: step k not before wall0 + t_k / speed
             lag = wall0 + plant.t_us * 1e-6 / a.speed - time.monotonic()
             if lag > 0:
                 time.sleep(lag)
-    tr = plant.truth_wire()
+    tr = plant.truth_floats()
     print(json.dumps({**counts, "t_s": plant.t_us * 1e-6, "pos_ned_m": list(tr.pos_ned_m), "max_alt_m": max_alt}),
           flush=True)
     conn.close()

@@ -61,7 +61,7 @@ def _forged_bundles(sysid: int, seed: int, n: int, mutate=None) -> list[bytes]:
         sw = plant.sense_wire()
         if mutate is not None:
             mutate(sw)
-        out.append(seam.encode_bundle(enc, k, sw, plant.truth_wire()))
+        out.append(seam.encode_bundle(enc, k, sw, plant.truth_floats()))
         plant.step_us(cmd, 10_000)
     return out
 

@@ -116,7 +116,7 @@ def check_transforms(cfg: VehicleConfig, tf_msg: dict[str, Any], truth: dict[str
     g_world = chain(tfs, "world", "gripper")[:3, 3]
     g_world_expected = NED_TO_ENU @ (np.asarray(truth["pos_ned_m"]) + r_nb @ kin.joints[-1])
     assert np.allclose(g_world, g_world_expected, atol=tol_m, rtol=0), (g_world, g_world_expected)
-    g, (a1, a3) = cfg.dihedral_rad, truth["tilt_rad"]
+    g, (a1, a3) = cfg.dihedral_rad, truth["duct_tilt_rad"]
     d1 = np.array([np.sin(a1), -np.sin(g) * np.cos(a1), -np.cos(g) * np.cos(a1)])
     d3 = np.array([np.sin(a3), np.sin(g) * np.cos(a3), -np.cos(g) * np.cos(a3)])
     for name, d in (("duct_1", d1), ("duct_3", d3)):

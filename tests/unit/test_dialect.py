@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from navig8_fc.core.vehicle import VehicleConfig
-from navig8_fc.logrecords import wire_truth_record
+from navig8_fc.logrecords import log_truth_record
 from navig8_fc.mavlink import codec, dialect, seam
 from sim_bridge import ActuatorCommand, Plant, PlantParams, load_scenario
 
@@ -254,12 +254,12 @@ def test_bundle_roundtrip_from_the_plant(plant: Plant) -> None:
     np.testing.assert_array_equal([odom["rollspeed"], odom["pitchspeed"], odom["yawspeed"]], _f32(sb.gyro_frd))
     hil = msgs[-1].fields
     assert hil["fields_updated"] == 0b111111 and hil["id"] == 0
-    t = b.truth
-    np.testing.assert_array_equal(t.reaction_force, _f32(tr.reaction_force_frd_n))
-    np.testing.assert_array_equal(t.actuators, _f32(tr.actuator_pos))
-    j = tr.inertia_com_kgm2
-    np.testing.assert_array_equal(t.inertia, _f32([j[0, 0], j[1, 1], j[2, 2], j[0, 1], j[0, 2], j[1, 2]]))
-    assert t.mass == pytest.approx(tr.mass_kg, rel=1e-7) and t.object_mass == 1.0
+    t = b.truth  # decoded into the plant's Truth vocabulary (seam.TruthFloats)
+    np.testing.assert_array_equal(t.reaction_force_frd_n, _f32(tr.reaction_force_frd_n))
+    np.testing.assert_array_equal(t.actuator_pos, _f32(tr.actuator_pos))
+    np.testing.assert_array_equal(t.inertia_com_kgm2, _f32(tr.inertia_com_kgm2))  # symmetric: six entries sent
+    assert t.mass_kg == pytest.approx(tr.mass_kg, rel=1e-7) and t.object_mass_kg == 1.0
+    assert t.time_us == tr.time_us and t.ang_accel_frd_rad_s2 is None  # not on the wire
 
 
 def test_fc_sensors_and_truth_record(plant: Plant) -> None:
@@ -273,9 +273,9 @@ def test_fc_sensors_and_truth_record(plant: Plant) -> None:
     np.testing.assert_array_equal(s.pos_ned, _f32(sb.pos_ned))
     np.testing.assert_array_equal(s.tilt_rad, _f32(sb.duct_tilt_rad))
     assert s.gripper_closed == sb.gripper_closed  # NAVIG8_ARM_STATE's gripper reaches the FC (telemetry)
-    rec = wire_truth_record(b.truth)
-    for key in ("pos_ned_m", "quat_wxyz", "euler_rad", "reaction_force_mount_n", "reaction_torque_mount_nm",
-                "joint_rate_rad_s", "joint_accel_rad_s2", "tilt_rad", "speed_rad_s", "inertia_diag_kgm2"):
+    rec = log_truth_record(b.truth)
+    for key in ("pos_ned_m", "quat_wxyz", "euler_rad", "reaction_force_frd_n", "reaction_moment_mount_frd_nm",
+                "joint_rate_rad_s", "joint_accel_rad_s2", "duct_tilt_rad", "prop_speed_rad_s", "inertia_diag_kgm2"):
         assert key in rec
     np.testing.assert_allclose(rec["euler_rad"], tr.euler_rad, atol=1e-6)
     assert seam.decode_bundle([m for m in msgs if m.name != "NAVIG8_ARM_STATE"]) is None  # incomplete

@@ -6,6 +6,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -97,47 +98,62 @@ def test_raw_channels_carry_the_peer_in_channel_metadata(tmp_path) -> None:
     assert [d for _, _, d in read_mcap(path, ["/mavlink/gcs/in"])] == [b"\xfd\x01", b"\xfd\x02", b"\xfd\x03"]
 
 
+def _expected_from_truth(tr: Any) -> dict[str, Any]:
+    """What each /truth key must hold, read off the plant's Truth (numpy) by its own names."""
+    import numpy as np
+
+    by_name = {k: getattr(tr, k) for k in tr._fields}
+    by_name.update(duct_tilt_rad=tr.actuator_pos[:2], prop_speed_rad_s=tr.actuator_pos[2:],
+                   inertia_diag_kgm2=np.diag(tr.inertia_com_kgm2))
+    return by_name
+
+
 def test_truth_records_in_process_and_over_the_wire_agree() -> None:
-    """/truth from the plant's Truth (navig8-sim) and from a decoded NAVIG8_TRUTH (navig8-fc): the same keys
-    (the wire lacks the four it does not carry) and the same values to float32 rounding."""
+    """/truth in navig8-sim (Plant.truth_floats) and in navig8-fc (a decoded NAVIG8_TRUTH): one record function, the
+    plant's Truth vocabulary; every key equals the Truth field of its name (the in-process record exactly, the
+    wire's to float32 rounding), and the wire lacks only the four quantities NAVIG8_TRUTH does not carry."""
     import numpy as np
 
     from navig8_fc.core.vehicle import VehicleConfig
-    from navig8_fc.logrecords import truth_record, wire_truth_record
+    from navig8_fc.logrecords import log_truth_record
     from navig8_fc.mavlink import codec, seam
     from sim_bridge import Plant, PlantParams, load_scenario
 
     plant = Plant(VehicleConfig.load(), PlantParams.load(), load_scenario("paper"), np.random.default_rng(2))
     plant.step(plant.trim_command(), 0.5)
     tr = plant.truth()
-    local = truth_record(tr)
+    expected = _expected_from_truth(tr)
+    local = log_truth_record(plant.truth_floats())
     c = codec.seam_codec()
     msgs = c.parse(seam.encode_bundle(codec.Encoder(c, 1, 25), 50, plant.sense(), tr), codec.ParseCounters())
-    wire = wire_truth_record(seam.decode_bundle(msgs).truth)
-    extra = {"ang_accel_frd_rad_s2", "reaction_torque_o_nm", "reaction_force_nog_n", "reaction_torque_mount_nog_nm"}
+    wire = log_truth_record(seam.decode_bundle(msgs).truth)
+    extra = {"ang_accel_frd_rad_s2", "reaction_moment_o_frd_nm", "reaction_force_nog_frd_n",
+             "reaction_moment_mount_nog_frd_nm"}
     assert set(local) - set(wire) == extra and set(wire) <= set(local)
     assert [k for k in local if k not in extra] == list(wire)  # the same order too
+    assert set(local) <= set(expected), set(local) - set(expected)  # no key outside the Truth vocabulary
+    for k, v in local.items():
+        np.testing.assert_array_equal(np.asarray(v, dtype=float), np.asarray(expected[k], dtype=float), err_msg=k)
     for k, v in wire.items():
-        np.testing.assert_allclose(np.asarray(v, dtype=float), np.asarray(local[k], dtype=float), rtol=1e-6,
+        np.testing.assert_allclose(np.asarray(v, dtype=float), np.asarray(expected[k], dtype=float), rtol=1e-6,
                                    atol=1e-6, err_msg=k)
-    np.testing.assert_array_equal(local["inertia_diag_kgm2"], np.diag(tr.inertia_com_kgm2))
-    np.testing.assert_array_equal(local["tilt_rad"], tr.actuator_pos[:2])
-    assert local["reaction_torque_o_nm"] is tr.reaction_moment_o_frd_nm
 
 
-def test_log_truth_record_is_the_truth_record_byte_for_byte() -> None:
-    """navig8-sim logs /truth from Plant.log_truth (plain floats): the same JSON bytes as from the plant's Truth."""
+def test_the_in_process_truth_record_follows_the_plant_step_by_step() -> None:
+    """Plant.truth_floats is truth() as plain floats at every step (the same numbers, not a stale copy)."""
     import numpy as np
 
     from navig8_fc.core.vehicle import VehicleConfig
-    from navig8_fc.logrecords import log_truth_record, truth_record
-    from navig8_fc.shell.mcap_log import dumps_json
+    from navig8_fc.logrecords import log_truth_record
     from sim_bridge import Plant, PlantParams, load_scenario
 
     plant = Plant(VehicleConfig.load(), PlantParams.load(), load_scenario("paper"), np.random.default_rng(2))
     for _ in range(3):
         plant.step(plant.trim_command(), 0.25)
-        assert dumps_json(log_truth_record(plant.log_truth())) == dumps_json(truth_record(plant.truth()))
+        expected = _expected_from_truth(plant.truth())
+        for k, v in log_truth_record(plant.truth_floats()).items():
+            np.testing.assert_array_equal(np.asarray(v, dtype=float), np.asarray(expected[k], dtype=float),
+                                          err_msg=k)
 
 
 def test_rotation_keeps_complete_parts_with_the_same_channels(tmp_path: Path) -> None:

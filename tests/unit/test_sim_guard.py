@@ -38,7 +38,7 @@ class Wire:
         self.step = 0
 
     def raw(self, mutate=None, truth_mutate=None) -> bytes:
-        sw, tw = self.plant.sense_wire(), self.plant.truth_wire()
+        sw, tw = self.plant.sense_wire(), self.plant.truth_floats()
         if mutate:
             mutate(sw)
         if truth_mutate:
