@@ -27,15 +27,14 @@ from typing import Any
 import numpy as np
 
 from navig8_fc.core import vehicle as vm
-from navig8_fc.core.controller import ControllerStatus, FcSensors, warm_up_kernels
+from navig8_fc.core.controller import FcSensors, warm_up_kernels
 from navig8_fc.flight import FlightStack, StepResult
-from navig8_fc.logrecords import eig_record, log_truth_record
-from navig8_fc.mavlink.seam import TruthFloats
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import read_overrides
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, script_waypoints
 from navig8_fc.shell.mcap_log import McapLogger
-from navig8_fc.viz import VehiclePose, VehicleViz, packaged_uav_size_m
+from navig8_fc.shell.step_log import StepLog
+from navig8_fc.viz import VehicleViz, packaged_uav_size_m
 from navig8_tools.logdata import load_run
 from navig8_tools.summary import summarize
 from sim_bridge.messages import ActuatorCommand as PlantCommand
@@ -74,66 +73,26 @@ def sensors_to_fc(sb: Any) -> FcSensors:
     )
 
 
-class EigenMonitor:
-    """Eigenvalues of G_hat G^-1 with G from the plant's truth (Eq. 14), for logs and the summary."""
-
-    def __init__(self, cfg: vm.VehicleConfig, lambda_min: float, lambda_crit: float) -> None:
-        self.model = vm.UamModel(cfg)
-        self.lambda_min = lambda_min
-        self.lambda_crit = lambda_crit
-
-    def __call__(self, st: ControllerStatus, tr: TruthFloats) -> dict[str, Any]:
-        return eig_record(self.model, st, tr, self.lambda_min, self.lambda_crit)
-
-
 class TickLog:
-    """One FC tick into the run's log (docs/logs.md, "Rates"): every tick the truth, the FC's status and command and
-    the eigenvalues; the setpoint when it changes; what the FC announced; the Foxglove 3D channels at their display
-    rates (docs/foxglove.md)."""
+    """One FC tick into the run's log: the step's records (shell.step_log.StepLog, as navig8-fc writes them) and what
+    the FC announced (as navig8-fc logs what it announces: mode events, failsafes)."""
 
-    def __init__(self, logger: McapLogger, fox: FoxgloveOutput, eigmon: EigenMonitor, plant: Plant) -> None:
-        self.logger, self.fox, self.eigmon, self.plant = logger, fox, eigmon, plant
-        self._sp: tuple[Any, ...] | None = None  # the setpoint last logged, the tick it was logged at
-        self._sp_t = -1
-        self._t_prev = -1  # the previous tick's time
+    def __init__(self, steps: StepLog, plant: Plant, lambda_min: float, lambda_crit: float) -> None:
+        self.steps, self.plant = steps, plant
+        self.lambda_min, self.lambda_crit = lambda_min, lambda_crit
 
     def tick(self, t_ns: int, s: FcSensors, res: StepResult) -> None:
-        logger, fc_cmd, st, sp = self.logger, res.command, res.status, res.setpoint
-        tr = self.plant.truth_floats()
-        logger.log("/truth", t_ns, log_truth_record(tr))
-        logger.log("/fc/status", t_ns, st)
-        self._setpoint(t_ns, (sp.pos_ned, sp.pitch_rad, sp.yaw_rad))
-        logger.log("/fc/command", t_ns, fc_cmd)
-        logger.log("/analysis/eig", t_ns, self.eigmon(st, tr))
-        fox = self.fox
-        for n in res.notices:  # as navig8-fc logs what it announces (mode events, failsafes)
+        steps = self.steps
+        steps.tick(t_ns, self.plant.truth_floats(), s, res.status, res.command, res.setpoint, self.lambda_min,
+                   self.lambda_crit)
+        for n in res.notices:
             if n.statustext:
-                logger.log("/fc/statustext", t_ns, {"severity": n.severity, "text": n.statustext})
-                fox.statustext(t_ns, n.severity, n.statustext)
-        if t_ns >= fox.next_due_ns:  # the Foxglove 3D channels, rate-limited (docs/foxglove.md)
-            act = tr.actuator_pos
-            fox.step(t_ns, VehiclePose(tr.pos_ned_m, tr.quat_wxyz, act[:2], tr.joint_pos_rad), act[2:],
-                     tr.object_mass_kg, VehiclePose(s.pos_ned, s.quat_wxyz, s.tilt_rad, st.q_est_rad), sp)
-        self._t_prev = t_ns
-
-    def _setpoint(self, t_ns: int, sp: tuple[Any, ...]) -> None:
-        """/fc/setpoint when it changes, with the held value again at the tick before the change (so a plot's lines
-        between records are the steps they were at every tick); `finish` closes the last hold. A zero-order hold of
-        these records at any tick gives the setpoint of that tick (navig8_tools.summary reads it so)."""
-        if sp == self._sp:
-            return
-        if self._sp is not None and self._sp_t != self._t_prev:
-            self._log_setpoint(self._t_prev, self._sp)
-        self._log_setpoint(t_ns, sp)
-        self._sp, self._sp_t = sp, t_ns
-
-    def _log_setpoint(self, t_ns: int, sp: tuple[Any, ...]) -> None:
-        self.logger.log("/fc/setpoint", t_ns, {"pos_ned": sp[0], "pitch_rad": sp[1], "yaw_rad": sp[2]})
+                steps.logger.log("/fc/statustext", t_ns, {"severity": n.severity, "text": n.statustext})
+                if steps.fox is not None:
+                    steps.fox.statustext(t_ns, n.severity, n.statustext)
 
     def finish(self) -> None:
-        """The setpoint held to the last tick."""
-        if self._sp is not None and self._sp_t != self._t_prev:
-            self._log_setpoint(self._t_prev, self._sp)
+        self.steps.finish()
 
 
 def run(
@@ -163,7 +122,6 @@ def run(
     stack = FlightStack(vehicle, reg, sc.script)
     cfg = stack.core.config
     warm_up_kernels(vehicle, cfg)  # numba's cache loads now, not inside the timed loop
-    eigmon = EigenMonitor(w.vehicle, stack.lambda_min, stack.lambda_crit)
     logger = McapLogger(log_path) if log_path else None
     if logger:
         logger.metadata("run", {"scenario": sc.name, "controller": controller, "seed": seed,
@@ -173,7 +131,8 @@ def run(
     if logger:
         fox = FoxgloveOutput(VehicleViz(vehicle, packaged_uav_size_m()), logger, None, "navig8-sim")
         fox.set_mission(script_waypoints(sc.script))
-        tick_log = TickLog(logger, fox, eigmon, plant)
+        # the eigenvalues with the TRUE vehicle's G (w.vehicle: model errors live in the FC's constants)
+        tick_log = TickLog(StepLog(logger, fox, vm.UamModel(w.vehicle)), plant, stack.lambda_min, stack.lambda_crit)
     n_steps = int(round(duration / cfg.dt_s))
     cmd = plant.trim_command()
     wall0 = time.perf_counter()

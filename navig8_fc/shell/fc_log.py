@@ -13,12 +13,10 @@ from collections.abc import Callable
 from typing import Any
 
 from navig8_fc.core import vehicle as vm
-from navig8_fc.core.controller import ActuatorCommand, ControllerStatus
+from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FcSensors
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.logrecords import (
     dialect_json_schema,
-    eig_record,
-    log_truth_record,
     mavlink_json_schema,
     mavlink_record_json,
 )
@@ -26,7 +24,7 @@ from navig8_fc.mavlink import seam
 from navig8_fc.mavlink.seam import TruthFloats
 from navig8_fc.params.registry import StabilityStatus
 from navig8_fc.shell.foxglove_out import FoxgloveOutput
-from navig8_fc.viz import VehiclePose
+from navig8_fc.shell.step_log import StepLog
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,7 +38,7 @@ class StepRecord:
     setpoint: Setpoint
     wire: dict[str, Any] | None  # the bundle's messages (codec.Message records)
     answer: bytes | None  # the step's answer frame
-    sensors: Any  # the controller's input (FcSensors)
+    sensors: FcSensors | None  # the controller's input
 
 
 class FcLog:
@@ -51,7 +49,7 @@ class FcLog:
         self.logger = logger
         self.open_error = open_error  # why the log could not be opened (the FC flies without one)
         self.fox = fox
-        self._model = model
+        self._steps = StepLog(logger, fox, model)  # the per-step records, as navig8-sim writes them
         self._sim_ns = sim_ns
         self.n_errors = 0  # exceptions while logging (contained: reported, never an exit)
         self.fail_reported = False
@@ -105,33 +103,26 @@ class FcLog:
     def _tick(self, r: StepRecord, sim_codec: Any, lam_min: float, lam_crit: float) -> None:
         t_ns = seam.sim_us_from_time_usec(r.t_us) * 1000
         w = time.time_ns()
-        fox, tr, st, sp = self.fox, r.truth, r.status, r.setpoint
-        if fox is not None and tr is not None and t_ns >= fox.next_due_ns:  # the Foxglove 3D channels, rate-limited
-            act = tr.actuator_pos  # alpha1, alpha3, w1, w2, w3
-            s = r.sensors
-            est = None if s is None else VehiclePose(s.pos_ned, s.quat_wxyz, s.tilt_rad, st.q_est_rad)
-            fox.step(t_ns, VehiclePose(tr.pos_ned_m, tr.quat_wxyz, act[:2], tr.joint_pos_rad), act[2:],
-                     tr.object_mass_kg, est, sp, w)
         lg = self.logger
-        if lg is None:
-            return
-        # The sim link decoded, as the GCS links are: the FC's raw sensor inputs and its answer, plottable.
-        # NAVIG8_TRUTH's decoded form is /truth. Lean path: channel ids cached, orjson straight to the writer.
-        if r.wire:
-            for name, m in r.wire.items():  # codec.Message records (BundleAssembler.completed)
-                if name != "NAVIG8_TRUTH":
-                    lg.log_json_bytes(self._sim_channel("in", name), t_ns, mavlink_record_json(m), w)
-        if r.answer is not None:
-            got = sim_codec.decode_frame(r.answer) if sim_codec is not None else None
-            if got is not None:
-                lg.log_json_bytes(self._sim_channel("out", got.name), t_ns, mavlink_record_json(got), w)
-        if tr is not None:
-            lg.log("/truth", t_ns, log_truth_record(tr), publish_ns=w)
-            lg.log("/analysis/eig", t_ns, eig_record(self._model, st, tr, lam_min, lam_crit), publish_ns=w)
-        lg.log("/fc/status", t_ns, st, publish_ns=w)
-        lg.log("/fc/setpoint", t_ns, {"pos_ned": sp.pos_ned, "pitch_rad": sp.pitch_rad, "yaw_rad": sp.yaw_rad},
-               publish_ns=w)
-        lg.log("/fc/command", t_ns, r.command, publish_ns=w)
+        if lg is not None:
+            # The sim link decoded, as the GCS links are: the FC's raw sensor inputs and its answer, plottable.
+            # NAVIG8_TRUTH's decoded form is /truth. Lean path: channel ids cached, orjson straight to the writer.
+            if r.wire:
+                for name, m in r.wire.items():  # codec.Message records (BundleAssembler.completed)
+                    if name != "NAVIG8_TRUTH":
+                        lg.log_json_bytes(self._sim_channel("in", name), t_ns, mavlink_record_json(m), w)
+            if r.answer is not None:
+                got = sim_codec.decode_frame(r.answer) if sim_codec is not None else None
+                if got is not None:
+                    lg.log_json_bytes(self._sim_channel("out", got.name), t_ns, mavlink_record_json(got), w)
+        self._steps.tick(t_ns, r.truth, r.sensors, r.status, r.command, r.setpoint, lam_min, lam_crit, w)
+
+    def finish(self) -> None:
+        """The last step's held setpoint (StepLog.finish), before the log closes."""
+        try:
+            self._steps.finish(time.time_ns())
+        except Exception:  # noqa: BLE001 - logging must never end the flight
+            self.n_errors += 1
 
     def step(self, record: StepRecord | None, sim_codec: Any = None, lam_min: float = 0.0, lam_crit: float = 0.0
              ) -> str | None:
@@ -192,6 +183,7 @@ class FcLog:
         if lg and lg.error is not None:
             print(f"navig8-fc: log {lg.path}: {lg.dropped} records dropped after {lg.error}", file=sys.stderr)
         if lg:
+            self.finish()
             for name, rec in metadata.items():
                 lg.metadata(name, rec)
             lg.close()
