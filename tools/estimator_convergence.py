@@ -21,12 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from navig8_fc.core.controller import warm_up_kernels
-from navig8_fc.flight import FlightStack
+from navig8_fc.core.controller import FcSensors, warm_up_kernels
+from navig8_fc.flight import FlightStack, StepResult
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import read_overrides
-from navig8_tools.sim import sensors_to_fc
-from sim_bridge.messages import ActuatorCommand as PlantCommand
+from navig8_tools.sim import fly
 from sim_bridge.plant import Plant
 from sim_bridge.world import load_world, parse_world_items
 
@@ -51,21 +50,17 @@ def k_trace(overrides: dict[str, float], duration_s: float, seed: int = 1,
     stack = FlightStack(w.fc_vehicle, reg, w.scenario.script)
     cfg = stack.core.config
     warm_up_kernels(w.fc_vehicle, cfg)
-    n = int(round(duration_s / cfg.dt_s))
     ts, ks, kts = [], [], []
-    for k in range(n + 1):
-        sb = plant.sense()
-        s = sensors_to_fc(sb)
-        res = stack.step(s, True, sb.time_us)
+
+    def trace(_t_ns: int, s: FcSensors, res: StepResult) -> None:
         st, tr = res.status, plant.truth()
         j, i_true = st.inertia_uam_diag, np.asarray(tr.inertia_com_kgm2)
         k_true = np.array([j[0] / i_true[0, 0], j[1] / i_true[1, 1], j[2] / i_true[2, 2], st.mass_uam_kg / tr.mass_kg])
         ts.append(s.t_s)
         ks.append(np.array(st.adapt.k))
         kts.append(np.clip(k_true, *box))
-        if k == n:
-            break
-        plant.step(PlantCommand(tilt_rad=res.command.tilt_rad, speed_rad_s=res.command.speed_rad_s), cfg.dt_s)
+
+    fly(plant, stack, int(round(duration_s / cfg.dt_s)), trace)
     return np.array(ts), np.array(ks), np.array(kts)
 
 

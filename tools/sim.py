@@ -20,6 +20,7 @@ import argparse
 import json
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -95,6 +96,36 @@ class TickLog:
         self.steps.finish()
 
 
+StepHook = Callable[[int, FcSensors, StepResult], None]  # (the step's time in ns, the FC's input, its result)
+
+
+def fly(plant: Plant, stack: FlightStack, n_steps: int, on_step: StepHook | None = None,
+        tick_times_s: list[float] | None = None, progress: bool = False) -> None:
+    """The closed loop in one process, n_steps + 1 FC steps: the plant's sensors to the FC's step (as the bridge seam
+    delivers them), `on_step` (the log, a tool's trace), the plant stepped with the FC's command over the FC's dt.
+    With `tick_times_s`, the wall time of every FC step is appended. navig8-sim (`run`), navig8-bench and the
+    convergence tools fly through it."""
+    dt_s = stack.core.config.dt_s
+    last_print = time.perf_counter()
+    for k in range(n_steps + 1):
+        sb = plant.sense()
+        s = sensors_to_fc(sb)
+        if tick_times_s is not None:
+            t_tick = time.perf_counter()
+            res = stack.step(s, True, sb.time_us)
+            tick_times_s.append(time.perf_counter() - t_tick)
+        else:
+            res = stack.step(s, True, sb.time_us)
+        if on_step is not None:
+            on_step(int(sb.time_us) * 1000, s, res)
+        if k == n_steps:
+            break
+        plant.step(PlantCommand(tilt_rad=res.command.tilt_rad, speed_rad_s=res.command.speed_rad_s), dt_s)
+        if progress and time.perf_counter() - last_print > 2.0:
+            last_print = time.perf_counter()
+            print(f"\r  t = {s.t_s:6.2f} / {n_steps * dt_s:.1f} s", end="", file=sys.stderr, flush=True)
+
+
 def run(
     scenario: str,
     controller: str = "proposed",
@@ -134,28 +165,9 @@ def run(
         # the eigenvalues with the TRUE vehicle's G (w.vehicle: model errors live in the FC's constants)
         tick_log = TickLog(StepLog(logger, fox, vm.UamModel(w.vehicle)), plant, stack.lambda_min, stack.lambda_crit)
     n_steps = int(round(duration / cfg.dt_s))
-    cmd = plant.trim_command()
     wall0 = time.perf_counter()
-    last_print = wall0
     try:
-        for k in range(n_steps + 1):
-            sb = plant.sense()
-            s = sensors_to_fc(sb)
-            if tick_times_s is not None:
-                t_tick = time.perf_counter()
-                res = stack.step(s, True, sb.time_us)
-                tick_times_s.append(time.perf_counter() - t_tick)
-            else:
-                res = stack.step(s, True, sb.time_us)
-            cmd = PlantCommand(tilt_rad=res.command.tilt_rad, speed_rad_s=res.command.speed_rad_s)
-            if tick_log:
-                tick_log.tick(int(sb.time_us) * 1000, s, res)
-            if k == n_steps:
-                break
-            plant.step(cmd, cfg.dt_s)
-            if progress and time.perf_counter() - last_print > 2.0:
-                last_print = time.perf_counter()
-                print(f"\r  t = {s.t_s:6.2f} / {duration:.1f} s", end="", file=sys.stderr, flush=True)
+        fly(plant, stack, n_steps, tick_log.tick if tick_log else None, tick_times_s, progress)
     finally:
         if tick_log:
             tick_log.finish()
