@@ -210,6 +210,9 @@ class FcLink:
             c.pair_refused += 1
             return
         self.fc_addr, self.fc_nonce, self._fc_heard = addr, nonce, now
+        keep = getattr(self.sock, "keep", None)  # a tcpin: server never evicts the paired FC for a newer connection
+        if keep is not None:
+            keep(addr)
         c.sessions += 1
         self.send(self.mav.frame(*pairing_heartbeat(nonce)))
         self.on_paired(now)  # the new FC hears the status first, then the current bundle, at once

@@ -201,6 +201,9 @@ class UdpLink:
             if len(self.peers) >= self.max_peers:
                 self.peers.pop(0)
             self.peers.append(addr)
+            keep = getattr(self.sock, "keep", None)  # a tcpin: server never evicts a peer for a newer connection
+            if keep is not None:
+                keep(addr)
 
     def send(self, msg: Any, dest: list[tuple[str, int]] | None = None) -> None:
         """Send one message: a pymavlink message (GCS links) or a (name, values) record (codec links)."""

@@ -2,7 +2,7 @@
 
     udpin:HOST:PORT      bind HOST:PORT, reply to whoever talks (udp: is the same, as in pymavlink's mavutil)
     udpout:HOST:PORT     send to HOST:PORT from a free local port
-    tcpin:HOST:PORT      listen on HOST:PORT, one peer at a time (a new connection replaces the old one)
+    tcpin:HOST:PORT      listen on HOST:PORT, several connections at once, each its own peer
     tcp:HOST:PORT        connect to HOST:PORT, reconnecting every RECONNECT_S while refused or dropped
     serial:DEVICE:BAUD   a UART through pyserial (serial:/dev/ttyUSB0:921600; BAUD defaults to 921600)
 
@@ -275,9 +275,34 @@ class _TcpTransport(StreamTransport):
         return self._conn is not None
 
 
-class TcpServerTransport(_TcpTransport):
-    """tcpin: listen; the first (or latest) connection is the peer. SO_REUSEADDR here is the TCP one: it lets a
-    restarted process listen again past TIME_WAIT and never lets two sockets listen on one port (Linux)."""
+TCP_MAX_CONNECTIONS = 8  # a tcpin: server's connections at once; more evict (below) or are refused
+TCP_UNPROVEN_IDLE_S = 60.0  # a connection that has sent no whole frame this long after it opened is closed
+TCP_IDLE_S = 30.0  # a connection silent this long is closed (peers send HEARTBEATs at 1 Hz, a lockstep peer more)
+_HOUSEKEEPING_S = 0.5
+
+
+class _Connection:
+    """One accepted connection of a TcpServerTransport: its socket, address and partial tail."""
+
+    def __init__(self, sock: socket.socket, addr: tuple[str, int], now: float) -> None:
+        self.sock, self.addr, self.buf = sock, addr, b""
+        self.opened_s = self.heard_s = now
+        self.proven = False  # has sent a whole frame
+
+
+class TcpServerTransport(StreamTransport):
+    """tcpin: listen, and serve several connections at once, each its own peer: `recvfrom` returns a connection's
+    whole frames with that connection's (host, port), `sendto(data, addr)` writes to that connection, and to every
+    connection for the placeholder address `peer` (a caller's target before anyone talked: open_endpoint). So the
+    callers' pairing and peer checks work as over UDP (a second connection is a different sender, never the paired
+    one), one idle or hostile connection blinds nobody, and a peer that reconnects is simply a new sender.
+
+    At most TCP_MAX_CONNECTIONS: a new connection beyond them evicts the newest that has sent no whole frame (so a
+    flood of connections replaces only its own, never a client that listens before it talks), else the least
+    recently heard one the callers have not `keep`-ed (their paired or confirmed peer), else it is refused; a connection that sends no whole frame within TCP_UNPROVEN_IDLE_S, or nothing for TCP_IDLE_S, is
+    closed. SO_REUSEADDR here is the TCP one: it lets a restarted process listen again past TIME_WAIT and never lets
+    two sockets listen on one port (Linux). Linux: the connections are watched with one epoll, whose descriptor is
+    what `fileno` gives the callers' select."""
 
     def __init__(self, name: str, conn: Connection) -> None:
         super().__init__(name, conn)
@@ -285,7 +310,7 @@ class TcpServerTransport(_TcpTransport):
         try:
             srv.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             srv.bind((conn.host, conn.port))
-            srv.listen(1)
+            srv.listen(TCP_MAX_CONNECTIONS)
         except OSError as e:
             srv.close()
             if e.errno == errno.EADDRINUSE:
@@ -293,36 +318,175 @@ class TcpServerTransport(_TcpTransport):
             raise
         srv.setblocking(False)
         self._srv = srv
+        self._ep = select.epoll()
+        self._ep.register(srv.fileno(), select.EPOLLIN)
+        self._conns: dict[int, _Connection] = {}  # by file descriptor
+        self._by_addr: dict[tuple[str, int], _Connection] = {}
+        self._kept: set[tuple[str, int]] = set()
+        self._next_housekeeping = 0.0
+        self._turn = 0  # round robin over connections with whole frames waiting
+        self.accepted = self.evicted = self.refused = self.timed_out = 0
 
+    # --- the socket interface ------------------------------------------------------------------------------
     def fileno(self) -> int:
-        # select wakes on a waiting connection while none is attached, then on data
-        return self._conn.fileno() if self._conn is not None else self._srv.fileno()
+        return self._ep.fileno()
 
     def getsockname(self) -> tuple[str, int]:
         return self._srv.getsockname()
 
-    def _read(self) -> bytes | None:
-        if self._conn is None:
-            self._accept()
-            return None
-        r, _, _ = select.select([self._srv], [], [], 0.0)
-        if r:  # a newer connection (the peer restarted): it replaces the old one
-            self._accept()
-            return None
-        return super()._read()
+    @property
+    def connected(self) -> bool:
+        return bool(self._conns)
 
-    def _accept(self) -> None:
-        try:
-            s, addr = self._srv.accept()
-        except (BlockingIOError, InterruptedError):
-            return
-        self._attach(s)
-        self.peer_address = addr
+    @property
+    def connections(self) -> int:
+        return len(self._conns)
+
+    def keep(self, addr: tuple[str, int]) -> None:
+        """The callers' paired or confirmed peer: never evicted for a newer connection (it still times out)."""
+        if addr in self._by_addr:
+            self._kept.add(addr)
+
+    def recvfrom(self, bufsize: int = 65535) -> tuple[bytes, tuple[str, int]]:
+        deadline = None if self._timeout is None else time.monotonic() + self._timeout
+        while True:
+            got = self._take_any()
+            if got is not None:
+                return got
+            self._service()
+            got = self._take_any()
+            if got is not None:
+                return got
+            wait = None if deadline is None else max(0.0, deadline - time.monotonic())
+            if wait == 0.0:
+                if self._timeout == 0.0:
+                    raise BlockingIOError(errno.EAGAIN, "no whole frame waiting")
+                raise TimeoutError(f"{self.name} link: no whole frame within {self._timeout} s")
+            select.select([self._ep], [], [], wait if wait is None else min(wait, _HOUSEKEEPING_S))
+
+    def sendto(self, data: bytes, addr: Any = None) -> int:
+        if addr is None or addr == self.peer:
+            targets = list(self._conns.values())
+            if not targets:
+                raise ConnectionError(errno.ENOTCONN, f"{self.name} link: nothing is connected to {self.conn.text}")
+        else:
+            c = self._by_addr.get(tuple(addr))
+            if c is None:
+                raise ConnectionError(errno.ENOTCONN, f"{self.name} link: {addr} is not connected")
+            targets = [c]
+        for c in targets:
+            try:
+                c.sock.sendall(data)
+            except OSError:
+                self._close(c)
+                if len(targets) == 1:
+                    raise
+        return len(data)
 
     def close(self) -> None:
-        if self._conn is not None:
-            self._conn.close()
+        for c in list(self._conns.values()):
+            self._close(c)
+        self._ep.close()
         self._srv.close()
+
+    # --- connections -----------------------------------------------------------------------------------------
+    def _take_any(self) -> tuple[bytes, tuple[str, int]] | None:
+        conns = list(self._conns.values())
+        n = len(conns)
+        for i in range(n):
+            c = conns[(self._turn + i) % n]
+            if not c.buf:
+                continue
+            frames, garbage, _ = split_frames(c.buf)
+            end = sum(map(len, frames)) + garbage
+            if end == 0:
+                continue
+            whole, c.buf = c.buf[:end], c.buf[end:]
+            if frames:
+                c.proven, c.heard_s = True, time.monotonic()
+            self._turn = (self._turn + i + 1) % n
+            return whole, c.addr
+        return None
+
+    def _service(self) -> None:
+        """Accept and read what is ready now; close idle connections (at most every _HOUSEKEEPING_S)."""
+        srv_fd = self._srv.fileno()
+        for fd, _ in self._ep.poll(0):
+            if fd == srv_fd:
+                self._accept_all()
+                continue
+            c = self._conns.get(fd)
+            if c is None:
+                continue
+            try:
+                data = c.sock.recv(READ_CHUNK)
+            except (BlockingIOError, InterruptedError, TimeoutError):
+                continue
+            except OSError:
+                data = b""
+            if not data:  # EOF or reset: the peer went away
+                self._close(c)
+                continue
+            c.buf += data
+            if len(c.buf) > 8 * READ_CHUNK:  # no frame in 8 kB: not MAVLink, or a peer that floods
+                self.bytes_dropped += len(c.buf)
+                c.buf = b""
+        now = time.monotonic()
+        if now >= self._next_housekeeping:
+            self._next_housekeeping = now + _HOUSEKEEPING_S
+            for c in list(self._conns.values()):
+                if now - c.heard_s > (TCP_IDLE_S if c.proven else TCP_UNPROVEN_IDLE_S):
+                    self.timed_out += 1
+                    self._close(c)
+
+    def _accept_all(self) -> None:
+        while True:
+            try:
+                s, addr = self._srv.accept()
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:  # EMFILE and the like: try again on the next wake-up
+                return
+            if len(self._conns) >= TCP_MAX_CONNECTIONS and not self._evict_one():
+                self.refused += 1
+                s.close()
+                continue
+            s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)  # lockstep: every step's frames go out at once
+            s.settimeout(1.0)  # bounds a send to a peer that stopped reading; reads only follow epoll
+            c = _Connection(s, (str(addr[0]), int(addr[1])), time.monotonic())
+            self._conns[s.fileno()] = c
+            self._by_addr[c.addr] = c
+            self._ep.register(s.fileno(), select.EPOLLIN)
+            self.accepted += 1
+            if self.accepted > 1:
+                self.reconnects += 1
+
+    def _evict_one(self) -> bool:
+        conns = list(self._conns.values())
+        unproven = [c for c in conns if not c.proven]
+        if unproven:
+            victim = max(unproven, key=lambda c: c.opened_s)
+        else:
+            free = [c for c in conns if c.addr not in self._kept]
+            if not free:
+                return False
+            victim = min(free, key=lambda c: c.heard_s)
+        self.evicted += 1
+        self._close(victim)
+        return True
+
+    def _close(self, c: _Connection) -> None:
+        fd = c.sock.fileno()
+        if self._conns.pop(fd, None) is None:
+            return
+        self._by_addr.pop(c.addr, None)
+        self._kept.discard(c.addr)
+        try:
+            self._ep.unregister(fd)
+        except (OSError, ValueError):
+            pass
+        c.sock.close()
+        self.bytes_dropped += len(c.buf)
 
 
 class TcpClientTransport(_TcpTransport):

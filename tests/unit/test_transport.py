@@ -89,8 +89,8 @@ def test_tcp_stream_hands_over_whole_frames_when_bytes_arrive_in_pieces() -> Non
         assert [m.fields["step"] for m in got] == list(range(40))
         assert counts.truncated == 0 and counts.bad_crc == 0
         assert counts.garbage_bytes == len(b"\x00\x01garbage")
-        # and back: the server answers its one peer whatever address it is given
-        srv.sendto(enc.frame(*_records(1)[0]), ("ignored", 1))
+        # and back: to the placeholder address (a caller's target before anyone talked), every connection hears it
+        srv.sendto(enc.frame(*_records(1)[0]), srv.peer)
         back, _ = _read_all(cli, 1)
         assert len(back) == 1
     finally:
@@ -213,3 +213,86 @@ def test_the_clis_refuse_bad_links_with_one_clear_line(argv: list[str], exit_cod
     p = subprocess.run([sys.executable, *argv], capture_output=True, text=True, timeout=120)
     assert p.returncode == exit_code and says in p.stderr, (p.returncode, p.stderr[-1500:])
     assert "Traceback" not in p.stderr
+
+
+def _frames_by_sender(srv: TcpServerTransport, n: int, timeout_s: float = 5.0) -> dict[tuple[str, int], int]:
+    """Whole frames read from a tcpin: server, counted by the sender (connection) they came from."""
+    c, counts = codec.seam_codec(), codec.ParseCounters()
+    got: dict[tuple[str, int], int] = {}
+    srv.settimeout(0.1)
+    deadline = time.monotonic() + timeout_s
+    while sum(got.values()) < n and time.monotonic() < deadline:
+        try:
+            data, addr = srv.recvfrom(65535)
+        except (TimeoutError, BlockingIOError):
+            continue
+        got[addr] = got.get(addr, 0) + len(c.parse(data, counts))
+    return got
+
+
+def test_a_tcpin_server_serves_several_connections_each_its_own_sender() -> None:
+    srv = TcpServerTransport("t", parse_connection("tcpin:127.0.0.1:0"))
+    port = srv.getsockname()[1]
+    a, b = (socket.create_connection(("127.0.0.1", port), timeout=5.0) for _ in range(2))
+    enc = codec.Encoder(codec.seam_codec(), 1, 1)
+    try:
+        a.sendall(enc.frames(_records(3)))
+        b.sendall(enc.frames(_records(2)))
+        got = _frames_by_sender(srv, 5)
+        assert sorted(got.values()) == [2, 3] and srv.connections == 2  # two senders, neither displaced the other
+        addr_a = next(addr for addr, n in got.items() if n == 3)
+        srv.sendto(enc.frame(*_records(1)[0]), addr_a)  # a reply goes to its sender only
+        a.settimeout(5.0)
+        assert a.recv(4096)
+        b.settimeout(0.3)
+        with pytest.raises(TimeoutError):
+            b.recv(4096)
+    finally:
+        a.close()
+        b.close()
+        srv.close()
+
+
+def test_a_tcpin_server_keeps_its_peer_through_a_flood_of_connections(monkeypatch: pytest.MonkeyPatch) -> None:
+    """100 connections (idle, or sending frames) never displace the kept peer; the count stays capped; idle
+    connections that sent nothing are closed after TCP_UNPROVEN_IDLE_S."""
+    from navig8_fc.links import transport
+
+    monkeypatch.setattr(transport, "TCP_UNPROVEN_IDLE_S", 0.5)
+    srv = TcpServerTransport("t", parse_connection("tcpin:127.0.0.1:0"))
+    port = srv.getsockname()[1]
+    enc = codec.Encoder(codec.seam_codec(), 1, 1)
+    peer = socket.create_connection(("127.0.0.1", port), timeout=5.0)
+    others: list[socket.socket] = []
+    try:
+        peer.sendall(enc.frames(_records(1)))
+        (peer_addr,) = _frames_by_sender(srv, 1)
+        srv.keep(peer_addr)  # the callers' paired peer
+        for k in range(100):
+            s = socket.create_connection(("127.0.0.1", port), timeout=5.0)
+            if k % 2:
+                s.sendall(enc.frames(_records(1)))  # proven, active connections too
+            others.append(s)
+            _frames_by_sender(srv, 1, 0.01)
+        assert srv.connections <= transport.TCP_MAX_CONNECTIONS
+        peer.sendall(enc.frames(_records(2)))
+        assert _frames_by_sender(srv, 2).get(peer_addr, 0) >= 1  # still connected, still heard
+        assert srv.evicted + srv.refused >= 100 - transport.TCP_MAX_CONNECTIONS
+        idle = socket.create_connection(("127.0.0.1", port), timeout=5.0)  # never sends a frame
+        others.append(idle)
+        deadline = time.monotonic() + 5.0
+        idle.settimeout(0.05)
+        closed = False
+        while not closed and time.monotonic() < deadline:
+            _frames_by_sender(srv, 1, 0.05)
+            try:
+                closed = idle.recv(1) == b""
+            except TimeoutError:
+                pass
+            except OSError:
+                closed = True
+        assert closed and srv.timed_out >= 1
+    finally:
+        for s in [peer, *others]:
+            s.close()
+        srv.close()
