@@ -41,6 +41,7 @@ class BridgeCounters:
     wrong_sender: int = 0  # FC frames from an address other than the paired FC's (or before pairing)
     pair_refused: int = 0  # FC announcements from another address while the paired FC is live
     sessions: int = 0  # pairings with an FC (docs/bridge.md, "Pairing and sequencing")
+    echoes_repeated: int = 0  # nonce echoes sent again (the FC announced the same nonce again: the echo was lost)
     other_frames: int = 0  # valid FC frames the bridge does not use (HEARTBEAT, ...)
     datagrams_in: int = 0
     oversize: int = 0
@@ -205,7 +206,11 @@ class FcLink:
             c.other_frames += 1
             return
         if addr == self.fc_addr and nonce == self.fc_nonce:
-            return  # the same announcement again: already paired
+            # the same announcement again: the FC announces only while unpaired, so our echo was lost: echo again
+            # (one HEARTBEAT for one, to the paired address only)
+            c.echoes_repeated += 1
+            self.send(self.mav.frame(*pairing_heartbeat(nonce)))
+            return
         if self.fc_nonce is not None and addr != self.fc_addr and now - self._fc_heard < REPAIR_SILENCE_S:
             c.pair_refused += 1
             return

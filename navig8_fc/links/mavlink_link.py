@@ -93,8 +93,9 @@ class UdpLink:
     targets: list[tuple[str, int]] = field(default_factory=list)
     peers: list[tuple[str, int]] = field(default_factory=list)
     sysid_filter: int | None = None  # drop frames not from... (kept None: we accept any source)
-    # Which senders become peers (telemetry goes to them): None = any decoded frame; else asked (msg, addr),
-    # so a spoofed source gets no stream until the GCS service confirms it (docs/security.md).
+    # Which senders become peers (telemetry goes to them): None = any decoded frame; else asked (msg, addr) (a codec
+    # link: (the datagram's records, addr)), so a spoofed source gets no stream until the GCS service confirms it
+    # (docs/security.md); the FC's sim link admits none (its guard picks the one peer its answers go to).
     admit_peer: Callable[[Any, tuple[str, int]], bool] | None = None
     counters: LinkCounters = field(default_factory=LinkCounters)
     max_peers: int = 8
@@ -193,7 +194,8 @@ class UdpLink:
         msgs: list[Message] = self.codec.parse(data, self.counters)
         if msgs:
             self.counters.frames_in += len(msgs)
-            self._note_peer(addr)
+            if self.admit_peer is None or self.admit_peer(msgs, addr):
+                self._note_peer(addr)
             out.append(Received(data, msgs, addr))
 
     def _note_peer(self, addr: tuple[str, int]) -> None:

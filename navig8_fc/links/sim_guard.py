@@ -81,6 +81,7 @@ class SimGuardCounters:
     invalid_arm: int = 0
     invalid_truth: int = 0  # not finite: dropped from the log
     unpaired_bundles: int = 0  # bundles before any pairing
+    repeated_echoes: int = 0  # the paired bridge's echo of the nonce it paired with, again (its re-echo): ignored
 
 
 class SimInput(NamedTuple):
@@ -91,6 +92,7 @@ class SimInput(NamedTuple):
     wire: dict[str, Message] | None = None  # "step": the bundle's messages for the log (None if a group failed)
     status: seam.SimStatus | None = None  # "status"
     bad_groups: tuple[str, ...] = ()  # "step": the groups replaced by their last good values
+    time_usec: int = 0  # "duplicate": the stamp sent again (answered again only if it is the step last flown)
 
 
 @dataclass(frozen=True)
@@ -167,6 +169,8 @@ class SimGuard:
     _step: int | None = None
     _time_usec: int | None = None
     _dt_us: int | None = None
+    _pair_asked_by: tuple[str, int] | None = None  # a pair request answered, its echo not yet come
+    _spent_nonce: int = 0  # the nonce the current session was opened with (its echo again is a re-echo)
     _good: seam.StepBundle | None = None  # the last bundle's accepted values, per group
     _pos_good_us: int = 0  # time_usec of the last accepted motion-capture sample (the jump check's dt)
     _bad_since_us: int | None = None  # sim time the current run of invalid bundles began
@@ -190,32 +194,66 @@ class SimGuard:
         return self.peer is None or addr == self.peer or now_s - self.last_heard_s >= REPAIR_SILENCE_S
 
     def needs_announce(self, now_s: float) -> bool:
-        """Announce (every wall second) while unpaired or after the bridge fell silent."""
-        return self.peer is None or now_s - self.last_heard_s >= REPAIR_SILENCE_S
+        """Announce (every wall second) while unpaired, after the bridge fell silent, or while a pair request is
+        unanswered by its echo (the echo or our answer was lost: the bridge echoes again when it hears us again)."""
+        return self.peer is None or self._pair_asked_by is not None or now_s - self.last_heard_s >= REPAIR_SILENCE_S
+
+    @property
+    def pair_asked_by(self) -> tuple[str, int] | None:
+        """Who asked to pair (a pair request answered) and has not echoed our nonce yet: where announcements go."""
+        return self._pair_asked_by
 
     def _on_heartbeat(self, m: Message, addr: tuple[str, int], now_s: float) -> tuple[str, int] | None:
         """A bridge HEARTBEAT: a pair request (custom_mode 0) gets the announcement back (returns where to send it);
-        the echo of our nonce opens a session."""
+        the echo of our nonce opens a session. The paired bridge echoes again when our announcement comes again (an
+        echo lost on the way): an echo of the nonce this session was opened with is that re-echo, ignored."""
         custom = int(m.fields["custom_mode"])
         if not self.may_pair(addr, now_s):
             self.counters.pair_refused += 1
             self._notice("pair_refused", f"Sim link: pairing refused {addr[0]}:{addr[1]}")
             return None
         if custom == 0:
+            self._pair_asked_by = addr
             return addr
+        if addr == self.peer and custom == self._spent_nonce:
+            self.counters.repeated_echoes += 1
+            self.last_heard_s = now_s
+            return None
         if custom != self.nonce:
             self.counters.wrong_sender += 1
             self._notice("wrong_sender", f"Sim link: wrong nonce from {addr[0]}:{addr[1]}")
             return None
+        self._spent_nonce = custom
+        self.nonce = self._fresh_nonce()  # the echoed nonce is spent: a replayed ack cannot open another session
+        self._open_session(addr, now_s)
+        return None
+
+    def _open_session(self, addr: tuple[str, int], now_s: float) -> None:
+        """A new session with the peer at addr: sequencing and the last good values start afresh."""
         self.peer = addr
         self.last_heard_s = now_s
-        self.nonce = self._fresh_nonce()  # the echoed nonce is spent: a replayed ack cannot open another session
+        self._pair_asked_by = None
         self._step = self._time_usec = self._dt_us = None
         self._good = None
         self._bad_since_us = None
         self.counters.sessions += 1
         self._notice("session", f"Sim link paired: {addr[0]}:{addr[1]} ({self.counters.sessions})")
-        return None
+
+    def admit_simulator(self, addr: tuple[str, int], now_s: float, configured: tuple[str, int] | None) -> bool:
+        """PX4's simulator messages carry no nonce, so the peer is pinned instead: the configured one (a tcp: or
+        udpout: connection, the default UDP target) or else the first that sends. Every datagram from another
+        address is refused and counted; without a configured peer another may take over only once the pinned one
+        has been silent for REPAIR_SILENCE_S (a restarted simulator on a new port), as a bridge may re-pair."""
+        if addr == self.peer:
+            self.last_heard_s = now_s
+            return True
+        if (configured is None or addr == configured) and (self.peer is None
+                                                             or now_s - self.last_heard_s >= REPAIR_SILENCE_S):
+            self._open_session(addr, now_s)
+            return True
+        self.counters.wrong_sender += 1
+        self._notice("wrong_sender", f"Sim link: dropped {addr[0]}:{addr[1]} (not the simulator)")
+        return False
 
     # --- datagrams -----------------------------------------------------------------------------------------
     def on_datagram(self, msgs: list[Message], addr: tuple[str, int], now_s: float
@@ -262,15 +300,17 @@ class SimGuard:
             c.malformed += 1
             self._notice("malformed", "Sim link: bundle parts disagree on the time")
             return _NONE, None
-        return self._sequence(b, asm.completed), None
+        return self.accept_bundle(b, asm.completed), None
 
-    def _sequence(self, b: seam.StepBundle, wire: dict[str, Message]) -> SimInput:
+    def accept_bundle(self, b: seam.StepBundle, wire: dict[str, Message]) -> SimInput:
+        """A bundle of the paired peer (whole: one datagram here, or assembled from PX4's simulator messages),
+        sequenced and validated: a step, a duplicate, or nothing (counted)."""
         c = self.counters
         step, tu = b.step, b.time_usec
         if self._step is not None:
             if step == self._step and tu == self._time_usec:
                 c.duplicates += 1
-                return _DUPLICATE
+                return SimInput("duplicate", time_usec=tu)
             dt = self._dt_us
             if self.monotonic:  # real time (FC_TIMING = 1): gaps are losses, counted by the real-time clock
                 if step <= self._step or tu <= self._time_usec:
@@ -383,7 +423,6 @@ class SimGuard:
 
 
 _NONE = SimInput("none")
-_DUPLICATE = SimInput("duplicate")
 
 
 __all__ = ["COMPID_BRIDGE", "GROUPS", "REPAIR_SILENCE_S", "SensorLimits", "SimGuard",

@@ -9,6 +9,7 @@ import gc
 import secrets
 import select
 import signal
+import socket
 import sys
 import time
 from typing import Any
@@ -69,14 +70,14 @@ class FlightControllerProcess:
         self._spin_until = 0.0
         self._mk_links()
         self.stack = FlightStack(self.vehicle, self.registry, script)
-        # what the sim link carries: the bridge's bundle, or PX4's simulator messages (their own assembler, no
-        # pairing: answers go to the link's peer, the simulator that connected; docs/hil.md)
+        # what the sim link carries: the bridge's bundle, or PX4's simulator messages (their own assembler; the
+        # simulator's address pinned instead of the nonce pairing; the same guard otherwise: docs/hil.md)
         stream = isinstance(self.sim.sock, StreamTransport)
         if opts.sim_messages == "navig8":
             self.peer: BundlePeer | Px4Peer = BundlePeer(self.sim, self.guard, self._bridge_target, stream)
         else:
             asm = px4_assembler(self.stack.core.config, origin_from_params(self.registry))
-            self.peer = Px4Peer(self.sim, self.guard, self._bridge_target, asm)
+            self.peer = Px4Peer(self.sim, self.guard, self._bridge_target, asm, self._configured_sim_peer())
         if isinstance(self.peer, Px4Peer):
             self.log_event("sim link: PX4 simulator messages (HIL_SENSOR, HIL_STATE_QUATERNION; actuator states "
                            "modelled unless NAVIG8_ACTUATOR_STATE comes)")
@@ -97,7 +98,8 @@ class FlightControllerProcess:
         if self.timing.realtime:
             self.log_event(f"real-time timing: own clock at {round(1.0 / self.stack.core.config.dt_s)} Hz, newest "
                            "bundle per tick")
-        self.guard.monotonic = self.timing.realtime
+        # PX4's simulator messages: any newer stamp (a simulator steps at its own IMU rate); else lockstep's next step
+        self.guard.monotonic = self.timing.realtime or isinstance(self.peer, Px4Peer)
         self.steps = SimStepper(self.sim, self.peer, self.timing, self.guard, self.stack, self.vehicle, self.watchdog,
                                 lambda: self.log.active, self.announce, self.statustext, self.log_event)
         config = self.stack.core.config
@@ -148,6 +150,7 @@ class FlightControllerProcess:
             self.sim = UdpLink.open("sim", sim_enc, (o.host, o.port("sim")), [(o.host, o.port("bridge"))],
                                     codec=sim_codec)
             self.sim.max_datagrams = 1  # one bundle per step; more stay readable for the run loop's next select
+        self.sim.admit_peer = _no_peer  # the guard decides where the sim link's answers go, never a mere sender
         self.gcs_links = GcsLinks(o, self._mav, FC_COMPID, self.fox, self._sim_ns)
         self.gcs, self.api = self.gcs_links.gcs, self.gcs_links.api
         if o.ports_file is not None:
@@ -163,6 +166,20 @@ class FlightControllerProcess:
         for link in (self.gcs, self.api):  # the sim link's messages are logged decoded as /truth, /fc/...
             link.on_frame = self.log.decoded
         self.links = (self.sim, self.gcs, self.api)
+
+    def _configured_sim_peer(self) -> tuple[str, int] | None:
+        """The simulator's address as configured (a tcp: stream, udpout:, or the default UDP target, its host
+        resolved as recvfrom reports it); None for udpin:, where the first sender is pinned."""
+        o = self.opts
+        if o.sim_link and not self.sim.targets:
+            return None
+        host, port = self._bridge_target
+        if isinstance(self.sim.sock, StreamTransport):
+            return host, port
+        try:
+            return socket.gethostbyname(host), port
+        except OSError:
+            return host, port
 
     # --- lockstep --------------------------------------------------------------------------------
     def _sim_ns(self) -> int:
@@ -343,6 +360,10 @@ class FlightControllerProcess:
         self.log.close(meta)
         for link in self.links:
             link.close()
+
+
+def _no_peer(_msg: Any, _addr: tuple[str, int]) -> bool:
+    return False
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -2,8 +2,8 @@
 
 - what the sim link carries: `BundlePeer` (navig8-bridge's private bundle: pairing, sequencing and validation by the
   SimGuard, a stream's reads regrouped into one bundle each) or `Px4Peer` (PX4's simulator messages, HIL_SENSOR +
-  HIL_STATE_QUATERNION, assembled into bundles; no pairing, actuator states modelled unless the simulator sends
-  them). Both turn received frames into `SimInput`s.
+  HIL_STATE_QUATERNION, assembled into bundles; the simulator's address pinned, the same sequencing and validation;
+  actuator states modelled unless the simulator sends them). Both turn received frames into `SimInput`s.
 - when a step runs: `Lockstep` (at once, one per bundle; a duplicate is answered with the same command) or
   `Realtime` (the FC's own clock at INDI_RATE_HZ takes the newest bundle per tick: navig8_fc/shell/realtime.py).
 """
@@ -44,7 +44,8 @@ class BundlePeer:
         return 0
 
     def announce(self) -> None:
-        self._link.send(self.guard.announce_record(), [self._bridge_target])
+        """Our announcement: to the bridge that asked to pair (until it echoes), else to the configured bridge."""
+        self._link.send(self.guard.announce_record(), [self.guard.pair_asked_by or self._bridge_target])
 
     def inputs(self, received: list[Any], now: float) -> list[SimInput]:
         """The link's datagrams (codec.Message records per datagram) as SimInputs; a bridge that asks to pair gets
@@ -75,36 +76,40 @@ class BundlePeer:
 
 
 class Px4Peer(BundlePeer):
-    """PX4's simulator messages (navig8_fc/mavlink/px4sim.py): HIL_SENSOR completes a step; no pairing, no
-    sequencing (answers go to the link's peer, the simulator that connected)."""
+    """PX4's simulator messages (navig8_fc/mavlink/px4sim.py), through the same guard as the bridge's bundle: the
+    simulator's address pinned (`SimGuard.admit_simulator`: the configured peer, else the first that sends; PX4's
+    protocol has no nonce), frames from any other address dropped before they reach the assembler, every assembled
+    step sequenced (only newer stamps) and validated (NaN, infinite, out of range, implausible groups replaced by
+    their last good values, counted, reported, landing if it lasts); answers only to the pinned simulator."""
 
     answers_duplicates = False
 
-    def __init__(self, link: UdpLink, guard: SimGuard, bridge_target: tuple[str, int], assembler: Px4SimAssembler
-                 ) -> None:
+    def __init__(self, link: UdpLink, guard: SimGuard, bridge_target: tuple[str, int], assembler: Px4SimAssembler,
+                 configured_peer: tuple[str, int] | None) -> None:
         super().__init__(link, guard, bridge_target, stream=False)
         self._asm = assembler
-        self.sim_to = None
+        self._configured = configured_peer
 
     @property
     def incomplete(self) -> int:
         return self._asm.incomplete
 
     def inputs(self, received: list[Any], now: float) -> list[SimInput]:
-        asm = self._asm
+        asm, guard = self._asm, self.guard
         out = []
         for r in received:
+            if not guard.admit_simulator(r.addr, now, self._configured):
+                continue  # another address: not one frame reaches the assembler (a forged pose would stay there)
+            if self.sim_to[:1] != [guard.peer]:  # type: ignore[index]
+                self.sim_to = [guard.peer]  # type: ignore[list-item]
             for m in r.msg:
                 if m.name == "NAVIG8_SIM_STATUS":
                     out.append(SimInput("status", status=seam.decode_sim_status(m.fields)))
                     continue
                 bundle = asm.add(m)
                 if bundle is not None:
-                    out.append(SimInput("step", bundle, dict(asm.completed)))
+                    out.append(guard.accept_bundle(bundle, dict(asm.completed)))
         return out
-
-    def reports(self, now: float) -> list[tuple[int, str]]:
-        return []
 
     def commanded(self, cmd: ActuatorCommand, arm: ArmRequest | None) -> None:
         """The actuator model's input: what the simulator will hold (its actuator states are modelled)."""

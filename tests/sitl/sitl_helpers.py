@@ -390,10 +390,11 @@ def external_pair(tmp: Path, speed: float = 1.0, scenario: str = "ground") -> It
 class LossyUdpProxy:
     """A UDP proxy on the sim link that impairs bridge -> FC datagrams: each one delayed by a uniform jitter in
     [0, 2 * jitter_s] (± jitter_s around jitter_s), dropped with probability `drop`, or held back behind the next
-    one with probability `reorder` (then it arrives after a newer bundle: out of order). FC -> bridge passes as is.
-    The FC is given `fc_side_port` as its --bridge-port; `bridge_addr` is set once the bridge has bound. Seeded."""
+    one with probability `reorder` (then it arrives after a newer bundle: out of order). FC -> bridge passes as is,
+    or dropped with probability `drop_back`. The FC is given `fc_side_port` as its --bridge-port; `bridge_addr` is
+    set once the bridge has bound; the bridge sends to `bridge_side_port`. Seeded."""
 
-    def __init__(self, jitter_s: float, drop: float, reorder: float, seed: int = 1) -> None:
+    def __init__(self, jitter_s: float, drop: float, reorder: float, seed: int = 1, drop_back: float = 0.0) -> None:
         import heapq
         import threading
 
@@ -406,11 +407,13 @@ class LossyUdpProxy:
         self._br_side = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)  # the bridge learns this one as the FC
         self._br_side.bind(("127.0.0.1", 0))
         self.fc_side_port = self._fc_side.getsockname()[1]
+        self.bridge_side_port = self._br_side.getsockname()[1]
+        self.drop_back = drop_back
         self.bridge_addr: tuple[str, int] | None = None
         self._fc_addr: tuple[str, int] | None = None
         self._due: list[tuple[float, int, bytes]] = []
         self._held: bytes | None = None
-        self.counts = {"forwarded": 0, "dropped": 0, "reordered": 0}
+        self.counts = {"forwarded": 0, "dropped": 0, "reordered": 0, "dropped_back": 0}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
@@ -426,6 +429,9 @@ class LossyUdpProxy:
                 data, addr = s.recvfrom(65535)
                 if s is self._fc_side:
                     self._fc_addr = addr
+                    if self.drop_back and self._rng.random() < self.drop_back:
+                        self.counts["dropped_back"] += 1
+                        continue
                     if self.bridge_addr is not None:
                         self._br_side.sendto(data, self.bridge_addr)
                     continue

@@ -137,6 +137,10 @@ def test_pairing_with_one_fc() -> None:
         assert (br.link.fc_addr, br.link.fc_nonce) == (fc_addr, 77)
         echo = codec.seam_codec().parse(listener.recvfrom(4096)[0], codec.ParseCounters())
         assert [(m.name, m.compid, m.fields["custom_mode"]) for m in echo] == [("HEARTBEAT", dialect.COMPID_BRIDGE, 77)]
+        _feed(br, _announce(br, 77), fc_addr)  # the same announcement again: our echo was lost, echo again
+        got = [codec.seam_codec().parse(listener.recvfrom(4096)[0], codec.ParseCounters()) for _ in range(2)]
+        assert [(m.name, m.fields["custom_mode"]) for m in got[1]] == [("HEARTBEAT", 77)]  # after the pairing's status
+        assert (br.counters.sessions, br.counters.echoes_repeated) == (1, 1)
         assert _feed(br, data["good"], ("127.0.0.1", 40004)) is None  # the right ids from the wrong address
         assert br.counters.wrong_sender == 2 and br.link.fc_addr == fc_addr
         assert _feed(br, data["good"], fc_addr) is not None

@@ -93,6 +93,22 @@ def test_pairing_needs_the_nonce_and_refuses_a_second_bridge_while_the_first_is_
     assert g.on_datagram(parse(w.frame(pairing_heartbeat(0))), OTHER, REPAIR_SILENCE_S)[1] == OTHER
 
 
+def test_a_lost_echo_is_recovered_by_announcing_to_the_asker_and_a_repeated_echo_is_ignored() -> None:
+    g, w = paired()
+    assert not g.needs_announce(1.0)  # a live session: no announcements
+    # the bridge restarts on its port and asks again: answered; until its echo comes, announced every wall second
+    # to the asker (our answer or its echo may be lost: the bridge echoes what it hears again)
+    assert g.on_datagram(parse(w.frame(pairing_heartbeat(0))), BRIDGE, 1.0)[1] == BRIDGE
+    assert g.needs_announce(1.1) and g.pair_asked_by == BRIDGE
+    nonce = g.nonce
+    g.on_datagram(parse(w.frame(pairing_heartbeat(nonce))), BRIDGE, 1.2)
+    assert g.counters.sessions == 2 and g.pair_asked_by is None and not g.needs_announce(1.3)
+    # the bridge's echo again (it heard an announcement sent before ours arrived): not a wrong nonce, no session
+    g.on_datagram(parse(w.frame(pairing_heartbeat(nonce))), BRIDGE, 1.4)
+    assert (g.counters.repeated_echoes, g.counters.wrong_sender, g.counters.sessions) == (1, 0, 2)
+    assert not g.has_reports or all("wrong nonce" not in t for _, t in g.reports(1.5))
+
+
 def test_only_the_next_step_runs_the_controller() -> None:
     g, w = paired()
     steps = []
