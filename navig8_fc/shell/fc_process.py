@@ -9,7 +9,6 @@ import gc
 import secrets
 import select
 import signal
-import socket
 import sys
 import time
 from typing import Any
@@ -34,7 +33,7 @@ from navig8_fc.shell.gcs_links import GcsLinks
 from navig8_fc.shell.gcs_service import GcsService
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.mcap_log import open_logger
-from navig8_fc.shell.sim_peer import BundlePeer, Px4Peer, px4_assembler, timing_from_params
+from navig8_fc.shell.sim_peer import BundlePeer, Px4Peer, configured_simulator, px4_assembler, timing_from_params
 from navig8_fc.shell.sim_stepper import SimStepper
 from navig8_fc.shell.telemetry_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4
 from navig8_fc.viz import VehicleViz, packaged_uav_size_m
@@ -77,7 +76,8 @@ class FlightControllerProcess:
             self.peer: BundlePeer | Px4Peer = BundlePeer(self.sim, self.guard, self._bridge_target, stream)
         else:
             asm = px4_assembler(self.stack.core.config, origin_from_params(self.registry))
-            self.peer = Px4Peer(self.sim, self.guard, self._bridge_target, asm, self._configured_sim_peer())
+            configured = configured_simulator(self.sim, self._bridge_target, bool(opts.sim_link))
+            self.peer = Px4Peer(self.sim, self.guard, self._bridge_target, asm, configured)
         if isinstance(self.peer, Px4Peer):
             self.log_event("sim link: PX4 simulator messages (HIL_SENSOR, HIL_STATE_QUATERNION; actuator states "
                            "modelled unless NAVIG8_ACTUATOR_STATE comes)")
@@ -98,8 +98,7 @@ class FlightControllerProcess:
         if self.timing.realtime:
             self.log_event(f"real-time timing: own clock at {round(1.0 / self.stack.core.config.dt_s)} Hz, newest "
                            "bundle per tick")
-        # PX4's simulator messages: any newer stamp (a simulator steps at its own IMU rate); else lockstep's next step
-        self.guard.monotonic = self.timing.realtime or isinstance(self.peer, Px4Peer)
+        self.guard.monotonic = self.timing.realtime or isinstance(self.peer, Px4Peer)  # PX4: its own IMU rate
         self.steps = SimStepper(self.sim, self.peer, self.timing, self.guard, self.stack, self.vehicle, self.watchdog,
                                 lambda: self.log.active, self.announce, self.statustext, self.log_event)
         config = self.stack.core.config
@@ -166,20 +165,6 @@ class FlightControllerProcess:
         for link in (self.gcs, self.api):  # the sim link's messages are logged decoded as /truth, /fc/...
             link.on_frame = self.log.decoded
         self.links = (self.sim, self.gcs, self.api)
-
-    def _configured_sim_peer(self) -> tuple[str, int] | None:
-        """The simulator's address as configured (a tcp: stream, udpout:, or the default UDP target, its host
-        resolved as recvfrom reports it); None for udpin:, where the first sender is pinned."""
-        o = self.opts
-        if o.sim_link and not self.sim.targets:
-            return None
-        host, port = self._bridge_target
-        if isinstance(self.sim.sock, StreamTransport):
-            return host, port
-        try:
-            return socket.gethostbyname(host), port
-        except OSError:
-            return host, port
 
     # --- lockstep --------------------------------------------------------------------------------
     def _sim_ns(self) -> int:

@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import socket
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -18,7 +19,8 @@ from navig8_fc.core.controller import ActuatorCommand, ControllerConfig
 from navig8_fc.flight import ArmRequest
 from navig8_fc.links.mavlink_link import UdpLink
 from navig8_fc.links.sim_guard import SimGuard, SimInput, StreamRegrouper
-from navig8_fc.mavlink import seam
+from navig8_fc.links.transport import StreamTransport
+from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink.px4sim import ActuatorModel, Px4SimAssembler
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.params.registry import ParamRegistry
@@ -37,15 +39,28 @@ class BundlePeer:
         self._stream = stream
         self._regroup = StreamRegrouper().split  # a stream's reads cut anywhere between frames: one bundle each
         self.sim_to: list[tuple[str, int]] | None = []  # answers go to the paired bridge only
+        enc = link.mav  # the link's codec.Encoder: signs once a session has a key; announcements are never signed
+        self._announcer = codec.Encoder(enc.codec, enc.sysid, enc.compid)
+        self._keyed: bytes | None = None  # the session key the link signs and verifies with
 
     @property
     def incomplete(self) -> int:
         """Bundles dropped incomplete (PX4's assembler counts them; the private bundle comes whole)."""
         return 0
 
-    def announce(self) -> None:
-        """Our announcement: to the bridge that asked to pair (until it echoes), else to the configured bridge."""
-        self._link.send(self.guard.announce_record(), [self.guard.pair_asked_by or self._bridge_target])
+    def announce(self, to: tuple[str, int] | None = None) -> None:
+        """Our announcement (unsigned: it carries the nonce the key comes from): to `to`, else to the bridge that
+        asked to pair (until it echoes), else to the configured bridge."""
+        self._link.send_raw(self._announcer.frame(*self.guard.announce_record()),
+                            [to or self.guard.pair_asked_by or self._bridge_target])
+
+    def _key_link(self) -> None:
+        """A new session key: the link verifies incoming signatures and signs everything it sends with it."""
+        key = self.guard.session_key
+        if key is not self._keyed:
+            self._keyed = key
+            self._link.verify_key = key
+            self._link.mav.signing = None if key is None else codec.FrameSigning(key)
 
     def inputs(self, received: list[Any], now: float) -> list[SimInput]:
         """The link's datagrams (codec.Message records per datagram) as SimInputs; a bridge that asks to pair gets
@@ -56,9 +71,10 @@ class BundlePeer:
             for msgs in (self._regroup(r.msg) if self._stream else (r.msg,)):
                 inp, announce_to = guard.on_datagram(msgs, r.addr, now)
                 if announce_to is not None:
-                    self._link.send(guard.announce_record(), [announce_to])
+                    self.announce(announce_to)
                 if guard.peer is not None and self.sim_to[:1] != [guard.peer]:  # type: ignore[index]
                     self.sim_to = [guard.peer]
+                self._key_link()
                 out.append(inp)
         return out
 
@@ -163,6 +179,22 @@ class Realtime:
 
     def stats(self) -> dict[str, Any] | None:
         return vars(self.clock.stats)
+
+
+def configured_simulator(link: UdpLink, bridge_target: tuple[str, int], from_connection: bool
+                         ) -> tuple[str, int] | None:
+    """The PX4 simulator's address as configured, which Px4Peer pins: a tcp: stream's peer, udpout:'s, or the default
+    UDP target (its host resolved as recvfrom reports it); None for udpin: (connection string without a target), where
+    the first sender is pinned."""
+    if from_connection and not link.targets:
+        return None
+    host, port = bridge_target
+    if isinstance(link.sock, StreamTransport):
+        return host, port
+    try:
+        return socket.gethostbyname(host), port
+    except OSError:
+        return host, port
 
 
 def px4_assembler(config: ControllerConfig, origin: GeoOrigin) -> Px4SimAssembler:

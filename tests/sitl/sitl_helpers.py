@@ -387,6 +387,34 @@ def external_pair(tmp: Path, speed: float = 1.0, scenario: str = "ground") -> It
                 p.wait(timeout=10)
 
 
+def sensors_at_rest(t_sim_us: int, pos_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Any:
+    """A resting vehicle's sensor values at sim time t_sim_us, as seam.bundle_records reads them (a bridge's bundle
+    without a plant)."""
+    from types import SimpleNamespace
+
+    return SimpleNamespace(time_us=t_sim_us, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -9.80665),
+                           pos_ned=pos_ned, vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
+                           duct_tilt_rad=(0.0, 0.0), prop_speed_rad_s=(0.0, 0.0, 0.0), joint_pos_rad=(0.0, 0.0, 0.0),
+                           joint_rate_rad_s=(0.0, 0.0, 0.0), gripper_closed=False, updated=1)
+
+
+def bridge_answer(link: Any, data: bytes, want_usec: int, timeout_s: float, resend_s: float = 0.1) -> Any | None:
+    """As navig8-bridge waits for a step's answer through its link (sim_bridge.fc_link.FcLink): send data (a pair
+    request instead while unpaired), re-send every resend_s and at once after a new pairing, until the answer stamped
+    want_usec comes (returned) or timeout_s passes (None)."""
+    t0 = time.perf_counter()
+    deadline, next_send = t0 + timeout_s, t0
+    while (now := time.perf_counter()) < deadline:
+        if now >= next_send or link.resend_due:
+            link.resend_due = False
+            link.send(data)
+            next_send = now + resend_s
+        got = link.receive(max(0.0, min(next_send, deadline) - now), want_usec)
+        if got is not None:
+            return got
+    return None
+
+
 class LossyUdpProxy:
     """A UDP proxy on the sim link that impairs bridge -> FC datagrams: each one delayed by a uniform jitter in
     [0, 2 * jitter_s] (± jitter_s around jitter_s), dropped with probability `drop`, or held back behind the next

@@ -122,9 +122,11 @@ def test_a_foreign_process_cannot_inject_px4_simulator_frames_over_udp(tmp_path:
         sim_sock.close()
         forger.close()
     forged_lat = round(GeoOrigin().to_global(FORGED_NED_M)[0] * 1e7)
-    on_forged = (sum(m["time_usec"] in forged_stamps for m in _logged(run.log, "HIL_SENSOR"))
-                 + sum(m["lat"] == forged_lat for m in _logged(run.log, "HIL_STATE_QUATERNION")))
     answered_forged = sum(t in forged_stamps for t, _ in sim.answers)
+    # a step on a forged HIL_SENSOR echoes its stamp (answered, or logged); a step on a forged pose logs it
+    forged_steps = {t for t, _ in sim.answers if t in forged_stamps} | {
+        m["time_usec"] for m in _logged(run.log, "HIL_SENSOR") if m["time_usec"] in forged_stamps}
+    on_forged = len(forged_steps) + sum(m["lat"] == forged_lat for m in _logged(run.log, "HIL_STATE_QUATERNION"))
     guard = json.loads(mcap_metadata(run.log, "fc_stats")["sim_guard"])
     print(f"\nPX4 path over UDP, {len(forged_stamps)} forged steps from another socket: {on_forged} steps flown on "
           f"forged data, {answered_forged} forged stamps answered, {to_forger} datagrams to the forger; {guard}")

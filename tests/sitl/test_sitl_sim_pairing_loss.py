@@ -11,10 +11,9 @@ import json
 import statistics
 import time
 from pathlib import Path
-from types import SimpleNamespace
 
 import pytest
-from sitl_helpers import LossyUdpProxy, mcap_metadata, sitl
+from sitl_helpers import LossyUdpProxy, bridge_answer, mcap_metadata, sensors_at_rest, sitl
 
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.mavlink import seam
@@ -26,15 +25,6 @@ LOSS = 0.2  # each way
 PAIR_TIMEOUT_S = 12.0  # a few of the FC's 1 s announcements, each lost with LOSS: generous on a loaded host
 RESEND_S = 0.1  # navig8-bridge's STARTUP_RESEND_S
 DT_US = 10_000
-G_M_S2 = 9.80665
-
-
-def _at_rest(t_sim_us: int) -> SimpleNamespace:
-    """A resting vehicle's sensor values (what seam.bundle_records reads)."""
-    return SimpleNamespace(time_us=t_sim_us, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -G_M_S2),
-                           pos_ned=(0.0, 0.0, 0.0), vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
-                           duct_tilt_rad=(0.0, 0.0), prop_speed_rad_s=(0.0, 0.0, 0.0), joint_pos_rad=(0.0, 0.0, 0.0),
-                           joint_rate_rad_s=(0.0, 0.0, 0.0), gripper_closed=False, updated=1)
 
 
 def _pair_once(proxy: LossyUdpProxy, trial: int, limits: seam.ControlsScale) -> float | None:
@@ -45,18 +35,10 @@ def _pair_once(proxy: LossyUdpProxy, trial: int, limits: seam.ControlsScale) -> 
     try:
         proxy.bridge_addr = ("127.0.0.1", link.port)
         step = trial * 100
-        bundle = seam.encode_bundle(link.mav, step, _at_rest(step * DT_US), None)
-        want = seam.time_usec_from_sim_us(step * DT_US)
+        bundle = seam.encode_bundle(link.mav, step, sensors_at_rest(step * DT_US), None)
         t0 = time.perf_counter()
-        deadline, next_send = t0 + PAIR_TIMEOUT_S, t0
-        while (now := time.perf_counter()) < deadline:
-            if now >= next_send or link.resend_due:
-                link.resend_due = False
-                link.send(bundle)  # a pair request instead while unpaired
-                next_send = now + RESEND_S
-            if link.receive(max(0.0, min(next_send, deadline) - now), want) is not None:
-                return time.perf_counter() - t0
-        return None
+        got = bridge_answer(link, bundle, seam.time_usec_from_sim_us(step * DT_US), PAIR_TIMEOUT_S, RESEND_S)
+        return None if got is None else time.perf_counter() - t0
     finally:
         link.close()
 
