@@ -266,7 +266,7 @@ def fly_realtime(tmp: Path, link: str, serial_paths: tuple[str, str] | None = No
     rt = mcap_metadata(run.log, "realtime_stats")
     assert int(rt["steps"]) > 1000 and int(rt["steps"]) <= int(rt["ticks"]), rt
     assert int(rt["out_of_order"]) == 0, rt
-    assert "link budget 635 B/step" in out or run.bridge is None, out
+    assert "link budget 700 B/step" in out or run.bridge is None, out
 
 
 @dataclass
