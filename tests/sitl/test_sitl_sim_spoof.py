@@ -114,11 +114,13 @@ def test_spoofed_bridge_and_fc_addresses_steer_nothing_in_lockstep(tmp_path: Pat
         raw.close()
         link.close()
     flown = _flown_forged(run.log)
-    guard = json.loads(mcap_metadata(run.log, "fc_stats")["sim_guard"])
+    stats = mcap_metadata(run.log, "fc_stats")
+    guard, ticks = json.loads(stats["sim_guard"]), int(stats["ticks"])
     print(f"\nspoofed sources, lockstep: {flown} steps flown on {STEPS} forged bundles, {forged_answers_taken} forged "
-          f"answers taken of {answered}, alive after a forged done: {alive_after_forged_done}, exit on the real done: "
-          f"{exit_code}; bridge {link.counters.line()}; FC guard {guard}")
-    assert answered == STEPS and alive_after_forged_done, (answered, run.output("fc")[-2000:])
+          f"answers taken of {answered}, control steps {ticks} of {STEPS + 1} (a forged done ends them early), "
+          f"exit on the real done: {exit_code}; bridge {link.counters.line()}; FC guard {guard}")
+    # every real step flown, once: the forged "done" ended nothing (the forged answers cannot stand in for the FC's)
+    assert answered == STEPS and alive_after_forged_done and ticks == STEPS + 1, (ticks, run.output("fc")[-2000:])
     assert (flown, forged_answers_taken, exit_code) == (0, 0, 0)
     assert guard["unauthenticated"] >= STEPS and link.counters.unauthenticated >= STEPS
 
