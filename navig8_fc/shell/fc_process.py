@@ -19,7 +19,7 @@ from navig8_fc.flight import FlightStack, Notice, load_flight_script
 from navig8_fc.links.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.links.signing import LinkSigning
 from navig8_fc.links.sim_guard import SensorLimits, SimGuard
-from navig8_fc.links.transport import StreamTransport, parse_connection
+from navig8_fc.links.transport import parse_connection
 from navig8_fc.mavlink import codec
 from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mavlink.px4sim import PX4_SIM_MESSAGES
@@ -33,7 +33,7 @@ from navig8_fc.shell.gcs_links import GcsLinks
 from navig8_fc.shell.gcs_service import GcsService
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.mcap_log import open_logger
-from navig8_fc.shell.sim_peer import BundlePeer, Px4Peer, configured_simulator, px4_assembler, timing_from_params
+from navig8_fc.shell.sim_peer import Px4Peer, sim_peer_for, timing_from_params
 from navig8_fc.shell.sim_stepper import SimStepper
 from navig8_fc.shell.telemetry_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4
 from navig8_fc.viz import VehicleViz, packaged_uav_size_m
@@ -69,15 +69,8 @@ class FlightControllerProcess:
         self._spin_until = 0.0
         self._mk_links()
         self.stack = FlightStack(self.vehicle, self.registry, script)
-        # what the sim link carries: the bridge's bundle, or PX4's simulator messages (their own assembler; the
-        # simulator's address pinned instead of the nonce pairing; the same guard otherwise: docs/hil.md)
-        stream = isinstance(self.sim.sock, StreamTransport)
-        if opts.sim_messages == "navig8":
-            self.peer: BundlePeer | Px4Peer = BundlePeer(self.sim, self.guard, self._bridge_target, stream)
-        else:
-            asm = px4_assembler(self.stack.core.config, origin_from_params(self.registry))
-            configured = configured_simulator(self.sim, self._bridge_target, bool(opts.sim_link))
-            self.peer = Px4Peer(self.sim, self.guard, self._bridge_target, asm, configured)
+        self.peer = sim_peer_for(self.sim, self.guard, self._bridge_target, opts.sim_messages, bool(opts.sim_link),
+                                 self.stack.core.config, origin_from_params(self.registry))
         if isinstance(self.peer, Px4Peer):
             self.log_event("sim link: PX4 simulator messages (HIL_SENSOR, HIL_STATE_QUATERNION; actuator states "
                            "modelled unless NAVIG8_ACTUATOR_STATE comes)")

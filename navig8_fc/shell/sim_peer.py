@@ -197,6 +197,17 @@ def configured_simulator(link: UdpLink, bridge_target: tuple[str, int], from_con
         return host, port
 
 
+def sim_peer_for(link: UdpLink, guard: SimGuard, bridge_target: tuple[str, int], messages: str,
+                 from_connection: bool, config: ControllerConfig, origin: GeoOrigin) -> BundlePeer | Px4Peer:
+    """What the sim link carries (`--sim-messages`): the bridge's bundle ("navig8"), or PX4's simulator messages
+    ("px4": their own assembler, the simulator's address pinned instead of the nonce pairing, the same guard
+    otherwise; docs/hil.md). `from_connection`: the link was given as a connection string."""
+    if messages == "navig8":
+        return BundlePeer(link, guard, bridge_target, isinstance(link.sock, StreamTransport))
+    return Px4Peer(link, guard, bridge_target, px4_assembler(config, origin),
+                   configured_simulator(link, bridge_target, from_connection))
+
+
 def px4_assembler(config: ControllerConfig, origin: GeoOrigin) -> Px4SimAssembler:
     """PX4's simulator messages as the sensor source (navig8_fc/mavlink/px4sim.py, docs/hil.md): the actuator states
     modelled with the controller's actuator model (ACT_WN, ACT_ZETA at its rate) unless NAVIG8_ACTUATOR_STATE comes."""
