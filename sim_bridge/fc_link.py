@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from navig8_fc.links.mavlink_link import bind_udp, write_ports_file
-from navig8_fc.links.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat
+from navig8_fc.links.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat, session_key
 from navig8_fc.links.transport import open_endpoint, parse_connection
 from navig8_fc.mavlink import codec, dialect, seam
 from sim_bridge.bridge_options import BridgeOptions
@@ -39,8 +39,10 @@ class BridgeCounters:
     garbage_bytes: int = 0  # bytes between frames
     foreign_frames: int = 0  # from another system or component
     wrong_sender: int = 0  # FC frames from an address other than the paired FC's (or before pairing)
+    unauthenticated: int = 0  # frames from the paired FC's address not signed with the session key (spoofed)
     pair_refused: int = 0  # FC announcements from another address while the paired FC is live
     sessions: int = 0  # pairings with an FC (docs/bridge.md, "Pairing and sequencing")
+    echoes_repeated: int = 0  # nonce echoes sent again (the FC announced the same nonce again: the echo was lost)
     other_frames: int = 0  # valid FC frames the bridge does not use (HEARTBEAT, ...)
     datagrams_in: int = 0
     oversize: int = 0
@@ -70,7 +72,9 @@ class FcLink:
         self.limits = limits
         self.on_paired = on_paired
         self.codec = codec.seam_codec()
-        self.mav = codec.Encoder(self.codec, opts.sysid, dialect.COMPID_BRIDGE)
+        self.mav = codec.Encoder(self.codec, opts.sysid, dialect.COMPID_BRIDGE)  # signs once paired (session key)
+        self._pairing = codec.Encoder(self.codec, opts.sysid, dialect.COMPID_BRIDGE)  # pair requests, echoes: unsigned
+        self.session_key: bytes | None = None  # the paired FC's frames must be signed with it (sim_guard.session_key)
         self._parse_counts = codec.ParseCounters()
         self.counters = BridgeCounters()
         self.arm = ArmState()
@@ -96,15 +100,25 @@ class FcLink:
         return f"{self.fc_addr[0]}:{self.fc_addr[1]}" if self.fc_addr else "(port unknown until it announces itself)"
 
     def send(self, data: bytes) -> None:
-        """To the paired FC; before pairing, a pair request instead (to --fc-port, if known)."""
+        """To the paired FC (signed with the session's key: a datagram built before the session is signed again);
+        before pairing, a pair request instead (to --fc-port, if known)."""
         if self.fc_nonce is None:
-            data = self.mav.frame(*pairing_heartbeat(0))
+            data = self._pairing.frame(*pairing_heartbeat(0))
+        elif self.session_key is not None and not self._signed_now(data):
+            data = self.mav.resign(data)
         if self.fc_addr is None:
             return  # the FC's address is not known yet (--fc-port 0): its announcement will tell
         try:
             self.sock.sendto(data, self.fc_addr)
         except OSError:
             pass  # nobody listening yet (ICMP port unreachable surfaces here on Linux): the re-send covers it
+
+    def _signed_now(self, data: bytes) -> bool:
+        """Whether data's first frame is signed with the current session key."""
+        frames = codec.split_frames(data)[0]
+        key = self.session_key
+        return bool(frames) and key is not None and frames[0][2] == codec.IFLAG_SIGNED and codec.verify_frame(
+            key, frames[0])
 
     def receive(self, timeout_s: float, want_usec: int) -> seam.ActuatorControls | None:
         """Wait up to timeout_s for datagrams; handle them; return the answer stamped want_usec if it came.
@@ -166,6 +180,9 @@ class FcLink:
             if self.fc_nonce is None or addr != self.fc_addr:
                 c.wrong_sender += 1
                 continue
+            if not m.signed:  # the paired FC's address, not its key: a spoofed source
+                c.unauthenticated += 1
+                continue
             self._fc_heard = now
             if name == "HIL_ACTUATOR_CONTROLS":
                 got = self._on_answer(m.fields, want_usec, answer is None)
@@ -179,7 +196,7 @@ class FcLink:
     def _parse(self, data: bytes) -> list[codec.Message]:
         """The datagram's frames; what is wrong with it counted (garbage bytes, bad frames)."""
         pc = self._parse_counts
-        msgs = self.codec.parse(data, pc)
+        msgs = self.codec.parse(data, pc, self.session_key)
         if pc.garbage_bytes or pc.bad_crc or pc.truncated or pc.unknown_id or pc.signed or pc.bad_flags:
             self.counters.garbage_bytes += pc.garbage_bytes
             self.counters.bad_frames += pc.bad_frames
@@ -205,7 +222,11 @@ class FcLink:
             c.other_frames += 1
             return
         if addr == self.fc_addr and nonce == self.fc_nonce:
-            return  # the same announcement again: already paired
+            # the same announcement again: the FC announces only while unpaired, so our echo was lost: echo again
+            # (one HEARTBEAT for one, to the paired address only)
+            c.echoes_repeated += 1
+            self._send_echo(nonce)
+            return
         if self.fc_nonce is not None and addr != self.fc_addr and now - self._fc_heard < REPAIR_SILENCE_S:
             c.pair_refused += 1
             return
@@ -214,9 +235,20 @@ class FcLink:
         if keep is not None:
             keep(addr)
         c.sessions += 1
-        self.send(self.mav.frame(*pairing_heartbeat(nonce)))
+        self._send_echo(nonce)
+        # from now on both sides sign every frame with the session's key and take only frames signed with it
+        self.session_key = session_key(nonce, self.opts.sysid)
+        self.mav.signing = codec.FrameSigning(self.session_key)
         self.on_paired(now)  # the new FC hears the status first, then the current bundle, at once
         self.resend_due = True
+
+    def _send_echo(self, nonce: int) -> None:
+        """The nonce echoed, unsigned (the FC derives the key from the nonce it announced)."""
+        if self.fc_addr is not None:
+            try:
+                self.sock.sendto(self._pairing.frame(*pairing_heartbeat(nonce)), self.fc_addr)
+            except OSError:
+                pass  # the FC announces again, and the echo follows
 
     def _on_arm_cmd(self, fields: dict[str, Any]) -> None:
         try:

@@ -1,7 +1,8 @@
 """The byte budget of the bridge ⇄ FC link: what one lockstep step puts on the wire, against what a serial line
 carries (docs/hil.md, "Bandwidth").
 
-Worst case per step (MAVLink 2, unsigned; trailing-zero truncation only ever makes frames shorter): the bundle's
+Worst case per step (MAVLink 2, signed with the session key as every frame is once paired: 13 bytes more per frame;
+trailing-zero truncation only ever makes frames shorter): the bundle's
 five frames bridge → FC, the answer (and, at most once per step, an arm command) FC → bridge. A UART is full
 duplex, so each direction is checked on its own against HEADROOM × baud / 10 (8N1: ten bits per byte); the
 headroom leaves room for the 1 Hz NAVIG8_SIM_STATUS, the FC's announcements and the gaps a real UART leaves
@@ -14,7 +15,7 @@ import math
 from dataclasses import dataclass
 
 from navig8_fc.links.transport import Connection, serial_budget
-from navig8_fc.mavlink.codec import V2_OVERHEAD, Codec
+from navig8_fc.mavlink.codec import SIGNATURE_LEN, V2_OVERHEAD, Codec
 
 HEADROOM = 0.9  # share of a serial line's bytes/s the per-step traffic may use
 BUNDLE = ("ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH", "HIL_SENSOR")  # seam.encode_bundle
@@ -41,8 +42,8 @@ class LinkBudget:
 
 
 def frames_bytes(codec: Codec, names: tuple[str, ...]) -> int:
-    """Bytes of one full-length frame of each message."""
-    return sum(V2_OVERHEAD + codec.specs[n].size for n in names)
+    """Bytes of one full-length signed frame of each message."""
+    return sum(V2_OVERHEAD + SIGNATURE_LEN + codec.specs[n].size for n in names)
 
 
 def link_budget(codec: Codec, conn: Connection, rate_hz: float) -> LinkBudget:

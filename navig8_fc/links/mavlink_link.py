@@ -56,7 +56,7 @@ class LinkCounters:
     unknown_id: int = 0  # CRC could not be checked: a message id outside our dialect (or the sim link's codec)
     foreign: int = 0  # frames for another system id
     send_errors: int = 0
-    signed: int = 0  # signed frames on the sim link (skipped: it does not verify signatures)
+    signed: int = 0  # signed frames on the sim link that did not verify with its session key (or before one): dropped
     bad_flags: int = 0  # MAVLink 2 frames with an unknown incompat flag (the sim link)
     bad_signature: int = 0  # GCS links with a signing key: frames unsigned or wrongly signed (refused)
 
@@ -93,8 +93,9 @@ class UdpLink:
     targets: list[tuple[str, int]] = field(default_factory=list)
     peers: list[tuple[str, int]] = field(default_factory=list)
     sysid_filter: int | None = None  # drop frames not from... (kept None: we accept any source)
-    # Which senders become peers (telemetry goes to them): None = any decoded frame; else asked (msg, addr),
-    # so a spoofed source gets no stream until the GCS service confirms it (docs/security.md).
+    # Which senders become peers (telemetry goes to them): None = any decoded frame; else asked (msg, addr) (a codec
+    # link: (the datagram's records, addr)), so a spoofed source gets no stream until the GCS service confirms it
+    # (docs/security.md); the FC's sim link admits none (its guard picks the one peer its answers go to).
     admit_peer: Callable[[Any, tuple[str, int]], bool] | None = None
     counters: LinkCounters = field(default_factory=LinkCounters)
     max_peers: int = 8
@@ -107,6 +108,9 @@ class UdpLink:
     # -1: receive() drains the socket. The sim link takes one datagram per call: in lockstep one is due per step,
     # and the drain's final, failing recvfrom (~1 us) would be paid on every step.
     max_datagrams: int = -1
+    # A codec link's signing key (the sim link once paired): signed frames that verify with it decode with
+    # Message.signed set; other signed frames are counted (`signed`) and dropped.
+    verify_key: bytes | None = None
 
     @staticmethod
     def open(name: str, mav: Any, bind: tuple[str, int], targets: list[tuple[str, int]] | None = None,
@@ -190,10 +194,11 @@ class UdpLink:
         """A codec link's datagram: ONE Received whose msg is the list of its codec.Message records (a lockstep
         step is one datagram of five), the rest counted."""
         assert self.codec is not None
-        msgs: list[Message] = self.codec.parse(data, self.counters)
+        msgs: list[Message] = self.codec.parse(data, self.counters, self.verify_key)
         if msgs:
             self.counters.frames_in += len(msgs)
-            self._note_peer(addr)
+            if self.admit_peer is None or self.admit_peer(msgs, addr):
+                self._note_peer(addr)
             out.append(Received(data, msgs, addr))
 
     def _note_peer(self, addr: tuple[str, int]) -> None:

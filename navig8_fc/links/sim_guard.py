@@ -11,22 +11,28 @@ there. A bridge that starts later (or restarts) asks with a HEARTBEAT whose cust
 FC answers it with a new nonce only while unpaired, when the request comes from the paired address itself (only
 the process that owns that port can send from it), or when the paired bridge has been silent for REPAIR_SILENCE_S
 (it sends NAVIG8_SIM_STATUS at 1 Hz at least, so a live bridge is never that silent). A new session is the only
-way time may go back (the explicit reset).
+way time may go back (the explicit reset). Once paired, every bundle and status must carry a MAVLink 2 signature
+with the session's key (`session_key`, from the nonce): the source address alone authenticates nothing, since a
+process with raw sockets can send from any address.
 
 Sequencing: a bundle is one datagram holding exactly ODOMETRY, NAVIG8_ACTUATOR_STATE, NAVIG8_ARM_STATE,
 (NAVIG8_TRUTH), HIL_SENSOR of one stamp, in that order (fragments never join across datagrams). The first bundle
 of a session may carry any stamp; after it only the next step (step + 1, time_usec + the session's dt) runs the
-controller, the current step again is a duplicate (the FC re-sends its answer), anything else is dropped.
+controller, the current step again is a duplicate (the FC re-sends its answer), anything else is dropped. In real
+time (and on PX4's simulator messages) any newer stamp is taken, but not one more than STAMP_LEAP_MAX_US ahead
+unless STAMP_LEAP_CONFIRM bundles in a row continue from it: one far-future stamp cannot make every later bundle
+"older".
 
 Validation: every value finite, in the range a sensor of this vehicle can report, and (position) no faster than
-MAX_SPEED_M_S from the last accepted sample. A group that fails (IMU, motion capture, actuators, arm) is replaced
-by its last accepted values and counted; how long a group has been failing (`bad_data_s`) feeds the FC's
-failsafe (navig8_fc/flight/failsafe.py, BAD_DATA_FAILSAFE_S). Truth that is not finite is dropped from the log
-(it never reaches control).
+MAX_SPEED_M_S from the last accepted sample, over at most MOCAP_GAP_MAX_S (SensorValidator). A group that fails
+(IMU, motion capture, actuators, arm) is replaced by its last accepted values and counted; how long a group has been
+failing (`bad_data_s`) feeds the FC's failsafe (navig8_fc/flight/failsafe.py, BAD_DATA_FAILSAFE_S). Truth that is
+not finite is dropped from the log (it never reaches control).
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -46,6 +52,11 @@ POS_MAX_M = 10_000.0  # the flight area (NED from the origin)
 VEL_MAX_M_S = 50.0
 MAX_SPEED_M_S = 30.0  # position jump between accepted samples <= MAX_SPEED_M_S * dt + MOCAP_JUMP_M
 MOCAP_JUMP_M = 0.05  # 50 sigma of the motion capture's position noise (sim_bridge.params: 1 mm)
+MOCAP_GAP_MAX_S = 0.5  # the jump check's dt at most this: the allowance stops growing (15 m) however long the gap
+MOCAP_REANCHOR_SAMPLES = 10  # after a refused jump, this many mutually consistent samples are taken (re-acquired)
+STAMP_LEAP_MAX_US = 1_000_000  # real time / PX4: a stamp this far past the last one is refused ...
+STAMP_LEAP_CONFIRM = 10  # ... unless this many bundles in a row continue from it (the simulator really moved on)
+SESSION_KEY_LABEL = b"navig8 sim link session key"
 QUAT_NORM_TOL = 0.05  # |q| within 1 +- this (float32 and the mocap's attitude noise are far below)
 ACTUATOR_MARGIN = 1.2  # measured tilt / speed up to 20 % beyond the command limits (overshoot)
 JOINT_MARGIN_RAD = 0.5  # beyond the joint limit
@@ -62,6 +73,15 @@ def pairing_heartbeat(nonce: int) -> seam.Record:
     (its session nonce), the bridge's echo of it, or (nonce 0) the bridge's pair request."""
     name, v = seam.announce_record()  # HEARTBEAT values: type, autopilot, base_mode, custom_mode, ...
     return name, (*v[:3], int(nonce) & 0xFFFFFFFF, *v[4:])
+
+
+def session_key(nonce: int, sysid: int) -> bytes:
+    """The sim link's MAVLink 2 signing key for the session opened by `nonce` (both sides derive it: the FC from
+    the nonce it announced, the bridge from the one it echoed). The nonce crosses the link once, in clear, to the
+    bridge's address: a process that cannot read that traffic cannot sign (docs/bridge.md, "Authenticated
+    bundles")."""
+    return hashlib.sha256(SESSION_KEY_LABEL + (int(nonce) & 0xFFFFFFFF).to_bytes(4, "little")
+                          + bytes((int(sysid) & 0xFF,))).digest()
 
 
 @dataclass
@@ -81,6 +101,10 @@ class SimGuardCounters:
     invalid_arm: int = 0
     invalid_truth: int = 0  # not finite: dropped from the log
     unpaired_bundles: int = 0  # bundles before any pairing
+    repeated_echoes: int = 0  # the paired bridge's echo of the nonce it paired with, again (its re-echo): ignored
+    unauthenticated: int = 0  # bundles / status from the paired address not signed with the session key
+    stamp_leaps: int = 0  # bundles stamped more than STAMP_LEAP_MAX_US past the last one: refused
+    mocap_reanchors: int = 0  # motion capture re-acquired after a refused jump (MOCAP_REANCHOR_SAMPLES consistent)
 
 
 class SimInput(NamedTuple):
@@ -91,6 +115,7 @@ class SimInput(NamedTuple):
     wire: dict[str, Message] | None = None  # "step": the bundle's messages for the log (None if a group failed)
     status: seam.SimStatus | None = None  # "status"
     bad_groups: tuple[str, ...] = ()  # "step": the groups replaced by their last good values
+    time_usec: int = 0  # "duplicate": the stamp sent again (answered again only if it is the step last flown)
 
 
 @dataclass(frozen=True)
@@ -152,6 +177,83 @@ class StreamRegrouper:
 
 
 @dataclass
+class SensorValidator:
+    """One session's sensor checks (module docstring): each group finite, in range and plausible, a failing group
+    replaced by its last accepted values. The motion capture's jump allowance grows with the time since its last
+    accepted sample only up to MOCAP_GAP_MAX_S; a sample beyond it is refused until MOCAP_REANCHOR_SAMPLES samples in
+    a row agree with each other (the vehicle re-acquired where it now is), so no gap makes any position plausible."""
+
+    limits: SensorLimits
+    counters: SimGuardCounters
+    good: seam.StepBundle | None = None  # the last bundle's accepted values, per group
+    pos_good_us: int = 0  # time_usec of the last accepted motion-capture sample
+    candidate: tuple[tuple[float, float, float], int, int] | None = None  # refused jump: (pos, time_usec, run length)
+
+    def _mocap_ok(self, b: seam.StepBundle) -> bool:
+        q = b.quat_wxyz
+        n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]  # NaN fails the comparison, inf the bound
+        if not (_within3(b.pos_ned, POS_MAX_M) and _within3(b.vel_ned, VEL_MAX_M_S)
+                and _QUAT_N2_LO <= n2 <= _QUAT_N2_HI):
+            return False
+        prev = self.good
+        gap_s = min((b.time_usec - self.pos_good_us) * 1e-6, MOCAP_GAP_MAX_S)
+        if prev is None or _near(prev.pos_ned, b.pos_ned, gap_s):
+            self.candidate = None
+            return True
+        cand = self.candidate
+        run = cand[2] + 1 if cand is not None and _near(cand[0], b.pos_ned, (b.time_usec - cand[1]) * 1e-6) else 1
+        self.candidate = (b.pos_ned, b.time_usec, run)  # type: ignore[assignment]
+        if run < MOCAP_REANCHOR_SAMPLES:
+            return False
+        self.candidate = None
+        self.counters.mocap_reanchors += 1
+        return True
+
+    def check(self, b: seam.StepBundle) -> tuple[seam.StepBundle, tuple[str, ...]]:
+        """The bundle with every failing group replaced by its last good values, and the failing groups. With no
+        good values yet a failing group keeps its (bad) values: the caller then must not run control on it."""
+        lim = self.limits
+        prev = self.good
+        bad: list[str] = []
+        if not (_within3(b.gyro_frd, GYRO_MAX_RAD_S) and _within3(b.accel_frd, ACCEL_MAX_M_S2)):
+            bad.append("imu")
+        if self._mocap_ok(b):
+            self.pos_good_us = b.time_usec
+        else:
+            bad.append("mocap")
+        sp, tilt = b.prop_speed_rad_s, b.duct_tilt_rad
+        tb, db, tlb = lim.tilt_max_rad, lim.duct_speed_max_rad_s, lim.tail_speed_max_rad_s
+        if not (-tb <= tilt[0] <= tb and -tb <= tilt[1] <= tb and -db <= sp[0] <= db and -tlb <= sp[1] <= tlb
+                and -db <= sp[2] <= db):
+            bad.append("actuators")
+        if not (_within3(b.joint_pos_rad, lim.joint_limit_rad) and _within3(b.joint_rate_rad_s, JOINT_RATE_MAX_RAD_S)):
+            bad.append("arm")
+        if not bad:
+            self.good = b
+            return b, ()
+        if prev is None:
+            return b, tuple(bad)
+        fix: dict[str, Any] = {}
+        if "imu" in bad:
+            fix.update(gyro_frd=prev.gyro_frd, accel_frd=prev.accel_frd)
+        if "mocap" in bad:
+            fix.update(pos_ned=prev.pos_ned, vel_ned=prev.vel_ned, quat_wxyz=prev.quat_wxyz)
+        if "actuators" in bad:
+            fix.update(duct_tilt_rad=prev.duct_tilt_rad, prop_speed_rad_s=prev.prop_speed_rad_s)
+        if "arm" in bad:
+            fix.update(joint_pos_rad=prev.joint_pos_rad, joint_rate_rad_s=prev.joint_rate_rad_s)
+        good = b._replace(**fix)
+        self.good = good._replace(truth=None)
+        return good, tuple(bad)
+
+
+def _near(p0: Sequence[float], p1: Sequence[float], dt_s: float) -> bool:
+    """p1 within MAX_SPEED_M_S * dt_s + MOCAP_JUMP_M of p0 on every axis."""
+    jump = MAX_SPEED_M_S * dt_s + MOCAP_JUMP_M
+    return abs(p1[0] - p0[0]) <= jump and abs(p1[1] - p0[1]) <= jump and abs(p1[2] - p0[2]) <= jump
+
+
+@dataclass
 class SimGuard:
     """One FC's view of its sim link (module docstring). `new_nonce` gives session nonces (nonzero 32-bit)."""
 
@@ -167,8 +269,12 @@ class SimGuard:
     _step: int | None = None
     _time_usec: int | None = None
     _dt_us: int | None = None
-    _good: seam.StepBundle | None = None  # the last bundle's accepted values, per group
-    _pos_good_us: int = 0  # time_usec of the last accepted motion-capture sample (the jump check's dt)
+    _pair_asked_by: tuple[str, int] | None = None  # a pair request answered, its echo not yet come
+    _spent_nonce: int = 0  # the nonce the current session was opened with (its echo again is a re-echo)
+    # the session's signing key (None: no session, or PX4's simulator messages, which carry no nonce to derive it)
+    session_key: bytes | None = None
+    _values: SensorValidator | None = None
+    _leap: tuple[int, int] | None = None  # (time_usec, count) of stamps leaping ahead, to confirm
     _bad_since_us: int | None = None  # sim time the current run of invalid bundles began
     _asm: seam.BundleAssembler = field(default_factory=seam.BundleAssembler)  # one per guard: building one costs
     _notices: dict[str, tuple[str, int]] = field(default_factory=dict)  # kind -> (latest text, count unreported)
@@ -176,6 +282,7 @@ class SimGuard:
 
     def __post_init__(self) -> None:
         self.nonce = self._fresh_nonce()
+        self._values = SensorValidator(self.limits, self.counters)
 
     def _fresh_nonce(self) -> int:
         n = int(self.new_nonce()) & 0xFFFFFFFF
@@ -190,32 +297,69 @@ class SimGuard:
         return self.peer is None or addr == self.peer or now_s - self.last_heard_s >= REPAIR_SILENCE_S
 
     def needs_announce(self, now_s: float) -> bool:
-        """Announce (every wall second) while unpaired or after the bridge fell silent."""
-        return self.peer is None or now_s - self.last_heard_s >= REPAIR_SILENCE_S
+        """Announce (every wall second) while unpaired, after the bridge fell silent, or while a pair request is
+        unanswered by its echo (the echo or our answer was lost: the bridge echoes again when it hears us again)."""
+        return self.peer is None or self._pair_asked_by is not None or now_s - self.last_heard_s >= REPAIR_SILENCE_S
+
+    @property
+    def pair_asked_by(self) -> tuple[str, int] | None:
+        """Who asked to pair (a pair request answered) and has not echoed our nonce yet: where announcements go."""
+        return self._pair_asked_by
 
     def _on_heartbeat(self, m: Message, addr: tuple[str, int], now_s: float) -> tuple[str, int] | None:
         """A bridge HEARTBEAT: a pair request (custom_mode 0) gets the announcement back (returns where to send it);
-        the echo of our nonce opens a session."""
+        the echo of our nonce opens a session. The paired bridge echoes again when our announcement comes again (an
+        echo lost on the way): an echo of the nonce this session was opened with is that re-echo, ignored."""
         custom = int(m.fields["custom_mode"])
         if not self.may_pair(addr, now_s):
             self.counters.pair_refused += 1
             self._notice("pair_refused", f"Sim link: pairing refused {addr[0]}:{addr[1]}")
             return None
         if custom == 0:
+            self._pair_asked_by = addr
             return addr
+        if addr == self.peer and custom == self._spent_nonce:
+            self.counters.repeated_echoes += 1
+            self.last_heard_s = now_s
+            return None
         if custom != self.nonce:
             self.counters.wrong_sender += 1
             self._notice("wrong_sender", f"Sim link: wrong nonce from {addr[0]}:{addr[1]}")
             return None
+        self._spent_nonce = custom
+        self.nonce = self._fresh_nonce()  # the echoed nonce is spent: a replayed ack cannot open another session
+        self._open_session(addr, now_s)
+        self.session_key = session_key(custom, self.sysid)  # from now on every bundle and status must be signed
+        return None
+
+    def _open_session(self, addr: tuple[str, int], now_s: float) -> None:
+        """A new session with the peer at addr: sequencing and the last good values start afresh."""
         self.peer = addr
         self.last_heard_s = now_s
-        self.nonce = self._fresh_nonce()  # the echoed nonce is spent: a replayed ack cannot open another session
+        self._pair_asked_by = None
         self._step = self._time_usec = self._dt_us = None
-        self._good = None
+        self._leap = None
+        self.session_key = None
+        self._values = SensorValidator(self.limits, self.counters)
         self._bad_since_us = None
         self.counters.sessions += 1
         self._notice("session", f"Sim link paired: {addr[0]}:{addr[1]} ({self.counters.sessions})")
-        return None
+
+    def admit_simulator(self, addr: tuple[str, int], now_s: float, configured: tuple[str, int] | None) -> bool:
+        """PX4's simulator messages carry no nonce, so the peer is pinned instead: the configured one (a tcp: or
+        udpout: connection, the default UDP target) or else the first that sends. Every datagram from another
+        address is refused and counted; without a configured peer another may take over only once the pinned one
+        has been silent for REPAIR_SILENCE_S (a restarted simulator on a new port), as a bridge may re-pair."""
+        if addr == self.peer:
+            self.last_heard_s = now_s
+            return True
+        if (configured is None or addr == configured) and (self.peer is None
+                                                             or now_s - self.last_heard_s >= REPAIR_SILENCE_S):
+            self._open_session(addr, now_s)
+            return True
+        self.counters.wrong_sender += 1
+        self._notice("wrong_sender", f"Sim link: dropped {addr[0]}:{addr[1]} (not the simulator)")
+        return False
 
     # --- datagrams -----------------------------------------------------------------------------------------
     def on_datagram(self, msgs: list[Message], addr: tuple[str, int], now_s: float
@@ -250,6 +394,10 @@ class SimGuard:
                 c.wrong_sender += 1
                 self._notice("wrong_sender", f"Sim link: dropped {addr[0]}:{addr[1]} (not paired)")
             return _NONE, None
+        if self.session_key is not None and not all(m.signed for m in msgs):
+            c.unauthenticated += 1  # the paired address, but not the paired bridge's key: a spoofed source
+            self._notice("unauthenticated", f"Sim link: unsigned data from {addr[0]}:{addr[1]} dropped")
+            return _NONE, None
         if single:
             self.last_heard_s = now_s
             return SimInput("status", status=seam.decode_sim_status(m0.fields)), None
@@ -262,19 +410,26 @@ class SimGuard:
             c.malformed += 1
             self._notice("malformed", "Sim link: bundle parts disagree on the time")
             return _NONE, None
-        return self._sequence(b, asm.completed), None
+        return self.accept_bundle(b, asm.completed), None
 
-    def _sequence(self, b: seam.StepBundle, wire: dict[str, Message]) -> SimInput:
+    def accept_bundle(self, b: seam.StepBundle, wire: dict[str, Message]) -> SimInput:
+        """A bundle of the paired peer (whole: one datagram here, or assembled from PX4's simulator messages),
+        sequenced and validated: a step, a duplicate, or nothing (counted)."""
         c = self.counters
         step, tu = b.step, b.time_usec
         if self._step is not None:
             if step == self._step and tu == self._time_usec:
                 c.duplicates += 1
-                return _DUPLICATE
+                return SimInput("duplicate", time_usec=tu)
             dt = self._dt_us
             if self.monotonic:  # real time (FC_TIMING = 1): gaps are losses, counted by the real-time clock
                 if step <= self._step or tu <= self._time_usec:
                     c.out_of_order += 1
+                    return _NONE
+                if tu - self._time_usec > STAMP_LEAP_MAX_US and not self._leap_confirmed(tu):
+                    c.stamp_leaps += 1  # one far-future stamp must not make every later real bundle "older"
+                    self._notice("stamp_leaps", f"Sim link: step stamped {(tu - self._time_usec) * 1e-6:.1f} s ahead "
+                                 "refused")
                     return _NONE
             elif step != self._step + 1 or tu <= self._time_usec or (dt is not None and tu - self._time_usec != dt):
                 c.out_of_order += 1
@@ -282,7 +437,9 @@ class SimGuard:
                 return _NONE
             self._dt_us = tu - self._time_usec
         self._step, self._time_usec = step, tu
-        good, bad = self._validate(b)
+        self._leap = None
+        assert self._values is not None
+        good, bad = self._values.check(b)
         truth = wire.get("NAVIG8_TRUTH")
         if truth is not None and not _finite_values(truth.values):
             c.invalid_truth += 1
@@ -306,57 +463,18 @@ class SimGuard:
             return 0.0
         return (self._time_usec - self._bad_since_us) / 1e6
 
-    # --- validation ----------------------------------------------------------------------------------------
-    def _validate(self, b: seam.StepBundle) -> tuple[seam.StepBundle, tuple[str, ...]]:
-        """The bundle with every failing group replaced by its last good values, and the failing groups. With no
-        good values yet a failing group keeps its (bad) values: the caller then must not run control on it."""
-        lim = self.limits
-        prev = self._good
-        bad: list[str] = []
-        if not (_within3(b.gyro_frd, GYRO_MAX_RAD_S) and _within3(b.accel_frd, ACCEL_MAX_M_S2)):
-            bad.append("imu")
-        q = b.quat_wxyz
-        n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]  # NaN fails the comparison, inf the bound
-        ok = (_within3(b.pos_ned, POS_MAX_M) and _within3(b.vel_ned, VEL_MAX_M_S)
-              and _QUAT_N2_LO <= n2 <= _QUAT_N2_HI)
-        if ok and prev is not None:
-            dt_s = (b.time_usec - self._pos_good_us) * 1e-6
-            jump = MAX_SPEED_M_S * dt_s + MOCAP_JUMP_M
-            p0, p1 = prev.pos_ned, b.pos_ned
-            ok = abs(p1[0] - p0[0]) <= jump and abs(p1[1] - p0[1]) <= jump and abs(p1[2] - p0[2]) <= jump
-        if ok:
-            self._pos_good_us = b.time_usec
-        else:
-            bad.append("mocap")
-        sp, tilt = b.prop_speed_rad_s, b.duct_tilt_rad
-        tb, db, tlb = lim.tilt_max_rad, lim.duct_speed_max_rad_s, lim.tail_speed_max_rad_s
-        if not (-tb <= tilt[0] <= tb and -tb <= tilt[1] <= tb and -db <= sp[0] <= db and -tlb <= sp[1] <= tlb
-                and -db <= sp[2] <= db):
-            bad.append("actuators")
-        if not (_within3(b.joint_pos_rad, lim.joint_limit_rad) and _within3(b.joint_rate_rad_s, JOINT_RATE_MAX_RAD_S)):
-            bad.append("arm")
-        if not bad:
-            self._good = b
-            return b, ()
-        if prev is None:
-            return b, tuple(bad)
-        fix: dict[str, Any] = {}
-        if "imu" in bad:
-            fix.update(gyro_frd=prev.gyro_frd, accel_frd=prev.accel_frd)
-        if "mocap" in bad:
-            fix.update(pos_ned=prev.pos_ned, vel_ned=prev.vel_ned, quat_wxyz=prev.quat_wxyz)
-        if "actuators" in bad:
-            fix.update(duct_tilt_rad=prev.duct_tilt_rad, prop_speed_rad_s=prev.prop_speed_rad_s)
-        if "arm" in bad:
-            fix.update(joint_pos_rad=prev.joint_pos_rad, joint_rate_rad_s=prev.joint_rate_rad_s)
-        good = b._replace(**fix)
-        self._good = good._replace(truth=None)
-        return good, tuple(bad)
+    def _leap_confirmed(self, tu: int) -> bool:
+        """A leaping stamp counts towards a re-sync only when it continues the leaping ones before it (newer, within
+        STAMP_LEAP_MAX_US of the last): STAMP_LEAP_CONFIRM of them in a row are the simulator's new time."""
+        leap = self._leap
+        n = leap[1] + 1 if leap is not None and 0 < tu - leap[0] <= STAMP_LEAP_MAX_US else 1
+        self._leap = (tu, n)
+        return n >= STAMP_LEAP_CONFIRM
 
     @property
     def has_good(self) -> bool:
         """Whether every group has had good values in this session (control may run on substituted groups)."""
-        return self._good is not None
+        return self._values is not None and self._values.good is not None
 
     # --- reports -------------------------------------------------------------------------------------------
     def _notice(self, kind: str, text: str) -> None:
@@ -383,8 +501,7 @@ class SimGuard:
 
 
 _NONE = SimInput("none")
-_DUPLICATE = SimInput("duplicate")
 
 
-__all__ = ["COMPID_BRIDGE", "GROUPS", "REPAIR_SILENCE_S", "SensorLimits", "SimGuard",
-           "SimGuardCounters", "SimInput", "pairing_heartbeat"]
+__all__ = ["COMPID_BRIDGE", "GROUPS", "REPAIR_SILENCE_S", "SensorLimits", "SensorValidator", "SimGuard",
+           "SimGuardCounters", "SimInput", "pairing_heartbeat", "session_key"]

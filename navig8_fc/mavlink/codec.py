@@ -28,6 +28,8 @@ decoder for everything else (the GCS links keep pymavlink message objects for th
 from __future__ import annotations
 
 import functools
+import hashlib
+import hmac
 import struct
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -71,6 +73,7 @@ class Message(NamedTuple):
     sysid: int
     compid: int
     seq: int
+    signed: bool = False  # the frame carried a MAVLink 2 signature that verified with the key `parse` was given
 
     @property
     def fields(self) -> dict[str, Any]:
@@ -199,26 +202,67 @@ class Codec:
         """One unsigned MAVLink 2 frame of `name` (values in field order), trailing payload zeros stripped."""
         return self.frames(((name, values),), seq, sysid, compid)
 
-    def frames(self, records: Iterable[tuple[str, Sequence[Any]]], seq: int, sysid: int, compid: int) -> bytes:
-        """Frames of (name, values) records back to back, sequence numbers seq, seq + 1, ... (mod 256)."""
+    def frames(self, records: Iterable[tuple[str, Sequence[Any]]], seq: int, sysid: int, compid: int,
+               signing: FrameSigning | None = None) -> bytes:
+        """Frames of (name, values) records back to back, sequence numbers seq, seq + 1, ... (mod 256); signed
+        (MAVLink 2 signing, one timestamp each from `signing`) when given."""
         specs, hdr = self.specs, _V2_HEADER.pack
+        flags = 0 if signing is None else IFLAG_SIGNED
         parts: list[bytes] = []
         for name, values in records:
             s = specs[name]
             payload = s.pack_values(values).rstrip(b"\0") or b"\0"
-            body = hdr(len(payload), 0, 0, seq, sysid, compid, s.msg_id & 0xFFFF, s.msg_id >> 16) + payload
-            parts += (b"\xfd", body, crc16(body + s.crc_extra_byte).to_bytes(2, "little"))
+            body = hdr(len(payload), flags, 0, seq, sysid, compid, s.msg_id & 0xFFFF, s.msg_id >> 16) + payload
+            frame = b"\xfd" + body + crc16(body + s.crc_extra_byte).to_bytes(2, "little")
+            parts.append(frame if signing is None else signing.sign(frame))
             seq = (seq + 1) & 0xFF
         return b"".join(parts)
 
-    def parse(self, data: bytes, counters: Counts) -> list[Message]:
-        """The messages of one datagram, in order; everything else counted in `counters` and dropped."""
-        return _scan(data, counters, self.by_id)
+    def parse(self, data: bytes, counters: Counts, key: bytes | None = None) -> list[Message]:
+        """The messages of one datagram, in order; everything else counted in `counters` and dropped. With `key`,
+        signed frames whose signature verifies with it are decoded (`Message.signed`); without, or when it does not
+        verify, a signed frame is counted (`signed`) and dropped. Unsigned frames decode either way."""
+        return _scan(data, counters, self.by_id, key)
 
     def decode_frame(self, frame: bytes) -> Message | None:
-        """The message of exactly one whole frame, or None (anything else in it, or a bad frame)."""
+        """The message of exactly one whole frame, or None (anything else in it, or a bad frame). A signed frame
+        decodes without checking its signature: this reads the process's own frames back (for the log)."""
+        if len(frame) > SIGNATURE_LEN and frame[0] == V2_MAGIC and frame[2] == IFLAG_SIGNED:
+            frame = _unsigned(frame, self.by_id)
         got = self.parse(frame, self._rejected)
         return got[0] if len(got) == 1 and _frame_len(frame) == len(frame) else None
+
+
+class FrameSigning:
+    """MAVLink 2 signing of outgoing frames with one key (docs/bridge.md, "Authenticated bundles"): link id, a 48-bit
+    timestamp that grows by one per frame (starting from `timestamp`), and the first 6 bytes of
+    SHA-256(key + frame + link id + timestamp), as the MAVLink signing guide defines them."""
+
+    def __init__(self, key: bytes, link_id: int = 0, timestamp: int = 1) -> None:
+        if len(key) != 32:
+            raise ValueError("a MAVLink 2 signing key is 32 bytes")
+        self.key, self.link_id, self.timestamp = bytes(key), link_id & 0xFF, timestamp
+
+    def sign(self, frame: bytes) -> bytes:
+        """A whole frame built with the signed incompat flag (its CRC covers it) + its 13-byte signature block."""
+        self.timestamp += 1
+        tail = frame + bytes((self.link_id,)) + (self.timestamp & 0xFFFFFFFFFFFF).to_bytes(6, "little")
+        return tail + hashlib.sha256(self.key + tail).digest()[:6]
+
+
+def verify_frame(key: bytes, frame: bytes) -> bool:
+    """A whole signed frame's signature against key (the timestamp is not judged here: the sim link's own step
+    sequencing refuses replays)."""
+    return hmac.compare_digest(hashlib.sha256(key + frame[:-6]).digest()[:6], frame[-6:])
+
+
+def _unsigned(frame: bytes, by_id: dict[int, MessageSpec]) -> bytes:
+    """A signed frame without its signature block, its incompat flag cleared and CRC recomputed (unknown id: as is)."""
+    spec = by_id.get(frame[7] | (frame[8] << 8) | (frame[9] << 16))
+    if spec is None:
+        return frame
+    body = frame[1:2] + b"\0" + frame[3:-SIGNATURE_LEN - 2]
+    return b"\xfd" + body + crc16(body + spec.crc_extra_byte).to_bytes(2, "little")
 
 
 def _frame_len(frame: bytes) -> int:
@@ -229,7 +273,8 @@ def _frame_len(frame: bytes) -> int:
     return V2_OVERHEAD + frame[1] + (SIGNATURE_LEN if frame[2] & IFLAG_SIGNED else 0)
 
 
-def _scan(data: bytes, counters: Counts, by_id: dict[int, MessageSpec] | None) -> list[Any]:
+def _scan(data: bytes, counters: Counts, by_id: dict[int, MessageSpec] | None, key: bytes | None = None
+          ) -> list[Any]:
     """The framer: each frame of a datagram by its own length fields (MAVLink 1 and 2, signed or not), bytes
     between frames and a truncated tail counted. by_id None: the frames' raw bytes (nothing checked beyond the
     lengths); else the decoded messages of the ids in by_id (CRC checked, the rest counted and dropped)."""
@@ -269,15 +314,18 @@ def _scan(data: bytes, counters: Counts, by_id: dict[int, MessageSpec] | None) -
         if crc16(data[start + 1 : end - 2] + spec.crc_extra_byte) != data[end - 2] | (data[end - 1] << 8):
             counters.bad_crc += 1
             continue
+        signed = False
         if flags:
             if flags & ~IFLAG_SIGNED:
                 counters.bad_flags += 1
-            else:
+                continue
+            if key is None or not verify_frame(key, data[start:i]):
                 counters.signed += 1
-            continue
+                continue
+            signed = True
         so = start + 4 if v2 else start + 2  # header: ..., seq, sysid, compid at so, so + 1, so + 2
         out.append(Message(spec.name, spec.fieldnames, spec.unpack_from(data, so + 6 if v2 else so + 4, end - 2),
-                           data[so + 1], data[so + 2], data[so]))
+                           data[so + 1], data[so + 2], data[so], signed))
     return out
 
 
@@ -300,9 +348,11 @@ class Encoder:
     seq: int = 0
     frames_out: int = 0
     bytes_out: int = 0
+    signing: FrameSigning | None = None  # sign every frame (the sim link once paired: its session key)
+
     def frame(self, name: str, values: Sequence[Any]) -> bytes:
         """One frame; the sequence number advances (mod 256)."""
-        out = self.codec.frame(name, values, self.seq, self.sysid, self.compid)
+        out = self.codec.frames(((name, values),), self.seq, self.sysid, self.compid, self.signing)
         self.seq = (self.seq + 1) & 0xFF
         self.frames_out += 1
         self.bytes_out += len(out)
@@ -313,12 +363,27 @@ class Encoder:
 
     def frames(self, records: Sequence[tuple[str, Sequence[Any]]]) -> bytes:
         """Frames of (name, values) records back to back (one datagram), one sequence number each."""
-        out = self.codec.frames(records, self.seq, self.sysid, self.compid)
+        out = self.codec.frames(records, self.seq, self.sysid, self.compid, self.signing)
         n = len(records)
         self.seq = (self.seq + n) & 0xFF
         self.frames_out += n
         self.bytes_out += len(out)
         return out
+
+
+    def resign(self, data: bytes) -> bytes:
+        """The frames of `data` (framed by this encoder, signed or not) signed with the current signing (unsigned
+        without): a datagram built before a new session's key, re-sent in it."""
+        out = []
+        for frame in split_frames(data)[0]:
+            if len(frame) > SIGNATURE_LEN and frame[0] == V2_MAGIC and frame[2] == IFLAG_SIGNED:
+                frame = _unsigned(frame, self.codec.by_id)
+            if self.signing is not None and frame[0] == V2_MAGIC and frame[2] == 0:
+                spec = self.codec.by_id[frame[7] | (frame[8] << 8) | (frame[9] << 16)]
+                body = frame[1:2] + bytes((IFLAG_SIGNED,)) + frame[3:-2]
+                frame = self.signing.sign(b"\xfd" + body + crc16(body + spec.crc_extra_byte).to_bytes(2, "little"))
+            out.append(frame)
+        return b"".join(out)
 
 
 @functools.cache
@@ -327,5 +392,5 @@ def seam_codec() -> Codec:
     return Codec(SEAM_MESSAGES)
 
 
-__all__ = ["SEAM_MESSAGES", "Codec", "Counts", "Encoder", "Message", "MessageSpec", "ParseCounters", "crc16",
-           "seam_codec", "split_frames"]
+__all__ = ["SEAM_MESSAGES", "Codec", "Counts", "Encoder", "FrameSigning", "Message", "MessageSpec", "ParseCounters",
+           "crc16", "seam_codec", "split_frames", "verify_frame"]

@@ -19,7 +19,7 @@ from navig8_fc.flight import FlightStack, Notice, load_flight_script
 from navig8_fc.links.mavlink_link import PortInUseError, UdpLink, write_ports_file
 from navig8_fc.links.signing import LinkSigning
 from navig8_fc.links.sim_guard import SensorLimits, SimGuard
-from navig8_fc.links.transport import StreamTransport, parse_connection
+from navig8_fc.links.transport import parse_connection
 from navig8_fc.mavlink import codec
 from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mavlink.px4sim import PX4_SIM_MESSAGES
@@ -33,7 +33,7 @@ from navig8_fc.shell.gcs_links import GcsLinks
 from navig8_fc.shell.gcs_service import GcsService
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.mcap_log import open_logger
-from navig8_fc.shell.sim_peer import BundlePeer, Px4Peer, px4_assembler, timing_from_params
+from navig8_fc.shell.sim_peer import Px4Peer, sim_peer_for, timing_from_params
 from navig8_fc.shell.sim_stepper import SimStepper
 from navig8_fc.shell.telemetry_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4
 from navig8_fc.viz import VehicleViz, packaged_uav_size_m
@@ -70,14 +70,8 @@ class FlightControllerProcess:
         self._spin_until = 0.0
         self._mk_links()
         self.stack = FlightStack(self.vehicle, self.registry, script)
-        # what the sim link carries: the bridge's bundle, or PX4's simulator messages (their own assembler, no
-        # pairing: answers go to the link's peer, the simulator that connected; docs/hil.md)
-        stream = isinstance(self.sim.sock, StreamTransport)
-        if opts.sim_messages == "navig8":
-            self.peer: BundlePeer | Px4Peer = BundlePeer(self.sim, self.guard, self._bridge_target, stream)
-        else:
-            asm = px4_assembler(self.stack.core.config, origin_from_params(self.registry))
-            self.peer = Px4Peer(self.sim, self.guard, self._bridge_target, asm)
+        self.peer = sim_peer_for(self.sim, self.guard, self._bridge_target, opts.sim_messages, bool(opts.sim_link),
+                                 self.stack.core.config, origin_from_params(self.registry))
         if isinstance(self.peer, Px4Peer):
             self.log_event("sim link: PX4 simulator messages (HIL_SENSOR, HIL_STATE_QUATERNION; actuator states "
                            "modelled unless NAVIG8_ACTUATOR_STATE comes)")
@@ -98,7 +92,7 @@ class FlightControllerProcess:
         if self.timing.realtime:
             self.log_event(f"real-time timing: own clock at {round(1.0 / self.stack.core.config.dt_s)} Hz, newest "
                            "bundle per tick")
-        self.guard.monotonic = self.timing.realtime
+        self.guard.monotonic = self.timing.realtime or isinstance(self.peer, Px4Peer)  # PX4: its own IMU rate
         self.steps = SimStepper(self.sim, self.peer, self.timing, self.guard, self.stack, self.vehicle, self.watchdog,
                                 lambda: self.log.active, self.announce, self.statustext, self.log_event)
         config = self.stack.core.config
@@ -149,6 +143,7 @@ class FlightControllerProcess:
             self.sim = UdpLink.open("sim", sim_enc, (o.host, o.port("sim")), [(o.host, o.port("bridge"))],
                                     codec=sim_codec)
             self.sim.max_datagrams = 1  # one bundle per step; more stay readable for the run loop's next select
+        self.sim.admit_peer = _no_peer  # the guard decides where the sim link's answers go, never a mere sender
         self.gcs_links = GcsLinks(o, self._mav, FC_COMPID, self.fox, self._sim_ns)
         self.gcs, self.api = self.gcs_links.gcs, self.gcs_links.api
         if o.ports_file is not None:
@@ -349,6 +344,10 @@ class FlightControllerProcess:
         self.log.close(meta)
         for link in self.links:
             link.close()
+
+
+def _no_peer(_msg: Any, _addr: tuple[str, int]) -> bool:
+    return False
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -2,14 +2,15 @@
 
 - what the sim link carries: `BundlePeer` (navig8-bridge's private bundle: pairing, sequencing and validation by the
   SimGuard, a stream's reads regrouped into one bundle each) or `Px4Peer` (PX4's simulator messages, HIL_SENSOR +
-  HIL_STATE_QUATERNION, assembled into bundles; no pairing, actuator states modelled unless the simulator sends
-  them). Both turn received frames into `SimInput`s.
+  HIL_STATE_QUATERNION, assembled into bundles; the simulator's address pinned, the same sequencing and validation;
+  actuator states modelled unless the simulator sends them). Both turn received frames into `SimInput`s.
 - when a step runs: `Lockstep` (at once, one per bundle; a duplicate is answered with the same command) or
   `Realtime` (the FC's own clock at INDI_RATE_HZ takes the newest bundle per tick: navig8_fc/shell/realtime.py).
 """
 
 from __future__ import annotations
 
+import socket
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -18,7 +19,8 @@ from navig8_fc.core.controller import ActuatorCommand, ControllerConfig
 from navig8_fc.flight import ArmRequest
 from navig8_fc.links.mavlink_link import UdpLink
 from navig8_fc.links.sim_guard import SimGuard, SimInput, StreamRegrouper
-from navig8_fc.mavlink import seam
+from navig8_fc.links.transport import StreamTransport
+from navig8_fc.mavlink import codec, seam
 from navig8_fc.mavlink.px4sim import ActuatorModel, Px4SimAssembler
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.params.registry import ParamRegistry
@@ -37,14 +39,28 @@ class BundlePeer:
         self._stream = stream
         self._regroup = StreamRegrouper().split  # a stream's reads cut anywhere between frames: one bundle each
         self.sim_to: list[tuple[str, int]] | None = []  # answers go to the paired bridge only
+        enc = link.mav  # the link's codec.Encoder: signs once a session has a key; announcements are never signed
+        self._announcer = codec.Encoder(enc.codec, enc.sysid, enc.compid)
+        self._keyed: bytes | None = None  # the session key the link signs and verifies with
 
     @property
     def incomplete(self) -> int:
         """Bundles dropped incomplete (PX4's assembler counts them; the private bundle comes whole)."""
         return 0
 
-    def announce(self) -> None:
-        self._link.send(self.guard.announce_record(), [self._bridge_target])
+    def announce(self, to: tuple[str, int] | None = None) -> None:
+        """Our announcement (unsigned: it carries the nonce the key comes from): to `to`, else to the bridge that
+        asked to pair (until it echoes), else to the configured bridge."""
+        self._link.send_raw(self._announcer.frame(*self.guard.announce_record()),
+                            [to or self.guard.pair_asked_by or self._bridge_target])
+
+    def _key_link(self) -> None:
+        """A new session key: the link verifies incoming signatures and signs everything it sends with it."""
+        key = self.guard.session_key
+        if key is not self._keyed:
+            self._keyed = key
+            self._link.verify_key = key
+            self._link.mav.signing = None if key is None else codec.FrameSigning(key)
 
     def inputs(self, received: list[Any], now: float) -> list[SimInput]:
         """The link's datagrams (codec.Message records per datagram) as SimInputs; a bridge that asks to pair gets
@@ -55,9 +71,10 @@ class BundlePeer:
             for msgs in (self._regroup(r.msg) if self._stream else (r.msg,)):
                 inp, announce_to = guard.on_datagram(msgs, r.addr, now)
                 if announce_to is not None:
-                    self._link.send(guard.announce_record(), [announce_to])
+                    self.announce(announce_to)
                 if guard.peer is not None and self.sim_to[:1] != [guard.peer]:  # type: ignore[index]
                     self.sim_to = [guard.peer]
+                self._key_link()
                 out.append(inp)
         return out
 
@@ -75,36 +92,40 @@ class BundlePeer:
 
 
 class Px4Peer(BundlePeer):
-    """PX4's simulator messages (navig8_fc/mavlink/px4sim.py): HIL_SENSOR completes a step; no pairing, no
-    sequencing (answers go to the link's peer, the simulator that connected)."""
+    """PX4's simulator messages (navig8_fc/mavlink/px4sim.py), through the same guard as the bridge's bundle: the
+    simulator's address pinned (`SimGuard.admit_simulator`: the configured peer, else the first that sends; PX4's
+    protocol has no nonce), frames from any other address dropped before they reach the assembler, every assembled
+    step sequenced (only newer stamps) and validated (NaN, infinite, out of range, implausible groups replaced by
+    their last good values, counted, reported, landing if it lasts); answers only to the pinned simulator."""
 
     answers_duplicates = False
 
-    def __init__(self, link: UdpLink, guard: SimGuard, bridge_target: tuple[str, int], assembler: Px4SimAssembler
-                 ) -> None:
+    def __init__(self, link: UdpLink, guard: SimGuard, bridge_target: tuple[str, int], assembler: Px4SimAssembler,
+                 configured_peer: tuple[str, int] | None) -> None:
         super().__init__(link, guard, bridge_target, stream=False)
         self._asm = assembler
-        self.sim_to = None
+        self._configured = configured_peer
 
     @property
     def incomplete(self) -> int:
         return self._asm.incomplete
 
     def inputs(self, received: list[Any], now: float) -> list[SimInput]:
-        asm = self._asm
+        asm, guard = self._asm, self.guard
         out = []
         for r in received:
+            if not guard.admit_simulator(r.addr, now, self._configured):
+                continue  # another address: not one frame reaches the assembler (a forged pose would stay there)
+            if self.sim_to[:1] != [guard.peer]:  # type: ignore[index]
+                self.sim_to = [guard.peer]  # type: ignore[list-item]
             for m in r.msg:
                 if m.name == "NAVIG8_SIM_STATUS":
                     out.append(SimInput("status", status=seam.decode_sim_status(m.fields)))
                     continue
                 bundle = asm.add(m)
                 if bundle is not None:
-                    out.append(SimInput("step", bundle, dict(asm.completed)))
+                    out.append(guard.accept_bundle(bundle, dict(asm.completed)))
         return out
-
-    def reports(self, now: float) -> list[tuple[int, str]]:
-        return []
 
     def commanded(self, cmd: ActuatorCommand, arm: ArmRequest | None) -> None:
         """The actuator model's input: what the simulator will hold (its actuator states are modelled)."""
@@ -158,6 +179,33 @@ class Realtime:
 
     def stats(self) -> dict[str, Any] | None:
         return vars(self.clock.stats)
+
+
+def configured_simulator(link: UdpLink, bridge_target: tuple[str, int], from_connection: bool
+                         ) -> tuple[str, int] | None:
+    """The PX4 simulator's address as configured, which Px4Peer pins: a tcp: stream's peer, udpout:'s, or the default
+    UDP target (its host resolved as recvfrom reports it); None for udpin: (connection string without a target), where
+    the first sender is pinned."""
+    if from_connection and not link.targets:
+        return None
+    host, port = bridge_target
+    if isinstance(link.sock, StreamTransport):
+        return host, port
+    try:
+        return socket.gethostbyname(host), port
+    except OSError:
+        return host, port
+
+
+def sim_peer_for(link: UdpLink, guard: SimGuard, bridge_target: tuple[str, int], messages: str,
+                 from_connection: bool, config: ControllerConfig, origin: GeoOrigin) -> BundlePeer | Px4Peer:
+    """What the sim link carries (`--sim-messages`): the bridge's bundle ("navig8"), or PX4's simulator messages
+    ("px4": their own assembler, the simulator's address pinned instead of the nonce pairing, the same guard
+    otherwise; docs/hil.md). `from_connection`: the link was given as a connection string."""
+    if messages == "navig8":
+        return BundlePeer(link, guard, bridge_target, isinstance(link.sock, StreamTransport))
+    return Px4Peer(link, guard, bridge_target, px4_assembler(config, origin),
+                   configured_simulator(link, bridge_target, from_connection))
 
 
 def px4_assembler(config: ControllerConfig, origin: GeoOrigin) -> Px4SimAssembler:

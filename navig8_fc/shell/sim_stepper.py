@@ -70,7 +70,10 @@ class SimStepper:
                     self.on_step(*run)
             elif kind == "duplicate":
                 self.n_duplicates += 1  # a re-sent bundle: answer with the same command, do not re-run control
-                if self._last_answer is not None and not timing.realtime and peer.answers_duplicates:
+                if self._last_answer is not None and peer.answers_duplicates and (
+                        not timing.realtime or inp.time_usec == self.last_step_time_us):
+                    # real time: only a re-send of the step last flown (its answer was lost: a bridge waiting for
+                    # it would wait for ever); one still waiting for its tick is answered by that tick
                     self.sim.send_raw(self._last_answer, peer.sim_to)
             elif kind == "status":
                 self.sim_status = inp.status

@@ -24,7 +24,7 @@ import pytest
 from sitl_helpers import wait_ports_file
 
 from navig8_fc.core.vehicle import VehicleConfig
-from navig8_fc.links.sim_guard import pairing_heartbeat
+from navig8_fc.links.sim_guard import pairing_heartbeat, session_key
 from navig8_fc.mavlink import codec, dialect, seam
 from sim_bridge import Plant, PlantParams, load_scenario
 
@@ -41,7 +41,9 @@ class FakeFc:
         self.sock.bind(("127.0.0.1", 0))
         self.bridge = ("127.0.0.1", 0)  # set once the bridge has written its ports file
         self.codec = codec.seam_codec()
-        self.mav = codec.Encoder(self.codec, SYSID, dialect.COMPID_FC)
+        self.mav = codec.Encoder(self.codec, SYSID, dialect.COMPID_FC)  # signs once announced (the session key)
+        self.plain = codec.Encoder(self.codec, SYSID, dialect.COMPID_FC)  # the announcement is never signed
+        self.key: bytes | None = None
         self.counts = codec.ParseCounters()
         self.vehicle = VehicleConfig.load()
         self.statuses: list[seam.SimStatus] = []
@@ -58,7 +60,7 @@ class FakeFc:
                 data, _ = self.sock.recvfrom(65535)
             except TimeoutError:
                 return None
-            msgs = self.codec.parse(data, self.counts)
+            msgs = self.codec.parse(data, self.counts, self.key)
             for m in msgs:
                 if m.name == "NAVIG8_SIM_STATUS":
                     self.statuses.append(seam.decode_sim_status(m.fields))
@@ -67,8 +69,11 @@ class FakeFc:
                 return b
 
     def announce(self, nonce: int = 0x5EED) -> None:
-        """The pairing announcement (docs/bridge.md): the bridge pairs with this address and echoes the nonce."""
-        self.send_raw(self.mav.frame(*pairing_heartbeat(nonce)))
+        """The pairing announcement (docs/bridge.md): the bridge pairs with this address and echoes the nonce; both
+        then sign with the session key derived from it ("Authenticated bundles")."""
+        self.send_raw(self.plain.frame(*pairing_heartbeat(nonce)))
+        self.key = session_key(nonce, SYSID)
+        self.mav.signing = codec.FrameSigning(self.key)
 
     def answer(self, b: seam.StepBundle, cmd, *, time_usec: int | None = None) -> None:
         self.sock.sendto(seam.pack_actuator_controls(self.mav, b.time_usec if time_usec is None else time_usec, cmd,

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from navig8_fc.core.vehicle import VehicleConfig
-from navig8_fc.links.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat
+from navig8_fc.links.sim_guard import REPAIR_SILENCE_S, pairing_heartbeat, session_key
 from navig8_fc.mavlink import codec, dialect, seam
 from sim_bridge.bridge_options import BridgeOptions
 from sim_bridge.fc_link import BridgeCounters
@@ -64,14 +64,18 @@ def bridge():
     br.close()
 
 
-def _answers(br: Bridge) -> dict[str, bytes]:
-    fc = codec.Encoder(codec.seam_codec(), br.opts.sysid, dialect.COMPID_FC)
-    other = codec.Encoder(codec.seam_codec(), br.opts.sysid + 1, dialect.COMPID_FC)
+def _answers(br: Bridge, nonce: int | None = None) -> dict[str, bytes]:
+    """The FC's frames, signed with the session key of `nonce` (None: unsigned, as before any pairing)."""
+    signing = None if nonce is None else codec.FrameSigning(session_key(nonce, br.opts.sysid))
+    fc = codec.Encoder(codec.seam_codec(), br.opts.sysid, dialect.COMPID_FC, signing=signing)
+    other = codec.Encoder(codec.seam_codec(), br.opts.sysid + 1, dialect.COMPID_FC, signing=signing)
+    plain = codec.Encoder(codec.seam_codec(), br.opts.sysid, dialect.COMPID_FC)
     cmd = br.plant.trim_command()
     tu = br.time_usec
     good = seam.pack_actuator_controls(fc, tu, cmd, br.limits, armed=True)
     zeros = seam.pack_actuator_controls(fc, tu, type(cmd)((0.0, 0.0), (0.0, 0.0, 0.0)), br.limits, armed=False)
-    bad_crc = good[:-1] + bytes((good[-1] ^ 1,))
+    at = -1 if signing is None else -codec.SIGNATURE_LEN - 1  # the CRC's last byte, before any signature
+    bad_crc = good[:at] + bytes((good[at] ^ 1,)) + (good[at + 1:] if at != -1 else b"")
     return {
         "good": good,
         "zeros": zeros,  # payload truncated to a few bytes
@@ -84,6 +88,8 @@ def _answers(br: Bridge) -> dict[str, bytes]:
         "heartbeat": fc.frame(*seam.announce_record()),
         "garbage": b"\x00" * 5,
         "arm": fc.frame(*seam.encode_arm_cmd(seam.ArmCommand(tu, (0.1, 0.2, 0.3), seam.GRIPPER_GRAB))),
+        # the paired FC's address without its key (a spoofed source): never an answer
+        "unsigned": seam.pack_actuator_controls(plain, tu, cmd, br.limits, armed=True),
     }
 
 
@@ -93,9 +99,9 @@ def test_handle_answers_and_counts_as_pymavlink_reads_the_bytes(bridge: Bridge) 
         "good": dict(answers=1), "zeros": dict(answers=1), "stale": dict(stale_answers=1),
         "foreign": dict(foreign_frames=1), "bad_crc": dict(bad_frames=1), "truncated": dict(bad_frames=1),
         "twice": dict(answers=1, stale_answers=1), "status": dict(other_frames=1), "heartbeat": dict(other_frames=1),
-        "garbage": dict(garbage_bytes=5), "arm": dict(arm_cmds=1),
+        "garbage": dict(garbage_bytes=5), "arm": dict(arm_cmds=1), "unsigned": dict(unauthenticated=1),
     }
-    for label, data in _answers(bridge).items():
+    for label, data in _answers(bridge, 0x1234).items():
         bridge.link.counters = BridgeCounters()
         got = _feed(bridge, data, FC_ADDR)
         assert dataclasses.asdict(bridge.counters) == dataclasses.asdict(
@@ -103,7 +109,7 @@ def test_handle_answers_and_counts_as_pymavlink_reads_the_bytes(bridge: Bridge) 
         ref = dialect.new_mav(1, 1).parse_buffer(data) or []
         answers = [m for m in ref if m.get_type() == "HIL_ACTUATOR_CONTROLS" and m.get_srcSystem() == bridge.opts.sysid
                    and m.time_usec == bridge.time_usec]
-        if not answers:
+        if not answers or label == "unsigned":
             assert got is None, label
             continue
         m, lim = answers[0], bridge.limits
@@ -128,15 +134,19 @@ def test_pairing_with_one_fc() -> None:
     try:
         assert br.link.fc_addr is None
         br.link.send(b"nothing to send to")  # no address: dropped quietly
-        data = _answers(br)
+        data = _answers(br, 77)  # signed with the session key of the pairing below
         _feed(br, data["foreign"], ("127.0.0.1", 40001))
         _feed(br, data["bad_crc"], ("127.0.0.1", 40002))
-        _feed(br, data["good"], fc_addr)  # an answer before pairing: not from a paired FC
+        _feed(br, data["unsigned"], fc_addr)  # an answer before pairing: not from a paired FC
         assert br.link.fc_addr is None and br.counters.wrong_sender == 1
         _feed(br, _announce(br, 77), fc_addr)  # the FC's announcement: pair, echo the nonce
         assert (br.link.fc_addr, br.link.fc_nonce) == (fc_addr, 77)
         echo = codec.seam_codec().parse(listener.recvfrom(4096)[0], codec.ParseCounters())
         assert [(m.name, m.compid, m.fields["custom_mode"]) for m in echo] == [("HEARTBEAT", dialect.COMPID_BRIDGE, 77)]
+        _feed(br, _announce(br, 77), fc_addr)  # the same announcement again: our echo was lost, echo again
+        got = [codec.seam_codec().parse(listener.recvfrom(4096)[0], codec.ParseCounters()) for _ in range(2)]
+        assert [(m.name, m.fields["custom_mode"]) for m in got[1]] == [("HEARTBEAT", 77)]  # after the pairing's status
+        assert (br.counters.sessions, br.counters.echoes_repeated) == (1, 1)
         assert _feed(br, data["good"], ("127.0.0.1", 40004)) is None  # the right ids from the wrong address
         assert br.counters.wrong_sender == 2 and br.link.fc_addr == fc_addr
         assert _feed(br, data["good"], fc_addr) is not None

@@ -227,3 +227,25 @@ def test_crc_is_pymavlinks_x25(d) -> None:
         data = bytes(rng.randrange(256) for _ in range(n))
         assert codec.crc16(data) == d.x25crc(data).crc
     assert codec.crc16(b"123456789") == 0x6F91  # the CRC-16/MCRF4XX check value
+
+
+def test_signed_frames_verify_with_pymavlink_and_only_with_their_key(d, c) -> None:
+    """The sim link's session signing (MAVLink 2 signing): pymavlink with the same key accepts every frame, the
+    codec decodes them only with that key (`Message.signed`), a frame signed before the key is signed again."""
+    key, other = bytes(range(32)), bytes(32)
+    enc = codec.Encoder(c, 3, 25, signing=codec.FrameSigning(key))
+    records = [("NAVIG8_SIM_STATUS", (11, 1, 2, 1.0, 0.5, 0)), ("HIL_ACTUATOR_CONTROLS", (7, [0.25] * 16, 128, 0))]
+    data = enc.frames(records)
+    ref = d.MAVLink(None)
+    ref.signing.secret_key = key
+    got = ref.parse_buffer(data) or []
+    assert [m.get_type() for m in got] == ["NAVIG8_SIM_STATUS", "HIL_ACTUATOR_CONTROLS"]
+    assert ref.signing.goodsig_count == 2 and ref.signing.badsig_count == 0
+    counts = codec.ParseCounters()
+    assert [(m.name, m.signed) for m in c.parse(data, counts, key)] == [("NAVIG8_SIM_STATUS", True),
+                                                                        ("HIL_ACTUATOR_CONTROLS", True)]
+    assert c.parse(data, counts, other) == [] and c.parse(data, counts) == [] and counts.signed == 4
+    plain = codec.Encoder(c, 3, 25).frames(records)
+    assert [m.signed for m in c.parse(plain, counts, key)] == [False, False]  # unsigned: decoded, not authenticated
+    assert [m.signed for m in c.parse(enc.resign(plain), counts, key)] == [True, True]
+    assert c.decode_frame(enc.frame(*records[0])).values == records[0][1]  # our own frame read back for the log

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from test_sim_guard import Wire, set_field
 
-from navig8_fc.links.sim_guard import pairing_heartbeat
+from navig8_fc.links.sim_guard import pairing_heartbeat, session_key
 from navig8_fc.mavlink import codec, dialect, seam
 from navig8_fc.shell.fc_options import FcOptions
 from navig8_fc.shell.fc_process import FlightControllerProcess
@@ -41,6 +41,7 @@ class FakeBridgeSide:
         self.wire = Wire()
         self.codec = codec.seam_codec()
         self.fc_addr: tuple[str, int] | None = None
+        self.key: bytes | None = None
         self.texts: list[str] = []
         self._gcs_mav = dialect.new_mav(255, 190)
 
@@ -50,16 +51,19 @@ class FakeBridgeSide:
         assert m.name == "HEARTBEAT" and m.fields["custom_mode"] != 0
         self.fc_addr = addr
         self.sock.sendto(self.wire.frame(pairing_heartbeat(m.fields["custom_mode"])), addr)
+        # both sides now sign with the session key derived from the nonce (docs/bridge.md, "Authenticated bundles")
+        self.key = session_key(m.fields["custom_mode"], self.wire.enc.sysid)
+        self.wire.enc.signing = codec.FrameSigning(self.key)
 
     def step(self, mutate=None) -> seam.ActuatorControls:
         """Send the next bundle; the FC's answer to it (waiting at most TIMEOUT_S)."""
         data = self.wire.next(mutate)
-        want = self.codec.parse(data, codec.ParseCounters())[0].fields["time_usec"]
+        want = self.codec.parse(data, codec.ParseCounters(), self.key)[0].fields["time_usec"]
         self.sock.sendto(data, self.fc_addr)
         deadline = time.monotonic() + TIMEOUT_S
         while time.monotonic() < deadline:
             got, _ = self.sock.recvfrom(4096)
-            for m in self.codec.parse(got, codec.ParseCounters()):
+            for m in self.codec.parse(got, codec.ParseCounters(), self.key):
                 if m.name == "HIL_ACTUATOR_CONTROLS" and m.fields["time_usec"] == want:
                     return seam.decode_actuator_controls(m.fields, self.wire.plant.vehicle)
         raise AssertionError(f"no answer to step {self.wire.step}")

@@ -13,6 +13,8 @@ import pytest
 os.environ.setdefault("MAVLINK20", "1")
 from pymavlink.dialects.v20 import common as m2  # noqa: E402
 
+from navig8_fc.core.vehicle import VehicleConfig  # noqa: E402
+from navig8_fc.links.sim_guard import REPAIR_SILENCE_S, SensorLimits, SimGuard  # noqa: E402
 from navig8_fc.mavlink import codec  # noqa: E402
 from navig8_fc.mavlink.px4sim import PX4_SIM_MESSAGES, ActuatorModel, Px4SimAssembler, ned_from_global  # noqa: E402
 from navig8_fc.mission.geo import GeoOrigin  # noqa: E402
@@ -97,3 +99,31 @@ def test_measured_actuator_and_arm_states_are_used_when_they_come_with_the_step(
     assert np.allclose(b.duct_tilt_rad, (0.2, -0.1)) and np.allclose(b.prop_speed_rad_s, (600.0, 5.0, 610.0))
     assert np.allclose(b.joint_pos_rad, (0.5, 0.1, 0.0)) and b.gripper_closed
     assert asm.counters.measured_actuators == 1
+
+
+def test_the_simulator_is_pinned_and_its_steps_sequenced_and_validated() -> None:
+    """PX4's simulator messages have no nonce: the guard pins the configured peer (or the first sender), refuses every
+    other address, takes only newer stamps, and replaces a NaN gyro by the last good one (navig8_fc/links/sim_guard)."""
+    sim, other = ("127.0.0.1", 4560), ("127.0.0.1", 4999)
+    g = SimGuard(1, SensorLimits.from_vehicle(VehicleConfig.load()), lambda: 7, monotonic=True)
+    assert not g.admit_simulator(other, 0.0, sim) and g.peer is None  # configured: nobody else, ever
+    assert g.admit_simulator(sim, 0.0, sim) and g.counters.sessions == 1
+    assert not g.admit_simulator(other, REPAIR_SILENCE_S + 1.0, sim)  # not even after silence
+    first = SimGuard(1, SensorLimits.from_vehicle(VehicleConfig.load()), lambda: 7, monotonic=True)
+    assert first.admit_simulator(other, 0.0, None) and not first.admit_simulator(sim, 1.0, None)
+    assert first.counters.wrong_sender == 1
+    assert first.admit_simulator(sim, 1.0 + REPAIR_SILENCE_S, None)  # the first one silent that long: a restart
+    c = codec.Codec(PX4_SIM_MESSAGES)
+    asm = Px4SimAssembler(GeoOrigin(), ActuatorModel(120.0, 0.8, 0.01, (0.0,) * 5))
+
+    def step(stamp: int, **mutate: float) -> str:
+        (b,) = [b for m in c.parse(_frames(stamp, (0.0, 0.0, -2.0)), codec.ParseCounters())
+                if (b := asm.add(m)) is not None]
+        if mutate:
+            b = b._replace(gyro_frd=(mutate["gyro"], 0.0, 0.0))
+        inp = g.accept_bundle(b, dict(asm.completed))
+        return inp.kind if not inp.bad_groups else f"{inp.kind} {inp.bad_groups} {inp.bundle.gyro_frd[0]:.3f}"
+
+    assert step(10001) == "step" and step(20001) == "step"
+    assert step(15001) == "none" and g.counters.out_of_order == 1  # older than the last: never flown
+    assert step(30001, gyro=math.nan) == "step ('imu',) 0.010" and g.counters.invalid_imu == 1  # the last good gyro
