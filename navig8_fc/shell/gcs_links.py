@@ -9,6 +9,7 @@ from collections.abc import Callable
 from typing import Any
 
 from navig8_fc.links.mavlink_link import UdpLink
+from navig8_fc.links.reflection import ReflectionBudget
 from navig8_fc.links.transport import parse_connection
 from navig8_fc.shell.fc_options import FcOptions
 from navig8_fc.shell.foxglove_out import FoxgloveOutput
@@ -31,7 +32,15 @@ class GcsLinks:
         self.links = (self.gcs, self.api)
         for link in self.links:  # a GCS flood is handled a slice per loop pass, between control steps
             link.max_datagrams = GCS_DATAGRAMS_PER_PASS
+            link.keep_targets = True  # the configured peer is served whoever else talks (docs/security.md)
         self._fox, self._sim_ns = fox, sim_ns
+
+    def cap_reflection(self, signing_on: Callable[[], bool]) -> None:
+        """Cap what each link sends to an address other than its configured peers at twice what that address sent
+        (links.reflection), until `signing_on()` says every frame that gets in carries the key."""
+        for link in self.links:
+            configured = frozenset(link.targets)
+            link.budget = ReflectionBudget(lambda addr, peers=configured: addr in peers or signing_on())
 
     def trusted_sources(self) -> list[Source]:
         """The configured peers of both links (GcsService trusts them before they speak)."""
