@@ -89,9 +89,7 @@ class FlightControllerProcess:
                                       trusted_sources=self.gcs_links.trusted_sources(),
                                       background_params=True, signing=self.signing)
         self._stability_logged: StabilityStatus | None = None  # the last /fc/stability record
-        for link in (self.gcs, self.api):  # telemetry only to confirmed peers (docs/security.md)
-            link.admit_peer = self.gcs_service.admits_peer
-        self.gcs_links.cap_reflection(lambda: self.signing.active)  # and at most 2x bytes in to anyone else
+        self.gcs_links.guard(self.gcs_service.admits_peer, lambda: self.signing.active)  # docs/security.md
         state.restore(self.gcs_service, self.signing, opts.defaults, self.log_event)
         self.stack.reconfigure()
         self.timing = timing_from_params(self.registry, opts.timing, time.monotonic())

@@ -35,10 +35,12 @@ class GcsLinks:
             link.keep_targets = True  # the configured peer is served whoever else talks (docs/security.md)
         self._fox, self._sim_ns = fox, sim_ns
 
-    def cap_reflection(self, signing_on: Callable[[], bool]) -> None:
-        """Cap what each link sends to an address other than its configured peers at twice what that address sent
-        (links.reflection), until `signing_on()` says every frame that gets in carries the key."""
+    def guard(self, admit_peer: Callable[[Any, tuple[str, int]], bool], signing_on: Callable[[], bool]) -> None:
+        """Telemetry only to the peers `admit_peer` confirms (GcsService.admits_peer), and to an address other than
+        a link's configured peers at most twice what that address sent (links.reflection) until `signing_on()` says
+        every frame that gets in carries the key (docs/security.md)."""
         for link in self.links:
+            link.admit_peer = admit_peer
             configured = frozenset(link.targets)
             link.budget = ReflectionBudget(lambda addr, peers=configured: addr in peers or signing_on())
 
