@@ -10,6 +10,7 @@ from pymavlink.dialects.v20 import common as mavlink2
 
 from navig8_fc.links.mavlink_link import UdpLink
 from navig8_fc.links.reflection import REFLECTION_RATIO, ReflectionBudget
+from navig8_fc.shell.gcs_links import resolved_udp_address
 
 
 def _udp() -> socket.socket:
@@ -68,3 +69,8 @@ def test_a_spoofed_peer_gets_at_most_twice_its_bytes_and_the_configured_peer_kee
         link.close()
         operator.close()
         spoofer.close()
+
+
+def test_a_configured_peer_given_by_name_is_recognised_by_its_address() -> None:
+    assert resolved_udp_address(("localhost", 14550)) == ("127.0.0.1", 14550)
+    assert resolved_udp_address(("name.invalid", 14550)) == ("name.invalid", 14550)  # kept: sendto will say
