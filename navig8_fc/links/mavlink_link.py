@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from navig8_fc.links.reflection import ReflectionBudget
 from navig8_fc.links.signing import redact_frame, redacted_message
 from navig8_fc.links.transport import Connection, PortInUseError, bind_udp, open_endpoint
 from navig8_fc.mavlink.codec import Codec, Message, split_frames
@@ -59,6 +60,7 @@ class LinkCounters:
     signed: int = 0  # signed frames on the sim link that did not verify with its session key (or before one): dropped
     bad_flags: int = 0  # MAVLink 2 frames with an unknown incompat flag (the sim link)
     bad_signature: int = 0  # GCS links with a signing key: frames unsigned or wrongly signed (refused)
+    reflection_capped: int = 0  # sends skipped: the address had used up its reflection budget (links.reflection)
 
 
 _peer_texts: dict[tuple[tuple[str, int], ...], str] = {}
@@ -99,6 +101,10 @@ class UdpLink:
     admit_peer: Callable[[Any, tuple[str, int]], bool] | None = None
     counters: LinkCounters = field(default_factory=LinkCounters)
     max_peers: int = 8
+    # GCS links: the configured targets keep getting our output when peers talk (the operator's station need not
+    # send anything to be served), and what goes to any other address is capped by its bytes in (reflection).
+    keep_targets: bool = False
+    budget: ReflectionBudget | None = None
     # Logging hooks. on_datagram: every datagram in (up to MAX_DATAGRAM bytes) and out, raw, once, as it crossed
     # the link (a datagram holds one or more frames). on_frame: every frame that decoded (link, dir, raw, msg, peer).
     on_datagram: Callable[[str, str, bytes, str], None] | None = None  # (link, dir, raw, "host:port[,host:port]")
@@ -135,7 +141,11 @@ class UdpLink:
         return int(self.sock.getsockname()[1])
 
     def destinations(self) -> list[tuple[str, int]]:
-        return self.peers if self.peers else self.targets
+        if not self.peers:
+            return self.targets
+        if self.keep_targets and self.targets:
+            return self.targets + [p for p in self.peers if p not in self.targets]
+        return self.peers
 
     def receive(self) -> list[Received]:
         """What is waiting on the socket (non-blocking), split and decoded: every datagram, or at most
@@ -153,6 +163,8 @@ class UdpLink:
                 break
             c.datagrams_in += 1
             c.bytes_in += len(data)
+            if self.budget is not None:
+                self.budget.received(addr, len(data))
             if len(data) > MAX_DATAGRAM:
                 c.oversize += 1
                 continue
@@ -229,6 +241,9 @@ class UdpLink:
 
     def _sendto(self, data: bytes, dest: list[tuple[str, int]] | None) -> None:
         for addr in dest if dest is not None else self.destinations():
+            if self.budget is not None and not self.budget.allows(addr, len(data)):
+                self.counters.reflection_capped += 1
+                continue
             try:
                 self.sock.sendto(data, addr)
                 self.counters.bytes_out += len(data)

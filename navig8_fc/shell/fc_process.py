@@ -84,8 +84,7 @@ class FlightControllerProcess:
                                       trusted_sources=self.gcs_links.trusted_sources(),
                                       background_params=True, signing=self.signing)
         self._stability_logged: StabilityStatus | None = None  # the last /fc/stability record
-        for link in (self.gcs, self.api):  # telemetry only to confirmed peers (docs/security.md)
-            link.admit_peer = self.gcs_service.admits_peer
+        self.gcs_links.guard(self.gcs_service.admits_peer, lambda: self.signing.active)  # docs/security.md
         state.restore(self.gcs_service, self.signing, opts.defaults, self.log_event)
         self.stack.reconfigure()
         self.timing = timing_from_params(self.registry, opts.timing, time.monotonic())
@@ -291,6 +290,7 @@ class FlightControllerProcess:
     def on_wall_tick(self, now: float) -> None:
         for change in self.gcs_service.poll(now):  # PARAM_SETs that waited for their stability floor
             self.log_param_change(change)
+        self.signing.checkpoint(now)  # the signed streams' timestamps beside the key (replays after a restart)
         stab = self.gcs_service.stability
         if stab is not None and stab != self._stability_logged:
             self._stability_logged = stab

@@ -4,17 +4,29 @@ from (`reply`). Every STATUSTEXT sent also goes to the Foxglove log panel (/foxg
 
 from __future__ import annotations
 
+import socket
 import time
 from collections.abc import Callable
 from typing import Any
 
 from navig8_fc.links.mavlink_link import UdpLink
+from navig8_fc.links.reflection import ReflectionBudget
 from navig8_fc.links.transport import parse_connection
 from navig8_fc.shell.fc_options import FcOptions
 from navig8_fc.shell.foxglove_out import FoxgloveOutput
 from navig8_fc.shell.telemetry_service import Source
 
 GCS_DATAGRAMS_PER_PASS = 16  # ~2-5 ms of GCS work at most between two looks at the sim link
+
+
+def resolved_udp_address(addr: tuple[str, int]) -> tuple[str, int]:
+    """(host name, port) as the IPv4 address recvfrom reports for it (`host.docker.internal` -> its IP), so a
+    configured peer is recognised when it talks; the name itself when it does not resolve."""
+    try:
+        infos = socket.getaddrinfo(addr[0], addr[1], socket.AF_INET, socket.SOCK_DGRAM)
+    except (OSError, UnicodeError):
+        return addr
+    return (str(infos[0][4][0]), int(infos[0][4][1])) if infos else addr
 
 
 class GcsLinks:
@@ -31,7 +43,20 @@ class GcsLinks:
         self.links = (self.gcs, self.api)
         for link in self.links:  # a GCS flood is handled a slice per loop pass, between control steps
             link.max_datagrams = GCS_DATAGRAMS_PER_PASS
+            link.keep_targets = True  # the configured peer is served whoever else talks (docs/security.md)
+            if not isinstance(link.sock, socket.socket):
+                continue  # a stream's one peer: already the address its frames arrive from
+            link.targets = [resolved_udp_address(t) for t in link.targets]  # as recvfrom will report it
         self._fox, self._sim_ns = fox, sim_ns
+
+    def guard(self, admit_peer: Callable[[Any, tuple[str, int]], bool], signing_on: Callable[[], bool]) -> None:
+        """Telemetry only to the peers `admit_peer` confirms (GcsService.admits_peer), and to an address other than
+        a link's configured peers at most twice what that address sent (links.reflection) until `signing_on()` says
+        every frame that gets in carries the key (docs/security.md)."""
+        for link in self.links:
+            link.admit_peer = admit_peer
+            configured = frozenset(link.targets)
+            link.budget = ReflectionBudget(lambda addr, peers=configured: addr in peers or signing_on())
 
     def trusted_sources(self) -> list[Source]:
         """The configured peers of both links (GcsService trusts them before they speak)."""

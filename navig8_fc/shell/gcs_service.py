@@ -23,6 +23,9 @@ the GCS-loss failsafe nor makes it a peer. A source is *confirmed* when it is on
 targets (`trusted_sources`) or has sent a HEARTBEAT from an allowed id (`admits_peer`, which the links ask
 before adding a peer, so telemetry goes only to confirmed peers); from an unconfirmed source only commands and
 PARAM_SETs are answered (one refusal each), so a spoofed source gets no more bytes than it sends (reflection).
+A HEARTBEAT is only a claim, though: the GCS-loss failsafe listens to the configured peers alone (or to anyone
+once signing is on), SETUP_SIGNING is taken only disarmed and from where GCS_SIGN_LINK says
+(`gcs.operator_sources`), and the links cap what a peer they cannot vouch for receives (`links.reflection`).
 
 GCS work off the control path: a PARAM_SET whose stability floor is not cached (a ~0.1-0.3 s workspace sweep)
 waits in a bounded queue while a worker *process* computes the floor (a thread would not do: numpy's batched
@@ -55,6 +58,7 @@ from navig8_fc.gcs.ftp import FtpServer, FtpService
 from navig8_fc.gcs.metadata import build_metadata, component_metadata_message
 from navig8_fc.gcs.misc import MiscProtocols
 from navig8_fc.gcs.mission_protocol import MissionProtocol
+from navig8_fc.gcs.operator_sources import OperatorSources
 from navig8_fc.gcs.params import ParamProtocol, StoredLoad
 from navig8_fc.gcs.statustext import StatusTextEncoder
 from navig8_fc.gcs.vehicle_messages import VehicleMessages
@@ -116,12 +120,13 @@ class GcsSettings:
     param_set_rate_hz: float  # PARAM_SET_RATE: PARAM_SETs per second and source
     stream_rate_max_hz: float  # GCS_RATE_MAX: the fastest stream SET_MESSAGE_INTERVAL may ask for
     command_progress: int  # GCS_CMD_PROG: 0 as the identity's autopilot, 1 IN_PROGRESS + final ACK, 2 ACCEPTED at once
+    signing_setup_from: int  # GCS_SIGN_LINK: where SETUP_SIGNING may come from (gcs.operator_sources)
 
     @staticmethod
     def from_params(values: Mapping[str, float]) -> GcsSettings:
         return GcsSettings(int(values["GCS_ENFORCE"]) != 0, int(values["GCS_SYSID"]), int(values["GCS_SYSID_HI"]),
                            int(values["GCS_SIGN_REQ"]) != 0, float(values["PARAM_SET_RATE"]),
-                           float(values["GCS_RATE_MAX"]), int(values["GCS_CMD_PROG"]))
+                           float(values["GCS_RATE_MAX"]), int(values["GCS_CMD_PROG"]), int(values["GCS_SIGN_LINK"]))
 
     def flight_progress(self, autopilot: int) -> bool:
         """Whether the flight task's commands get IN_PROGRESS and a final ACK (else ACCEPTED at once, as PX4)."""
@@ -167,8 +172,9 @@ class GcsService:
         self._current_mode_sent: tuple[int, int] | None = None
         self._current_mode_t = -math.inf
         self._std_modes = hasattr(mav, "current_mode_encode")  # navig8.xml includes development.xml: it has them
-        self._trusted = set(trusted_sources)
         self._signing = signing
+        self.operator = OperatorSources(trusted_sources, lambda: signing is not None and bool(signing.active),
+                                        lambda: self._state().armed)  # who speaks for the operator
         self._confirmed: set[Source] = set()  # sources that sent a HEARTBEAT from an allowed system id
         self._command_source: Source | None = None  # the sender of the command being handled
         self.n_unauthorised = 0  # messages dropped or refused: sender not allowed, or source unconfirmed
@@ -223,7 +229,7 @@ class GcsService:
         return msg.get_type() == "HEARTBEAT" and self.authorised(msg.get_srcSystem())
 
     def confirmed(self, source: Source | None) -> bool:
-        return source is None or source in self._trusted or source in self._confirmed
+        return self.operator.configured(source) or source in self._confirmed
 
     def _refuse(self, m: Any, why: str) -> list[Any]:
         """A message from a sender that may not command: one answer for a command or PARAM_SET, else nothing."""
@@ -260,7 +266,7 @@ class GcsService:
             if kind == "HEARTBEAT":
                 if source is not None:
                     self._confirmed.add(source)
-                if m.type == MAV_TYPE_GCS:
+                if m.type == MAV_TYPE_GCS and self.operator.is_operator(source):  # the GCS-loss failsafe's input
                     self._last_gcs_heartbeat = now_wall
             elif not self.confirmed(source):
                 self._route(kind, source, self._refuse(m, "send a HEARTBEAT first"))
@@ -270,7 +276,7 @@ class GcsService:
                 self._route(kind, source, self._refuse(m, "signing required: set a key with SETUP_SIGNING"))
                 continue
             if kind == "SETUP_SIGNING":
-                self._route(kind, source, self._setup_signing(m))
+                self._route(kind, source, self._setup_signing(m, source))
                 continue
             if self._operator_reports:  # the first contact: what the operator must know (a bad parameter file)
                 for line in self._operator_reports:
@@ -297,13 +303,16 @@ class GcsService:
             else:
                 self._outbox.reply(source, [r])
 
-    def _setup_signing(self, m: Any) -> list[Any]:
+    def _setup_signing(self, m: Any, source: Source | None) -> list[Any]:
         """SETUP_SIGNING for us: the key to the links (never to a message or the log; module docstring of
-        links.signing for who may send it)."""
+        links.signing), unless the operator's sources refuse it (gcs.operator_sources; a rate-limited reason)."""
         if m.target_system not in (0, self.sysid):
             return []
         if self._signing is None:
             return self.text.warning("SETUP_SIGNING refused: signing not available on this link")
+        if (why := self.operator.signing_setup_refusal(source, self.settings.signing_setup_from)) is not None:
+            self.n_unauthorised += 1
+            return self._throttled_text(f"SETUP_SIGNING refused: {why}")
         return self.text.info(self._signing.set_key(bytes(m.secret_key), int(m.initial_timestamp)))
 
     @property

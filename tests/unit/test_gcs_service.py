@@ -314,7 +314,9 @@ def test_foreign_system_ids_are_refused_and_do_not_arm_the_gcs_loss_failsafe() -
     rig.send(rig.client.param_request_list_encode(1, 1), own)
     assert rig.gcs.params.list_remaining == 0
     rig.send(rig.client.heartbeat_encode(M.MAV_TYPE_GCS, 8, 0, 0, 0), own, now=2.0)
-    assert rig.gcs.confirmed(own) and rig.gcs.last_gcs_heartbeat == 2.0
+    # confirmed for its requests, but a HEARTBEAT from an address nobody configured is only a claim: the GCS-loss
+    # failsafe listens to the configured peers (docs/security.md)
+    assert rig.gcs.confirmed(own) and rig.gcs.last_gcs_heartbeat is None
     rig.send(rig.client.param_request_list_encode(1, 1), own)
     assert rig.gcs.params.list_remaining > 0
 
@@ -389,3 +391,54 @@ def test_param_sets_needing_a_stability_sweep_wait_on_the_worker_and_every_one_i
         assert store.load().values["INDI_K_MIN"] == final  # saved by the worker
     finally:
         svc.close()
+
+
+def test_a_heartbeat_from_an_unconfigured_address_never_feeds_the_gcs_loss_failsafe_until_signing_is_on() -> None:
+    """One spoofed HEARTBEAT with an allowed id (250, MAVLink 1 or 2) from a new address neither arms the GCS-loss
+    failsafe nor (by going silent) triggers it; the configured peers' HEARTBEATs do; with a key in force every
+    frame that gets in carries it, so then any source counts."""
+    signing = _Signing()
+    rig = Rig(signing=signing)
+    spoof = ("gcs", ("127.0.0.1", 40002))
+    for version in (1, 2):
+        mav = M.MAVLink(BytesIO(), srcSystem=250, srcComponent=190)
+        if version == 1:
+            mav.WIRE_PROTOCOL_VERSION = "1.0"
+        hb = rig.mav.decode(bytearray(mav.heartbeat_encode(M.MAV_TYPE_GCS, 8, 0, 0, 0).pack(mav, force_mavlink1=
+                                                                                              version == 1)))
+        rig.gcs.handle([(hb, spoof)], 1.0)
+    assert rig.gcs.last_gcs_heartbeat is None
+    rig.send(rig.client.heartbeat_encode(M.MAV_TYPE_GCS, 8, 0, 0, 0), GCS, now=2.0)
+    assert rig.gcs.last_gcs_heartbeat == 2.0
+    signing.active = True
+    rig.send(rig.client.heartbeat_encode(M.MAV_TYPE_GCS, 8, 0, 0, 0), spoof, now=3.0)
+    assert rig.gcs.last_gcs_heartbeat == 3.0
+
+
+def test_setup_signing_only_disarmed_and_only_from_the_configured_ground_station() -> None:
+    """SETUP_SIGNING from an allowed id at another address is refused (GCS_SIGN_LINK 0: the GCS link's configured
+    peer only; 1 adds the API link's; 2 anyone allowed), and from anywhere while armed, with the reason."""
+    signing = _Signing()
+    rig = Rig(signing=signing)
+    rig.step(60)
+    key = bytes(range(7, 39))
+    setup = lambda: rig.client.setup_signing_encode(1, 1, list(key), 1)
+    impostor = ("gcs", ("127.0.0.1", 40003))
+    rig.send(rig.client.heartbeat_encode(M.MAV_TYPE_GCS, 8, 0, 0, 0), impostor, now=1.0)
+    rig.send(setup(), impostor, now=1.0)
+    rig.send(setup(), API, now=3.0)
+    assert signing.keys == []
+    texts = [m.text for _, m in rig.outbox.pop("STATUSTEXT")]
+    assert texts == ["SETUP_SIGNING refused: configured GCS link only"] * 2, texts
+    rig.registry.set("GCS_SIGN_LINK", 1)
+    rig.send(setup(), API, now=5.0)
+    assert signing.keys == [key]
+    rig.registry.set("GCS_SIGN_LINK", 2)
+    rig.send(setup(), impostor, now=6.0)
+    assert len(signing.keys) == 2
+    rig.registry.set("GCS_SIGN_LINK", 0)
+    assert rig.command(GCS, M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result == M.MAV_RESULT_ACCEPTED
+    rig.outbox.sent.clear()
+    rig.send(setup(), GCS, now=8.0)  # the operator's own station, armed
+    assert len(signing.keys) == 2
+    assert [m.text for _, m in rig.outbox.pop("STATUSTEXT")] == ["SETUP_SIGNING refused: not while armed"]

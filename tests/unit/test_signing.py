@@ -16,7 +16,7 @@ from typing import Any
 from pymavlink.dialects.v20 import common as M
 
 from navig8_fc.links.mavlink_link import UdpLink
-from navig8_fc.links.signing import LinkSigning, redact_frame, signing_timestamp
+from navig8_fc.links.signing import STREAMS_KEPT, LinkSigning, redact_frame, signing_timestamp
 from navig8_fc.shell.signing_keys import KeyFile
 
 KEY = bytes(range(101, 133))
@@ -123,9 +123,62 @@ def test_a_world_readable_key_file_is_made_owner_only(tmp_path: Path) -> None:
     kf = KeyFile(tmp_path / "k.json")
     kf.save(KEY, 5)
     kf.path.chmod(0o644)
-    key, ts, problem = kf.load()
-    assert key == KEY and ts == 5 and problem and "owner-only" in problem
+    key, ts, streams, problem = kf.load()
+    assert key == KEY and ts == 5 and streams == {} and problem and "owner-only" in problem
     assert stat.S_IMODE(kf.path.stat().st_mode) == 0o600
     kf.path.write_text("{garbage")
-    key, _, problem = kf.load()
+    key, _, _, problem = kf.load()
     assert key is None and problem and "corrupt" in problem
+
+
+def _signed_frame(mav: Any) -> bytes:
+    return mav.param_set_encode(1, 1, b"OL_POS_K", 1.1, M.MAV_PARAM_TYPE_REAL32).pack(mav)
+
+
+def _accepts(signing_mav: Any, frame: bytes) -> bool:
+    try:
+        return signing_mav.decode(bytearray(frame)).get_type() == "PARAM_SET"
+    except Exception:  # noqa: BLE001 - pymavlink raises on a refused signature
+        return False
+
+
+def test_a_signed_frame_does_not_replay_on_the_other_link_nor_after_a_restart(tmp_path: Path) -> None:
+    """The signing spec's stream rule across both links and across a restart: the stream table is one for both
+    links and is kept beside the key (checkpoint, shutdown), so a captured frame is as old everywhere."""
+    key_file = KeyFile(tmp_path / "fc_signing_0.json")
+    gcs, api = M.MAVLink(None, srcSystem=1, srcComponent=1), M.MAVLink(None, srcSystem=1, srcComponent=1)
+    signing = LinkSigning([gcs, api], key_file)
+    assert signing.set_key(KEY, signing_timestamp(time.time())) == "Signing key set"
+    client = _client(key=KEY)
+    captured, later = _signed_frame(client), _signed_frame(client)
+    assert _accepts(gcs, captured) and _accepts(gcs, later)
+    assert not _accepts(api, captured)  # replayed on the other link
+    signing.checkpoint(100.0)
+    signing.save_timestamp()  # a clean stop (joins the checkpoint writer)
+    assert key_file.load().streams == {(0, 255, 190): int.from_bytes(later[-12:-6], "little")}
+
+    gcs2, api2 = M.MAVLink(None, srcSystem=1, srcComponent=1), M.MAVLink(None, srcSystem=1, srcComponent=1)
+    again = LinkSigning([gcs2, api2], key_file)
+    assert again.load() == []
+    assert not _accepts(gcs2, captured) and not _accepts(api2, later)  # replayed after the restart
+    assert _accepts(gcs2, _signed_frame(client))  # the genuine stream goes on
+    # a stream first seen after the restart must be newer than what the FC saw before it (not a minute of grace)
+    other = _client(sysid=254, key=KEY)
+    other.signing.timestamp = int.from_bytes(later[-12:-6], "little") - 1000
+    assert not _accepts(api2, _signed_frame(other))
+    other.signing.timestamp = signing_timestamp(time.time()) + 10
+    assert _accepts(api2, _signed_frame(other))
+
+
+def test_the_stream_table_is_bounded_and_a_forgotten_stream_cannot_come_back_older() -> None:
+    mav = M.MAVLink(None, srcSystem=1, srcComponent=1)
+    LinkSigning([mav], None).set_key(KEY, 0)
+    now = signing_timestamp(time.time())
+    frames = []
+    for i in range(STREAMS_KEPT + 1):
+        c = _client(sysid=i + 1, key=KEY)
+        c.signing.timestamp = now + i
+        frames.append(_signed_frame(c))
+    for f in frames:
+        assert _accepts(mav, f)
+    assert not _accepts(mav, frames[0])  # the first stream was forgotten: the floor keeps its frames out
