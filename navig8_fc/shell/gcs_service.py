@@ -155,7 +155,8 @@ class GcsService:
                                        flight_progress=self._settings.flight_progress(self._autopilot),
                                        takeoff_p7_amsl=self._autopilot == MAV_AUTOPILOT_PX4)
         self.misc = MiscProtocols(mav, statustext=self.text)
-        self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text)
+        self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text,
+                                       item_check=lambda item, kind: self.vehicle_msgs.item_problem(item, kind))
         # SET_MODE, offboard targets, MANUAL_CONTROL, the global origin, the plans handed to the vehicle
         self.vehicle_msgs = VehicleMessages(mav, self.sysid, state, vehicle, self.command, registry, self.params,
                                             self.text)

@@ -173,7 +173,8 @@ def test_mis_takeoff_alt_and_rtl_return_alt_reconfigure_the_stack_live() -> None
     assert not reg.set("MIS_TAKEOFF_ALT", 25.0).accepted  # above what this vehicle takes off to
     stack.reconfigure()
     assert (stack.mode_config.takeoff_default_alt_m, stack.mode_config.rtl_alt_m) == (10.0, 6.0)
-    assert reg.index_of("RTL_RETURN_ALT") == len(reg.definitions) - 1  # appended: earlier indices unchanged
+    # appended after the parameters before them (earlier indices unchanged; later ones are appended after them)
+    assert reg.index_of("RTL_RETURN_ALT") == reg.index_of("MIS_TAKEOFF_ALT") + 1 == reg.index_of("CKF_CZ_SIG") + 2
     assert not stack.command(Takeoff()).ok  # disarmed; the altitude itself is checked by the manager
 
 
