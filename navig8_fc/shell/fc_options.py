@@ -42,7 +42,7 @@ class FcOptions:
     foxglove_port: int | None = None  # --foxglove[=PORT]: serve the Foxglove channels live (0: any free port)
     foxglove_host: str = "127.0.0.1"
     log_max_mb: float = 1024.0  # --log-max-mb: rotate the log at this size (0: no cap)
-    log_keep: int = 4  # --log-keep: rotated parts kept (the oldest is deleted)
+    log_keep: int = 4  # --log-keep: rotated parts kept after the first (the oldest of them is deleted)
     # connection strings (navig8_fc/links/transport.py: udpin:, udpout:, tcp:, tcpin:, serial:) replacing a link's
     # host/port options; None: UDP as the port options say
     sim_link: str | None = None
@@ -83,7 +83,8 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--log-max-mb", type=float, default=FcOptions.log_max_mb,
                     help="rotate the log at this size in MB: PATH, PATH-stem.1.mcap, ... (0: no cap; docs/logs.md)")
     ap.add_argument("--log-keep", type=int, default=FcOptions.log_keep,
-                    help="log parts kept when rotating (the oldest is deleted)")
+                    help="log parts kept after the first when rotating (the first, the flight's start, is never "
+                         "deleted; of the others the oldest is)")
     ap.add_argument("--state-dir", default=None, help="directory for persisted parameters")
     ap.add_argument("--defaults", action="store_true", help="start from default parameters (ignore stored)")
     ap.add_argument("--autopilot", choices=["generic", "px4"], default="generic",

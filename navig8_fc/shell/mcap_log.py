@@ -1,7 +1,8 @@
 """MCAP logging (DESIGN §7): one file per run, JSON channels with JSON schemas Foxglove can plot.
 
 Resources (docs/logs.md, "Size cap and a full disk"): with `max_bytes` the file is closed (complete) and the log
-continues in `<stem>.1.mcap`, `<stem>.2.mcap`, ... keeping `keep_files` parts; a write that fails (disk full,
+continues in `<stem>.1.mcap`, `<stem>.2.mcap`, ... keeping the first part (the flight's start) and the newest
+`keep_files` after it; a write that fails (disk full,
 file-size limit, I/O error) stops the log: `error` says why, later records are dropped and counted (`dropped`),
 and nothing raises into the caller's flight.
 
@@ -155,7 +156,7 @@ class McapLogger:
             for kind, args in self._replay:
                 got = getattr(self._w, kind)(*args)
                 assert kind == "add_metadata" or got is not None
-            if self.keep_files > 0 and self.rotations >= self.keep_files:
+            if self.keep_files > 0 and self.rotations > self.keep_files:  # part 0, the flight's start, stays
                 part_path(self.path, self.rotations - self.keep_files).unlink(missing_ok=True)
         except OSError as e:
             self.fail(f"{e.strerror or e} ({self.current_path.name})")

@@ -142,7 +142,8 @@ def test_log_truth_record_is_the_truth_record_byte_for_byte() -> None:
 
 def test_rotation_keeps_complete_parts_with_the_same_channels(tmp_path: Path) -> None:
     """A size cap: each part is a whole MCAP (the library's CRC-checking reader reads it), holds the run's start
-    metadata and every channel again (the cached ids stay valid), and only the newest `keep_files` parts remain."""
+    metadata and every channel again (the cached ids stay valid), and the first part and the newest `keep_files`
+    parts remain."""
     from mcap.reader import make_reader
 
     from navig8_fc.shell.mcap_log import part_path
@@ -159,7 +160,8 @@ def test_rotation_keeps_complete_parts_with_the_same_channels(tmp_path: Path) ->
     lg.close()
     assert lg.rotations >= 5 and lg.error is None and lg.dropped == 0
     parts = sorted(tmp_path.glob("run*.mcap"), key=lambda q: q.stat().st_mtime_ns)
-    assert parts == [part_path(p, k) for k in range(lg.rotations - 2, lg.rotations + 1)]
+    # the first part (the flight's start) is never deleted; after it the newest keep_files parts
+    assert parts == [p] + [part_path(p, k) for k in range(lg.rotations - 2, lg.rotations + 1)]
     last = None
     for q in parts:
         assert q.stat().st_size < 50_000 + 20_000  # the cap plus at most one check interval of records
@@ -167,7 +169,7 @@ def test_rotation_keeps_complete_parts_with_the_same_channels(tmp_path: Path) ->
             r = make_reader(fh, validate_crcs=True)
             got = [json.loads(m.data)["i"] for _s, ch, m in r.iter_messages(topics=["/fast"], log_time_order=False)]
         assert got == list(range(got[0], got[0] + len(got)))  # no record lost or doubled
-        assert last is None or got[0] == last + 1
+        assert last is None or got[0] == last + 1 or q == parts[1]  # (the parts between the first and these: gone)
         last = got[-1]
         assert read_metadata(q)["run"] == {"scenario": "hover"}
     assert last == 19_999
