@@ -6,9 +6,10 @@ continues in `<stem>.1.mcap`, `<stem>.2.mcap`, ... keeping the first part (the f
 file-size limit, I/O error) stops the log: `error` says why, later records are dropped and counted (`dropped`),
 and nothing raises into the caller's flight.
 
-Chunks are small (64 KiB by default) so a killed process loses little; `read_mcap` recovers a
-truncated file up to its last complete chunk. Times: log_time = sim time (ns), publish_time = the
-wall clock of the writer when given (the shell owns clocks; pass it in).
+Chunks are small (64 KiB by default) so a killed process loses little; the file is sealed after every chunk
+(mcap_writer: a provisional footer), so a file cut by a crash reads with the stock readers' defaults up to its last
+complete chunk, and `read_mcap` also reads one cut in the middle of a write. Times: log_time = sim time (ns),
+publish_time = the wall clock of the writer when given (the shell owns clocks; pass it in).
 """
 
 from __future__ import annotations
@@ -124,7 +125,7 @@ class McapLogger:
         self._closed = False
 
     def _start(self, fh: BinaryIO) -> FastMcapWriter:
-        w = FastMcapWriter(fh, chunk_size=self._chunk_size, compression="lz4")
+        w = FastMcapWriter(fh, chunk_size=self._chunk_size, compression="lz4", sealed=True)  # a cut file reads
         w.start(profile=self._profile, library="navig8-sitl")
         return w
 
