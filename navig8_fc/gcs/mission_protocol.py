@@ -8,15 +8,22 @@ Times are the caller's clock (wall time: a ground station's retries run on wall 
 Upload (the vehicle is the requester; devguide "Mission Protocol", PX4 mavlink_mission.cpp):
 MISSION_COUNT(n) -> MISSION_REQUEST_INT(0) -> MISSION_ITEM_INT(0) -> ... -> MISSION_ACK(ACCEPTED).
 - A request that goes unanswered is sent again every `retry_s` (250 ms, PX4's
-  MAVLINK_MISSION_RETRY_TIMEOUT_DEFAULT); `timeout_s` (5 s, MAVLINK_MISSION_PROTOCOL_TIMEOUT_DEFAULT) without a
-  message from the uploader ends the transfer with STATUSTEXT "Mission upload timed out".
+  MAVLINK_MISSION_RETRY_TIMEOUT_DEFAULT); `timeout_s` (5 s, MAVLINK_MISSION_PROTOCOL_TIMEOUT_DEFAULT) without
+  progress (the upload's start or an item accepted) ends the transfer with STATUSTEXT "Mission upload timed out".
 - Items arrive into a new plan beside the one in force; the plan in force is replaced only when the last item
   has arrived and the whole plan is valid (`plan.check_item`/`check_plan`). A timeout, a cancel
   (MISSION_ACK OPERATION_CANCELLED from the uploader) or a refused item leaves the old plan in force.
 - A refused item ends the upload with MISSION_ACK(the MAV_MISSION_RESULT naming the problem) + STATUSTEXT.
-- An item whose seq is not the one requested is ignored (the request is repeated); items from anyone but the
-  uploader are ignored. A MISSION_COUNT from the uploader during its upload restarts it (its earlier attempt
-  timed out on its side); from another ground station it gets MISSION_ACK(ERROR) + STATUSTEXT "busy".
+- The upload (the lock on the plans) belongs to its uploader: system id, component id and the source it sends
+  from. An item whose seq is not the one requested is ignored (the request is repeated); items from anyone but
+  the uploader are ignored. A MISSION_COUNT from the uploader during its upload restarts it (its earlier attempt
+  timed out on its side) without extending the lock: only progress does, so MISSION_COUNT repeated forever holds
+  nothing. From another sender: MISSION_ACK(DENIED) + STATUSTEXT while the upload progresses; once it has made
+  no progress for `stale_s` (1 s: an uploader answers a request within milliseconds, PX4 asks again after
+  250 ms) it no longer blocks anyone: another sender's MISSION_COUNT, clear or download ends it ("abandoned")
+  and goes ahead.
+- `item_check` (the operating volume, navig8_fc.mission.volume) may refuse a MISSION or RALLY item by its
+  position: MISSION_ACK(INVALID_PARAM5_X / INVALID_PARAM7) + STATUSTEXT with the reason.
 - Legacy MISSION_ITEM (float x/y) is accepted; a MISSION_ACK(UNSUPPORTED) from the uploader in answer to our
   MISSION_REQUEST_INT switches that upload to MISSION_REQUEST (PX4 does the same).
 - The last item repeated after the final ACK (the ground station lost it) gets the same ACK again.
@@ -39,6 +46,7 @@ navig8_fc.mavlink.dialect) and reported by `opaque_id(mission_type)` either way 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -71,7 +79,7 @@ class _Upload:
     count: int
     int_mode: bool
     last_request_s: float
-    last_rx_s: float
+    last_progress_s: float  # the start or the last item accepted (a restart by the uploader does not count)
     items: list[MissionItem] = field(default_factory=list)
     current: int = 0
 
@@ -89,7 +97,8 @@ class MissionProtocol:
 
     def __init__(self, mav: Any, sysid: int, compid: int, store: MissionStore | None = None, *,
                  statustext: StatusTextEncoder | None = None, retry_s: float = 0.25, timeout_s: float = 5.0,
-                 current_period_s: float = 1.0) -> None:
+                 current_period_s: float = 1.0, stale_s: float = 1.0,
+                 item_check: Callable[[MissionItem, int], Problem | None] | None = None) -> None:
         self._mav = mav
         self._sysid = int(sysid)
         self._compid = int(compid)
@@ -97,6 +106,8 @@ class MissionProtocol:
         self._text = statustext or StatusTextEncoder(mav)
         self.retry_s = float(retry_s)
         self.timeout_s = float(timeout_s)
+        self.stale_s = float(stale_s)
+        self._item_check = item_check
         self._plans: dict[int, Plan] = {t: Plan(t) for t in STORED_TYPES}
         self._upload: _Upload | None = None
         self._download: _Download | None = None
@@ -152,16 +163,19 @@ class MissionProtocol:
             return []
         partner = (int(msg.get_srcSystem()), int(msg.get_srcComponent()))
         mission_type = int(getattr(msg, "mission_type", MissionType.MISSION))
+        abandoned = self._abandon_stale(partner, source, now_s)
+        if abandoned:
+            return abandoned + self.handle(msg, now_s, source)
         if kind == "MISSION_COUNT":
             return self._count(msg, now_s, source, partner, mission_type)
         if kind in ("MISSION_ITEM_INT", "MISSION_ITEM"):
-            return self._item(msg, now_s, partner, mission_type, kind == "MISSION_ITEM_INT")
+            return self._item(msg, now_s, (partner, source), mission_type, kind == "MISSION_ITEM_INT")
         if kind == "MISSION_REQUEST_LIST":
             return self._request_list(now_s, source, partner, mission_type)
         if kind in ("MISSION_REQUEST_INT", "MISSION_REQUEST"):
             return self._request(msg, now_s, source, partner, mission_type, kind == "MISSION_REQUEST_INT")
         if kind == "MISSION_ACK":
-            return self._ack_in(msg, partner, mission_type)
+            return self._ack_in(msg, partner, source, mission_type)
         if kind == "MISSION_CLEAR_ALL":
             return self._clear_all(partner, mission_type)
         ok, reason = self.set_current(int(msg.seq))  # MISSION_SET_CURRENT (no ACK in the protocol)
@@ -173,7 +187,7 @@ class MissionProtocol:
         out, self._outbox = self._outbox, []
         up = self._upload
         if up is not None:
-            if now_s - up.last_rx_s >= self.timeout_s:
+            if now_s - up.last_progress_s >= self.timeout_s:
                 self._upload = None
                 out += [(None, m) for m in self._text.warning(
                     f"Mission upload timed out at item {len(up.items)}/{up.count}: plan in force unchanged")]
@@ -189,6 +203,15 @@ class MissionProtocol:
         return self._status.mission_current()
 
     # --- internals ----------------------------------------------------------------------------------------
+    def _abandon_stale(self, partner: tuple[int, int], source: Any, now_s: float) -> list[Any]:
+        """Another sender's message while the upload has made no progress for stale_s: the upload ends (module
+        docstring); the STATUSTEXT saying so (empty: nothing abandoned)."""
+        up = self._upload
+        if up is None or (up.partner, up.source) == (partner, source) or now_s - up.last_progress_s < self.stale_s:
+            return []
+        self._upload = None
+        return self._text.warning(f"Stale mission upload (sys {up.partner[0]}) abandoned")  # one STATUSTEXT
+
     def _for_us(self, msg: Any) -> bool:
         ts = getattr(msg, "target_system", 0)
         tc = getattr(msg, "target_component", 0)
@@ -212,9 +235,10 @@ class MissionProtocol:
     def _count(self, msg: Any, now_s: float, source: Any, partner: tuple[int, int], mission_type: int) -> list[Any]:
         count = int(msg.count)
         up = self._upload
-        if up is not None and up.partner != partner:
-            return self._refuse(partner, mission_type,
-                                Problem(Result.ERROR, "Mission upload refused: another upload is running"))
+        if up is not None and (up.partner, up.source) != (partner, source):
+            return self._refuse(partner, mission_type, Problem(
+                Result.DENIED, f"Mission upload refused: system {up.partner[0]} is uploading"))
+        started_s = now_s if up is None else up.last_progress_s  # a restart does not extend the lock
         self._upload = None  # the uploader's new MISSION_COUNT restarts its upload
         if mission_type not in STORED_TYPES:
             return self._refuse(partner, mission_type,
@@ -228,20 +252,21 @@ class MissionProtocol:
                                 Problem(Result.NO_SPACE, f"Mission upload: {count} items, at most {limit}"))
         self._download = None
         self._last_ack = None
-        self._upload = _Upload(source, partner, mission_type, count, True, now_s, now_s)
+        self._upload = _Upload(source, partner, mission_type, count, True, now_s, started_s)
         return [self._request_msg(self._upload)]
 
-    def _item(self, msg: Any, now_s: float, partner: tuple[int, int], mission_type: int, is_int: bool) -> list[Any]:
+    def _item(self, msg: Any, now_s: float, sender: tuple[tuple[int, int], Any], mission_type: int, is_int: bool
+              ) -> list[Any]:
         seq = int(msg.seq)
+        partner = sender[0]
         up = self._upload
         if up is None:
             last = self._last_ack
             if last is not None and last[0] == partner and last[1] == mission_type and seq == last[2] - 1:
                 return [self._ack(partner, last[3], mission_type, self.opaque_id(mission_type))]
             return []
-        if partner != up.partner:
+        if sender != (up.partner, up.source):
             return []
-        up.last_rx_s = now_s
         if mission_type != up.mission_type:
             self._upload = None
             return self._refuse(partner, mission_type, Problem(
@@ -252,6 +277,8 @@ class MissionProtocol:
         item, problem = _decode_item(msg, is_int)
         if problem is None:
             problem = check_item(item, up.mission_type, up.count)
+        if problem is None and self._item_check is not None:
+            problem = self._item_check(item, up.mission_type)
         if problem is not None:
             self._upload = None
             return self._refuse(partner, mission_type, Problem(problem.result, f"Item {seq}: {problem.reason}"))
@@ -260,6 +287,7 @@ class MissionProtocol:
         if int(msg.current) == 1:
             up.current = seq
         up.items.append(item)
+        up.last_progress_s = now_s
         if len(up.items) < up.count:
             up.last_request_s = now_s
             return [self._request_msg(up)]
@@ -323,9 +351,9 @@ class MissionProtocol:
             partner[0], partner[1], seq, it.frame, it.command, current, it.autocontinue, it.param1, it.param2,
             it.param3, it.param4, x, y, it.z, mission_type)]
 
-    def _ack_in(self, msg: Any, partner: tuple[int, int], mission_type: int) -> list[Any]:
+    def _ack_in(self, msg: Any, partner: tuple[int, int], source: Any, mission_type: int) -> list[Any]:
         up = self._upload
-        if up is not None and partner == up.partner:
+        if up is not None and (partner, source) == (up.partner, up.source):
             if int(msg.type) == Result.UNSUPPORTED and up.int_mode:
                 up.int_mode = False  # the uploader cannot send MISSION_ITEM_INT: ask with MISSION_REQUEST
                 return [self._request_msg(up)]

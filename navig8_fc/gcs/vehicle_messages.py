@@ -1,7 +1,9 @@
 """The MAVLink messages that steer the vehicle outside the command protocol (for GcsService; pure, wall times come
 in): the legacy SET_MODE, the offboard targets (SET_POSITION_TARGET_*, SET_ATTITUDE_TARGET), MANUAL_CONTROL (sticks
 centred when it stops), SET_GPS_GLOBAL_ORIGIN, and the uploaded mission, fence and rally plans handed to the vehicle
-about the global origin. None of them has an ACK: a refusal is a STATUSTEXT."""
+about the global origin. None of them has an ACK: a refusal is a STATUSTEXT. Offboard targets and uploaded mission and
+rally items are held to the operating volume (navig8_fc.mission.volume, VOL_*): a target outside it is ignored (the
+vehicle flies on with the last one it accepted) with a STATUSTEXT at most once a second."""
 
 from __future__ import annotations
 
@@ -24,13 +26,15 @@ from navig8_fc.gcs.mission_protocol import MissionProtocol
 from navig8_fc.gcs.params import ParamProtocol
 from navig8_fc.gcs.statustext import StatusTextEncoder
 from navig8_fc.mission.geo import origin_from_params
-from navig8_fc.mission.plan import MissionType
+from navig8_fc.mission.plan import MissionItem, MissionType, Problem
+from navig8_fc.mission.volume import OperatingVolume
 from navig8_fc.modes.manager import Verdict
 from navig8_fc.params.registry import ParamRegistry
 
 MAV_FRAME_LOCAL_NED, MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 1, 5, 6
 _OFFBOARD_TYPES = frozenset({"SET_POSITION_TARGET_LOCAL_NED", "SET_POSITION_TARGET_GLOBAL_INT", "SET_ATTITUDE_TARGET"})
 MANUAL_CONTROL_TIMEOUT_S = 0.5  # MANUAL_CONTROL older than this: sticks centred (Position mode holds)
+VOLUME_TEXT_PERIOD_S = 1.0  # at most one "outside the operating volume" STATUSTEXT a second
 
 
 class VehicleMessages:
@@ -47,6 +51,9 @@ class VehicleMessages:
         self.last_offboard_setpoint: float | None = None  # wall time of the last accepted offboard setpoint
         self._offboard_ignored = ""  # the part of the offboard targets not flown, as last announced
         self._last_manual: float | None = None  # wall time of the last MANUAL_CONTROL
+        self._volume = OperatingVolume.from_params(registry)
+        self._volume_generation = registry.generation
+        self._volume_text_t = -float("inf")
 
     def handle(self, m: Any, now_wall: float) -> list[Any]:
         """One inbound message; the answers (STATUSTEXT, PARAM_VALUE, GPS_GLOBAL_ORIGIN) for the caller to route."""
@@ -106,6 +113,12 @@ class VehicleMessages:
                                            float(m.yaw), float(m.yaw_rate), yaw_now)
         if dec.target is None:
             return self.text.warning(dec.refusal)
+        why = self.volume().target_problem(dec.target.pos_ned, dec.target.vel_ned, self._home())
+        if why:
+            if now_wall - self._volume_text_t < VOLUME_TEXT_PERIOD_S:
+                return []
+            self._volume_text_t = now_wall
+            return self.text.warning(f"Offboard target ignored: {why}")
         ok, reason = self._vehicle.command(OffboardSetpoint(dec.target))
         if not ok:
             return self.text.warning(reason)
@@ -151,6 +164,23 @@ class VehicleMessages:
     def above_home_m(self, alt_amsl_m: float) -> float:
         """An altitude above mean sea level as a height above home (NaN stays NaN)."""
         return self._home_z() - (self.origin.alt_amsl_m - alt_amsl_m)
+
+    def volume(self) -> OperatingVolume:
+        """The operating volume in force (VOL_*), typed again only after a parameter change."""
+        reg = self._registry
+        if reg.generation != self._volume_generation:
+            self._volume, self._volume_generation = OperatingVolume.from_params(reg), reg.generation
+        return self._volume
+
+    def item_problem(self, item: MissionItem, mission_type: int) -> Problem | None:
+        """Why an uploaded mission or rally item leaves the operating volume (None: it does not)."""
+        if mission_type not in (MissionType.MISSION, MissionType.RALLY):
+            return None
+        return self.volume().item_problem(item, self.origin, self._home())
+
+    def _home(self) -> tuple[float, float, float]:
+        home = self._state().home_ned
+        return tuple(home) if home is not None else (0.0, 0.0, 0.0)  # type: ignore[return-value]
 
     def _home_z(self) -> float:
         home = self._state().home_ned

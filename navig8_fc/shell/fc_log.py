@@ -2,7 +2,11 @@
 the step's answer has gone out), the decoded GCS and sim-link messages, and the per-step records (/truth,
 /analysis/eig, /fc/status, /fc/setpoint, /fc/command) with the Foxglove 3D channels; events, STATUSTEXT, parameter
 changes and the stability record. Logging never ends the flight: an exception is counted, reported once and
-logging stops; a logger that lost its file (disk full) drops and counts by itself."""
+logging stops; a logger that lost its file (disk full) drops and counts by itself.
+
+The ground-station links' datagrams are logged within a budget (`GcsLogBudget`): a flood cannot fill the log, and a
+datagram over the budget is left out with its decoded records and summarised once a second on
+/mavlink/<link>/<direction>/over_budget (docs/logs.md, "Floods")."""
 
 from __future__ import annotations
 
@@ -25,6 +29,52 @@ from navig8_fc.mavlink.seam import TruthFloats
 from navig8_fc.params.registry import StabilityStatus
 from navig8_fc.shell.foxglove_out import FoxgloveOutput
 from navig8_fc.shell.step_log import StepLog
+
+GCS_LOG_BYTES_PER_S = 32_000.0  # raw bytes a second per GCS link and direction (a hover's telemetry: ~4.4 KB/s)
+GCS_LOG_BURST_BYTES = 320_000.0  # ten seconds of it at once
+OVER_BUDGET_PERIOD_NS = 1_000_000_000
+OVER_BUDGET_PEERS = 8  # the busiest senders named in a summary
+
+
+class GcsLogBudget:
+    """A token bucket of raw bytes per (link, direction), on the wall clock; what it leaves out is counted per peer
+    and handed back once a period as a summary record."""
+
+    def __init__(self, bytes_per_s: float = GCS_LOG_BYTES_PER_S, burst_bytes: float = GCS_LOG_BURST_BYTES) -> None:
+        self.bytes_per_s, self.burst_bytes = bytes_per_s, burst_bytes
+        self._tokens: dict[tuple[str, str], tuple[float, int]] = {}  # key -> (tokens, wall ns of the refill)
+        self._left_out: dict[tuple[str, str], dict[str, list[int]]] = {}  # key -> peer -> [datagrams, bytes]
+        self._summary_due_ns = 0
+        self.n_left_out = 0
+
+    def admit(self, key: tuple[str, str], n_bytes: int, peer: str, wall_ns: int) -> bool:
+        tokens, t_ns = self._tokens.get(key, (self.burst_bytes, wall_ns))
+        tokens = min(self.burst_bytes, tokens + (wall_ns - t_ns) * 1e-9 * self.bytes_per_s)
+        ok = n_bytes <= tokens
+        self._tokens[key] = (tokens - n_bytes if ok else tokens, wall_ns)
+        if not ok:
+            self.n_left_out += 1
+            peers = self._left_out.setdefault(key, {})
+            if peer in peers or len(peers) < 4 * OVER_BUDGET_PEERS:
+                count = peers.setdefault(peer, [0, 0])
+                count[0] += 1
+                count[1] += n_bytes
+        return ok
+
+    def summaries(self, wall_ns: int, force: bool = False) -> list[tuple[str, dict[str, Any]]]:
+        """(topic, record) of what was left out since the last summary, once a period (or now when forced)."""
+        if not self._left_out or (wall_ns < self._summary_due_ns and not force):
+            return []
+        self._summary_due_ns = wall_ns + OVER_BUDGET_PERIOD_NS
+        out = []
+        for (link, direction), peers in self._left_out.items():
+            busiest = sorted(peers.items(), key=lambda kv: -kv[1][1])[:OVER_BUDGET_PEERS]
+            out.append((f"/mavlink/{link}/{direction}/over_budget", {
+                "datagrams": sum(c[0] for c in peers.values()), "bytes": sum(c[1] for c in peers.values()),
+                "budget_bytes_per_s": self.bytes_per_s,
+                "peers": [{"peer": p, "datagrams": c[0], "bytes": c[1]} for p, c in busiest]}))
+        self._left_out = {}
+        return out
 
 
 @dataclasses.dataclass(frozen=True)
@@ -57,6 +107,8 @@ class FcLog:
         self._frame_queue: list[tuple[str, Any, str | None, int, int]] = []
         self._sim_channels: dict[tuple[str, str], int] = {}
         self._raw_topics: dict[tuple[str, str], str] = {}  # (link, direction) -> /mavlink/<link>/<direction>
+        self.gcs_budget = GcsLogBudget()
+        self._left_out: set[tuple[str, str]] = set()  # (link, direction) whose last datagram was left out
 
     @property
     def active(self) -> bool:
@@ -69,14 +121,23 @@ class FcLog:
         has gone out, so logging overlaps with the bridge's physics step instead of delaying the lockstep round
         trip."""
         if self.logger:
-            topic = self._raw_topics.get((link, direction))
+            key = (link, direction)
+            topic = self._raw_topics.get(key)
             if topic is None:
-                topic = self._raw_topics[(link, direction)] = f"/mavlink/{link}/{direction}"
-            self._frame_queue.append((topic, raw, peer, self._sim_ns(), time.time_ns()))
+                topic = self._raw_topics[key] = f"/mavlink/{link}/{direction}"
+            wall_ns = time.time_ns()
+            if link != "sim":  # the sim link is the flight's record: never left out
+                if not self.gcs_budget.admit(key, len(raw), peer, wall_ns):
+                    self._left_out.add(key)
+                    return
+                self._left_out.discard(key)
+                for summary_topic, rec in self.gcs_budget.summaries(wall_ns):
+                    self._frame_queue.append((summary_topic, rec, None, self._sim_ns(), wall_ns))
+            self._frame_queue.append((topic, raw, peer, self._sim_ns(), wall_ns))
 
     def decoded(self, link: str, direction: str, raw: bytes, msg: Any, peer: tuple[str, int]) -> None:
         """Queue a decoded GCS/API message for its /mavlink/<link>/<dir>/<TYPE> channel."""
-        if self.logger:
+        if self.logger and (link, direction) not in self._left_out:  # its datagram was logged
             self._frame_queue.append((f"/mavlink/{link}/{direction}/{msg.get_type()}", msg, None, self._sim_ns(),
                                       time.time_ns()))
 
@@ -87,6 +148,8 @@ class FcLog:
         for topic, item, peer, t_ns, wall_ns in q:
             if peer is not None:  # a raw datagram
                 self.logger.log_raw(topic, t_ns, item, publish_ns=wall_ns, peer=peer)
+            elif type(item) is dict:  # an over_budget summary
+                self.logger.log(topic, t_ns, item, publish_ns=wall_ns)
             else:  # a decoded GCS message (pymavlink)
                 self.logger.log(topic, t_ns, item.to_dict(), publish_ns=wall_ns, schema=mavlink_json_schema(type(item)))
 
@@ -174,6 +237,7 @@ class FcLog:
     def stats(self) -> dict[str, Any]:
         lg = self.logger
         return {"log_errors": self.n_errors, "log_dropped": lg.dropped if lg is not None else 0,
+                "log_gcs_over_budget": self.gcs_budget.n_left_out,
                 "log_rotations": lg.rotations if lg else 0,
                 "log_error": (lg.error if lg is not None else self.open_error)}
 
@@ -184,6 +248,8 @@ class FcLog:
             print(f"navig8-fc: log {lg.path}: {lg.dropped} records dropped after {lg.error}", file=sys.stderr)
         if lg:
             self.finish()
+            for topic, rec in self.gcs_budget.summaries(time.time_ns(), force=True):
+                lg.log(topic, self._sim_ns(), rec, publish_ns=time.time_ns())
             for name, rec in metadata.items():
                 lg.metadata(name, rec)
             lg.close()

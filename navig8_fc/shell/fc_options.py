@@ -41,8 +41,9 @@ class FcOptions:
     autopilot: str = "generic"  # HEARTBEAT.autopilot: "generic" or "px4" (docs/gcs.md, "Autopilot identity")
     foxglove_port: int | None = None  # --foxglove[=PORT]: serve the Foxglove channels live (0: any free port)
     foxglove_host: str = "127.0.0.1"
+    foxglove_origins: tuple[str, ...] = ()  # --foxglove-allow-origin: browser origins allowed besides the defaults
     log_max_mb: float = 1024.0  # --log-max-mb: rotate the log at this size (0: no cap)
-    log_keep: int = 4  # --log-keep: rotated parts kept (the oldest is deleted)
+    log_keep: int = 4  # --log-keep: rotated parts kept after the first (the oldest of them is deleted)
     # connection strings (navig8_fc/links/transport.py: udpin:, udpout:, tcp:, tcpin:, serial:) replacing a link's
     # host/port options; None: UDP as the port options say
     sim_link: str | None = None
@@ -83,7 +84,8 @@ def build_arg_parser() -> argparse.ArgumentParser:
     ap.add_argument("--log-max-mb", type=float, default=FcOptions.log_max_mb,
                     help="rotate the log at this size in MB: PATH, PATH-stem.1.mcap, ... (0: no cap; docs/logs.md)")
     ap.add_argument("--log-keep", type=int, default=FcOptions.log_keep,
-                    help="log parts kept when rotating (the oldest is deleted)")
+                    help="log parts kept after the first when rotating (the first, the flight's start, is never "
+                         "deleted; of the others the oldest is)")
     ap.add_argument("--state-dir", default=None, help="directory for persisted parameters")
     ap.add_argument("--defaults", action="store_true", help="start from default parameters (ignore stored)")
     ap.add_argument("--autopilot", choices=["generic", "px4"], default="generic",
@@ -96,6 +98,9 @@ def build_arg_parser() -> argparse.ArgumentParser:
                     help=f"serve the Foxglove 3D channels live over WebSocket (default port {FOXGLOVE_DEFAULT_PORT}; "
                          "0: any free port)")
     ap.add_argument("--foxglove-host", default="127.0.0.1", help="address the Foxglove server binds")
+    ap.add_argument("--foxglove-allow-origin", action="append", default=[], metavar="ORIGIN",
+                    help="a browser origin allowed to open the Foxglove WebSocket besides https://app.foxglove.dev and "
+                         "clients that send none (repeatable; '*': any; docs/foxglove.md)")
     conn = ("a connection string instead of the port options: udpin:H:P, udpout:H:P, tcp:H:P, tcpin:H:P, "
             "serial:DEVICE:BAUD (docs/hil.md)")
     ap.add_argument("--sim-link", default=None, metavar="CONN", help=f"the bridge/simulator link as {conn}; PX4's "
@@ -122,7 +127,8 @@ def options_from_args(a: argparse.Namespace) -> FcOptions:
         api_bind_port=a.api_bind_port, api_port=a.api_port, log_path=Path(a.log) if a.log else None,
         state_dir=Path(a.state_dir) if a.state_dir else None, defaults=a.defaults,
         ports_file=Path(a.ports_file) if a.ports_file else None, autopilot=a.autopilot, foxglove_port=a.foxglove,
-        foxglove_host=a.foxglove_host, log_max_mb=a.log_max_mb, log_keep=a.log_keep, sim_link=a.sim_link,
+        foxglove_host=a.foxglove_host, foxglove_origins=tuple(a.foxglove_allow_origin), log_max_mb=a.log_max_mb,
+        log_keep=a.log_keep, sim_link=a.sim_link,
         gcs_link=a.gcs_link, api_link=a.api_link, timing=a.timing, sim_messages=a.sim_messages,
         vehicle_path=Path(a.vehicle) if a.vehicle else None,
     )

@@ -33,6 +33,7 @@ from navig8_fc.shell.gcs_links import GcsLinks
 from navig8_fc.shell.gcs_service import GcsService
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.mcap_log import open_logger
+from navig8_fc.shell.origin_gate import DEFAULT_ALLOWED_ORIGINS
 from navig8_fc.shell.sim_peer import Px4Peer, sim_peer_for, timing_from_params
 from navig8_fc.shell.sim_stepper import SimStepper
 from navig8_fc.shell.telemetry_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4
@@ -121,7 +122,8 @@ class FlightControllerProcess:
         o = self.opts
         live = None
         if o.foxglove_port is not None:
-            live = LiveServer(o.foxglove_host, o.foxglove_port, f"navig8-fc sysid {o.sysid}")
+            live = LiveServer(o.foxglove_host, o.foxglove_port, f"navig8-fc sysid {o.sysid}",
+                              DEFAULT_ALLOWED_ORIGINS | set(o.foxglove_origins))
             print(f"navig8-fc: Foxglove WebSocket ws://{o.foxglove_host}:{live.port}", file=sys.stderr)
         if logger is None and live is None:
             return None

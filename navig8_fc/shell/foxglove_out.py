@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import orjson
@@ -23,6 +23,7 @@ from navig8_fc.mission.executor import planned_path
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan
 from navig8_fc.shell.mcap_log import McapLogger
+from navig8_fc.shell.origin_gate import DEFAULT_ALLOWED_ORIGINS, OriginGate
 
 _NS = 1_000_000_000
 # topic: (Foxglove schema, period in ns of log time)
@@ -47,9 +48,12 @@ class FoxglovePortError(OSError):
 
 
 class LiveServer:
-    """A foxglove-sdk WebSocket server with one JSON channel per TOPICS entry (its own Context: no globals)."""
+    """A foxglove-sdk WebSocket server with one JSON channel per TOPICS entry (its own Context: no globals), behind an
+    OriginGate on (host, port): the SDK's server listens on a loopback port of its own, and a browser page from an
+    origin not in `allowed_origins` is refused (origin_gate.py)."""
 
-    def __init__(self, host: str, port: int, name: str) -> None:
+    def __init__(self, host: str, port: int, name: str,
+                 allowed_origins: Iterable[str] = DEFAULT_ALLOWED_ORIGINS) -> None:
         import foxglove  # imported only with --foxglove
 
         self._ctx = foxglove.Context()
@@ -60,13 +64,19 @@ class LiveServer:
                 topic, schema=foxglove.Schema(name=schema, encoding="jsonschema", data=data),
                 message_encoding="json", context=self._ctx)
         try:
-            self.server = foxglove.start_server(name=name, host=host, port=port, context=self._ctx)
+            self.server = foxglove.start_server(name=name, host="127.0.0.1", port=0, context=self._ctx)
         except RuntimeError as e:  # foxglove-sdk's FoxgloveError, e.g. "Failed to bind port: Address already in use"
             raise FoxglovePortError(port, str(e)) from e
+        try:
+            self.gate = OriginGate(host, port, int(self.server.port), allowed_origins)
+        except OSError as e:
+            self.server.stop()
+            raise FoxglovePortError(port, e.strerror or str(e)) from e
 
     @property
     def port(self) -> int:
-        return int(self.server.port)
+        """Where clients connect (the gate)."""
+        return self.gate.port
 
     def wants(self, topic: str) -> bool:
         return bool(self.channels[topic].has_sinks())
@@ -75,6 +85,7 @@ class LiveServer:
         self.channels[topic].log(data, log_time=t_ns)
 
     def close(self) -> None:
+        self.gate.close()
         self.server.stop()
 
 

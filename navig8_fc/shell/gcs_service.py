@@ -55,6 +55,7 @@ from navig8_fc.flight.state import VehicleCommands, VehicleState
 from navig8_fc.gcs import standard_modes
 from navig8_fc.gcs.commands import CommandHandler
 from navig8_fc.gcs.ftp import FtpServer, FtpService
+from navig8_fc.gcs.ftp_pacing import ReplyPacer
 from navig8_fc.gcs.metadata import build_metadata, component_metadata_message
 from navig8_fc.gcs.misc import MiscProtocols
 from navig8_fc.gcs.mission_protocol import MissionProtocol
@@ -159,12 +160,13 @@ class GcsService:
                                        flight_progress=self._settings.flight_progress(self._autopilot),
                                        takeoff_p7_amsl=self._autopilot == MAV_AUTOPILOT_PX4)
         self.misc = MiscProtocols(mav, statustext=self.text)
-        self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text)
+        self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text,
+                                       item_check=lambda item, kind: self.vehicle_msgs.item_problem(item, kind))
         # SET_MODE, offboard targets, MANUAL_CONTROL, the global origin, the plans handed to the vehicle
         self.vehicle_msgs = VehicleMessages(mav, self.sysid, state, vehicle, self.command, registry, self.params,
                                             self.text)
         self.metadata = build_metadata(registry.definitions)  # QGC's parameter metadata, served read-only over FTP
-        self.ftp = FtpService(mav, FtpServer(self.metadata.files), sysid, 1)
+        self.ftp = FtpService(mav, FtpServer(self.metadata.files), sysid, 1, ReplyPacer())  # paced per source
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
         self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config, autopilot)
@@ -291,7 +293,7 @@ class GcsService:
             self._command_source = None
             out += self.misc.handle(m, now_wall)
             out += self.mission.handle(m, now_wall, source)
-            out += self.ftp.handle(m)
+            out += self.ftp.handle(m, source, now_wall)
             out += self.vehicle_msgs.handle(m, now_wall)
             self._route(kind, source, out)
         return self.params.drain_changes()
@@ -348,7 +350,8 @@ class GcsService:
         # (parameter, mission and command progress and the sends only read it)
         state = self._state()
         self.mission.report(state.mission)
-        for source, m in self.params.poll_routed(now_wall) + self.mission.poll(now_wall) + self.commands.poll(now_wall):
+        for source, m in (self.params.poll_routed(now_wall) + self.mission.poll(now_wall) + self.commands.poll(now_wall)
+                          + self.ftp.poll(now_wall)):
             if source is None:
                 self._outbox.broadcast([m])
             else:

@@ -1,13 +1,15 @@
 """MCAP logging (DESIGN §7): one file per run, JSON channels with JSON schemas Foxglove can plot.
 
 Resources (docs/logs.md, "Size cap and a full disk"): with `max_bytes` the file is closed (complete) and the log
-continues in `<stem>.1.mcap`, `<stem>.2.mcap`, ... keeping `keep_files` parts; a write that fails (disk full,
+continues in `<stem>.1.mcap`, `<stem>.2.mcap`, ... keeping the first part (the flight's start) and the newest
+`keep_files` after it; a write that fails (disk full,
 file-size limit, I/O error) stops the log: `error` says why, later records are dropped and counted (`dropped`),
 and nothing raises into the caller's flight.
 
-Chunks are small (64 KiB by default) so a killed process loses little; `read_mcap` recovers a
-truncated file up to its last complete chunk. Times: log_time = sim time (ns), publish_time = the
-wall clock of the writer when given (the shell owns clocks; pass it in).
+Chunks are small (64 KiB by default) so a killed process loses little; the file is sealed after every chunk
+(mcap_writer: a provisional footer), so a file cut by a crash reads with the stock readers' defaults up to its last
+complete chunk, and `read_mcap` also reads one cut in the middle of a write. Times: log_time = sim time (ns),
+publish_time = the wall clock of the writer when given (the shell owns clocks; pass it in).
 """
 
 from __future__ import annotations
@@ -123,7 +125,7 @@ class McapLogger:
         self._closed = False
 
     def _start(self, fh: BinaryIO) -> FastMcapWriter:
-        w = FastMcapWriter(fh, chunk_size=self._chunk_size, compression="lz4")
+        w = FastMcapWriter(fh, chunk_size=self._chunk_size, compression="lz4", sealed=True)  # a cut file reads
         w.start(profile=self._profile, library="navig8-sitl")
         return w
 
@@ -155,7 +157,7 @@ class McapLogger:
             for kind, args in self._replay:
                 got = getattr(self._w, kind)(*args)
                 assert kind == "add_metadata" or got is not None
-            if self.keep_files > 0 and self.rotations >= self.keep_files:
+            if self.keep_files > 0 and self.rotations > self.keep_files:  # part 0, the flight's start, stays
                 part_path(self.path, self.rotations - self.keep_files).unlink(missing_ok=True)
         except OSError as e:
             self.fail(f"{e.strerror or e} ({self.current_path.name})")

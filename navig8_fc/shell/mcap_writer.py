@@ -21,6 +21,14 @@ Layout, as the library does it:
     DataEnd (CRC 0), summary (Schemas, Channels, Statistics, ChunkIndexes, (no) AttachmentIndexes,
     MetadataIndexes, then one SummaryOffset per group), Footer (with summary CRC), magic.
 A chunk is finalised as soon as its uncompressed size exceeds `chunk_size` (strictly, like the library).
+
+Sealed (`sealed=True`, a seekable output): every write to the file after the header (a metadata record, a chunk
+with its message indexes) goes out in one write together with a provisional end, DataEnd + a Footer without a
+summary (summary_start 0) + magic, and the output is flushed and set back to before that end, which the next write
+overwrites. A file cut at any moment (the process killed) therefore ends in a valid footer after its last complete
+chunk, and the stock readers with their defaults (`mcap.reader.make_reader`: no summary, so it reads the data
+section in order; Foxglove: an unindexed file) read it. `finish` writes the real end over the provisional one: a
+finished file is byte-identical to an unsealed one.
 """
 
 from __future__ import annotations
@@ -76,6 +84,17 @@ _FOOTER_CRC_PREFIX = struct.Struct("<BQQQ")
 _COMPRESSION_NAMES = {CompressionType.ZSTD: "zstd", CompressionType.LZ4: "lz4", CompressionType.NONE: ""}
 
 
+def _provisional_end() -> bytes:
+    """DataEnd, a Footer with no summary (summary_start = summary_offset_start = 0, CRC 0) and the closing magic."""
+    rb = RecordBuilder()
+    DataEnd(data_section_crc=0).write(rb)
+    Footer(summary_start=0, summary_offset_start=0, summary_crc=0).write(rb)
+    return rb.end() + MCAP0_MAGIC
+
+
+PROVISIONAL_END = _provisional_end()
+
+
 class FastMcapWriter:
     """Writes a chunked, indexed MCAP file to `output` (not closed by `finish`).
 
@@ -85,7 +104,8 @@ class FastMcapWriter:
     """
 
     def __init__(
-        self, output: BinaryIO, chunk_size: int = 64 * 1024, compression: str | CompressionType = "zstd"
+        self, output: BinaryIO, chunk_size: int = 64 * 1024, compression: str | CompressionType = "zstd",
+        sealed: bool = False,
     ) -> None:
         if isinstance(compression, CompressionType):
             compression = _COMPRESSION_NAMES[compression]
@@ -120,12 +140,24 @@ class FastMcapWriter:
         self._start_time = 0
         self._end_time = 0
         self._finished = False
+        self._sealed = sealed
 
     # -- non-hot records --------------------------------------------------------------------------------------
 
     def _write(self, data: bytes | bytearray) -> None:
         self._out.write(data)
         self._pos += len(data)
+
+    def _write_sealed(self, data: bytes | bytearray) -> None:
+        """`data`, and when sealed the provisional end after it in the same write, flushed, the output set back to
+        before the end (module docstring)."""
+        if not self._sealed:
+            self._write(data)
+            return
+        self._out.write(bytes(data) + PROVISIONAL_END)
+        self._out.flush()
+        self._pos += len(data)
+        self._out.seek(self._pos)
 
     def start(self, profile: str = "", library: str = "") -> None:
         """Writes the magic and the Header record."""
@@ -137,7 +169,7 @@ class FastMcapWriter:
                 self._pos = 0
         rb = RecordBuilder()
         Header(profile=profile, library=library).write(rb)
-        self._write(MCAP0_MAGIC + rb.end())
+        self._write(MCAP0_MAGIC + rb.end())  # sealed with the first metadata record or chunk
 
     def register_schema(self, name: str, encoding: str, data: bytes) -> int:
         """Registers a schema (ids from 1) and writes it into the open chunk; returns its id."""
@@ -177,7 +209,7 @@ class FastMcapWriter:
         Metadata(name=name, metadata=dict(data)).write(rb)
         record = rb.end()
         self._metadata_indexes.append(MetadataIndex(offset=self._pos, length=len(record), name=name))
-        self._write(record)
+        self._write_sealed(record)
 
     # -- hot path ---------------------------------------------------------------------------------------------
 
@@ -239,12 +271,11 @@ class FastMcapWriter:
             len(comp),
         )
         chunk_length = len(header) + len(comp) + 8 + len(data)
-        self._write(header + comp + _U64.pack(len(data)))
-        self._write(data)
+        chunk_head = header + comp + _U64.pack(len(data))
 
         offsets: dict[int, int] = {}
         parts: list[bytes] = []
-        pos = self._pos
+        pos = chunk_start + chunk_length
         for cid, entries in index.items():
             k = len(entries)
             offsets[cid] = pos
@@ -254,7 +285,12 @@ class FastMcapWriter:
             parts.append(part)
             pos += len(part)
         message_indexes = b"".join(parts)
-        self._write(message_indexes)
+        if self._sealed:  # the chunk and its indexes in one write with the provisional end
+            self._write_sealed(b"".join((chunk_head, data, message_indexes)))
+        else:
+            self._write(chunk_head)
+            self._write(data)
+            self._write(message_indexes)
 
         self._chunk_indexes.append(
             ChunkIndex(

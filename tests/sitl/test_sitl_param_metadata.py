@@ -1,7 +1,8 @@
 """QGroundControl's parameter metadata from navig8-fc, fetched with pymavlink exactly as QGroundControl fetches it
 (src/Vehicle/ComponentInformation/RequestMetaDataTypeStateMachine.cc, src/Vehicle/FTP/FTPDownloadStateMachine.cc;
 docs/gcs.md): MAV_CMD_REQUEST_MESSAGE(COMPONENT_METADATA) to compid 1, then the general metadata file by its
-mftp URI over MAVFTP (OpenFileRO, BurstReadFile until NAK EOF, ResetSessions), its CRC against file_crc, then the
+mftp URI over MAVFTP (OpenFileRO, BurstReadFile and the next burst from where one ends until NAK EOF,
+ResetSessions; the FC paces the replies at ~2.5 KB/s), its CRC against file_crc, then the
 parameter file by the URI and CRC the general file gives. Path traversal and writes are refused.
 
 MAVLink only: runs against any FC by connection string (`make test-hil`, docs/hil.md); locally the FC alone
@@ -72,13 +73,19 @@ class Ftp:
         (file_size,) = struct.unpack("<I", data[:4])
         buf = bytearray(file_size)
         have = bytearray(file_size)  # 1 where a reply filled the byte
-        seq = self.send(BURST, session=session, size=MAX_DATA)
-        for _rseq, _sess, op, size, burst, off, chunk in self.replies(seq, BURST):
-            if op == NAK:
-                assert chunk[0] == ERR_EOF and burst == 1
-                break
-            buf[off:off + size] = chunk
-            have[off:off + size] = b"\1" * size
+        offset, more = 0, True
+        while more:  # a burst that ends before the file (burst_complete) is followed by the next, as MAVSDK's client
+            more = False
+            seq = self.send(BURST, session=session, offset=offset, size=MAX_DATA)
+            for _rseq, _sess, op, size, burst, off, chunk in self.replies(seq, BURST):
+                if op == NAK:
+                    assert chunk[0] == ERR_EOF and burst == 1
+                    break
+                buf[off:off + size] = chunk
+                have[off:off + size] = b"\1" * size
+                if burst and off + size < file_size:
+                    offset, more = off + size, True
+                    break
         # QGC fills the holes lost datagrams left with ReadFile (FTPDownloadStateMachine's missing-data list); a
         # loaded machine drops loopback datagrams when the reader falls behind a burst
         while (hole := have.find(0)) >= 0:

@@ -1,6 +1,7 @@
 """The read-only MAVFTP server (navig8_fc.gcs.ftp) and the parameter metadata it serves (navig8_fc.gcs.metadata),
 through pymavlink messages as a ground station sends them. The download follows QGroundControl's
-FTPDownloadStateMachine: OpenFileRO, BurstReadFile until NAK EOF, ResetSessions."""
+FTPDownloadStateMachine: OpenFileRO, BurstReadFile (the next burst from where one ended) until NAK EOF,
+ResetSessions; the replies paced per source (navig8_fc.gcs.ftp_pacing)."""
 
 from __future__ import annotations
 
@@ -14,7 +15,16 @@ import pytest
 import yaml
 from pymavlink.dialects.v20 import common as M
 
-from navig8_fc.gcs.ftp import FTP_PAYLOAD_LEN, MAX_DATA, FtpServer, FtpService, PathRefused, normalise_path
+from navig8_fc.gcs.ftp import (
+    FTP_PAYLOAD_LEN,
+    MAX_DATA,
+    SESSION_IDLE_S,
+    FtpServer,
+    FtpService,
+    PathRefused,
+    normalise_path,
+)
+from navig8_fc.gcs.ftp_pacing import ReplyBudget, ReplyPacer, frame_bytes
 from navig8_fc.gcs.metadata import GENERAL_PATH, PARAMETER_PATH, build_metadata
 from navig8_fc.params.registry import ParamRegistry
 
@@ -58,13 +68,18 @@ class Client:
         assert (op, req, size, seq) == (M.MAV_FTP_OPCODE_ACK, M.MAV_FTP_OPCODE_OPENFILERO, 4, self.seq + 1)
         (file_size,) = struct.unpack("<I", data)
         buf = bytearray(file_size)
-        replies = self.request(M.MAV_FTP_OPCODE_BURSTREADFILE, session, 0, size=MAX_DATA)
-        for k, (seq, sess, op, size, req, burst, off, data) in enumerate(replies):
-            assert seq == self.seq + 1 + k and sess == session and req == M.MAV_FTP_OPCODE_BURSTREADFILE
-            if op == M.MAV_FTP_OPCODE_NAK:
-                assert data[0] == M.MAV_FTP_ERR_EOF and burst == 1 and k == len(replies) - 1
-                break
-            buf[off:off + size] = data
+        offset, eof = 0, False
+        while not eof:  # a burst that ends before the file (burst_complete) is followed by the next, as MAVSDK's
+            replies = self.request(M.MAV_FTP_OPCODE_BURSTREADFILE, session, offset, size=MAX_DATA)
+            for k, (seq, sess, op, size, req, burst, off, data) in enumerate(replies):
+                assert seq == self.seq + 1 + k and sess == session and req == M.MAV_FTP_OPCODE_BURSTREADFILE
+                if op == M.MAV_FTP_OPCODE_NAK:
+                    assert data[0] == M.MAV_FTP_ERR_EOF and burst == 1 and k == len(replies) - 1
+                    eof = True
+                    break
+                buf[off:off + size] = data
+                offset = off + size
+                assert burst == int(k == len(replies) - 1 or replies[k + 1][2] == M.MAV_FTP_OPCODE_NAK)
         ((_s, _ss, op, *_),) = self.request(M.MAV_FTP_OPCODE_RESETSESSION)
         assert op == M.MAV_FTP_OPCODE_ACK and self.server.open_sessions == 0
         return bytes(buf)
@@ -132,7 +147,7 @@ def test_unknown_opcodes_sessions_replies_and_addressing(client: Client) -> None
     assert op == M.MAV_FTP_OPCODE_NAK and data[0] == M.MAV_FTP_ERR_FILENOTFOUND
     ((_s, _ss, op, _z, _r, _b, _o, data),) = client.request(M.MAV_FTP_OPCODE_BURSTREADFILE, 9)
     assert op == M.MAV_FTP_OPCODE_NAK and data[0] == M.MAV_FTP_ERR_INVALIDSESSION
-    for _ in range(client.server.max_sessions):
+    for _ in range(client.server.max_sessions_per_owner):
         ((_s, _ss, op, *_),) = client.request(M.MAV_FTP_OPCODE_OPENFILERO, data=b"/navig8/small.json")
         assert op == M.MAV_FTP_OPCODE_ACK
     ((_s, _ss, op, _z, _r, _b, _o, data),) = client.request(M.MAV_FTP_OPCODE_OPENFILERO, data=b"/navig8/small.json")
@@ -173,3 +188,114 @@ def test_parameter_metadata_lists_every_yaml_parameter_with_units_and_ranges() -
         assert m["decimalPlaces"] == 0 if p["type"] == "INT32" else 1 <= m["decimalPlaces"] <= 6
         for v in (float(p["default"]), float(p["min"]), float(p["max"])):
             assert float(f"{v:.{m['decimalPlaces']}f}") == pytest.approx(v, abs=1e-12)
+
+
+def _request(seq: int, opcode: int, session: int = 0, offset: int = 0, data: bytes = b"", size: int | None = None
+             ) -> bytes:
+    return (HDR.pack(seq, session, opcode, len(data) if size is None else size, 0, 0, 0, offset)
+            + data).ljust(FTP_PAYLOAD_LEN, b"\0")
+
+
+def _op_err(payloads: list[bytes]) -> tuple[int, int]:
+    ((seq, sess, op, size, _req, _b, _pad, _off),) = [HDR.unpack_from(p) for p in payloads]
+    return op, payloads[0][HDR.size] if op == M.MAV_FTP_OPCODE_NAK else sess
+
+
+def test_sessions_belong_to_who_opened_them_capped_per_owner_and_idle_ones_reclaimed() -> None:
+    server = FtpServer({"/f.bin": BIG})
+    alice, mallory = (255, 190, ("gcs", ("127.0.0.1", 1))), (255, 190, ("gcs", ("127.0.0.1", 2)))
+    op, session = _op_err(server.handle(_request(1, M.MAV_FTP_OPCODE_OPENFILERO, data=b"/f.bin"), alice, 0.0))
+    assert op == M.MAV_FTP_OPCODE_ACK
+    # Another requester (same ids, another address) can neither read, nor close, nor reset it.
+    for opcode in (M.MAV_FTP_OPCODE_READFILE, M.MAV_FTP_OPCODE_BURSTREADFILE, M.MAV_FTP_OPCODE_TERMINATESESSION):
+        assert _op_err(server.handle(_request(2, opcode, session, size=10), mallory, 0.5)) == (
+            M.MAV_FTP_OPCODE_NAK, M.MAV_FTP_ERR_INVALIDSESSION)
+    server.handle(_request(3, M.MAV_FTP_OPCODE_RESETSESSION), mallory, 0.5)
+    assert server.open_sessions == 1
+    # The cap per owner: mallory gets two, the third is refused, and alice still has hers (4 in all).
+    for k in range(2):
+        assert _op_err(server.handle(_request(4 + k, M.MAV_FTP_OPCODE_OPENFILERO, data=b"/f.bin"), mallory,
+                                     1.0))[0] == M.MAV_FTP_OPCODE_ACK
+    assert _op_err(server.handle(_request(6, M.MAV_FTP_OPCODE_OPENFILERO, data=b"/f.bin"), mallory, 1.0)) == (
+        M.MAV_FTP_OPCODE_NAK, M.MAV_FTP_ERR_NOSESSIONSAVAILABLE)
+    other = (250, 1, ("gcs", ("127.0.0.1", 3)))
+    assert _op_err(server.handle(_request(7, M.MAV_FTP_OPCODE_OPENFILERO, data=b"/f.bin"), other, 1.0))[0] == (
+        M.MAV_FTP_OPCODE_ACK)
+    assert server.open_sessions == 4
+    # All taken: a fifth owner gets one only once a session has been idle SESSION_IDLE_S (alice's, used at 0).
+    late = (251, 1, ("gcs", ("127.0.0.1", 4)))
+    assert _op_err(server.handle(_request(8, M.MAV_FTP_OPCODE_OPENFILERO, data=b"/f.bin"), late, 1.5)) == (
+        M.MAV_FTP_OPCODE_NAK, M.MAV_FTP_ERR_NOSESSIONSAVAILABLE)
+    assert _op_err(server.handle(_request(9, M.MAV_FTP_OPCODE_OPENFILERO, data=b"/f.bin"), late,
+                                 SESSION_IDLE_S + 0.1))[0] == M.MAV_FTP_OPCODE_ACK
+    assert _op_err(server.handle(_request(10, M.MAV_FTP_OPCODE_READFILE, session, size=10), alice, 3.0)) == (
+        M.MAV_FTP_OPCODE_NAK, M.MAV_FTP_ERR_INVALIDSESSION)
+
+
+def test_replies_are_paced_per_source_and_a_repeated_burst_replaces_the_running_one() -> None:
+    budget = ReplyBudget()
+    files = {"/f.bin": BIG * 20}  # 46 KB
+    veh = M.MAVLink(BytesIO(), srcSystem=1, srcComponent=1)
+    gcs = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
+    service = FtpService(veh, FtpServer(files), pacer=ReplyPacer(budget))
+    flooder, bystander = ("gcs", ("127.0.0.1", 1)), ("gcs", ("127.0.0.1", 2))
+
+    def send(payload: bytes, source: object, now_s: float) -> tuple[int, list[Any]]:
+        msg = gcs.file_transfer_protocol_encode(0, 1, 1, list(payload))
+        return len(msg.pack(gcs)), service.handle(veh.decode(bytearray(msg.pack(gcs))), source, now_s)
+
+    size_in, opened = send(_request(1, M.MAV_FTP_OPCODE_OPENFILERO, data=b"/f.bin"), flooder, 0.0)
+    session = HDR.unpack_from(bytes(opened[0].payload))[1]
+    bytes_in, bytes_out = size_in, sum(frame_bytes(bytes(m.payload)) for m in opened)
+    bytes_to_bystander = 0
+    t, dt = 0.0, 0.001
+    for k in range(6000):  # 6 s: a BurstReadFile every 10 ms (100 requests/s), the service polled every 1 ms
+        t = k * dt
+        if k % 10 == 0:
+            n, got = send(_request(2 + k, M.MAV_FTP_OPCODE_BURSTREADFILE, session, size=MAX_DATA), flooder, t)
+            bytes_in += n
+            bytes_out += sum(frame_bytes(bytes(m.payload)) for m in got)
+        if k == 3000:  # someone else's request meanwhile is answered at once: budgets are per source
+            _n, got = send(_request(9, M.MAV_FTP_OPCODE_CALCFILECRC, data=b"/f.bin"), bystander, t)
+            assert len(got) == 1
+            bytes_to_bystander += len(got)
+        polled = service.poll(t)
+        assert len(polled) <= budget.packets_per_poll
+        bytes_out += sum(frame_bytes(bytes(m.payload)) for src, m in polled if src == flooder)
+    assert bytes_out <= budget.burst_bytes + 6.0 * budget.bytes_per_s
+    assert bytes_out <= 2 * bytes_in, (bytes_out, bytes_in)
+    assert bytes_to_bystander == 1
+
+
+def test_a_paced_burst_continues_over_later_polls_and_the_client_gets_the_whole_file() -> None:
+    files = {"/f.bin": BIG * 4}  # 9.2 KB
+    veh = M.MAVLink(BytesIO(), srcSystem=1, srcComponent=1)
+    gcs = M.MAVLink(BytesIO(), srcSystem=255, srcComponent=190)
+    budget = ReplyBudget(bytes_per_s=3000.0, burst_bytes=1500.0)
+    service = FtpService(veh, FtpServer(files), pacer=ReplyPacer(budget))
+    src = ("gcs", ("127.0.0.1", 5))
+
+    def handle(payload: bytes, now_s: float) -> list[Any]:
+        return service.handle(veh.decode(bytearray(gcs.file_transfer_protocol_encode(0, 1, 1, list(payload))
+                                                    .pack(gcs))), src, now_s)
+
+    (opened,) = handle(_request(1, M.MAV_FTP_OPCODE_OPENFILERO, data=b"/f.bin"), 0.0)
+    session = HDR.unpack_from(bytes(opened.payload))[1]
+    got = handle(_request(2, M.MAV_FTP_OPCODE_BURSTREADFILE, session, size=MAX_DATA), 0.0)
+    assert 0 < len(got) * 266 <= budget.burst_bytes  # what the bucket holds, not the file
+    buf = bytearray(len(files["/f.bin"]))
+    t, seq, eof = 0.0, 2, False
+    while t < 10.0 and not eof:
+        for m in got:
+            _seq, _ss, op, size, _r, burst, _p, off = HDR.unpack_from(bytes(m.payload))
+            eof = op == M.MAV_FTP_OPCODE_NAK
+            buf[off:off + size] = bytes(m.payload)[HDR.size:HDR.size + size] if not eof else b""
+            if burst and not eof:  # a burst ended before the file: the next one from there (MAVSDK)
+                seq += 1
+                got = handle(_request(seq, M.MAV_FTP_OPCODE_BURSTREADFILE, session, off + size, size=MAX_DATA), t)
+                break
+        else:
+            t += 0.01
+            got = [m for _s, m in service.poll(t)]
+    assert eof and bytes(buf) == files["/f.bin"]
+    assert 2.0 < t < 3.5  # 9.2 KB of data, ~10 KB on the wire, at 3 KB/s after the first 1.5 KB

@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 
 from navig8_fc.shell.mcap_log import McapLogger, json_schema_for, read_mcap, read_metadata, to_jsonable
 
@@ -158,7 +159,8 @@ def test_the_in_process_truth_record_follows_the_plant_step_by_step() -> None:
 
 def test_rotation_keeps_complete_parts_with_the_same_channels(tmp_path: Path) -> None:
     """A size cap: each part is a whole MCAP (the library's CRC-checking reader reads it), holds the run's start
-    metadata and every channel again (the cached ids stay valid), and only the newest `keep_files` parts remain."""
+    metadata and every channel again (the cached ids stay valid), and the first part and the newest `keep_files`
+    parts remain."""
     from mcap.reader import make_reader
 
     from navig8_fc.shell.mcap_log import part_path
@@ -175,7 +177,8 @@ def test_rotation_keeps_complete_parts_with_the_same_channels(tmp_path: Path) ->
     lg.close()
     assert lg.rotations >= 5 and lg.error is None and lg.dropped == 0
     parts = sorted(tmp_path.glob("run*.mcap"), key=lambda q: q.stat().st_mtime_ns)
-    assert parts == [part_path(p, k) for k in range(lg.rotations - 2, lg.rotations + 1)]
+    # the first part (the flight's start) is never deleted; after it the newest keep_files parts
+    assert parts == [p] + [part_path(p, k) for k in range(lg.rotations - 2, lg.rotations + 1)]
     last = None
     for q in parts:
         assert q.stat().st_size < 50_000 + 20_000  # the cap plus at most one check interval of records
@@ -183,7 +186,7 @@ def test_rotation_keeps_complete_parts_with_the_same_channels(tmp_path: Path) ->
             r = make_reader(fh, validate_crcs=True)
             got = [json.loads(m.data)["i"] for _s, ch, m in r.iter_messages(topics=["/fast"], log_time_order=False)]
         assert got == list(range(got[0], got[0] + len(got)))  # no record lost or doubled
-        assert last is None or got[0] == last + 1
+        assert last is None or got[0] == last + 1 or q == parts[1]  # (the parts between the first and these: gone)
         last = got[-1]
         assert read_metadata(q)["run"] == {"scenario": "hover"}
     assert last == 19_999
@@ -199,3 +202,35 @@ def test_a_failing_disk_stops_the_log_without_raising() -> None:
     lg.maybe_rotate()
     lg.close()
     assert lg.error == "No space left on device" and lg.dropped > 1000
+
+
+def test_navig8_log_repair_rewrites_a_log_cut_in_the_middle_of_a_chunk(tmp_path: Path) -> None:
+    """A log cut inside a write (no provisional footer at its end): the stock reader's defaults raise on it;
+    `navig8-log repair` rewrites it, and the result reads with them, every message of the complete chunks kept with
+    its channel's metadata (the peer)."""
+    from mcap.reader import make_reader
+
+    from navig8_tools.log_repair import main as log_main
+
+    p = tmp_path / "run.mcap"
+    lg = McapLogger(p, chunk_size=4096)
+    lg.metadata("run", {"scenario": "hover"})
+    cid = lg.json_channel("/fast", {"type": "object"})
+    for i in range(3000):
+        lg.log_json_bytes(cid, i, json.dumps({"i": i}).encode(), i)
+        lg.log_raw("/mavlink/gcs/in", i, bytes(8), i, peer="127.0.0.1:9")
+    lg.close()
+    whole = p.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(whole[: len(whole) // 2])  # the middle of a chunk, no footer
+    with open(cut, "rb") as fh, pytest.raises(Exception):  # noqa: B017 - whatever the stock reader raises
+        list(make_reader(fh).iter_messages())
+    assert log_main(["repair", str(cut), "-o", str(tmp_path / "fixed.mcap")]) == 0
+    with open(tmp_path / "fixed.mcap", "rb") as fh:
+        r = make_reader(fh, validate_crcs=True)
+        got = [(ch.topic, ch.metadata.get("peer"), m.log_time) for _s, ch, m in r.iter_messages(log_time_order=False)]
+    fast = [t for topic, _p, t in got if topic == "/fast"]
+    assert 1000 < len(fast) < 3000 and fast == list(range(len(fast)))
+    assert {p for topic, p, _t in got if topic == "/mavlink/gcs/in"} == {"127.0.0.1:9"}
+    assert read_metadata(tmp_path / "fixed.mcap")["run"] == {"scenario": "hover"}
+    assert log_main(["repair", str(tmp_path / "nope.mcap")]) == 1

@@ -266,7 +266,7 @@ def test_upload_limits_types_and_busy() -> None:
     assert ack.type == M.MAV_MISSION_UNSUPPORTED  # no such mission type
     rig.send(rig.gcs.mission_count_encode(1, 1, 2, 0))
     ack = rig.send(rig.other.mission_count_encode(1, 1, 2, 0), src=rig.other)[0]
-    assert ack.type == M.MAV_MISSION_ERROR and ack.target_system == 254  # another GCS: busy
+    assert ack.type == M.MAV_MISSION_DENIED and ack.target_system == 254  # another GCS: busy
     assert rig.send(item_msg(rig.other, 0, EIGHT[0], 1), src=rig.other) == []  # not the uploader's
     (req,) = rig.send(rig.gcs.mission_count_encode(1, 1, 1, 0), 0.1)  # the uploader restarts
     assert req.seq == 0
@@ -369,3 +369,50 @@ def test_a_stored_plan_the_rules_refuse_is_not_loaded(tmp_path) -> None:
 
 def test_check_item_accepts_every_item_of_the_eight_item_plan() -> None:
     assert all(P.check_item(it, 0, 8) is None for it in EIGHT)
+
+
+def _from(rig: Rig, msg: Any, now_s: float, source: Any, src: Any = None) -> list[Any]:
+    """A message from `source` (where it came from), sent with `src`'s ids (default the ground station's)."""
+    return [rig.wire(m, rig.veh) for m in rig.proto.handle(rig.wire(msg, src or rig.gcs), now_s, source=source)]
+
+
+def test_the_upload_lock_belongs_to_its_sender_and_repeated_counts_do_not_hold_it() -> None:
+    rig = Rig()
+    upload(rig, EIGHT[:2])
+    impostor = ("gcs", ("127.0.0.1", 9999))  # the operator's ids, another address
+    # The impostor sends MISSION_COUNT and never an item, again every 0.5 s.
+    (req,) = _from(rig, rig.gcs.mission_count_encode(1, 1, 5, 0), 0.0, impostor)
+    assert req.get_type() == "MISSION_REQUEST_INT"
+    # While it is fresh, the operator (another source) is denied, and its items are not the uploader's.
+    ack = _from(rig, rig.gcs.mission_count_encode(1, 1, 2, 0), 0.3, "gcs")[0]
+    assert ack.type == M.MAV_MISSION_DENIED
+    assert _from(rig, rig.gcs.mission_count_encode(1, 1, 5, 0), 0.5, impostor)[0].get_type() == "MISSION_REQUEST_INT"
+    assert _from(rig, item_msg(rig.gcs, 0, EIGHT[0], 1), 0.6, "gcs") == []
+    # Its restarts do not extend the lock: 1 s after its start the operator takes over (the stale upload is
+    # abandoned and said so) and uploads.
+    assert _from(rig, rig.gcs.mission_count_encode(1, 1, 5, 0), 0.9, impostor)[0].get_type() == "MISSION_REQUEST_INT"
+    out = _from(rig, rig.gcs.mission_count_encode(1, 1, 2, 0), 1.05, "gcs")
+    assert [m.get_type() for m in out] == ["STATUSTEXT", "MISSION_REQUEST_INT"] and "abandoned" in out[0].text
+    (req,) = _from(rig, item_msg(rig.gcs, 0, EIGHT[0], 1), 1.06, "gcs")
+    # the impostor meanwhile: denied, the operator's upload progresses
+    assert _from(rig, rig.gcs.mission_count_encode(1, 1, 5, 0), 1.07, impostor)[0].type == M.MAV_MISSION_DENIED
+    (ack,) = _from(rig, item_msg(rig.gcs, 1, EIGHT[1]), 1.08, "gcs")
+    assert ack.type == M.MAV_MISSION_ACCEPTED and len(rig.proto.plan().items) == 2
+    # Alone, repeating its MISSION_COUNT every 0.5 s, the impostor's upload still times out 5 s after it began.
+    _from(rig, rig.gcs.mission_count_encode(1, 1, 5, 0), 2.0, impostor)
+    texts = []
+    for k in range(1, 12):
+        _from(rig, rig.gcs.mission_count_encode(1, 1, 5, 0), 2.0 + 0.5 * k, impostor) if 0.5 * k < 5 else None
+        texts += [m.text for _, m in rig.poll(2.0 + 0.5 * k) if m.get_type() == "STATUSTEXT"]
+    assert not rig.proto.busy and any("timed out" in t for t in texts)
+
+
+def test_the_item_check_refuses_an_item_with_its_reason() -> None:
+    def check(it: MissionItem, mission_type: int) -> P.Problem | None:
+        return P.Problem(Result.INVALID_PARAM7, "NAV_WAYPOINT: too high") if it.z < -100 else None
+
+    rig = Rig()
+    rig.proto = MissionProtocol(rig.veh, 1, 1, item_check=check)
+    high = MissionItem(Frame.LOCAL_NED, Cmd.NAV_WAYPOINT, 1, 0, 0.25, 0, math.nan, 0, 0, -1e9)
+    ack, text = upload(rig, (EIGHT[0], high))
+    assert ack.type == M.MAV_MISSION_INVALID_PARAM7 and "too high" in text.text and rig.proto.plan().items == ()
