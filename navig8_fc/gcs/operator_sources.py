@@ -15,7 +15,7 @@ A source is what the Outbox answers: the process gives (link name, address).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Hashable, Iterable
+from collections.abc import Callable, Container, Hashable, Iterable
 
 GCS_LINK_NAME = "gcs"  # the link name (a source's first item) of the operator's ground-station link
 # GCS_SIGN_LINK: where SETUP_SIGNING may come from (only while disarmed, whatever it says)
@@ -27,11 +27,12 @@ SIGN_SETUP_ANY = 2  # any allowed ground station (a bench with nobody else on th
 class OperatorSources:
     """The configured peers, and whether a source speaks for the operator (module docstring)."""
 
-    def __init__(self, configured: Iterable[Hashable], signing_on: Callable[[], bool],
+    def __init__(self, configured: Container[Hashable] | Iterable[Hashable], signing_on: Callable[[], bool],
                  armed: Callable[[], bool]) -> None:
-        """configured: the links' configured peers as sources; signing_on: whether a signing key is in force;
-        armed: whether the vehicle is armed."""
-        self._configured = frozenset(configured)
+        """configured: the links' configured peers as sources (a container is asked as it is: the shell's knows the
+        live connections of a TCP server link too); signing_on: whether a signing key is in force; armed: whether
+        the vehicle is armed."""
+        self._configured = configured if isinstance(configured, Container) else frozenset(configured)
         self._signing_on = signing_on
         self._armed = armed
 

@@ -299,8 +299,9 @@ class TcpServerTransport(StreamTransport):
 
     At most TCP_MAX_CONNECTIONS: a new connection beyond them evicts the newest that has sent no whole frame (so a
     flood of connections replaces only its own, never a client that listens before it talks), else the least
-    recently heard one the callers have not `keep`-ed (their paired or confirmed peer), else it is refused; a connection that sends no whole frame within TCP_UNPROVEN_IDLE_S, or nothing for TCP_IDLE_S, is
-    closed. SO_REUSEADDR here is the TCP one: it lets a restarted process listen again past TIME_WAIT and never lets
+    recently heard one the callers have not `keep`-ed (their paired or confirmed peer), else it is refused; a
+    connection that sends no whole frame within TCP_UNPROVEN_IDLE_S, or nothing for TCP_IDLE_S, is closed.
+    SO_REUSEADDR here is the TCP one: it lets a restarted process listen again past TIME_WAIT and never lets
     two sockets listen on one port (Linux). Linux: the connections are watched with one epoll, whose descriptor is
     what `fileno` gives the callers' select."""
 
@@ -341,6 +342,10 @@ class TcpServerTransport(StreamTransport):
     @property
     def connections(self) -> int:
         return len(self._conns)
+
+    def has_connection(self, addr: object) -> bool:
+        """`addr` is one of the live connections (a TCP peer's address cannot be spoofed)."""
+        return addr in self._by_addr
 
     def keep(self, addr: tuple[str, int]) -> None:
         """The callers' paired or confirmed peer: never evicted for a newer connection (it still times out)."""

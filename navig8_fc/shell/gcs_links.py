@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import socket
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from navig8_fc.links.mavlink_link import UdpLink
 from navig8_fc.links.reflection import ReflectionBudget
-from navig8_fc.links.transport import parse_connection
+from navig8_fc.links.transport import TcpServerTransport, parse_connection
 from navig8_fc.shell.fc_options import FcOptions
 from navig8_fc.shell.foxglove_out import FoxgloveOutput
 from navig8_fc.shell.telemetry_service import Source
@@ -27,6 +27,28 @@ def resolved_udp_address(addr: tuple[str, int]) -> tuple[str, int]:
     except (OSError, UnicodeError):
         return addr
     return (str(infos[0][4][0]), int(infos[0][4][1])) if infos else addr
+
+
+class ConfiguredSources:
+    """The links' configured peers as sources ((link name, address)), and every live connection of a link served on
+    TCP (tcpin:): a TCP peer's address cannot be spoofed, and the operator chose to serve the link there, so each
+    connection is trusted as the link's one connection was before it served several (docs/security.md, "TCP
+    links")."""
+
+    def __init__(self, links: tuple[UdpLink, ...]) -> None:
+        self._static = frozenset((link.name, t) for link in links for t in link.targets)
+        self._servers = {link.name: link.sock for link in links if isinstance(link.sock, TcpServerTransport)}
+
+    def __contains__(self, source: object) -> bool:
+        if source in self._static:
+            return True
+        if not (isinstance(source, tuple) and len(source) == 2):
+            return False
+        server = self._servers.get(source[0])
+        return server is not None and server.has_connection(source[1])
+
+    def __iter__(self) -> Iterator[Source]:
+        return iter(self._static)
 
 
 class GcsLinks:
@@ -53,14 +75,16 @@ class GcsLinks:
         """Telemetry only to the peers `admit_peer` confirms (GcsService.admits_peer), and to an address other than
         a link's configured peers at most twice what that address sent (links.reflection) until `signing_on()` says
         every frame that gets in carries the key (docs/security.md)."""
+        trusted = self.trusted_sources()
         for link in self.links:
             link.admit_peer = admit_peer
-            configured = frozenset(link.targets)
-            link.budget = ReflectionBudget(lambda addr, peers=configured: addr in peers or signing_on())
+            link.budget = ReflectionBudget(
+                lambda addr, name=link.name: (name, addr) in trusted or signing_on())
 
-    def trusted_sources(self) -> list[Source]:
-        """The configured peers of both links (GcsService trusts them before they speak)."""
-        return [(link.name, t) for link in self.links for t in link.targets]
+    def trusted_sources(self) -> ConfiguredSources:
+        """The configured peers of both links and the connections of a TCP-served one (GcsService trusts them before
+        they speak)."""
+        return ConfiguredSources(self.links)
 
     def mine(self, link: UdpLink, received: list[Any]) -> list[tuple[Any, Source | None]]:
         """The received messages meant for this FC, each with its source: our own echo or another vehicle's
