@@ -32,6 +32,12 @@ from typing import Any
 TIMING_LOCKSTEP, TIMING_REALTIME = 0, 1
 REPORT_PERIOD_S = 1.0
 BEHIND_RESYNC_PERIODS = 5  # a loop this many periods late (a stall) restarts the schedule instead of bursting
+# Phase alignment: the ticks are kept about a third of a period after the bundles' arrivals, so arrival jitter of up
+# to that much neither leaves a tick without its bundle nor lets two bundles fall between two ticks
+PHASE_TARGET_PERIODS = 1.0 / 3.0  # the wanted time from a bundle's arrival to the tick that uses it, in periods
+PHASE_TOLERANCE_PERIODS = 1.0 / 6.0  # the mean lead this far from the target: the schedule is moved onto it
+PHASE_EMA = 0.05  # weight of each arrival in the running (circular) mean of the lead
+PHASE_MIN_SAMPLES = 50  # arrivals averaged before (and between) moves
 
 
 @dataclass
@@ -43,6 +49,7 @@ class RealtimeStats:
     out_of_order: int = 0  # bundles not newer than the last one used or held: dropped
     late: int = 0  # bundles whose latency exceeded the least seen by more than RT_LATE_S
     resyncs: int = 0  # the loop fell BEHIND_RESYNC_PERIODS behind its schedule and restarted it
+    phase_moves: int = 0  # the schedule moved to keep its ticks PHASE_TARGET_PERIODS after the arrivals
     spacing_n: int = 0  # stamp spacings of consecutive used bundles
     spacing_off_tol: int = 0  # of those, outside (1 +- RT_SPACING_TOL) / INDI_RATE_HZ
     spacing_mean_us: float = 0.0
@@ -66,6 +73,8 @@ class RealtimeClock:
         self._last_used_us: int | None = None
         self._reported = RealtimeStats()
         self._report_due_s = now_s + REPORT_PERIOD_S
+        self._lead_cos = self._lead_sin = 0.0  # running circular mean of the arrival-to-tick lead (phase)
+        self._lead_n = 0
 
     def offer(self, bundle: Any, wire: Any, now_s: float) -> None:
         """A complete bundle arrived (bundle.time_usec: its stamp)."""
@@ -80,6 +89,7 @@ class RealtimeClock:
         if t_us <= 1:  # step 0 (stamp 1) is the startup handshake, held at t = 0 until the FC answers: no latency
             self._pending = (bundle, wire)
             return
+        self._align(now_s)
         latency_ms = (now_s - t_us * 1e-6) * 1e3
         if latency_ms < s.latency_min_ms:
             s.latency_min_ms = latency_ms
@@ -89,6 +99,26 @@ class RealtimeClock:
         if excess > self.late_s * 1e3:
             s.late += 1
         self._pending = (bundle, wire)
+
+    def _align(self, now_s: float) -> None:
+        """Keep the ticks PHASE_TARGET_PERIODS after the bundles' arrivals (module constants): two free clocks at one
+        rate keep whatever phase they started with, and a tick that falls where the bundles arrive turns every
+        arrival jitter into a missing step and a superseded bundle. A running circular mean of the lead (time from
+        an arrival to the next tick) moves the schedule, once it is known, when it strays by more than
+        PHASE_TOLERANCE_PERIODS."""
+        angle = 2.0 * math.pi * ((self.next_tick_s - now_s) / self.period_s % 1.0)
+        a = PHASE_EMA if self._lead_n else 1.0
+        self._lead_cos += a * (math.cos(angle) - self._lead_cos)
+        self._lead_sin += a * (math.sin(angle) - self._lead_sin)
+        self._lead_n += 1
+        if self._lead_n < PHASE_MIN_SAMPLES:
+            return
+        lead = math.atan2(self._lead_sin, self._lead_cos) / (2.0 * math.pi) % 1.0  # periods
+        error = (PHASE_TARGET_PERIODS - lead + 0.5) % 1.0 - 0.5  # wrapped to [-0.5, 0.5)
+        if abs(error) > PHASE_TOLERANCE_PERIODS:
+            self.next_tick_s += error * self.period_s
+            self._lead_n = 0  # measured afresh on the new schedule
+            self.stats.phase_moves += 1
 
     def timeout_s(self, now_s: float) -> float:
         return max(0.0, self.next_tick_s - now_s)

@@ -21,6 +21,7 @@ import socket
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -38,6 +39,27 @@ GPS_EVERY = 10  # steps (10 Hz)
 STEP_TIMEOUT_S = 2.0
 
 
+def _write_ports(path: str, port: int) -> None:
+    tmp = Path(path + ".tmp")
+    tmp.write_text(json.dumps({"sim": port}))
+    os.replace(tmp, path)  # whole or not at all, as the processes' --ports-file
+
+
+def _step_frames(mav: Any, s: Any, stamp: int, origin: GeoOrigin, with_gps: bool) -> bytes:
+    """One step as PX4's simulator sends it: HIL_STATE_QUATERNION, HIL_GPS every GPS_EVERY steps, HIL_SENSOR."""
+    n, e, d = s.pos_ned
+    lat, lon, alt = origin.to_global((n, e, d))
+    vn, ve, vd = (round(v * 100) for v in s.vel_ned)
+    out = mav.hil_state_quaternion_encode(
+        stamp, s.quat_wxyz, *s.gyro_frd, round(lat * 1e7), round(lon * 1e7), round(alt * 1000), vn, ve, vd,
+        0, 0, *(round(x / 9.80665 * 1000) for x in s.accel_frd)).pack(mav)
+    if with_gps:
+        out += mav.hil_gps_encode(stamp, 3, round(lat * 1e7), round(lon * 1e7), round(alt * 1000), 30, 30,
+                                  round(math.hypot(vn, ve)), vn, ve, vd, 65535, 12).pack(mav)
+    return out + mav.hil_sensor_encode(stamp, *s.accel_frd, *s.gyro_frd, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                       0b111111, 0).pack(mav)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--ports-file", required=True)
@@ -50,15 +72,13 @@ def main(argv: list[str] | None = None) -> int:
     limits = seam.ControlsScale.from_vehicle(w.vehicle)
     origin = GeoOrigin()  # the FC's default ORIGIN_* parameters: both ends must agree on it
     stop = []
-    signal.signal(signal.SIGINT, lambda *_: stop.append(1))
-    signal.signal(signal.SIGTERM, lambda *_: stop.append(1))
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.append(1))
 
     srv = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
     srv.bind(("127.0.0.1", 0))
     srv.listen(1)
-    tmp = Path(a.ports_file + ".tmp")
-    tmp.write_text(json.dumps({"sim": srv.getsockname()[1]}))
-    os.replace(tmp, a.ports_file)
+    _write_ports(a.ports_file, srv.getsockname()[1])
     srv.settimeout(0.2)
     conn = None
     while conn is None and not stop:
@@ -77,19 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     wall0 = time.monotonic()
     max_alt = 0.0
     while not stop:
-        s = plant.sense_wire()
         stamp = seam.time_usec_from_sim_us(plant.t_us)
-        n, e, d = s.pos_ned
-        lat, lon, alt = origin.to_global((n, e, d))
-        vn, ve, vd = (round(v * 100) for v in s.vel_ned)
-        out = mav.hil_state_quaternion_encode(
-            stamp, s.quat_wxyz, *s.gyro_frd, round(lat * 1e7), round(lon * 1e7), round(alt * 1000), vn, ve, vd,
-            0, 0, *(round(x / 9.80665 * 1000) for x in s.accel_frd)).pack(mav)
-        if counts["steps"] % GPS_EVERY == 0:
-            out += mav.hil_gps_encode(stamp, 3, round(lat * 1e7), round(lon * 1e7), round(alt * 1000), 30, 30,
-                                      round(math.hypot(vn, ve)), vn, ve, vd, 65535, 12).pack(mav)
-        out += mav.hil_sensor_encode(stamp, *s.accel_frd, *s.gyro_frd, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                                     0b111111, 0).pack(mav)
+        out = _step_frames(mav, plant.sense_wire(), stamp, origin, counts["steps"] % GPS_EVERY == 0)
         conn.sendall(out)
         sent = time.monotonic()
         answered = False

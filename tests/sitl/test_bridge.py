@@ -157,7 +157,7 @@ def test_lockstep_hover_with_fake_fc() -> None:
     assert steps == list(range(n + 1))
     assert np.all(np.diff(stamps) == DT_US)
     assert b.truth is not None
-    pos = np.array(b.truth.pos_ned)
+    pos = np.array(b.truth.pos_ned_m)
     assert np.linalg.norm(pos - np.array([0.0, 0.0, -2.0])) < 0.1, pos
     assert abs(b.pos_ned[2] + 2.0) < 0.1
     assert "stale_answers" in err and "stale_answers 0" not in err  # the duplicate was counted
@@ -274,7 +274,7 @@ def test_arm_command_moves_joints_and_releases_the_object() -> None:
     target = (0.3, -0.2, 0.1)
     with bridge_process("--scenario", "hover", "--speed", "0") as (proc, fc):
         b = fc.recv_bundle(30.0)
-        assert b is not None and b.gripper_closed and b.truth.object_mass == 1.0
+        assert b is not None and b.gripper_closed and b.truth.object_mass_kg == 1.0
         arm = seam.encode_arm_cmd(seam.ArmCommand(b.time_usec, target, seam.GRIPPER_RELEASE))
         fc.send_raw(fc.mav.frame(*arm))
         fc.answer(b, trim)
@@ -292,8 +292,8 @@ def test_arm_command_moves_joints_and_releases_the_object() -> None:
         assert proc.wait(timeout=10) == 0
         err = proc.stderr.read()
     assert seen_release_at == 1  # applied on the step answered right after the command
-    assert b.truth.object_mass == 0.0
-    np.testing.assert_allclose(b.truth.joint_pos, target, atol=0.02)  # the servo got there within 1.5 s
+    assert b.truth.object_mass_kg == 0.0
+    np.testing.assert_allclose(b.truth.joint_pos_rad, target, atol=0.02)  # the servo got there within 1.5 s
     assert "arm_cmds 1" in err
 
 

@@ -45,8 +45,8 @@ def _ftp_replies(peer: RawPeer) -> list[tuple[int, ...]]:
 class CountingPeer(RawPeer):
     """RawPeer that also counts the bytes of the FTP replies alone (a confirmed peer gets telemetry too)."""
 
-    def __init__(self, sysid: int, fc_port: int) -> None:
-        super().__init__(sysid, fc_port)
+    def __init__(self, sysid: int, fc_port: int, local_port: int = 0) -> None:
+        super().__init__(sysid, fc_port, local_port)
         self.ftp_bytes_in = 0
 
     def drain(self, duration_s: float, until=None) -> None:
@@ -66,7 +66,8 @@ class CountingPeer(RawPeer):
 @pytest.mark.local_only("reads the FC's log for the control steps' wall times")
 def test_mavftp_flood_is_paced_and_sessions_belong_to_their_owner(tmp_path: Path) -> None:
     with sitl(tmp_path, scenario="hover", speed=1.0, bridge_args=["--duration", "30"]) as run:
-        owner = CountingPeer(250, run.gcs_bind_port)
+        # the owner: the operator's station, where the FC sends (its configured GCS); the flooder anywhere else
+        owner = CountingPeer(250, run.gcs_bind_port, run.gcs_port)
         flooder = CountingPeer(255, run.gcs_bind_port)
         try:
             for peer in (owner, flooder):

@@ -17,6 +17,7 @@ import struct
 import time
 from io import BytesIO
 from pathlib import Path
+from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
 from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
@@ -34,9 +35,10 @@ HOLD = FlightMode.HOLD.custom_mode
 class RawPeer:
     """A UDP socket speaking MAVLink as `sysid` from its own port, counting the bytes each way."""
 
-    def __init__(self, sysid: int, fc_port: int) -> None:
+    def __init__(self, sysid: int, fc_port: int, local_port: int = 0) -> None:
+        """local_port: where it listens (the FC's configured GCS port: the operator's own station; 0: anywhere)."""
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
+        self.sock.bind(("127.0.0.1", local_port))
         self.sock.settimeout(0.05)
         self.mav = M.MAVLink(BytesIO(), srcSystem=sysid, srcComponent=190)
         self.rx = M.MAVLink(BytesIO(), srcSystem=sysid, srcComponent=190)
@@ -69,6 +71,59 @@ def _int8(value: float) -> float:
     return struct.unpack("<f", struct.pack("<f", value))[0]
 
 
+def _strangers_are_refused(stranger: RawPeer, spoof: RawPeer) -> None:
+    """A stranger (id 200) is refused and its heartbeat arms no failsafe; an unconfirmed allowed id gets no stream;
+    both get at most twice the bytes they sent."""
+    # A stranger: refused, and its heartbeat arms no failsafe.
+    stranger.send(stranger.mav.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0))
+    stranger.send(stranger.mav.command_long_encode(1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 21196,
+                                                   0, 0, 0, 0, 0))
+    stranger.send(stranger.mav.param_set_encode(1, 1, b"OL_ATT_K", 9.0, REAL32))
+    stranger.send(stranger.mav.command_long_encode(1, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
+                                                   M.MAVLINK_MSG_ID_ATTITUDE, 2000, 0, 0, 0, 0, 0))
+    for _ in range(5):  # an unconfirmed source asking for the expensive answers
+        spoof.send(spoof.mav.param_request_list_encode(1, 1))
+        spoof.send(spoof.mav.command_long_encode(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 435, 0, 0, 0, 0, 0, 0))
+        spoof.send(spoof.mav.command_long_encode(1, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, 30, 2000,
+                                                 0, 0, 0, 0, 0))
+    stranger.drain(8.0, lambda p: sum(m.get_type() == "COMMAND_ACK" for m in p.got) >= 2)
+    stranger.drain(0.5)  # anything more it would get (a stream, a second answer)
+    spoof.drain(8.0, lambda p: sum(m.get_type() == "COMMAND_ACK" for m in p.got) >= 10)
+    acks = [m for m in stranger.got if m.get_type() == "COMMAND_ACK"]
+    assert [a.result for a in acks] == [M.MAV_RESULT_DENIED] * 2, acks
+    # (its PARAM_SET's echo, the value in force, went to the confirmed ground stations: checked below)
+    print(f"\nreflection: stranger {stranger.bytes_in}/{stranger.bytes_out} B, unconfirmed id 255 "
+          f"{spoof.bytes_in}/{spoof.bytes_out} B")
+    assert stranger.bytes_in <= 2 * stranger.bytes_out, (stranger.bytes_in, stranger.bytes_out)
+    assert spoof.bytes_in <= 2 * spoof.bytes_out, (spoof.bytes_in, spoof.bytes_out)
+    assert not [m for m in spoof.got if m.get_type() in ("PARAM_VALUE", "AVAILABLE_MODES")]
+
+
+def _thousand_param_sets(gcs: Any) -> None:
+    """1,000 PARAM_SETs in flight, each answered."""
+    # 1,000 PARAM_SETs in flight: K bounds (a stability sweep each) and a gain, as fast as a script can.
+    t_start = time.monotonic()
+    replies = 0
+
+    def answer(m) -> bool:
+        return m.get_type() == "PARAM_VALUE" and m.param_id in ("INDI_K_MIN", "OL_POS_K")
+
+    for i in range(N_SETS):
+        if i % 2:
+            gcs.mav.param_set_send(1, 1, b"INDI_K_MIN", 0.5 + 0.001 * (i % 50), REAL32)
+        else:
+            gcs.mav.param_set_send(1, 1, b"OL_POS_K", 1.0 + 0.001 * (i % 100), REAL32)
+        # read as we go, as a GCS does (the test's socket buffer holds only a few hundred datagrams)
+        while (m := gcs.recv_match(blocking=False)) is not None:
+            replies += answer(m)
+    deadline = time.monotonic() + 60.0
+    while replies < N_SETS and time.monotonic() < deadline:
+        m = wait_for(gcs, "PARAM_VALUE", 1.0, lambda m: m.param_id in ("INDI_K_MIN", "OL_POS_K"))
+        replies += m is not None
+    assert replies == N_SETS, f"{replies} of {N_SETS} PARAM_SETs answered"
+    print(f"\n{N_SETS} PARAM_SETs answered in {time.monotonic() - t_start:.1f} s wall")
+
+
 def test_strangers_reflection_corrupt_file_and_a_thousand_param_sets_in_flight(tmp_path: Path) -> None:
     state = tmp_path / "state"
     state.mkdir()
@@ -88,29 +143,7 @@ def test_strangers_reflection_corrupt_file_and_a_thousand_param_sets_in_flight(t
             assert text is not None and text.severity <= M.MAV_SEVERITY_CRITICAL
             assert stored.with_name(stored.name + ".rejected-1").read_text() == "[" * 200_000
 
-            # A stranger: refused, and its heartbeat arms no failsafe.
-            stranger.send(stranger.mav.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0))
-            stranger.send(stranger.mav.command_long_encode(1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 0, 21196,
-                                                           0, 0, 0, 0, 0))
-            stranger.send(stranger.mav.param_set_encode(1, 1, b"OL_ATT_K", 9.0, REAL32))
-            stranger.send(stranger.mav.command_long_encode(1, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0,
-                                                           M.MAVLINK_MSG_ID_ATTITUDE, 2000, 0, 0, 0, 0, 0))
-            for _ in range(5):  # an unconfirmed source asking for the expensive answers
-                spoof.send(spoof.mav.param_request_list_encode(1, 1))
-                spoof.send(spoof.mav.command_long_encode(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 435, 0, 0, 0, 0, 0, 0))
-                spoof.send(spoof.mav.command_long_encode(1, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, 30, 2000,
-                                                         0, 0, 0, 0, 0))
-            stranger.drain(8.0, lambda p: sum(m.get_type() == "COMMAND_ACK" for m in p.got) >= 2)
-            stranger.drain(0.5)  # anything more it would get (a stream, a second answer)
-            spoof.drain(8.0, lambda p: sum(m.get_type() == "COMMAND_ACK" for m in p.got) >= 10)
-            acks = [m for m in stranger.got if m.get_type() == "COMMAND_ACK"]
-            assert [a.result for a in acks] == [M.MAV_RESULT_DENIED] * 2, acks
-            # (its PARAM_SET's echo, the value in force, went to the confirmed ground stations: checked below)
-            print(f"\nreflection: stranger {stranger.bytes_in}/{stranger.bytes_out} B, unconfirmed id 255 "
-                  f"{spoof.bytes_in}/{spoof.bytes_out} B")
-            assert stranger.bytes_in <= 2 * stranger.bytes_out, (stranger.bytes_in, stranger.bytes_out)
-            assert spoof.bytes_in <= 2 * spoof.bytes_out, (spoof.bytes_in, spoof.bytes_out)
-            assert not [m for m in spoof.got if m.get_type() in ("PARAM_VALUE", "AVAILABLE_MODES")]
+            _strangers_are_refused(stranger, spoof)
 
             # Flight-unsafe values, live: NaN as INT8 and a zero gain.
             gcs.mav.param_set_send(1, 1, b"OL_ATT_K", _int8(math.nan), M.MAV_PARAM_TYPE_INT8)
@@ -119,27 +152,7 @@ def test_strangers_reflection_corrupt_file_and_a_thousand_param_sets_in_flight(t
                 pv = wait_for(gcs, "PARAM_VALUE", 5.0, lambda m: m.param_id == "OL_ATT_K")
                 assert pv is not None and pv.param_value == 4.0
 
-            # 1,000 PARAM_SETs in flight: K bounds (a stability sweep each) and a gain, as fast as a script can.
-            t_start = time.monotonic()
-            replies = 0
-
-            def answer(m) -> bool:
-                return m.get_type() == "PARAM_VALUE" and m.param_id in ("INDI_K_MIN", "OL_POS_K")
-
-            for i in range(N_SETS):
-                if i % 2:
-                    gcs.mav.param_set_send(1, 1, b"INDI_K_MIN", 0.5 + 0.001 * (i % 50), REAL32)
-                else:
-                    gcs.mav.param_set_send(1, 1, b"OL_POS_K", 1.0 + 0.001 * (i % 100), REAL32)
-                # read as we go, as a GCS does (the test's socket buffer holds only a few hundred datagrams)
-                while (m := gcs.recv_match(blocking=False)) is not None:
-                    replies += answer(m)
-            deadline = time.monotonic() + 60.0
-            while replies < N_SETS and time.monotonic() < deadline:
-                m = wait_for(gcs, "PARAM_VALUE", 1.0, lambda m: m.param_id in ("INDI_K_MIN", "OL_POS_K"))
-                replies += m is not None
-            assert replies == N_SETS, f"{replies} of {N_SETS} PARAM_SETs answered"
-            print(f"\n{N_SETS} PARAM_SETs answered in {time.monotonic() - t_start:.1f} s wall")
+            _thousand_param_sets(gcs)
             hb = wait_heartbeat(gcs, 5.0)
             # still flying its scenario, or holding once the 10 s script has ended (a slow machine's burst outlasts it)
             assert hb.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED and hb.custom_mode in (hb0.custom_mode, HOLD)

@@ -103,3 +103,19 @@ def test_a_stalled_loop_resyncs_instead_of_bursting() -> None:
     clock.offer(FakeBundle(10001), None, 0.005)
     assert clock.tick(0.5) is not None  # half a second late: one tick, not fifty
     assert clock.stats.resyncs == 1 and clock.tick(0.5) is None and clock.next_tick_s == pytest.approx(0.51)
+
+
+def test_ticks_move_off_the_bundles_arrival_phase_so_jitter_costs_no_steps() -> None:
+    """Two free clocks at one rate keep their starting phase: bundles arriving right at the FC's ticks with +-1.2 ms of
+    jitter (what a loaded 921600-baud serial line showed) would leave every other tick without data and supersede a
+    bundle each time (about 40 % of the steps lost in this scenario without the alignment). The clock moves its
+    ticks a third of a period after the arrivals, once it has averaged them, and then loses none."""
+    rng = np.random.default_rng(11)
+    n = 3000
+    arr = [(100.0 + k * PERIOD_S - 0.0002 + rng.uniform(-0.0012, 0.0012), round(k * PERIOD_S * 1e6) + 1)
+           for k in range(1, n + 1)]
+    clock, used = _run(arr)
+    s = clock.stats
+    assert s.phase_moves >= 1
+    assert s.superseded + s.missing <= 0.02 * n, vars(s)  # the first ~50 arrivals, before the move, at most
+    assert len(used) >= 0.98 * n and s.out_of_order == 0
