@@ -337,8 +337,10 @@ class GcsService:
 
     def reposition_global(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool,
                           yaw_rad: float) -> tuple[bool, str]:
-        return self._vehicle.command(Reposition(self.vehicle_msgs.to_ned(lat_deg, lon_deg, alt_m, relative_alt),
-                                                yaw_rad))
+        pos = self.vehicle_msgs.to_ned(lat_deg, lon_deg, alt_m, relative_alt)
+        if why := self.vehicle_msgs.position_problem(pos):  # the operating volume (VOL_*): refused, never flown
+            return False, f"Reposition refused: {why}"
+        return self._vehicle.command(Reposition(pos, yaw_rad))
 
     def poll(self, now_wall: float) -> list[SetResult]:
         """Wall-clock work (telemetry, paced downloads, queued PARAM_SETs); returns the parameter changes the

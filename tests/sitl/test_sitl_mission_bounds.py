@@ -121,6 +121,13 @@ def test_targets_outside_the_operating_volume_are_refused_with_the_reason(fc: Fc
             texts.append(m.text)
         firsts = [t for t in texts if t.startswith("Offboard target ignored")]
         assert 2 <= len(firsts) <= 3, texts
+        # A DO_REPOSITION (MAVSDK's goto_location) to 49.33 N, far beyond VOL_DIST_MAX: DENIED with the reason
+        op.mav.command_int_send(op.target_system, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_CMD_DO_REPOSITION, 0,
+                                0, -1.0, 1, 0, math.nan, 493_300_000, 85_455_940, 10.0)
+        ack = wait_for(op, "COMMAND_ACK", 5.0, lambda m: m.command == M.MAV_CMD_DO_REPOSITION)
+        assert ack is not None and ack.result == M.MAV_RESULT_DENIED, ack
+        text = wait_for(op, "STATUSTEXT", 5.0, lambda m: m.text.startswith("Reposition refused:"))
+        assert text is not None
 
 
 def test_an_impostor_repeating_mission_count_does_not_hold_the_upload_lock(fc: FcTarget) -> None:
