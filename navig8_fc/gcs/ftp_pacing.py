@@ -17,7 +17,7 @@ Pure: the caller gives the time (wall seconds) and sends what comes back.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Hashable, Iterator
+from collections.abc import Callable, Hashable, Iterator
 from dataclasses import dataclass, field
 
 FRAME_OVERHEAD_BYTES = 12  # MAVLink 2 header (10) + CRC (2)
@@ -26,12 +26,19 @@ TARGET_FIELDS_BYTES = 3  # FILE_TRANSFER_PROTOCOL's target_network, target_syste
 
 @dataclass(frozen=True)
 class ReplyBudget:
-    """How much MAVFTP one source may draw (module docstring; docs/security.md, "MAVFTP")."""
+    """How much MAVFTP one source may draw (module docstring; docs/security.md, "MAVFTP"). The defaults are for a
+    source the FC cannot vouch for; OPERATOR_BUDGET for the operator's configured station."""
 
     bytes_per_s: float = 2500.0  # a 41 KB file in ~17 s; a 100 requests/s flood of 19-byte requests gets < 2x back
     burst_bytes: float = 1500.0  # about five full packets at once
     packets_per_poll: int = 4  # the service polls every ~1 ms between control steps
     pending_max: int = 8  # single replies waiting for the bucket, per source
+
+
+# The operator's configured station (GcsService's OperatorSources: where the operator pointed the link, or a TCP
+# connection) is no amplifier for anyone else: its downloads go at a ground station's pace (QGroundControl's 62 kB
+# parameter metadata in ~1.5 s instead of ~25 s); the packets per poll still bound the work between control steps.
+OPERATOR_BUDGET = ReplyBudget(bytes_per_s=50_000.0, burst_bytes=6_000.0)
 
 
 def frame_bytes(payload: bytes) -> int:
@@ -46,6 +53,7 @@ class _Source:
     to: tuple[int, int]
     tokens: float
     t_s: float
+    budget: ReplyBudget
     replies: deque[bytes] = field(default_factory=deque)
     bursts: dict[int, Iterator[bytes]] = field(default_factory=dict)  # session -> its remaining packets
     head: bytes | None = None  # a burst packet drawn but not yet affordable
@@ -55,8 +63,11 @@ class _Source:
 class ReplyPacer:
     """Per-source token buckets over MAVFTP replies (module docstring)."""
 
-    def __init__(self, budget: ReplyBudget = ReplyBudget()) -> None:
+    def __init__(self, budget: ReplyBudget = ReplyBudget(), operator: Callable[[Hashable], bool] | None = None,
+                 operator_budget: ReplyBudget = OPERATOR_BUDGET) -> None:
+        """operator(key): whether replies to `key` go to the operator's configured station (its own budget)."""
         self.budget = budget
+        self._operator, self._operator_budget = operator, operator_budget
         self._sources: dict[Hashable, _Source] = {}
         self.n_dropped = 0  # single replies dropped because a source's queue was full
 
@@ -69,10 +80,12 @@ class ReplyPacer:
         """Queue a request's answer for `key` (where the replies go), addressed to `to`."""
         src = self._sources.get(key)
         if src is None:
-            src = self._sources[key] = _Source(to, self.budget.burst_bytes, now_s)
+            budget = (self._operator_budget if self._operator is not None and self._operator(key)
+                      else self.budget)
+            src = self._sources[key] = _Source(to, budget.burst_bytes, now_s, budget)
         src.to = to
         for r in replies:
-            if len(src.replies) >= self.budget.pending_max:
+            if len(src.replies) >= src.budget.pending_max:
                 src.replies.popleft()
                 self.n_dropped += 1
             src.replies.append(r)
@@ -85,14 +98,14 @@ class ReplyPacer:
     def take(self, now_s: float, only: Hashable = None, limit: int | None = None
              ) -> list[tuple[Hashable, tuple[int, int], bytes]]:
         """The replies the buckets afford now, (key, requester, payload); `only`: one source's alone."""
-        budget = self.budget
-        left = budget.packets_per_poll if limit is None else limit
+        left = self.budget.packets_per_poll if limit is None else limit
         out: list[tuple[Hashable, tuple[int, int], bytes]] = []
         keys = [only] if only is not None else list(self._sources)
         for key in keys:
             src = self._sources.get(key)
             if src is None:
                 continue
+            budget = src.budget
             src.tokens = min(budget.burst_bytes, src.tokens + (now_s - src.t_s) * budget.bytes_per_s)
             src.t_s = now_s
             while left > 0:
@@ -131,4 +144,4 @@ class ReplyPacer:
         return None
 
 
-__all__ = ["ReplyBudget", "ReplyPacer", "frame_bytes"]
+__all__ = ["OPERATOR_BUDGET", "ReplyBudget", "ReplyPacer", "frame_bytes"]

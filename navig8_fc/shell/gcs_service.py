@@ -166,7 +166,9 @@ class GcsService:
         self.vehicle_msgs = VehicleMessages(mav, self.sysid, state, vehicle, self.command, registry, self.params,
                                             self.text)
         self.metadata = build_metadata(registry.definitions)  # QGC's parameter metadata, served read-only over FTP
-        self.ftp = FtpService(mav, FtpServer(self.metadata.files), sysid, 1, ReplyPacer())  # paced per source
+        # paced per source; the operator's configured station at a ground station's pace (ftp_pacing.OPERATOR_BUDGET)
+        pacer = ReplyPacer(operator=lambda source: source is not None and self.operator.configured(source))
+        self.ftp = FtpService(mav, FtpServer(self.metadata.files), sysid, 1, pacer)
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
         self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config, autopilot)

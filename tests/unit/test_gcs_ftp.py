@@ -299,3 +299,21 @@ def test_a_paced_burst_continues_over_later_polls_and_the_client_gets_the_whole_
             got = [m for _s, m in service.poll(t)]
     assert eof and bytes(buf) == files["/f.bin"]
     assert 2.0 < t < 3.5  # 9.2 KB of data, ~10 KB on the wire, at 3 KB/s after the first 1.5 KB
+
+
+def test_the_operators_station_downloads_at_a_ground_stations_pace_and_others_stay_paced() -> None:
+    """Over 2 s of 1 ms service polls: the operator's configured station draws a 62.6 KB file's worth of packets,
+    any other address at most 2.5 KB/s plus its 1.5 KB burst (ftp_pacing.ReplyBudget)."""
+    from navig8_fc.gcs.ftp_pacing import ReplyPacer, frame_bytes
+
+    packet = bytes(range(1, 240)) + b"\1" * 12  # a full FILE_TRANSFER_PROTOCOL payload
+    n_packets = 62_600 // 239 + 1
+    pacer = ReplyPacer(operator=lambda key: key == "operator")
+    for key in ("operator", "stranger"):
+        pacer.add(key, (255, 190), 0.0, [], iter([packet] * n_packets), session=0)
+    got = {"operator": 0, "stranger": 0}
+    for k in range(2000):
+        for key, _to, payload in pacer.take(k * 0.001):
+            got[key] += frame_bytes(payload)
+    assert got["operator"] >= n_packets * frame_bytes(packet)  # the whole file within 2 s
+    assert got["stranger"] <= 1500 + 2500 * 2.0 + frame_bytes(packet)
