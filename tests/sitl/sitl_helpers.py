@@ -489,6 +489,67 @@ class LossyUdpProxy:
         self._fc_side.close()
         self._br_side.close()
 
+class RawPeer:
+    """A UDP socket of its own speaking MAVLink as `sysid` (signed with `key` when given, MAVLink 1 with `mavlink1`),
+    sending to the FC's GCS socket `fc_port` unless told another, counting the bytes each way. `received` is called
+    with every message read (a subclass counts what it needs)."""
+
+    def __init__(self, sysid: int, fc_port: int = 0, local_port: int = 0, key: bytes | None = None,
+                 mavlink1: bool = False) -> None:
+        """local_port: where it listens (the FC's configured GCS port: the operator's own station; 0: anywhere)."""
+        from io import BytesIO
+
+        from pymavlink.dialects.v20 import common as m2
+
+        from navig8_fc.links.signing import signing_timestamp
+
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", local_port))
+        self.sock.settimeout(0.05)
+        self.mav = m2.MAVLink(BytesIO(), srcSystem=sysid, srcComponent=190)
+        self.rx = m2.MAVLink(BytesIO(), srcSystem=sysid, srcComponent=190)
+        self.fc_port, self.mavlink1 = fc_port, mavlink1
+        if key is not None:
+            self.mav.signing.secret_key, self.mav.signing.sign_outgoing = key, True
+            self.mav.signing.timestamp = signing_timestamp(time.time())
+            self.rx.signing.secret_key = key  # reads the FC's frames when they are signed with this key
+        self.bytes_out = self.bytes_in = 0
+        self.got: list[Any] = []
+
+    def send(self, msg: Any, port: int | None = None) -> None:
+        self.send_raw(msg.pack(self.mav, force_mavlink1=self.mavlink1), port)
+
+    def send_raw(self, buf: bytes, port: int | None = None) -> None:
+        self.sock.sendto(buf, ("127.0.0.1", self.fc_port if port is None else port))
+        self.bytes_out += len(buf)
+
+    def heartbeat(self, port: int | None = None) -> None:
+        m2 = mavutil.mavlink
+        self.send(self.mav.heartbeat_encode(m2.MAV_TYPE_GCS, m2.MAV_AUTOPILOT_INVALID, 0, 0, 0), port)
+
+    def received(self, msg: Any) -> None:
+        self.got.append(msg)
+
+    def drain(self, duration_s: float, until: Callable[[Any], bool] | None = None) -> None:
+        """Read for `duration_s`, or until `until(self)` holds."""
+        deadline = time.monotonic() + duration_s
+        while time.monotonic() < deadline and not (until is not None and until(self)):
+            try:
+                data, _ = self.sock.recvfrom(65535)
+            except TimeoutError:
+                continue
+            self.bytes_in += len(data)
+            try:
+                msgs = self.rx.parse_buffer(data) or []
+            except Exception:  # noqa: BLE001 - a frame signed with a key this side does not hold
+                continue
+            for m in msgs:
+                self.received(m)
+
+    def close(self) -> None:
+        self.sock.close()
+
+
 # A PARAM_SET of a stability parameter is answered once its stability floor is computed on the floor worker (~20 ms;
 # the rare configurations with a finite upper edge need the full sweep, seconds on a loaded 2-core machine running
 # two SITL pairs), so its PARAM_VALUE is waited for this long (docs/security.md).

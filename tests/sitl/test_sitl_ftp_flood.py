@@ -13,8 +13,7 @@ from pathlib import Path
 
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import sitl
-from test_sitl_security import RawPeer
+from sitl_helpers import RawPeer, sitl
 
 from navig8_fc.gcs.metadata import PARAMETER_PATH
 from navig8_fc.shell.mcap_log import read_mcap_records
@@ -49,18 +48,10 @@ class CountingPeer(RawPeer):
         super().__init__(sysid, fc_port, local_port)
         self.ftp_bytes_in = 0
 
-    def drain(self, duration_s: float, until=None) -> None:
-        deadline = time.monotonic() + duration_s
-        while time.monotonic() < deadline and not (until is not None and until(self)):
-            try:
-                data, _ = self.sock.recvfrom(65535)
-            except TimeoutError:
-                continue
-            self.bytes_in += len(data)
-            for m in self.rx.parse_buffer(data) or []:
-                self.got.append(m)
-                if m.get_type() == "FILE_TRANSFER_PROTOCOL":
-                    self.ftp_bytes_in += len(m.get_msgbuf())
+    def received(self, msg: object) -> None:
+        super().received(msg)
+        if msg.get_type() == "FILE_TRANSFER_PROTOCOL":  # type: ignore[attr-defined]
+            self.ftp_bytes_in += len(msg.get_msgbuf())  # type: ignore[attr-defined]
 
 
 @pytest.mark.local_only("reads the FC's log for the control steps' wall times")

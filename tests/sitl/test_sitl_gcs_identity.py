@@ -12,14 +12,12 @@ claiming an allowed system id (no raw sockets: it sends from its own address, as
 from __future__ import annotations
 
 import math
-import socket
 import time
-from io import BytesIO
 from pathlib import Path
 from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import PARAM_SET_WAIT_S, gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import PARAM_SET_WAIT_S, RawPeer, gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.links.signing import signing_timestamp
 from navig8_fc.modes import FlightMode
@@ -33,49 +31,12 @@ HOLD = FlightMode.HOLD.custom_mode
 LAND = FlightMode.LAND.custom_mode
 
 
-class Impostor:
-    """A UDP socket of its own speaking MAVLink as `sysid` (signed with `key` when given), counting bytes each way."""
+class Impostor(RawPeer):
+    """A UDP socket of its own speaking MAVLink as `sysid` (signed with `key` when given), counting bytes each way;
+    told the FC's port at every send."""
 
     def __init__(self, sysid: int, key: bytes | None = None, mavlink1: bool = False) -> None:
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", 0))
-        self.sock.settimeout(0.05)
-        self.mav = M.MAVLink(BytesIO(), srcSystem=sysid, srcComponent=190)
-        self.rx = M.MAVLink(BytesIO(), srcSystem=sysid, srcComponent=190)
-        self.mavlink1 = mavlink1
-        if key is not None:
-            self.mav.signing.secret_key, self.mav.signing.sign_outgoing = key, True
-            self.mav.signing.timestamp = signing_timestamp(time.time())
-            self.rx.signing.secret_key = key  # reads the FC's frames when they are signed with this key
-        self.bytes_out = self.bytes_in = 0
-        self.got: list[Any] = []
-
-    def send(self, msg: Any, port: int) -> None:
-        self.send_raw(msg.pack(self.mav, force_mavlink1=self.mavlink1), port)
-
-    def send_raw(self, buf: bytes, port: int) -> None:
-        self.sock.sendto(buf, ("127.0.0.1", port))
-        self.bytes_out += len(buf)
-
-    def heartbeat(self, port: int) -> None:
-        self.send(self.mav.heartbeat_encode(M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID, 0, 0, 0), port)
-
-    def drain(self, duration_s: float, until: Any = None) -> None:
-        """Read for `duration_s`, or until `until(self)` holds."""
-        deadline = time.monotonic() + duration_s
-        while time.monotonic() < deadline and not (until is not None and until(self)):
-            try:
-                data, _ = self.sock.recvfrom(65535)
-            except TimeoutError:
-                continue
-            self.bytes_in += len(data)
-            try:
-                self.got += self.rx.parse_buffer(data) or []
-            except Exception:  # noqa: BLE001 - a frame signed with a key this side does not hold
-                pass
-
-    def close(self) -> None:
-        self.sock.close()
+        super().__init__(sysid, key=key, mavlink1=mavlink1)
 
 
 def _fc_hb(pred: Any) -> Any:

@@ -12,15 +12,13 @@
 from __future__ import annotations
 
 import math
-import socket
 import struct
 import time
-from io import BytesIO
 from pathlib import Path
 from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import RawPeer, gcs_client, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.modes import FlightMode
 from navig8_fc.params.store import ParamStore, default_state_path
@@ -30,41 +28,6 @@ M = mavlink2
 REAL32 = M.MAV_PARAM_TYPE_REAL32
 N_SETS = 1000
 HOLD = FlightMode.HOLD.custom_mode
-
-
-class RawPeer:
-    """A UDP socket speaking MAVLink as `sysid` from its own port, counting the bytes each way."""
-
-    def __init__(self, sysid: int, fc_port: int, local_port: int = 0) -> None:
-        """local_port: where it listens (the FC's configured GCS port: the operator's own station; 0: anywhere)."""
-        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        self.sock.bind(("127.0.0.1", local_port))
-        self.sock.settimeout(0.05)
-        self.mav = M.MAVLink(BytesIO(), srcSystem=sysid, srcComponent=190)
-        self.rx = M.MAVLink(BytesIO(), srcSystem=sysid, srcComponent=190)
-        self.fc = ("127.0.0.1", fc_port)
-        self.bytes_out = self.bytes_in = 0
-        self.got: list[object] = []
-
-    def send(self, msg: object) -> None:
-        buf = msg.pack(self.mav)  # type: ignore[attr-defined]
-        self.sock.sendto(buf, self.fc)
-        self.bytes_out += len(buf)
-
-    def drain(self, duration_s: float, until=None) -> None:
-        """Read for `duration_s`, or until `until(self)` holds."""
-        deadline = time.monotonic() + duration_s
-        while time.monotonic() < deadline and not (until is not None and until(self)):
-            try:
-                data, _ = self.sock.recvfrom(65535)
-            except TimeoutError:
-                continue
-            self.bytes_in += len(data)
-            for m in self.rx.parse_buffer(data) or []:
-                self.got.append(m)
-
-    def close(self) -> None:
-        self.sock.close()
 
 
 def _int8(value: float) -> float:
