@@ -74,7 +74,7 @@ from navig8_fc.modes.manager import (
     TaskStatus,
     Verdict,
 )
-from navig8_fc.modes.orbit import OrbitLimits
+from navig8_fc.modes.records import ReferenceLimits
 from navig8_fc.params.registry import ParamRegistry
 
 SYSTEM_STATUS_CRITICAL = 5  # MAV_STATE_CRITICAL: a failsafe is in force (PX4 reports the same)
@@ -144,15 +144,15 @@ class FlightStack:
         return self._modes.config
 
     def _set_mode_limits(self, outer: OuterLoopConfig, orbit_radius_max_m: float) -> None:
-        """What the mode manager needs of the outer loop: the position gain (offboard velocity feed-forward), the
-        limits the position reference brakes with (where Hold stops) and what it can fly on a circle (Orbit)."""
+        """What the modes need of the outer loop: the position gain (offboard velocity feed-forward), the braking
+        limits (where Hold stops), what the reference can fly (Orbit, attitude targets)."""
         self._modes.set_position_gain(outer.pos_k)
         if outer.jerk_max_m_s3 > 0.0:  # the shaped reference brakes at OL_ACC_REF with its jerk limit, its jerk
             # stage answering 1 / K_j late
             self._modes.set_braking(outer.ref_acc_max_m_s2, outer.jerk_max_m_s3, 1.0 / (JERK_K_PER_VEL_K * outer.vel_k))
         else:  # the setpoint goes to the loop as it is: the loop's own acceleration limit
             self._modes.set_braking(outer.acc_max_m_s2, math.inf)
-        self._modes.set_orbit_limits(OrbitLimits.of_outer_loop(outer, orbit_radius_max_m))
+        self._modes.set_reference_limits(ReferenceLimits.of_outer_loop(outer, orbit_radius_max_m))
 
     def reconfigure(self) -> bool:
         """Apply the registry's parameters if they changed since the last call (each step calls it); True when
@@ -179,7 +179,8 @@ class FlightStack:
         indi = cfg.indi
         self.lambda_crit = stability.lambda_crit(indi.act_wn_rad_s, indi.act_zeta, cfg.dt_s, indi.lpf_tau_s)
         self.lambda_min = float(values["INDI_LAMBDA_MIN"])
-        self._modes.set_altitudes(float(values["MIS_TAKEOFF_ALT"]), float(values["RTL_RETURN_ALT"]))
+        self._modes.set_mode_params(float(values["MIS_TAKEOFF_ALT"]), float(values["RTL_RETURN_ALT"]),
+                                    float(values["MPC_THR_HOVER"]))
         return True
 
     # --- the control step ------------------------------------------------------------------------------
@@ -284,9 +285,7 @@ class FlightStack:
             LoadRally: self._load_rally,
         }
 
-    def _orbit(self, cmd: Orbit) -> Verdict:
-        """DO_ORBIT: the circle, once resolved (a centre or altitude not given is the vehicle's), must lie in the
-        operating volume (VOL_*) as a reposition's point must; home as the GCS checks use it (else the NED origin)."""
+    def _orbit(self, cmd: Orbit) -> Verdict:  # DO_ORBIT: the resolved circle must lie in the volume (VOL_*), about home
         vol, home = OperatingVolume.from_params(self.registry.as_dict()), self._modes.home_ned or (0.0, 0.0, 0.0)
         return self._modes.orbit(cmd.request, lambda plan: vol.orbit_problem(plan.centre_ned, plan.radius_m, home))
 

@@ -128,7 +128,7 @@ DEFAULT_RATES_HZ: dict[int, float] = {
 # plans (inclusion circles and polygons) are uploaded, stored and enforced (navig8_fc.mission.fence); MISSION_RALLY:
 # rally plans are uploaded, stored and flown to by Return (navig8_fc.mission.rally); MAVLINK2:
 # always; PARAM_ENCODE_BYTEWISE: how INT32 parameters are encoded (navig8_fc.gcs.params).
-# SET_ATTITUDE_TARGET: pitch, yaw and thrust fly Offboard (navig8_fc.gcs.offboard).
+# SET_ATTITUDE_TARGET: the attitude and thrust fly Offboard as PX4 reads them (navig8_fc.gcs.offboard).
 # Not set: FTP (answered with NAK only), GRIPPER (WIP bit).
 CAPABILITIES = (
     M.MAV_PROTOCOL_CAPABILITY_MISSION_INT

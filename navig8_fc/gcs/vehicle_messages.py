@@ -100,7 +100,8 @@ class VehicleMessages:
             return []
         if kind == "SET_ATTITUDE_TARGET":
             dec = offboard.attitude_target(int(m.type_mask), tuple(m.q), float(m.thrust),
-                                           (m.body_roll_rate, m.body_pitch_rate, m.body_yaw_rate))
+                                           (m.body_roll_rate, m.body_pitch_rate, m.body_yaw_rate),
+                                           tuple(getattr(m, "thrust_body", offboard.NAN3)))
         else:
             mask, frame = int(m.type_mask), int(m.coordinate_frame)
             if kind == "SET_POSITION_TARGET_LOCAL_NED":

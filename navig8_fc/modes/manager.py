@@ -34,7 +34,7 @@ from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan, Progress
 from navig8_fc.modes.braking import braking_distance_m
 from navig8_fc.modes.land_detector import LandDetector
-from navig8_fc.modes.orbit import OrbitLimits, OrbitPlan, OrbitRequest
+from navig8_fc.modes.orbit import OrbitPlan, OrbitRequest
 from navig8_fc.modes.px4 import (
     BASE_MODE_ARMED,
     BASE_MODE_DISARMED,
@@ -45,7 +45,16 @@ from navig8_fc.modes.px4 import (
     px4_mode_name,
     system_status,
 )
-from navig8_fc.modes.records import MissionScript, ModeConfig, ModeInputs, ModeOutput, OffboardTarget, Vec3, Verdict
+from navig8_fc.modes.records import (
+    MissionScript,
+    ModeConfig,
+    ModeInputs,
+    ModeOutput,
+    OffboardTarget,
+    ReferenceLimits,
+    Vec3,
+    Verdict,
+)
 from navig8_fc.modes.switch import ModeSwitch
 from navig8_fc.modes.tasks import TASK_CANCELLED, TASK_DONE, TASK_FAILED, TASK_RUNNING, TaskStatus
 
@@ -298,10 +307,12 @@ class ModeManager(ModeReadout):
         """An uploaded rally plan (empty: cleared): every return chooses among its points (mission.rally)."""
         self._ctx.rally, self._ctx.rally_origin = (plan if plan.items else None), origin
 
-    def set_altitudes(self, takeoff_alt_m: float, rtl_alt_m: float) -> None:
-        """MIS_TAKEOFF_ALT and RTL_RETURN_ALT, live: the next takeoff / return flies them."""
-        if (self._cfg.takeoff_default_alt_m, self._cfg.rtl_alt_m) != (takeoff_alt_m, rtl_alt_m):
-            self._cfg = self._ctx.config = replace(self._cfg, takeoff_default_alt_m=takeoff_alt_m, rtl_alt_m=rtl_alt_m)
+    def set_mode_params(self, takeoff_alt_m: float, rtl_alt_m: float, hover_thrust: float = 0.5) -> None:
+        """MIS_TAKEOFF_ALT, RTL_RETURN_ALT and MPC_THR_HOVER, live: the next takeoff / return / attitude target."""
+        cfg = self._cfg
+        if (cfg.takeoff_default_alt_m, cfg.rtl_alt_m, cfg.hover_thrust) != (takeoff_alt_m, rtl_alt_m, hover_thrust):
+            self._cfg = self._ctx.config = replace(cfg, takeoff_default_alt_m=takeoff_alt_m, rtl_alt_m=rtl_alt_m,
+                                                   hover_thrust=hover_thrust)
 
     def offboard_setpoint(self, sp: Setpoint | OffboardTarget | None) -> None:
         """The latest streamed offboard target (a Setpoint: position, pitch, yaw; None: the stream is lost, the
@@ -367,8 +378,9 @@ class ModeManager(ModeReadout):
         shaping; else OL_ACC_MAX, no jerk limit (inf), no lag): Hold's entry point is where they stop the vehicle."""
         self._sw.hold.set_braking(float(acc_m_s2), float(jerk_m_s3), float(lag_s))  # ValueError: not positive
 
-    def set_orbit_limits(self, limits: OrbitLimits) -> None:  # what the reference flies: the next orbit's speed
-        self._sw.orbit.limits = limits
+    def set_reference_limits(self, limits: ReferenceLimits) -> None:
+        """What the position reference flies: the next orbit's speed, Offboard's acceleration targets."""
+        self._sw.orbit.limits = self._sw.offboard.limits = limits
 
     # --- the step ------------------------------------------------------------------------------------
     def step(self, inp: ModeInputs) -> ModeOutput:

@@ -28,10 +28,10 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from navig8_fc.core.outer_loop import JERK_K_PER_VEL_K, OuterLoopConfig, Setpoint
+from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.modes.context import ModeContext, Step, Transition, approach, wrap_pi
 from navig8_fc.modes.px4 import FlightMode
-from navig8_fc.modes.records import ModeInputs, Vec3
+from navig8_fc.modes.records import ModeInputs, ReferenceLimits, Vec3
 
 RADIUS_MIN_M = 1.0  # PX4's _radius_min
 DEFAULT_RADIUS_M, DEFAULT_SPEED_M_S = 1.0, 1.0  # PX4's activate(): what a first orbit flies when not told
@@ -57,26 +57,6 @@ class OrbitRequest:
 
 
 @dataclass(frozen=True)
-class OrbitLimits:
-    """What the position reference can fly (FlightStack sets it from OL_* and ORB_RAD_MAX)."""
-
-    radius_max_m: float = 1000.0  # ORB_RAD_MAX (PX4's MC_ORBIT_RAD_MAX)
-    speed_max_m_s: float = 2.0  # OL_VEL_MAX
-    acc_max_m_s2: float = 2.0  # OL_ACC_REF with command shaping, else OL_ACC_MAX
-    pos_k_1_s: float = 1.0  # OL_POS_K
-    vel_k_1_s: float = 3.0  # OL_VEL_K
-    jerk_k_1_s: float = 0.0  # the shaper's jerk stage gain (0: no shaping, the setpoint goes to the loop)
-
-    @staticmethod
-    def of_outer_loop(outer: OuterLoopConfig, radius_max_m: float) -> OrbitLimits:
-        """With command shaping (OL_JERK_MAX > 0) the shaped reference flies the circle (OL_ACC_REF, its jerk stage);
-        without it the loop itself (OL_ACC_MAX)."""
-        shaped = outer.jerk_max_m_s3 > 0.0
-        return OrbitLimits(radius_max_m, outer.vel_max_m_s, outer.ref_acc_max_m_s2 if shaped else outer.acc_max_m_s2,
-                           outer.pos_k, outer.vel_k, JERK_K_PER_VEL_K * outer.vel_k if shaped else 0.0)
-
-
-@dataclass(frozen=True)
 class OrbitPlan:
     """The orbit flown (ORBIT_EXECUTION_STATUS reports it): its centre (NED, z = the orbit's altitude), radius,
     speed (limited), direction, heading behaviour, the angle to fly (0: forever) and the heading when commanded."""
@@ -98,7 +78,7 @@ class OrbitPlan:
         return self.speed_m_s if self.clockwise else -self.speed_m_s
 
 
-def limited_speed(radius_m: float, speed_m_s: float, limits: OrbitLimits) -> float:
+def limited_speed(radius_m: float, speed_m_s: float, limits: ReferenceLimits) -> float:
     """The tangential speed flown (module docstring): min(|v|, sqrt(CENTRIPETAL_SHARE a r), v_c), where v_c solves
     v_c^2 + (v_c^2 / (r K_v))^2 = OL_VEL_MAX^2 (the velocity command on the circle at OL_VEL_MAX)."""
     k = radius_m * limits.vel_k_1_s
@@ -107,15 +87,15 @@ def limited_speed(radius_m: float, speed_m_s: float, limits: OrbitLimits) -> flo
 
 
 def resolve(req: OrbitRequest, flown: OrbitPlan | None, here: Vec3, yaw_rad: float,
-            limits: OrbitLimits) -> tuple[OrbitPlan | None, str, str]:
+            limits: ReferenceLimits) -> tuple[OrbitPlan | None, str, str]:
     """(the orbit to fly, '', a note when the speed was limited) or (None, the reason it is refused, '')."""
     if math.isfinite(req.radius_m):
         radius, clockwise = abs(req.radius_m), req.radius_m > 0.0
     else:
         radius = flown.radius_m if flown else DEFAULT_RADIUS_M
         clockwise = flown.clockwise if flown else True
-    if not RADIUS_MIN_M <= radius <= limits.radius_max_m:
-        return None, (f"Orbit radius {radius:g} m outside [{RADIUS_MIN_M:g}, {limits.radius_max_m:g}] m "
+    if not RADIUS_MIN_M <= radius <= limits.orbit_radius_max_m:
+        return None, (f"Orbit radius {radius:g} m outside [{RADIUS_MIN_M:g}, {limits.orbit_radius_max_m:g}] m "
                       "(ORB_RAD_MAX)"), ""
     if math.isfinite(req.speed_m_s) and req.speed_m_s < 0.0:
         return None, "Orbit speed must be >= 0 (the radius's sign sets the direction)", ""
@@ -136,7 +116,7 @@ def resolve(req: OrbitRequest, flown: OrbitPlan | None, here: Vec3, yaw_rad: flo
     return OrbitPlan((n, e, d), radius, speed, clockwise, yaw, sweep, yaw_rad), "", note
 
 
-def reference_response(omega_rad_s: float, limits: OrbitLimits) -> complex:
+def reference_response(omega_rad_s: float, limits: ReferenceLimits) -> complex:
     """H(i omega) of the position reference from setpoint to reference, per horizontal axis (a circle in N + iE is
     multiplied by it): the shaper's cascade p''' = K_j (K_v (K_p (sp - p) - p') - p''), or without shaping the
     loop's p'' = K_v (K_p (sp - p) - p')."""
@@ -174,7 +154,7 @@ class Orbit:
 
     def __init__(self, ctx: ModeContext, sticks: Callable[[], tuple[float, float, float, float]]) -> None:
         self._ctx, self._sticks = ctx, sticks
-        self.limits = OrbitLimits()
+        self.limits = ReferenceLimits()
         self.plan: OrbitPlan | None = None  # the orbit commanded (flown while in ORBIT)
         self.circling = False  # False: approaching the circle
         self._theta = self._speed = self._swept = 0.0  # angle from north towards east, signed speed, angle flown

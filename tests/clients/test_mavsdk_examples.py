@@ -27,11 +27,14 @@ class Case:
     climbs_m: float = 0.0  # the vehicle rose at least this high above its start (m)
     expect: str = ""  # a line the output must contain
     orbits: tuple[float, float, float] | None = None  # (lat, lon, radius m): a full turn within ORBIT_TOL_M of it
+    rolls_deg: float = 0.0  # the body rolled at least this far right and this far left (ATTITUDE)
+    sideways_m: float = 0.0  # and moved at least this far east of its start, then back west by as much
 
 
 CASES: dict[str, Case] = {
     "takeoff_and_land": Case(60, climbs_m=2.0, expect="-- Landing"),
-    "offboard_attitude": Case(60, climbs_m=0.3, expect="-- Stopping offboard"),
+    # thrust 0.7 climbs, roll +30 then -30 deg at 0.6 moves right then left (the body rolls to make it), as on PX4
+    "offboard_attitude": Case(60, climbs_m=1.0, expect="-- Stopping offboard", rolls_deg=5.0, sideways_m=1.0),
     "offboard_position_ned": Case(120, climbs_m=1.5, expect="-- Stopping offboard"),
     "offboard_velocity_ned": Case(120, climbs_m=1.5, expect="-- Stopping offboard"),
     "offboard_velocity_body": Case(120, climbs_m=1.5, expect="-- Stopping offboard"),
@@ -94,6 +97,15 @@ def _orbit_turn_deg(log: Path, lat_deg: float, lon_deg: float, radius_m: float) 
     return math.degrees(best)
 
 
+def _roll_and_sideways(log: Path) -> tuple[float, float, float, float]:
+    """(the largest roll right, the largest roll left (deg), how far east of the start the vehicle went, how far back
+    west from there (m)), from the FC's ATTITUDE and LOCAL_POSITION_NED."""
+    rolls = [math.degrees(d["roll"]) for _, _, d in read_mcap(log, ["/mavlink/api/out/ATTITUDE"])]
+    ys = [d["y"] for _, _, d in read_mcap(log, ["/mavlink/api/out/LOCAL_POSITION_NED"])]
+    i = max(range(len(ys)), key=ys.__getitem__)
+    return max(rolls), -min(rolls), ys[i] - ys[0], ys[i] - min(ys[i:])
+
+
 def _judge(r: ExampleRun, case: Case) -> None:
     tail = r.output[-3000:]
     assert "Traceback" not in r.output, tail
@@ -104,6 +116,10 @@ def _judge(r: ExampleRun, case: Case) -> None:
     assert case.expect in r.output, tail
     if case.climbs_m > 0.0:
         assert _rise_m(r.fc_log) >= case.climbs_m, (_rise_m(r.fc_log), tail)
+    if case.rolls_deg > 0.0:
+        right, left, east, back = _roll_and_sideways(r.fc_log)
+        print(f"{r.name}: rolled {right:.1f} deg right, {left:.1f} deg left; {east:.2f} m east, {back:.2f} m back")
+        assert min(right, left) >= case.rolls_deg and min(east, back) >= case.sideways_m, (right, left, east, back)
     if case.orbits is not None:
         turn = _orbit_turn_deg(r.fc_log, *case.orbits)
         print(f"{r.name}: {turn:.0f} deg within {ORBIT_TOL_M:g} m of the {case.orbits[2]:g} m circle")

@@ -28,7 +28,6 @@ from navig8_fc.modes.orbit import (
     YAW_TANGENT,
     YAW_TO_CENTRE,
     YAW_UNCONTROLLED,
-    OrbitLimits,
     OrbitPlan,
     OrbitRequest,
     limited_speed,
@@ -36,6 +35,7 @@ from navig8_fc.modes.orbit import (
     reference_response,
     resolve,
 )
+from navig8_fc.modes.records import ReferenceLimits
 
 DT = 0.01
 G = 9.80665
@@ -43,7 +43,7 @@ NAN = math.nan
 # the default outer loop (OL_* defaults: shaping on)
 OL = OuterLoopConfig(1.0, 3.0, 2.0, 4.0, 4.0, 8.0, 2.0, G, jerk_max_m_s3=5.0, ref_acc_max_m_s2=2.0,
                      att_rate_ref_rad_s=0.6, att_acc_ref_rad_s2=1.0, ff_level=1)
-LIMITS = OrbitLimits.of_outer_loop(OL, 1000.0)
+LIMITS = ReferenceLimits.of_outer_loop(OL, 1000.0)
 HERE = (3.0, -4.0, -5.0)
 
 
@@ -91,7 +91,7 @@ def test_the_speed_gives_way_to_the_velocity_and_centripetal_limits() -> None:
 # --- the circle flown ---------------------------------------------------------------------------------------------
 def test_reference_response_is_the_shapers_and_the_loops_transfer_function() -> None:
     """H(i w) against the linear cascades integrated in time: a sinusoid in, amplitude and phase out."""
-    for limits in (LIMITS, OrbitLimits(jerk_k_1_s=0.0)):
+    for limits in (LIMITS, ReferenceLimits(jerk_k_1_s=0.0)):
         w, dt = 0.4, 1e-3
         x = np.zeros(3)  # p, p', p''
         kp, kv, kj = limits.pos_k_1_s, limits.vel_k_1_s, limits.jerk_k_1_s
@@ -137,7 +137,7 @@ def _shaped_flight(mm: ModeManager, pos, seconds: float, t0: float):
 
 def _orbiting(req: OrbitRequest, seconds: float):
     mm, body, t = flying()
-    mm.set_orbit_limits(LIMITS)
+    mm.set_reference_limits(LIMITS)
     assert mm.orbit(req).ok
     return mm, *_shaped_flight(mm, body.pos, seconds, t)
 
@@ -166,7 +166,7 @@ def test_the_shaped_reference_flies_the_commanded_circle_at_the_commanded_speed(
 
 
 def test_the_loop_without_shaping_flies_the_circle_too() -> None:
-    limits = OrbitLimits(jerk_k_1_s=0.0, acc_max_m_s2=4.0)
+    limits = ReferenceLimits(jerk_k_1_s=0.0, acc_max_m_s2=4.0)
     r, w = 5.0, limited_speed(5.0, 1.5, limits) / 5.0
     x = np.zeros(4)  # n, e, vn, ve: p'' = K_v (K_p (sp - p) - p')
     for k in range(int(60.0 / DT)):
