@@ -12,6 +12,7 @@ from typing import Literal
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan
+from navig8_fc.modes.orbit import OrbitRequest
 from navig8_fc.modes.records import OffboardTarget
 
 Vec3 = tuple[float, float, float]
@@ -53,6 +54,11 @@ class SetMode:
 class Reposition:
     pos_ned: Vec3  # hold here (a NaN component: where the vehicle is)
     yaw_rad: float = math.nan  # NaN: keep
+
+
+@dataclass(frozen=True)
+class Orbit:
+    request: OrbitRequest  # MAV_CMD_DO_ORBIT in local NED (NaN parts: not given; navig8_fc.modes.orbit)
 
 
 @dataclass(frozen=True)
@@ -101,5 +107,5 @@ class LoadRally:
     origin: GeoOrigin
 
 
-VehicleCommand = (Arm | Disarm | Takeoff | Land | ReturnToLaunch | SetMode | Reposition | Gripper | ArmJoints
+VehicleCommand = (Arm | Disarm | Takeoff | Land | ReturnToLaunch | SetMode | Reposition | Orbit | Gripper | ArmJoints
                   | CancelTask | OffboardSetpoint | ManualInput | LoadMission | LoadFence | LoadRally)

@@ -46,6 +46,7 @@ from navig8_fc.flight.commands import (
     LoadRally,
     ManualInput,
     OffboardSetpoint,
+    Orbit,
     Reposition,
     ReturnToLaunch,
     SetMode,
@@ -64,6 +65,7 @@ from navig8_fc.flight.state import (
     VehicleState,
 )
 from navig8_fc.mission.fence import Fence
+from navig8_fc.mission.volume import OperatingVolume
 from navig8_fc.modes.manager import (
     ModeConfig,
     ModeInputs,
@@ -72,6 +74,7 @@ from navig8_fc.modes.manager import (
     TaskStatus,
     Verdict,
 )
+from navig8_fc.modes.records import ReferenceLimits
 from navig8_fc.params.registry import ParamRegistry
 
 SYSTEM_STATUS_CRITICAL = 5  # MAV_STATE_CRITICAL: a failsafe is in force (PX4 reports the same)
@@ -140,15 +143,16 @@ class FlightStack:
         """The mode manager's configuration in force (MIS_TAKEOFF_ALT and RTL_RETURN_ALT applied)."""
         return self._modes.config
 
-    def _set_mode_limits(self, outer: OuterLoopConfig) -> None:
-        """What the mode manager needs of the outer loop: the position gain (offboard velocity feed-forward) and the
-        limits the position reference brakes with (where Hold stops)."""
+    def _set_mode_limits(self, outer: OuterLoopConfig, orbit_radius_max_m: float) -> None:
+        """What the modes need of the outer loop: the position gain (offboard velocity feed-forward), the braking
+        limits (where Hold stops), what the reference can fly (Orbit, attitude targets)."""
         self._modes.set_position_gain(outer.pos_k)
         if outer.jerk_max_m_s3 > 0.0:  # the shaped reference brakes at OL_ACC_REF with its jerk limit, its jerk
             # stage answering 1 / K_j late
             self._modes.set_braking(outer.ref_acc_max_m_s2, outer.jerk_max_m_s3, 1.0 / (JERK_K_PER_VEL_K * outer.vel_k))
         else:  # the setpoint goes to the loop as it is: the loop's own acceleration limit
             self._modes.set_braking(outer.acc_max_m_s2, math.inf)
+        self._modes.set_reference_limits(ReferenceLimits.of_outer_loop(outer, orbit_radius_max_m))
 
     def reconfigure(self) -> bool:
         """Apply the registry's parameters if they changed since the last call (each step calls it); True when
@@ -169,13 +173,14 @@ class FlightStack:
             self._core.set_arm_plan(self._arm_plan)
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
-        self._set_mode_limits(cfg.outer)
+        self._set_mode_limits(cfg.outer, float(values["ORB_RAD_MAX"]))
         self._cfg_generation = reg.generation
         self._fs.configure(FailsafeSettings.from_params(values))  # typed once per change, not per step
         indi = cfg.indi
         self.lambda_crit = stability.lambda_crit(indi.act_wn_rad_s, indi.act_zeta, cfg.dt_s, indi.lpf_tau_s)
         self.lambda_min = float(values["INDI_LAMBDA_MIN"])
-        self._modes.set_altitudes(float(values["MIS_TAKEOFF_ALT"]), float(values["RTL_RETURN_ALT"]))
+        self._modes.set_mode_params(float(values["MIS_TAKEOFF_ALT"]), float(values["RTL_RETURN_ALT"]),
+                                    float(values["MPC_THR_HOVER"]))
         return True
 
     # --- the control step ------------------------------------------------------------------------------
@@ -269,6 +274,7 @@ class FlightStack:
             ReturnToLaunch: lambda c: m.return_to_launch(),
             SetMode: lambda c: m.set_custom_mode(int(c.custom_mode)),
             Reposition: lambda c: m.reposition(c.pos_ned, c.yaw_rad),
+            Orbit: self._orbit,
             Gripper: self._gripper,
             ArmJoints: self._arm_joints,
             CancelTask: self._cancel_task,
@@ -278,6 +284,10 @@ class FlightStack:
             LoadFence: self._load_fence,
             LoadRally: self._load_rally,
         }
+
+    def _orbit(self, cmd: Orbit) -> Verdict:  # DO_ORBIT: the resolved circle must lie in the volume (VOL_*), about home
+        vol, home = OperatingVolume.from_params(self.registry.as_dict()), self._modes.home_ned or (0.0, 0.0, 0.0)
+        return self._modes.orbit(cmd.request, lambda plan: vol.orbit_problem(plan.centre_ned, plan.radius_m, home))
 
     def _gripper(self, cmd: Gripper) -> Verdict:
         self._queue(ArmRequest(gripper=cmd.action))
@@ -385,4 +395,5 @@ class FlightStack:
             failsafes=self.failsafes,
             sticks=m.sticks,
             offboard_target=m.offboard_target,
+            orbit=m.orbit_plan,
         )

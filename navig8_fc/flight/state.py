@@ -12,6 +12,7 @@ from navig8_fc.flight.battery import BatteryState
 from navig8_fc.flight.commands import GripperAction, VehicleCommand
 from navig8_fc.mission.plan import Progress
 from navig8_fc.modes.manager import OffboardTarget, TaskStatus, Verdict
+from navig8_fc.modes.orbit import OrbitPlan
 from navig8_fc.modes.px4 import FlightMode
 
 Vec3 = tuple[float, float, float]
@@ -101,3 +102,4 @@ class VehicleState:
     # the MANUAL_CONTROL sticks as Position mode flies them (x, y, r in [-1, 1], z in [0, 1]; centred: 0.5 z)
     sticks: tuple[float, float, float, float] = (0.0, 0.0, 0.5, 0.0)
     offboard_target: OffboardTarget | None = None  # the streamed offboard target in force (None: none, or lost)
+    orbit: OrbitPlan | None = None  # the orbit being flown (ORBIT_EXECUTION_STATUS; None outside ORBIT)

@@ -43,7 +43,9 @@ p1 instance (0 or 1), p2 0 release / 1 grab; MAV_CMD_USER_1 (31010, MAV_CMD_NAVI
 p1..p3 joint targets in degrees, p4 must be 1; PREFLIGHT_STORAGE p1 0 read / 1 write / 2 reset; DO_REPOSITION
 p4 yaw rad, p5/p6 (x/y) latitude/longitude (COMMAND_LONG degrees, COMMAND_INT degE7; NaN, 0 or INT32_MAX =
 keep), p7 altitude AMSL (frames GLOBAL[_INT]) or above home (GLOBAL_RELATIVE_ALT[_INT]), NaN keep: Hold there;
-DO_SET_MISSION_CURRENT p1 item (-1 = keep), p2 1 = reset the mission's progress.
+DO_SET_MISSION_CURRENT p1 item (-1 = keep), p2 1 = reset the mission's progress; DO_ORBIT p1 radius (sign: direction),
+p2 speed, p3 yaw behaviour, p4 angle, x/y/z the centre (`orbit_from_request`; flown by navig8_fc.modes.orbit),
+ACCEPTED at once whatever the identity: an orbit is a mode, not a task with an end.
 """
 
 from __future__ import annotations
@@ -81,6 +83,8 @@ MSG_ID_PROTOCOL_VERSION = 300
 MAV_CMD_DO_SET_STANDARD_MODE = 262
 PROGRESS_PERIOD_S = 0.5  # IN_PROGRESS updates, wall clock (MAVSDK re-sends a command after 1.5 s without one)
 MAV_RESULT_CANCELLED = 6  # common.xml upstream; pymavlink's copy lacks it, navig8.xml adds it (with COMMAND_CANCEL)
+INT32_NAN_BITS = 0x7FF80000  # a float NaN's bits sent as a COMMAND_INT x/y (PX4 refuses it)
+ORBIT_YAW_UNCHANGED = 5  # ORBIT_YAW_BEHAVIOUR_UNCHANGED: keep the orbit's heading behaviour
 
 CMD = mavlink2  # MAV_CMD_* / MAV_RESULT_* values are the same in every dialect that includes common.xml
 _READ_ONLY = frozenset({
@@ -132,6 +136,10 @@ class CommandTarget(VehicleCommands, Protocol):
         """MAV_CMD_NAV_TAKEOFF to an altitude above mean sea level (PX4's p7; GLOBAL frames)."""
         ...
 
+    def orbit_global(self, orbit: GlobalOrbit) -> tuple[bool, str]:
+        """MAV_CMD_DO_ORBIT about a WGS-84 centre (NaN parts: not given)."""
+        ...
+
     def set_mission_current(self, seq: int, reset: bool) -> tuple[bool, str]:
         """MAV_CMD_DO_SET_MISSION_CURRENT: fly item `seq` next (-1: keep it; reset: forget what was reached)."""
         ...
@@ -152,6 +160,20 @@ class CommandRequest:
     confirmation: int  # COMMAND_LONG only
     src_system: int
     src_component: int
+
+
+@dataclass(frozen=True)
+class GlobalOrbit:
+    """MAV_CMD_DO_ORBIT as sent (NaN: not given; navig8_fc.modes.orbit says what each default is)."""
+
+    radius_m: float  # p1, signed: positive clockwise
+    speed_m_s: float  # p2, tangential
+    yaw_behaviour: int  # p3, ORBIT_YAW_BEHAVIOUR; NaN -> 5 (unchanged)
+    sweep_rad: float  # p4, the angle to fly (0: forever)
+    lat_deg: float  # the centre
+    lon_deg: float
+    alt_m: float  # AMSL, or above home when relative_alt
+    relative_alt: bool
 
 
 @dataclass(frozen=True)
@@ -193,6 +215,33 @@ def _msg_id_param(p: float, name: str) -> int:
     return _int_param(p, name, 0, 65535)
 
 
+def orbit_from_request(req: CommandRequest, z_amsl: bool) -> GlobalOrbit:
+    """DO_ORBIT's parameters (COMMAND_INT: x/y degE7, INT32_MAX for either = the current centre or position; both
+    0x7ff80000, a NaN sent as an integer, refused as PX4 does; z AMSL in frames GLOBAL[_INT], above home in
+    GLOBAL_RELATIVE_ALT[_INT] unless `z_amsl`: PX4 reads z as AMSL whatever the frame, and MAVSDK sends its AMSL
+    altitude in GLOBAL_RELATIVE_ALT. COMMAND_LONG: p5/p6 degrees, p7 AMSL)."""
+    p = req.params
+    if req.is_int:
+        if req.frame not in _REPOSITION_FRAMES:
+            raise _BadParam(f"frame {req.frame} unsupported (GLOBAL[_INT], GLOBAL_RELATIVE_ALT[_INT])")
+        if p[4] == p[5] == INT32_NAN_BITS:
+            raise _BadParam("x/y invalid (a NaN sent as an integer; INT32_MAX = the current position)")
+        unset = float(2**31 - 1) in (p[4], p[5])
+        lat, lon = (math.nan, math.nan) if unset else (p[4] * 1e-7, p[5] * 1e-7)
+        relative = req.frame in _RELATIVE_ALT_FRAMES and not z_amsl
+    else:
+        lat, lon, relative = p[4], p[5], False
+    for v, what in ((p[0], "radius"), (p[1], "velocity"), (p[3], "param4 (angle)"), (lat, "latitude"),
+                    (lon, "longitude"), (p[6], "altitude")):
+        if math.isinf(v):
+            raise _BadParam(f"{what} must be a number or NaN (default)")
+    if (math.isfinite(lat) and abs(lat) > 90) or (math.isfinite(lon) and abs(lon) > 180):
+        raise _BadParam(f"centre {lat:g}, {lon:g} is not on Earth")
+    yaw = ORBIT_YAW_UNCHANGED if math.isnan(p[2]) else _int_param(p[2], "param3 (yaw behaviour)", 0,
+                                                                   ORBIT_YAW_UNCHANGED)
+    return GlobalOrbit(p[0], p[1], yaw, p[3], lat, lon, p[6], relative)
+
+
 def decode_command(msg: Any, sysid: int, compid: int) -> CommandRequest | None:
     """The command in `msg` if it is a COMMAND_LONG/COMMAND_INT addressed to (sysid, compid), else None."""
     kind = msg.get_type()
@@ -222,6 +271,7 @@ class CommandHandler:
         duplicate_window_s: float = 2.0,
         flight_progress: bool = True,
         takeoff_p7_amsl: bool = False,
+        orbit_z_amsl: bool = False,
     ) -> None:
         self._mav = mav
         self._sysid = int(sysid)
@@ -231,6 +281,7 @@ class CommandHandler:
         self._window_s = float(duplicate_window_s)
         self.flight_progress = bool(flight_progress)  # the flight task's commands: IN_PROGRESS + final ACK (or at once)
         self._takeoff_p7_amsl = bool(takeoff_p7_amsl)  # PX4: COMMAND_LONG NAV_TAKEOFF p7 is AMSL
+        self._orbit_z_amsl = bool(orbit_z_amsl)  # PX4: DO_ORBIT z is AMSL in every frame
         # (src_system, src_component, command) -> (params key, time, result) of the last execution.
         self._recent: dict[tuple[int, int, int], tuple[tuple[float | None, ...], float, int]] = {}
         self._running: dict[str, _Running] = {}  # task channel -> the long command being reported
@@ -252,6 +303,8 @@ class CommandHandler:
             CMD.MAV_CMD_PREFLIGHT_STORAGE: self._storage,
             CMD.MAV_CMD_DO_SET_MISSION_CURRENT: self._set_mission_current,
             CMD.MAV_CMD_DO_REPOSITION: self._reposition,
+            CMD.MAV_CMD_DO_ORBIT: lambda r: self._verdict(
+                self._vehicle.orbit_global(orbit_from_request(r, self._orbit_z_amsl))),
             MAV_CMD_DO_SET_STANDARD_MODE: lambda r: self._verdict(
                 self._vehicle.set_standard_mode(_int_param(r.params[0], "param1 (standard mode)", 0, 255))),
         }

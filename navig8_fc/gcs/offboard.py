@@ -2,17 +2,18 @@
 
 Pure: the caller gives the decoded fields (a global position already projected to NED) and sends the STATUSTEXTs.
 Read as PX4's mavlink_receiver does (handle_message_set_position_target_local_ned / _global_int,
-handle_message_set_attitude_target; docs/gcs.md "Offboard"): every ignore bit of type_mask makes that component
-NaN (not given); a target with no position, velocity or attitude is refused ("invalid"), as is an acceleration
-flagged as a force (FORCE_SET). What this vehicle's FlightStack cannot fly is named, not flown:
-- acceleration (afx..afz): the setpoint interface carries position (+ velocity feed-forward), pitch and yaw, so an
-  acceleration is ignored (PX4 feeds it forward); the rest of the target is flown;
-- SET_ATTITUDE_TARGET: pitch and yaw of the quaternion are flown (the tilt ducts hold pitch independently of
-  position: the paper's 45 deg pitch hover) while the position loop holds x and y; roll is the outer loop's
-  choice (it nulls the body-y force the ducts cannot make), so a commanded roll is ignored; thrust (0..1) is read
-  as a vertical-speed demand, 0.5 = hold altitude, as a Position-mode stick (the INDI loop closes the collective
-  thrust itself, and the collective for a given hover changes with pitch and payload); body rates alone (attitude
-  ignored) are refused: the INDI stack takes attitude targets, its rate loop is internal.
+handle_message_set_attitude_target and fill_thrust; docs/gcs.md "Offboard"): every ignore bit of type_mask makes that
+component NaN (not given); a target with no position, velocity or attitude is refused ("invalid"), as is an
+acceleration flagged as a force (FORCE_SET). What this vehicle's FlightStack cannot fly is named, not flown:
+- acceleration (afx..afz) of a position target: the setpoint interface carries position (+ velocity feed-forward),
+  pitch and yaw, so an acceleration is ignored (PX4 feeds it forward); the rest of the target is flown;
+- SET_ATTITUDE_TARGET: the quaternion is the attitude and `thrust` the normalised collective thrust [0, 1] along its
+  body -z, as PX4 reads them for a multicopter (MAV_TYPE_TRICOPTER: thrust_body = (0, 0, -thrust)); with
+  THRUST_BODY_SET (bit 5) `thrust_body` is the thrust vector in body axes, as given. The mode flies the acceleration
+  that thrust at that attitude gives a multicopter (navig8_fc.modes.offboard.attitude_acceleration, MPC_THR_HOVER =
+  level hover), within the reference's limits; the body pitches and yaws as commanded and rolls to make the
+  sideways part. Roll and pitch beyond +-60 deg are refused; body rates alone (attitude ignored) are refused: the
+  INDI stack takes attitude targets, its rate loop is internal; body rates beside an attitude are named, not flown.
 """
 
 from __future__ import annotations
@@ -35,8 +36,7 @@ PT_ACCEL = PT_AX | PT_AY | PT_AZ
 AT_ROLL_RATE, AT_PITCH_RATE, AT_YAW_RATE, AT_THRUST_BODY_SET, AT_THRUST, AT_ATTITUDE = 1, 2, 4, 32, 64, 128
 AT_RATES = AT_ROLL_RATE | AT_PITCH_RATE | AT_YAW_RATE
 MAV_FRAME_LOCAL_NED, MAV_FRAME_BODY_NED = 1, 8
-ROLL_IGNORED_ABOVE_RAD = math.radians(1.0)  # a commanded roll below this is "level", not worth a notice
-PITCH_MAX_RAD = math.radians(PITCH_HOLD_MAX_DEG)  # the same bound as the pitch-hold mission item
+PITCH_MAX_RAD = math.radians(PITCH_HOLD_MAX_DEG)  # the same bound as the pitch-hold mission item (roll too)
 
 
 @dataclass(frozen=True)
@@ -79,9 +79,9 @@ def position_target(kind: str, mask: int, frame: int, pos_ned: Vec3, vel: Vec3, 
     return Decoded(target, ignored=ignored)
 
 
-def attitude_target(mask: int, q_wxyz: tuple[float, float, float, float], thrust: float,
-                    body_rates: Vec3) -> Decoded:
-    """SET_ATTITUDE_TARGET -> pitch, yaw and a throttle (module docstring)."""
+def attitude_target(mask: int, q_wxyz: tuple[float, float, float, float], thrust: float, body_rates: Vec3,
+                    thrust_body: Vec3 = NAN3) -> Decoded:
+    """SET_ATTITUDE_TARGET -> the attitude and a normalised body thrust vector (module docstring)."""
     kind = "SET_ATTITUDE_TARGET"
     if mask & AT_ATTITUDE:
         if (mask & AT_RATES) != AT_RATES:
@@ -94,20 +94,21 @@ def attitude_target(mask: int, q_wxyz: tuple[float, float, float, float], thrust
     if not 0.9 < norm < 1.1:
         return Decoded(None, f"{kind}: quaternion is not a unit quaternion (|q| = {norm:.3f})")
     roll, pitch, yaw = quat_to_euler(tuple(c / norm for c in q_wxyz))
-    if abs(pitch) > PITCH_MAX_RAD:
-        return Decoded(None, f"{kind}: pitch {math.degrees(pitch):.0f} deg beyond +-{PITCH_HOLD_MAX_DEG:.0f} deg")
-    throttle = math.nan
-    if not mask & AT_THRUST:
+    for name, angle in (("pitch", pitch), ("roll", roll)):
+        if abs(angle) > PITCH_MAX_RAD:
+            return Decoded(None, f"{kind}: {name} {math.degrees(angle):.0f} deg beyond +-{PITCH_HOLD_MAX_DEG:.0f} deg")
+    body = NAN3
+    if mask & AT_THRUST_BODY_SET:  # PX4: the vector as given (the ignore bit is not looked at)
+        if all(math.isnan(c) for c in thrust_body):  # the dialect's message has no such field (pymavlink's common)
+            return Decoded(None, f"{kind}: THRUST_BODY_SET but no thrust_body received; send thrust")
+        if not all(math.isfinite(c) and abs(c) <= 1.0 for c in thrust_body):
+            return Decoded(None, f"{kind}: thrust_body must lie in [-1, 1] on each axis")
+        body = (float(thrust_body[0]), float(thrust_body[1]), float(thrust_body[2]))
+    elif not mask & AT_THRUST:
         if not (math.isfinite(thrust) and 0.0 <= thrust <= 1.0):
             return Decoded(None, f"{kind}: thrust {thrust:g} outside [0, 1]")
-        throttle = float(thrust)
-    notes = []
-    if abs(roll) > ROLL_IGNORED_ABOVE_RAD:
-        notes.append(f"roll {math.degrees(roll):.0f} deg ignored (the position loop sets roll)")
+        body = (0.0, 0.0, -float(thrust))  # a multicopter's collective (PX4's fill_thrust)
     rates = _given(mask, (AT_ROLL_RATE, AT_PITCH_RATE, AT_YAW_RATE), body_rates)
-    if any(math.isfinite(r) and r != 0.0 for r in rates):
-        notes.append("body rates ignored (the attitude is flown)")
-    if mask & AT_THRUST_BODY_SET:
-        notes.append("thrust_body ignored (thrust is a climb demand)")
-    ignored = "Offboard: " + "; ".join(notes) if notes else ""
-    return Decoded(OffboardTarget(NAN3, NAN3, yaw, math.nan, pitch, throttle), ignored=ignored)
+    ignored = ("Offboard: body rates ignored (the attitude is flown)"
+               if any(math.isfinite(r) and r != 0.0 for r in rates) else "")
+    return Decoded(OffboardTarget(NAN3, NAN3, yaw, math.nan, pitch, roll, body), ignored=ignored)

@@ -18,6 +18,7 @@ Streams (mavlink_notes §2.7; QGC does not request streams from a generic vehicl
 | HOME_POSITION (242)           | 0.5 Hz  | also on request; nothing before a home exists |
 | EXTENDED_SYS_STATE (245)      | 2 Hz    | landed state |
 | ACTUATOR_OUTPUT_STATUS (375)  | 5 Hz    | tilts (rad), propeller speeds (rad/s), joints (rad), gripper |
+| ORBIT_EXECUTION_STATUS (360)  | 2 Hz    | only in Orbit (PX4's rate): signed radius, centre, altitude AMSL |
 
 SET_MESSAGE_INTERVAL semantics (`TelemetryScheduler.set_interval`): -1 disables, 0 restores the default, > 0
 is the interval in us (clamped to at least `min_interval_us`, 2 ms = 500 Hz); ids not in the table are
@@ -68,6 +69,7 @@ from navig8_fc.core.rotation import quat_to_euler
 from navig8_fc.flight.battery import BatteryState, battery_initial
 from navig8_fc.gcs.params import PARAM_ENCODING_CAPABILITY
 from navig8_fc.mission.geo import EARTH_RADIUS_M, GeoOrigin  # noqa: F401 - GeoOrigin is part of this API
+from navig8_fc.modes.orbit import OrbitPlan
 
 M = mavlink2
 Vec3 = tuple[float, float, float]
@@ -94,6 +96,7 @@ MSG_PROTOCOL_VERSION = 300  # not in every common.xml; built only when the diale
 MSG_GPS_RAW_INT = M.MAVLINK_MSG_ID_GPS_RAW_INT
 MSG_GPS_GLOBAL_ORIGIN = M.MAVLINK_MSG_ID_GPS_GLOBAL_ORIGIN
 MSG_HIGHRES_IMU = M.MAVLINK_MSG_ID_HIGHRES_IMU
+MSG_ORBIT_EXECUTION_STATUS = M.MAVLINK_MSG_ID_ORBIT_EXECUTION_STATUS
 # HIGHRES_IMU.fields_updated: the accelerometer (bits 0-2) and gyro (3-5) are sampled; there is no magnetometer,
 # barometer or temperature sensor on the simulated vehicle, so those fields are 0 and not flagged.
 HIGHRES_IMU_ACCEL_GYRO = 0x3F
@@ -116,6 +119,7 @@ DEFAULT_RATES_HZ: dict[int, float] = {
     MSG_GPS_RAW_INT: 5.0,
     MSG_GPS_GLOBAL_ORIGIN: 0.2,
     MSG_HIGHRES_IMU: 0.0,  # off until asked (SET_MESSAGE_INTERVAL; MAVSDK's set_rate_imu)
+    MSG_ORBIT_EXECUTION_STATUS: 2.0,  # PX4's rate; nothing outside Orbit
 }
 
 # Capabilities this flight controller really has (AUTOPILOT_VERSION). MISSION_INT: the mission protocol is
@@ -124,7 +128,7 @@ DEFAULT_RATES_HZ: dict[int, float] = {
 # plans (inclusion circles and polygons) are uploaded, stored and enforced (navig8_fc.mission.fence); MISSION_RALLY:
 # rally plans are uploaded, stored and flown to by Return (navig8_fc.mission.rally); MAVLINK2:
 # always; PARAM_ENCODE_BYTEWISE: how INT32 parameters are encoded (navig8_fc.gcs.params).
-# SET_ATTITUDE_TARGET: pitch, yaw and thrust fly Offboard (navig8_fc.gcs.offboard).
+# SET_ATTITUDE_TARGET: the attitude and thrust fly Offboard as PX4 reads them (navig8_fc.gcs.offboard).
 # Not set: FTP (answered with NAK only), GRIPPER (WIP bit).
 CAPABILITIES = (
     M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
@@ -218,6 +222,7 @@ class VehicleSnapshot:
     lam_margin: float = math.nan  # guaranteed min eigenvalue / lambda_crit (module docstring)
     time_unix_usec: int = 0  # given by the shell (0 = unknown)
     throttle_pct: float = 0.0
+    orbit: OrbitPlan | None = None  # the orbit being flown (ORBIT_EXECUTION_STATUS)
 
 
 # --- scheduler ---------------------------------------------------------------------------------------------
@@ -342,6 +347,7 @@ class TelemetryBuilder:
             MSG_NAMED_VALUE_FLOAT: self.stability_values,
             MSG_ACTUATOR_OUTPUT_STATUS: self.actuator_output_status,
             MSG_HIGHRES_IMU: self.highres_imu,
+            MSG_ORBIT_EXECUTION_STATUS: self.orbit_execution_status,
         }
         if hasattr(mav, "protocol_version_encode"):
             self._builders[MSG_PROTOCOL_VERSION] = lambda snap, now_boot_ms: self.protocol_version()
@@ -534,6 +540,17 @@ class TelemetryBuilder:
         active = (1 << len(values)) - 1
         padded = values + [0.0] * (32 - len(values))
         return [self._mav.actuator_output_status_encode(int(now_boot_ms) * 1000, active, padded)]
+
+    def orbit_execution_status(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
+        """As PX4's stream (its orbit_status): the signed radius (positive clockwise), MAV_FRAME_GLOBAL, the centre in
+        degE7 and the orbit's altitude AMSL; nothing outside Orbit."""
+        o = snap.orbit
+        if o is None:
+            return []
+        lat, lon, alt = snap.origin.to_global(o.centre_ned)
+        i32 = (-(2**31), 2**31 - 1)
+        return [self._mav.orbit_execution_status_encode(int(now_boot_ms) * 1000, o.signed_radius_m, M.MAV_FRAME_GLOBAL,
+                                                        _i(lat * 1e7, *i32, 0), _i(lon * 1e7, *i32, 0), alt)]
 
     def stability_values(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
         names_values = (

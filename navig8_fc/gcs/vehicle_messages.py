@@ -3,7 +3,8 @@ in): the legacy SET_MODE, the offboard targets (SET_POSITION_TARGET_*, SET_ATTIT
 centred when it stops), SET_GPS_GLOBAL_ORIGIN, and the uploaded mission, fence and rally plans handed to the vehicle
 about the global origin. None of them has an ACK: a refusal is a STATUSTEXT. Offboard targets and uploaded mission and
 rally items are held to the operating volume (navig8_fc.mission.volume, VOL_*): a target outside it is ignored (the
-vehicle flies on with the last one it accepted) with a STATUSTEXT at most once a second."""
+vehicle flies on with the last one it accepted) with a STATUSTEXT at most once a second. DO_ORBIT's centre is placed
+about the same origin here (`orbit`, for the command handler's GlobalOrbit)."""
 
 from __future__ import annotations
 
@@ -17,11 +18,13 @@ from navig8_fc.flight.commands import (
     LoadRally,
     ManualInput,
     OffboardSetpoint,
+    Orbit,
     SetMode,
     VehicleCommand,
 )
 from navig8_fc.flight.state import VehicleCommands, VehicleState
 from navig8_fc.gcs import offboard
+from navig8_fc.gcs.commands import GlobalOrbit
 from navig8_fc.gcs.mission_protocol import MissionProtocol
 from navig8_fc.gcs.params import ParamProtocol
 from navig8_fc.gcs.statustext import StatusTextEncoder
@@ -29,6 +32,7 @@ from navig8_fc.mission.geo import origin_from_params
 from navig8_fc.mission.plan import MissionItem, MissionType, Problem
 from navig8_fc.mission.volume import OperatingVolume
 from navig8_fc.modes.manager import Verdict
+from navig8_fc.modes.orbit import OrbitRequest
 from navig8_fc.params.registry import ParamRegistry
 
 MAV_FRAME_LOCAL_NED, MAV_FRAME_GLOBAL_INT, MAV_FRAME_GLOBAL_RELATIVE_ALT_INT = 1, 5, 6
@@ -96,7 +100,8 @@ class VehicleMessages:
             return []
         if kind == "SET_ATTITUDE_TARGET":
             dec = offboard.attitude_target(int(m.type_mask), tuple(m.q), float(m.thrust),
-                                           (m.body_roll_rate, m.body_pitch_rate, m.body_yaw_rate))
+                                           (m.body_roll_rate, m.body_pitch_rate, m.body_yaw_rate),
+                                           tuple(getattr(m, "thrust_body", offboard.NAN3)))
         else:
             mask, frame = int(m.type_mask), int(m.coordinate_frame)
             if kind == "SET_POSITION_TARGET_LOCAL_NED":
@@ -154,6 +159,12 @@ class VehicleMessages:
         return out + [self.mav.gps_global_origin_encode(round(self.origin.lat_deg * 1e7),
                                                         round(self.origin.lon_deg * 1e7),
                                                         round(self.origin.alt_amsl_m * 1000.0))]
+
+    def orbit(self, o: GlobalOrbit) -> Verdict:
+        """MAV_CMD_DO_ORBIT: the centre and altitude about the global origin (NaN stays NaN: the mode resolves it), to
+        the vehicle, which checks the circle against the operating volume once resolved."""
+        n, e, d = self.to_ned(o.lat_deg, o.lon_deg, o.alt_m, o.relative_alt)
+        return self._command(Orbit(OrbitRequest(o.radius_m, o.speed_m_s, o.yaw_behaviour, o.sweep_rad, (n, e), d)))
 
     def to_ned(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool) -> tuple[float, float, float]:
         """A WGS-84 point around the global origin (NaN stays NaN); alt AMSL, or above home when relative_alt."""

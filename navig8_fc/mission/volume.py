@@ -5,7 +5,9 @@ enabled (the fence, off by default, acts in flight; this refuses the target befo
 - horizontally at most VOL_DIST_MAX metres from home;
 - at most VOL_ALT_MAX metres above home and at least VOL_ALT_MIN (negative: below home) - a target in the ground,
   or a kilometre up, is refused;
-- an offboard velocity of at most VOL_SPEED_MAX m/s.
+- an offboard velocity of at most VOL_SPEED_MAX m/s;
+- a DO_ORBIT circle whole (its centre's distance plus its radius) and its altitude (the FlightStack checks it once
+  the orbit is resolved).
 
 Home is the vehicle's home when it has one, else the NED origin (where the simulated vehicle starts). PX4 has the
 same idea in GF_MAX_HOR_DIST / GF_MAX_VER_DIST (0 = off there; finite by default here) and refuses a mission whose
@@ -67,6 +69,15 @@ class OperatingVolume:
         if speed <= self.max_speed_m_s:
             return ""
         return f"speed {speed:.3g} m/s beyond VOL_SPEED_MAX {self.max_speed_m_s:g} m/s"
+
+    def orbit_problem(self, centre_ned: Vec3, radius_m: float, home_ned: Vec3) -> str:
+        """Why a circle (DO_ORBIT's) leaves the volume ('' when it does not): its farthest point from home, its
+        altitude."""
+        d = math.hypot(centre_ned[0] - home_ned[0], centre_ned[1] - home_ned[1])
+        if d + radius_m > self.max_distance_m:
+            return (f"circle reaches {_metres(d + radius_m)} from home (centre {_metres(d)}, radius {radius_m:g} m), "
+                    f"beyond VOL_DIST_MAX {self.max_distance_m:g} m")
+        return self.altitude_problem(centre_ned[2], home_ned)
 
     def target_problem(self, pos_ned: Vec3, vel_ned: Vec3, home_ned: Vec3) -> str:
         """Why an offboard target leaves the volume ('' when it does not)."""

@@ -1,5 +1,5 @@
 """Flight modes and arming: a pure state machine on sim time (navig8_fc.modes.manager: arming, the mode switch,
-faults), one module per mode (takeoff, hold, land, position, offboard, rtl, mission), the land detector, the
+faults), one module per mode (takeoff, hold, land, position, offboard, rtl, mission, orbit), the land detector, the
 long-running command tracking (tasks), Hold's braking distance (braking), PX4 mode encoding (px4)."""
 
 from navig8_fc.modes.land_detector import LandDetector

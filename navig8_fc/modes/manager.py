@@ -7,12 +7,14 @@ from the GCS side; they answer at once with a `Verdict` (accepted, or the reason
 `armed`/the mode at once, while everything that needs a fresh state sample (where a ramp starts, where to
 hold) happens at the next step: the new mode's `enter`. The manager never touches sockets, clocks or pymavlink.
 
-The manager decides; the mode switch (`switch.ModeSwitch`) holds the mode state and runs the step. Modes (PX4
+The manager decides (`ModeReadout` holds its state and what it reports, `ModeManager` adds the commands and the step);
+the mode switch (`switch.ModeSwitch`) holds the mode state and runs the step. Modes (PX4
 encoding, navig8_fc.modes.px4; docs/gcs.md), each a small class in its own module of this package
 (navig8_fc.modes.context describes what they share and hand back):
 - READY (AUTO.READY): on the ground, armed or not; controller idle (motors off in the model). No class.
 - TAKEOFF `takeoff.Takeoff`, HOLD `hold.Hold`, LAND `land.Land`, POSCTL `position.Position`, OFFBOARD
-  `offboard.Offboard`, RTL `rtl.Return`, MISSION `mission.Mission` (a scenario script or an uploaded plan).
+  `offboard.Offboard`, RTL `rtl.Return`, MISSION `mission.Mission` (a scenario script or an uploaded plan), ORBIT
+  `orbit.Orbit` (MAV_CMD_DO_ORBIT).
 The land detector is `land_detector.LandDetector`, Hold's stopping point `braking`, the long-running commands'
 tracking `tasks.TaskTracker`, the records (config, inputs, outputs) `records`, the MAVLink encodings `px4`.
 
@@ -24,6 +26,7 @@ the start position projected onto `ModeConfig.air_start_home_z_ned_m` (the plant
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 from navig8_fc.core.outer_loop import Setpoint
@@ -31,6 +34,7 @@ from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan, Progress
 from navig8_fc.modes.braking import braking_distance_m
 from navig8_fc.modes.land_detector import LandDetector
+from navig8_fc.modes.orbit import OrbitPlan, OrbitRequest
 from navig8_fc.modes.px4 import (
     BASE_MODE_ARMED,
     BASE_MODE_DISARMED,
@@ -41,18 +45,29 @@ from navig8_fc.modes.px4 import (
     px4_mode_name,
     system_status,
 )
-from navig8_fc.modes.records import MissionScript, ModeConfig, ModeInputs, ModeOutput, OffboardTarget, Vec3, Verdict
+from navig8_fc.modes.records import (
+    MissionScript,
+    ModeConfig,
+    ModeInputs,
+    ModeOutput,
+    OffboardTarget,
+    ReferenceLimits,
+    Vec3,
+    Verdict,
+)
 from navig8_fc.modes.switch import ModeSwitch
 from navig8_fc.modes.tasks import TASK_CANCELLED, TASK_DONE, TASK_FAILED, TASK_RUNNING, TaskStatus
 
 __all__ = [  # the manager's API, and the names callers import from here
     "TASK_CANCELLED", "TASK_DONE", "TASK_FAILED", "TASK_RUNNING", "LandDetector", "MissionScript", "ModeConfig",
-    "ModeInputs", "ModeManager", "ModeOutput", "OffboardTarget", "TaskStatus", "Verdict", "braking_distance_m",
+    "ModeInputs", "ModeManager", "ModeOutput", "ModeReadout", "OffboardTarget", "TaskStatus", "Verdict",
+    "braking_distance_m",
 ]
 
 
-class ModeManager:
-    """Arming, modes and setpoints (module docstring). Not thread-safe: one owner calls everything."""
+class ModeReadout:
+    """The mode manager's state and what it reports: the mode switch, the faults set from outside the step, the
+    pre-arm check and the read-only views (ModeManager adds the commands and the step)."""
 
     def __init__(self, config: ModeConfig | None = None, script: MissionScript | None = None) -> None:
         self._cfg = config or ModeConfig()
@@ -162,6 +177,15 @@ class ModeManager:
             return Verdict(False, "vehicle not detected on the ground")
         return Verdict(True)
 
+    @property
+    def orbit_plan(self) -> OrbitPlan | None:
+        """The orbit being flown (None outside ORBIT)."""
+        return self._sw.orbit.plan if self._sw.mode is FlightMode.ORBIT else None
+
+
+class ModeManager(ModeReadout):
+    """Arming, modes and setpoints (module docstring). Not thread-safe: one owner calls everything."""
+
     # --- commands ------------------------------------------------------------------------------------
     def arm(self, force: bool = False) -> Verdict:
         if self._sw.armed:
@@ -232,7 +256,7 @@ class ModeManager:
         if mode is None:
             return Verdict(
                 False, f"Mode {px4_mode_name(custom_main, custom_sub)} not supported "
-                "(Ready, Takeoff, Hold, Land, Mission, Return, Offboard, Position)"
+                "(Ready, Takeoff, Hold, Land, Mission, Return, Offboard, Position, Orbit)"
             )
         if mode is FlightMode.TAKEOFF:
             return self.takeoff()
@@ -249,6 +273,8 @@ class ModeManager:
         if mode is FlightMode.POSCTL:
             return self._enter_mode(mode, "Position") if flying else Verdict(
                 False, "Position denied: not flying (take off first)")
+        if mode is FlightMode.ORBIT:  # chosen as a mode: PX4's defaults around where the vehicle is
+            return self.orbit(OrbitRequest()) if self._sw.mode is not mode else Verdict(True)
         if mode is FlightMode.OFFBOARD:
             if self._sw.offboard.target is None:
                 return Verdict(False, "Offboard denied: no setpoint stream (send SET_POSITION_TARGET_* first)")
@@ -281,10 +307,12 @@ class ModeManager:
         """An uploaded rally plan (empty: cleared): every return chooses among its points (mission.rally)."""
         self._ctx.rally, self._ctx.rally_origin = (plan if plan.items else None), origin
 
-    def set_altitudes(self, takeoff_alt_m: float, rtl_alt_m: float) -> None:
-        """MIS_TAKEOFF_ALT and RTL_RETURN_ALT, live: the next takeoff / return flies them."""
-        if (self._cfg.takeoff_default_alt_m, self._cfg.rtl_alt_m) != (takeoff_alt_m, rtl_alt_m):
-            self._cfg = self._ctx.config = replace(self._cfg, takeoff_default_alt_m=takeoff_alt_m, rtl_alt_m=rtl_alt_m)
+    def set_mode_params(self, takeoff_alt_m: float, rtl_alt_m: float, hover_thrust: float = 0.5) -> None:
+        """MIS_TAKEOFF_ALT, RTL_RETURN_ALT and MPC_THR_HOVER, live: the next takeoff / return / attitude target."""
+        cfg = self._cfg
+        if (cfg.takeoff_default_alt_m, cfg.rtl_alt_m, cfg.hover_thrust) != (takeoff_alt_m, rtl_alt_m, hover_thrust):
+            self._cfg = self._ctx.config = replace(cfg, takeoff_default_alt_m=takeoff_alt_m, rtl_alt_m=rtl_alt_m,
+                                                   hover_thrust=hover_thrust)
 
     def offboard_setpoint(self, sp: Setpoint | OffboardTarget | None) -> None:
         """The latest streamed offboard target (a Setpoint: position, pitch, yaw; None: the stream is lost, the
@@ -311,6 +339,12 @@ class ModeManager:
         self._tasks.start("reposition", here, tuple(h if math.isnan(p) else p  # type: ignore[arg-type]
                                                     for p, h in zip(pos_ned, here, strict=True)))
         return Verdict(True)
+
+    def orbit(self, req: OrbitRequest, problem: Callable[[OrbitPlan], str] | None = None) -> Verdict:
+        """MAV_CMD_DO_ORBIT, only in flight (navig8_fc.modes.orbit); `problem`: why a resolved orbit may not fly."""
+        if not self._sw.armed or self._detector.landed:
+            return Verdict(False, "Orbit denied: not flying (take off first)")
+        return self._sw.start_orbit(req, problem)
 
     def return_to_launch(self) -> Verdict:
         """MAV_CMD_NAV_RETURN_TO_LAUNCH: Return mode, reported as a long command (done at touchdown at home)."""
@@ -343,6 +377,10 @@ class ModeManager:
         """The limits the position reference brakes with (OL_ACC_REF, OL_JERK_MAX and its jerk stage's lag when
         shaping; else OL_ACC_MAX, no jerk limit (inf), no lag): Hold's entry point is where they stop the vehicle."""
         self._sw.hold.set_braking(float(acc_m_s2), float(jerk_m_s3), float(lag_s))  # ValueError: not positive
+
+    def set_reference_limits(self, limits: ReferenceLimits) -> None:
+        """What the position reference flies: the next orbit's speed, Offboard's acceleration targets."""
+        self._sw.orbit.limits = self._sw.offboard.limits = limits
 
     # --- the step ------------------------------------------------------------------------------------
     def step(self, inp: ModeInputs) -> ModeOutput:

@@ -40,6 +40,11 @@ class Px4AutoSubMode(IntEnum):
     PRECLAND = 9
 
 
+class Px4PosctlSubMode(IntEnum):
+    POSCTL = 0
+    ORBIT = 1  # MAV_CMD_DO_ORBIT flies it (PX4's NAVIGATION_STATE_ORBIT)
+
+
 def px4_custom_mode(main: int, sub: int = 0) -> int:
     """PX4 custom_mode: main << 16 | sub << 24 (both bytes, so the result fits a uint32)."""
     if not (0 <= main <= 255 and 0 <= sub <= 255):
@@ -63,8 +68,9 @@ class FlightMode(Enum):
     RTL = (Px4MainMode.AUTO, Px4AutoSubMode.RTL)  # Return: climb, fly home, land, disarm
     OFFBOARD = (Px4MainMode.OFFBOARD, 0)  # follows the setpoints a client streams
     POSCTL = (Px4MainMode.POSCTL, 0)  # Position: MANUAL_CONTROL sticks move the position setpoint
+    ORBIT = (Px4MainMode.POSCTL, Px4PosctlSubMode.ORBIT)  # circles a centre (MAV_CMD_DO_ORBIT)
 
-    def __init__(self, main: Px4MainMode, sub: Px4AutoSubMode) -> None:
+    def __init__(self, main: Px4MainMode, sub: int) -> None:
         # Encoded once: the mode manager reports custom_mode on every control step.
         self._custom_mode = px4_custom_mode(int(main), int(sub))
 
@@ -93,7 +99,7 @@ class FlightMode(Enum):
 
 
 _LABELS = {"READY": "Ready", "TAKEOFF": "Takeoff", "HOLD": "Hold", "LAND": "Land", "MISSION": "Mission",
-           "RTL": "Return", "OFFBOARD": "Offboard", "POSCTL": "Position"}
+           "RTL": "Return", "OFFBOARD": "Offboard", "POSCTL": "Position", "ORBIT": "Orbit"}
 
 
 # --- MAVLink enum values (common.xml / minimal.xml) the mode manager reports ---------------------------
@@ -126,6 +132,7 @@ class StandardMode(IntEnum):
 
     NON_STANDARD = 0
     POSITION_HOLD = 1
+    ORBIT = 2
     SAFE_RECOVERY = 5  # PX4 maps AUTO_RTL here
     MISSION = 6
     LAND = 7
@@ -137,7 +144,8 @@ MODE_PROPERTY_NOT_USER_SELECTABLE = 2
 
 # Every mode this vehicle flies, announced in this order (AVAILABLE_MODES mode_index 1..N): the standard mode where
 # it is exact (PX4's table: POSCTL -> POSITION_HOLD, AUTO_RTL -> SAFE_RECOVERY, AUTO_MISSION -> MISSION,
-# AUTO_LAND -> LAND, AUTO_TAKEOFF -> TAKEOFF), the properties QGroundControl reads (Offboard needs a setpoint
+# AUTO_LAND -> LAND, AUTO_TAKEOFF -> TAKEOFF; ORBIT -> ORBIT, which QGroundControl offers as its own guided action
+# rather than in the mode menu), the properties QGroundControl reads (Offboard needs a setpoint
 # stream: advanced; Ready is where the vehicle rests, not something to select).
 AVAILABLE_MODES: tuple[tuple[FlightMode, StandardMode, int], ...] = (
     (FlightMode.POSCTL, StandardMode.POSITION_HOLD, 0),
@@ -147,6 +155,7 @@ AVAILABLE_MODES: tuple[tuple[FlightMode, StandardMode, int], ...] = (
     (FlightMode.LAND, StandardMode.LAND, 0),
     (FlightMode.TAKEOFF, StandardMode.TAKEOFF, 0),
     (FlightMode.OFFBOARD, StandardMode.NON_STANDARD, MODE_PROPERTY_ADVANCED),
+    (FlightMode.ORBIT, StandardMode.ORBIT, 0),
     (FlightMode.READY, StandardMode.NON_STANDARD, MODE_PROPERTY_NOT_USER_SELECTABLE),
 )
 

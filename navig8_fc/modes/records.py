@@ -8,7 +8,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import NamedTuple
 
-from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.core.outer_loop import JERK_K_PER_VEL_K, OuterLoopConfig, Setpoint
 from navig8_fc.mission.plan import Progress
 from navig8_fc.modes.px4 import FlightMode
 
@@ -54,6 +54,9 @@ class ModeConfig:
     offboard_liftoff_m: float = 0.2
     reposition_reached_tol_m: float = 0.3  # DO_REPOSITION is complete within this distance ...
     reposition_reached_speed_m_s: float = 0.3  # ... and below this speed
+    # an attitude target's normalised thrust that holds the altitude level (MPC_THR_HOVER; PX4 SITL 0.5): thrust t
+    # pushes g t / hover_thrust along the commanded attitude's body -z (navig8_fc.modes.offboard)
+    hover_thrust: float = 0.5
 
     def __post_init__(self) -> None:
         positive = (
@@ -70,6 +73,29 @@ class ModeConfig:
                 raise ValueError(f"ModeConfig.{name} must be > 0, got {getattr(self, name)}")
         if not self.takeoff_default_alt_m <= self.takeoff_max_alt_m:
             raise ValueError("ModeConfig.takeoff_default_alt_m must not exceed takeoff_max_alt_m")
+
+
+@dataclass(frozen=True)
+class ReferenceLimits:
+    """What the position reference can fly, for the modes that make their own trajectories (Orbit; Offboard's
+    acceleration targets): the FlightStack sets it from OL_* (and ORB_RAD_MAX)."""
+
+    orbit_radius_max_m: float = 1000.0  # ORB_RAD_MAX (PX4's MC_ORBIT_RAD_MAX)
+    speed_max_m_s: float = 2.0  # OL_VEL_MAX
+    acc_max_m_s2: float = 2.0  # OL_ACC_REF with command shaping, else OL_ACC_MAX
+    pos_k_1_s: float = 1.0  # OL_POS_K
+    vel_k_1_s: float = 3.0  # OL_VEL_K
+    jerk_k_1_s: float = 0.0  # the shaper's jerk stage gain (0: no shaping, the setpoint goes to the loop)
+    gravity_m_s2: float = 9.80665
+
+    @staticmethod
+    def of_outer_loop(outer: OuterLoopConfig, orbit_radius_max_m: float) -> ReferenceLimits:
+        """With command shaping (OL_JERK_MAX > 0) the shaped reference flies (OL_ACC_REF, its jerk stage); without it
+        the loop itself (OL_ACC_MAX)."""
+        shaped = outer.jerk_max_m_s3 > 0.0
+        return ReferenceLimits(orbit_radius_max_m, outer.vel_max_m_s,
+                               outer.ref_acc_max_m_s2 if shaped else outer.acc_max_m_s2, outer.pos_k, outer.vel_k,
+                               JERK_K_PER_VEL_K * outer.vel_k if shaped else 0.0, outer.gravity_m_s2)
 
 
 @dataclass(frozen=True)
@@ -92,29 +118,38 @@ class OffboardTarget:
     - velocity with position: velocity feed-forward (the reference is offset by v / OL_POS_K, so the outer loop's
       velocity command K_p (p_ref - p) + v equals v on the trajectory: no steady lag);
     - neither: that axis holds where its reference is;
-    - yaw given: that heading; else yaw_rate given: integrated; else kept. pitch given: held (the paper's 45 deg
-      pitch hover); else kept. Roll is never commanded: the outer loop chooses it to null the body-y force;
-    - throttle (0..1, an attitude target's thrust) with neither z position nor z velocity: a vertical-speed
-      demand as Position mode's throttle stick (0.5 = hold altitude, manual_climb_m_s at the ends)."""
+    - yaw given: that heading; else yaw_rate given: integrated; else kept. pitch given: held (the tilt ducts hold the
+      body's pitch apart from its position); else kept. Roll is the outer loop's: it rolls to make a sideways force;
+    - an attitude (roll, pitch, yaw all given: SET_ATTITUDE_TARGET) with a normalised thrust vector in body axes
+      (`thrust_body`; a multicopter's collective thrust t is (0, 0, -t)): the acceleration a multicopter at that
+      attitude and thrust has, g R(q) thrust_body / hover_thrust + g down, flown on every axis without a position or
+      velocity, within the reference's limits (navig8_fc.modes.offboard.attitude_acceleration); without a thrust the
+      altitude holds and the tilt gives the level flight's horizontal acceleration."""
 
     pos_ned: Vec3 = (math.nan, math.nan, math.nan)
     vel_ned: Vec3 = (math.nan, math.nan, math.nan)
     yaw_rad: float = math.nan
     yaw_rate_rad_s: float = math.nan
     pitch_rad: float = math.nan
-    throttle: float = math.nan
+    roll_rad: float = math.nan
+    thrust_body: Vec3 = (math.nan, math.nan, math.nan)  # normalised (hover: hover_thrust along -z), body FRD
 
     @staticmethod
     def of(sp: Setpoint) -> OffboardTarget:
         """A plain position setpoint as a target (position, pitch and yaw given)."""
         return OffboardTarget(sp.pos_ned, yaw_rad=sp.yaw_rad, pitch_rad=sp.pitch_rad)
 
+    @property
+    def attitude_given(self) -> bool:
+        return not any(math.isnan(v) for v in (self.roll_rad, self.pitch_rad, self.yaw_rad))
+
     def problem(self) -> str:
         """Why this target cannot be flown ('' when it can): no part given, or an infinite value."""
-        values = (*self.pos_ned, *self.vel_ned, self.yaw_rad, self.yaw_rate_rad_s, self.pitch_rad, self.throttle)
+        values = (*self.pos_ned, *self.vel_ned, self.yaw_rad, self.yaw_rate_rad_s, self.pitch_rad, self.roll_rad,
+                  *self.thrust_body)
         if any(math.isinf(v) for v in values):
             return "Offboard target must be finite (NaN = not given)"
-        if all(math.isnan(v) for v in (*self.pos_ned, *self.vel_ned, self.pitch_rad, self.throttle)):
+        if all(math.isnan(v) for v in (*self.pos_ned, *self.vel_ned, self.pitch_rad)) and not self.attitude_given:
             return "Offboard target has no position, velocity or attitude"
         return ""
 

@@ -3,12 +3,15 @@ step that runs the mode in force.
 
 `ModeSwitch` owns the modes (one object each, built once with the shared `ModeContext`) and calls the new mode's
 `enter` at the first step after a switch, its `update` at every step, and follows the `Transition` a mode asks
-for when it ends. It checks nothing: the mode manager (navig8_fc.modes.manager) decides what is allowed (pre-arm,
-faults, which mode may be chosen when) and calls `switch`/`disarm`. READY (on the ground, armed or not; the
+for when it ends. It checks nothing but an orbit's own parameters (`start_orbit`): the mode manager
+(navig8_fc.modes.manager) decides what is allowed (pre-arm, faults, which mode may be chosen when) and calls
+`switch`/`disarm`. READY (on the ground, armed or not; the
 controller idle) has no object: the switch idles whenever the vehicle is disarmed or in READY.
 """
 
 from __future__ import annotations
+
+from collections.abc import Callable
 
 from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import Plan
@@ -19,9 +22,10 @@ from navig8_fc.modes.land import Land
 from navig8_fc.modes.land_detector import LandDetector
 from navig8_fc.modes.mission import Mission
 from navig8_fc.modes.offboard import Offboard
+from navig8_fc.modes.orbit import Orbit, OrbitPlan, OrbitRequest, resolve
 from navig8_fc.modes.position import Position
 from navig8_fc.modes.px4 import BASE_MODE_ARMED, BASE_MODE_DISARMED, FlightMode, landed_state, system_status
-from navig8_fc.modes.records import MissionScript, ModeConfig, ModeInputs, ModeOutput, Vec3, sanitised
+from navig8_fc.modes.records import MissionScript, ModeConfig, ModeInputs, ModeOutput, Vec3, Verdict, sanitised
 from navig8_fc.modes.rtl import Return
 from navig8_fc.modes.takeoff import Takeoff
 from navig8_fc.modes.tasks import TaskTracker
@@ -39,9 +43,10 @@ class ModeSwitch:
         self.hold, self.takeoff, self.land = Hold(ctx), Takeoff(ctx), Land(ctx)
         self.position, self.offboard, self.rtl = Position(ctx), Offboard(ctx), Return(ctx)
         self.mission = Mission(ctx, script)
+        self.orbit = Orbit(ctx, lambda: self.position.sticks)
         self._by_mode = {FlightMode.HOLD: self.hold, FlightMode.TAKEOFF: self.takeoff, FlightMode.LAND: self.land,
                          FlightMode.POSCTL: self.position, FlightMode.OFFBOARD: self.offboard,
-                         FlightMode.RTL: self.rtl, FlightMode.MISSION: self.mission}
+                         FlightMode.RTL: self.rtl, FlightMode.MISSION: self.mission, FlightMode.ORBIT: self.orbit}
         air_start = script is not None and script.starts_armed_in_air
         self.armed = air_start
         self.mode = FlightMode.MISSION if air_start else FlightMode.READY
@@ -68,6 +73,23 @@ class ModeSwitch:
                 self.ctx.events.append("Mission cleared: holding")
             else:
                 self.entry_pending = True
+
+    def start_orbit(self, req: OrbitRequest, problem: Callable[[OrbitPlan], str] | None) -> Verdict:
+        """MAV_CMD_DO_ORBIT (or Orbit chosen as a mode): resolved against the orbit being flown (navig8_fc.modes.orbit),
+        checked by `problem` (the operating volume: '' when it passes), then flown from the next step."""
+        last = self.last
+        here, yaw = (last.pos_ned, last.yaw_rad) if last is not None else ((0.0, 0.0, 0.0), 0.0)
+        flown = self.orbit.plan if self.mode is FlightMode.ORBIT else None
+        plan, refusal, note = resolve(req, flown, here, yaw, self.orbit.limits)
+        if plan is None or (problem is not None and (refusal := problem(plan))):
+            return Verdict(False, f"Orbit refused: {refusal}" if plan is not None else refusal)
+        self.orbit.plan = plan
+        self.switch(FlightMode.ORBIT)  # (again): approach or circle from where the vehicle is
+        c = plan.centre_ned
+        self.ctx.events.append(f"Orbit: centre N {c[0]:.1f} E {c[1]:.1f} D {c[2]:.1f} m, r {plan.signed_radius_m:g} m")
+        if note:
+            self.ctx.events.append(note)
+        return Verdict(True)
 
     def disarm(self) -> None:
         self.armed = False
@@ -152,6 +174,8 @@ class ModeSwitch:
             self.land.enter(inp, self.home_z())
         elif mode is FlightMode.MISSION:
             self.mission.enter(inp, self.armed)
+        elif mode is FlightMode.ORBIT:
+            self.orbit.enter(inp)
 
     def _run(self, inp: ModeInputs, dt: float) -> Step:
         if not self.armed or self.mode is FlightMode.READY:

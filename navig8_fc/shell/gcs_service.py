@@ -53,7 +53,7 @@ from navig8_fc.flight.commands import (
 )
 from navig8_fc.flight.state import VehicleCommands, VehicleState
 from navig8_fc.gcs import standard_modes
-from navig8_fc.gcs.commands import CommandHandler
+from navig8_fc.gcs.commands import CommandHandler, GlobalOrbit
 from navig8_fc.gcs.ftp import FtpServer, FtpService
 from navig8_fc.gcs.ftp_pacing import ReplyPacer
 from navig8_fc.gcs.metadata import build_metadata, component_metadata_message
@@ -158,7 +158,7 @@ class GcsService:
         self._autopilot = int(autopilot)
         self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text,
                                        flight_progress=self._settings.flight_progress(self._autopilot),
-                                       takeoff_p7_amsl=self._autopilot == MAV_AUTOPILOT_PX4)
+                                       takeoff_p7_amsl=(px4 := self._autopilot == MAV_AUTOPILOT_PX4), orbit_z_amsl=px4)
         self.misc = MiscProtocols(mav, statustext=self.text)
         self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text,
                                        item_check=lambda item, kind: self.vehicle_msgs.item_problem(item, kind))
@@ -343,6 +343,9 @@ class GcsService:
         if why := self.vehicle_msgs.position_problem(pos):  # the operating volume (VOL_*): refused, never flown
             return False, f"Reposition refused: {why}"
         return self._vehicle.command(Reposition(pos, yaw_rad))
+
+    def orbit_global(self, orbit: GlobalOrbit) -> tuple[bool, str]:
+        return self.vehicle_msgs.orbit(orbit)
 
     def poll(self, now_wall: float) -> list[SetResult]:
         """Wall-clock work (telemetry, paced downloads, queued PARAM_SETs); returns the parameter changes the

@@ -115,6 +115,7 @@ class Telemetry:
             lam_margin=stab.margin if stab is not None else math.nan,
             time_unix_usec=time.time_ns() // 1000,
             throttle_pct=throttle_pct(self._vehicle, s.speed_rad_s) if s else 0.0,
+            orbit=v.orbit,
         )
 
     def boot_ms(self, now_wall: float) -> int:

@@ -8,12 +8,13 @@ until it is moved up); docs/gcs.md "Client examples" has the table."""
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
-from example_runner import ExampleRun, run_example
+from example_runner import PX4_HOME_E7, ExampleRun, run_example
 
 from navig8_fc.shell.mcap_log import read_mcap
 
@@ -25,11 +26,15 @@ class Case:
     exits: bool = True  # must end by itself with exit code 0
     climbs_m: float = 0.0  # the vehicle rose at least this high above its start (m)
     expect: str = ""  # a line the output must contain
+    orbits: tuple[float, float, float] | None = None  # (lat, lon, radius m): a full turn within ORBIT_TOL_M of it
+    rolls_deg: float = 0.0  # the body rolled at least this far right and this far left (ATTITUDE)
+    sideways_m: float = 0.0  # and moved at least this far east of its start, then back west by as much
 
 
 CASES: dict[str, Case] = {
     "takeoff_and_land": Case(60, climbs_m=2.0, expect="-- Landing"),
-    "offboard_attitude": Case(60, climbs_m=0.3, expect="-- Stopping offboard"),
+    # thrust 0.7 climbs, roll +30 then -30 deg at 0.6 moves right then left (the body rolls to make it), as on PX4
+    "offboard_attitude": Case(60, climbs_m=1.0, expect="-- Stopping offboard", rolls_deg=5.0, sideways_m=1.0),
     "offboard_position_ned": Case(120, climbs_m=1.5, expect="-- Stopping offboard"),
     "offboard_velocity_ned": Case(120, climbs_m=1.5, expect="-- Stopping offboard"),
     "offboard_velocity_body": Case(120, climbs_m=1.5, expect="-- Stopping offboard"),
@@ -49,23 +54,56 @@ CASES: dict[str, Case] = {
     "manual_control": Case(60, until=r"-- Starting manual control", exits=False, climbs_m=1.0),
     "mission_import": Case(30, expect="Mission uploaded"),  # 2 rally points (MAV_MISSION_TYPE_RALLY) too
     "telemetry_takeoff_and_land": Case(90, climbs_m=9.0, expect="Altitude: 10"),  # MIS_TAKEOFF_ALT 10 m
+    # DO_ORBIT 10 m, 2 m/s about a point 55 m from home, 10 m up: the approach, then about 3 turns in its 60 s
+    "do_orbit": Case(150, climbs_m=9.0, expect="--- Landing", orbits=(47.398036222362471, 8.5450146439425509, 10.0)),
 }
 NOT_YET = {  # example: (how it fails today, why; whose the gap is)
     "geofence": ("GeofenceError: INVALID_ARGUMENT", "the client refuses the example's empty circle (radius 0) "
                  "before sending anything: MAVSDK 4.0.5, no MAVLink on the wire, the same against any autopilot"),
     "calibration": ("CalibrationError: UNSUPPORTED", "PREFLIGHT_CALIBRATION is not answered (PX4 SITL runs gyro)"),
-    "do_orbit": ("ActionError: UNSUPPORTED", "DO_ORBIT is not flown yet"),
 }
 # In `make test` (each about 10 s with its pair): a flight, the gripper, telemetry, the IMU stream, the version and a
 # mission upload. The rest (the offboard and mission flights run 30-80 s on their own sleeps, and the documented
 # failures) run in `make test-clients`: all of them would add about 4 min to a suite kept under 10 (docs/gcs.md).
 QUICK = frozenset({"takeoff_and_land", "gripper", "telemetry", "highres_imu", "firmware_version", "mission_raw"})
 STOP_ON = r"Traceback \(most recent call last\)"  # a failed example stays alive (its mavsdk_server): stop it
+ORBIT_TOL_M = 2.0  # an orbit counts while the vehicle stays this close to its radius
+EARTH_RADIUS_M = 6_371_000.0  # the FC's flat-earth projection about the origin the runner sets (docs/gcs.md)
 
 
 def _rise_m(log: Path) -> float:
     z = [d["z"] for _, _, d in read_mcap(log, ["/mavlink/api/out/LOCAL_POSITION_NED"])]
     return -min(z) + z[0] if z else 0.0
+
+
+def _orbit_turn_deg(log: Path, lat_deg: float, lon_deg: float, radius_m: float) -> float:
+    """The largest angle (deg) the vehicle swept about the centre while staying within ORBIT_TOL_M of the radius (the
+    FC's own LOCAL_POSITION_NED about the origin the runner set: PX4's home)."""
+    lat0, lon0 = PX4_HOME_E7[0] * 1e-7, PX4_HOME_E7[1] * 1e-7
+    cn = math.radians(lat_deg - lat0) * EARTH_RADIUS_M
+    ce = math.radians(lon_deg - lon0) * EARTH_RADIUS_M * math.cos(math.radians(lat0))
+    best = swept = 0.0
+    last = None
+    for _, _, d in read_mcap(log, ["/mavlink/api/out/LOCAL_POSITION_NED"]):
+        dn, de = d["x"] - cn, d["y"] - ce
+        if abs(math.hypot(dn, de) - radius_m) > ORBIT_TOL_M:
+            swept, last = 0.0, None
+            continue
+        b = math.atan2(de, dn)
+        if last is not None:
+            swept += (b - last + math.pi) % (2.0 * math.pi) - math.pi
+            best = max(best, abs(swept))
+        last = b
+    return math.degrees(best)
+
+
+def _roll_and_sideways(log: Path) -> tuple[float, float, float, float]:
+    """(the largest roll right, the largest roll left (deg), how far east of the start the vehicle went, how far back
+    west from there (m)), from the FC's ATTITUDE and LOCAL_POSITION_NED."""
+    rolls = [math.degrees(d["roll"]) for _, _, d in read_mcap(log, ["/mavlink/api/out/ATTITUDE"])]
+    ys = [d["y"] for _, _, d in read_mcap(log, ["/mavlink/api/out/LOCAL_POSITION_NED"])]
+    i = max(range(len(ys)), key=ys.__getitem__)
+    return max(rolls), -min(rolls), ys[i] - ys[0], ys[i] - min(ys[i:])
 
 
 def _judge(r: ExampleRun, case: Case) -> None:
@@ -78,6 +116,14 @@ def _judge(r: ExampleRun, case: Case) -> None:
     assert case.expect in r.output, tail
     if case.climbs_m > 0.0:
         assert _rise_m(r.fc_log) >= case.climbs_m, (_rise_m(r.fc_log), tail)
+    if case.rolls_deg > 0.0:
+        right, left, east, back = _roll_and_sideways(r.fc_log)
+        print(f"{r.name}: rolled {right:.1f} deg right, {left:.1f} deg left; {east:.2f} m east, {back:.2f} m back")
+        assert min(right, left) >= case.rolls_deg and min(east, back) >= case.sideways_m, (right, left, east, back)
+    if case.orbits is not None:
+        turn = _orbit_turn_deg(r.fc_log, *case.orbits)
+        print(f"{r.name}: {turn:.0f} deg within {ORBIT_TOL_M:g} m of the {case.orbits[2]:g} m circle")
+        assert turn >= 360.0, (turn, tail)
 
 
 def _params(names: object) -> list:

@@ -25,6 +25,7 @@ from navig8_fc.gcs.telemetry import (
     sensor_bits,
 )
 from navig8_fc.modes import FlightMode
+from navig8_fc.modes.orbit import OrbitPlan
 
 M = mavlink2
 
@@ -110,6 +111,7 @@ def snapshot(**kw: Any) -> VehicleSnapshot:
         eig_margin=0.31,
         time_unix_usec=1_700_000_000_000_000,
         throttle_pct=55.0,
+        orbit=OrbitPlan((20.0, -3.0, -4.0), 10.0, 1.5, False, 0, 0.0, 0.0),  # ORBIT_EXECUTION_STATUS: in Orbit
     )
     base.update(kw)
     return VehicleSnapshot(**base)

@@ -13,6 +13,7 @@ from test_modes import DT, PointMass, fly
 
 from navig8_fc.gcs import offboard as ob
 from navig8_fc.modes import FlightMode, ModeManager, OffboardTarget
+from navig8_fc.modes.offboard import attitude_acceleration
 from navig8_fc.modes.px4 import Px4MainMode
 
 NAN = math.nan
@@ -68,19 +69,61 @@ def test_body_ned_velocity_is_rotated_by_the_heading_and_position_ignored() -> N
     assert d.target.vel_ned == pytest.approx((-0.2, 0.1, 0.3))  # 0.1 forward -> east, 0.2 right -> south
 
 
-def test_attitude_target_maps_pitch_yaw_and_thrust_and_names_what_it_cannot_fly() -> None:
-    q = _quat(0.0, math.radians(45), math.radians(30))
-    d = ob.attitude_target(ob.AT_RATES, q, 0.5, (0, 0, 0))
-    assert d.target.pitch_rad == pytest.approx(math.radians(45)) and d.target.yaw_rad == pytest.approx(math.radians(30))
-    assert d.target.throttle == 0.5 and all(map(math.isnan, d.target.pos_ned)) and not d.ignored
-    d = ob.attitude_target(ob.AT_RATES, _quat(math.radians(10), 0.0, 0.0), 0.5, (0, 0, 0))
-    assert d.target is not None and "roll 10 deg ignored" in d.ignored
+def test_attitude_target_is_read_as_px4_reads_it_for_a_multicopter() -> None:
+    """The quaternion is the attitude; thrust the collective along body -z (PX4's fill_thrust for MAV_TYPE_TRICOPTER:
+    thrust_body = (0, 0, -thrust)); THRUST_BODY_SET takes thrust_body as given; thrust ignored: none."""
+    q = _quat(math.radians(-20), math.radians(45), math.radians(30))
+    d = ob.attitude_target(ob.AT_RATES, q, 0.7, (0, 0, 0))
+    t = d.target
+    assert (t.roll_rad, t.pitch_rad, t.yaw_rad) == pytest.approx(tuple(map(math.radians, (-20, 45, 30))))
+    assert t.thrust_body == (0.0, 0.0, -0.7) and all(map(math.isnan, t.pos_ned)) and not d.ignored
+    d = ob.attitude_target(ob.AT_RATES | ob.AT_THRUST_BODY_SET, q, 0.0, (0, 0, 0), (-0.3, 0.0, -0.3))
+    assert d.target.thrust_body == (-0.3, 0.0, -0.3)
+    assert "no thrust_body" in ob.attitude_target(ob.AT_RATES | ob.AT_THRUST_BODY_SET, q, 0.5, (0, 0, 0)).refusal
     assert "body-rate" in ob.attitude_target(ob.AT_ATTITUDE | ob.AT_THRUST, q, 0.5, (0, 0.1, 0)).refusal
-    assert "beyond" in ob.attitude_target(ob.AT_RATES, _quat(0, math.radians(70), 0), 0.5, (0, 0, 0)).refusal
+    assert "body rates ignored" in ob.attitude_target(0, q, 0.5, (0, 0.1, 0)).ignored
+    assert "pitch 70 deg beyond" in ob.attitude_target(ob.AT_RATES, _quat(0, math.radians(70), 0), 0.5,
+                                                       (0, 0, 0)).refusal
+    assert "roll -65 deg beyond" in ob.attitude_target(ob.AT_RATES, _quat(math.radians(-65), 0, 0), 0.5,
+                                                       (0, 0, 0)).refusal
     assert "thrust" in ob.attitude_target(ob.AT_RATES, q, 1.5, (0, 0, 0)).refusal
     assert "unit" in ob.attitude_target(ob.AT_RATES, (0.5, 0, 0, 0), 0.5, (0, 0, 0)).refusal
     d = ob.attitude_target(ob.AT_RATES | ob.AT_THRUST, q, NAN, (0, 0, 0))  # thrust ignored: altitude held
-    assert math.isnan(d.target.throttle)
+    assert all(map(math.isnan, d.target.thrust_body))
+
+
+G = 9.80665
+
+
+def _att(roll_deg: float, pitch_deg: float, yaw_deg: float, thrust: float | tuple = NAN) -> OffboardTarget:
+    body = thrust if isinstance(thrust, tuple) else (0.0, 0.0, -thrust)
+    return OffboardTarget(yaw_rad=math.radians(yaw_deg), pitch_rad=math.radians(pitch_deg),
+                          roll_rad=math.radians(roll_deg), thrust_body=body)
+
+
+def test_attitude_and_thrust_give_a_multicopters_acceleration() -> None:
+    """Closed forms with hover thrust h = 0.5: a = g R(q) (0, 0, -t) / h + (0, 0, g) NED."""
+    h = 0.5
+
+    def acc(tgt: OffboardTarget) -> tuple[float, float, float]:
+        return attitude_acceleration(tgt, h, G)
+
+    assert acc(_att(0, 0, 40, 0.5)) == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)  # level at hover: holds
+    assert acc(_att(0, 0, 0, 0.7)) == pytest.approx((0.0, 0.0, -0.4 * G))  # 0.7: climbs at 0.4 g
+    assert acc(_att(0, 0, 0, 0.0)) == pytest.approx((0.0, 0.0, G))  # idle: falls
+    phi = math.radians(30)  # the example's roll at 0.6: sideways 1.2 g sin 30, up 1.2 g cos 30 - g
+    assert acc(_att(30, 0, 0, 0.6)) == pytest.approx((0.0, 1.2 * G * math.sin(phi), G - 1.2 * G * math.cos(phi)))
+    assert acc(_att(30, 0, 90, 0.6))[:2] == pytest.approx((-1.2 * G * math.sin(phi), 0.0), abs=1e-9)  # east: right
+    th = math.radians(-20)  # nose down: forward
+    assert acc(_att(0, -20, 0, 0.5)) == pytest.approx((-G * math.sin(th), 0.0, G - G * math.cos(th)))
+    no_thrust = acc(_att(10, -20, 0))  # level flight at that tilt: g tan along it, the altitude held
+    d = (math.cos(math.radians(10)) * math.sin(math.radians(20)), math.sin(math.radians(10)))
+    cz = math.cos(math.radians(10)) * math.cos(math.radians(20))
+    assert no_thrust[:2] == pytest.approx((G * d[0] / cz, G * d[1] / cz)) and math.isnan(no_thrust[2])
+    # THRUST_BODY_SET: pitched 45 deg with the thrust vector turned back to vertical, the paper's pitch hover
+    s45 = math.sin(math.radians(45))
+    assert acc(_att(0, 45, 0, (h * s45, 0.0, -h * s45))) == pytest.approx((0.0, 0.0, 0.0), abs=1e-12)
+    assert all(map(math.isnan, acc(OffboardTarget(pitch_rad=0.3))))  # no attitude: nothing
 
 
 # --- flying them -------------------------------------------------------------------------------------------
@@ -127,18 +170,27 @@ def test_position_with_velocity_feed_forward_and_yaw_rate() -> None:
     assert body.pos[0] == pytest.approx(0.5 * 1.99, abs=0.03) and out.setpoint.yaw_rad == 0.0
 
 
-def test_attitude_target_holds_the_pitch_and_position_and_thrust_climbs() -> None:
-    mm, body, t = _offboard(OffboardTarget(pitch_rad=math.radians(45), yaw_rad=0.3, throttle=0.5))
-    here = list(body.pos)
-    outs, t = fly(mm, body, t, 1.0)
-    sp = outs[-1].setpoint
-    assert sp.pitch_rad == pytest.approx(math.radians(45)) and sp.yaw_rad == 0.3
-    assert body.pos == pytest.approx(here, abs=0.01)  # hover in place, pitched
-    mm.offboard_setpoint(OffboardTarget(pitch_rad=math.radians(45), yaw_rad=0.3, throttle=0.75))
+def test_attitude_target_climbs_rolls_sideways_and_holds_pitch_and_yaw() -> None:
+    """The example's sequence on the point mass: 0.7 climbs, a roll of 30 deg at the thrust that holds the altitude
+    (h / cos 30) moves it to the right and the setpoint keeps the commanded pitch and yaw; the acceleration is
+    limited to the reference's (2 m/s^2), the velocity to OL_VEL_MAX."""
+    mm, body, t = _offboard(_att(0, 0, 0, 0.7))
     z0 = body.pos[2]
     outs, t = fly(mm, body, t, 2.0)
-    climb = -2 * 0.25 * mm.config.manual_climb_m_s  # 0.75: half way up the stick
-    assert body.vel[2] == pytest.approx(climb, abs=1e-3) and body.pos[2] == pytest.approx(z0 + 2.0 * climb, abs=0.02)
+    assert body.pos[2] < z0 - 1.0 and body.vel[2] < -0.9  # climbing
+    mm.offboard_setpoint(_att(30, 0, 0, 0.5 / math.cos(math.radians(30))))
+    y0 = body.pos[1]
+    outs, t = fly(mm, body, t, 2.0)
+    assert body.pos[1] > y0 + 1.0 and body.vel[1] > 0.9  # to the right (east at yaw 0)
+    mm.offboard_setpoint(_att(0, 20, 90, 0.5 / math.cos(math.radians(20))))  # nose up facing east: back = west
+    y1 = body.pos[1]
+    outs, t = fly(mm, body, t, 3.0)
+    sp = outs[-1].setpoint
+    assert sp.pitch_rad == pytest.approx(math.radians(20)) and sp.yaw_rad == pytest.approx(math.pi / 2)
+    assert body.pos[1] < y1 - 0.5 and body.vel[1] < -0.9
+    # the reference's velocity is bounded: the setpoint never runs more than the lead plus v_max / K_p ahead
+    lead = mm.config.manual_lead_m + 2.0 / KP_BODY
+    assert all(abs(o.setpoint.pos_ned[1] - body.pos[1]) <= lead + 0.1 for o in outs[-50:])
 
 
 # --- the GcsService path -----------------------------------------------------------------------------------
@@ -159,7 +211,7 @@ def test_messages_reach_the_stack_and_refusals_and_ignored_parts_are_said() -> N
     assert "invalid" in rig.outbox.pop("STATUSTEXT")[0][1].text
     rig.send(c.set_attitude_target_encode(0, 1, 1, ob.AT_RATES, _quat(0, 0.5, 0.2), 0, 0, 0, 0.5), GCS)
     got = rig.stack.state().offboard_target
-    assert got.pitch_rad == pytest.approx(0.5) and got.yaw_rad == pytest.approx(0.2) and got.throttle == 0.5
+    assert got.pitch_rad == pytest.approx(0.5) and got.yaw_rad == pytest.approx(0.2) and got.thrust_body == (0, 0, -0.5)
     rig.send(c.set_attitude_target_encode(0, 1, 1, ob.AT_ATTITUDE, (1, 0, 0, 0), 0, 0, 0.2, 0.5), GCS)
     assert "body-rate" in rig.outbox.pop("STATUSTEXT")[0][1].text
     assert rig.stack.state().offboard_target.pitch_rad == pytest.approx(0.5)  # a refusal changes nothing
