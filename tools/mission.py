@@ -11,9 +11,10 @@ Plan files:
 - QGroundControl `.plan` JSON (fileType "Plan"): `mission.items` SimpleItems (command, frame, params[7],
   autoContinue; params 5/6 are latitude/longitude in degrees for global frames, x/y in metres for
   MAV_FRAME_LOCAL_NED; null = NaN; DO_JUMP param1 is the target's doJumpId, converted to its item number as QGC
-  does on upload), `geoFence` circles/polygons (inclusion and exclusion) -> the FENCE plan, and `rallyPoints`
-  `points` ([lat, lon, alt above home]) -> the RALLY plan (NAV_RALLY_POINT, MAV_FRAME_GLOBAL_RELATIVE_ALT, as QGC
-  and MAVSDK's import_qgroundcontrol_mission send them). `upload` sends each plan the file has.
+  does on upload), `geoFence` circles/polygons (inclusion and exclusion) and its `breachReturn` point -> the FENCE
+  plan, and `rallyPoints` `points` ([lat, lon, alt above home]) -> the RALLY plan (NAV_RALLY_POINT,
+  MAV_FRAME_GLOBAL_RELATIVE_ALT, as QGC and MAVSDK's import_qgroundcontrol_mission send them).
+  `upload` sends each plan the file has.
 - `download` to a `.plan` path writes all three plans the vehicle holds in that format (`write_qgc_plan`: fence
   vertices grouped back into polygons, DO_JUMP targets as doJumpIds, NaN parameters as null), which reads back
   equal; to any other path the mission alone as waypoint text.
@@ -107,6 +108,9 @@ def read_qgc_plan(doc: dict) -> PlanFile:
         cmd = (Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION if poly.get("inclusion", True)
                else Cmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION)
         fence += [_item(Frame.GLOBAL_INT, cmd, 1, [n, 0, 0, 0], lat, lon, 0.0) for lat, lon in poly["polygon"]]
+    if (ret := geo.get("breachReturn")) is not None and len(ret) >= 2:  # QGC's [lat, lon, alt above home]
+        fence.append(_item(Frame.GLOBAL_RELATIVE_ALT, Cmd.NAV_FENCE_RETURN_POINT, 1, [0, 0, 0, 0], ret[0], ret[1],
+                           float(ret[2]) if len(ret) > 2 else 0.0))
     rally = [_item(Frame.GLOBAL_RELATIVE_ALT, Cmd.NAV_RALLY_POINT, 0, [0, 0, 0, 0], lat, lon, alt)
              for lat, lon, alt in doc.get("rallyPoints", {}).get("points", [])]
     return PlanFile(tuple(items), tuple(fence), tuple(rally))
@@ -124,6 +128,7 @@ def _fence_json(fence: tuple[MissionItem, ...]) -> dict[str, Any]:
     """The FENCE plan as QGroundControl's geoFence: circles, and polygons from runs of vertices (param1 = count)."""
     circles: list[dict[str, Any]] = []
     polygons: list[dict[str, Any]] = []
+    out: dict[str, Any] = {"version": 2, "circles": circles, "polygons": polygons}
     i = 0
     while i < len(fence):
         it = fence[i]
@@ -137,9 +142,12 @@ def _fence_json(fence: tuple[MissionItem, ...]) -> dict[str, Any]:
             polygons.append({"polygon": [list(_deg_or_m(v)) for v in fence[i:i + n]],
                              "inclusion": it.command == Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, "version": 1})
             i += n
+        elif it.command == Cmd.NAV_FENCE_RETURN_POINT:
+            out["breachReturn"] = [lat, lon, it.z]
+            i += 1
         else:
             raise ValueError(f"fence item {i}: command {it.command} has no place in a .plan's geoFence")
-    return {"version": 2, "circles": circles, "polygons": polygons}
+    return out
 
 
 def write_qgc_plan(plan: PlanFile, home: tuple[float, float, float] | None = None) -> str:

@@ -62,9 +62,10 @@ def test_a_plan_written_as_qgc_json_reads_back_equal() -> None:
         {**item, "command": 16, "doJumpId": 4, "frame": 1, "params": [0, 0, 0, None, 4.0, -2.5, -3.0]},
         {**item, "command": 177, "doJumpId": 5, "frame": 2, "params": [2, 3, 0, 0, 0, 0, 0]},
         {**item, "command": 20, "doJumpId": 6, "frame": 2, "params": [None, None, None, None, 0, 0, 0]}]
+    doc["geoFence"]["breachReturn"] = [LAT0 - 0.0001, LON0, 4.0]
     doc["rallyPoints"] = {"version": 2, "points": [[LAT0 + 0.0002, LON0, 0.0], [LAT0, LON0 - 0.0003, 5.0]]}
     plan = read_qgc_plan(doc)
-    assert (len(plan.mission), len(plan.fence), len(plan.rally)) == (6, 8, 2)
+    assert (len(plan.mission), len(plan.fence), len(plan.rally)) == (6, 9, 2)
     assert plan.mission[4].param1 == 1.0  # doJumpId 2 is item 1
     text = write_qgc_plan(PlanFile(plan.mission, plan.fence, plan.rally), home=(LAT0, LON0, 488.0))
     written = json.loads(text)
