@@ -1,7 +1,8 @@
 """navig8-mission: a pymavlink ground-station client for mission plans.
 
     navig8-mission upload PLAN [--connect udpin:127.0.0.1:14550]    # .plan (QGroundControl JSON) or waypoint text
-    navig8-mission download OUT.waypoints [--connect ...]
+    navig8-mission download OUT.waypoints [--connect ...]  # the mission as waypoint text
+    navig8-mission download OUT.plan [--connect ...]       # mission, fence and rally points as a QGC .plan
     navig8-mission clear [--connect ...]
     navig8-mission fly PLAN [--connect ...] [--timeout S]      # upload, Mission, arm, progress, summary
     navig8-mission from-scenario paper OUT.waypoints           # a scenario's script + arm schedule as a plan
@@ -10,9 +11,13 @@ Plan files:
 - QGroundControl `.plan` JSON (fileType "Plan"): `mission.items` SimpleItems (command, frame, params[7],
   autoContinue; params 5/6 are latitude/longitude in degrees for global frames, x/y in metres for
   MAV_FRAME_LOCAL_NED; null = NaN; DO_JUMP param1 is the target's doJumpId, converted to its item number as QGC
-  does on upload), `geoFence` circles/polygons (inclusion and exclusion) -> the FENCE plan, and `rallyPoints`
-  `points` ([lat, lon, alt above home]) -> the RALLY plan (NAV_RALLY_POINT, MAV_FRAME_GLOBAL_RELATIVE_ALT, as QGC
-  and MAVSDK's import_qgroundcontrol_mission send them). `upload` sends each plan the file has.
+  does on upload), `geoFence` circles/polygons (inclusion and exclusion) and its `breachReturn` point -> the FENCE
+  plan, and `rallyPoints` `points` ([lat, lon, alt above home]) -> the RALLY plan (NAV_RALLY_POINT,
+  MAV_FRAME_GLOBAL_RELATIVE_ALT, as QGC and MAVSDK's import_qgroundcontrol_mission send them).
+  `upload` sends each plan the file has.
+- `download` to a `.plan` path writes all three plans the vehicle holds in that format (`write_qgc_plan`: fence
+  vertices grouped back into polygons, DO_JUMP targets as doJumpIds, NaN parameters as null), which reads back
+  equal; to any other path the mission alone as waypoint text.
 - MAVLink waypoint text ("QGC WPL 110"): one item per line, `seq current frame command p1 p2 p3 p4 x y z
   autocontinue`, tab-separated; every line is an item (no home line is skipped: this vehicle does not take
   item 0 as home, like PX4).
@@ -103,9 +108,65 @@ def read_qgc_plan(doc: dict) -> PlanFile:
         cmd = (Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION if poly.get("inclusion", True)
                else Cmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION)
         fence += [_item(Frame.GLOBAL_INT, cmd, 1, [n, 0, 0, 0], lat, lon, 0.0) for lat, lon in poly["polygon"]]
+    if (ret := geo.get("breachReturn")) is not None and len(ret) >= 2:  # QGC's [lat, lon, alt above home]
+        fence.append(_item(Frame.GLOBAL_RELATIVE_ALT, Cmd.NAV_FENCE_RETURN_POINT, 1, [0, 0, 0, 0], ret[0], ret[1],
+                           float(ret[2]) if len(ret) > 2 else 0.0))
     rally = [_item(Frame.GLOBAL_RELATIVE_ALT, Cmd.NAV_RALLY_POINT, 0, [0, 0, 0, 0], lat, lon, alt)
              for lat, lon, alt in doc.get("rallyPoints", {}).get("points", [])]
     return PlanFile(tuple(items), tuple(fence), tuple(rally))
+
+
+def _deg_or_m(it: MissionItem) -> tuple[float, float]:
+    return to_float_xy(it.frame, it.x, it.y)
+
+
+def _json_num(v: float) -> float | None:
+    return float(v) if math.isfinite(v) else None
+
+
+def _fence_json(fence: tuple[MissionItem, ...]) -> dict[str, Any]:
+    """The FENCE plan as QGroundControl's geoFence: circles, and polygons from runs of vertices (param1 = count)."""
+    circles: list[dict[str, Any]] = []
+    polygons: list[dict[str, Any]] = []
+    out: dict[str, Any] = {"version": 2, "circles": circles, "polygons": polygons}
+    i = 0
+    while i < len(fence):
+        it = fence[i]
+        lat, lon = _deg_or_m(it)
+        if it.command in (Cmd.NAV_FENCE_CIRCLE_INCLUSION, Cmd.NAV_FENCE_CIRCLE_EXCLUSION):
+            circles.append({"circle": {"center": [lat, lon], "radius": it.param1},
+                            "inclusion": it.command == Cmd.NAV_FENCE_CIRCLE_INCLUSION, "version": 1})
+            i += 1
+        elif it.command in (Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, Cmd.NAV_FENCE_POLYGON_VERTEX_EXCLUSION):
+            n = max(1, int(it.param1))
+            polygons.append({"polygon": [list(_deg_or_m(v)) for v in fence[i:i + n]],
+                             "inclusion": it.command == Cmd.NAV_FENCE_POLYGON_VERTEX_INCLUSION, "version": 1})
+            i += n
+        elif it.command == Cmd.NAV_FENCE_RETURN_POINT:
+            out["breachReturn"] = [lat, lon, it.z]
+            i += 1
+        else:
+            raise ValueError(f"fence item {i}: command {it.command} has no place in a .plan's geoFence")
+    return out
+
+
+def write_qgc_plan(plan: PlanFile, home: tuple[float, float, float] | None = None) -> str:
+    """`plan` as a QGroundControl .plan (JSON) that read_qgc_plan reads back equal. home: (lat, lon, alt AMSL) for
+    plannedHomePosition (QGC shows it; nothing here reads it)."""
+    items = []
+    for i, it in enumerate(plan.mission):
+        x, y = _deg_or_m(it)
+        params = [_json_num(v) for v in (*it.params, x, y, it.z)]
+        if it.command == Cmd.DO_JUMP:  # the target's item number as its doJumpId (items are numbered i + 1)
+            params[0] = float(int(it.param1) + 1)
+        items.append({"type": "SimpleItem", "autoContinue": bool(it.autocontinue), "command": it.command,
+                      "doJumpId": i + 1, "frame": it.frame, "params": params})
+    rally = [[*_deg_or_m(r), r.z] for r in plan.rally]
+    doc = {"fileType": "Plan", "version": 1, "groundStation": "navig8-mission",
+           "mission": {"version": 2, "firmwareType": 12, "vehicleType": 2, "items": items,
+                       "plannedHomePosition": list(home) if home else [0.0, 0.0, 0.0]},
+           "geoFence": _fence_json(plan.fence), "rallyPoints": {"version": 2, "points": rally}}
+    return json.dumps(doc, indent=2) + "\n"
 
 
 def read_wpl(text: str) -> PlanFile:
@@ -365,7 +426,11 @@ def main(argv: list[str] | None = None) -> int:
         return 0 if ack is not None and ack.type == 0 else 1
     if a.action == "download":
         items, current = download(conn)
-        text = write_wpl(items, current)
+        if a.file and a.file.endswith(".plan"):
+            text = write_qgc_plan(PlanFile(items, download(conn, MissionType.FENCE)[0],
+                                           download(conn, MissionType.RALLY)[0]))
+        else:
+            text = write_wpl(items, current)
         if a.file:
             Path(a.file).write_text(text, encoding="utf-8")
         else:

@@ -44,10 +44,11 @@ def _free_tcp_port() -> int:
         return int(s.getsockname()[1])
 
 
-def run_example(name: str, tmp: Path, timeout_s: float, until: str | None = None) -> ExampleRun:
+def run_example(name: str, tmp: Path, timeout_s: float, until: str | None = None,
+                autopilot: str = "px4") -> ExampleRun:
     """`until`: a regular expression; the example is stopped as soon as its output matches (a streaming example's
-    proof of work), else at `timeout_s`."""
-    with sitl(tmp, scenario="ground", speed=SPEED, fc_args=["--autopilot", "px4"]) as run:
+    proof of work), else at `timeout_s`. `autopilot`: the FC's identity (`navig8-fc --autopilot`)."""
+    with sitl(tmp, scenario="ground", speed=SPEED, fc_args=["--autopilot", autopilot]) as run:
         gcs = gcs_client(run.gcs_port)
         try:
             assert wait_heartbeat(gcs, 20.0) is not None

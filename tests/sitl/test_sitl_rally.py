@@ -1,8 +1,9 @@
 """Rally points over real UDP, pymavlink as the ground station (navig8-mission's client): a QGroundControl .plan with
 a mission, an inclusion polygon, an exclusion circle and two rally points is uploaded (what `navig8-mission upload`
-sends) and downloaded equal, plan by plan; then the vehicle is pushed out of the polygon in Position mode
-(MANUAL_CONTROL, stick right), the fence failsafe runs FS_FENCE_ACT = 3 (Return), and Return goes to the nearest rally
-point (PX4's RTL_TYPE 0: not home, which is farther) and lands there.
+sends) and downloaded equal, plan by plan and as the .plan `navig8-mission download OUT.plan` writes; then the
+vehicle is pushed out of the polygon in Position mode (MANUAL_CONTROL, stick right), the fence failsafe runs
+FS_FENCE_ACT = 3 (Return), and Return goes to the nearest rally point (PX4's RTL_TYPE 0: not home, which is farther)
+and lands there.
 
 Geometry (NED m about home): the polygon spans north -6..20, east -6..6; the exclusion circle (r 1.5 m) is at
 (-3, -3); rally point 0 at (14, 0) (14 m from home: usable), rally point 1 at (0, -15), outside the fence. The
@@ -24,7 +25,7 @@ from navig8_fc.mission.geo import GeoOrigin
 from navig8_fc.mission.plan import MissionType
 from navig8_fc.modes import px4_custom_mode
 from navig8_fc.modes.px4 import Px4AutoSubMode, Px4MainMode
-from navig8_tools.mission import download, read_plan, upload
+from navig8_tools.mission import PlanFile, download, read_plan, read_qgc_plan, upload, write_qgc_plan
 
 M = mavlink2
 FC_LOCAL = {"speed": 3.0}  # the local pair (conftest.py `fc`)
@@ -100,6 +101,12 @@ def test_qgc_plan_with_rally_points_round_trips_and_a_fence_breach_returns_to_th
                                 (MissionType.RALLY, plan.rally)):
                 assert upload(gcs, items, kind) == M.MAV_MISSION_ACCEPTED, kind
                 assert _key(download(gcs, kind)[0]) == _key(items), kind
+            # what `navig8-mission download OUT.plan` writes: the three plans as a .plan that reads back equal
+            held = PlanFile(*(download(gcs, kind)[0] for kind in (MissionType.MISSION, MissionType.FENCE,
+                                                                  MissionType.RALLY)))
+            back = read_qgc_plan(json.loads(write_qgc_plan(held)))
+            for a, b in ((back.mission, plan.mission), (back.fence, plan.fence), (back.rally, plan.rally)):
+                assert _key(a) == _key(b)
             assert _fence_act(gcs, 3) == 3
             deadline = time.monotonic() + 15.0
             while command(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, 1).result != M.MAV_RESULT_ACCEPTED:
