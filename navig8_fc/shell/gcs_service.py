@@ -56,6 +56,7 @@ from navig8_fc.gcs import standard_modes
 from navig8_fc.gcs.commands import CommandHandler
 from navig8_fc.gcs.ftp import FtpServer, FtpService
 from navig8_fc.gcs.ftp_pacing import ReplyPacer
+from navig8_fc.gcs.log_transfer import LogSource, LogTransfer, reply_cost
 from navig8_fc.gcs.metadata import build_metadata, component_metadata_message
 from navig8_fc.gcs.misc import MiscProtocols
 from navig8_fc.gcs.mission_protocol import MissionProtocol
@@ -139,11 +140,12 @@ class GcsService:
                  outbox: Outbox, registry: ParamRegistry, vehicle_config: VehicleConfig,
                  store: ParamStore | None = None, mission_store: MissionStore | None = None,
                  autopilot: int = MAV_AUTOPILOT_GENERIC, trusted_sources: Iterable[Source] = (),
-                 background_params: bool = False, signing: Any = None) -> None:
+                 background_params: bool = False, signing: Any = None, logs: LogSource | None = None) -> None:
         """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them).
         trusted_sources: sources confirmed without a HEARTBEAT (the links' configured targets).
         background_params: stability floors and saves on a worker thread (the process); else inline.
-        signing: the links' signing (links.signing.LinkSigning: `set_key`, `active`); None: SETUP_SIGNING refused."""
+        signing: the links' signing (links.signing.LinkSigning: `set_key`, `active`); None: SETUP_SIGNING refused.
+        logs: the FC's logs for the log-download protocol (the shell's log directory); None: no log is written."""
         self.mav = mav
         self.sysid = int(sysid)
         self._state = state
@@ -167,8 +169,13 @@ class GcsService:
                                             self.text)
         self.metadata = build_metadata(registry.definitions)  # QGC's parameter metadata, served read-only over FTP
         # paced per source; the operator's configured station at a ground station's pace (ftp_pacing.OPERATOR_BUDGET)
-        pacer = ReplyPacer(operator=lambda source: source is not None and self.operator.configured(source))
+        def pacer_operator(source: Source | None) -> bool:
+            return source is not None and self.operator.configured(source)
+
+        pacer = ReplyPacer(operator=pacer_operator)
         self.ftp = FtpService(mav, FtpServer(self.metadata.files), sysid, 1, pacer)
+        # the log download (LOG_REQUEST_*), paced like MAVFTP in buckets of its own (docs/security.md, "MAVFTP")
+        self.logs = LogTransfer(mav, sysid, 1, logs, ReplyPacer(operator=pacer_operator, cost=reply_cost), self.text)
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
         self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config, autopilot)
@@ -296,6 +303,7 @@ class GcsService:
             out += self.misc.handle(m, now_wall)
             out += self.mission.handle(m, now_wall, source)
             out += self.ftp.handle(m, source, now_wall)
+            out += self.logs.handle(m, source, now_wall)
             out += self.vehicle_msgs.handle(m, now_wall)
             self._route(kind, source, out)
         return self.params.drain_changes()
@@ -355,7 +363,7 @@ class GcsService:
         state = self._state()
         self.mission.report(state.mission)
         for source, m in (self.params.poll_routed(now_wall) + self.mission.poll(now_wall) + self.commands.poll(now_wall)
-                          + self.ftp.poll(now_wall)):
+                          + self.ftp.poll(now_wall) + self.logs.poll(now_wall)):
             if source is None:
                 self._outbox.broadcast([m])
             else:

@@ -3,17 +3,20 @@ README names, BSD-3-Clause) run unmodified but for the connection address agains
 each against a fresh pair (example_runner.py). Each case says what the example must show: its exit code, a line of
 its output, and for the flying ones that the vehicle flew (the FC's own LOCAL_POSITION_NED in the log).
 
-The examples that cannot pass are expected failures with the reason (strict: one that starts passing fails here
-until it is moved up); docs/gcs.md "Client examples" has the table."""
+The examples that end with an error end exactly as against PX4 SITL (AS_PX4_SITL: a vehicle without that hardware,
+or a file only PX4 hardware has) or are gaps (NOT_YET); both are pinned with the reason (strict: one that starts
+passing, or fails otherwise, fails here until it is moved); docs/gcs.md "Client examples" has the table."""
 
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 from example_runner import ExampleRun, run_example
+from mcap.reader import make_reader
 
 from navig8_fc.shell.mcap_log import read_mcap
 
@@ -25,6 +28,22 @@ class Case:
     exits: bool = True  # must end by itself with exit code 0
     climbs_m: float = 0.0  # the vehicle rose at least this high above its start (m)
     expect: str = ""  # a line the output must contain
+    check: Callable[[ExampleRun], None] | None = None  # evidence the FC did it, beyond the output
+    argv: tuple[str, ...] = ()  # the example's arguments ("{address}": the pair's API address)
+    files: tuple[Path, ...] = ()  # copied beside the example
+
+
+def _downloaded_logs_read(r: ExampleRun) -> None:
+    """logfile_download wrote the FC's own log (MCAP, whatever the example names it): the library's reader reads it
+    with its defaults, and it is the run's (its `run` metadata, the FC's first records)."""
+    (log,) = sorted(r.work.glob("log-*.ulog"))
+    assert log.read_bytes()[:8] == b"\x89MCAP0\r\n", log
+    with log.open("rb") as fh:
+        reader = make_reader(fh)
+        assert [m.name for m in reader.iter_metadata()][:2] == ["run", "params"]
+    with log.open("rb") as fh:
+        assert sum(1 for _ in make_reader(fh).iter_messages()) > 100
+    assert r.fc_log.read_bytes()[:1000] == log.read_bytes()[:1000]
 
 
 CASES: dict[str, Case] = {
@@ -49,6 +68,12 @@ CASES: dict[str, Case] = {
     "manual_control": Case(60, until=r"-- Starting manual control", exits=False, climbs_m=1.0),
     "mission_import": Case(30, expect="Mission uploaded"),  # 2 rally points (MAV_MISSION_TYPE_RALLY) too
     "telemetry_takeoff_and_land": Case(90, climbs_m=9.0, expect="Altitude: 10"),  # MIS_TAKEOFF_ALT 10 m
+    "ftp_list_dir": Case(30, expect="directory list ListDirectoryData: [entries: [<"),  # "/": the metadata folder
+    "logfile_download": Case(90, expect="Downloading: log 0", check=_downloaded_logs_read),
+}
+AS_PX4_SITL = {  # example: (how it ends, on this FC and on PX4 SITL, why)
+    "ftp_download_file": ("FtpError: FILE_DOES_NOT_EXIST", "/etc/extras/px4_io-v2_default.bin is the IO "
+                          "coprocessor's firmware of PX4 boards that have one; PX4 SITL has no such file either"),
 }
 NOT_YET = {  # example: (how it fails today, why; whose the gap is)
     "geofence": ("GeofenceError: INVALID_ARGUMENT", "the client refuses the example's empty circle (radius 0) "
@@ -78,6 +103,8 @@ def _judge(r: ExampleRun, case: Case) -> None:
     assert case.expect in r.output, tail
     if case.climbs_m > 0.0:
         assert _rise_m(r.fc_log) >= case.climbs_m, (_rise_m(r.fc_log), tail)
+    if case.check is not None:
+        case.check(r)
 
 
 def _params(names: object) -> list:
@@ -88,14 +115,15 @@ def _params(names: object) -> list:
 def test_example_runs_unmodified(name: str, tmp_path: Path) -> None:
     case = CASES[name]
     until = f"{case.until}|{STOP_ON}" if case.until else STOP_ON
-    r = run_example(name, tmp_path, case.timeout_s, until)
+    r = run_example(name, tmp_path, case.timeout_s, until, case.argv, case.files)
     print(f"\n{name}: exit {r.returncode}, {r.wall_s:.1f} s wall")
     _judge(r, case)
 
 
-@pytest.mark.parametrize("name", _params(NOT_YET))
+@pytest.mark.parametrize("name", _params({**NOT_YET, **AS_PX4_SITL}))
 def test_example_fails_as_documented(name: str, tmp_path: Path) -> None:
-    """The gaps, pinned: each fails exactly the documented way (one that passes, or fails otherwise, fails here)."""
-    error, why = NOT_YET[name]
+    """The ends pinned: each fails exactly the documented way (one that passes, or fails otherwise, fails here):
+    as against PX4 SITL (AS_PX4_SITL) or a gap (NOT_YET)."""
+    error, why = {**NOT_YET, **AS_PX4_SITL}[name]
     r = run_example(name, tmp_path, 60.0, STOP_ON)
     assert error in r.output, f"{name} no longer fails with {error!r} ({why}):\n{r.output[-3000:]}"
