@@ -46,6 +46,7 @@ from typing import Any, Protocol
 
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.commands import (
+    Land,
     Reposition,
     SetMode,
     Takeoff,
@@ -53,7 +54,9 @@ from navig8_fc.flight.commands import (
 )
 from navig8_fc.flight.state import VehicleCommands, VehicleState
 from navig8_fc.gcs import standard_modes
-from navig8_fc.gcs.commands import CommandHandler
+from navig8_fc.gcs.calibration import Calibration
+from navig8_fc.gcs.commands import CommandHandler, ServiceHandler
+from navig8_fc.gcs.failure_injection import FailureInjection
 from navig8_fc.gcs.ftp import FtpServer, FtpService
 from navig8_fc.gcs.ftp_pacing import ReplyPacer
 from navig8_fc.gcs.log_transfer import LogSource, LogTransfer, reply_cost
@@ -79,6 +82,7 @@ from navig8_fc.shell.telemetry_service import (
 )
 
 MAV_TYPE_GCS = 6
+MAV_CMD_PREFLIGHT_CALIBRATION, MAV_CMD_INJECT_FAILURE = 241, 420
 MSG_AVAILABLE_MODES, MSG_CURRENT_MODE, MSG_AVAILABLE_MODES_MONITOR = 435, 436, 437
 AVAILABLE_MODES_SEQ = 1  # AVAILABLE_MODES_MONITOR.seq: the set of modes never changes at run time
 CURRENT_MODE_PERIOD_S = 2.0
@@ -88,6 +92,30 @@ _COMMANDS = frozenset({"COMMAND_LONG", "COMMAND_INT"})
 _WITHOUT_SIGNING = frozenset({"HEARTBEAT", "SETUP_SIGNING", "RADIO_STATUS"})  # what GCS_SIGN_REQ lets through
 
 _BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
+
+
+def _transfers(mav: Any, sysid: int, files: Mapping[str, bytes], logs: LogSource | None, text: StatusTextEncoder,
+               configured: Callable[[Source | None], bool]) -> tuple[FtpService, LogTransfer]:
+    """MAVFTP (the component metadata) and the log download, each paced per source; the operator's configured
+    station at a ground station's pace (ftp_pacing.OPERATOR_BUDGET); the log download in buckets of its own of the
+    same sizes (docs/security.md, "MAVFTP")."""
+    ftp = FtpService(mav, FtpServer(files), sysid, 1, ReplyPacer(operator=configured))
+    return ftp, LogTransfer(mav, sysid, 1, logs, ReplyPacer(operator=configured, cost=reply_cost), text)
+
+
+def _preflight(text: StatusTextEncoder, registry: ParamRegistry, params: ParamProtocol,
+               state: Callable[[], VehicleState], command: Callable[[VehicleCommand], Verdict]
+               ) -> tuple[Calibration, FailureInjection, dict[int, ServiceHandler]]:
+    """PREFLIGHT_CALIBRATION (its measured values applied and saved as the FC's own parameter changes) and
+    INJECT_FAILURE (SYS_FAILURE_EN; a GPS loss in the air lands), and the command handler's entries for them."""
+    def flying() -> bool:
+        s = state()
+        return s.armed and not s.landed
+
+    cal = Calibration(text, registry.get, params.apply_own)
+    failures = FailureInjection(lambda: int(registry.get("SYS_FAILURE_EN")) == 1, flying, lambda: command(Land()))
+    return cal, failures, {MAV_CMD_PREFLIGHT_CALIBRATION: lambda p: cal.command(p, state().armed),
+                           MAV_CMD_INJECT_FAILURE: failures.command}
 
 
 class Outbox(Protocol):
@@ -158,9 +186,10 @@ class GcsService:
         self.params = ParamProtocol(registry, mav, store, statustext=self.text, armed=lambda: self._state().armed,
                                     defer_saves=background_params)
         self._autopilot = int(autopilot)
+        self.calibration, self.failures, services = _preflight(self.text, registry, self.params, state, self.command)
         self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text,
                                        flight_progress=self._settings.flight_progress(self._autopilot),
-                                       takeoff_p7_amsl=self._autopilot == MAV_AUTOPILOT_PX4)
+                                       takeoff_p7_amsl=self._autopilot == MAV_AUTOPILOT_PX4, services=services)
         self.misc = MiscProtocols(mav, statustext=self.text)
         self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text,
                                        item_check=lambda item, kind: self.vehicle_msgs.item_problem(item, kind))
@@ -168,14 +197,8 @@ class GcsService:
         self.vehicle_msgs = VehicleMessages(mav, self.sysid, state, vehicle, self.command, registry, self.params,
                                             self.text)
         self.metadata = build_metadata(registry.definitions)  # QGC's parameter metadata, served read-only over FTP
-        # paced per source; the operator's configured station at a ground station's pace (ftp_pacing.OPERATOR_BUDGET)
-        def pacer_operator(source: Source | None) -> bool:
-            return source is not None and self.operator.configured(source)
-
-        pacer = ReplyPacer(operator=pacer_operator)
-        self.ftp = FtpService(mav, FtpServer(self.metadata.files), sysid, 1, pacer)
-        # the log download (LOG_REQUEST_*), paced like MAVFTP in buckets of its own (docs/security.md, "MAVFTP")
-        self.logs = LogTransfer(mav, sysid, 1, logs, ReplyPacer(operator=pacer_operator, cost=reply_cost), self.text)
+        self.ftp, self.logs = _transfers(mav, sysid, self.metadata.files, logs, self.text,
+                                         lambda source: source is not None and self.operator.configured(source))
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
         self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config, autopilot)
@@ -362,6 +385,8 @@ class GcsService:
         # (parameter, mission and command progress and the sends only read it)
         state = self._state()
         self.mission.report(state.mission)
+        self._outbox.broadcast(self.calibration.update(state.sensors, state.armed, now_wall))
+        self.telemetry.gps_off = self.failures.gps_off
         for source, m in (self.params.poll_routed(now_wall) + self.mission.poll(now_wall) + self.commands.poll(now_wall)
                           + self.ftp.poll(now_wall) + self.logs.poll(now_wall)):
             if source is None:
