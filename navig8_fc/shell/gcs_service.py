@@ -385,7 +385,8 @@ class GcsService:
         # (parameter, mission and command progress and the sends only read it)
         state = self._state()
         self.mission.report(state.mission)
-        self._outbox.broadcast(self.calibration.update(state.sensors, state.armed, now_wall))
+        if cal := self.calibration.update(state.sensors, state.armed, now_wall):  # its [cal] texts, its parameters
+            self._outbox.broadcast(cal)
         self.telemetry.gps_off = self.failures.gps_off
         for source, m in (self.params.poll_routed(now_wall) + self.mission.poll(now_wall) + self.commands.poll(now_wall)
                           + self.ftp.poll(now_wall) + self.logs.poll(now_wall)):

@@ -104,10 +104,12 @@ NOT_YET = {  # example: (how it fails today, why; whose the gap is)
                  "before sending anything: MAVSDK 4.0.5, no MAVLink on the wire, the same against any autopilot"),
     "do_orbit": ("ActionError: UNSUPPORTED", "DO_ORBIT is not flown yet"),
 }
-# In `make test` (each about 10 s with its pair): a flight, the gripper, telemetry, the IMU stream, the version and a
-# mission upload. The rest (the offboard and mission flights run 30-80 s on their own sleeps, and the documented
-# failures) run in `make test-clients`: all of them would add about 4 min to a suite kept under 10 (docs/gcs.md).
-QUICK = frozenset({"takeoff_and_land", "gripper", "telemetry", "highres_imu", "firmware_version", "mission_raw"})
+# In `make test` (each about 10 s with its pair): a flight, the gripper, telemetry, the IMU stream, the version, a
+# mission upload and a MAVFTP listing (the runner's own mavsdk_server). The rest (the offboard and mission flights run
+# 30-80 s on their own sleeps, and the pinned ends) run in `make test-clients`: all of them would add about 6 min to a
+# suite kept under 10 (docs/gcs.md).
+QUICK = frozenset({"takeoff_and_land", "gripper", "telemetry", "highres_imu", "firmware_version", "mission_raw",
+                   "ftp_list_dir"})
 STOP_ON = r"Traceback \(most recent call last\)"  # a failed example stays alive (its mavsdk_server): stop it
 
 
