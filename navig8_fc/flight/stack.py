@@ -56,6 +56,7 @@ from navig8_fc.flight.commands import (
 from navig8_fc.flight.failsafe import Failsafes, FailsafeSettings
 from navig8_fc.flight.ff_notices import FeedforwardNotices
 from navig8_fc.flight.script import FlightScript
+from navig8_fc.flight.sensor_cal import SensorCalibration
 from navig8_fc.flight.state import (
     SEVERITY_INFO,
     SEVERITY_WARNING,
@@ -116,6 +117,7 @@ class FlightStack:
                           if script is not None and script.arm_plan else None)
         self._modes = ModeManager(mode_config or ModeConfig(), script.mission() if script is not None else None)
         self._handlers = self._command_handlers()  # command record type -> what applies it
+        self._sensor_cal: SensorCalibration | None = None  # the gyro offsets and level horizon (None: nothing)
         self._fs = Failsafes(self._modes, FailsafeSettings.from_params(registry.as_dict()), sensor_source)
         self._ff_notices: FeedforwardNotices  # built with the first core (reconfigure)
         self.reconfigure()
@@ -181,6 +183,7 @@ class FlightStack:
         self.lambda_min = float(values["INDI_LAMBDA_MIN"])
         self._modes.set_mode_params(float(values["MIS_TAKEOFF_ALT"]), float(values["RTL_RETURN_ALT"]),
                                     float(values["MPC_THR_HOVER"]))
+        self._sensor_cal = SensorCalibration.from_params(values)
         return True
 
     # --- the control step ------------------------------------------------------------------------------
@@ -188,6 +191,8 @@ class FlightStack:
         """One control tick on `sensors` (sim time). imu_fresh: this step's IMU sample is new (the pre-arm
         sensor check); time_us: the bundle's integer time stamp, for the spacing check (default: from t_s)."""
         self.reconfigure()
+        if self._sensor_cal is not None:  # the calibration in force (the published sensors are the corrected ones)
+            sensors = self._sensor_cal.apply(sensors)
         t_us = round(sensors.t_s * 1e6) if time_us is None else int(time_us)
         prev_us = self._last_time_us
         self._last_time_us = t_us

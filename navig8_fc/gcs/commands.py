@@ -51,7 +51,7 @@ ACCEPTED at once whatever the identity: an orbit is a mode, not a task with an e
 from __future__ import annotations
 
 import math
-from collections.abc import Hashable
+from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol
 
@@ -272,7 +272,10 @@ class CommandHandler:
         flight_progress: bool = True,
         takeoff_p7_amsl: bool = False,
         orbit_z_amsl: bool = False,
+        services: Mapping[int, ServiceHandler] | None = None,
     ) -> None:
+        """services: commands another GCS service answers (calibration, failure injection): command id -> a handler
+        of p1..p7 returning (MAV_RESULT, reason for a WARNING, event for an INFO)."""
         self._mav = mav
         self._sysid = int(sysid)
         self._compid = int(compid)
@@ -308,6 +311,9 @@ class CommandHandler:
             MAV_CMD_DO_SET_STANDARD_MODE: lambda r: self._verdict(
                 self._vehicle.set_standard_mode(_int_param(r.params[0], "param1 (standard mode)", 0, 255))),
         }
+
+        for command, service in (services or {}).items():
+            self._handlers[command] = _service_handler(service)
 
     @property
     def supported_commands(self) -> frozenset[int]:
@@ -544,6 +550,17 @@ class CommandHandler:
         action = _int_param(req.params[0], "param1 (storage action)")
         result, msgs = self._vehicle.storage(action)
         return _Outcome(int(result), extra=list(msgs))
+
+
+ServiceHandler = Callable[[tuple[float, ...]], tuple[int, str | None, str | None]]
+
+
+def _service_handler(service: ServiceHandler) -> Callable[[CommandRequest], _Outcome]:
+    """A service's answer as the command handler's outcome."""
+    def handle(req: CommandRequest) -> _Outcome:
+        result, reason, info = service(req.params)
+        return _Outcome(int(result), reason, info)
+    return handle
 
 
 def _cmd_name(command: int) -> str:

@@ -11,7 +11,8 @@ whole file), and a cap on the packets sent per service poll, so that a flood is 
   request does not multiply the output.
 - At most `packets_per_poll` packets leave per poll, over all sources (round robin).
 
-Pure: the caller gives the time (wall seconds) and sends what comes back.
+Pure: the caller gives the time (wall seconds) and sends what comes back. The replies are MAVFTP payloads by
+default; another service (the log download, navig8_fc.gcs.log_transfer) paces its own messages with its own `cost`.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Hashable, Iterator
 from dataclasses import dataclass, field
+from typing import Any
 
 FRAME_OVERHEAD_BYTES = 12  # MAVLink 2 header (10) + CRC (2)
 TARGET_FIELDS_BYTES = 3  # FILE_TRANSFER_PROTOCOL's target_network, target_system, target_component
@@ -64,9 +66,11 @@ class ReplyPacer:
     """Per-source token buckets over MAVFTP replies (module docstring)."""
 
     def __init__(self, budget: ReplyBudget = ReplyBudget(), operator: Callable[[Hashable], bool] | None = None,
-                 operator_budget: ReplyBudget = OPERATOR_BUDGET) -> None:
-        """operator(key): whether replies to `key` go to the operator's configured station (its own budget)."""
+                 operator_budget: ReplyBudget = OPERATOR_BUDGET, cost: Callable[[Any], int] = frame_bytes) -> None:
+        """operator(key): whether replies to `key` go to the operator's configured station (its own budget);
+        cost(reply): the bytes a reply puts on the wire (MAVFTP payloads: `frame_bytes`)."""
         self.budget = budget
+        self._cost = cost
         self._operator, self._operator_budget = operator, operator_budget
         self._sources: dict[Hashable, _Source] = {}
         self.n_dropped = 0  # single replies dropped because a source's queue was full
@@ -113,7 +117,7 @@ class ReplyPacer:
                 if drawn is None:
                     break
                 payload, session = drawn
-                cost = frame_bytes(payload)
+                cost = self._cost(payload)
                 if cost > src.tokens:
                     if session < 0:
                         src.replies.appendleft(payload)

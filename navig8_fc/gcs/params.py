@@ -381,6 +381,24 @@ class ParamProtocol:
             return self._text.warning(f"PARAM_SET {name!r}: {why}")
         return [self.param_value(name)] + self._text.warning(f"{name}: {why}")
 
+    def apply_own(self, values: dict[str, float]) -> tuple[str | None, list[Any]]:
+        """Values the FC measured itself (a calibration's): applied whole or not at all as a PARAM_SET would be
+        (the registry's checks; while armed refused), saved like one, and the PARAM_VALUEs announcing them.
+        Returns the refusal's reason (None: applied) and the messages to broadcast."""
+        armed = bool(self._armed())
+        for name, value in values.items():
+            if (why := self._reg.validate(name, value, armed)) is not None:
+                return f"{name} = {value:g}: {why}", []
+        results = [self._reg.set(name, value, armed=armed) for name, value in values.items()]
+        self._changes += results
+        out = [self.param_value(n) for n in values]
+        if any(r.value != r.old_value for r in results):
+            if self._defer_saves:
+                self._save_due = True
+            elif (err := self.save()) is not None:
+                out += self._text.warning(err)
+        return None, out
+
     def _record_reset(self, before: dict[str, float | int], already: set[str]) -> None:
         for name, old in before.items():
             new = self._reg.get(name)

@@ -164,12 +164,15 @@ class SensorBits:
 
 
 def sensor_bits(
-    *, imu_ok: bool, pose_ok: bool, actuators_ok: bool, estimator_ok: bool, battery_ok: bool, prearm_ok: bool
+    *, imu_ok: bool, pose_ok: bool, actuators_ok: bool, estimator_ok: bool, battery_ok: bool, prearm_ok: bool,
+    gps_ok: bool = True,
 ) -> SensorBits:
-    """SYS_STATUS present/enabled/health from the FC's health flags (every sensor is always present+enabled)."""
+    """SYS_STATUS present/enabled/health from the FC's health flags (every sensor is always present+enabled);
+    gps_ok False: the global position source failed (an injected failure) though the pose data is fresh."""
     pairs = (
         (SENSOR_GYRO | SENSOR_ACCEL, imu_ok),
-        (SENSOR_HEADING | SENSOR_POSITION, pose_ok),
+        (SENSOR_HEADING, pose_ok),
+        (SENSOR_POSITION, pose_ok and gps_ok),
         (SENSOR_MOTORS, actuators_ok),
         (SENSOR_AHRS, estimator_ok),
         (SENSOR_BATTERY, battery_ok),
@@ -223,6 +226,7 @@ class VehicleSnapshot:
     time_unix_usec: int = 0  # given by the shell (0 = unknown)
     throttle_pct: float = 0.0
     orbit: OrbitPlan | None = None  # the orbit being flown (ORBIT_EXECUTION_STATUS)
+    gps_ok: bool = True  # False: the global position source is off (an injected failure: GPS_RAW_INT has no fix)
 
 
 # --- scheduler ---------------------------------------------------------------------------------------------
@@ -445,6 +449,9 @@ class TelemetryBuilder:
     def global_position_int(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
         if not snap.state_valid:
             return []
+        if not snap.gps_ok:  # failure injected: a receiver without a fix (PX4 SITL's blocked GPS sends nothing)
+            return [self._mav.gps_raw_int_encode(now_boot_ms * 1000, M.GPS_FIX_TYPE_NO_FIX, 0, 0, 0, 65535, 65535,
+                                                 65535, 65535, 0)]
         lat, lon, alt = snap.origin.to_global(snap.pos_ned)
         home_d = snap.home_ned[2] if snap.home_ned is not None else 0.0
         rel_alt = home_d - snap.pos_ned[2]
@@ -466,6 +473,9 @@ class TelemetryBuilder:
         MAVSDK's telemetry example prints as is."""
         if not snap.state_valid:
             return []
+        if not snap.gps_ok:  # failure injected: a receiver without a fix (PX4 SITL's blocked GPS sends nothing)
+            return [self._mav.gps_raw_int_encode(now_boot_ms * 1000, M.GPS_FIX_TYPE_NO_FIX, 0, 0, 0, 65535, 65535,
+                                                 65535, 65535, 0)]
         lat, lon, alt = snap.origin.to_global(snap.pos_ned)
         vn, ve, _ = snap.vel_ned
         i32 = (-(2**31), 2**31 - 1)

@@ -31,6 +31,7 @@ from navig8_fc.shell.fc_state import FcState
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, FoxglovePortError, LiveServer, MissionView
 from navig8_fc.shell.gcs_links import GcsLinks
 from navig8_fc.shell.gcs_service import GcsService
+from navig8_fc.shell.log_files import LogDirectory
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.mcap_log import open_logger
 from navig8_fc.shell.origin_gate import DEFAULT_ALLOWED_ORIGINS
@@ -83,7 +84,8 @@ class FlightControllerProcess:
                                       self.registry, self.vehicle, state.params, state.missions,
                                       autopilot=MAV_AUTOPILOT_PX4 if opts.autopilot == "px4" else MAV_AUTOPILOT_GENERIC,
                                       trusted_sources=self.gcs_links.trusted_sources(),
-                                      background_params=True, signing=self.signing)
+                                      background_params=True, signing=self.signing,
+                                      logs=LogDirectory(opts.log_path.parent) if opts.log_path else None)
         self._stability_logged: StabilityStatus | None = None  # the last /fc/stability record
         self.gcs_links.guard(self.gcs_service.admits_peer, lambda: self.signing.active)  # docs/security.md
         state.restore(self.gcs_service, self.signing, opts.defaults, self.log_event)

@@ -46,6 +46,7 @@ from typing import Any, Protocol
 
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.commands import (
+    Land,
     Reposition,
     SetMode,
     Takeoff,
@@ -53,9 +54,12 @@ from navig8_fc.flight.commands import (
 )
 from navig8_fc.flight.state import VehicleCommands, VehicleState
 from navig8_fc.gcs import standard_modes
-from navig8_fc.gcs.commands import CommandHandler, GlobalOrbit
+from navig8_fc.gcs.calibration import Calibration
+from navig8_fc.gcs.commands import CommandHandler, GlobalOrbit, ServiceHandler
+from navig8_fc.gcs.failure_injection import FailureInjection
 from navig8_fc.gcs.ftp import FtpServer, FtpService
 from navig8_fc.gcs.ftp_pacing import ReplyPacer
+from navig8_fc.gcs.log_transfer import LogSource, LogTransfer, reply_cost
 from navig8_fc.gcs.metadata import build_metadata, component_metadata_message
 from navig8_fc.gcs.misc import MiscProtocols
 from navig8_fc.gcs.mission_protocol import MissionProtocol
@@ -78,6 +82,7 @@ from navig8_fc.shell.telemetry_service import (
 )
 
 MAV_TYPE_GCS = 6
+MAV_CMD_PREFLIGHT_CALIBRATION, MAV_CMD_INJECT_FAILURE = 241, 420
 MSG_AVAILABLE_MODES, MSG_CURRENT_MODE, MSG_AVAILABLE_MODES_MONITOR = 435, 436, 437
 AVAILABLE_MODES_SEQ = 1  # AVAILABLE_MODES_MONITOR.seq: the set of modes never changes at run time
 CURRENT_MODE_PERIOD_S = 2.0
@@ -87,6 +92,30 @@ _COMMANDS = frozenset({"COMMAND_LONG", "COMMAND_INT"})
 _WITHOUT_SIGNING = frozenset({"HEARTBEAT", "SETUP_SIGNING", "RADIO_STATUS"})  # what GCS_SIGN_REQ lets through
 
 _BROADCAST_TYPES = frozenset({"STATUSTEXT", "HEARTBEAT"})
+
+
+def _transfers(mav: Any, sysid: int, files: Mapping[str, bytes], logs: LogSource | None, text: StatusTextEncoder,
+               configured: Callable[[Source | None], bool]) -> tuple[FtpService, LogTransfer]:
+    """MAVFTP (the component metadata) and the log download, each paced per source; the operator's configured
+    station at a ground station's pace (ftp_pacing.OPERATOR_BUDGET); the log download in buckets of its own of the
+    same sizes (docs/security.md, "MAVFTP")."""
+    ftp = FtpService(mav, FtpServer(files), sysid, 1, ReplyPacer(operator=configured))
+    return ftp, LogTransfer(mav, sysid, 1, logs, ReplyPacer(operator=configured, cost=reply_cost), text)
+
+
+def _preflight(text: StatusTextEncoder, registry: ParamRegistry, params: ParamProtocol,
+               state: Callable[[], VehicleState], command: Callable[[VehicleCommand], Verdict]
+               ) -> tuple[Calibration, FailureInjection, dict[int, ServiceHandler]]:
+    """PREFLIGHT_CALIBRATION (its measured values applied and saved as the FC's own parameter changes) and
+    INJECT_FAILURE (SYS_FAILURE_EN; a GPS loss in the air lands), and the command handler's entries for them."""
+    def flying() -> bool:
+        s = state()
+        return s.armed and not s.landed
+
+    cal = Calibration(text, registry.get, params.apply_own)
+    failures = FailureInjection(lambda: int(registry.get("SYS_FAILURE_EN")) == 1, flying, lambda: command(Land()))
+    return cal, failures, {MAV_CMD_PREFLIGHT_CALIBRATION: lambda p: cal.command(p, state().armed),
+                           MAV_CMD_INJECT_FAILURE: failures.command}
 
 
 class Outbox(Protocol):
@@ -139,11 +168,12 @@ class GcsService:
                  outbox: Outbox, registry: ParamRegistry, vehicle_config: VehicleConfig,
                  store: ParamStore | None = None, mission_store: MissionStore | None = None,
                  autopilot: int = MAV_AUTOPILOT_GENERIC, trusted_sources: Iterable[Source] = (),
-                 background_params: bool = False, signing: Any = None) -> None:
+                 background_params: bool = False, signing: Any = None, logs: LogSource | None = None) -> None:
         """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them).
         trusted_sources: sources confirmed without a HEARTBEAT (the links' configured targets).
         background_params: stability floors and saves on a worker thread (the process); else inline.
-        signing: the links' signing (links.signing.LinkSigning: `set_key`, `active`); None: SETUP_SIGNING refused."""
+        signing: the links' signing (links.signing.LinkSigning: `set_key`, `active`); None: SETUP_SIGNING refused.
+        logs: the FC's logs for the log-download protocol (the shell's log directory); None: no log is written."""
         self.mav = mav
         self.sysid = int(sysid)
         self._state = state
@@ -156,9 +186,11 @@ class GcsService:
         self.params = ParamProtocol(registry, mav, store, statustext=self.text, armed=lambda: self._state().armed,
                                     defer_saves=background_params)
         self._autopilot = int(autopilot)
+        self.calibration, self.failures, services = _preflight(self.text, registry, self.params, state, self.command)
         self.commands = CommandHandler(mav, sysid, 1, self, statustext=self.text,
                                        flight_progress=self._settings.flight_progress(self._autopilot),
-                                       takeoff_p7_amsl=(px4 := self._autopilot == MAV_AUTOPILOT_PX4), orbit_z_amsl=px4)
+                                       takeoff_p7_amsl=(px4 := self._autopilot == MAV_AUTOPILOT_PX4), orbit_z_amsl=px4,
+                                       services=services)
         self.misc = MiscProtocols(mav, statustext=self.text)
         self.mission = MissionProtocol(mav, sysid, 1, mission_store, statustext=self.text,
                                        item_check=lambda item, kind: self.vehicle_msgs.item_problem(item, kind))
@@ -166,9 +198,8 @@ class GcsService:
         self.vehicle_msgs = VehicleMessages(mav, self.sysid, state, vehicle, self.command, registry, self.params,
                                             self.text)
         self.metadata = build_metadata(registry.definitions)  # QGC's parameter metadata, served read-only over FTP
-        # paced per source; the operator's configured station at a ground station's pace (ftp_pacing.OPERATOR_BUDGET)
-        pacer = ReplyPacer(operator=lambda source: source is not None and self.operator.configured(source))
-        self.ftp = FtpService(mav, FtpServer(self.metadata.files), sysid, 1, pacer)
+        self.ftp, self.logs = _transfers(mav, sysid, self.metadata.files, logs, self.text,
+                                         lambda source: source is not None and self.operator.configured(source))
         self.n_gcs_msgs = 0
         self._last_gcs_heartbeat: float | None = None
         self.telemetry = Telemetry(mav, sysid, state, registry, vehicle_config, autopilot)
@@ -296,6 +327,7 @@ class GcsService:
             out += self.misc.handle(m, now_wall)
             out += self.mission.handle(m, now_wall, source)
             out += self.ftp.handle(m, source, now_wall)
+            out += self.logs.handle(m, source, now_wall)
             out += self.vehicle_msgs.handle(m, now_wall)
             self._route(kind, source, out)
         return self.params.drain_changes()
@@ -357,8 +389,11 @@ class GcsService:
         # (parameter, mission and command progress and the sends only read it)
         state = self._state()
         self.mission.report(state.mission)
+        if cal := self.calibration.update(state.sensors, state.armed, now_wall):  # its [cal] texts, its parameters
+            self._outbox.broadcast(cal)
+        self.telemetry.gps_off = self.failures.gps_off
         for source, m in (self.params.poll_routed(now_wall) + self.mission.poll(now_wall) + self.commands.poll(now_wall)
-                          + self.ftp.poll(now_wall)):
+                          + self.ftp.poll(now_wall) + self.logs.poll(now_wall)):
             if source is None:
                 self._outbox.broadcast([m])
             else:

@@ -60,6 +60,7 @@ class Telemetry:
         sw = (1, 15, 0) if autopilot == MAV_AUTOPILOT_PX4 else (0, 1, 0)
         self.builder = TelemetryBuilder(mav, sysid, 1, autopilot=autopilot, sw_version=sw)
         self.boot_wall = time.monotonic()
+        self.gps_off = False  # the global position source failed (an injected failure; GcsService sets it)
         self._eig_margin = math.nan
         self._eig_t = -1e9
         self._settings_generation = -1  # the registry generation `settings` was typed from
@@ -107,7 +108,8 @@ class Telemetry:
             gripper_closed=s.gripper_closed if s else False,
             origin=cfg.origin,
             sensors=sensor_bits(imu_ok=ok, pose_ok=ok, actuators_ok=ok, estimator_ok=st is not None,
-                                battery_ok=v.battery.remaining_pct > cfg.battery_low_pct, prearm_ok=bool(v.prearm.ok)),
+                                battery_ok=v.battery.remaining_pct > cfg.battery_low_pct, prearm_ok=bool(v.prearm.ok),
+                                gps_ok=not self.gps_off),
             ckf_x_hat=st.adapt.x_hat if st else (math.nan,) * 4,  # type: ignore[arg-type]
             ckf_k=st.adapt.k if st else (math.nan,) * 4,  # type: ignore[arg-type]
             eig_margin=self._eig_margin,
@@ -116,6 +118,7 @@ class Telemetry:
             time_unix_usec=time.time_ns() // 1000,
             throttle_pct=throttle_pct(self._vehicle, s.speed_rad_s) if s else 0.0,
             orbit=v.orbit,
+            gps_ok=not self.gps_off,
         )
 
     def boot_ms(self, now_wall: float) -> int:

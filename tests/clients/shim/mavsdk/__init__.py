@@ -2,9 +2,9 @@
 name `mavsdk` now belongs to the native binding, mavsdk_grpc/__init__.py), and its examples import `mavsdk`.
 
 This package is that name: `mavsdk` and every `mavsdk.<module>` are the `mavsdk_grpc` modules themselves (one
-module object under both names). One change: `System()` without a port takes the gRPC port from
-NAVIG8_MAVSDK_GRPC_PORT, so examples run side by side each with its own mavsdk_server (the examples leave the
-port at its default, 50051)."""
+module object under both names). One change: `System()` on the default gRPC port (none given, or
+50051 named, as the MAVFTP examples do with a mavsdk_server of their own) takes the port from NAVIG8_MAVSDK_GRPC_PORT,
+so examples run side by side each with its own mavsdk_server."""
 
 from __future__ import annotations
 
@@ -36,12 +36,13 @@ class _Alias(importlib.abc.MetaPathFinder, importlib.abc.Loader):
 
 
 sys.meta_path.insert(0, _Alias())
+DEFAULT_GRPC_PORT = 50051
 
 
 class System(_System):
     def __init__(self, mavsdk_server_address=None, port=None, sysid=245, compid=190) -> None:  # noqa: ANN001
-        if port is None:
-            port = int(os.environ.get("NAVIG8_MAVSDK_GRPC_PORT", "50051"))
+        if port is None or port == DEFAULT_GRPC_PORT:
+            port = int(os.environ.get("NAVIG8_MAVSDK_GRPC_PORT", str(DEFAULT_GRPC_PORT)))
         super().__init__(mavsdk_server_address, port, sysid, compid)
 
 
