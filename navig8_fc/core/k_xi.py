@@ -287,3 +287,29 @@ def flown_k_box(k_min: float, k_max: float, lam_ref: float, k_flown_min: float) 
     lo_rot = max(lam_ref * k_min, k_flown_min)
     hi_rot = max(lam_ref * k_max, k_flown_min)
     return (min(lo_rot, k_min), max(hi_rot, k_max))
+
+
+def eig_margin_lower_bound(
+    vehicle: VehicleConfig,
+    q_rad: Sequence[float],
+    k_min: float,
+    k_max: float,
+    lambda_crit: float,
+    object_masses_kg: Sequence[float] = (0.0, 1.0, 2.0),
+) -> float:
+    """min Re eig(K Xi(q, m)) over K in [k_min, k_max]^4 and the object masses, minus lambda_crit.
+
+    K is sampled at the 16 corners of the box plus a
+    3 x 3 (K1, K3) grid at K2 = K4 = k_min (where core.stability shows the longitudinal minimum lies).
+    Cost: ~1.4 ms per call, so the shell computes it at the telemetry rate, not every control step.
+    """
+    xi = xi_batch(vehicle, np.asarray([q_rad], dtype=float), np.asarray(object_masses_kg, dtype=float))
+    c = np.array([k_min, k_max])
+    corners = np.stack(np.meshgrid(c, c, c, c, indexing="ij"), axis=-1).reshape(-1, 4)
+    g = np.linspace(k_min, k_max, 3)
+    k1, k3 = np.meshgrid(g, g, indexing="ij")
+    grid = np.column_stack([k1.ravel(), np.full(9, k_min), k3.ravel(), np.full(9, k_min)])
+    ks = np.vstack([corners, grid])
+    k_diag = k_diagonals(ks[:, 0], ks[:, 1], ks[:, 2], ks[:, 3])
+    lam = k_xi_eigenvalues(xi[:, :, None, :, :], k_diag[None, None, :, :])
+    return float(lam.real.min()) - float(lambda_crit)

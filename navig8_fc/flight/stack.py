@@ -16,7 +16,7 @@ filter or estimator settings rebuilds the core (its filters depend on them).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from navig8_fc.core import stability
@@ -99,6 +99,21 @@ def throttle_pct(vehicle: VehicleConfig, speed_rad_s: tuple[float, float, float]
     return 100.0 * sum(rotor_thrusts_n(vehicle, speed_rad_s)) / t_max
 
 
+def configure_modes(modes: ModeManager, outer: OuterLoopConfig, values: Mapping[str, float]) -> None:
+    """What the modes need of the outer loop and the parameters: the position gain (offboard velocity feed-forward),
+    the braking limits (where Hold stops), what the reference can fly (Orbit, attitude targets), the take-off and
+    return heights and the hover thrust."""
+    modes.set_position_gain(outer.pos_k)
+    if outer.jerk_max_m_s3 > 0.0:  # the shaped reference brakes at OL_ACC_REF with its jerk limit, its jerk
+        # stage answering 1 / K_j late
+        modes.set_braking(outer.ref_acc_max_m_s2, outer.jerk_max_m_s3, 1.0 / (JERK_K_PER_VEL_K * outer.vel_k))
+    else:  # the setpoint goes to the loop as it is: the loop's own acceleration limit
+        modes.set_braking(outer.acc_max_m_s2, math.inf)
+    modes.set_reference_limits(ReferenceLimits.of_outer_loop(outer, float(values["ORB_RAD_MAX"])))
+    modes.set_mode_params(float(values["MIS_TAKEOFF_ALT"]), float(values["RTL_RETURN_ALT"]),
+                          float(values["MPC_THR_HOVER"]))
+
+
 class FlightStack:
     """Mode manager + failsafes + controller core (module docstring). One owner calls everything."""
 
@@ -145,17 +160,6 @@ class FlightStack:
         """The mode manager's configuration in force (MIS_TAKEOFF_ALT and RTL_RETURN_ALT applied)."""
         return self._modes.config
 
-    def _set_mode_limits(self, outer: OuterLoopConfig, orbit_radius_max_m: float) -> None:
-        """What the modes need of the outer loop: the position gain (offboard velocity feed-forward), the braking
-        limits (where Hold stops), what the reference can fly (Orbit, attitude targets)."""
-        self._modes.set_position_gain(outer.pos_k)
-        if outer.jerk_max_m_s3 > 0.0:  # the shaped reference brakes at OL_ACC_REF with its jerk limit, its jerk
-            # stage answering 1 / K_j late
-            self._modes.set_braking(outer.ref_acc_max_m_s2, outer.jerk_max_m_s3, 1.0 / (JERK_K_PER_VEL_K * outer.vel_k))
-        else:  # the setpoint goes to the loop as it is: the loop's own acceleration limit
-            self._modes.set_braking(outer.acc_max_m_s2, math.inf)
-        self._modes.set_reference_limits(ReferenceLimits.of_outer_loop(outer, orbit_radius_max_m))
-
     def reconfigure(self) -> bool:
         """Apply the registry's parameters if they changed since the last call (each step calls it); True when
         something was applied."""
@@ -175,14 +179,12 @@ class FlightStack:
             self._core.set_arm_plan(self._arm_plan)
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
-        self._set_mode_limits(cfg.outer, float(values["ORB_RAD_MAX"]))
+        configure_modes(self._modes, cfg.outer, values)
         self._cfg_generation = reg.generation
         self._fs.configure(FailsafeSettings.from_params(values))  # typed once per change, not per step
         indi = cfg.indi
         self.lambda_crit = stability.lambda_crit(indi.act_wn_rad_s, indi.act_zeta, cfg.dt_s, indi.lpf_tau_s)
         self.lambda_min = float(values["INDI_LAMBDA_MIN"])
-        self._modes.set_mode_params(float(values["MIS_TAKEOFF_ALT"]), float(values["RTL_RETURN_ALT"]),
-                                    float(values["MPC_THR_HOVER"]))
         self._sensor_cal = SensorCalibration.from_params(values)
         return True
 

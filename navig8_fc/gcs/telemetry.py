@@ -37,7 +37,7 @@ without ground truth, lambda_lb(q) - lambda_crit, where lambda_lb(q) is the smal
 eig(K Xi(q, m)) at the current estimated arm pose q over every K in [INDI_K_MIN, INDI_K_MAX]^4 (the box the
 constrained estimate is kept in, Eq. 21) and object masses 0..2 kg, and lambda_crit is the critical
 eigenvalue of H(s) for the current actuator/sampling/filter parameters (Eq. 9-13). Positive = the
-stability guarantee holds at this pose whatever the object; `eig_margin_lower_bound` computes it (~1.4 ms).
+stability guarantee holds at this pose whatever the object; `core.k_xi.eig_margin_lower_bound` computes it (~1.4 ms).
 Because the empty gripper (Xi = I, eigenvalues = K) is always a candidate, the bound is at most
 K_MIN - lambda_crit and moves mostly with the parameters, a little with the pose: it is the guarantee, not a
 measurement. The actual min eigenvalue of G_hat G^-1 needs the true G, which only the bridge's truth has (it
@@ -58,11 +58,10 @@ centi-degrees 0..35999 (65535 unknown). VFR_HUD airspeed = groundspeed (no wind 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
 from pymavlink.dialects.v20 import common as mavlink2
 
 from navig8_fc.core.rotation import quat_to_euler
@@ -574,32 +573,3 @@ class TelemetryBuilder:
 
 STABILITY_VALUE_NAMES = ("IXX_HAT", "IYY_HAT", "IZZ_HAT", "M_HAT", "K1", "K2", "K3", "K4", "EIG_MARGIN", "LAM_CRIT",
                          "LAM_MARGIN")
-
-
-# --- the bound-based eigenvalue margin ----------------------------------------------------------------------
-def eig_margin_lower_bound(
-    vehicle: Any,
-    q_rad: Sequence[float],
-    k_min: float,
-    k_max: float,
-    lambda_crit: float,
-    object_masses_kg: Sequence[float] = (0.0, 1.0, 2.0),
-) -> float:
-    """min Re eig(K Xi(q, m)) over K in [k_min, k_max]^4 and the object masses, minus lambda_crit.
-
-    `vehicle` is a navig8_fc.core.vehicle.VehicleConfig. K is sampled at the 16 corners of the box plus a
-    3 x 3 (K1, K3) grid at K2 = K4 = k_min (where core.stability shows the longitudinal minimum lies).
-    Cost: ~1.4 ms per call, so the shell computes it at the telemetry rate, not every control step.
-    """
-    from navig8_fc.core import k_xi
-
-    xi = k_xi.xi_batch(vehicle, np.asarray([q_rad], dtype=float), np.asarray(object_masses_kg, dtype=float))
-    c = np.array([k_min, k_max])
-    corners = np.stack(np.meshgrid(c, c, c, c, indexing="ij"), axis=-1).reshape(-1, 4)
-    g = np.linspace(k_min, k_max, 3)
-    k1, k3 = np.meshgrid(g, g, indexing="ij")
-    grid = np.column_stack([k1.ravel(), np.full(9, k_min), k3.ravel(), np.full(9, k_min)])
-    ks = np.vstack([corners, grid])
-    k_diag = k_xi.k_diagonals(ks[:, 0], ks[:, 1], ks[:, 2], ks[:, 3])
-    lam = k_xi.k_xi_eigenvalues(xi[:, :, None, :, :], k_diag[None, None, :, :])
-    return float(lam.real.min()) - float(lambda_crit)

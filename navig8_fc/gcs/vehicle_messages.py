@@ -19,6 +19,7 @@ from navig8_fc.flight.commands import (
     ManualInput,
     OffboardSetpoint,
     Orbit,
+    Reposition,
     SetMode,
     VehicleCommand,
 )
@@ -165,6 +166,14 @@ class VehicleMessages:
         the vehicle, which checks the circle against the operating volume once resolved."""
         n, e, d = self.to_ned(o.lat_deg, o.lon_deg, o.alt_m, o.relative_alt)
         return self._command(Orbit(OrbitRequest(o.radius_m, o.speed_m_s, o.yaw_behaviour, o.sweep_rad, (n, e), d)))
+
+    def reposition(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool, yaw_rad: float) -> Verdict:
+        """MAV_CMD_DO_REPOSITION to a global point: checked against the operating volume (VOL_*), refused, never
+        flown, outside it."""
+        pos = self.to_ned(lat_deg, lon_deg, alt_m, relative_alt)
+        if why := self.position_problem(pos):
+            return False, f"Reposition refused: {why}"
+        return self._vehicle.command(Reposition(pos, yaw_rad))
 
     def to_ned(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool) -> tuple[float, float, float]:
         """A WGS-84 point around the global origin (NaN stays NaN); alt AMSL, or above home when relative_alt."""

@@ -47,7 +47,6 @@ from typing import Any, Protocol
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.commands import (
     Land,
-    Reposition,
     SetMode,
     Takeoff,
     VehicleCommand,
@@ -169,11 +168,10 @@ class GcsService:
                  store: ParamStore | None = None, mission_store: MissionStore | None = None,
                  autopilot: int = MAV_AUTOPILOT_GENERIC, trusted_sources: Iterable[Source] = (),
                  background_params: bool = False, signing: Any = None, logs: LogSource | None = None) -> None:
-        """mav: a MAVLink object that builds messages (srcSystem = sysid, srcComponent 1; links pack them).
-        trusted_sources: sources confirmed without a HEARTBEAT (the links' configured targets).
-        background_params: stability floors and saves on a worker thread (the process); else inline.
-        signing: the links' signing (links.signing.LinkSigning: `set_key`, `active`); None: SETUP_SIGNING refused.
-        logs: the FC's logs for the log-download protocol (the shell's log directory); None: no log is written."""
+        """mav builds messages (srcSystem = sysid, srcComponent 1); trusted_sources: confirmed without a HEARTBEAT (the
+        links' configured targets); background_params: floors and saves on a worker (the process), else inline;
+        signing: links.signing.LinkSigning (None: SETUP_SIGNING refused); logs: the FC's logs for the log-download
+        protocol (None: no log is written)."""
         self.mav = mav
         self.sysid = int(sysid)
         self._state = state
@@ -353,8 +351,7 @@ class GcsService:
 
     @property
     def stability(self) -> StabilityStatus | None:
-        """lambda_crit, the guaranteed smallest eigenvalue and the margin of the configuration in force (None while
-        its floor is being computed)."""
+        """lambda_crit, the guaranteed smallest eigenvalue and its margin in force (None: its floor is computing)."""
         return self._registry.stability_status()
 
     @property
@@ -371,10 +368,7 @@ class GcsService:
 
     def reposition_global(self, lat_deg: float, lon_deg: float, alt_m: float, relative_alt: bool,
                           yaw_rad: float) -> tuple[bool, str]:
-        pos = self.vehicle_msgs.to_ned(lat_deg, lon_deg, alt_m, relative_alt)
-        if why := self.vehicle_msgs.position_problem(pos):  # the operating volume (VOL_*): refused, never flown
-            return False, f"Reposition refused: {why}"
-        return self._vehicle.command(Reposition(pos, yaw_rad))
+        return self.vehicle_msgs.reposition(lat_deg, lon_deg, alt_m, relative_alt, yaw_rad)
 
     def orbit_global(self, orbit: GlobalOrbit) -> tuple[bool, str]:
         return self.vehicle_msgs.orbit(orbit)

@@ -10,6 +10,7 @@ from collections.abc import Callable, Hashable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from navig8_fc.core.k_xi import eig_margin_lower_bound
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.stack import throttle_pct
 from navig8_fc.flight.state import VehicleState
@@ -17,7 +18,6 @@ from navig8_fc.gcs.telemetry import (
     TelemetryBuilder,
     TelemetryScheduler,
     VehicleSnapshot,
-    eig_margin_lower_bound,
     sensor_bits,
 )
 from navig8_fc.mission.geo import GeoOrigin, origin_from_params

@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 from pymavlink.dialects.v20 import common as mavlink2
 
+from navig8_fc.core.k_xi import eig_margin_lower_bound
 from navig8_fc.flight.battery import BatteryConfig, battery_initial, battery_step, open_circuit_voltage
 from navig8_fc.gcs.telemetry import (
     CAPABILITIES,
@@ -19,7 +20,6 @@ from navig8_fc.gcs.telemetry import (
     TelemetryBuilder,
     TelemetryScheduler,
     VehicleSnapshot,
-    eig_margin_lower_bound,
     euler_from_quat,
     heading_cdeg,
     sensor_bits,
