@@ -73,6 +73,32 @@ class ActuatorModel:
         return tuple(self._x[N_ACTUATORS:].tolist())
 
 
+class DeliveredU:
+    """U (Sec. 3) of what the actuators deliver under the commands flown, by this model (the adaptive law's
+    CKF_U_SRC = 2): each command advances the five actuators one period (positions seeded by the first command), and
+    U is taken of their positions, so the law's U lags the command as the actuators do, in actuator space (U is
+    cos(alpha) w^2 and sin(alpha) w^2 of them)."""
+
+    def __init__(self, wn_rad_s: float, zeta: float, dt_s: float) -> None:
+        self._ad, self._bd = group_discretisation(wn_rad_s, wn_rad_s, zeta, dt_s)
+        self._x = np.zeros(2 * N_ACTUATORS)
+        self._cmd = np.zeros(N_ACTUATORS)
+
+    def step(self, tilt: Sequence[float], speed: Sequence[float], u_out: np.ndarray, seed: bool) -> None:
+        """Advance under the command (tilts alpha1, alpha3; speeds w1, w2, w3) and write U of the positions to u_out;
+        seed: start from the command, at rest (the first command, or the first after the motors were off)."""
+        c = self._cmd
+        c[0], c[1], c[2], c[3], c[4] = tilt[0], tilt[1], speed[0], speed[1], speed[2]
+        if seed:
+            self._x[:N_ACTUATORS] = c
+            self._x[N_ACTUATORS:] = 0.0
+        actuator_model_step(self._x, 0, self._ad, self._bd, c, 0)
+        a1, a3, w1, w2, w3 = self._x[:N_ACTUATORS].tolist()
+        u_out[0], u_out[1] = math.cos(a1) * w1 * w1, math.sin(a1) * w1 * w1
+        u_out[2], u_out[3] = math.cos(a3) * w3 * w3, math.sin(a3) * w3 * w3
+        u_out[4] = math.copysign(w2 * w2, w2)
+
+
 # ---------------------------------------------------------------------------------------------
 # Online identification of the actuators' bandwidth (INDI_U0_SRC = 1, ACT_ID = 1)
 # ---------------------------------------------------------------------------------------------

@@ -94,7 +94,7 @@ class AdaptiveLawConfig:
 # Filter state of lpf_increments: the low-passed U0, Acc_m and arm h' (arm_hdc), their values at the start of the
 # current increment window, the steps counted in it and whether the INDI saturated in it.
 LAW_STATE = layout("LAW_STATE", u_f=N_MEAS, acc_f=N_MEAS, hd_f=1, u_w=N_MEAS, acc_w=N_MEAS, hd_w=1, count=1,
-                   sat=1, sat_hold=1, started=1)
+                   sat=1, sat_hold=1, started=1, n_seen=1)
 LS_UF = LAW_STATE.U_F  # low-passed U0
 LS_AF = LAW_STATE.ACC_F  # low-passed Acc_m
 LS_HF = LAW_STATE.HD_F  # low-passed arm h'
@@ -105,6 +105,7 @@ LS_COUNT = LAW_STATE.COUNT  # steps since the window's start
 LS_SAT = LAW_STATE.SAT  # 1.0 when a step of the window reported INDI saturation (or was within the hold after one)
 LS_HOLD = LAW_STATE.SAT_HOLD  # steps left in which the filters still carry a saturated step (sat_hold_steps)
 LS_STARTED = LAW_STATE.STARTED  # 1.0 after the first sample
+LS_NSEEN = LAW_STATE.N_SEEN  # samples filtered so far (the running-mean start, mean_start)
 # Its output: the increments fed to the KF (Eq. 23), and whether a window closed this step
 LAW_OUT = layout("LAW_OUT", delta_u=N_MEAS, delta_acc=N_MEAS, delta_hd=1, ready=1, saturated=1)
 LO_DU = LAW_OUT.DELTA_U
@@ -115,12 +116,16 @@ LO_SAT = LAW_OUT.SATURATED  # 1.0: the INDI saturated during the window that clo
 
 
 @njit(cache=True)
-def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, sat_hold_steps, out):
+def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, sat_hold_steps, out, mean_start=0.0):
     """The first-order low-passes of U0, Acc_m and h' (y += alpha (x - y); the first sample sets y) and their
     increments over windows of n_window steps, y[k] - y[k - n_window], every n_window-th step (ready = 1), zeros in
     between and on the first sample. sat (0/1, the INDI's saturation flag) is or-ed over the window, and a saturated
     step keeps flagging the following sat_hold_steps steps (the low-passed signals still carry it). With
-    n_window = 1 the increments are the one-step differences y[k] - y[k-1] every step. st: LAW_STATE; out: LAW_OUT."""
+    n_window = 1 the increments are the one-step differences y[k] - y[k-1] every step. st: LAW_STATE; out: LAW_OUT.
+
+    mean_start = 1 (CKF_LPF_SEED): the n-th sample is weighted max(alpha, 1/n), so the filters start as the running
+    mean of the samples so far and become the low-pass once 1/n < alpha (~1/alpha samples): the first sample alone,
+    one noisy reading, does not seed them (its error would decay only as exp(-t/tau) through the first windows)."""
     if st[LS_STARTED] == 0.0:
         for i in range(N_MEAS):
             st[LS_UF + i] = u_meas[i]
@@ -133,9 +138,13 @@ def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, sat_hold_steps,
         st[LS_SAT] = 0.0
         st[LS_HOLD] = 0.0
         st[LS_STARTED] = 1.0
+        st[LS_NSEEN] = 1.0
         for i in range(LAW_OUT.SIZE):
             out[i] = 0.0
         return
+    st[LS_NSEEN] += 1.0
+    if mean_start != 0.0 and 1.0 / st[LS_NSEEN] > alpha:
+        alpha = 1.0 / st[LS_NSEEN]
     for i in range(N_MEAS):
         y = st[LS_UF + i]
         st[LS_UF + i] = y + alpha * (u_meas[i] - y)
@@ -241,6 +250,8 @@ class AdaptiveLaw:
         # moved m_hat by 2 kg)
         self._sat_hold = float(math.ceil(ckf.lpf_tau_s / ckf.dt_s)) if ckf.sat_gate else 0.0
         self._u_from_cmd = ckf.u_from_command
+        self._mean_start = 1.0 if ckf.lpf_mean_start else 0.0  # CKF_LPF_SEED
+        self._ixz_model = ckf.ixz_model  # CKF_IXZ_MOD (_known_ixz)
         self._grip_reset = ckf.grip_reset
         self._event_hold_s = ckf.lpf_tau_s  # no correction this long after a grasp / release (the low-passes carry it)
         self._pred_dj = ckf.predict_from_dj
@@ -303,7 +314,7 @@ class AdaptiveLaw:
         self, t_s: float, u_meas: np.ndarray, acc_m: np.ndarray, gc_inv: np.ndarray, inertia: np.ndarray,
         m: float, inertia_rate: np.ndarray, arm_hdc: float = 0.0, indi_saturated: bool = False,
         u_cmd: np.ndarray | None = None, gripper_closed: bool | None = None,
-        object_inertia_rate: tuple[float, float, float] | None = None,
+        object_inertia_rate: tuple[float, float, float] | None = None, object_ixz: float = 0.0,
     ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
         """step() on float64 arrays (u_meas, acc_m (5,), gc_inv (5, 5) C-contiguous, inertia and inertia_rate
         (3, 3)), m a float; also returns G_hat_I row-major as a tuple (the same floats). The controller's tick.
@@ -312,6 +323,7 @@ class AdaptiveLaw:
         command yet, u_meas is used). gripper_closed: the gripper's reported state, for CKF_GRIP_RST (None: unknown).
         object_inertia_rate: the diagonal of the rate of the modelled inertia of a point object of the estimated mass
         at the gripper (moving with the arm), added to Eq. 22's drift with CKF_PRED_DJ (None: no object).
+        object_ixz: that object's share of the composite I_xz (kg m^2; 0: none held), for CKF_IXZ_MOD.
 
         Bookkeeping on plain floats (the vectors have 4-5 components: numpy's per-call overhead would
         dominate); the values equal those of vehicle.estimate_bounds / estimated_gi / k_from_estimate exactly
@@ -330,7 +342,7 @@ class AdaptiveLaw:
         if u_cmd is not None and self._u_from_cmd:
             u_meas = u_cmd
         lpf_increments(self._st, self._alpha, self._n_window, u_meas, acc_m, float(arm_hdc),
-                       1.0 if indi_saturated else 0.0, self._sat_hold, self._inc)
+                       1.0 if indi_saturated else 0.0, self._sat_hold, self._inc, self._mean_start)
         inc = self._inc.tolist()
         du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
         ready, window_sat = inc[LO_READY] != 0.0, inc[LO_SAT] != 0.0
@@ -359,6 +371,9 @@ class AdaptiveLaw:
         dhd = inc[LO_DH]
         if self.config.arm_wrench and dhd != 0.0:
             du_kf = self._du - gc_inv[:, 1] * dhd  # z = Delta U - G_C^-1 [0, Delta h', 0, 0, 0]
+        if self._ixz_model:
+            du_kf = _known_ixz(du_kf, gc_inv, da, j13 + object_ixz)
+            rho_x = rho_z = 0.0
         if self._pitch_row:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
                         pitch=t_s >= self._pitch_hold_until_s)
@@ -465,6 +480,16 @@ class AdaptiveLaw:
             kf.forget([min(max(b / ki, lo), hi) for b, ki, lo, hi in zip(base, k, lower, upper, strict=True)])
         self._hold_until_s = t_s + self._event_hold_s
         self._n_forgets += 1
+
+
+def _known_ixz(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], ixz: float) -> np.ndarray:
+    """CKF_IXZ_MOD: z = Delta U - G_C^-1 [I_xz Delta R-dot, 0, I_xz Delta P-dot, 0, 0] with the modelled I_xz, so that
+    the roll and yaw rows of Eq. 24 carry I_xx Delta P-dot and I_zz Delta R-dot alone (the caller passes
+    rho_x = rho_z = 0). Eq. 24 writes I_xz as I_zz J13 / J33 (roll row) and I_xx J13 / J11 (yaw row): exact with no
+    object, but a held object off the body's axis moves I_xz by -m (x z) about the CoM, not in proportion to I_xx or
+    I_zz (at q1 60 deg with 0.5 kg: I_xz -0.357 kg m^2 against Eq. 24's -0.304 / -0.306)."""
+    a1, a3 = da[0], da[2]
+    return du - gc_inv[:, 0] * (ixz * a3) - gc_inv[:, 2] * (ixz * a1)
 
 
 def _gi_hat_flat(j11: float, j13: float, j33: float, x: Sequence[float]) -> tuple[np.ndarray, tuple[float, ...]]:

@@ -39,6 +39,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
     "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
     "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
+    "CKF_LPF_SEED", "CKF_IXZ_MOD",
 )
 
 
@@ -122,6 +123,15 @@ class CkfConfig:
     # CKF_CZ_SIG: with pitch_r_nm2 > 0, the prior sigma (m) of the held object's CoM-height error in the pitch row, and
     # at a grasp I_yy's variance raised to (half the box's width)^2 (AdaptiveLaw, kalman.kf_correct_pitch); 0: neither
     com_sigma_m: float = 0.0
+    # CKF_LPF_SEED: the law's low-passes start as the running mean of their samples (adaptive_law.lpf_increments),
+    # not from the first sample alone; False: the first sample seeds them (the paper's first-order filter)
+    lpf_mean_start: bool = False
+    # CKF_IXZ_MOD: the product of inertia in the roll and yaw rows of Eq. 24 is the model's (J13, plus a point object
+    # of the estimated mass at the gripper while it reports closed), not Eq. 24's I_zz J13 / J33 and I_xx J13 / J11
+    ixz_model: bool = False
+    # CKF_U_SRC = 2: the command's U through the FC's actuator model (ACT_WN, ACT_ZETA; actuator_model.DeliveredU),
+    # what the actuators deliver, rather than the command itself (u_from_command is True with it)
+    u_delivered: bool = False
 
     def __post_init__(self) -> None:
         lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
@@ -153,6 +163,9 @@ class CkfConfig:
         object.__setattr__(self, "grip_reset", bool(self.grip_reset))
         object.__setattr__(self, "predict_from_dj", bool(self.predict_from_dj))
         object.__setattr__(self, "gc_at_com", bool(self.gc_at_com))
+        object.__setattr__(self, "lpf_mean_start", bool(self.lpf_mean_start))
+        object.__setattr__(self, "ixz_model", bool(self.ixz_model))
+        object.__setattr__(self, "u_delivered", bool(self.u_delivered))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2", "pitch_r_nm2",
                      "com_sigma_m"):
             v = float(getattr(self, name))
@@ -180,7 +193,10 @@ class CkfConfig:
         missing = [n for n in CKF_PARAM_NAMES if n not in values]
         if missing:
             raise KeyError(f"missing CKF parameters: {', '.join(missing)}")
-        for flag in ("CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF"):
+        if int(values["CKF_U_SRC"]) not in (0, 1, 2):
+            raise ValueError(f"CKF_U_SRC must be 0, 1 or 2, got {values['CKF_U_SRC']}")
+        for flag in ("CKF_SAT_GATE", "CKF_ACC_REF", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
+                     "CKF_LPF_SEED", "CKF_IXZ_MOD"):
             if int(values[flag]) not in (0, 1):
                 raise ValueError(f"{flag} must be 0 or 1, got {values[flag]}")
         proj = int(values["CKF_PROJ_W"])
@@ -203,6 +219,7 @@ class CkfConfig:
             exc_lin_m_s2=float(values["CKF_EXC_LIN"]),
             sat_gate=bool(int(values["CKF_SAT_GATE"])),
             u_from_command=bool(int(values["CKF_U_SRC"])),
+            u_delivered=int(values["CKF_U_SRC"]) == 2,
             acc_at_com=bool(int(values["CKF_ACC_REF"])),
             k_pin=tuple(float(values[f"CKF_K_PIN{i}"]) for i in range(1, 5)),
             grip_reset=bool(int(values["CKF_GRIP_RST"])),
@@ -211,4 +228,6 @@ class CkfConfig:
             lms_mu=tuple(float(values[f"CKF_LMS_MU{i}"]) for i in range(1, 5)),
             pitch_r_nm2=float(values["CKF_R_PITCH"]),
             com_sigma_m=float(values["CKF_CZ_SIG"]),
+            lpf_mean_start=bool(int(values["CKF_LPF_SEED"])),
+            ixz_model=bool(int(values["CKF_IXZ_MOD"])),
         )

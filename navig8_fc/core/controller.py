@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from navig8_fc.core import rotation
+from navig8_fc.core.actuator_model import DeliveredU
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig, AdaptiveLawStatus
 from navig8_fc.core.allocation import AllocationConfig
 from navig8_fc.core.arm_preview import (
@@ -65,7 +66,7 @@ from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig, ghat_ginv_e
 # Slots of the front-end kernel's outputs the tick reads (module constants: no enum lookups per tick).
 _UO_MASS, _UO_SINGULAR = int(UO.MASS), int(UO.SINGULAR)
 _UO_CEX, _UO_CEZ = int(UO.CEX), int(UO.CEZ)
-_UO_OBJ_RATE = int(UO.OBJ_RATE)
+_UO_OBJ_RATE, _UO_OBJ_IXZ = int(UO.OBJ_RATE), int(UO.OBJ_IXZ)
 # The tick's input vector (front_end.TIN): the sensors, then pos_ned, vel_ned, quat_wxyz and the setpoint
 # (the outer loops' inputs, packed only when engaged). struct packs float64 exactly as np.array(..., dtype=float)
 # converts, into a persistent array (no per-tick allocation).
@@ -250,9 +251,11 @@ class FlightControllerCore:
         pv = config.indi.arm_preview
         self._arm_sup_cfg = pv.supervisor_config()
         self._arm_sup = pv.supervisor_state()  # kept across resets: the identified servo stays identified
-        self._u_cmd = np.zeros(5)
+        self._u_cmd = np.zeros(5)  # CKF_U_SRC 2: U of the command through the actuator model (DeliveredU)
+        ind = config.indi
+        self._u_act = DeliveredU(ind.act_wn_rad_s, ind.act_zeta, config.dt_s) if config.ckf.u_delivered else None
         self._gc_law, self._gc_law_inv = np.empty((5, 5)), np.empty((5, 5))  # CKF_ACC_REF: G_C about the est. CoM
-        ind = config.indi  # the flown loop gain, or None: K_hat, bit for bit
+        # the flown loop gain, or None: K_hat, bit for bit
         self._flown_gain = (ind.lam_ref, ind.k_flown_min) if ind.lam_ref != 1.0 or ind.k_flown_min > 0.0 else None
 
     def update_gains(self, outer: OuterLoopConfig, k_min: float, k_max: float) -> None:
@@ -324,7 +327,8 @@ class FlightControllerCore:
         fo = self._fo
         gi_hat, gi_flat, adapt_status = self._adapt.step_arrays(
             s.t_s, u_meas, acc_law, gc_law_inv, inertia, mass, rate, fo.item(_FO_ARM_HDC), self._indi_saturated,
-            self._u_cmd if self._u_cmd_ok else None, s.gripper_closed, tuple(ul[_UO_OBJ_RATE:_UO_OBJ_RATE + 3]))
+            self._u_cmd if self._u_cmd_ok else None, s.gripper_closed, tuple(ul[_UO_OBJ_RATE:_UO_OBJ_RATE + 3]),
+            ul[_UO_OBJ_IXZ] if s.gripper_closed else 0.0)  # the object's I_xz only while one is held, as its CoM
         if self._flown_gain is not None:  # the INDI, the status and the eigenvalue monitor fly K_flown, not K_hat
             gi_hat, gi_flat = flown_gi_hat(gi_flat, adapt_status.k, *self._flown_gain)
         ref: tuple[float, float, float] | None = None
@@ -386,7 +390,7 @@ class FlightControllerCore:
         model = self._model
         fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, m_obj_est, model.geometry,
                  model.force_per_input, model.moment_o_per_input, inertia, rate, gc, gc_inv, self._uo, self._fo,
-                 float(cfg.acc_ref))
+                 float(cfg.acc_ref), float(cfg.ckf.lpf_mean_start))  # CKF_LPF_SEED: the joint observer's start too
         ul = self._uo.tolist()
         if ul[_UO_SINGULAR]:
             gc_inv = np.linalg.inv(gc)  # raises LinAlgError as before
@@ -488,7 +492,10 @@ class FlightControllerCore:
         out, indi_status = self._indi._step(gyro, sf_x, sf_z, sl[_IN_TILT], sl[_IN_TILT + 1], sl[_IN_SPEED],
                                             sl[_IN_SPEED + 1], sl[_IN_SPEED + 2], v_cmd, gc_inv, gi_hat)
         self._indi_saturated = indi_status.saturated
-        actuators_to_u(*out.tilt_cmd_rad, *out.speed_cmd_rad_s, self._u_cmd, 0)
+        if self._u_act is None:
+            actuators_to_u(*out.tilt_cmd_rad, *out.speed_cmd_rad_s, self._u_cmd, 0)
+        else:  # seeded afresh by the first command after an idle tick
+            self._u_act.step(out.tilt_cmd_rad, out.speed_cmd_rad_s, self._u_cmd, not self._u_cmd_ok)
         self._u_cmd_ok = True
         return ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s), outer, indi_status, ff_status
 

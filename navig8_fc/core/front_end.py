@@ -24,7 +24,8 @@ TIN = layout("TIN", gyro=3, accel=3,  # specific force at O
 # Front-end state `fst` and output `fo`
 FST = layout("FST", qest=3,  # joint-angle estimate
              qd_prev=3, gyro_prev=3,  # previous joint rate and gyro (backward differences)
-             init=1)  # 1.0 after the first sample
+             init=1,  # 1.0 after the first sample
+             n_seen=1)  # joint samples so far (the observer's running-mean start, mean_start)
 FO = layout("FO", qest=3, qdd=3,
             acc_m=5,  # [P_dot, Q_dot, R_dot, a_x + arm, a_z + arm] (Eq. 23)
             arm_hdc=1,  # UO.HDC: minus the arm's reaction pitch moment about the CoM (CKF_ARM_WRENCH)
@@ -44,7 +45,7 @@ def com_accel_offset(p, q, r, qdot, cx, cz):
 
 @njit_cached(g_c, linalg)
 def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv, uo, fo,
-             acc_ref=0.0):
+             acc_ref=0.0, mean_start=0.0):
     """FlightControllerCore's per-tick front end: the complementary joint observer (q_est), backward
     differences of the joint rates (q-ddot) and of the gyro (omega-dot), uam_model at (q_est, q-dot, q-ddot),
     Acc_m (Eq. 23) and U0 = actuators_to_u(measured). All state in fst; first sample: q_est = q, zeros out of
@@ -53,7 +54,11 @@ def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inerti
     acc_ref = 0 (the paper): Acc_m's force rows are the specific force at O plus the arm's c-ddot_rel.
     acc_ref = 1 (INDI_ACC_REF): they are the acceleration of the estimated composite CoM c
     (uo CEX, CEZ): a_c = f_O + omega-dot x c + omega x (omega x c) + c-ddot_rel (the Coriolis term
-    2 omega x c-dot_rel is left out), the point G_C's force rows and the flown loop refer to."""
+    2 omega x c-dot_rel is left out), the point G_C's force rows and the flown loop refer to.
+
+    mean_start = 1 (CKF_LPF_SEED): the observer's n-th correction has the gain max(obs_gain, 1/n), a running mean of
+    the measured joints (each carried forward by the rates) until obs_gain takes over, instead of the first sample
+    alone: one reading of the 0.08 rad joint sensor put J11 12 % off at q1 60 deg, decaying with the observer's 1 s."""
     q = np.empty(3)
     qd = sens[TIN.JRATE:TIN.JRATE + 3]
     qdd = np.empty(3)
@@ -63,10 +68,15 @@ def fc_front(fst, dt, obs_gain, inv_dt, sens, object_mass_kg, geo, f, m0, inerti
             qdd[i] = 0.0
             fo[FO.ACC_M + i] = 0.0
         fst[FST.INIT] = 1.0
+        fst[FST.N_SEEN] = 1.0
     else:
+        fst[FST.N_SEEN] += 1.0
+        gain = obs_gain
+        if mean_start != 0.0 and 1.0 / fst[FST.N_SEEN] > gain:
+            gain = 1.0 / fst[FST.N_SEEN]
         for i in range(3):
             pred = fst[FST.QEST + i] + dt * qd[i]
-            fst[FST.QEST + i] = pred + obs_gain * (sens[TIN.JPOS + i] - pred)
+            fst[FST.QEST + i] = pred + gain * (sens[TIN.JPOS + i] - pred)
             qdd[i] = (qd[i] - fst[FST.QD_PREV + i]) * inv_dt
             fo[FO.ACC_M + i] = (sens[TIN.GYRO + i] - fst[FST.GYRO_PREV + i]) * inv_dt
     for i in range(3):

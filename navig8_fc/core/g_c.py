@@ -38,7 +38,8 @@ UO = layout("UO", mass=1, cx=1, cz=1, arm_ax=1, arm_az=1,
             hdc=1,  # MP.HDC with the estimated object: the arm's reaction pitch moment about the CoM is -hdc
             cex=1, cez=1,  # CoM of the UAM with a point object of the estimated mass at the tip (the reference point)
             obj_rate=3,  # diagonal of d/dt of that composite's inertia minus J's I-dot: the estimated object's share
-            singular=1)  # 1.0 when G_C could not be inverted (the caller then falls back to numpy)
+            singular=1,  # 1.0 when G_C could not be inverted (the caller then falls back to numpy)
+            obj_ixz=1)  # that composite's I_xz (about its CoM) minus J13: the estimated object's share
 
 _N_BODY_ACC = 15  # sum m x, m z, m xd, m zd, m xdd, m zdd; J11 J22 J33 J13 about O; their rates; h' about O
 
@@ -183,15 +184,18 @@ def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv,
     uo[UO.CEX] = (m * cx + mo * mp[MP.OBJ_X]) / m_tot
     if mo > 0.0:  # the reaction and inertia with the estimated object (G_C, G_I above stay those without it)
         mp2 = np.empty(_N_MP)
+        ic = np.empty((3, 3))
         ic_rate = np.empty((3, 3))
-        mass_props(q, qd, qdd, mo, geo, np.empty((3, 3)), ic_rate, mp2)
+        mass_props(q, qd, qdd, mo, geo, ic, ic_rate, mp2)
         uo[UO.HDC] = mp2[MP.HDC]
         for i in range(3):
             uo[UO.OBJ_RATE + i] = ic_rate[i, i] - rate[i, i]
+        uo[UO.OBJ_IXZ] = ic[0, 2] - inertia[0, 2]
     else:
         uo[UO.HDC] = mp[MP.HDC]
         for i in range(3):
             uo[UO.OBJ_RATE + i] = 0.0
+        uo[UO.OBJ_IXZ] = 0.0
     uo[UO.CEZ] = (m * cz + mo * mp[MP.OBJ_Z]) / m_tot
     gc_about(f, m0, cx, cz, gc)
     uo[UO.SINGULAR] = 0.0 if inv_gauss_jordan(gc, gc_inv) else 1.0
