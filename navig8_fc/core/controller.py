@@ -217,7 +217,7 @@ class ControllerStatus:
 class FlightControllerCore:
     """Outer loops + INDI + adaptive law for the Navig8-UAM."""
 
-    _tick_io: tuple | None = None  # the tick's persistent input vector and views (_tick_buffers)
+    _tick_io: tuple | None = None  # the tick's persistent input vector and views (tick_buffers)
     _indi_saturated = False  # the last INDI step's IndiStatus.saturated (the adaptive law's saturation gate)
     _u_cmd_ok = False  # _u_cmd holds U of the last actuator command (the adaptive law's CKF_U_SRC = 1)
 
@@ -314,7 +314,7 @@ class FlightControllerCore:
         INDI when engaged (the INDI's filters kept warm when not); the module docstring's signal flow."""
         io = self._tick_io
         if io is None:
-            io = self._tick_buffers()
+            io = self._tick_io = tick_buffers(self._fo, self.vehicle.uam_mass_kg)
         sens, _, _, _, _, _, u_meas, acc_m, uam_mass = io
         # The arm term uses a point object of the estimated extra mass at the tip (notes §3.3 option b).
         m_obj_est = 0.0
@@ -509,17 +509,16 @@ class FlightControllerCore:
         self._indi.measure(IndiInputs(s.gyro_frd, acc, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))
         return MOTORS_OFF
 
-    def _tick_buffers(self) -> tuple:
-        """Built on the first step and kept (`_tick_io`): the input vector the sensors are packed into, the
-        views of it the outer loop and INDI kernels take (gyro, pos, vel, quat, setpoint), the views of the
-        front end's output the adaptive law takes (U0, Acc_m; its kernel only reads them) and the UAM mass.
-        The arrays are never replaced, so the views stay valid."""
-        sens = TIN.zeros()
-        t = TIN.views(sens)
-        f = FO.views(self._fo)
-        io = (sens, t.gyro, t.pos, t.vel, t.quat, t.sp, f.u_meas, f.acc_m, self.vehicle.uam_mass_kg)
-        self._tick_io = io
-        return io
+
+def tick_buffers(fo: np.ndarray, uam_mass_kg: float) -> tuple:
+    """Built on a core's first step and kept (`FlightControllerCore._tick_io`): the input vector the sensors are
+    packed into, the views of it the outer loop and INDI kernels take (gyro, pos, vel, quat, setpoint), the views of
+    the front end's output `fo` the adaptive law takes (U0, Acc_m; its kernel only reads them) and the UAM mass.
+    The arrays are never replaced, so the views stay valid."""
+    sens = TIN.zeros()
+    t = TIN.views(sens)
+    f = FO.views(fo)
+    return (sens, t.gyro, t.pos, t.vel, t.quat, t.sp, f.u_meas, f.acc_m, uam_mass_kg)
 
 
 def flown_gi_hat(gi_flat: Sequence[float], k_hat: Sequence[float], lam_ref: float,
