@@ -47,10 +47,10 @@ class SensorBundle(NamedTuple):
     """One sensor sample at time_us (plant time). Groups not in `updated` repeat their last sample."""
 
     time_us: int
-    gyro_frd: np.ndarray  # (3,) rad/s
-    accel_frd: np.ndarray  # (3,) m/s^2, specific force a_O - g at O ([0, 0, -g] at rest, level)
-    pos_ned: np.ndarray  # (3,) m, motion capture
-    vel_ned: np.ndarray  # (3,) m/s, motion capture
+    gyro_frd_rad_s: np.ndarray  # (3,)
+    accel_frd_m_s2: np.ndarray  # (3,) specific force a_O - g at O ([0, 0, -g] at rest, level)
+    pos_ned_m: np.ndarray  # (3,) motion capture
+    vel_ned_m_s: np.ndarray  # (3,) motion capture
     quat_wxyz: np.ndarray  # (4,) body FRD -> NED, motion capture
     duct_tilt_rad: np.ndarray  # (2,) alpha1, alpha3
     prop_speed_rad_s: np.ndarray  # (3,) w1, w2 (tail, signed), w3
@@ -125,10 +125,10 @@ class WireSensors:
     """
 
     time_us: int
-    gyro_frd: list[float]
-    accel_frd: list[float]
-    pos_ned: list[float]
-    vel_ned: list[float]
+    gyro_frd_rad_s: list[float]
+    accel_frd_m_s2: list[float]
+    pos_ned_m: list[float]
+    vel_ned_m_s: list[float]
     quat_wxyz: list[float]
     duct_tilt_rad: list[float]
     prop_speed_rad_s: list[float]

@@ -439,8 +439,8 @@ class Plant:
         bridge's encoder without the numpy views it would convert back at once."""
         groups = self._sample()
         g, a, p, v, q, tilt, speed, jp, jr = _S_GROUPS(self._meas.tolist())
-        return _fill(WireSensors(), time_us=self._t_us, gyro_frd=g, accel_frd=a, pos_ned=p, vel_ned=v, quat_wxyz=q,
-                     duct_tilt_rad=tilt, prop_speed_rad_s=speed, joint_pos_rad=jp, joint_rate_rad_s=jr,
+        return _fill(WireSensors(), time_us=self._t_us, gyro_frd_rad_s=g, accel_frd_m_s2=a, pos_ned_m=p, vel_ned_m_s=v,
+                     quat_wxyz=q, duct_tilt_rad=tilt, prop_speed_rad_s=speed, joint_pos_rad=jp, joint_rate_rad_s=jr,
                      gripper_closed=self._gripper_closed, updated=groups)
 
     def truth_floats(self) -> TruthFloats:

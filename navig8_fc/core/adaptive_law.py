@@ -251,7 +251,7 @@ class AdaptiveLaw:
         self._sat_hold = float(math.ceil(ckf.lpf_tau_s / ckf.dt_s)) if ckf.sat_gate else 0.0
         self._u_from_cmd = ckf.u_from_command
         self._mean_start = 1.0 if ckf.lpf_mean_start else 0.0  # CKF_LPF_SEED
-        self._ixz_model = ckf.ixz_model  # CKF_IXZ_MOD (_known_ixz)
+        self._ixz_model = ckf.ixz_model  # CKF_IXZ_MOD (known_ixz)
         self._grip_reset = ckf.grip_reset
         self._event_hold_s = ckf.lpf_tau_s  # no correction this long after a grasp / release (the low-passes carry it)
         self._pred_dj = ckf.predict_from_dj
@@ -372,7 +372,7 @@ class AdaptiveLaw:
         if self.config.arm_wrench and dhd != 0.0:
             du_kf = self._du - gc_inv[:, 1] * dhd  # z = Delta U - G_C^-1 [0, Delta h', 0, 0, 0]
         if self._ixz_model:
-            du_kf = _known_ixz(du_kf, gc_inv, da, j13 + object_ixz)
+            du_kf = known_ixz(du_kf, gc_inv, da, j13 + object_ixz)
             rho_x = rho_z = 0.0
         if self._pitch_row:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
@@ -482,7 +482,7 @@ class AdaptiveLaw:
         self._n_forgets += 1
 
 
-def _known_ixz(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], ixz: float) -> np.ndarray:
+def known_ixz(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], ixz: float) -> np.ndarray:
     """CKF_IXZ_MOD: z = Delta U - G_C^-1 [I_xz Delta R-dot, 0, I_xz Delta P-dot, 0, 0] with the modelled I_xz, so that
     the roll and yaw rows of Eq. 24 carry I_xx Delta P-dot and I_zz Delta R-dot alone (the caller passes
     rho_x = rho_z = 0). Eq. 24 writes I_xz as I_zz J13 / J33 (roll row) and I_xx J13 / J11 (yaw row): exact with no

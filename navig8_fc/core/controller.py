@@ -19,12 +19,12 @@ from __future__ import annotations
 
 import math
 import struct
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-from navig8_fc.core import rotation
+from navig8_fc.core import k_xi, rotation
 from navig8_fc.core.actuator_model import DeliveredU
 from navig8_fc.core.adaptive_law import AdaptiveLaw, AdaptiveLawConfig, AdaptiveLawStatus
 from navig8_fc.core.allocation import AllocationConfig
@@ -112,13 +112,13 @@ class FcSensors:
     """One sensor bundle as the flight controller sees it (body FRD, NED, SI)."""
 
     t_s: float
-    gyro_frd: tuple[float, float, float]
-    accel_frd: tuple[float, float, float]  # specific force at O
-    pos_ned: tuple[float, float, float]
-    vel_ned: tuple[float, float, float]
+    gyro_frd_rad_s: tuple[float, float, float]
+    accel_frd_m_s2: tuple[float, float, float]  # specific force at O
+    pos_ned_m: tuple[float, float, float]
+    vel_ned_m_s: tuple[float, float, float]
     quat_wxyz: tuple[float, float, float, float]
-    tilt_rad: tuple[float, float]  # measured alpha1, alpha3
-    speed_rad_s: tuple[float, float, float]  # measured w1, w2 (signed), w3
+    duct_tilt_rad: tuple[float, float]  # measured alpha1, alpha3
+    prop_speed_rad_s: tuple[float, float, float]  # measured w1, w2 (signed), w3
     joint_pos_rad: tuple[float, float, float]
     joint_rate_rad_s: tuple[float, float, float]
     gripper_closed: bool = False  # the gripper's reported state (NAVIG8_ARM_STATE); CKF_GRIP_RST forgets on it
@@ -330,7 +330,7 @@ class FlightControllerCore:
             self._u_cmd if self._u_cmd_ok else None, s.gripper_closed, tuple(ul[_UO_OBJ_RATE:_UO_OBJ_RATE + 3]),
             ul[_UO_OBJ_IXZ] if s.gripper_closed else 0.0)  # the object's I_xz only while one is held, as its CoM
         if self._flown_gain is not None:  # the INDI, the status and the eigenvalue monitor fly K_flown, not K_hat
-            gi_hat, gi_flat = flown_gi_hat(gi_flat, adapt_status.k, *self._flown_gain)
+            gi_hat, gi_flat = k_xi.flown_gi_hat(gi_flat, adapt_status.k, *self._flown_gain)
         ref: tuple[float, float, float] | None = None
         sf_x = sf_z = 0.0  # the INDI's force-row feedback: f_O's (read from the sensors) or, here, the CoM's
         if self.config.acc_ref:
@@ -381,11 +381,13 @@ class FlightControllerCore:
         # reads); when engaged the outer loops' inputs follow, read through views.
         if engaged:
             sp_pos = sp.pos_ned
-            _PACK_ENGAGED(sens, 0, *s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
-                          *s.joint_rate_rad_s, *s.pos_ned, *s.vel_ned, *s.quat_wxyz,
+            _PACK_ENGAGED(sens, 0, *s.gyro_frd_rad_s, *s.accel_frd_m_s2, *s.duct_tilt_rad, *s.prop_speed_rad_s,
+                          *s.joint_pos_rad,
+                          *s.joint_rate_rad_s, *s.pos_ned_m, *s.vel_ned_m_s, *s.quat_wxyz,
                           sp_pos[0], sp_pos[1], sp_pos[2], sp.pitch_rad, sp.yaw_rad)
         else:
-            _PACK_SENSORS(sens, 0, *s.gyro_frd, *s.accel_frd, *s.tilt_rad, *s.speed_rad_s, *s.joint_pos_rad,
+            _PACK_SENSORS(sens, 0, *s.gyro_frd_rad_s, *s.accel_frd_m_s2, *s.duct_tilt_rad, *s.prop_speed_rad_s,
+                          *s.joint_pos_rad,
                           *s.joint_rate_rad_s)
         model = self._model
         fc_front(self._fst, cfg.dt_s, self._obs_gain, self._inv_dt, sens, m_obj_est, model.geometry,
@@ -406,7 +408,7 @@ class FlightControllerCore:
         gc_law_inv = gc_inv
         if cfg.ckf.acc_at_com and not cfg.acc_ref:  # CKF_ACC_REF: the law's force rows at the estimated CoM (the
             am = acc_m.tolist()  # INDI's already are with INDI_ACC_REF = 1)
-            dx, dz = com_accel_offset(*s.gyro_frd, am[1], ul[_UO_CEX], ul[_UO_CEZ])
+            dx, dz = com_accel_offset(*s.gyro_frd_rad_s, am[1], ul[_UO_CEX], ul[_UO_CEZ])
             acc_law = np.array((am[0], am[1], am[2], am[3] + dx, am[4] + dz))
         if cfg.ckf.gc_at_com and s.gripper_closed:  # CKF_GC_REF: the law's moment rows about the estimated CoM
             # (an object at the gripper only while it reports closed: with it open, a mass estimate above m_UAM is
@@ -505,8 +507,9 @@ class FlightControllerCore:
         self._indi_saturated = False
         self._u_cmd_ok = False
         self._shape_st[SH.INIT] = 0.0
-        acc = s.accel_frd if not self.config.acc_ref else (sf_x, s.accel_frd[1], sf_z)
-        self._indi.measure(IndiInputs(s.gyro_frd, acc, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))
+        acc = s.accel_frd_m_s2 if not self.config.acc_ref else (sf_x, s.accel_frd_m_s2[1], sf_z)
+        self._indi.measure(IndiInputs(s.gyro_frd_rad_s, acc, s.duct_tilt_rad, s.prop_speed_rad_s, (0.0,) * 5, gc,
+                                      gi_hat))
         return MOTORS_OFF
 
 
@@ -519,26 +522,6 @@ def tick_buffers(fo: np.ndarray, uam_mass_kg: float) -> tuple:
     t = TIN.views(sens)
     f = FO.views(fo)
     return (sens, t.gyro, t.pos, t.vel, t.quat, t.sp, f.u_meas, f.acc_m, uam_mass_kg)
-
-
-def flown_gi_hat(gi_flat: Sequence[float], k_hat: Sequence[float], lam_ref: float,
-                 k_flown_min: float) -> tuple[np.ndarray, tuple[float, ...]]:
-    """G_hat_I (Eq. 4) rebuilt for the flown K (k_xi.flown_k: K_flown,i = max(lam_ref K_hat,i, k_flown_min), i = 1..3):
-    column i of G_hat_I holds only x_i = J_ii / K_i (the roll/yaw cross terms of rows 0 and 2 scale with their
-    column's x, vehicle.estimated_gi), so x_i,flown = x_i K_hat,i / K_flown,i is a scaling of the three rotational
-    columns; the mass columns are untouched. gi_flat: G_hat_I row-major. Returns the new 5x5 array and its row-major
-    tuple. Plain floats: 15 products cost less than numpy's per-call overhead on a 5x5."""
-    k1, k2, k3 = float(k_hat[0]), float(k_hat[1]), float(k_hat[2])
-    a, b, c = lam_ref * k1, lam_ref * k2, lam_ref * k3
-    s1 = k1 / (a if a > k_flown_min else k_flown_min)
-    s2 = k2 / (b if b > k_flown_min else k_flown_min)
-    s3 = k3 / (c if c > k_flown_min else k_flown_min)
-    f = list(gi_flat)
-    for r in (0, 5, 10, 15, 20):
-        f[r] *= s1
-        f[r + 1] *= s2
-        f[r + 2] *= s3
-    return np.array(f).reshape(5, 5), tuple(f)
 
 
 def shaping_ff_check(shape_st: np.ndarray, quat: np.ndarray, scale: float, rise: float) -> float:
@@ -573,9 +556,11 @@ def warm_up_kernels(vehicle: VehicleConfig, config: ControllerConfig, n_ticks: i
     sp = Setpoint((0.0, 0.0, -2.0), 0.0, 0.0)
     st: ControllerStatus | None = None
     for i in range(n_ticks):
-        s = FcSensors(t_s=i * cfg.dt_s, gyro_frd=(0.01, -0.02, 0.005), accel_frd=(0.1, 0.0, -vehicle.gravity_m_s2),
-                      pos_ned=(0.0, 0.0, -2.0), vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
-                      tilt_rad=(0.1, 0.1), speed_rad_s=(w, 50.0 * (i % 2), w), joint_pos_rad=(0.1 * i, 0.0, -0.1),
+        s = FcSensors(t_s=i * cfg.dt_s, gyro_frd_rad_s=(0.01, -0.02, 0.005), accel_frd_m_s2=(0.1, 0.0,
+                                                                                             -vehicle.gravity_m_s2),
+                      pos_ned_m=(0.0, 0.0, -2.0), vel_ned_m_s=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
+                      duct_tilt_rad=(0.1, 0.1), prop_speed_rad_s=(w, 50.0 * (i % 2), w), joint_pos_rad=(0.1 * i, 0.0,
+                                                                                                        -0.1),
                       joint_rate_rad_s=(0.1, 0.0, -0.1))
         _, st = core.step(s, sp, engaged=i > 0)
     assert st is not None

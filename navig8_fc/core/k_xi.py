@@ -289,6 +289,26 @@ def flown_k_box(k_min: float, k_max: float, lam_ref: float, k_flown_min: float) 
     return (min(lo_rot, k_min), max(hi_rot, k_max))
 
 
+def flown_gi_hat(gi_flat: Sequence[float], k_hat: Sequence[float], lam_ref: float,
+                 k_flown_min: float) -> tuple[np.ndarray, tuple[float, ...]]:
+    """G_hat_I (Eq. 4) rebuilt for the flown K (flown_k: K_flown,i = max(lam_ref K_hat,i, k_flown_min), i = 1..3):
+    column i of G_hat_I holds only x_i = J_ii / K_i (the roll/yaw cross terms of rows 0 and 2 scale with their
+    column's x, vehicle.estimated_gi), so x_i,flown = x_i K_hat,i / K_flown,i is a scaling of the three rotational
+    columns; the mass columns are untouched. gi_flat: G_hat_I row-major. Returns the new 5x5 array and its row-major
+    tuple. Plain floats: 15 products cost less than numpy's per-call overhead on a 5x5."""
+    k1, k2, k3 = float(k_hat[0]), float(k_hat[1]), float(k_hat[2])
+    a, b, c = lam_ref * k1, lam_ref * k2, lam_ref * k3
+    s1 = k1 / (a if a > k_flown_min else k_flown_min)
+    s2 = k2 / (b if b > k_flown_min else k_flown_min)
+    s3 = k3 / (c if c > k_flown_min else k_flown_min)
+    f = list(gi_flat)
+    for r in (0, 5, 10, 15, 20):
+        f[r] *= s1
+        f[r + 1] *= s2
+        f[r + 2] *= s3
+    return np.array(f).reshape(5, 5), tuple(f)
+
+
 def eig_margin_lower_bound(
     vehicle: VehicleConfig,
     q_rad: Sequence[float],

@@ -41,10 +41,10 @@ class SensorCalibration:
 
     def apply(self, s: FcSensors) -> FcSensors:
         ox, oy, oz = self.gyro_offset_rad_s
-        gyro: Vec3 = (s.gyro_frd[0] - ox, s.gyro_frd[1] - oy, s.gyro_frd[2] - oz)
+        gyro: Vec3 = (s.gyro_frd_rad_s[0] - ox, s.gyro_frd_rad_s[1] - oy, s.gyro_frd_rad_s[2] - oz)
         if self.level_roll_rad == 0.0 and self.level_pitch_rad == 0.0:
-            return dataclasses.replace(s, gyro_frd=gyro)
+            return dataclasses.replace(s, gyro_frd_rad_s=gyro)
         q_off = euler_to_quat(self.level_roll_rad, self.level_pitch_rad, 0.0)
         q = quat_mul(s.quat_wxyz, quat_conj(q_off))
-        return dataclasses.replace(s, gyro_frd=rotate_body_to_ned(q_off, gyro),
-                                   accel_frd=rotate_body_to_ned(q_off, s.accel_frd), quat_wxyz=q)
+        return dataclasses.replace(s, gyro_frd_rad_s=rotate_body_to_ned(q_off, gyro),
+                                   accel_frd_m_s2=rotate_body_to_ned(q_off, s.accel_frd_m_s2), quat_wxyz=q)

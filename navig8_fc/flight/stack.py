@@ -203,10 +203,11 @@ class FlightStack:
         core = self._core
         assert core is not None
         modes = self._modes
-        t1, t2, t3 = rotor_thrusts_n(self.vehicle, sensors.speed_rad_s)
+        t1, t2, t3 = rotor_thrusts_n(self.vehicle, sensors.prop_speed_rad_s)
         was_armed = modes.armed
         accel = core.reference_accel_ned if modes.entry_pending else _NO_ACCEL  # its one reader: a mode's entry
-        out = modes.step(ModeInputs(sensors.t_s, sensors.pos_ned, sensors.vel_ned, quat_to_euler(sensors.quat_wxyz)[2],
+        out = modes.step(ModeInputs(sensors.t_s, sensors.pos_ned_m, sensors.vel_ned_m_s,
+                                    quat_to_euler(sensors.quat_wxyz)[2],
                                     (t1 + t2 + t3) / self._weight_n, imu_fresh,
                                     self._n_steps * core.config.dt_s >= ESTIMATOR_WARMUP_S, accel))
         if out.armed and not was_armed:
@@ -219,7 +220,7 @@ class FlightStack:
         if st.ff is not None or st.indi is not None:
             self._notices += self._ff_notices.notices(st)
         self._pack.discharge(sensors.t_s, t1, t2, t3)
-        if fs_notices := self._fs.after_step(out.armed, self._pack.state, sensors.pos_ned):  # battery, fence
+        if fs_notices := self._fs.after_step(out.armed, self._pack.state, sensors.pos_ned_m):  # battery, fence
             self._notices += fs_notices
         self._sensors, self._status, self._command, self._mode_out = sensors, st, cmd, out
         if self._arm_task.running:

@@ -98,7 +98,7 @@ def gyro_worker(old_rad_s: Sequence[float]) -> Worker:
     s = yield out
     for _ in range(GYRO_TRIES):
         q0 = s.quat_wxyz
-        rows, s = yield from _collect(s, GYRO_CAL_S, lambda x: x.gyro_frd, [])
+        rows, s = yield from _collect(s, GYRO_CAL_S, lambda x: x.gyro_frd_rad_s, [])
         # a steady turn looks like an offset to the gyro: the attitude says whether the vehicle stood still
         turned_rad = attitude_error_angle(s.quat_wxyz, q0)
         if _still(rows, GYRO_MOTION_RAD_S) and turned_rad <= math.radians(GYRO_MOTION_DEG):
@@ -141,7 +141,7 @@ def accel_worker() -> Worker:
                (SEVERITY_INFO, "[cal] hold vehicle still on a pending side")]
         still_since, ref, block, t_block = None, None, [], s.t_s
         while still_since is None or s.t_s - still_since < ACCEL_STILL_S:
-            block.append(s.accel_frd)
+            block.append(s.accel_frd_m_s2)
             if s.t_s - t_block >= ACCEL_BLOCK_S:
                 mean, block, t_block = _mean(block), [], s.t_s
                 if ref is not None and max(abs(a - b) for a, b in zip(mean, ref, strict=True)) > ACCEL_STILL_M_S2:
@@ -161,7 +161,7 @@ def accel_worker() -> Worker:
                         "[cal] detected motion, hold still...")]
             continue
         failures = 0
-        rows, s = yield from _collect(s, ACCEL_SIDE_S, lambda x: x.accel_frd,
+        rows, s = yield from _collect(s, ACCEL_SIDE_S, lambda x: x.accel_frd_m_s2,
                                       [(SEVERITY_INFO, f"[cal] {side} orientation detected"),
                                        (SEVERITY_INFO, f"[cal] Hold still, measuring {side} side")])
         m = _mean(rows)

@@ -192,17 +192,17 @@ class SensorValidator:
     def _mocap_ok(self, b: seam.StepBundle) -> bool:
         q = b.quat_wxyz
         n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]  # NaN fails the comparison, inf the bound
-        if not (_within3(b.pos_ned, POS_MAX_M) and _within3(b.vel_ned, VEL_MAX_M_S)
+        if not (_within3(b.pos_ned_m, POS_MAX_M) and _within3(b.vel_ned_m_s, VEL_MAX_M_S)
                 and _QUAT_N2_LO <= n2 <= _QUAT_N2_HI):
             return False
         prev = self.good
         gap_s = min((b.time_usec - self.pos_good_us) * 1e-6, MOCAP_GAP_MAX_S)
-        if prev is None or _near(prev.pos_ned, b.pos_ned, gap_s):
+        if prev is None or _near(prev.pos_ned_m, b.pos_ned_m, gap_s):
             self.candidate = None
             return True
         cand = self.candidate
-        run = cand[2] + 1 if cand is not None and _near(cand[0], b.pos_ned, (b.time_usec - cand[1]) * 1e-6) else 1
-        self.candidate = (b.pos_ned, b.time_usec, run)  # type: ignore[assignment]
+        run = cand[2] + 1 if cand is not None and _near(cand[0], b.pos_ned_m, (b.time_usec - cand[1]) * 1e-6) else 1
+        self.candidate = (b.pos_ned_m, b.time_usec, run)  # type: ignore[assignment]
         if run < MOCAP_REANCHOR_SAMPLES:
             return False
         self.candidate = None
@@ -215,7 +215,7 @@ class SensorValidator:
         lim = self.limits
         prev = self.good
         bad: list[str] = []
-        if not (_within3(b.gyro_frd, GYRO_MAX_RAD_S) and _within3(b.accel_frd, ACCEL_MAX_M_S2)):
+        if not (_within3(b.gyro_frd_rad_s, GYRO_MAX_RAD_S) and _within3(b.accel_frd_m_s2, ACCEL_MAX_M_S2)):
             bad.append("imu")
         if self._mocap_ok(b):
             self.pos_good_us = b.time_usec
@@ -235,9 +235,9 @@ class SensorValidator:
             return b, tuple(bad)
         fix: dict[str, Any] = {}
         if "imu" in bad:
-            fix.update(gyro_frd=prev.gyro_frd, accel_frd=prev.accel_frd)
+            fix.update(gyro_frd_rad_s=prev.gyro_frd_rad_s, accel_frd_m_s2=prev.accel_frd_m_s2)
         if "mocap" in bad:
-            fix.update(pos_ned=prev.pos_ned, vel_ned=prev.vel_ned, quat_wxyz=prev.quat_wxyz)
+            fix.update(pos_ned_m=prev.pos_ned_m, vel_ned_m_s=prev.vel_ned_m_s, quat_wxyz=prev.quat_wxyz)
         if "actuators" in bad:
             fix.update(duct_tilt_rad=prev.duct_tilt_rad, prop_speed_rad_s=prev.prop_speed_rad_s)
         if "arm" in bad:

@@ -171,11 +171,11 @@ class StepBundle(NamedTuple):
 
     step: int
     time_usec: int
-    gyro_frd: Vec3  # rad/s (HIL_SENSOR x/y/zgyro)
-    accel_frd: Vec3  # m/s^2 specific force at O (HIL_SENSOR x/y/zacc)
+    gyro_frd_rad_s: Vec3  # HIL_SENSOR x/y/zgyro
+    accel_frd_m_s2: Vec3  # specific force at O (HIL_SENSOR x/y/zacc)
     imu_fresh: bool  # HIL_SENSOR.fields_updated has the accel+gyro bits
-    pos_ned: Vec3  # m, motion capture (ODOMETRY x, y, z)
-    vel_ned: Vec3  # m/s (ODOMETRY vx, vy, vz)
+    pos_ned_m: Vec3  # motion capture (ODOMETRY x, y, z)
+    vel_ned_m_s: Vec3  # ODOMETRY vx, vy, vz
     quat_wxyz: Vec4  # body FRD -> NED (ODOMETRY q)
     duct_tilt_rad: Vec2  # alpha1, alpha3
     prop_speed_rad_s: Vec3  # w1, w2 (signed), w3
@@ -201,13 +201,13 @@ class StepBundle(NamedTuple):
 
         return FcSensors(
             t_s=self.t_s,
-            gyro_frd=self.gyro_frd,
-            accel_frd=self.accel_frd,
-            pos_ned=self.pos_ned,
-            vel_ned=self.vel_ned,
+            gyro_frd_rad_s=self.gyro_frd_rad_s,
+            accel_frd_m_s2=self.accel_frd_m_s2,
+            pos_ned_m=self.pos_ned_m,
+            vel_ned_m_s=self.vel_ned_m_s,
             quat_wxyz=self.quat_wxyz,
-            tilt_rad=self.duct_tilt_rad,
-            speed_rad_s=self.prop_speed_rad_s,
+            duct_tilt_rad=self.duct_tilt_rad,
+            prop_speed_rad_s=self.prop_speed_rad_s,
             joint_pos_rad=self.joint_pos_rad,
             joint_rate_rad_s=self.joint_rate_rad_s,
             gripper_closed=self.gripper_closed,
@@ -283,10 +283,10 @@ def bundle_records(step: int, sensors: Any, truth: Any) -> list[Record]:
     truth None: no NAVIG8_TRUTH."""
     frame_ned, mocap = _odometry_consts()
     tu = int(sensors.time_us) + 1  # time_usec_from_sim_us
-    g = _f(sensors.gyro_frd)
-    a = _f(sensors.accel_frd)
-    p = _f(sensors.pos_ned)
-    v = _f(sensors.vel_ned)
+    g = _f(sensors.gyro_frd_rad_s)
+    a = _f(sensors.accel_frd_m_s2)
+    p = _f(sensors.pos_ned_m)
+    v = _f(sensors.vel_ned_m_s)
     out: list[Record] = [
         ("ODOMETRY", (
             tu, frame_ned, frame_ned, p[0], p[1], p[2], _f(sensors.quat_wxyz),

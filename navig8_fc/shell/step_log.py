@@ -38,7 +38,7 @@ class StepLog:
         if fox is not None and tr is not None and t_ns >= fox.next_due_ns:  # rate-limited inside
             act = tr.actuator_pos  # alpha1, alpha3, w1, w2, w3
             s = sensors
-            est = None if s is None else VehiclePose(s.pos_ned, s.quat_wxyz, s.tilt_rad, st.q_est_rad)
+            est = None if s is None else VehiclePose(s.pos_ned_m, s.quat_wxyz, s.duct_tilt_rad, st.q_est_rad)
             fox.step(t_ns, VehiclePose(tr.pos_ned_m, tr.quat_wxyz, act[:2], tr.joint_pos_rad), act[2:],
                      tr.object_mass_kg, est, sp, publish_ns)
         lg = self.logger

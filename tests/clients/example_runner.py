@@ -94,8 +94,10 @@ def run_example(name: str, tmp: Path, timeout_s: float, until: str | None = None
         env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in (str(SHIM), os.environ.get("PYTHONPATH"))
                                                           if p),
                    PYTHONUNBUFFERED="1", NAVIG8_MAVSDK_GRPC_PORT=str(grpc_port))
-        server = (subprocess.Popen([str(MAVSDK_SERVER), "-p", str(grpc_port), address], stdin=subprocess.DEVNULL,
-                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+        # in the example's directory: a download to "." (ftp_download_file) lands there, never in the checkout
+        server = (subprocess.Popen([str(MAVSDK_SERVER), "-p", str(grpc_port), address], cwd=work,
+                                   stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                   start_new_session=True)
                   if external else None)
         try:
             return _run(name, work, env, timeout_s, until, [a.replace("{address}", address) for a in argv], run.log)

@@ -47,16 +47,16 @@ def _write_ports(path: str, port: int) -> None:
 
 def _step_frames(mav: Any, s: Any, stamp: int, origin: GeoOrigin, with_gps: bool) -> bytes:
     """One step as PX4's simulator sends it: HIL_STATE_QUATERNION, HIL_GPS every GPS_EVERY steps, HIL_SENSOR."""
-    n, e, d = s.pos_ned
+    n, e, d = s.pos_ned_m
     lat, lon, alt = origin.to_global((n, e, d))
-    vn, ve, vd = (round(v * 100) for v in s.vel_ned)
+    vn, ve, vd = (round(v * 100) for v in s.vel_ned_m_s)
     out = mav.hil_state_quaternion_encode(
-        stamp, s.quat_wxyz, *s.gyro_frd, round(lat * 1e7), round(lon * 1e7), round(alt * 1000), vn, ve, vd,
-        0, 0, *(round(x / 9.80665 * 1000) for x in s.accel_frd)).pack(mav)
+        stamp, s.quat_wxyz, *s.gyro_frd_rad_s, round(lat * 1e7), round(lon * 1e7), round(alt * 1000), vn, ve, vd,
+        0, 0, *(round(x / 9.80665 * 1000) for x in s.accel_frd_m_s2)).pack(mav)
     if with_gps:
         out += mav.hil_gps_encode(stamp, 3, round(lat * 1e7), round(lon * 1e7), round(alt * 1000), 30, 30,
                                   round(math.hypot(vn, ve)), vn, ve, vd, 65535, 12).pack(mav)
-    return out + mav.hil_sensor_encode(stamp, *s.accel_frd, *s.gyro_frd, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+    return out + mav.hil_sensor_encode(stamp, *s.accel_frd_m_s2, *s.gyro_frd_rad_s, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
                                        0b111111, 0).pack(mav)
 
 

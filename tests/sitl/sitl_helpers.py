@@ -392,8 +392,8 @@ def sensors_at_rest(t_sim_us: int, pos_ned: tuple[float, float, float] = (0.0, 0
     without a plant)."""
     from types import SimpleNamespace
 
-    return SimpleNamespace(time_us=t_sim_us, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -9.80665),
-                           pos_ned=pos_ned, vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
+    return SimpleNamespace(time_us=t_sim_us, gyro_frd_rad_s=(0.0, 0.0, 0.0), accel_frd_m_s2=(0.0, 0.0, -9.80665),
+                           pos_ned_m=pos_ned, vel_ned_m_s=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
                            duct_tilt_rad=(0.0, 0.0), prop_speed_rad_s=(0.0, 0.0, 0.0), joint_pos_rad=(0.0, 0.0, 0.0),
                            joint_rate_rad_s=(0.0, 0.0, 0.0), gripper_closed=False, updated=1)
 

@@ -159,7 +159,7 @@ def test_lockstep_hover_with_fake_fc() -> None:
     assert b.truth is not None
     pos = np.array(b.truth.pos_ned_m)
     assert np.linalg.norm(pos - np.array([0.0, 0.0, -2.0])) < 0.1, pos
-    assert abs(b.pos_ned[2] + 2.0) < 0.1
+    assert abs(b.pos_ned_m[2] + 2.0) < 0.1
     assert "stale_answers" in err and "stale_answers 0" not in err  # the duplicate was counted
     assert "answers 201" in err
     assert fc.statuses[-1].state == seam.SIM_STATE_DONE and fc.statuses[-1].step == n

@@ -82,9 +82,9 @@ def _attack(sim: tuple[str, int], bridge: tuple[str, int], sysid: int) -> dict[s
                 sent["heartbeats"] += 2
         # forged steps: 1e6 at every stamp of the first 15 s (the next step of the run among them), NaN, Inf,
         # and another vehicle's run replayed from t = 0
-        bad = [*_forged_bundles(sysid, 7, 1500, lambda sw: sw.pos_ned.__setitem__(2, 1e6)),
+        bad = [*_forged_bundles(sysid, 7, 1500, lambda sw: sw.pos_ned_m.__setitem__(2, 1e6)),
                *_forged_bundles(sysid, 8, 100, lambda sw: sw.joint_pos_rad.__setitem__(0, math.nan)),
-               *_forged_bundles(sysid, 9, 100, lambda sw: sw.gyro_frd.__setitem__(1, math.inf)),
+               *_forged_bundles(sysid, 9, 100, lambda sw: sw.gyro_frd_rad_s.__setitem__(1, math.inf)),
                *_forged_bundles(sysid, 10, 300)]
         for i, data in enumerate(bad):
             attacker.sendto(data, sim)

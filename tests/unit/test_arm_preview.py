@@ -187,9 +187,9 @@ def _fly(core: FlightControllerCore, cfg: VehicleConfig, n: int, joints: list[np
     out, ff = [], []
     for i in range(n):
         qj = joints[i] if joints is not None else np.array([0.35] * 3 + [0.0] * 3)
-        s = FcSensors(t_s=i * 0.01, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -cfg.gravity_m_s2),
-                      pos_ned=(0.0, 0.0, -2.0), vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
-                      tilt_rad=(0.0, 0.0), speed_rad_s=(w, 50.0, w), joint_pos_rad=tuple(qj[:3].tolist()),
+        s = FcSensors(t_s=i * 0.01, gyro_frd_rad_s=(0.0, 0.0, 0.0), accel_frd_m_s2=(0.0, 0.0, -cfg.gravity_m_s2),
+                      pos_ned_m=(0.0, 0.0, -2.0), vel_ned_m_s=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
+                      duct_tilt_rad=(0.0, 0.0), prop_speed_rad_s=(w, 50.0, w), joint_pos_rad=tuple(qj[:3].tolist()),
                       joint_rate_rad_s=tuple(qj[3:].tolist()))
         _, st = core.step(s, Setpoint((0.0, 0.0, -2.0), 0.0, 0.0), engaged=True)
         assert st.indi is not None

@@ -35,7 +35,7 @@ def test_wire_views_encode_byte_identical_to_sense_and_truth() -> None:
         want = seam.encode_bundle(ma, step, a.sense(), a.truth())
         sw, tw = b.sense_wire(), b.truth_floats()
         assert seam.truth_message_record(step, tw) == seam.truth_message_record(step, a.truth())
-        assert all(type(v) is float for v in sw.gyro_frd + tw.pos_ned_m + tw.inertia_com_kgm2[2])
+        assert all(type(v) is float for v in sw.gyro_frd_rad_s + tw.pos_ned_m + tw.inertia_com_kgm2[2])
         assert seam.encode_bundle(mb, step, sw, tw) == want, step
         a.step_us(cmd, 10_000)
         b.step_us(cmd, 10_000)

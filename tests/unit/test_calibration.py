@@ -100,7 +100,7 @@ def test_gyro_calibration_measures_the_offset_and_the_controller_flies_without_i
     assert all(abs(o - b) <= GYRO_TOL_RAD_S for o, b in zip(offsets, BIAS, strict=True)), (offsets, GYRO_TOL_RAD_S)
     announced = {m.param_id: m.param_value for m in rig.out.sent if m.get_type() == "PARAM_VALUE"}
     assert announced["CAL_GYRO0_XOFF"] == np.float32(offsets[0])  # every GCS is told
-    after = np.array([s.gyro_frd for s in rig.step(300)])  # what the controller now gets
+    after = np.array([s.gyro_frd_rad_s for s in rig.step(300)])  # what the controller now gets
     assert np.all(np.abs(after.mean(axis=0)) <= 2 * GYRO_TOL_RAD_S), after.mean(axis=0)
 
 
@@ -141,7 +141,7 @@ def test_level_accel_and_mag_end_as_px4_does_on_this_vehicle() -> None:
     assert rig.texts()[-1] == "[cal] calibration done: level"
     assert abs(rig.registry.get("SENS_BOARD_X_OFF") - 2.0) < 0.01 and abs(rig.registry.get("SENS_BOARD_Y_OFF")) < 0.01
     level = rig.step(5)[-1]
-    assert abs(level.quat_wxyz[1]) < 1e-3 and abs(level.accel_frd[1]) < 3 * ACCEL_SIGMA  # flown level
+    assert abs(level.quat_wxyz[1]) < 1e-3 and abs(level.accel_frd_m_s2[1]) < 3 * ACCEL_SIGMA  # flown level
     assert rig.command(M.MAV_CMD_PREFLIGHT_CALIBRATION, 0, 0, 0, 0, 1) == M.MAV_RESULT_ACCEPTED
     rig.step(2000)
     texts = rig.texts()

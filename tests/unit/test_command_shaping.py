@@ -132,9 +132,10 @@ def _core(**shaping: float) -> tuple[FlightControllerCore, VehicleConfig]:
 
 def _hover_sensors(vehicle: VehicleConfig, t: float, pos=(0.0, 0.0, -2.0)) -> FcSensors:
     w = 620.0
-    return FcSensors(t_s=t, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -vehicle.gravity_m_s2), pos_ned=pos,
-                     vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0), tilt_rad=(0.0, 0.0),
-                     speed_rad_s=(w, 0.0, w), joint_pos_rad=(0.0, 0.0, 0.0), joint_rate_rad_s=(0.0, 0.0, 0.0))
+    return FcSensors(t_s=t, gyro_frd_rad_s=(0.0, 0.0, 0.0), accel_frd_m_s2=(0.0, 0.0, -vehicle.gravity_m_s2),
+                     pos_ned_m=pos,
+                     vel_ned_m_s=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0), duct_tilt_rad=(0.0, 0.0),
+                     prop_speed_rad_s=(w, 0.0, w), joint_pos_rad=(0.0, 0.0, 0.0), joint_rate_rad_s=(0.0, 0.0, 0.0))
 
 
 def _roll_cmds(core: FlightControllerCore, vehicle: VehicleConfig, n: int) -> np.ndarray:
@@ -171,8 +172,8 @@ def test_controller_seeds_the_reference_from_the_vehicle() -> None:
         if i == 40:
             core.resync_reference()
         # the vehicle flies its reference exactly (the shaped setpoint and velocity of the last tick)
-        s = replace(_hover_sensors(vehicle, i * DT), pos_ned=tuple(core._shape_sp[0:3]),
-                    vel_ned=tuple(core._shape_ff[0:3]))
+        s = replace(_hover_sensors(vehicle, i * DT), pos_ned_m=tuple(core._shape_sp[0:3]),
+                    vel_ned_m_s=tuple(core._shape_ff[0:3]))
         _, st = core.step(s, Setpoint((0.0, 0.0, -2.0)))
         rolls.append(math.degrees(st.outer.roll_cmd_rad))
     assert np.max(np.abs(rolls)) > 3.0

@@ -56,7 +56,8 @@ class _ReferenceTick:
         uo, fo = g_c.UO.zeros(), front_end.FO.zeros()
         sens = front_end.TIN.zeros()
         t = front_end.TIN.views(sens)
-        t.gyro[:], t.accel[:], t.tilt[:], t.speed[:] = s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s
+        t.gyro[:], t.accel[:] = s.gyro_frd_rad_s, s.accel_frd_m_s2
+        t.tilt[:], t.speed[:] = s.duct_tilt_rad, s.prop_speed_rad_s
         t.jpos[:], t.jrate[:] = s.joint_pos_rad, s.joint_rate_rad_s
         m = self.model
         front_end.fc_front(self.front_state, cfg.dt_s, self.obs_gain, 1.0 / cfg.dt_s, sens, float(m_obj_est),
@@ -65,7 +66,7 @@ class _ReferenceTick:
         mass = uo[g_c.UO.MASS]
         acc_m = f.acc_m.tolist()
         if cfg.ckf.acc_at_com and not cfg.acc_ref:
-            dx, dz = front_end.com_accel_offset(*s.gyro_frd, acc_m[1], uo[g_c.UO.CEX], uo[g_c.UO.CEZ])
+            dx, dz = front_end.com_accel_offset(*s.gyro_frd_rad_s, acc_m[1], uo[g_c.UO.CEX], uo[g_c.UO.CEZ])
             acc_m[3] += dx
             acc_m[4] += dz
         gc_law_inv = gc_inv
@@ -80,8 +81,9 @@ class _ReferenceTick:
         ))
         outer = indi_status = None
         if engaged:
-            outer = outer_loop_step(self.outer_cfg, sp, s.pos_ned, s.vel_ned, s.quat_wxyz, s.gyro_frd)
-            out, indi_status = self.indi.step(IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s,
+            outer = outer_loop_step(self.outer_cfg, sp, s.pos_ned_m, s.vel_ned_m_s, s.quat_wxyz, s.gyro_frd_rad_s)
+            out, indi_status = self.indi.step(IndiInputs(s.gyro_frd_rad_s, s.accel_frd_m_s2, s.duct_tilt_rad,
+                                                         s.prop_speed_rad_s,
                                                          outer.accel_cmd, gc, gi_hat, gc_inv))
             cmd = ActuatorCommand(out.tilt_cmd_rad, out.speed_cmd_rad_s)
             self.last_u_cmd = np.empty(5)
@@ -89,7 +91,8 @@ class _ReferenceTick:
             self.last_saturated = indi_status.saturated
         else:
             self.last_u_cmd, self.last_saturated = None, False
-            self.indi.measure(IndiInputs(s.gyro_frd, s.accel_frd, s.tilt_rad, s.speed_rad_s, (0.0,) * 5, gc, gi_hat))
+            self.indi.measure(IndiInputs(s.gyro_frd_rad_s, s.accel_frd_m_s2, s.duct_tilt_rad, s.prop_speed_rad_s,
+                                         (0.0,) * 5, gc, gi_hat))
             cmd = MOTORS_OFF
         j = inertia
         return cmd, ControllerStatus(
@@ -118,11 +121,12 @@ def test_step_equals_public_api_tick_bit_for_bit(cfg: VehicleConfig, mode: CkfMo
         t = i * dt
         w = 620.0 + 40.0 * math.sin(3.0 * t)
         s = FcSensors(
-            t_s=t, gyro_frd=tuple(rng.normal(0.0, 0.05, 3).tolist()),
-            accel_frd=(0.3 * math.sin(t), 0.05, -cfg.gravity_m_s2 + 0.2 * math.cos(2.0 * t)),
-            pos_ned=(0.1 * math.sin(t), 0.0, -2.0), vel_ned=(0.1, -0.05, 0.0),
+            t_s=t, gyro_frd_rad_s=tuple(rng.normal(0.0, 0.05, 3).tolist()),
+            accel_frd_m_s2=(0.3 * math.sin(t), 0.05, -cfg.gravity_m_s2 + 0.2 * math.cos(2.0 * t)),
+            pos_ned_m=(0.1 * math.sin(t), 0.0, -2.0), vel_ned_m_s=(0.1, -0.05, 0.0),
             quat_wxyz=(math.cos(0.1 * t), 0.0, math.sin(0.1 * t), 0.0),
-            tilt_rad=(0.2 + 0.1 * math.sin(5.0 * t), 0.15), speed_rad_s=(w, 80.0 * math.sin(7.0 * t), w - 10.0),
+            duct_tilt_rad=(0.2 + 0.1 * math.sin(5.0 * t), 0.15), prop_speed_rad_s=(w, 80.0 * math.sin(7.0 * t),
+                                                                                   w - 10.0),
             joint_pos_rad=(0.4 * math.sin(t), 0.2, -0.3 * math.sin(0.5 * t)),
             joint_rate_rad_s=(0.4 * math.cos(t), 0.0, -0.15 * math.cos(0.5 * t)),
         )
@@ -160,9 +164,10 @@ def test_update_gains_takes_effect_at_the_next_tick(cfg: VehicleConfig) -> None:
     dt = old.dt_s
     for i in range(120):
         t = i * dt
-        s = FcSensors(t_s=t, gyro_frd=(0.01, -0.02, 0.0), accel_frd=(0.1, 0.0, -cfg.gravity_m_s2),
-                      pos_ned=(0.2 * math.sin(t), 0.1, -1.8), vel_ned=(0.1, 0.0, 0.05), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
-                      tilt_rad=(0.2, 0.2), speed_rad_s=(620.0, 10.0, 615.0), joint_pos_rad=(0.3, 0.1, -0.2),
+        s = FcSensors(t_s=t, gyro_frd_rad_s=(0.01, -0.02, 0.0), accel_frd_m_s2=(0.1, 0.0, -cfg.gravity_m_s2),
+                      pos_ned_m=(0.2 * math.sin(t), 0.1, -1.8), vel_ned_m_s=(0.1, 0.0, 0.05), quat_wxyz=(1.0, 0.0,
+                                                                                                         0.0, 0.0),
+                      duct_tilt_rad=(0.2, 0.2), prop_speed_rad_s=(620.0, 10.0, 615.0), joint_pos_rad=(0.3, 0.1, -0.2),
                       joint_rate_rad_s=(0.1, 0.0, 0.0))
         sp = Setpoint((0.0, 0.0, -2.0), 0.2, 0.0)
         if i == 60:
@@ -184,9 +189,10 @@ def test_saturation_gate_reads_the_indi_status(cfg: VehicleConfig) -> None:
     prev_sat, n_sat, skips = False, 0, 0
     for i in range(150):
         t = i * config.dt_s
-        s = FcSensors(t_s=t, gyro_frd=(0.02 * math.sin(9.0 * t), -0.3 * math.sin(3.0 * t), 0.0),
-                      accel_frd=(0.1, 0.0, -cfg.gravity_m_s2), pos_ned=(0.0, 0.0, -2.0), vel_ned=(0.0, 0.0, 0.0),
-                      quat_wxyz=(1.0, 0.0, 0.0, 0.0), tilt_rad=(0.0, 0.0), speed_rad_s=(930.0, 0.0, 930.0),
+        s = FcSensors(t_s=t, gyro_frd_rad_s=(0.02 * math.sin(9.0 * t), -0.3 * math.sin(3.0 * t), 0.0),
+                      accel_frd_m_s2=(0.1, 0.0, -cfg.gravity_m_s2), pos_ned_m=(0.0, 0.0, -2.0), vel_ned_m_s=(0.0, 0.0,
+                                                                                                             0.0),
+                      quat_wxyz=(1.0, 0.0, 0.0, 0.0), duct_tilt_rad=(0.0, 0.0), prop_speed_rad_s=(930.0, 0.0, 930.0),
                       joint_pos_rad=(0.0, 0.0, 0.0), joint_rate_rad_s=(0.0, 0.0, 0.0))
         sp = Setpoint((0.0, 0.0, -30.0 if (i // 30) % 2 else -2.0), 0.0, 0.0)  # climb demands at full speed
         _, st = core.step(s, sp)

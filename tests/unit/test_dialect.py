@@ -242,8 +242,9 @@ def test_bundle_roundtrip_from_the_plant(plant: Plant) -> None:
     assert b is not None
     assert b.step == 5 and b.time_usec == sb.time_us + 1 == 50_001 and b.t_us == 50_000
     assert b.t_s == sb.time_us * 1e-6  # exactly what the in-process runner feeds the FC
-    for got, want in [(b.gyro_frd, sb.gyro_frd), (b.accel_frd, sb.accel_frd), (b.pos_ned, sb.pos_ned),
-                      (b.vel_ned, sb.vel_ned), (b.quat_wxyz, sb.quat_wxyz), (b.duct_tilt_rad, sb.duct_tilt_rad),
+    for got, want in [(b.gyro_frd_rad_s, sb.gyro_frd_rad_s), (b.accel_frd_m_s2, sb.accel_frd_m_s2), (b.pos_ned_m,
+                                                                                                     sb.pos_ned_m),
+                      (b.vel_ned_m_s, sb.vel_ned_m_s), (b.quat_wxyz, sb.quat_wxyz), (b.duct_tilt_rad, sb.duct_tilt_rad),
                       (b.prop_speed_rad_s, sb.prop_speed_rad_s), (b.joint_pos_rad, sb.joint_pos_rad),
                       (b.joint_rate_rad_s, sb.joint_rate_rad_s)]:
         np.testing.assert_array_equal(got, _f32(want))
@@ -251,7 +252,7 @@ def test_bundle_roundtrip_from_the_plant(plant: Plant) -> None:
     odom = msgs[0].fields
     assert odom["frame_id"] == odom["child_frame_id"] == 1  # MAV_FRAME_LOCAL_NED: velocity in NED
     assert math.isnan(odom["pose_covariance"][0]) and math.isnan(odom["velocity_covariance"][0])
-    np.testing.assert_array_equal([odom["rollspeed"], odom["pitchspeed"], odom["yawspeed"]], _f32(sb.gyro_frd))
+    np.testing.assert_array_equal([odom["rollspeed"], odom["pitchspeed"], odom["yawspeed"]], _f32(sb.gyro_frd_rad_s))
     hil = msgs[-1].fields
     assert hil["fields_updated"] == 0b111111 and hil["id"] == 0
     t = b.truth  # decoded into the plant's Truth vocabulary (seam.TruthFloats)
@@ -270,8 +271,8 @@ def test_fc_sensors_and_truth_record(plant: Plant) -> None:
     assert b is not None
     s = b.fc_sensors()
     assert s.t_s == sb.time_us * 1e-6
-    np.testing.assert_array_equal(s.pos_ned, _f32(sb.pos_ned))
-    np.testing.assert_array_equal(s.tilt_rad, _f32(sb.duct_tilt_rad))
+    np.testing.assert_array_equal(s.pos_ned_m, _f32(sb.pos_ned_m))
+    np.testing.assert_array_equal(s.duct_tilt_rad, _f32(sb.duct_tilt_rad))
     assert s.gripper_closed == sb.gripper_closed  # NAVIG8_ARM_STATE's gripper reaches the FC (telemetry)
     rec = log_truth_record(b.truth)
     for key in ("pos_ned_m", "quat_wxyz", "euler_rad", "reaction_force_frd_n", "reaction_moment_mount_frd_nm",

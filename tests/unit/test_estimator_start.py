@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from navig8_fc.core.actuator_model import DeliveredU
-from navig8_fc.core.adaptive_law import LAW_OUT, LAW_STATE, LS_AF, LS_UF, _known_ixz, lpf_increments
+from navig8_fc.core.adaptive_law import LAW_OUT, LAW_STATE, LS_AF, LS_UF, known_ixz, lpf_increments
 from navig8_fc.core.kalman import measurement_matrix
 from navig8_fc.core.vehicle import actuators_to_u
 
@@ -57,6 +57,6 @@ def test_the_modelled_ixz_leaves_i_xx_and_i_zz_alone_in_their_rows() -> None:
     gi = np.array([[ixx, 0, ixz, 0, 0], [0, iyy, 0, 0, 0], [ixz, 0, izz, 0, 0], [0, 0, 0, m, 0], [0, 0, 0, 0, m]])
     da = rng.normal(size=5)
     du = gc_inv @ gi @ da  # Eq. 23 with the true I_xz
-    z = _known_ixz(du, gc_inv, tuple(da), ixz)
+    z = known_ixz(du, gc_inv, tuple(da), ixz)
     h = measurement_matrix(gc_inv, da, 0.0, 0.0)  # rho_x = rho_z = 0: I_xx, I_zz on their own axes
     np.testing.assert_allclose(h @ np.array([ixx, iyy, izz, m]), z, atol=1e-12)

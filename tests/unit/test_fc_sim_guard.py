@@ -131,8 +131,8 @@ def test_bad_sensor_data_is_rejected_reported_and_lands(tmp_path: Path) -> None:
         # how much the command moves from one good step to the next (the open-loop plant drifts from trim)
         normal = max(abs(x - y) for a, b in zip(good[60:-1], good[61:], strict=True)
                      for x, y in zip(a.speed_rad_s, b.speed_rad_s, strict=True))
-        bad = [side.step(set_field("joint_pos_rad", 0, math.nan)), side.step(set_field("gyro_frd", 1, math.inf)),
-               side.step(set_field("pos_ned", 0, 1e6))]
+        bad = [side.step(set_field("joint_pos_rad", 0, math.nan)), side.step(set_field("gyro_frd_rad_s", 1, math.inf)),
+               side.step(set_field("pos_ned_m", 0, 1e6))]
         # every step answered, from the last good values: the command stays where the good data had it
         assert all(_finite(a) for a in bad)
         # (a 1e6 m position error would saturate the rotors: 950 rad/s away)

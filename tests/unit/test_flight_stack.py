@@ -35,9 +35,10 @@ def _hover_speed(vehicle: vm.VehicleConfig, thrust_ratio: float) -> float:
 
 
 def _sensors(t_us: int, z_ned_m: float, duct_speed: float, n_ned_m: float = 0.0) -> FcSensors:
-    return FcSensors(t_s=t_us * 1e-6, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -9.81),
-                     pos_ned=(n_ned_m, 0.0, z_ned_m), vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
-                     tilt_rad=(0.0, 0.0), speed_rad_s=(duct_speed, 0.0, duct_speed), joint_pos_rad=(0.0, 0.0, 0.0),
+    return FcSensors(t_s=t_us * 1e-6, gyro_frd_rad_s=(0.0, 0.0, 0.0), accel_frd_m_s2=(0.0, 0.0, -9.81),
+                     pos_ned_m=(n_ned_m, 0.0, z_ned_m), vel_ned_m_s=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
+                     duct_tilt_rad=(0.0, 0.0), prop_speed_rad_s=(duct_speed, 0.0, duct_speed), joint_pos_rad=(0.0,
+                                                                                                              0.0, 0.0),
                      joint_rate_rad_s=(0.0, 0.0, 0.0))
 
 

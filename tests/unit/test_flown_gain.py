@@ -32,9 +32,9 @@ def _core(lam_ref: float, k_floor: float) -> tuple[VehicleConfig, FlightControll
 
 
 def _gi_hat_after_ticks(core: FlightControllerCore, n: int = 3) -> tuple[np.ndarray, np.ndarray, tuple[float, ...]]:
-    s = FcSensors(t_s=0.0, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -9.81), pos_ned=(0.0, 0.0, -2.0),
-                  vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0), tilt_rad=(0.0, 0.0),
-                  speed_rad_s=(300.0, 300.0, 0.0), joint_pos_rad=Q_RAD, joint_rate_rad_s=(0.0, 0.0, 0.0))
+    s = FcSensors(t_s=0.0, gyro_frd_rad_s=(0.0, 0.0, 0.0), accel_frd_m_s2=(0.0, 0.0, -9.81), pos_ned_m=(0.0, 0.0, -2.0),
+                  vel_ned_m_s=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0), duct_tilt_rad=(0.0, 0.0),
+                  prop_speed_rad_s=(300.0, 300.0, 0.0), joint_pos_rad=Q_RAD, joint_rate_rad_s=(0.0, 0.0, 0.0))
     st = None
     for i in range(n):
         s = FcSensors(**{**s.__dict__, "t_s": i * core.config.dt_s})

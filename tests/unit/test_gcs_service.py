@@ -50,9 +50,10 @@ class Outbox:
 
 
 def _sensors(t_us: int, z: float, w: float, gripper_closed: bool = False) -> FcSensors:
-    return FcSensors(t_s=t_us * 1e-6, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -9.81), pos_ned=(0.0, 0.0, z),
-                     vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0), tilt_rad=(0.0, 0.0),
-                     speed_rad_s=(w, 0.0, w), joint_pos_rad=(0.0, 0.0, 0.0), joint_rate_rad_s=(0.0, 0.0, 0.0),
+    return FcSensors(t_s=t_us * 1e-6, gyro_frd_rad_s=(0.0, 0.0, 0.0), accel_frd_m_s2=(0.0, 0.0, -9.81),
+                     pos_ned_m=(0.0, 0.0, z),
+                     vel_ned_m_s=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0), duct_tilt_rad=(0.0, 0.0),
+                     prop_speed_rad_s=(w, 0.0, w), joint_pos_rad=(0.0, 0.0, 0.0), joint_rate_rad_s=(0.0, 0.0, 0.0),
                      gripper_closed=gripper_closed)
 
 

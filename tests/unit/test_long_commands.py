@@ -173,9 +173,10 @@ def test_return_to_launch_command_is_done_at_touchdown_at_home() -> None:
 
 # --- the arm-joint move (FlightStack) ------------------------------------------------------------------------
 def _sensors(t_s: float, q: tuple[float, float, float]) -> FcSensors:
-    return FcSensors(t_s=t_s, gyro_frd=(0.0, 0.0, 0.0), accel_frd=(0.0, 0.0, -9.81), pos_ned=(0.0, 0.0, 0.0),
-                     vel_ned=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0), tilt_rad=(0.0, 0.0),
-                     speed_rad_s=(0.0, 0.0, 0.0), joint_pos_rad=q, joint_rate_rad_s=(0.0, 0.0, 0.0))
+    return FcSensors(t_s=t_s, gyro_frd_rad_s=(0.0, 0.0, 0.0), accel_frd_m_s2=(0.0, 0.0, -9.81), pos_ned_m=(0.0, 0.0,
+                                                                                                           0.0),
+                     vel_ned_m_s=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0), duct_tilt_rad=(0.0, 0.0),
+                     prop_speed_rad_s=(0.0, 0.0, 0.0), joint_pos_rad=q, joint_rate_rad_s=(0.0, 0.0, 0.0))
 
 
 def test_arm_joint_move_progress_done_cancel_and_timeout() -> None:

@@ -39,7 +39,7 @@ def _run(cfg, params, seed: int, n: int = 200):
         b = plant.sense()
         t = plant.truth()
         sensors.append(np.concatenate([
-            b.gyro_frd, b.accel_frd, b.pos_ned, b.vel_ned, b.quat_wxyz,
+            b.gyro_frd_rad_s, b.accel_frd_m_s2, b.pos_ned_m, b.vel_ned_m_s, b.quat_wxyz,
             b.duct_tilt_rad, b.prop_speed_rad_s, b.joint_pos_rad, b.joint_rate_rad_s,
         ]))
         truths.append(np.concatenate([
@@ -104,14 +104,14 @@ def test_sensor_noise_matches_paper_sigmas(cfg, params):
         plant.step(cmd, 0.01)
         b, t = plant.sense(), plant.truth()
         assert b.updated == SensorField.ALL and b.time_us == t.time_us
-        err["gyro"].append(b.gyro_frd - t.rate_frd_rad_s)
-        err["accel"].append(b.accel_frd - t.specific_force_frd_m_s2)
+        err["gyro"].append(b.gyro_frd_rad_s - t.rate_frd_rad_s)
+        err["accel"].append(b.accel_frd_m_s2 - t.specific_force_frd_m_s2)
         err["duct"].append(b.duct_tilt_rad - t.actuator_pos[:2])
         err["prop"].append(b.prop_speed_rad_s - t.actuator_pos[2:])
         err["jq"].append(b.joint_pos_rad - t.joint_pos_rad)
         err["jqd"].append(b.joint_rate_rad_s - t.joint_rate_rad_s)
-        err["pos"].append(b.pos_ned - t.pos_ned_m)
-        err["vel"].append(b.vel_ned - t.vel_ned_m_s)
+        err["pos"].append(b.pos_ned_m - t.pos_ned_m)
+        err["vel"].append(b.vel_ned_m_s - t.vel_ned_m_s)
     s = params.sensors
     expected = {
         "gyro": s.gyro_sigma_rad_s, "accel": s.accel_sigma_m_s2, "duct": s.duct_tilt_sigma_rad,
@@ -139,8 +139,8 @@ def test_sensor_rates_and_sample_and_hold(cfg, params):
         assert b.is_updated(SensorField.IMU)
         assert b.is_updated(SensorField.MOCAP) == (k % 4 == 0)
         if not b.is_updated(SensorField.MOCAP):
-            assert np.array_equal(b.pos_ned, prev.pos_ned) and np.array_equal(b.quat_wxyz, prev.quat_wxyz)
-        assert not b.gyro_frd.flags.writeable
+            assert np.array_equal(b.pos_ned_m, prev.pos_ned_m) and np.array_equal(b.quat_wxyz, prev.quat_wxyz)
+        assert not b.gyro_frd_rad_s.flags.writeable
         prev = b
 
 

@@ -73,10 +73,10 @@ def test_px4_frames_make_the_fcs_step() -> None:
     assert counts.bad_frames == 0 and counts.garbage_bytes == 0 and len(got) == 1
     b = got[0]
     assert b.time_usec == 10001 and b.imu_fresh
-    assert np.allclose(b.pos_ned, (1.0, -2.0, -3.0), atol=0.012)
-    assert np.allclose(b.vel_ned, (0.12, -0.34, 0.56))
+    assert np.allclose(b.pos_ned_m, (1.0, -2.0, -3.0), atol=0.012)
+    assert np.allclose(b.vel_ned_m_s, (0.12, -0.34, 0.56))
     assert np.allclose(b.quat_wxyz, (math.cos(0.1), 0, 0, math.sin(0.1)))
-    assert np.allclose(b.accel_frd, (0.1, -0.2, -9.8)) and np.allclose(b.gyro_frd, (0.01, 0.02, 0.03))
+    assert np.allclose(b.accel_frd_m_s2, (0.1, -0.2, -9.8)) and np.allclose(b.gyro_frd_rad_s, (0.01, 0.02, 0.03))
     assert b.duct_tilt_rad == (0.0, 0.0) and b.joint_pos_rad == (0.0, 0.0, 0.0)  # modelled: nothing commanded yet
     assert asm.counters.gps == 1 and asm.counters.modelled_actuators == 1
     # after a command the model moves towards it; a second IMU (id 1) is ignored
@@ -120,9 +120,9 @@ def test_the_simulator_is_pinned_and_its_steps_sequenced_and_validated() -> None
         (b,) = [b for m in c.parse(_frames(stamp, (0.0, 0.0, -2.0)), codec.ParseCounters())
                 if (b := asm.add(m)) is not None]
         if mutate:
-            b = b._replace(gyro_frd=(mutate["gyro"], 0.0, 0.0))
+            b = b._replace(gyro_frd_rad_s=(mutate["gyro"], 0.0, 0.0))
         inp = g.accept_bundle(b, dict(asm.completed))
-        return inp.kind if not inp.bad_groups else f"{inp.kind} {inp.bad_groups} {inp.bundle.gyro_frd[0]:.3f}"
+        return inp.kind if not inp.bad_groups else f"{inp.kind} {inp.bad_groups} {inp.bundle.gyro_frd_rad_s[0]:.3f}"
 
     assert step(10001) == "step" and step(20001) == "step"
     assert step(15001) == "none" and g.counters.out_of_order == 1  # older than the last: never flown

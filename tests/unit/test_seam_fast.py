@@ -26,8 +26,8 @@ def _vec(rng: random.Random, n: int) -> np.ndarray:
 
 def _sensors(rng: random.Random, step: int) -> SimpleNamespace:
     return SimpleNamespace(
-        time_us=step * 10_000, gyro_frd=_vec(rng, 3), accel_frd=_vec(rng, 3), pos_ned=_vec(rng, 3),
-        vel_ned=_vec(rng, 3), quat_wxyz=_vec(rng, 4), duct_tilt_rad=_vec(rng, 2), prop_speed_rad_s=_vec(rng, 3),
+        time_us=step * 10_000, gyro_frd_rad_s=_vec(rng, 3), accel_frd_m_s2=_vec(rng, 3), pos_ned_m=_vec(rng, 3),
+        vel_ned_m_s=_vec(rng, 3), quat_wxyz=_vec(rng, 4), duct_tilt_rad=_vec(rng, 2), prop_speed_rad_s=_vec(rng, 3),
         joint_pos_rad=_vec(rng, 3), joint_rate_rad_s=_vec(rng, 3), gripper_closed=rng.random() < 0.5,
         updated=rng.choice([0, 1, 3]),
     )
@@ -53,8 +53,8 @@ def _pymavlink_bundle(d, ref, step: int, s, t) -> list:
     tu = s.time_us + 1
     cov = [math.nan] + [0.0] * 20
     msgs = [
-        d.MAVLink_odometry_message(tu, d.MAV_FRAME_LOCAL_NED, d.MAV_FRAME_LOCAL_NED, *s.pos_ned, list(s.quat_wxyz),
-                                   *s.vel_ned, *s.gyro_frd, cov, cov, 0, d.MAV_ESTIMATOR_TYPE_MOCAP, 0),
+        d.MAVLink_odometry_message(tu, d.MAV_FRAME_LOCAL_NED, d.MAV_FRAME_LOCAL_NED, *s.pos_ned_m, list(s.quat_wxyz),
+                                   *s.vel_ned_m_s, *s.gyro_frd_rad_s, cov, cov, 0, d.MAV_ESTIMATOR_TYPE_MOCAP, 0),
         d.MAVLink_navig8_actuator_state_message(tu, step, list(s.duct_tilt_rad), list(s.prop_speed_rad_s)),
         d.MAVLink_navig8_arm_state_message(tu, step, list(s.joint_pos_rad), list(s.joint_rate_rad_s),
                                            int(s.gripper_closed)),
@@ -67,7 +67,7 @@ def _pymavlink_bundle(d, ref, step: int, s, t) -> list:
             list(t.joint_accel_rad_s2), t.object_mass_kg, t.mass_kg, list(t.com_frd_m),
             [j[0, 0], j[1, 1], j[2, 2], j[0, 1], j[0, 2], j[1, 2]], list(t.reaction_force_frd_n),
             list(t.reaction_moment_mount_frd_nm), t.cmd_clamped_count & 0xFFFFFFFF, t.cmd_nonfinite_count))
-    msgs.append(d.MAVLink_hil_sensor_message(tu, *s.accel_frd, *s.gyro_frd, 0, 0, 0, 0, 0, 0, 0,
+    msgs.append(d.MAVLink_hil_sensor_message(tu, *s.accel_frd_m_s2, *s.gyro_frd_rad_s, 0, 0, 0, 0, 0, 0, 0,
                                              0b111111 if s.updated & 1 else 0, 0))
     out = b""
     for m in msgs:
@@ -130,7 +130,8 @@ def test_the_fc_decode_path_equals_pymavlink_decode(d) -> None:
         want = [a.step, h.time_usec, [h.xgyro, h.ygyro, h.zgyro], [h.xacc, h.yacc, h.zacc],
                 h.fields_updated == 0b111111, [o.x, o.y, o.z], [o.vx, o.vy, o.vz], o.q, a.duct_tilt, a.prop_speed,
                 r.joint_pos, r.joint_rate, bool(r.gripper_closed)]
-        got = [b.step, b.time_usec, b.gyro_frd, b.accel_frd, b.imu_fresh, b.pos_ned, b.vel_ned, b.quat_wxyz,
+        got = [b.step, b.time_usec, b.gyro_frd_rad_s, b.accel_frd_m_s2, b.imu_fresh, b.pos_ned_m, b.vel_ned_m_s,
+               b.quat_wxyz,
                b.duct_tilt_rad, b.prop_speed_rad_s, b.joint_pos_rad, b.joint_rate_rad_s, b.gripper_closed]
         assert all(same(x, y) for x, y in zip(got, want, strict=True)), step
         if truth is None:

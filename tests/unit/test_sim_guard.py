@@ -182,10 +182,10 @@ def set_field(name: str, i: int, value: float):
 @pytest.mark.parametrize(("name", "i", "value", "group"), [
     ("joint_pos_rad", 0, math.nan, "arm"),  # today: "empty box (or NaN bound)" in the estimator's projection
     ("joint_rate_rad_s", 2, math.inf, "arm"),
-    ("gyro_frd", 1, math.nan, "imu"),
-    ("accel_frd", 2, 1e6, "imu"),
-    ("pos_ned", 0, 1e6, "mocap"),  # today: moves the vehicle 6.36 m
-    ("vel_ned", 1, -math.inf, "mocap"),
+    ("gyro_frd_rad_s", 1, math.nan, "imu"),
+    ("accel_frd_m_s2", 2, 1e6, "imu"),
+    ("pos_ned_m", 0, 1e6, "mocap"),  # today: moves the vehicle 6.36 m
+    ("vel_ned_m_s", 1, -math.inf, "mocap"),
     ("quat_wxyz", 0, 2.0, "mocap"),
     ("prop_speed_rad_s", 1, 1e6, "actuators"),
     ("duct_tilt_rad", 0, math.nan, "actuators"),
@@ -195,7 +195,8 @@ def test_a_bad_value_is_replaced_by_the_last_good_one(name: str, i: int, value: 
     good = g.on_datagram(w.parse(w.next()), BRIDGE, 0.0)[0].bundle
     inp, _ = g.on_datagram(w.parse(w.next(set_field(name, i, value))), BRIDGE, 0.0)
     assert inp.kind == "step" and inp.bad_groups == (group,) and inp.wire is None  # never logged decoded
-    field = {"arm": "joint_pos_rad", "imu": "gyro_frd", "mocap": "pos_ned", "actuators": "prop_speed_rad_s"}[group]
+    field = {"arm": "joint_pos_rad", "imu": "gyro_frd_rad_s", "mocap": "pos_ned_m",
+             "actuators": "prop_speed_rad_s"}[group]
     assert getattr(inp.bundle, field) == getattr(good, field)
     flat = [x for v in inp.bundle[2:12] for x in (v if isinstance(v, tuple) else (v,))]
     assert all(math.isfinite(x) for x in flat) and max(abs(x) for x in flat) < 1e4
@@ -207,21 +208,21 @@ def test_a_bad_value_is_replaced_by_the_last_good_one(name: str, i: int, value: 
 def test_a_position_jump_faster_than_the_vehicle_can_fly_is_implausible() -> None:
     g, w = paired()
     g.on_datagram(w.parse(w.next()), BRIDGE, 0.0)
-    inp, _ = g.on_datagram(w.parse(w.next(lambda sw: sw.pos_ned.__setitem__(0, sw.pos_ned[0] + 0.5))), BRIDGE, 0.0)
+    inp, _ = g.on_datagram(w.parse(w.next(lambda sw: sw.pos_ned_m.__setitem__(0, sw.pos_ned_m[0] + 0.5))), BRIDGE, 0.0)
     assert inp.bad_groups == ("mocap",)  # 0.5 m in 10 ms: 50 m/s
-    inp, _ = g.on_datagram(w.parse(w.next(lambda sw: sw.pos_ned.__setitem__(0, sw.pos_ned[0] + 0.2))), BRIDGE, 0.0)
+    inp, _ = g.on_datagram(w.parse(w.next(lambda sw: sw.pos_ned_m.__setitem__(0, sw.pos_ned_m[0] + 0.2))), BRIDGE, 0.0)
     assert inp.bad_groups == ()  # 0.2 m over 20 ms since the last good sample: within 30 m/s + noise
 
 
 def test_persistent_bad_data_reaches_the_failsafe_time_and_truth_is_checked() -> None:
     g, w = paired()
     assert not g.has_good
-    first, _ = g.on_datagram(w.parse(w.next(set_field("gyro_frd", 0, math.nan))), BRIDGE, 0.0)
+    first, _ = g.on_datagram(w.parse(w.next(set_field("gyro_frd_rad_s", 0, math.nan))), BRIDGE, 0.0)
     assert first.bad_groups == ("imu",) and not g.has_good  # nothing good to fly on yet
     g.on_datagram(w.parse(w.next()), BRIDGE, 0.0)
     n = 0
     while g.bad_data_s() < BAD_DATA_FAILSAFE_S:
-        g.on_datagram(w.parse(w.next(set_field("accel_frd", 0, math.nan))), BRIDGE, 0.0)
+        g.on_datagram(w.parse(w.next(set_field("accel_frd_m_s2", 0, math.nan))), BRIDGE, 0.0)
         n += 1
     assert n == round(BAD_DATA_FAILSAFE_S / 0.01) + 1
     inp, _ = g.on_datagram(w.parse(w.next(truth_mutate=lambda t: t.pos_ned_m.__setitem__(2, math.nan))), BRIDGE, 0.0)
@@ -253,12 +254,12 @@ def test_reports_once_per_kind_and_period_with_the_count() -> None:
 def test_the_position_allowance_stops_growing_and_a_consistent_new_position_is_reacquired() -> None:
     g, w = paired()
     g.on_datagram(w.parse(w.next()), BRIDGE, 0.0)
-    x0 = w.plant.sense_wire().pos_ned[0]
+    x0 = w.plant.sense_wire().pos_ned_m[0]
     for _ in range(1000):  # 10 s without a valid motion-capture sample
-        g.on_datagram(w.parse(w.next(set_field("pos_ned", 0, math.nan))), BRIDGE, 0.0)
-    far = w.next(set_field("pos_ned", 0, x0 + 100.0))  # 100 m off: 30 m/s x 10 s would allow 300 m
+        g.on_datagram(w.parse(w.next(set_field("pos_ned_m", 0, math.nan))), BRIDGE, 0.0)
+    far = w.next(set_field("pos_ned_m", 0, x0 + 100.0))  # 100 m off: 30 m/s x 10 s would allow 300 m
     assert g.on_datagram(w.parse(far), BRIDGE, 0.0)[0].bad_groups == ("mocap",)
-    kinds = [g.on_datagram(w.parse(w.next(set_field("pos_ned", 0, x0 + 100.0))), BRIDGE, 0.0)[0].bad_groups
+    kinds = [g.on_datagram(w.parse(w.next(set_field("pos_ned_m", 0, x0 + 100.0))), BRIDGE, 0.0)[0].bad_groups
              for _ in range(MOCAP_REANCHOR_SAMPLES - 1)]  # the same place again and again: re-acquired there
     assert kinds[:-1] == [("mocap",)] * (MOCAP_REANCHOR_SAMPLES - 2) and kinds[-1] == ()
     assert g.counters.mocap_reanchors == 1

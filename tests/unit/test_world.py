@@ -73,8 +73,8 @@ def test_sensor_bias_is_a_constant_offset_on_every_axis() -> None:
     cmd = plant.trim_command()
     plant.step(ActuatorCommand(cmd.tilt_rad, cmd.speed_rad_s), 0.01)
     sb, tr = plant.sense(), plant.truth()
-    np.testing.assert_allclose(sb.gyro_frd, np.asarray(tr.rate_frd_rad_s) + 0.03, atol=1e-12)
-    np.testing.assert_allclose(sb.accel_frd, np.asarray(tr.specific_force_frd_m_s2) - 0.2, atol=1e-12)
+    np.testing.assert_allclose(sb.gyro_frd_rad_s, np.asarray(tr.rate_frd_rad_s) + 0.03, atol=1e-12)
+    np.testing.assert_allclose(sb.accel_frd_m_s2, np.asarray(tr.specific_force_frd_m_s2) - 0.2, atol=1e-12)
 
 
 @pytest.mark.parametrize("thrust_n", [60.0, 137.5, 200.0])
