@@ -482,14 +482,14 @@ class AdaptiveLaw:
             self._k_before_grasp = tuple(b / v for b, v in zip(base, x.tolist(), strict=True))
             kf.forget()
             if self._grip_sig > 0.0:
-                # CKF_GRIP_SIG: the object's I_xx, I_zz and mass are unknown within the box, and the estimate restarts
-                # at its edge (K = 1 is the lower bound of I and m): the far edge is one width away, 2.5 sigma of P0
-                # for I_zz at q1 60 deg with 1 kg (it moves by 0.42 kg m^2, P0's sigma 0.17; the mass by 1 kg against
-                # 0.39), which the prior then holds back through the first held windows. The mass matters to I_xx and
-                # I_zz too: the modelled object's I_xz follows it (CKF_IXZ_MOD). I_yy has its own (CKF_CZ_SIG).
+                # CKF_GRIP_SIG: the object's I_xx, I_zz are unknown within the box, and the estimate restarts at its
+                # edge (K = 1 is I's lower bound): the far edge is one width away, 2.5 sigma of P0 for I_zz at q1 60 deg
+                # with 1 kg (it moves by 0.42 kg m^2, P0's sigma 0.17), which the prior then holds back through the
+                # first held windows. I_yy has its own (CKF_CZ_SIG). Not the mass: the same prior on it identified K4
+                # better but its faster first held windows, which the INDI's CoM and arm term follow, flew the
+                # envelope worse (docs/results.md, "Estimator").
                 w = self._grip_sig
-                kf.raise_variance(((w * (upper[0] - lower[0])) ** 2, 0.0, (w * (upper[2] - lower[2])) ** 2,
-                                   (w * (upper[3] - lower[3])) ** 2))
+                kf.raise_variance(((w * (upper[0] - lower[0])) ** 2, 0.0, (w * (upper[2] - lower[2])) ** 2, 0.0))
         else:
             k = self._k_before_grasp or _ONES4
             self._k_before_grasp = None

@@ -135,8 +135,8 @@ class CkfConfig:
     # CKF_U_SRC = 2: the command's U through the FC's actuator model (ACT_WN, ACT_ZETA; actuator_model.DeliveredU),
     # what the actuators deliver, rather than the command itself (u_from_command is True with it)
     u_delivered: bool = False
-    # CKF_GRIP_SIG: with grip_reset, at a grasp the prior sigma of I_xx, I_zz and m is at least this many widths of
-    # their Eq. 21 box (J / K_min - J / K_max, m_UAM / K_min - m_UAM / K_max); 0: P0 alone (AdaptiveLaw._on_gripper)
+    # CKF_GRIP_SIG: with grip_reset, at a grasp the prior sigma of I_xx and I_zz is at least this many widths of their
+    # Eq. 21 box (J / K_min - J / K_max); 0: P0 alone (AdaptiveLaw._on_gripper)
     grip_sigma_w: float = 0.0
 
     def __post_init__(self) -> None:
