@@ -511,8 +511,8 @@ def _known_ixz(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], ixz: flo
 def _ixz_mass_column(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], dixz_dm: float,
                      m_hat: float) -> tuple[np.ndarray, np.ndarray]:
     """CKF_IXZ_MOD 2: the modelled object's I_xz taken out by _known_ixz is that of the estimated mass, so the roll and
-    yaw rows depend on m too: Delta U = H x + G_C^-1 [dI_xz/dm (m - m_hat) Delta R-dot, 0, dI_xz/dm (m - m_hat) Delta
-    P-dot, 0, 0] to first order (an extended KF's linearisation at m_hat). Returns (du + h m_hat, h), h the mass
+    yaw rows of Eq. 24 depend on m too: Delta U = H x + G_C^-1 [D Delta R-dot, 0, D Delta P-dot, 0, 0] (m - m_hat)
+    to first order, D = dI_xz/dm (an extended KF's linearisation at m_hat). Returns (du + h m_hat, h), h the mass
     column's addition: the innovation is unchanged, and the gain now knows that a window read while m_hat was still
     off carries I_xx, I_zz information conditional on m, so a later mass correction moves them through P's
     cross-covariance (measured: with the product of inertia from m_hat alone, K3 held at q1 60 deg read 0.58-0.60
