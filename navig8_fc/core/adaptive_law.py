@@ -252,7 +252,9 @@ class AdaptiveLaw:
         self._u_from_cmd = ckf.u_from_command
         self._mean_start = 1.0 if ckf.lpf_mean_start else 0.0  # CKF_LPF_SEED
         self._ixz_model = ckf.ixz_model  # CKF_IXZ_MOD (known_ixz)
+        self._ixz_dm = ckf.ixz_mass_jacobian and isinstance(self._kf, ConstrainedKalmanFilter)  # CKF_IXZ_MOD 2
         self._grip_reset = ckf.grip_reset
+        self._grip_sig = ckf.grip_sigma_w if isinstance(self._kf, ConstrainedKalmanFilter) else 0.0  # CKF_GRIP_SIG
         self._event_hold_s = ckf.lpf_tau_s  # no correction this long after a grasp / release (the low-passes carry it)
         self._pred_dj = ckf.predict_from_dj
         # the moment-space pitch row (CKF_R_PITCH; the KF only) and its prior while an object is held (CKF_CZ_SIG)
@@ -315,6 +317,7 @@ class AdaptiveLaw:
         m: float, inertia_rate: np.ndarray, arm_hdc: float = 0.0, indi_saturated: bool = False,
         u_cmd: np.ndarray | None = None, gripper_closed: bool | None = None,
         object_inertia_rate: tuple[float, float, float] | None = None, object_ixz: float = 0.0,
+        object_ixz_dm: float = 0.0,
     ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
         """step() on float64 arrays (u_meas, acc_m (5,), gc_inv (5, 5) C-contiguous, inertia and inertia_rate
         (3, 3)), m a float; also returns G_hat_I row-major as a tuple (the same floats). The controller's tick.
@@ -324,6 +327,7 @@ class AdaptiveLaw:
         object_inertia_rate: the diagonal of the rate of the modelled inertia of a point object of the estimated mass
         at the gripper (moving with the arm), added to Eq. 22's drift with CKF_PRED_DJ (None: no object).
         object_ixz: that object's share of the composite I_xz (kg m^2; 0: none held), for CKF_IXZ_MOD.
+        object_ixz_dm: its slope in the object's mass (m^2; 0: none held), for CKF_IXZ_MOD 2.
 
         Bookkeeping on plain floats (the vectors have 4-5 components: numpy's per-call overhead would
         dominate); the values equal those of vehicle.estimate_bounds / estimated_gi / k_from_estimate exactly
@@ -371,12 +375,15 @@ class AdaptiveLaw:
         dhd = inc[LO_DH]
         if self.config.arm_wrench and dhd != 0.0:
             du_kf = self._du - gc_inv[:, 1] * dhd  # z = Delta U - G_C^-1 [0, Delta h', 0, 0, 0]
+        h_mass = None
         if self._ixz_model:
             du_kf = known_ixz(du_kf, gc_inv, da, j13 + object_ixz)
             rho_x = rho_z = 0.0
-        if self._pitch_row:
+            if self._ixz_dm and object_ixz_dm != 0.0:
+                du_kf, h_mass = ixz_mass_column(du_kf, gc_inv, da, object_ixz_dm, kf.x.item(3))
+        if self._pitch_row or h_mass is not None:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
-                        pitch=t_s >= self._pitch_hold_until_s)
+                        pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass)
         else:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
         return self._estimated(r, base, j13, lower, upper, du, da, window_sat)
@@ -474,6 +481,15 @@ class AdaptiveLaw:
         if closed:
             self._k_before_grasp = tuple(b / v for b, v in zip(base, x.tolist(), strict=True))
             kf.forget()
+            if self._grip_sig > 0.0:
+                # CKF_GRIP_SIG: the object's I_xx, I_zz are unknown within the box, and the estimate restarts at its
+                # edge (K = 1 is I's lower bound): the far edge is one width away, 2.5 sigma of P0 for I_zz at q1 60 deg
+                # with 1 kg (it moves by 0.42 kg m^2, P0's sigma 0.17), which the prior then holds back through the
+                # first held windows. I_yy has its own (CKF_CZ_SIG). Not the mass: the same prior on it identified K4
+                # better but its faster first held windows, which the INDI's CoM and arm term follow, flew the
+                # envelope worse (docs/results.md, "Estimator").
+                w = self._grip_sig
+                kf.raise_variance(((w * (upper[0] - lower[0])) ** 2, 0.0, (w * (upper[2] - lower[2])) ** 2, 0.0))
         else:
             k = self._k_before_grasp or _ONES4
             self._k_before_grasp = None
@@ -490,6 +506,19 @@ def known_ixz(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], ixz: floa
     I_zz (at q1 60 deg with 0.5 kg: I_xz -0.357 kg m^2 against Eq. 24's -0.304 / -0.306)."""
     a1, a3 = da[0], da[2]
     return du - gc_inv[:, 0] * (ixz * a3) - gc_inv[:, 2] * (ixz * a1)
+
+
+def ixz_mass_column(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], dixz_dm: float,
+                     m_hat: float) -> tuple[np.ndarray, np.ndarray]:
+    """CKF_IXZ_MOD 2: the modelled object's I_xz taken out by known_ixz is that of the estimated mass, so the roll and
+    yaw rows of Eq. 24 depend on m too: Delta U = H x + G_C^-1 [D Delta R-dot, 0, D Delta P-dot, 0, 0] (m - m_hat)
+    to first order, D = dI_xz/dm (an extended KF's linearisation at m_hat). Returns (du + h m_hat, h), h the mass
+    column's addition: the innovation is unchanged, and the gain now knows that a window read while m_hat was still
+    off carries I_xx, I_zz information conditional on m, so a later mass correction moves them through P's
+    cross-covariance (measured: with the product of inertia from m_hat alone, K3 held at q1 60 deg read 0.58-0.60
+    in a batch fit against 0.52 true with 1 kg, 0.53-0.55 with the true I_xz; docs/results.md, "Estimator")."""
+    h = dixz_dm * (gc_inv[:, 0] * da[2] + gc_inv[:, 2] * da[0])
+    return du + h * m_hat, h
 
 
 def _gi_hat_flat(j11: float, j13: float, j33: float, x: Sequence[float]) -> tuple[np.ndarray, tuple[float, ...]]:

@@ -39,7 +39,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
     "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
     "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
-    "CKF_LPF_SEED", "CKF_IXZ_MOD",
+    "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG",
 )
 
 
@@ -129,9 +129,15 @@ class CkfConfig:
     # CKF_IXZ_MOD: the product of inertia in the roll and yaw rows of Eq. 24 is the model's (J13, plus a point object
     # of the estimated mass at the gripper while it reports closed), not Eq. 24's I_zz J13 / J33 and I_xx J13 / J11
     ixz_model: bool = False
+    # CKF_IXZ_MOD = 2: as 1, and the rows' dependence on the mass estimate through that object's I_xz enters the
+    # filter's H (linearised at m_hat): a window read while m_hat was still off keeps its I_xx, I_zz correlated with m
+    ixz_mass_jacobian: bool = False
     # CKF_U_SRC = 2: the command's U through the FC's actuator model (ACT_WN, ACT_ZETA; actuator_model.DeliveredU),
     # what the actuators deliver, rather than the command itself (u_from_command is True with it)
     u_delivered: bool = False
+    # CKF_GRIP_SIG: with grip_reset, at a grasp the prior sigma of I_xx and I_zz is at least this many widths of their
+    # Eq. 21 box (J / K_min - J / K_max); 0: P0 alone (AdaptiveLaw._on_gripper)
+    grip_sigma_w: float = 0.0
 
     def __post_init__(self) -> None:
         lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
@@ -164,10 +170,11 @@ class CkfConfig:
         object.__setattr__(self, "predict_from_dj", bool(self.predict_from_dj))
         object.__setattr__(self, "gc_at_com", bool(self.gc_at_com))
         object.__setattr__(self, "lpf_mean_start", bool(self.lpf_mean_start))
-        object.__setattr__(self, "ixz_model", bool(self.ixz_model))
+        object.__setattr__(self, "ixz_model", bool(self.ixz_model) or bool(self.ixz_mass_jacobian))
+        object.__setattr__(self, "ixz_mass_jacobian", bool(self.ixz_mass_jacobian))
         object.__setattr__(self, "u_delivered", bool(self.u_delivered))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2", "pitch_r_nm2",
-                     "com_sigma_m"):
+                     "com_sigma_m", "grip_sigma_w"):
             v = float(getattr(self, name))
             if not (v >= 0.0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
@@ -196,9 +203,11 @@ class CkfConfig:
         if int(values["CKF_U_SRC"]) not in (0, 1, 2):
             raise ValueError(f"CKF_U_SRC must be 0, 1 or 2, got {values['CKF_U_SRC']}")
         for flag in ("CKF_SAT_GATE", "CKF_ACC_REF", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
-                     "CKF_LPF_SEED", "CKF_IXZ_MOD"):
+                     "CKF_LPF_SEED"):
             if int(values[flag]) not in (0, 1):
                 raise ValueError(f"{flag} must be 0 or 1, got {values[flag]}")
+        if int(values["CKF_IXZ_MOD"]) not in (0, 1, 2):
+            raise ValueError(f"CKF_IXZ_MOD must be 0, 1 or 2, got {values['CKF_IXZ_MOD']}")
         proj = int(values["CKF_PROJ_W"])
         if proj not in (0, 1):
             raise ValueError(f"CKF_PROJ_W must be 0 (P^-1) or 1 (identity), got {proj}")
@@ -230,4 +239,6 @@ class CkfConfig:
             com_sigma_m=float(values["CKF_CZ_SIG"]),
             lpf_mean_start=bool(int(values["CKF_LPF_SEED"])),
             ixz_model=bool(int(values["CKF_IXZ_MOD"])),
+            ixz_mass_jacobian=int(values["CKF_IXZ_MOD"]) == 2,
+            grip_sigma_w=float(values["CKF_GRIP_SIG"]),
         )

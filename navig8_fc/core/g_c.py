@@ -39,7 +39,8 @@ UO = layout("UO", mass=1, cx=1, cz=1, arm_ax=1, arm_az=1,
             cex=1, cez=1,  # CoM of the UAM with a point object of the estimated mass at the tip (the reference point)
             obj_rate=3,  # diagonal of d/dt of that composite's inertia minus J's I-dot: the estimated object's share
             singular=1,  # 1.0 when G_C could not be inverted (the caller then falls back to numpy)
-            obj_ixz=1)  # that composite's I_xz (about its CoM) minus J13: the estimated object's share
+            obj_ixz=1,  # that composite's I_xz (about its CoM) minus J13: the estimated object's share
+            obj_ixz_dm=1)  # d obj_ixz / d(object mass) at the estimated mass (CKF_IXZ_MOD 2)
 
 _N_BODY_ACC = 15  # sum m x, m z, m xd, m zd, m xdd, m zdd; J11 J22 J33 J13 about O; their rates; h' about O
 
@@ -197,6 +198,10 @@ def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv,
             uo[UO.OBJ_RATE + i] = 0.0
         uo[UO.OBJ_IXZ] = 0.0
     uo[UO.CEZ] = (m * cz + mo * mp[MP.OBJ_Z]) / m_tot
+    # A point object (the sphere's own inertia is isotropic) moves the composite's I_xz about its CoM by
+    # -mu dx dz, mu = m mo / (m + mo) the reduced mass, d the object's offset from the UAM's CoM; its slope in mo is
+    # -dx dz m^2 / (m + mo)^2, defined at mo = 0 too (right after a grasp the mass estimate is still the UAM's)
+    uo[UO.OBJ_IXZ_DM] = -(mp[MP.OBJ_X] - cx) * (mp[MP.OBJ_Z] - cz) * (m / m_tot) ** 2
     gc_about(f, m0, cx, cz, gc)
     uo[UO.SINGULAR] = 0.0 if inv_gauss_jordan(gc, gc_inv) else 1.0
 

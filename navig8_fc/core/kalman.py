@@ -104,7 +104,7 @@ def kf_predict(x, p, q_diag, dt, id0, id1, id2):
 
 
 @njit_cached(box_qp, linalg)
-def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r=0.0, nz=None):
+def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r=0.0, nz=None, hm=None):
     """Measurement update z = Delta U = H(Delta Acc_m) x + nu (Eq. 24): K = P H^T S^-1, S = H P H^T + R
     (a solve, no inverse), x += K (z - H x), P = (I - K H) P (I - K H)^T + K R K^T (Joseph form: PSD under
     rounding), symmetrised. x (4,), p (4, 4) in place; innovation (5,) written.
@@ -119,9 +119,15 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pit
     row of Eq. 24 taken back to moment space, G_C[M, :] Delta U = I_yy Delta Q-dot (G_I's pitch row has I_yy alone),
     a scalar update with noise variance pitch_r (kf_correct_pitch); pitch_r < 0: I_yy held (not corrected).
     nz (NZ_SIZE,): the pitch row's nuisance state, the CoM-height error of a held object (kf_correct_pitch); its
-    cross-covariance with x follows this update too. None: no nuisance state."""
+    cross-covariance with x follows this update too. None: no nuisance state.
+    hm (5,): added to H's mass column, the rows' linearised dependence on m beyond Eq. 24's force rows (the modelled
+    object's I_xz in the roll and yaw rows, CKF_IXZ_MOD 2; the caller adds hm m_hat to du, so the innovation is the
+    one without it). None: Eq. 24's H."""
     h = np.empty((5, 4))
     _regressor(gc_inv, da, rho_x, rho_z, h)
+    if hm is not None:
+        for i in range(5):
+            h[i, 3] += hm[i]
     pht = np.empty((4, 5))
     _mul(p, h.T, pht)
     for i in range(5):
@@ -340,7 +346,7 @@ def excitation_mask(da, exc_rot, exc_lin, mask):
 
 @njit_cached(box_qp, linalg, ckf_config)
 def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc_rot, exc_lin, gc_inv, du, da,
-            rho_x, rho_z, constrained, identity, lo, hi, out, pitch_r=0.0, nz=None):
+            rho_x, rho_z, constrained, identity, lo, hi, out, pitch_r=0.0, nz=None, hm=None):
     """predict (if do_predict), correct (if do_correct and some state passes the excitation gate; the others
     held), project (if constrained) on x, p in place; results into out (STEP_OUT). Returns the PROJ_* code."""
     if do_predict:
@@ -349,7 +355,7 @@ def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc
     innovation = out[SO_INNOV:SO_INNOV + N_MEAS]
     n_exc = excitation_mask(da, exc_rot, exc_lin, mask) if do_correct else 0
     if n_exc > 0:
-        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r, nz)
+        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r, nz, hm)
         out[SO_CORRECTED] = 1.0
     else:
         mask[:] = 0.0
@@ -454,6 +460,12 @@ class ConstrainedKalmanFilter:
         self._p[:, :] = np.diag(self.config.p0_scale * self._q)
         self._nz[NZ_COV:] = 0.0
 
+    def raise_variance(self, var_min: Sequence[float]) -> None:
+        """P's diagonal raised to at least var_min (4,) (a prior wider than P0 after a known change of the truth)."""
+        self._require_initialised()
+        for i, v in enumerate(var_min):
+            self._p[i, i] = max(self._p[i, i], float(v))
+
     def object_held(self, held: bool, com_sigma_m: float, iyy_var_min: float) -> None:
         """The pitch row's prior on a grasp (held) or a release: while an object is held, the CoM-height error of the
         law's reference point is a nuisance state of prior N(0, com_sigma_m^2) (kf_correct_pitch) and I_yy's variance is
@@ -535,6 +547,7 @@ class ConstrainedKalmanFilter:
         upper: Sequence[float],
         correct: bool = True,
         pitch: bool = True,
+        h_mass: np.ndarray | None = None,
     ) -> KfStepResult:
         """predict (skipped when inertia_rate_diag is None, e.g. on the first tick: x0 already describes the
         current pose), correct (when `correct`; only the states that pass the excitation gate of the config),
@@ -543,7 +556,8 @@ class ConstrainedKalmanFilter:
         delta_u, delta_acc: float64 arrays (5,); gc_uam_inv (5, 5) float64; lower/upper: 4 floats each (a tuple
         is the cheap form: the kernel is compiled for it), ignored unless constrained. n_updates counts the
         corrections that ran. pitch False: with the moment-space pitch row (CKF_R_PITCH > 0), I_yy is not corrected
-        this step (held, as the gate holds a state).
+        this step (held, as the gate holds a state). h_mass (5,) float64: added to H's mass column (kf_correct's hm),
+        delta_u then carrying h_mass m_hat.
         """
         if not self._initialised:
             raise RuntimeError("ConstrainedKalmanFilter.step before initialise()")
@@ -552,7 +566,7 @@ class ConstrainedKalmanFilter:
         code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, bool(correct),
                        self._exc_rot, self._exc_lin, gc_uam_inv, delta_u, delta_acc, rho_x, rho_z, self._constrained,
                        self._identity_weight, lower, upper, self._out,
-                       self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz)
+                       self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz, h_mass)
         self._account(code, lower, upper)
         o = self._out.tolist()
         corrected = o[SO_CORRECTED] != 0.0

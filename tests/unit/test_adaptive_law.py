@@ -395,3 +395,23 @@ def test_without_grip_reset_gripper_events_change_nothing(pose: Pose) -> None:
                 inertia_rate_uam=np.zeros((3, 3)), gripper_closed=grip and k > 200))
         runs.append(st.x_hat)
     assert runs[0] == runs[1]
+
+
+def test_grip_sigma_widens_the_prior_of_i_xx_i_zz_and_m_at_a_grasp(pose: Pose) -> None:
+    """CKF_GRIP_SIG: at a grasp the variances of I_xx and I_zz are at least (w x their box's width)^2 (the object may
+    put them anywhere in the box, the estimate restarts at its edge); I_yy and m keep P0. P0 here is small, so the
+    raise is what sets them."""
+    w = 0.8
+    law = _law(r_diag=(1.0,) * 5, q_diag=(1e-10,) * 4, p0_scale=10.0, grip_reset=True, grip_sigma_w=w)
+    data = _excitation(pose, pose.base, 200, seed=6)
+    st = None
+    for k, (u, acc) in enumerate(data):
+        _, st = law.step(AdaptiveLawInputs(
+            t_s=k * DT, u_meas=u, acc_m=acc, gc_uam_inv=pose.gci, inertia_uam=pose.j, mass_uam_kg=pose.m,
+            inertia_rate_uam=np.zeros((3, 3)), gripper_closed=k >= 100))
+        if k == 100:
+            break
+    assert st is not None and st.n_forgets == 1
+    width = np.array(st.upper) - np.array(st.lower)
+    np.testing.assert_allclose([st.p_diag[i] for i in (0, 2)], [(w * width[i]) ** 2 for i in (0, 2)], rtol=1e-6)
+    np.testing.assert_allclose([st.p_diag[i] for i in (1, 3)], 10.0 * 1e-10 + 1e-10, rtol=1e-6)

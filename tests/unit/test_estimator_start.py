@@ -7,10 +7,20 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from navig8_fc.core.actuator_model import DeliveredU
-from navig8_fc.core.adaptive_law import LAW_OUT, LAW_STATE, LS_AF, LS_UF, known_ixz, lpf_increments
-from navig8_fc.core.kalman import measurement_matrix
+from navig8_fc.core.adaptive_law import (
+    LAW_OUT,
+    LAW_STATE,
+    LS_AF,
+    LS_UF,
+    ixz_mass_column,
+    known_ixz,
+    lpf_increments,
+)
+from navig8_fc.core.ckf_config import CkfConfig, CkfMode
+from navig8_fc.core.kalman import ConstrainedKalmanFilter, measurement_matrix
 from navig8_fc.core.vehicle import actuators_to_u
 
 
@@ -60,3 +70,67 @@ def test_the_modelled_ixz_leaves_i_xx_and_i_zz_alone_in_their_rows() -> None:
     z = known_ixz(du, gc_inv, tuple(da), ixz)
     h = measurement_matrix(gc_inv, da, 0.0, 0.0)  # rho_x = rho_z = 0: I_xx, I_zz on their own axes
     np.testing.assert_allclose(h @ np.array([ixx, iyy, izz, m]), z, atol=1e-12)
+
+
+def _object_ixz(q1_deg: float, mo: float) -> tuple[float, float]:
+    """(the modelled object's I_xz, its slope in the object's mass) of the FC's model at q1 (g_c.uam_model)."""
+    from navig8_fc.core import g_c
+    from navig8_fc.core.vehicle import UamModel, VehicleConfig, _arm_state
+    mdl = UamModel(VehicleConfig.load())
+    inertia, rate = np.empty((3, 3)), np.empty((3, 3))
+    gc, gci, uo = np.empty((5, 5)), np.empty((5, 5)), g_c.UO.zeros()
+    g_c.uam_model(*_arm_state([math.radians(q1_deg), 0.0, 0.0], [0.0] * 3, [0.0] * 3), mo, mdl.geometry,
+                  mdl.force_per_input, mdl.moment_o_per_input, inertia, rate, gc, gci, uo)
+    return float(uo[g_c.UO.OBJ_IXZ]), float(uo[g_c.UO.OBJ_IXZ_DM])
+
+
+@pytest.mark.parametrize("mo", [0.0, 0.5, 1.0])
+def test_the_object_ixz_slope_is_its_derivative_in_the_mass(mo: float) -> None:
+    eps = 1e-5
+    _, slope = _object_ixz(60.0, mo)
+    lo = max(mo - eps, 0.0)
+    numeric = (_object_ixz(60.0, mo + eps)[0] - _object_ixz(60.0, lo)[0]) / (mo + eps - lo)
+    assert slope == pytest.approx(numeric, rel=1e-5)
+    assert slope < -0.2  # at q1 60 deg a 1 kg object moves I_xz by about -0.28 kg m^2: no zero slope passes
+
+
+def _held_fit(with_mass_column: bool) -> tuple[float, float]:
+    """A KF told the object's I_xz at its own mass estimate (CKF_IXZ_MOD 1 / 2): roll and yaw windows first, read while
+    m_hat is still the UAM's, then mass windows. Noise-free; returns the relative errors of I_zz and m."""
+    rng = np.random.default_rng(8)
+    gc_inv = rng.normal(size=(5, 5)) + 3.0 * np.eye(5)
+    m_uam, mo, dxdz, j13 = 6.5, 1.0, 0.3, -0.2
+
+    def ixz_obj(m: float) -> tuple[float, float]:  # a point object: -mu dx dz and its slope
+        o = max(m - m_uam, 0.0)
+        return -dxdz * m_uam * o / (m_uam + o), -dxdz * (m_uam / (m_uam + o)) ** 2
+
+    ixx, iyy, izz, m = 0.42, 0.9, 0.87, m_uam + mo
+    gi = np.array([[ixx, 0, j13 + ixz_obj(m)[0], 0, 0], [0, iyy, 0, 0, 0], [j13 + ixz_obj(m)[0], 0, izz, 0, 0],
+                   [0, 0, 0, m, 0], [0, 0, 0, 0, m]])
+    kf = ConstrainedKalmanFilter(CkfConfig(mode=CkfMode.UNCONSTRAINED, q_diag=(1e-12,) * 4, r_diag=(1e-6,) * 5,
+                                           p0_scale=1e10))
+    kf.initialise([0.22, 0.45, 0.45, m_uam])
+    box = ((0.0,) * 4, (10.0,) * 4)
+    for k in range(40):
+        da = rng.normal(size=5)
+        da[2] = 0.8 * da[0] + 0.3 * da[2]  # roll and yaw accelerations correlated, as at q1 60 deg (J13 ~ J11)
+        da[3:] = 0.0 if k < 20 else da[3:]  # the mass excitation comes later, as after a grasp
+        da[:3] = da[:3] if k < 20 else 0.0
+        oi, slope = ixz_obj(float(kf.x[3]))
+        z = known_ixz(gc_inv @ gi @ da, gc_inv, tuple(da), j13 + oi)
+        hm = None
+        if with_mass_column:
+            z, hm = ixz_mass_column(z, gc_inv, tuple(da), slope, float(kf.x[3]))
+        kf.step(z, da, gc_inv, 0.0, 0.0, None, *box, h_mass=hm)
+    return abs(kf.x[2] / izz - 1.0), abs(kf.x[3] / m - 1.0)
+
+
+def test_the_mass_column_carries_the_windows_read_at_the_wrong_mass() -> None:
+    """CKF_IXZ_MOD 2 (adaptive_law.ixz_mass_column): the roll and yaw windows read while m_hat was the UAM's carry an
+    I_xz 0.26 kg m^2 off; the mass column keeps their I_zz correlated with m in P, so the later mass windows correct
+    it. Without it (CKF_IXZ_MOD 1) I_zz stays off however well the mass is found."""
+    err_izz, err_m = _held_fit(True)
+    assert err_m < 1e-3 and err_izz < 0.03, (err_izz, err_m)
+    err_izz1, err_m1 = _held_fit(False)
+    assert err_m1 < 1e-3 and err_izz1 > 0.1, (err_izz1, err_m1)
