@@ -152,7 +152,7 @@ def model_geometry(cfg: VehicleConfig) -> np.ndarray:
                        obj_radius=cfg.object_radius_m)
 
 
-def _arm_state(q: Sequence3, qd: Sequence3 | None, qdd: Sequence3 | None) -> tuple[np.ndarray, ...]:
+def arm_state(q: Sequence3, qd: Sequence3 | None, qdd: Sequence3 | None) -> tuple[np.ndarray, ...]:
     zero = np.zeros(N_LINKS)
     return tuple(zero if v is None else np.asarray(v, dtype=float).reshape(N_LINKS) for v in (q, qd, qdd))
 
@@ -160,7 +160,7 @@ def _arm_state(q: Sequence3, qd: Sequence3 | None, qdd: Sequence3 | None) -> tup
 def _mass_props(cfg: VehicleConfig, q: Sequence3, qd: Sequence3 | None,
                 object_mass_kg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     inertia, rate, mp = np.empty((3, 3)), np.empty((3, 3)), g_c.MP.zeros()
-    g_c.mass_props(*_arm_state(q, qd, None), float(object_mass_kg), model_geometry(cfg), inertia, rate, mp)
+    g_c.mass_props(*arm_state(q, qd, None), float(object_mass_kg), model_geometry(cfg), inertia, rate, mp)
     return inertia, rate, mp
 
 
@@ -396,7 +396,7 @@ class UamModel:
         """
         inertia, rate = np.empty((3, 3)), np.empty((3, 3))
         gc, gc_inv, uo = np.empty((5, 5)), np.empty((5, 5)), g_c.UO.zeros()
-        g_c.uam_model(*_arm_state(q, qd, qdd), float(object_mass_kg), self.geometry, self.force_per_input,
+        g_c.uam_model(*arm_state(q, qd, qdd), float(object_mass_kg), self.geometry, self.force_per_input,
                      self.moment_o_per_input, inertia, rate, gc, gc_inv, uo)
         o = uo.tolist()
         return UamState(

@@ -75,11 +75,11 @@ def test_the_modelled_ixz_leaves_i_xx_and_i_zz_alone_in_their_rows() -> None:
 def _object_ixz(q1_deg: float, mo: float) -> tuple[float, float]:
     """(the modelled object's I_xz, its slope in the object's mass) of the FC's model at q1 (g_c.uam_model)."""
     from navig8_fc.core import g_c
-    from navig8_fc.core.vehicle import UamModel, VehicleConfig, _arm_state
+    from navig8_fc.core.vehicle import UamModel, VehicleConfig, arm_state
     mdl = UamModel(VehicleConfig.load())
     inertia, rate = np.empty((3, 3)), np.empty((3, 3))
     gc, gci, uo = np.empty((5, 5)), np.empty((5, 5)), g_c.UO.zeros()
-    g_c.uam_model(*_arm_state([math.radians(q1_deg), 0.0, 0.0], [0.0] * 3, [0.0] * 3), mo, mdl.geometry,
+    g_c.uam_model(*arm_state([math.radians(q1_deg), 0.0, 0.0], [0.0] * 3, [0.0] * 3), mo, mdl.geometry,
                   mdl.force_per_input, mdl.moment_o_per_input, inertia, rate, gc, gci, uo)
     return float(uo[g_c.UO.OBJ_IXZ]), float(uo[g_c.UO.OBJ_IXZ_DM])
 
