@@ -185,6 +185,19 @@ def command(gcs: Any, cmd: int, *params: float, timeout_s: float = 5.0) -> Any:
     return ack
 
 
+def arm(gcs: Any, timeout_s: float = 30.0) -> None:
+    """Arm, asking again until ACCEPTED (pre-arm checks may need the first sensor data and a settled estimator)."""
+    from pymavlink.dialects.v20 import common as m2
+
+    deadline = time.monotonic() + timeout_s
+    while True:
+        ack = command(gcs, m2.MAV_CMD_COMPONENT_ARM_DISARM, 1)
+        if ack.result == m2.MAV_RESULT_ACCEPTED or time.monotonic() > deadline:
+            break
+        wait_for(gcs, "HEARTBEAT", 0.5)
+    assert ack.result == m2.MAV_RESULT_ACCEPTED, ack
+
+
 def takeoff_hover_land(gcs: Any, alt_m: float = 2.0, hover_samples: int = 30, arm_timeout_s: float = 30.0
                        ) -> dict[str, float]:
     """Arm, take off to alt_m, hold, land, disarm, through the GCS link only (what crosses it: ACKs, HEARTBEAT,
@@ -197,13 +210,7 @@ def takeoff_hover_land(gcs: Any, alt_m: float = 2.0, hover_samples: int = 30, ar
     def fc_hb(pred: Callable[[Any], bool]) -> Callable[[Any], bool]:
         return lambda m: m.get_type() == "HEARTBEAT" and m.get_srcComponent() == 1 and pred(m)
 
-    deadline = time.monotonic() + arm_timeout_s
-    while True:
-        ack = command(gcs, m2.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-        if ack.result == m2.MAV_RESULT_ACCEPTED or time.monotonic() > deadline:
-            break
-        wait_for(gcs, "HEARTBEAT", 0.5)  # pre-arm checks may need the first sensor data
-    assert ack.result == m2.MAV_RESULT_ACCEPTED, ack
+    arm(gcs, arm_timeout_s)
     # Takeoff and land are long-running commands: IN_PROGRESS first from this FC (docs/gcs.md), ACCEPTED from PX4.
     started = (m2.MAV_RESULT_ACCEPTED, m2.MAV_RESULT_IN_PROGRESS)
     assert command(gcs, m2.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan, math.nan, alt_m).result in started

@@ -10,7 +10,7 @@ import time
 from typing import Any
 
 from pymavlink.dialects.v20 import common as mavlink2
-from sitl_helpers import FcTarget, wait_for
+from sitl_helpers import FcTarget, arm, wait_for
 
 M = mavlink2
 FC_LOCAL = {"speed": 2.0, "fc_args": ["--autopilot", "px4"]}  # the local pair (conftest.py `fc`)
@@ -31,14 +31,7 @@ def _fc_hb(pred: Any) -> Any:
 
 
 def _arm_and_take_off(gcs: Any, home_amsl_m: float) -> None:
-    deadline = time.monotonic() + 20.0  # pre-arm checks pass once the estimator has settled
-    while True:
-        gcs.mav.command_long_send(gcs.target_system, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
-        ack = _until(gcs, "COMMAND_ACK", lambda m: m.command == M.MAV_CMD_COMPONENT_ARM_DISARM, 5.0, "arm ACK")
-        if ack.result == M.MAV_RESULT_ACCEPTED or time.monotonic() > deadline:
-            break
-        time.sleep(0.5)
-    assert ack.result == M.MAV_RESULT_ACCEPTED
+    arm(gcs, 20.0)
     gcs.mav.command_long_send(gcs.target_system, 1, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, math.nan, math.nan, math.nan,
                               home_amsl_m + HEIGHT_M)
     _until(gcs, "GLOBAL_POSITION_INT", lambda m: m.relative_alt > (HEIGHT_M - 0.2) * 1000, 40.0, "the takeoff height")
