@@ -37,7 +37,7 @@ test: $(STAMP)
 	$(PY) -m pytest -q -m 'not slow' -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: fast lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
 	$(PY) -m pytest -q -m 'slow and not clients_all' -n 2 --dist loadfile; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; exit $$rc
 
-# MAVSDK-Python's own examples, all of them (tests/clients; make test runs the quick ones): about 6 min on 2 workers.
+# MAVSDK-Python's own examples, all of them (tests/clients; make test runs the quick ones), both identities: about 10 min on 2 workers.
 test-clients: $(STAMP)
 	$(PY) -m pytest -q tests/clients -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test-clients: no tests' >&2; fi; exit $$rc
 
