@@ -418,8 +418,9 @@ def test_grip_sigma_widens_the_prior_of_i_xx_i_zz_and_m_at_a_grasp(pose: Pose) -
 
 
 def test_the_low_passed_moment_equals_the_moment_of_the_low_passed_u_at_a_fixed_pose(pose: Pose) -> None:
-    """CKF_MOM_LPF: with G_C constant (a fixed arm pose, no h') the low-passed moment's increment is G_C[M, :] Delta U_f,
-    so the pitch row reads what it reads without the option (to rounding); the option differs only where G_C moves."""
+    """CKF_MOM_LPF: with G_C constant (a fixed arm pose, no h') the low-passed moment's increment is
+    G_C[M, :] Delta U_f, so the pitch row reads what it reads without the option (to rounding); the option differs
+    only where G_C moves."""
     x_true = pose.base * np.array([1.6, 1.3, 1.8, 1.2])
     ests = []
     for mom in (False, True):
