@@ -39,7 +39,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
     "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
     "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
-    "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG",
+    "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG", "CKF_MOM_LPF",
 )
 
 
@@ -138,6 +138,9 @@ class CkfConfig:
     # CKF_GRIP_SIG: with grip_reset, at a grasp the prior sigma of I_xx and I_zz is at least this many widths of their
     # Eq. 21 box (J / K_min - J / K_max); 0: P0 alone (AdaptiveLaw._on_gripper)
     grip_sigma_w: float = 0.0
+    # CKF_MOM_LPF: the moment-space pitch row reads the increment of the low-passed pitch moment G_C[M, :] U (each
+    # tick's G_C) less that of h', not G_C[M, :] Delta U (AdaptiveLaw)
+    moment_lpf: bool = False
 
     def __post_init__(self) -> None:
         lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
@@ -173,6 +176,7 @@ class CkfConfig:
         object.__setattr__(self, "ixz_model", bool(self.ixz_model) or bool(self.ixz_mass_jacobian))
         object.__setattr__(self, "ixz_mass_jacobian", bool(self.ixz_mass_jacobian))
         object.__setattr__(self, "u_delivered", bool(self.u_delivered))
+        object.__setattr__(self, "moment_lpf", bool(self.moment_lpf))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2", "pitch_r_nm2",
                      "com_sigma_m", "grip_sigma_w"):
             v = float(getattr(self, name))
@@ -203,7 +207,7 @@ class CkfConfig:
         if int(values["CKF_U_SRC"]) not in (0, 1, 2):
             raise ValueError(f"CKF_U_SRC must be 0, 1 or 2, got {values['CKF_U_SRC']}")
         for flag in ("CKF_SAT_GATE", "CKF_ACC_REF", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
-                     "CKF_LPF_SEED"):
+                     "CKF_LPF_SEED", "CKF_MOM_LPF"):
             if int(values[flag]) not in (0, 1):
                 raise ValueError(f"{flag} must be 0 or 1, got {values[flag]}")
         if int(values["CKF_IXZ_MOD"]) not in (0, 1, 2):
@@ -241,4 +245,5 @@ class CkfConfig:
             ixz_model=bool(int(values["CKF_IXZ_MOD"])),
             ixz_mass_jacobian=int(values["CKF_IXZ_MOD"]) == 2,
             grip_sigma_w=float(values["CKF_GRIP_SIG"]),
+            moment_lpf=bool(int(values["CKF_MOM_LPF"])),
         )

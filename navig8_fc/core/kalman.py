@@ -104,7 +104,8 @@ def kf_predict(x, p, q_diag, dt, id0, id1, id2):
 
 
 @njit_cached(box_qp, linalg)
-def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r=0.0, nz=None, hm=None):
+def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r=0.0, nz=None, hm=None,
+               pitch_y=math.nan):
     """Measurement update z = Delta U = H(Delta Acc_m) x + nu (Eq. 24): K = P H^T S^-1, S = H P H^T + R
     (a solve, no inverse), x += K (z - H x), P = (I - K H) P (I - K H)^T + K R K^T (Joseph form: PSD under
     rounding), symmetrised. x (4,), p (4, 4) in place; innovation (5,) written.
@@ -122,7 +123,8 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pit
     cross-covariance with x follows this update too. None: no nuisance state.
     hm (5,): added to H's mass column, the rows' linearised dependence on m beyond Eq. 24's force rows (the modelled
     object's I_xz in the roll and yaw rows, CKF_IXZ_MOD 2; the caller adds hm m_hat to du, so the innovation is the
-    one without it). None: Eq. 24's H."""
+    one without it). None: Eq. 24's H. pitch_y: the pitch row's moment increment when given (CKF_MOM_LPF; nan:
+    G_C[M, :] Delta U)."""
     h = np.empty((5, 4))
     _regressor(gc_inv, da, rho_x, rho_z, h)
     if hm is not None:
@@ -190,7 +192,7 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pit
         for i in range(4):
             nz[NZ_COV + i] = c[i]
     if pitch_r > 0.0 and mask[1] != 0.0:
-        return kf_correct_pitch(x, p, pitch_r, gc_inv, du, da[1], nz)
+        return kf_correct_pitch(x, p, pitch_r, gc_inv, du, da[1], nz, pitch_y)
     return True
 
 
@@ -202,7 +204,7 @@ NZ_SIZE = 6
 
 
 @njit_cached(linalg)
-def kf_correct_pitch(x, p, pitch_r, gc_inv, du, dq_dot, nz=None):
+def kf_correct_pitch(x, p, pitch_r, gc_inv, du, dq_dot, nz=None, pitch_y=math.nan):
     """The pitch row of Eq. 24 in moment space: y = G_C[M, :] Delta U = I_yy Delta Q-dot + c Delta F_x + nu,
     nu ~ (0, pitch_r) (G_C = (G_C^-1)^-1, the moments about the point the caller's G_C refers to; G_I's pitch row is
     [0, I_yy, 0, 0, 0]; Delta F_x = G_C[F_x, :] Delta U). c (m) is the error of that point's height against the true
@@ -213,6 +215,7 @@ def kf_correct_pitch(x, p, pitch_r, gc_inv, du, dq_dot, nz=None):
     there the pitch column G_C^-1[:, M] Delta Q-dot spreads over all five rows, so the force rows' errors (the
     accelerometer noise the INDI feeds back as force commands, the mass still converging) are read as pitch
     information through the diagonal R; in moment space the pitch row has I_yy alone.
+    pitch_y, when not nan, is y itself (CKF_MOM_LPF: the increment of the low-passed moment, AdaptiveLaw).
     Returns False (x, P unchanged) when G_C^-1 is singular."""
     gc = np.empty((5, 5))
     if not linalg.inv_gauss_jordan(gc_inv, gc):
@@ -222,6 +225,8 @@ def kf_correct_pitch(x, p, pitch_r, gc_inv, du, dq_dot, nz=None):
     for j in range(5):
         y += gc[1, j] * du[j]
         fx += gc[3, j] * du[j]
+    if pitch_y == pitch_y:
+        y = pitch_y
     # the augmented state [x, c] (5,), its covariance pa, the measurement row h = [0, dq_dot, 0, 0, fx]
     pa = np.zeros((5, 5))
     for i in range(4):
@@ -346,7 +351,7 @@ def excitation_mask(da, exc_rot, exc_lin, mask):
 
 @njit_cached(box_qp, linalg, ckf_config)
 def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc_rot, exc_lin, gc_inv, du, da,
-            rho_x, rho_z, constrained, identity, lo, hi, out, pitch_r=0.0, nz=None, hm=None):
+            rho_x, rho_z, constrained, identity, lo, hi, out, pitch_r=0.0, nz=None, hm=None, pitch_y=math.nan):
     """predict (if do_predict), correct (if do_correct and some state passes the excitation gate; the others
     held), project (if constrained) on x, p in place; results into out (STEP_OUT). Returns the PROJ_* code."""
     if do_predict:
@@ -355,7 +360,7 @@ def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc
     innovation = out[SO_INNOV:SO_INNOV + N_MEAS]
     n_exc = excitation_mask(da, exc_rot, exc_lin, mask) if do_correct else 0
     if n_exc > 0:
-        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r, nz, hm)
+        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r, nz, hm, pitch_y)
         out[SO_CORRECTED] = 1.0
     else:
         mask[:] = 0.0
@@ -548,6 +553,7 @@ class ConstrainedKalmanFilter:
         correct: bool = True,
         pitch: bool = True,
         h_mass: np.ndarray | None = None,
+        pitch_y: float = math.nan,
     ) -> KfStepResult:
         """predict (skipped when inertia_rate_diag is None, e.g. on the first tick: x0 already describes the
         current pose), correct (when `correct`; only the states that pass the excitation gate of the config),
@@ -557,7 +563,8 @@ class ConstrainedKalmanFilter:
         is the cheap form: the kernel is compiled for it), ignored unless constrained. n_updates counts the
         corrections that ran. pitch False: with the moment-space pitch row (CKF_R_PITCH > 0), I_yy is not corrected
         this step (held, as the gate holds a state). h_mass (5,) float64: added to H's mass column (kf_correct's hm),
-        delta_u then carrying h_mass m_hat.
+        delta_u then carrying h_mass m_hat. pitch_y: the pitch row's moment increment (kf_correct_pitch; nan: from
+        delta_u).
         """
         if not self._initialised:
             raise RuntimeError("ConstrainedKalmanFilter.step before initialise()")
@@ -566,7 +573,7 @@ class ConstrainedKalmanFilter:
         code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, bool(correct),
                        self._exc_rot, self._exc_lin, gc_uam_inv, delta_u, delta_acc, rho_x, rho_z, self._constrained,
                        self._identity_weight, lower, upper, self._out,
-                       self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz, h_mass)
+                       self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz, h_mass, pitch_y)
         self._account(code, lower, upper)
         o = self._out.tolist()
         corrected = o[SO_CORRECTED] != 0.0

@@ -415,3 +415,18 @@ def test_grip_sigma_widens_the_prior_of_i_xx_i_zz_and_m_at_a_grasp(pose: Pose) -
     width = np.array(st.upper) - np.array(st.lower)
     np.testing.assert_allclose([st.p_diag[i] for i in (0, 2)], [(w * width[i]) ** 2 for i in (0, 2)], rtol=1e-6)
     np.testing.assert_allclose([st.p_diag[i] for i in (1, 3)], 10.0 * 1e-10 + 1e-10, rtol=1e-6)
+
+
+def test_the_low_passed_moment_equals_the_moment_of_the_low_passed_u_at_a_fixed_pose(pose: Pose) -> None:
+    """CKF_MOM_LPF: with G_C constant (a fixed arm pose, no h') the low-passed moment's increment is
+    G_C[M, :] Delta U_f, so the pitch row reads what it reads without the option (to rounding); the option differs
+    only where G_C moves."""
+    x_true = pose.base * np.array([1.6, 1.3, 1.8, 1.2])
+    ests = []
+    for mom in (False, True):
+        law = _law(r_diag=(1.0,) * 5, q_diag=(1e-10,) * 4, p0_scale=1e8, pitch_r_nm2=0.01, inc_window=25,
+                   lpf_mean_start=True, moment_lpf=mom)
+        for k, (u, acc) in enumerate(_excitation(pose, x_true, 1500, seed=2)):
+            _, st = law.step(_law_inputs(pose, k * DT, u, acc))
+        ests.append(np.array(st.x_hat))
+    np.testing.assert_allclose(ests[1], ests[0], rtol=1e-6)
