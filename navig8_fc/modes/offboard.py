@@ -17,6 +17,7 @@ from __future__ import annotations
 import math
 
 from navig8_fc.core.outer_loop import Setpoint
+from navig8_fc.core.rotation import euler_to_quat, rotate_body_to_ned
 from navig8_fc.modes.context import ModeContext, Step, Transition, idle, integrate_led, wrap_pi
 from navig8_fc.modes.px4 import FlightMode
 from navig8_fc.modes.records import ModeInputs, OffboardTarget, ReferenceLimits, Vec3
@@ -29,13 +30,8 @@ _NAN3: Vec3 = (math.nan, math.nan, math.nan)
 
 
 def body_to_ned(roll: float, pitch: float, yaw: float, v: Vec3) -> Vec3:
-    """R(yaw) R(pitch) R(roll) v: a body (FRD) vector in NED (ZYX Euler angles)."""
-    cr, sr, cp, sp, cy, sy = math.cos(roll), math.sin(roll), math.cos(pitch), math.sin(pitch), math.cos(yaw), \
-        math.sin(yaw)
-    x, y, z = v
-    return (cy * cp * x + (cy * sp * sr - sy * cr) * y + (cy * sp * cr + sy * sr) * z,
-            sy * cp * x + (sy * sp * sr + cy * cr) * y + (sy * sp * cr - cy * sr) * z,
-            -sp * x + cp * sr * y + cp * cr * z)
+    """A body (FRD) vector in NED at the ZYX Euler attitude (roll, pitch, yaw)."""
+    return rotate_body_to_ned(euler_to_quat(roll, pitch, yaw), v)
 
 
 def attitude_acceleration(tgt: OffboardTarget, hover_thrust: float, g: float) -> Vec3:
