@@ -89,6 +89,26 @@ def _fill(record: _R, **fields: Any) -> _R:
     return record
 
 
+TruthState = tuple[int, bytes, bytes, int, int]  # Plant.truth_state: time_us, state, derived, guard counts
+
+
+def _truth_floats(t_us: int, x: list[float], d: list[float], nonfinite: int, clamped: int) -> TruthFloats:
+    pos, vel, quat, rate, act, jq, jqd, jqdd, mobj = _X_FLOATS(x)
+    acc, wdot, mass, com, j0, j1, j2, fr, mr, mr_o, fr_nog, mr_nog = _D_FLOATS(d)
+    return _fill(TruthFloats(), time_us=t_us, pos_ned_m=pos, vel_ned_m_s=vel, quat_wxyz=quat,
+                 rate_frd_rad_s=rate, accel_frd_m_s2=acc, ang_accel_frd_rad_s2=wdot, actuator_pos=act,
+                 joint_pos_rad=jq, joint_rate_rad_s=jqd, joint_accel_rad_s2=jqdd, object_mass_kg=mobj,
+                 mass_kg=mass, com_frd_m=com, inertia_com_kgm2=(j0, j1, j2), reaction_force_frd_n=fr,
+                 reaction_moment_mount_frd_nm=mr, reaction_moment_o_frd_nm=mr_o, reaction_force_nog_frd_n=fr_nog,
+                 reaction_moment_mount_nog_frd_nm=mr_nog, cmd_nonfinite_count=nonfinite, cmd_clamped_count=clamped)
+
+
+def truth_floats_of_state(state: TruthState) -> TruthFloats:
+    """Plant.truth_floats() from Plant.truth_state() (the same floats: float64 bytes back to Python floats)."""
+    t_us, xb, db, nonfinite, clamped = state
+    return _truth_floats(t_us, np.frombuffer(xb).tolist(), np.frombuffer(db).tolist(), nonfinite, clamped)
+
+
 _C_ACT = C.ACT.sl
 # truth(): its views of the state and derived vectors, cut in one C call each
 _TRUTH_X = itemgetter(*(m.sl for m in (X.POS, X.VEL, X.QUAT, X.RATE, X.ACT, X.ACTD, X.Q, X.QD,
@@ -446,15 +466,13 @@ class Plant:
     def truth_floats(self) -> TruthFloats:
         """truth() as plain Python floats (seam.TruthFloats; the same values): what NAVIG8_TRUTH carries and /truth
         logs, without the numpy views the encoder and the log would convert back at once."""
-        pos, vel, quat, rate, act, jq, jqd, jqdd, mobj = _X_FLOATS(self._x.tolist())
-        acc, wdot, mass, com, j0, j1, j2, fr, mr, mr_o, fr_nog, mr_nog = _D_FLOATS(self._d.tolist())
-        return _fill(TruthFloats(), time_us=self._t_us, pos_ned_m=pos, vel_ned_m_s=vel, quat_wxyz=quat,
-                     rate_frd_rad_s=rate, accel_frd_m_s2=acc, ang_accel_frd_rad_s2=wdot, actuator_pos=act,
-                     joint_pos_rad=jq, joint_rate_rad_s=jqd, joint_accel_rad_s2=jqdd, object_mass_kg=mobj,
-                     mass_kg=mass, com_frd_m=com, inertia_com_kgm2=(j0, j1, j2), reaction_force_frd_n=fr,
-                     reaction_moment_mount_frd_nm=mr, reaction_moment_o_frd_nm=mr_o, reaction_force_nog_frd_n=fr_nog,
-                     reaction_moment_mount_nog_frd_nm=mr_nog, cmd_nonfinite_count=self._guard.nonfinite,
-                     cmd_clamped_count=self._guard.clamped)
+        return _truth_floats(self._t_us, self._x.tolist(), self._d.tolist(), self._guard.nonfinite,
+                             self._guard.clamped)
+
+    def truth_state(self) -> TruthState:
+        """The truth as raw bytes of the state and its derived quantities, cheap to hand to another process (the
+        log writer): truth_floats_of_state gives back exactly truth_floats()."""
+        return self._t_us, self._x.tobytes(), self._d.tobytes(), self._guard.nonfinite, self._guard.clamped
 
     def trim_command(self) -> ActuatorCommand:
         """Level hover trim for the current arm pose and object (vehicle.hover_trim) of the ducts as they are now (a

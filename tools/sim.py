@@ -2,7 +2,7 @@
 
     navig8-sim --scenario paper --controller proposed|unconstrained|fixed|pinned|lms [--seed N] [--duration S]
                [--log run.mcap] [--summary summary.json] [--plots DIR] [--params FILE] [--set NAME=VALUE ...]
-               [--world NAME=VALUE ...] [--world NAME*=VALUE ...]
+               [--world NAME=VALUE ...] [--world NAME*=VALUE ...] [--log-writer process|inline]
 
 --set changes a flight-controller parameter (params/fc_params.yaml), --params a set of them from a file
 (`params/presets/paper.parm` is the paper's method; the defaults are the robust controller);
@@ -28,20 +28,24 @@ from typing import Any
 import numpy as np
 
 from navig8_fc.core import vehicle as vm
-from navig8_fc.core.controller import FcSensors, warm_up_kernels
+from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FcSensors, warm_up_kernels
+from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.flight import FlightStack, StepResult
+from navig8_fc.mavlink.seam import TruthFloats
 from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.params.store import read_overrides
 from navig8_fc.shell.foxglove_out import FoxgloveOutput, script_waypoints
 from navig8_fc.shell.mcap_log import McapLogger
 from navig8_fc.shell.step_log import StepLog
 from navig8_fc.viz import VehicleViz, packaged_uav_size_m
+from navig8_tools.log_writer import ProcessTickLog, process_writer_available
 from navig8_tools.logdata import load_run
 from navig8_tools.summary import summarize
 from sim_bridge.messages import ActuatorCommand as PlantCommand
 from sim_bridge.plant import Plant
 from sim_bridge.world import load_world, parse_world_items
 
+LOG_WRITERS = ("inline", "process")
 CONTROLLERS = {"fixed": 0, "unconstrained": 1, "proposed": 2, "pinned": 3, "lms": 4}  # CKF_MODE
 
 
@@ -76,24 +80,33 @@ def sensors_to_fc(sb: Any) -> FcSensors:
 
 class TickLog:
     """One FC tick into the run's log: the step's records (shell.step_log.StepLog, as navig8-fc writes them) and what
-    the FC announced (as navig8-fc logs what it announces: mode events, failsafes)."""
+    the FC announced (as navig8-fc logs what it announces: mode events, failsafes). `tick` is fly's step hook (the
+    truth read from `plant`); `record` takes the truth given (the writer process: tools.log_writer)."""
 
-    def __init__(self, steps: StepLog, plant: Plant, lambda_min: float, lambda_crit: float) -> None:
+    def __init__(self, steps: StepLog, plant: Plant | None, lambda_min: float, lambda_crit: float) -> None:
         self.steps, self.plant = steps, plant
         self.lambda_min, self.lambda_crit = lambda_min, lambda_crit
 
     def tick(self, t_ns: int, s: FcSensors, res: StepResult) -> None:
+        self.record(t_ns, self.plant.truth_floats(), s, res.status, res.command, res.setpoint,
+                    [(n.severity, n.statustext) for n in res.notices if n.statustext])
+
+    def record(self, t_ns: int, truth: TruthFloats, s: FcSensors, status: ControllerStatus, command: ActuatorCommand,
+               setpoint: Setpoint, statustexts: list[tuple[int, str]]) -> None:
         steps = self.steps
-        steps.tick(t_ns, self.plant.truth_floats(), s, res.status, res.command, res.setpoint, self.lambda_min,
-                   self.lambda_crit)
-        for n in res.notices:
-            if n.statustext:
-                steps.logger.log("/fc/statustext", t_ns, {"severity": n.severity, "text": n.statustext})
-                if steps.fox is not None:
-                    steps.fox.statustext(t_ns, n.severity, n.statustext)
+        steps.tick(t_ns, truth, s, status, command, setpoint, self.lambda_min, self.lambda_crit)
+        for severity, text in statustexts:
+            steps.logger.log("/fc/statustext", t_ns, {"severity": severity, "text": text})
+            if steps.fox is not None:
+                steps.fox.statustext(t_ns, severity, text)
 
     def finish(self) -> None:
         self.steps.finish()
+
+    def close(self) -> None:
+        """finish, then close the log (the writer process's end of a run)."""
+        self.finish()
+        self.steps.logger.close()
 
 
 StepHook = Callable[[int, FcSensors, StepResult], None]  # (the step's time in ns, the FC's input, its result)
@@ -136,9 +149,12 @@ def run(
     progress: bool = False,
     tick_times_s: list[float] | None = None,
     world: dict[str, float] | None = None,
+    log_writer: str = "inline",
 ) -> RunResult:
     """Fly `scenario` in one process. With `tick_times_s`, the wall time of every FC tick is appended.
-    `world`: overrides of the plant, scenario and vehicle ({NAME: VALUE} or {NAME*: factor}, sim_bridge.world)."""
+    `world`: overrides of the plant, scenario and vehicle ({NAME: VALUE} or {NAME*: factor}, sim_bridge.world).
+    `log_writer`: "inline" logs in the loop; "process" on a forked writer process (tools.log_writer: the same file,
+    the loop about twice as fast; inline where a process cannot fork, e.g. a daemonic pool worker)."""
     reg = ParamRegistry.from_defaults()
     reg.set("CKF_MODE", CONTROLLERS[controller])
     for name, value in (overrides or {}).items():
@@ -153,26 +169,33 @@ def run(
     stack = FlightStack(vehicle, reg, sc.script)
     cfg = stack.core.config
     warm_up_kernels(vehicle, cfg)  # numba's cache loads now, not inside the timed loop
-    logger = McapLogger(log_path) if log_path else None
-    if logger:
+
+    def open_log() -> TickLog:  # in the writer process with log_writer "process"
+        logger = McapLogger(log_path)
         logger.metadata("run", {"scenario": sc.name, "controller": controller, "seed": seed,
                                 "duration_s": duration, "world": dict(world or {})})
         logger.metadata("params", reg.as_dict())
-    tick_log = None
-    if logger:
         fox = FoxgloveOutput(VehicleViz(vehicle, packaged_uav_size_m()), logger, None, "navig8-sim")
         fox.set_mission(script_waypoints(sc.script))
         # the eigenvalues with the TRUE vehicle's G (w.vehicle: model errors live in the FC's constants)
-        tick_log = TickLog(StepLog(logger, fox, vm.UamModel(w.vehicle)), plant, stack.lambda_min, stack.lambda_crit)
+        return TickLog(StepLog(logger, fox, vm.UamModel(w.vehicle)), plant, stack.lambda_min, stack.lambda_crit)
+
+    if log_writer not in LOG_WRITERS:
+        raise ValueError(f"log_writer {log_writer!r}: one of {', '.join(LOG_WRITERS)}")
+    hook: TickLog | ProcessTickLog | None = None
+    if log_path and log_writer == "process" and process_writer_available():
+        hook = ProcessTickLog(plant, open_log)
+    elif log_path:
+        hook = open_log()
     n_steps = int(round(duration / cfg.dt_s))
     wall0 = time.perf_counter()
     try:
-        fly(plant, stack, n_steps, tick_log.tick if tick_log else None, tick_times_s, progress)
+        fly(plant, stack, n_steps, hook.tick if hook else None, tick_times_s, progress)
     finally:
-        if tick_log:
-            tick_log.finish()
-        if logger:
-            logger.close()
+        if isinstance(hook, TickLog):
+            hook.close()
+        elif hook is not None:
+            hook.finish()
     wall = time.perf_counter() - wall0
     if progress:
         print(file=sys.stderr)
@@ -193,6 +216,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--duration", type=float, default=None)
     ap.add_argument("--log", default="out/run.mcap")
     ap.add_argument("--summary", default=None)
+    ap.add_argument("--log-writer", choices=LOG_WRITERS, default="process",
+                    help="process: the log written on a second process (the same file, the run about twice as fast); "
+                         "inline: in the loop")
     ap.add_argument("--plots", default=None, help="also write Figures 10-16 here")
     ap.add_argument("--params", action="append", default=[], metavar="FILE",
                     help="a parameter set (.parm, MAVProxy's param load format), e.g. params/presets/paper.parm; "
@@ -206,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError) as exc:
         ap.error(str(exc))
     res = run(args.scenario, args.controller, args.seed, args.duration, args.log, overrides,
-              progress=True, world=parse_world_items(args.world))
+              progress=True, world=parse_world_items(args.world), log_writer=args.log_writer)
     text = json.dumps(res.summary, indent=2, allow_nan=True)
     print(text)
     if args.summary:

@@ -1,0 +1,84 @@
+"""navig8-sim's log on a second process (tools/log_writer.py) writes the same file as the inline log: every message
+(topic, log and publish time, bytes) equal, so the summary read from it is equal too; a log that cannot be written
+is refused before the flight, as the inline log refuses it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from navig8_fc.flight import FlightStack
+from navig8_fc.params.registry import ParamRegistry
+from navig8_tools.log_writer import ProcessTickLog
+from navig8_tools.sim import fly, run
+from sim_bridge.plant import Plant
+from sim_bridge.world import load_world
+
+DURATION_S = 3.0  # the arm's first move, a position step and a STATUSTEXT (the take-off) inside it
+
+
+def _messages(path: Path) -> list[tuple[str, int, int, bytes]]:
+    with path.open("rb") as f:
+        return [(ch.topic, m.log_time, m.publish_time, m.data) for _s, ch, m in make_reader(f).iter_messages()]
+
+
+def _without_wall(summary: dict) -> dict:
+    return {k: v for k, v in summary.items() if "wall" not in k and k != "real_time_factor"}
+
+
+def test_the_process_writer_writes_the_inline_log(tmp_path: Path) -> None:
+    inline = run("paper", "proposed", 1, DURATION_S, tmp_path / "inline.mcap", log_writer="inline")
+    process = run("paper", "proposed", 1, DURATION_S, tmp_path / "process.mcap", log_writer="process")
+    a, b = _messages(tmp_path / "inline.mcap"), _messages(tmp_path / "process.mcap")
+    topics = {m[0] for m in a}
+    assert {"/truth", "/analysis/eig", "/fc/status", "/fc/command", "/fc/setpoint", "/fc/statustext", "/foxglove/tf",
+            "/foxglove/log"} <= topics
+    assert len(a) > 4 * int(DURATION_S * 100)  # /truth, /analysis/eig, /fc/status, /fc/command every step
+    assert len(a) == len(b)
+    first_diff = next((i for i, (x, y) in enumerate(zip(a, b, strict=True)) if x != y), None)
+    assert first_diff is None, f"message {first_diff} differs: {a[first_diff][:3]} against {b[first_diff][:3]}"
+    assert _without_wall(inline.summary) == _without_wall(process.summary)
+
+
+def test_a_log_that_cannot_open_is_refused_before_the_flight(tmp_path: Path) -> None:
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a directory")
+    with pytest.raises(RuntimeError, match="the log cannot be written"):
+        run("paper", "proposed", 1, DURATION_S, blocker / "run.mcap", log_writer="process")
+    with pytest.raises(OSError):
+        run("paper", "proposed", 1, DURATION_S, blocker / "run.mcap", log_writer="inline")
+
+
+def test_an_unknown_writer_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="log_writer"):
+        run("paper", "proposed", 1, 0.1, tmp_path / "x.mcap", log_writer="thread")
+
+
+class _FailsAtStep:
+    """A recorder whose disk fails at its 50th step (in the writer process)."""
+
+    def __init__(self) -> None:
+        self.n = 0
+
+    def record(self, *_record: object) -> None:
+        self.n += 1
+        if self.n == 50:
+            raise OSError(28, "No space left on device")
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_writer_that_fails_mid_run_is_reported_after_the_flight() -> None:
+    w = load_world("paper", None)
+    plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(1))
+    stack = FlightStack(w.fc_vehicle, ParamRegistry.from_defaults(), w.scenario.script)
+    hook = ProcessTickLog(plant, _FailsAtStep)
+    n_steps = 400  # several batches: the sends after the failure find the pipe closed
+    fly(plant, stack, n_steps, hook.tick)
+    assert plant.truth_floats().time_us >= n_steps * 10_000  # the vehicle flew to the end
+    with pytest.raises(RuntimeError, match="No space left on device"):
+        hook.finish()

@@ -1,0 +1,167 @@
+"""The in-process runner's log on the second core (navig8-sim --log-writer process, the default for a single run).
+
+The closed loop hands each step's records to a forked writer process, which builds the very same log the inline
+TickLog builds (the /truth and /analysis/eig records, the FC's status, the Foxglove channels, the MCAP writes): the
+files' messages are identical, so are the summaries read from them (tests/integration/test_log_writer.py).
+
+What crosses the process boundary is what the loop made anyway, in marshal's encoding (CPython's fastest for plain
+floats, tuples and dicts): the plant's truth as the bytes of its state vectors (Plant.truth_state), the FC's
+records as their dataclass dictionaries. Batches of ~256 KB go down a pipe; the writer rebuilds the records and
+logs them. A record marshal cannot encode (a numpy scalar, an enum) goes as a pickle. The hand-off costs the loop
+~25 us a step (docs/results.md, "Speed"), the writer ~80-100 us on the other core: a logged run goes about as fast
+as the slower of the two. Campaign workers log inline (their pool already uses both cores; a daemonic worker may
+not fork), and so does any run where `fork` is unavailable.
+"""
+
+from __future__ import annotations
+
+import marshal
+import multiprocessing as mp
+import pickle
+from collections.abc import Callable
+from typing import Any, Protocol
+
+from navig8_fc.core.adaptive_law import AdaptiveLawStatus
+from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FcSensors, FeedForwardStatus
+from navig8_fc.core.indi import IndiStatus
+from navig8_fc.core.outer_loop import OuterLoopStatus, Setpoint
+from navig8_fc.flight import StepResult
+from navig8_fc.mavlink.seam import TruthFloats
+from sim_bridge.plant import Plant, truth_floats_of_state
+
+BATCH_BYTES = 256 * 1024  # one pipe write per ~80 steps: the write's cost spread, the writer never starved
+OPEN_TIMEOUT_S = 60.0  # the writer opens the log (and the viewer's meshes) before the loop starts
+JOIN_TIMEOUT_S = 120.0  # the writer drains its backlog (at most one batch and the pipe's buffer) well inside this
+_NESTED = ("outer", "indi", "adapt", "ff")  # ControllerStatus's nested records, in field order
+_NESTED_CLS = (OuterLoopStatus, IndiStatus, AdaptiveLawStatus, FeedForwardStatus)
+
+
+class StepRecorder(Protocol):
+    """What the writer process feeds: tools.sim.TickLog (record, then finish) and the logger it writes to."""
+
+    def record(self, t_ns: int, truth: TruthFloats, sensors: FcSensors, status: ControllerStatus,
+               command: ActuatorCommand, setpoint: Setpoint, statustexts: list[tuple[int, str]]) -> None: ...
+
+    def close(self) -> None: ...
+
+
+def _frozen(cls: type, fields: dict[str, Any]) -> Any:
+    # a frozen dataclass with exactly these fields, in this order (as its __init__ made them), without re-running
+    # __init__'s checks: the record was valid when the loop made it
+    obj = object.__new__(cls)
+    obj.__dict__.update(fields)
+    return obj
+
+
+def _encode(t_ns: int, truth_state: Any, res: StepResult, sensors: FcSensors) -> bytes | tuple[str, bytes]:
+    st = res.status
+    top = st.__dict__.copy()
+    nested = []
+    for name in _NESTED:
+        sub = top[name]
+        nested.append(None if sub is None else sub.__dict__)
+        top[name] = None
+    texts = [(n.severity, n.statustext) for n in res.notices if n.statustext]
+    rec = (t_ns, truth_state, sensors.__dict__, top, nested, res.command.__dict__, res.setpoint.__dict__, texts)
+    try:
+        return marshal.dumps(rec)
+    except ValueError:  # a type marshal does not take (numpy scalar, enum): the slower, general encoding
+        return ("pickle", pickle.dumps(rec, protocol=pickle.HIGHEST_PROTOCOL))
+
+
+def _decode(item: bytes | tuple[str, bytes]) -> tuple[Any, ...]:
+    t_ns, truth_state, sd, top, nested, cd, spd, texts = (
+        marshal.loads(item) if type(item) is bytes else pickle.loads(item[1]))
+    for name, cls, sub in zip(_NESTED, _NESTED_CLS, nested, strict=True):
+        top[name] = None if sub is None else _frozen(cls, sub)
+    return (t_ns, truth_floats_of_state(truth_state), _frozen(FcSensors, sd), _frozen(ControllerStatus, top),
+            _frozen(ActuatorCommand, cd), _frozen(Setpoint, spd), texts)
+
+
+def _serve(make_recorder: Callable[[], StepRecorder], conn: Any, other_end: Any, status: Any) -> None:
+    other_end.close()  # the loop's end, inherited through fork: closed, so the loop's close ends recv_bytes here
+    try:
+        recorder = make_recorder()
+    except Exception as exc:  # the log cannot open: the loop hears why before it flies
+        status.send(f"{type(exc).__name__}: {exc}")
+        raise
+    status.send(None)
+    try:
+        while True:
+            try:
+                batch = conn.recv_bytes()
+            except EOFError:
+                break
+            for item in marshal.loads(batch):
+                recorder.record(*_decode(item))
+    except Exception as exc:
+        status.send(f"{type(exc).__name__}: {exc}")
+        raise
+    finally:
+        recorder.close()
+
+
+class ProcessTickLog:
+    """The step hook of tools.sim.fly that logs on a forked writer process. `make_recorder` runs in the writer
+    (after the fork) and returns the recorder every step is replayed into; `finish` waits for it to close the log
+    and raises if the writer failed (the log is then incomplete)."""
+
+    def __init__(self, plant: Plant, make_recorder: Callable[[], StepRecorder]) -> None:
+        ctx = mp.get_context("fork")
+        recv, self._send = ctx.Pipe(duplex=False)
+        self._status, status_end = ctx.Pipe(duplex=False)
+        self._proc = ctx.Process(target=_serve, args=(make_recorder, recv, self._send, status_end),
+                                 name="navig8-log-writer", daemon=True)
+        self._proc.start()
+        recv.close()
+        status_end.close()
+        self._plant = plant
+        self._parts: list[bytes | tuple[str, bytes]] = []
+        self._n_bytes = 0
+        self._broken: str | None = None
+        opened = self._status.poll(OPEN_TIMEOUT_S)
+        error = self._status.recv() if opened else f"the log writer did not start within {OPEN_TIMEOUT_S:.0f} s"
+        if error is not None:
+            self._send.close()
+            self._proc.join(5.0)
+            if self._proc.is_alive():
+                self._proc.terminate()
+            raise RuntimeError(f"the log cannot be written: {error}")
+
+    def tick(self, t_ns: int, s: FcSensors, res: StepResult) -> None:
+        item = _encode(t_ns, self._plant.truth_state(), res, s)
+        self._parts.append(item)
+        self._n_bytes += len(item) if type(item) is bytes else len(item[1])
+        if self._n_bytes >= BATCH_BYTES:
+            self._flush()
+
+    def _flush(self) -> None:
+        if self._parts and self._broken is None:
+            try:
+                self._send.send_bytes(marshal.dumps(self._parts))
+            except OSError as exc:  # the writer died: keep flying, report at finish
+                self._broken = str(exc)
+        self._parts.clear()
+        self._n_bytes = 0
+
+    def finish(self) -> None:
+        self._flush()
+        self._send.close()
+        self._proc.join(JOIN_TIMEOUT_S)
+        if self._proc.is_alive():
+            self._proc.terminate()
+            self._proc.join(5.0)
+            raise RuntimeError(f"the log writer did not finish within {JOIN_TIMEOUT_S:.0f} s; the log is incomplete")
+        if self._proc.exitcode != 0 or self._broken is not None:
+            reason = self._status.recv() if self._status.poll(0) else self._broken
+            raise RuntimeError(f"the log writer failed (exit code {self._proc.exitcode}: {reason}); "
+                               "the log is incomplete")
+
+
+def process_writer_available() -> bool:
+    """A forked writer is possible: `fork` exists and this process may have children (a daemonic pool worker may
+    not)."""
+    return "fork" in mp.get_all_start_methods() and not mp.current_process().daemon
+
+
+__all__ = ["ProcessTickLog", "StepRecorder", "process_writer_available", "BATCH_BYTES"]
