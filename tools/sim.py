@@ -58,11 +58,14 @@ class RunResult:
 
 def _floats(v: Any) -> tuple[float, ...]:
     # .tolist() gives Python floats: numpy scalars would slow every plain-float operation in the FC ~3x
+    if type(v) is list:  # WireSensors: already Python floats
+        return tuple(v)
     return tuple(v.tolist()) if hasattr(v, "tolist") else tuple(float(x) for x in v)
 
 
 def sensors_to_fc(sb: Any) -> FcSensors:
-    """The plant's SensorBundle as the FC's input (what the bridge seam delivers over MAVLink)."""
+    """The plant's SensorBundle or WireSensors (the same sample as plain floats) as the FC's input (what the bridge
+    seam delivers over MAVLink)."""
     return FcSensors(
         t_s=sb.time_us * 1e-6,
         gyro_frd_rad_s=_floats(sb.gyro_frd_rad_s),
@@ -121,7 +124,7 @@ def fly(plant: Plant, stack: FlightStack, n_steps: int, on_step: StepHook | None
     dt_s = stack.core.config.dt_s
     last_print = time.perf_counter()
     for k in range(n_steps + 1):
-        sb = plant.sense()
+        sb = plant.sense_wire()  # the sample as Python floats: ~4 us a step less than from sense()'s arrays
         s = sensors_to_fc(sb)
         if tick_times_s is not None:
             t_tick = time.perf_counter()
