@@ -4,13 +4,13 @@ The closed loop hands each step's records to a forked writer process, which buil
 TickLog builds (the /truth and /analysis/eig records, the FC's status, the Foxglove channels, the MCAP writes): the
 files' messages are identical, so are the summaries read from them (tests/integration/test_log_writer.py).
 
-What crosses the process boundary is what the loop made anyway, in marshal's encoding (CPython's fastest for plain
-floats, tuples and dicts): the plant's truth as the bytes of its state vectors (Plant.truth_state), the FC's
-records as their dataclass dictionaries. Batches of ~256 KB go down a pipe; the writer rebuilds the records and
-logs them. A record marshal cannot encode (a numpy scalar, an enum) goes as a pickle. The hand-off costs the loop
-~25 us a step (docs/results.md, "Speed"), the writer ~80-100 us on the other core: a logged run goes about as fast
-as the slower of the two. Campaign workers log inline (their pool already uses both cores; a daemonic worker may
-not fork), and so does any run where `fork` is unavailable.
+What crosses the process boundary is cheap to make: the FC's status as the JSON its /fc/status record is (the bulk
+of a step's log, serialised once, by the function the inline log uses), the plant's truth as the bytes of its state
+vectors (Plant.truth_state), the other records as their dataclass dictionaries in marshal's encoding (CPython's
+fastest for plain floats, tuples and dicts; a record marshal cannot encode, a numpy scalar or an enum, goes as a
+pickle). Batches of ~256 KB go down a pipe; the writer rebuilds the records and logs them (docs/results.md,
+"Speed": what each side costs a step). Campaign workers log inline (their pool already uses both cores; a
+daemonic worker may not fork), and so does any run where `fork` is unavailable.
 """
 
 from __future__ import annotations
@@ -19,30 +19,37 @@ import marshal
 import multiprocessing as mp
 import pickle
 from collections.abc import Callable
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
-from navig8_fc.core.adaptive_law import AdaptiveLawStatus
-from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FcSensors, FeedForwardStatus
-from navig8_fc.core.indi import IndiStatus
-from navig8_fc.core.outer_loop import OuterLoopStatus, Setpoint
+from navig8_fc.core.controller import ActuatorCommand, FcSensors
+from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.flight import StepResult
 from navig8_fc.mavlink.seam import TruthFloats
+from navig8_fc.shell.mcap_log import dumps_json
 from sim_bridge.plant import Plant, truth_floats_of_state
 
 BATCH_BYTES = 256 * 1024  # one pipe write per ~80 steps: the write's cost spread, the writer never starved
 OPEN_TIMEOUT_S = 60.0  # the writer opens the log (and the viewer's meshes) before the loop starts
 JOIN_TIMEOUT_S = 120.0  # the writer drains its backlog (at most one batch and the pipe's buffer) well inside this
-_NESTED = ("outer", "indi", "adapt", "ff")  # ControllerStatus's nested records, in field order
-_NESTED_CLS = (OuterLoopStatus, IndiStatus, AdaptiveLawStatus, FeedForwardStatus)
 
 
 class StepRecorder(Protocol):
     """What the writer process feeds: tools.sim.TickLog (record, then finish) and the logger it writes to."""
 
-    def record(self, t_ns: int, truth: TruthFloats, sensors: FcSensors, status: ControllerStatus,
-               command: ActuatorCommand, setpoint: Setpoint, statustexts: list[tuple[int, str]]) -> None: ...
+    def record(self, t_ns: int, truth: TruthFloats, sensors: FcSensors, status: Any, command: ActuatorCommand,
+               setpoint: Setpoint, statustexts: list[tuple[int, str]], status_json: bytes | None = None) -> None: ...
 
     def close(self) -> None: ...
+
+
+class StatusForLog(NamedTuple):
+    """What the per-step log reads from the FC's status besides its JSON: the eigenvalues' inputs and the 3D view's
+    estimated joints (shell.step_log.StepLog with status_json)."""
+
+    q_est_rad: Any
+    gi_hat: Any
+    gc_uam: Any
+    ref_frd_m: Any
 
 
 def _frozen(cls: type, fields: dict[str, Any]) -> Any:
@@ -53,29 +60,29 @@ def _frozen(cls: type, fields: dict[str, Any]) -> Any:
     return obj
 
 
-def _encode(t_ns: int, truth_state: Any, res: StepResult, sensors: FcSensors) -> bytes | tuple[str, bytes]:
+Item = tuple[bytes | tuple[str, bytes], bytes]  # one step: its records (marshal, else pickle), the status's JSON
+
+
+def _encode(t_ns: int, truth_state: Any, res: StepResult, sensors: FcSensors) -> Item:
     st = res.status
-    top = st.__dict__.copy()
-    nested = []
-    for name in _NESTED:
-        sub = top[name]
-        nested.append(None if sub is None else sub.__dict__)
-        top[name] = None
     texts = [(n.severity, n.statustext) for n in res.notices if n.statustext]
-    rec = (t_ns, truth_state, sensors.__dict__, top, nested, res.command.__dict__, res.setpoint.__dict__, texts)
+    rec = (t_ns, truth_state, sensors.__dict__, (st.q_est_rad, st.gi_hat, st.gc_uam, st.ref_frd_m),
+           res.command.__dict__, res.setpoint.__dict__, texts)
+    head: bytes | tuple[str, bytes]
     try:
-        return marshal.dumps(rec)
+        head = marshal.dumps(rec)
     except ValueError:  # a type marshal does not take (numpy scalar, enum): the slower, general encoding
-        return ("pickle", pickle.dumps(rec, protocol=pickle.HIGHEST_PROTOCOL))
+        head = ("pickle", pickle.dumps(rec, protocol=pickle.HIGHEST_PROTOCOL))
+    # the status as the inline log serialises it (its JSON is most of the step's log: ~3 kB, ~5 us with orjson)
+    return head, dumps_json(st)
 
 
-def _decode(item: bytes | tuple[str, bytes]) -> tuple[Any, ...]:
-    t_ns, truth_state, sd, top, nested, cd, spd, texts = (
-        marshal.loads(item) if type(item) is bytes else pickle.loads(item[1]))
-    for name, cls, sub in zip(_NESTED, _NESTED_CLS, nested, strict=True):
-        top[name] = None if sub is None else _frozen(cls, sub)
-    return (t_ns, truth_floats_of_state(truth_state), _frozen(FcSensors, sd), _frozen(ControllerStatus, top),
-            _frozen(ActuatorCommand, cd), _frozen(Setpoint, spd), texts)
+def _decode(item: Item) -> tuple[Any, ...]:
+    head, status_json = item
+    t_ns, truth_state, sd, eig_in, cd, spd, texts = (
+        marshal.loads(head) if type(head) is bytes else pickle.loads(head[1]))
+    return (t_ns, truth_floats_of_state(truth_state), _frozen(FcSensors, sd), StatusForLog(*eig_in),
+            _frozen(ActuatorCommand, cd), _frozen(Setpoint, spd), texts, status_json)
 
 
 def _serve(make_recorder: Callable[[], StepRecorder], conn: Any, other_end: Any, status: Any) -> None:
@@ -116,7 +123,7 @@ class ProcessTickLog:
         recv.close()
         status_end.close()
         self._plant = plant
-        self._parts: list[bytes | tuple[str, bytes]] = []
+        self._parts: list[Item] = []
         self._n_bytes = 0
         self._broken: str | None = None
         opened = self._status.poll(OPEN_TIMEOUT_S)
@@ -131,7 +138,8 @@ class ProcessTickLog:
     def tick(self, t_ns: int, s: FcSensors, res: StepResult) -> None:
         item = _encode(t_ns, self._plant.truth_state(), res, s)
         self._parts.append(item)
-        self._n_bytes += len(item) if type(item) is bytes else len(item[1])
+        head = item[0]
+        self._n_bytes += len(item[1]) + (len(head) if type(head) is bytes else len(head[1]))
         if self._n_bytes >= BATCH_BYTES:
             self._flush()
 

@@ -95,9 +95,10 @@ class TickLog:
                     [(n.severity, n.statustext) for n in res.notices if n.statustext])
 
     def record(self, t_ns: int, truth: TruthFloats, s: FcSensors, status: ControllerStatus, command: ActuatorCommand,
-               setpoint: Setpoint, statustexts: list[tuple[int, str]]) -> None:
+               setpoint: Setpoint, statustexts: list[tuple[int, str]], status_json: bytes | None = None) -> None:
         steps = self.steps
-        steps.tick(t_ns, truth, s, status, command, setpoint, self.lambda_min, self.lambda_crit)
+        steps.tick(t_ns, truth, s, status, command, setpoint, self.lambda_min, self.lambda_crit,
+                   status_json=status_json)
         for severity, text in statustexts:
             steps.logger.log("/fc/statustext", t_ns, {"severity": severity, "text": text})
             if steps.fox is not None:

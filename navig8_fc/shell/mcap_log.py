@@ -210,6 +210,14 @@ class McapLogger:
             cid = self.channel(topic, to_jsonable(obj), schema=schema)
         self._add(cid, int(t_ns), dumps_json(obj), int(t_ns if publish_ns is None else publish_ns))
 
+    def log_json(self, topic: str, t_ns: int, data: bytes, publish_ns: int | None = None) -> None:
+        """A record already serialised by dumps_json: the same message as log(topic, t_ns, obj) (the channel's
+        schema, on first use, from the record read back: the JSON types to_jsonable gives)."""
+        cid = self._channels.get(topic)
+        if cid is None:
+            cid = self.channel(topic, orjson.loads(data))
+        self._add(cid, int(t_ns), data, int(t_ns if publish_ns is None else publish_ns))
+
     def json_channel(self, topic: str, schema: dict[str, Any]) -> int:
         """The id of a JSON channel with this schema (registered on first use), for log_json_bytes."""
         cid = self._channels.get(topic)

@@ -33,7 +33,9 @@ class StepLog:
 
     def tick(self, t_ns: int, truth: TruthFloats | None, sensors: FcSensors | None, status: ControllerStatus,
              command: ActuatorCommand, setpoint: Setpoint, lambda_min: float, lambda_crit: float,
-             publish_ns: int | None = None) -> None:
+             publish_ns: int | None = None, status_json: bytes | None = None) -> None:
+        """status_json: the status already serialised (mcap_log.dumps_json(status)); `status` then needs only what
+        the eigenvalues and the 3D view read (q_est_rad, gi_hat, gc_uam, ref_frd_m: tools/log_writer.py)."""
         fox, tr, st, sp = self.fox, truth, status, setpoint
         if fox is not None and tr is not None and t_ns >= fox.next_due_ns:  # rate-limited inside
             act = tr.actuator_pos  # alpha1, alpha3, w1, w2, w3
@@ -48,7 +50,10 @@ class StepLog:
             lg.log("/truth", t_ns, log_truth_record(tr), publish_ns=publish_ns)
             lg.log("/analysis/eig", t_ns, eig_record(self.model, st, tr, lambda_min, lambda_crit),
                    publish_ns=publish_ns)
-        lg.log("/fc/status", t_ns, st, publish_ns=publish_ns)
+        if status_json is None:
+            lg.log("/fc/status", t_ns, st, publish_ns=publish_ns)
+        else:
+            lg.log_json("/fc/status", t_ns, status_json, publish_ns=publish_ns)
         self._setpoint(t_ns, (sp.pos_ned, sp.pitch_rad, sp.yaw_rad), publish_ns)
         lg.log("/fc/command", t_ns, command, publish_ns=publish_ns)
         self._t_prev = t_ns

@@ -1,5 +1,5 @@
 """navig8-sim's log on a second process (tools/log_writer.py) writes the same file as the inline log: every message
-(topic, log and publish time, bytes) equal, so the summary read from it is equal too; a log that cannot be written
+(topic, log and publish time, bytes) and every channel's schema equal, so the summary read from it is equal too; a log that cannot be written
 is refused before the flight, as the inline log refuses it."""
 
 from __future__ import annotations
@@ -25,6 +25,11 @@ def _messages(path: Path) -> list[tuple[str, int, int, bytes]]:
         return [(ch.topic, m.log_time, m.publish_time, m.data) for _s, ch, m in make_reader(f).iter_messages()]
 
 
+def _schemas(path: Path) -> dict[str, tuple[str, bytes]]:
+    with path.open("rb") as f:
+        return {ch.topic: (s.name, s.data) for s, ch, _m in make_reader(f).iter_messages()}
+
+
 def _without_wall(summary: dict) -> dict:
     return {k: v for k, v in summary.items() if "wall" not in k and k != "real_time_factor"}
 
@@ -40,6 +45,7 @@ def test_the_process_writer_writes_the_inline_log(tmp_path: Path) -> None:
     assert len(a) == len(b)
     first_diff = next((i for i, (x, y) in enumerate(zip(a, b, strict=True)) if x != y), None)
     assert first_diff is None, f"message {first_diff} differs: {a[first_diff][:3]} against {b[first_diff][:3]}"
+    assert _schemas(tmp_path / "inline.mcap") == _schemas(tmp_path / "process.mcap")
     assert _without_wall(inline.summary) == _without_wall(process.summary)
 
 
