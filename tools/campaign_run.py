@@ -39,7 +39,7 @@ MISSION_METRICS = ("mission_items", "mission_reached", "mission_complete", "miss
 AUTHORITY_COLUMNS = ("authority_bound_deg", "authority_trim_feasible", "authority_worst_t_s")
 # Thread counts of a worker process: the ones Dask's nanny gives its workers (distributed.nanny.pre-spawn-environ).
 # A run's linear algebra is on matrices of 3x3 to 12x12, where OpenBLAS's second thread only spins: in one process
-# it burns the idle core (+30 % CPU per run, docs/results.md), in a pool of one process per core it takes the
+# it burns the idle core, in a pool of one process per core it takes the
 # other worker's core.
 WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
 # Dask configuration of the LocalCluster's workers (docs/campaigns.md: the same for a cluster's workers).

@@ -3,7 +3,7 @@
 The paper's INDI (Eq. 5-6) inverts G_C,UAM^-1 G_hat_I exactly; when the resulting U leaves the feasible set the
 paper-faithful option (INDI_ALLOC = 0, `indi.indi_step`) scales the increment back group by group, which
 holds the forward force a_x fixed and so discards the tilt lever (common duct tilt x the ducts' vertical offset),
-the largest source of pitch moment at hover (docs/results.md, "The physical limit"). This module replaces that
+the largest source of pitch moment at hover (docs/results.md, "Authority bound"). This module replaces that
 step, only on the ticks where the exact increment is infeasible (elsewhere both options fly the same U):
 
     min_dx  sum_i (w_i (A dx - Delta Acc)_i)^2 + EPS_REG |dx|^2     s.t.  lo <= dx <= hi
