@@ -255,6 +255,8 @@ class AdaptiveLaw:
         self._ixz_model = ckf.ixz_model  # CKF_IXZ_MOD (known_ixz)
         self._ixz_dm = ckf.ixz_mass_jacobian and isinstance(self._kf, ConstrainedKalmanFilter)  # CKF_IXZ_MOD 2
         self._grip_reset = ckf.grip_reset
+        # CKF_M_SIG_OPEN: the mass variance (kg^2) with no object held, at the start and after a release (0: P0's)
+        self._m_var_open = ckf.mass_sigma_open_kg ** 2 if isinstance(self._kf, ConstrainedKalmanFilter) else 0.0
         self._grip_sig = ckf.grip_sigma_w if isinstance(self._kf, ConstrainedKalmanFilter) else 0.0  # CKF_GRIP_SIG
         self._event_hold_s = ckf.lpf_tau_s  # no correction this long after a grasp / release (the low-passes carry it)
         self._pred_dj = ckf.predict_from_dj
@@ -362,10 +364,13 @@ class AdaptiveLaw:
         kf = self._kf
         idot: tuple[float, float, float] | None = None  # no predict on the first KF tick: x0 is this pose
         if self._running:
-            idot = self._drift(j11, j22, j33, inertia_rate, object_inertia_rate)
+            idot = eq22_drift((j11, j22, j33), inertia_rate, object_inertia_rate,
+                              self._j_prev if self._pred_dj else None, self._inv_dt)
         else:
             kf.initialise(base)  # K = 1 at the start (Sec. 4)
             self._running = True
+            if gripper_closed is False:
+                narrow_mass_prior(kf, self._m_var_open)
         if self._grip_reset and gripper_closed is not None:
             self._on_gripper(bool(gripper_closed), t_s, base, lower, upper)
         if self._pitch_row and gripper_closed is not None and gripper_closed != self._held_prev:
@@ -438,25 +443,6 @@ class AdaptiveLaw:
             delta_u=du, delta_acc=da, saturated=window_sat,
         )
 
-    def _drift(
-        self, j11: float, j22: float, j33: float, inertia_rate: np.ndarray,
-        object_inertia_rate: tuple[float, float, float] | None,
-    ) -> tuple[float, float, float]:
-        """Eq. 22's drift [I_dot_11, I_dot_22, I_dot_33]: the model's I-dot, or (CKF_PRED_DJ) the tick's change of J
-        plus the estimated object's I-dot."""
-        # CKF_PRED_DJ: the drift is the tick's own change of J plus the estimated object's I-dot (it moves with the
-        # arm), so that x follows the model exactly where it is right. The model's I-dot of J from the measured joint
-        # rates integrates to less or more than J's change, because J is evaluated at the joint observer's q, which
-        # also moves by its correction toward the measured q: each 40 deg arm reversal of the paper scenario moved K3
-        # by -0.05 (K3 0.74 at 23 s with no object); and it leaves out the held object, whose inertia changes most
-        # with the arm's pose. The object's share is its rate at the estimated mass (a change of the mass estimate
-        # itself moves no inertia).
-        if self._pred_dj:
-            jp, inv_dt = self._j_prev, self._inv_dt
-            ob = object_inertia_rate or (0.0, 0.0, 0.0)
-            return ((j11 - jp[0]) * inv_dt + ob[0], (j22 - jp[1]) * inv_dt + ob[1], (j33 - jp[2]) * inv_dt + ob[2])
-        return (inertia_rate.item(0), inertia_rate.item(4), inertia_rate.item(8))
-
     def _gate(self, ready: bool, window_sat: bool, t_s: float) -> bool:
         """Whether this step corrects: a window closed, outside the hold after a gripper event, and (CKF_SAT_GATE) no
         saturation in the window (counted as a skip)."""
@@ -524,8 +510,39 @@ class AdaptiveLaw:
             k = self._k_before_grasp or _ONES4
             self._k_before_grasp = None
             kf.forget([min(max(b / ki, lo), hi) for b, ki, lo, hi in zip(base, k, lower, upper, strict=True)])
+            narrow_mass_prior(kf, self._m_var_open)
         self._hold_until_s = t_s + self._event_hold_s
         self._n_forgets += 1
+
+
+def eq22_drift(
+    j_diag: tuple[float, float, float], inertia_rate: np.ndarray,
+    object_inertia_rate: tuple[float, float, float] | None, j_prev: tuple[float, float, float] | None, inv_dt: float,
+) -> tuple[float, float, float]:
+    """Eq. 22's drift [I_dot_11, I_dot_22, I_dot_33]: the model's I-dot (j_prev None), or (CKF_PRED_DJ) the tick's
+    change of J's diagonal from j_prev plus the estimated object's I-dot."""
+    # CKF_PRED_DJ: the drift is the tick's own change of J plus the estimated object's I-dot (it moves with the
+    # arm), so that x follows the model exactly where it is right. The model's I-dot of J from the measured joint
+    # rates integrates to less or more than J's change, because J is evaluated at the joint observer's q, which
+    # also moves by its correction toward the measured q: each 40 deg arm reversal of the paper scenario moved K3
+    # by -0.05 (K3 0.74 at 23 s with no object); and it leaves out the held object, whose inertia changes most
+    # with the arm's pose. The object's share is its rate at the estimated mass (a change of the mass estimate
+    # itself moves no inertia).
+    if j_prev is not None:
+        j11, j22, j33 = j_diag
+        ob = object_inertia_rate or (0.0, 0.0, 0.0)
+        return ((j11 - j_prev[0]) * inv_dt + ob[0], (j22 - j_prev[1]) * inv_dt + ob[1],
+                (j33 - j_prev[2]) * inv_dt + ob[2])
+    return (inertia_rate.item(0), inertia_rate.item(4), inertia_rate.item(8))
+
+
+def narrow_mass_prior(kf: ConstrainedKalmanFilter | LmsEstimator, var_kg2: float) -> None:
+    """CKF_M_SIG_OPEN (var_kg2 = its square; 0: nothing): with no object held the mass is the UAM's, which the model
+    knows (K4 = 1, Eq. 4). With P0's sigma (0.39 kg at the defaults) one force-row window, its reading put 5-15 % off
+    by the accelerometer's noise, moved K4 by 0.05-0.07 before any grasp, and the Eq. 21 box clips the mass from below
+    only (K4 <= 1), so such moves stay as a mass above the UAM's (docs/model.md, "Estimator" item 14)."""
+    if var_kg2 > 0.0 and isinstance(kf, ConstrainedKalmanFilter):
+        kf.lower_variance((0.0, 0.0, 0.0, var_kg2))
 
 
 def known_ixz(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], ixz: float) -> np.ndarray:

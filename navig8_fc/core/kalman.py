@@ -471,6 +471,16 @@ class ConstrainedKalmanFilter:
         for i, v in enumerate(var_min):
             self._p[i, i] = max(self._p[i, i], float(v))
 
+    def lower_variance(self, var_max: Sequence[float]) -> None:
+        """P's diagonal lowered to at most var_max (4,) (a prior narrower than P0 where the truth is known better), as
+        P <- D P D with D = diag(min(1, sqrt(var_max / P_ii))): the correlations are kept and P stays PSD."""
+        self._require_initialised()
+        d = np.ones(N_STATE)
+        for i, v in enumerate(var_max):
+            if 0.0 < float(v) < self._p[i, i]:
+                d[i] = math.sqrt(float(v) / self._p[i, i])
+        self._p[:, :] = d[:, None] * self._p * d[None, :]
+
     def object_held(self, held: bool, com_sigma_m: float, iyy_var_min: float) -> None:
         """The pitch row's prior on a grasp (held) or a release: while an object is held, the CoM-height error of the
         law's reference point is a nuisance state of prior N(0, com_sigma_m^2) (kf_correct_pitch) and I_yy's variance is

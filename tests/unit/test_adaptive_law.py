@@ -417,6 +417,34 @@ def test_grip_sigma_widens_the_prior_of_i_xx_i_zz_and_m_at_a_grasp(pose: Pose) -
     np.testing.assert_allclose([st.p_diag[i] for i in (1, 3)], 10.0 * 1e-10 + 1e-10, rtol=1e-6)
 
 
+def test_mass_sigma_open_narrows_the_mass_prior_with_no_object_held(pose: Pose) -> None:
+    """CKF_M_SIG_OPEN: at the start with the gripper reporting open, and after a release, the mass's variance is at
+    most sigma^2 (the UAM's mass, which the model knows); at the start with an object held, or with the gripper's state
+    unknown, and at a grasp it is P0's. The inertias keep P0."""
+    sig, p0 = 0.2, 1e9 * 1e-10  # P0's sigma 0.32 kg
+    data = _excitation(pose, pose.base, 300, seed=7)
+
+    def p_diag_at(closed: list[bool | None], k_stop: int) -> tuple[float, ...]:
+        law = _law(r_diag=(1.0,) * 5, q_diag=(1e-10,) * 4, p0_scale=1e9, inc_window=40, grip_reset=True,
+                   mass_sigma_open_kg=sig)
+        st = None
+        for k, (u, acc) in enumerate(data[:k_stop + 1]):
+            _, st = law.step(AdaptiveLawInputs(
+                t_s=k * DT, u_meas=u, acc_m=acc, gc_uam_inv=pose.gci, inertia_uam=pose.j, mass_uam_kg=pose.m,
+                inertia_rate_uam=np.zeros((3, 3)), gripper_closed=closed[k]))
+        assert st is not None and st.running and not st.corrected
+        return st.p_diag
+
+    start = int(0.5 / DT)  # CKF_START_DLY: the KF starts here (no window closes on this tick, nor on the events')
+    opened: list[bool | None] = [False] * 300
+    assert p_diag_at(opened, start) == pytest.approx((p0, p0, p0, sig ** 2), rel=1e-6)
+    for closed in ([True] * 300, [None] * 300):
+        assert p_diag_at(closed, start) == pytest.approx((p0,) * 4, rel=1e-6)
+    grasp_release: list[bool | None] = [start + 10 <= k < start + 100 for k in range(300)]
+    assert p_diag_at(grasp_release, start + 10)[3] == pytest.approx(p0, rel=1e-6)  # a grasp: P0
+    assert p_diag_at(grasp_release, start + 100)[3] == pytest.approx(sig ** 2, rel=1e-6)  # a release: sigma^2
+
+
 def test_the_low_passed_moment_equals_the_moment_of_the_low_passed_u_at_a_fixed_pose(pose: Pose) -> None:
     """CKF_MOM_LPF: with G_C constant (a fixed arm pose, no h') the low-passed moment's increment is
     G_C[M, :] Delta U_f, so the pitch row reads what it reads without the option (to rounding); the option differs

@@ -72,7 +72,7 @@ def _param_values(**overrides: float) -> dict[str, float]:
         "CKF_GRIP_RST": 0, "CKF_PRED_DJ": 0, "CKF_GC_REF": 0,
         "CKF_LMS_MU1": 0.003, "CKF_LMS_MU2": 0.05, "CKF_LMS_MU3": 0.003, "CKF_LMS_MU4": 0.001,
         "CKF_R_PITCH": 0.0, "CKF_CZ_SIG": 0.0, "CKF_LPF_SEED": 0, "CKF_IXZ_MOD": 0, "CKF_GRIP_SIG": 0.0,
-        "CKF_MOM_LPF": 0,
+        "CKF_MOM_LPF": 0, "CKF_M_SIG_OPEN": 0.0,
     }
     v.update(overrides)
     return v
@@ -448,3 +448,19 @@ def test_the_pitch_rows_com_nuisance_removes_the_bias_of_a_wrong_reference_point
         assert rel_err > 0.1, kf.x
     kf.object_held(False, com_sigma_m, 1.0)  # a release: no object, no nuisance
     assert kf.pitch_com_offset_m == 0.0
+
+
+def test_lower_variance_caps_the_diagonal_and_keeps_the_correlations() -> None:
+    """lower_variance (CKF_M_SIG_OPEN): P <- D P D, D = diag(min(1, sqrt(var_max / P_ii))): the capped variances are
+    var_max, the others and every correlation unchanged, P symmetric positive definite."""
+    rng = np.random.default_rng(3)
+    kf = ConstrainedKalmanFilter(CkfConfig())
+    p = _random_p(rng)
+    kf.initialise(np.ones(4), p)
+    cap = 0.25 * p[3, 3]
+    kf.lower_variance((0.0, 0.0, 10.0 * p[2, 2], cap))
+    q = kf.p
+    np.testing.assert_allclose(np.diag(q), [p[0, 0], p[1, 1], p[2, 2], cap], rtol=1e-12)
+    corr = lambda m: m / np.sqrt(np.outer(np.diag(m), np.diag(m)))  # noqa: E731
+    np.testing.assert_allclose(corr(q), corr(p), rtol=1e-12)
+    assert np.array_equal(q, q.T) and np.all(np.linalg.eigvalsh(q) > 0.0)
