@@ -503,7 +503,7 @@ class AdaptiveLaw:
                 # with 1 kg (it moves by 0.42 kg m^2, P0's sigma 0.17), which the prior then holds back through the
                 # first held windows. I_yy has its own (CKF_CZ_SIG). Not the mass: the same prior on it identified K4
                 # better but its faster first held windows, which the INDI's CoM and arm term follow, flew the
-                # envelope worse (docs/results.md, "Estimator").
+                # envelope worse (docs/model.md, "Estimator" item 12).
                 w = self._grip_sig
                 kf.raise_variance(((w * (upper[0] - lower[0])) ** 2, 0.0, (w * (upper[2] - lower[2])) ** 2, 0.0))
         else:
@@ -563,7 +563,7 @@ def ixz_mass_column(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], dix
     column's addition: the innovation is unchanged, and the gain now knows that a window read while m_hat was still
     off carries I_xx, I_zz information conditional on m, so a later mass correction moves them through P's
     cross-covariance (measured: with the product of inertia from m_hat alone, K3 held at q1 60 deg read 0.58-0.60
-    in a batch fit against 0.52 true with 1 kg, 0.53-0.55 with the true I_xz; docs/results.md, "Estimator")."""
+    in a batch fit against 0.52 true with 1 kg, 0.53-0.55 with the true I_xz; docs/model.md, "Estimator" item 11)."""
     h = dixz_dm * (gc_inv[:, 0] * da[2] + gc_inv[:, 2] * da[0])
     return du + h * m_hat, h
 
