@@ -207,7 +207,7 @@ class Failsafes:
                 notices.append(self.act("Battery critical", s.battery_crit_action, f" ({pct}% left)"))
             elif pct <= s.battery_low_pct and "Battery low" not in self._in_force:
                 notices.append(self.act("Battery low", s.battery_low_action, f" ({pct}% left)"))
-        home = m.home_ned
+        home = m.home_ned_m
         fence = self._fence
         if home is None or not self._fence_on:
             return notices

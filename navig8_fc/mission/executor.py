@@ -125,7 +125,7 @@ class MissionExecutor:
         self._home = home_ned
         self._cfg = config or ExecConfig()
         self._idx = plan.current if 0 <= plan.current < len(plan.items) else 0
-        self._pos: Vec3 = start_sp.pos_ned  # the position setpoint
+        self._pos: Vec3 = start_sp.pos_ned_m  # the position setpoint
         self._pitch = start_sp.pitch_rad
         self._yaw = start_sp.yaw_rad
         self._speed = 0.0  # 0: step the setpoint to the target
@@ -237,7 +237,7 @@ class MissionExecutor:
             self._target = (p[0], p[1], self._pos[2])
         elif cmd == Cmd.NAV_RETURN_TO_LAUNCH:
             dest = self._dest = return_destination(here, self._home, self._rally() if self._rally else ())
-            self._target = (self._pos[0], self._pos[1], min(self._pos[2], dest.pos_ned[2] - self._cfg.rtl_alt_m))
+            self._target = (self._pos[0], self._pos[1], min(self._pos[2], dest.pos_ned_m[2] - self._cfg.rtl_alt_m))
             events.append("Mission: returning to launch" if dest.is_home else
                           f"Mission: returning to rally point {dest.seq}")
         elif cmd == Cmd.CONDITION_YAW:
@@ -279,7 +279,7 @@ class MissionExecutor:
                 self._move(self._target, dt)
                 if self._pos == self._target and abs(here[2] - self._target[2]) < cfg.takeoff_tol_m:
                     self._phase = 1
-                    dest = self._dest.pos_ned
+                    dest = self._dest.pos_ned_m
                     self._target = (dest[0], dest[1], self._target[2])
                 return False, False
             self._move(self._target, dt)

@@ -25,12 +25,12 @@ MIN_GAIN_M = 2.0  # PX4 MIN_DIST_THRESHOLD: a rally point must be this much clos
 
 class RallyPoint(NamedTuple):
     seq: int  # the item's index in the rally plan
-    pos_ned: Vec3
+    pos_ned_m: Vec3
 
 
 class Destination(NamedTuple):
     seq: int  # the rally point's item index; -1: home
-    pos_ned: Vec3
+    pos_ned_m: Vec3
 
     @property
     def is_home(self) -> bool:
@@ -61,9 +61,9 @@ def return_destination(here: Vec3, home_ned: Vec3, points: tuple[RallyPoint, ...
     best = Destination(-1, home_ned)
     best_d = _horizontal(here, home_ned)
     for p in points:
-        if _horizontal(home_ned, p.pos_ned) <= HOME_EXCLUSION_M:
+        if _horizontal(home_ned, p.pos_ned_m) <= HOME_EXCLUSION_M:
             continue
-        d = _horizontal(here, p.pos_ned)
+        d = _horizontal(here, p.pos_ned_m)
         if d + MIN_GAIN_M < best_d:
-            best, best_d = Destination(p.seq, p.pos_ned), d
+            best, best_d = Destination(p.seq, p.pos_ned_m), d
     return best

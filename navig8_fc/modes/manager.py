@@ -94,7 +94,7 @@ class ModeReadout:
         return self._sw.mode
 
     @property
-    def entry_pending(self) -> bool:  # a mode's entry runs at the next step: it alone reads ModeInputs.accel_ned
+    def entry_pending(self) -> bool:  # a mode's entry runs at the next step: it alone reads ModeInputs.accel_ned_m_s2
         return self._sw.entry_pending
 
     @property
@@ -110,7 +110,7 @@ class ModeReadout:
         return self._detector.landed
 
     @property
-    def home_ned(self) -> Vec3 | None:
+    def home_ned_m(self) -> Vec3 | None:
         return self._ctx.home
 
     @property
@@ -198,7 +198,7 @@ class ModeManager(ModeReadout):
                 return Verdict(False, f"Arming denied: {check.reason}")
         inp = self._sw.last
         self._sw.armed = True
-        self._ctx.home = inp.pos_ned
+        self._ctx.home = inp.pos_ned_m
         self._sw.home_yaw_rad = inp.yaw_rad
         # Armed in Mission: the mission starts. A forced arm in the air must not leave the controller idle: hold
         # where the vehicle is.

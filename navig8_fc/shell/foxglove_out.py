@@ -145,7 +145,7 @@ class FoxgloveOutput:
         if self._take("/foxglove/scene", t_ns):
             sp = setpoint
             self._emit("/foxglove/scene", t_ns, lambda: v.scene_update(
-                t_ns, speed_rad_s, object_mass_kg, None if sp is None else sp.pos_ned,
+                t_ns, speed_rad_s, object_mass_kg, None if sp is None else sp.pos_ned_m,
                 0.0 if sp is None else sp.pitch_rad, 0.0 if sp is None else sp.yaw_rad), wall_ns)
         if self._take("/foxglove/pose", t_ns):
             self._emit("/foxglove/pose", t_ns, lambda: v.pose_in_frame(t_ns, truth.pos_ned_m, truth.quat_wxyz),
@@ -201,8 +201,8 @@ def script_waypoints(script: Any) -> list[tuple[Sequence[float], Sequence[float]
     pts = []
     for t in times:
         sp = script.setpoint_at(t)
-        if not pts or pts[-1] != (sp.pos_ned, sp.pitch_rad, sp.yaw_rad):
-            pts.append((sp.pos_ned, sp.pitch_rad, sp.yaw_rad))
+        if not pts or pts[-1] != (sp.pos_ned_m, sp.pitch_rad, sp.yaw_rad):
+            pts.append((sp.pos_ned_m, sp.pitch_rad, sp.yaw_rad))
     return viz.waypoint_poses(pts)
 
 

@@ -49,7 +49,7 @@ class StepLog:
             lg.log("/analysis/eig", t_ns, eig_record(self.model, st, tr, lambda_min, lambda_crit),
                    publish_ns=publish_ns)
         lg.log("/fc/status", t_ns, st, publish_ns=publish_ns)
-        self._setpoint(t_ns, (sp.pos_ned, sp.pitch_rad, sp.yaw_rad), publish_ns)
+        self._setpoint(t_ns, (sp.pos_ned_m, sp.pitch_rad, sp.yaw_rad), publish_ns)
         lg.log("/fc/command", t_ns, command, publish_ns=publish_ns)
         self._t_prev = t_ns
 
