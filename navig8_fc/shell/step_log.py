@@ -19,7 +19,7 @@ from navig8_fc.mavlink.seam import TruthFloats
 from navig8_fc.shell.foxglove_out import FoxgloveOutput
 from navig8_fc.viz import VehiclePose
 
-SetpointKey = tuple[Any, float, float]  # pos_ned, pitch_rad, yaw_rad
+SetpointKey = tuple[Any, float, float]  # pos_ned_m, pitch_rad, yaw_rad
 
 
 class StepLog:
@@ -62,7 +62,7 @@ class StepLog:
         self._sp, self._sp_t = sp, t_ns
 
     def _log_setpoint(self, t_ns: int, sp: SetpointKey, publish_ns: int | None) -> None:
-        self.logger.log("/fc/setpoint", t_ns, {"pos_ned": sp[0], "pitch_rad": sp[1], "yaw_rad": sp[2]},
+        self.logger.log("/fc/setpoint", t_ns, {"pos_ned_m": sp[0], "pitch_rad": sp[1], "yaw_rad": sp[2]},
                         publish_ns=publish_ns)
 
     def finish(self, publish_ns: int | None = None) -> None:
