@@ -192,10 +192,10 @@ class VehicleMessages:
             self._volume, self._volume_generation = OperatingVolume.from_params(reg), reg.generation
         return self._volume
 
-    def position_problem(self, pos_ned: tuple[float, float, float]) -> str:
+    def position_problem(self, pos_ned_m: tuple[float, float, float]) -> str:
         """Why a position target (DO_REPOSITION's) leaves the operating volume ('' when it does not; NaN: not
         given, the vehicle's own)."""
-        return self.volume().target_problem(pos_ned, (0.0, 0.0, 0.0), self._home())
+        return self.volume().target_problem(pos_ned_m, (0.0, 0.0, 0.0), self._home())
 
     def item_problem(self, item: MissionItem, mission_type: int) -> Problem | None:
         """Why an uploaded mission or rally item leaves the operating volume (None: it does not)."""

@@ -48,10 +48,10 @@ class Hold:
         self.on_ground = on_ground
         self.setpoint = sp
 
-    def reposition_to(self, pos_ned: Vec3, yaw_rad: float) -> None:
-        """DO_REPOSITION: hold at pos_ned (NaN components: the held point's), yaw_rad (NaN: keep), applied at the
+    def reposition_to(self, pos_ned_m: Vec3, yaw_rad: float) -> None:
+        """DO_REPOSITION: hold at pos_ned_m (NaN components: the held point's), yaw_rad (NaN: keep), applied at the
         next entry or by apply_reposition."""
-        self._reposition = (pos_ned, yaw_rad)
+        self._reposition = (pos_ned_m, yaw_rad)
 
     def drop_reposition(self) -> None:
         self._reposition = None

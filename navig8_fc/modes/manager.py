@@ -326,18 +326,19 @@ class ModeManager(ModeReadout):
         (0.5 = hold altitude). Position mode flies them; centred sticks hold."""
         self._sw.position.set_sticks(x, y, z, r)
 
-    def reposition(self, pos_ned: Vec3, yaw_rad: float = math.nan) -> Verdict:
-        """DO_REPOSITION (MAVSDK goto_location, QGC Go to / Pause): Hold at pos_ned (NaN: here), yaw_rad (NaN: keep)."""
+    def reposition(self, pos_ned_m: Vec3, yaw_rad: float = math.nan) -> Verdict:
+        """DO_REPOSITION (MAVSDK goto_location, QGC Go to / Pause): Hold at pos_ned_m (NaN: here), yaw_rad (NaN:
+        keep)."""
         if not self._sw.armed or self._detector.landed:
             return Verdict(False, "Reposition denied: not flying")
-        self._sw.hold.reposition_to(pos_ned, yaw_rad)
+        self._sw.hold.reposition_to(pos_ned_m, yaw_rad)
         if self._sw.mode is FlightMode.HOLD and not self._sw.entry_pending:
             self._sw.hold.apply_reposition()
         else:
             self._sw.switch(FlightMode.HOLD)
         here = self._sw.here()
         self._tasks.start("reposition", here, tuple(h if math.isnan(p) else p  # type: ignore[arg-type]
-                                                    for p, h in zip(pos_ned, here, strict=True)))
+                                                    for p, h in zip(pos_ned_m, here, strict=True)))
         return Verdict(True)
 
     def orbit(self, req: OrbitRequest, problem: Callable[[OrbitPlan], str] | None = None) -> Verdict:

@@ -127,12 +127,12 @@ def reference_response(omega_rad_s: float, limits: ReferenceLimits) -> complex:
     return kv * kp / (s * s + kv * s + kv * kp)
 
 
-def orbit_yaw(behaviour: int, centre_ned: Vec3, pos_ned: Vec3, clockwise: bool, initial_rad: float,
+def orbit_yaw(behaviour: int, centre_ned_m: Vec3, pos_ned_m: Vec3, clockwise: bool, initial_rad: float,
               current_rad: float) -> float:
     """The heading per ORBIT_YAW_BEHAVIOUR from the vehicle's position (PX4's _generate_circle_yaw_setpoints): the
     front to the centre, along the circle in the direction flown, the heading when commanded, or (uncontrolled, RC:
     the caller's) the current one."""
-    dn, de = pos_ned[0] - centre_ned[0], pos_ned[1] - centre_ned[1]
+    dn, de = pos_ned_m[0] - centre_ned_m[0], pos_ned_m[1] - centre_ned_m[1]
     if behaviour == YAW_INITIAL:
         return initial_rad
     if math.hypot(dn, de) < 1e-6 or behaviour not in (YAW_TO_CENTRE, YAW_TANGENT):
@@ -143,10 +143,10 @@ def orbit_yaw(behaviour: int, centre_ned: Vec3, pos_ned: Vec3, clockwise: bool, 
     return math.atan2(s * dn, -s * de)
 
 
-def on_circle(plan: OrbitPlan, pos_ned: Vec3) -> bool:
+def on_circle(plan: OrbitPlan, pos_ned_m: Vec3) -> bool:
     c = plan.centre_ned_m
-    return (abs(math.hypot(pos_ned[0] - c[0], pos_ned[1] - c[1]) - plan.radius_m) < ON_CIRCLE_M
-            and abs(pos_ned[2] - c[2]) < ON_CIRCLE_ALT_M)
+    return (abs(math.hypot(pos_ned_m[0] - c[0], pos_ned_m[1] - c[1]) - plan.radius_m) < ON_CIRCLE_M
+            and abs(pos_ned_m[2] - c[2]) < ON_CIRCLE_ALT_M)
 
 
 class Orbit:

@@ -179,8 +179,8 @@ class MissionView:
         fox.set_mission(self._script_waypoints)
 
     def show(self, generation: int, plan: Callable[[], Plan], origin: GeoOrigin,
-             home_ned: Callable[[], Sequence[float] | None]) -> None:
-        """The plan of `generation` (`plan` and `home_ned` are asked only when it is new)."""
+             home_ned_m: Callable[[], Sequence[float] | None]) -> None:
+        """The plan of `generation` (`plan` and `home_ned_m` are asked only when it is new)."""
         if generation == self._generation:
             return
         self._generation = generation
@@ -188,7 +188,7 @@ class MissionView:
         if not items.items:
             self._fox.set_mission(self._script_waypoints)
             return
-        path = planned_path(items, origin, home_ned() or (0.0, 0.0, 0.0))
+        path = planned_path(items, origin, home_ned_m() or (0.0, 0.0, 0.0))
         self._fox.set_mission(viz.waypoint_poses([(p, 0.0, 0.0) for p in path]))
 
 
