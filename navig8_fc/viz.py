@@ -82,7 +82,7 @@ class VehiclePose:
 
     pos_ned_m: Vec3
     quat_wxyz: Quat
-    tilt_rad: tuple[float, float]  # alpha1 (duct 1, right), alpha3 (duct 3, left)
+    duct_tilt_rad: tuple[float, float]  # alpha1 (duct 1, right), alpha3 (duct 3, left)
     joint_pos_rad: Vec3  # q1..q3
 
 
@@ -193,7 +193,7 @@ class VehicleViz:
         for i, name in enumerate(("duct_1", "duct_3")):
             # q_x(roll) (x) q_y(-alpha) written out: (cr cb, sr cb, cr sb, sr sb) with b = -alpha / 2
             cr, sr = self._duct_half_roll[i]
-            half = -0.5 * float(pose.tilt_rad[i])
+            half = -0.5 * float(pose.duct_tilt_rad[i])
             cb, sb = math.cos(half), math.sin(half)
             out.append(tf(prefix + "base_link", prefix + name, self._duct_xyz[i],
                           {"x": sr * cb, "y": cr * sb, "z": sr * sb, "w": cr * cb}))

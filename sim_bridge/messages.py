@@ -36,8 +36,8 @@ class ActuatorCommand(NamedTuple):
 class SensorField(enum.IntFlag):
     """Bits of SensorBundle.updated: which groups were sampled fresh at this time."""
 
-    IMU = 1  # gyro_frd, accel_frd
-    MOCAP = 2  # pos_ned, vel_ned, quat_wxyz
+    IMU = 1  # gyro_frd_rad_s, accel_frd_m_s2
+    MOCAP = 2  # pos_ned_m, vel_ned_m_s, quat_wxyz
     ACTUATORS = 4  # duct_tilt_rad, prop_speed_rad_s
     JOINTS = 8  # joint_pos_rad, joint_rate_rad_s
     ALL = 15

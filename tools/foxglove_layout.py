@@ -57,7 +57,7 @@ def layout() -> dict[str, Any]:
                    + [(f"/fc/status.q_est_rad[{i}]", f"q{i + 1} est") for i in range(3)])
     position = _plot("Position (NED) and setpoint (Fig. 12)",
                      [(f"/truth.pos_ned_m[{i}]", a) for i, a in enumerate("NED")]
-                     + [(f"/fc/setpoint.pos_ned[{i}]", f"{a} sp") for i, a in enumerate("NED")])
+                     + [(f"/fc/setpoint.pos_ned_m[{i}]", f"{a} sp") for i, a in enumerate("NED")])
     actuators = _plot("Actuators: duct tilts and propeller speeds (Fig. 14)",
                       [("/truth.duct_tilt_rad[0]", "alpha1"), ("/truth.duct_tilt_rad[1]", "alpha3")]
                       + [(f"/truth.prop_speed_rad_s[{i}]", f"w{i + 1}") for i in range(3)])

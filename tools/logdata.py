@@ -72,6 +72,8 @@ def load_run(path: str | Path, topics: list[str] | None = None) -> RunLog:
     # the Foxglove 3D channels (docs/foxglove.md) are for viewers: no plot or summary reads them
     for topic, t_ns, data in read_mcap(path, topics, skip_prefix=None if topics else "/foxglove/"):
         if isinstance(data, dict):
+            if topic == "/fc/setpoint" and "pos_ned" in data:  # a log written before the key had its unit
+                data["pos_ned_m"] = data.pop("pos_ned")
             t[topic].append(t_ns * 1e-9)
             m[topic].append(data)
     series = {k: Series(np.array(t[k]), m[k]) for k in t}

@@ -284,9 +284,9 @@ def plan_from_scenario(name_or_path: str) -> tuple[MissionItem, ...]:
 
     def waypoint(t: float) -> MissionItem:
         sp = script.setpoint_at(t)
-        x, y = round(sp.pos_ned[0] * 1e4), round(sp.pos_ned[1] * 1e4)
+        x, y = round(sp.pos_ned_m[0] * 1e4), round(sp.pos_ned_m[1] * 1e4)
         return MissionItem(Frame.LOCAL_NED, Cmd.NAV_WAYPOINT, 1, 0.0, 1000.0, 0.0, math.degrees(sp.yaw_rad), x, y,
-                           sp.pos_ned[2])
+                           sp.pos_ned_m[2])
 
     def pitch(t: float) -> MissionItem:
         return MissionItem(Frame.MISSION, Cmd.NAVIG8_PITCH_HOLD, 1, math.degrees(script.setpoint_at(t).pitch_rad),

@@ -86,7 +86,7 @@ def fig12_states(runs: list[RunLog], out: Path) -> Path:
             ax[i, 0].plot(tr.t, enu[:, i], label=run.label, **_style(k))
             ax[i, 1].plot(tr.t, eul[:, i], label=run.label, **_style(k))
     sp = runs[0]["/fc/setpoint"]
-    spp = sp.field("pos_ned")
+    spp = sp.field("pos_ned_m")
     spe = np.column_stack([spp[:, 1], spp[:, 0], -spp[:, 2]])
     for i in range(3):
         ax[i, 0].plot(sp.t, spe[:, i], "r--", lw=1, label="command")

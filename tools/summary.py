@@ -97,7 +97,7 @@ def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
     pos = tr.field("pos_ned_m", 3)
     quat = tr.field("quat_wxyz", 4)
     eul = tr.field("euler_rad", 3)
-    sp_pos = _interp_rows(sp.t, sp.field("pos_ned", 3), t)
+    sp_pos = _interp_rows(sp.t, sp.field("pos_ned_m", 3), t)
     sp_att = np.column_stack([sp.field("pitch_rad"), sp.field("yaw_rad")])
     sp_att_t = _interp_rows(sp.t, sp_att, t)
     att_cmd = st.field("outer.att_cmd_quat", 4)
@@ -131,7 +131,7 @@ def summarize(run: RunLog, wall_time_s: float) -> dict[str, Any]:
     # Settling per commanded step: position axes (NED), pitch and yaw.
     err_cols = np.column_stack([pos - sp_pos, np.degrees(eul[:, 1]) - np.degrees(sp_att_t[:, 0]),
                                 _wrap_deg(np.degrees(eul[:, 2]) - np.degrees(sp_att_t[:, 1]))])
-    sp_vals = np.column_stack([sp.field("pos_ned", 3), sp_att])
+    sp_vals = np.column_stack([sp.field("pos_ned_m", 3), sp_att])
     names = ["north", "east", "down", "pitch", "yaw"]
     t_last = float(t[-1]) if len(t) else 0.0
     steps = [st_ for st_ in _steps(sp.t, sp_vals, names) if st_[0] < t_last - 1e-9]  # a step at the end has no window

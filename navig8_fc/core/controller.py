@@ -381,7 +381,7 @@ class FlightControllerCore:
         # The sensor values packed as float64 into the persistent input vector (TIN's sensor part is all fc_front
         # reads); when engaged the outer loops' inputs follow, read through views.
         if engaged:
-            sp_pos = sp.pos_ned
+            sp_pos = sp.pos_ned_m
             _PACK_ENGAGED(sens, 0, *s.gyro_frd_rad_s, *s.accel_frd_m_s2, *s.duct_tilt_rad, *s.prop_speed_rad_s,
                           *s.joint_pos_rad,
                           *s.joint_rate_rad_s, *s.pos_ned_m, *s.vel_ned_m_s, *s.quat_wxyz,

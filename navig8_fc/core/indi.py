@@ -127,10 +127,10 @@ class IndiConfig:
 
 @dataclass(frozen=True)
 class IndiInputs:
-    gyro_frd: Sequence[float]  # rad/s, measured
-    specific_force_frd: Sequence[float]  # m/s^2, accelerometer (specific force at O)
-    tilt_rad: Sequence[float]  # measured alpha1, alpha3
-    speed_rad_s: Sequence[float]  # measured w1, w2 (signed), w3
+    gyro_frd_rad_s: Sequence[float]  # measured
+    specific_force_frd_m_s2: Sequence[float]  # accelerometer (specific force at O)
+    duct_tilt_rad: Sequence[float]  # measured alpha1, alpha3
+    prop_speed_rad_s: Sequence[float]  # measured w1, w2 (signed), w3
     accel_cmd: Sequence[float]  # v = [Pdot, Qdot, Rdot, a_x, a_z] commanded
     gc: np.ndarray  # G_C,UAM (5x5)
     gi_hat: np.ndarray  # G_hat_I (5x5)
@@ -203,17 +203,17 @@ class IndiController:
 
     def measure(self, inp: IndiInputs) -> tuple[list[float], list[float]]:
         """Filtered acceleration feedback and filtered U0 (also used while disarmed, to stay warm)."""
-        sf, (a1, a3), (w1, w2, w3) = inp.specific_force_frd, inp.tilt_rad, inp.speed_rad_s
+        sf, (a1, a3), (w1, w2, w3) = inp.specific_force_frd_m_s2, inp.duct_tilt_rad, inp.prop_speed_rad_s
         self._st[_ST_ACT_OK] = 0.0  # no command flown: the actuator estimate restarts at the measurement
-        indi_measure(self._st, self._ic, np.asarray(inp.gyro_frd, dtype=float), float(sf[0]), float(sf[2]),
+        indi_measure(self._st, self._ic, np.asarray(inp.gyro_frd_rad_s, dtype=float), float(sf[0]), float(sf[2]),
                         float(a1), float(a3), float(w1), float(w2), float(w3), self._out)
         o = self._out.tolist()
         return o[_IO_ACC_F], o[_IO_U0]
 
     def step(self, inp: IndiInputs) -> tuple[IndiOutput, IndiStatus]:
-        sf, (a1, a3), (w1, w2, w3) = inp.specific_force_frd, inp.tilt_rad, inp.speed_rad_s
+        sf, (a1, a3), (w1, w2, w3) = inp.specific_force_frd_m_s2, inp.duct_tilt_rad, inp.prop_speed_rad_s
         gc_inv = inp.gc_inv if inp.gc_inv is not None else np.linalg.inv(inp.gc)
-        return self._step(np.asarray(inp.gyro_frd, dtype=float), float(sf[0]), float(sf[2]), float(a1), float(a3),
+        return self._step(np.asarray(inp.gyro_frd_rad_s, dtype=float), float(sf[0]), float(sf[2]), float(a1), float(a3),
                           float(w1), float(w2), float(w3), np.asarray(inp.accel_cmd, dtype=float), gc_inv, inp.gi_hat)
 
     def _step(

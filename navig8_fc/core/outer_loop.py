@@ -93,18 +93,18 @@ _PARAM_OF = {"pos_k": "OL_POS_K", "vel_k": "OL_VEL_K", "vel_max_m_s": "OL_VEL_MA
 class Setpoint:
     """Position (NED, m), pitch and yaw (rad). Roll is the outer loop's choice."""
 
-    pos_ned: tuple[float, float, float]
+    pos_ned_m: tuple[float, float, float]
     pitch_rad: float = 0.0
     yaw_rad: float = 0.0
 
 
 @dataclass(frozen=True)
 class OuterLoopStatus:
-    accel_cmd_ned: tuple[float, float, float]
-    specific_force_cmd_ned: tuple[float, float, float]
+    accel_cmd_ned_m_s2: tuple[float, float, float]
+    specific_force_cmd_ned_m_s2: tuple[float, float, float]
     att_cmd_quat: tuple[float, float, float, float]
     roll_cmd_rad: float
-    rate_cmd_frd: tuple[float, float, float]
+    rate_cmd_frd_rad_s: tuple[float, float, float]
     accel_cmd: tuple[float, float, float, float, float]  # [Pdot, Qdot, Rdot, a_x, a_z] for INDI
 
 
@@ -117,18 +117,18 @@ def outer_loop_config_array(cfg: OuterLoopConfig) -> np.ndarray:
 def outer_loop_step(
     cfg: OuterLoopConfig | np.ndarray,
     sp: Setpoint,
-    pos_ned: Sequence[float],
-    vel_ned: Sequence[float],
+    pos_ned_m: Sequence[float],
+    vel_ned_m_s: Sequence[float],
     quat_wxyz: Sequence[float],
-    gyro_frd: Sequence[float],
+    gyro_frd_rad_s: Sequence[float],
     ff: np.ndarray | None = None,
 ) -> OuterLoopStatus:
     """One step of the outer loops (the `outer_loop` kernel); stateless. cfg: the config or its OC vector; ff: the
     reference's feed-forwards (OFF layout; None: none, the paper's loop)."""
     cfg_array = outer_loop_config_array(cfg) if isinstance(cfg, OuterLoopConfig) else cfg
-    return _outer_loop_arrays(cfg_array, OSP.pack(pos=sp.pos_ned, pitch=sp.pitch_rad, yaw=sp.yaw_rad),
-                              np.asarray(pos_ned, dtype=float), np.asarray(vel_ned, dtype=float),
-                              np.asarray(quat_wxyz, dtype=float), np.asarray(gyro_frd, dtype=float),
+    return _outer_loop_arrays(cfg_array, OSP.pack(pos=sp.pos_ned_m, pitch=sp.pitch_rad, yaw=sp.yaw_rad),
+                              np.asarray(pos_ned_m, dtype=float), np.asarray(vel_ned_m_s, dtype=float),
+                              np.asarray(quat_wxyz, dtype=float), np.asarray(gyro_frd_rad_s, dtype=float),
                               OFF.zeros() if ff is None else ff)[0]
 
 
@@ -142,11 +142,11 @@ def _outer_loop_arrays(
     outer_loop(cfg_array, sp, ff, pos, vel, quat, gyro, out)
     o = tuple(out.tolist())
     return OuterLoopStatus(
-        accel_cmd_ned=o[_OO_ACCEL_NED],
-        specific_force_cmd_ned=o[_OO_FORCE_NED],
+        accel_cmd_ned_m_s2=o[_OO_ACCEL_NED],
+        specific_force_cmd_ned_m_s2=o[_OO_FORCE_NED],
         att_cmd_quat=o[_OO_QUAT],
         roll_cmd_rad=o[_OO_ROLL],
-        rate_cmd_frd=o[_OO_RATE],
+        rate_cmd_frd_rad_s=o[_OO_RATE],
         accel_cmd=o[_OO_ACCEL],
     ), out
 

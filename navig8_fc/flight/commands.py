@@ -52,7 +52,7 @@ class SetMode:
 
 @dataclass(frozen=True)
 class Reposition:
-    pos_ned: Vec3  # hold here (a NaN component: where the vehicle is)
+    pos_ned_m: Vec3  # hold here (a NaN component: where the vehicle is)
     yaw_rad: float = math.nan  # NaN: keep
 
 

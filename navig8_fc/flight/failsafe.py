@@ -184,7 +184,7 @@ class Failsafes:
         self._dt_bad_n = 0
         return notice
 
-    def after_step(self, armed: bool, battery: BatteryState, pos_ned: tuple[float, float, float]) -> list[Notice]:
+    def after_step(self, armed: bool, battery: BatteryState, pos_ned_m: tuple[float, float, float]) -> list[Notice]:
         """Battery low/critical and fence breach while armed and flying, each acting once per occurrence;
         disarmed, a new flight starts clean (the battery re-triggers if still low). Most steps have nothing to look
         at: the pack model advances every few steps, and without a fence there is nothing else."""
@@ -207,7 +207,7 @@ class Failsafes:
                 notices.append(self.act("Battery critical", s.battery_crit_action, f" ({pct}% left)"))
             elif pct <= s.battery_low_pct and "Battery low" not in self._in_force:
                 notices.append(self.act("Battery low", s.battery_low_action, f" ({pct}% left)"))
-        home = m.home_ned
+        home = m.home_ned_m
         fence = self._fence
         if home is None or not self._fence_on:
             return notices
@@ -218,7 +218,7 @@ class Failsafes:
             if k:
                 text = f"Geofence: {k} zone(s) on the wrong side of home, not enforced"
                 notices.append(Notice(SEVERITY_CRITICAL, text, text))
-        why = fence.breach(pos_ned, home, s.fence_radius_m, s.fence_alt_max_m)
+        why = fence.breach(pos_ned_m, home, s.fence_radius_m, s.fence_alt_max_m)
         if why is None:
             self._in_force.discard("Fence breach")
         elif "Fence breach" not in self._in_force:

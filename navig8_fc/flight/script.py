@@ -69,7 +69,7 @@ class FlightScript:
         """The step times and the setpoint in force from each on (the first before any step): worked out once, so
         the mission's step looks its setpoint up instead of replaying the steps every control tick."""
         sp0 = self.setpoint0
-        x, y, z = sp0.pos_ned
+        x, y, z = sp0.pos_ned_m
         pitch, yaw = sp0.pitch_rad, sp0.yaw_rad
         times: list[float] = []
         setpoints = [Setpoint((x, y, z), pitch, yaw)]
@@ -115,7 +115,7 @@ def parse_flight_script(d: dict[str, Any]) -> FlightScript:
     sp0 = sp.get("initial", {})
     initial_yaw_deg = math.degrees(vec3(ini.get("euler_deg", [0.0, 0.0, 0.0]), deg=True)[2])
     setpoint0 = Setpoint(
-        pos_ned=vec3(sp0.get("pos_ned_m", ini.get("pos_ned_m", [0.0, 0.0, 0.0]))),
+        pos_ned_m=vec3(sp0.get("pos_ned_m", ini.get("pos_ned_m", [0.0, 0.0, 0.0]))),
         pitch_rad=math.radians(float(sp0.get("pitch_deg", 0.0))),
         yaw_rad=math.radians(float(sp0.get("yaw_deg", initial_yaw_deg))),
     )

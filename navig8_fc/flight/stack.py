@@ -281,7 +281,7 @@ class FlightStack:
             Land: lambda c: m.land(),
             ReturnToLaunch: lambda c: m.return_to_launch(),
             SetMode: lambda c: m.set_custom_mode(int(c.custom_mode)),
-            Reposition: lambda c: m.reposition(c.pos_ned, c.yaw_rad),
+            Reposition: lambda c: m.reposition(c.pos_ned_m, c.yaw_rad),
             Orbit: self._orbit,
             Gripper: self._gripper,
             ArmJoints: self._arm_joints,
@@ -294,8 +294,8 @@ class FlightStack:
         }
 
     def _orbit(self, cmd: Orbit) -> Verdict:  # DO_ORBIT: the resolved circle must lie in the volume (VOL_*), about home
-        vol, home = OperatingVolume.from_params(self.registry.as_dict()), self._modes.home_ned or (0.0, 0.0, 0.0)
-        return self._modes.orbit(cmd.request, lambda plan: vol.orbit_problem(plan.centre_ned, plan.radius_m, home))
+        vol, home = OperatingVolume.from_params(self.registry.as_dict()), self._modes.home_ned_m or (0.0, 0.0, 0.0)
+        return self._modes.orbit(cmd.request, lambda plan: vol.orbit_problem(plan.centre_ned_m, plan.radius_m, home))
 
     def _gripper(self, cmd: Gripper) -> Verdict:
         self._queue(ArmRequest(gripper=cmd.action))
@@ -336,7 +336,7 @@ class FlightStack:
     def _offboard_setpoint(self, cmd: OffboardSetpoint) -> Verdict:
         sp = cmd.target
         if isinstance(sp, Setpoint):
-            if not all(math.isfinite(v) for v in (*sp.pos_ned, sp.pitch_rad, sp.yaw_rad)):
+            if not all(math.isfinite(v) for v in (*sp.pos_ned_m, sp.pitch_rad, sp.yaw_rad)):
                 return Verdict(False, "Offboard setpoint must be finite")
         elif sp.problem():
             return Verdict(False, sp.problem())
@@ -383,7 +383,7 @@ class FlightStack:
             system_status=SYSTEM_STATUS_CRITICAL if m.armed and self._fs.in_force else m.system_status,
             landed_state=mo.landed_state if mo is not None else 0,
             landed=m.landed,
-            home_ned=mo.home_ned if mo is not None else None,
+            home_ned_m=mo.home_ned_m if mo is not None else None,
             home_yaw_rad=mo.home_yaw_rad if mo is not None else 0.0,
             mission_time_s=mo.mission_time_s if mo is not None else None,
             sensors=self._sensors,

@@ -81,7 +81,7 @@ class VehicleState:
     system_status: int  # MAV_STATE
     landed_state: int  # MAV_LANDED_STATE (0 undefined before the first step)
     landed: bool
-    home_ned: Vec3 | None
+    home_ned_m: Vec3 | None
     home_yaw_rad: float
     mission_time_s: float | None
     sensors: FcSensors | None  # the last step's input

@@ -154,7 +154,7 @@ def accel_worker() -> Worker:
                 ref = mean
             s = yield out
             out = []
-        side = _side(ref or s.accel_frd)
+        side = _side(ref or s.accel_frd_m_s2)
         if side is None or side in done:
             failures += 1
             s = yield [(SEVERITY_INFO, f"[cal] {side} side already completed" if side else

@@ -52,11 +52,11 @@ def _given(mask: int, bits: tuple[int, int, int], values: Vec3) -> Vec3:
     return tuple(math.nan if mask & b else float(v) for b, v in zip(bits, values, strict=True))  # type: ignore
 
 
-def position_target(kind: str, mask: int, frame: int, pos_ned: Vec3, vel: Vec3, acc: Vec3, yaw_rad: float,
+def position_target(kind: str, mask: int, frame: int, pos_ned_m: Vec3, vel: Vec3, acc: Vec3, yaw_rad: float,
                     yaw_rate_rad_s: float, yaw_now_rad: float) -> Decoded:
-    """SET_POSITION_TARGET_*: pos_ned already in NED (a global position projected by the caller), `frame` only
+    """SET_POSITION_TARGET_*: pos_ned_m already in NED (a global position projected by the caller), `frame` only
     for BODY_NED (velocities in the heading frame, position ignored, as PX4), vel/acc/yaw as sent."""
-    pos = _given(mask, (PT_X, PT_Y, PT_Z), pos_ned)
+    pos = _given(mask, (PT_X, PT_Y, PT_Z), pos_ned_m)
     v = _given(mask, (PT_VX, PT_VY, PT_VZ), vel)
     has_acc = (mask & PT_ACCEL) != PT_ACCEL
     if frame == MAV_FRAME_BODY_NED:

@@ -198,21 +198,21 @@ class VehicleSnapshot:
     custom_mode: int
     system_status: int  # MAV_STATE
     landed_state: int  # MAV_LANDED_STATE
-    pos_ned: Vec3
-    vel_ned: Vec3
+    pos_ned_m: Vec3
+    vel_ned_m_s: Vec3
     quat_wxyz: Vec4
-    rates_frd: Vec3
-    accel_frd: Vec3 = (0.0, 0.0, 0.0)  # specific force as the IMU measures it (m/s^2)
+    gyro_frd_rad_s: Vec3
+    accel_frd_m_s2: Vec3 = (0.0, 0.0, 0.0)  # specific force as the IMU measures it
     state_valid: bool = True  # pos/vel/attitude come from sensor data (False before the first: no state streams)
-    home_ned: Vec3 | None = None
+    home_ned_m: Vec3 | None = None
     home_yaw_rad: float = 0.0
     origin: GeoOrigin = field(default_factory=GeoOrigin)
     battery: BatteryState = field(default_factory=battery_initial)
     battery_cells: int = 6
     battery_low_pct: float = 20.0
     battery_critical_pct: float = 10.0
-    tilt_rad: tuple[float, float] = (0.0, 0.0)  # measured duct angles alpha1, alpha3
-    speed_rad_s: Vec3 = (0.0, 0.0, 0.0)  # measured propeller speeds w1, w2 (tail, signed), w3
+    duct_tilt_rad: tuple[float, float] = (0.0, 0.0)  # measured duct angles alpha1, alpha3
+    prop_speed_rad_s: Vec3 = (0.0, 0.0, 0.0)  # measured propeller speeds w1, w2 (tail, signed), w3
     joint_pos_rad: Vec3 = (0.0, 0.0, 0.0)
     gripper_closed: bool = False
     sensors: SensorBits = SensorBits(0, 0, 0)
@@ -421,15 +421,15 @@ class TelemetryBuilder:
         if not snap.state_valid:
             return []
         roll, pitch, yaw = euler_from_quat(snap.quat_wxyz)
-        p, q, r = snap.rates_frd
+        p, q, r = snap.gyro_frd_rad_s
         return [self._mav.attitude_encode(now_boot_ms, roll, pitch, yaw, p, q, r)]
 
     def highres_imu(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
         """The IMU's latest sample (FRD body axes, as PX4 streams it): accelerometer and gyro only."""
         if not snap.state_valid:
             return []
-        ax, ay, az = snap.accel_frd
-        p, q, r = snap.rates_frd
+        ax, ay, az = snap.accel_frd_m_s2
+        p, q, r = snap.gyro_frd_rad_s
         return [self._mav.highres_imu_encode(now_boot_ms * 1000, ax, ay, az, p, q, r, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
                                              0.0, HIGHRES_IMU_ACCEL_GYRO)]
 
@@ -437,13 +437,13 @@ class TelemetryBuilder:
         if not snap.state_valid:
             return []
         w, x, y, z = snap.quat_wxyz
-        p, q, r = snap.rates_frd
+        p, q, r = snap.gyro_frd_rad_s
         return [self._mav.attitude_quaternion_encode(now_boot_ms, w, x, y, z, p, q, r, [1.0, 0.0, 0.0, 0.0])]
 
     def local_position_ned(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
         if not snap.state_valid:
             return []
-        return [self._mav.local_position_ned_encode(now_boot_ms, *snap.pos_ned, *snap.vel_ned)]
+        return [self._mav.local_position_ned_encode(now_boot_ms, *snap.pos_ned_m, *snap.vel_ned_m_s)]
 
     def global_position_int(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
         if not snap.state_valid:
@@ -451,10 +451,10 @@ class TelemetryBuilder:
         if not snap.gps_ok:  # failure injected: a receiver without a fix (PX4 SITL's blocked GPS sends nothing)
             return [self._mav.gps_raw_int_encode(now_boot_ms * 1000, M.GPS_FIX_TYPE_NO_FIX, 0, 0, 0, 65535, 65535,
                                                  65535, 65535, 0)]
-        lat, lon, alt = snap.origin.to_global(snap.pos_ned)
-        home_d = snap.home_ned[2] if snap.home_ned is not None else 0.0
-        rel_alt = home_d - snap.pos_ned[2]
-        vn, ve, vd = snap.vel_ned
+        lat, lon, alt = snap.origin.to_global(snap.pos_ned_m)
+        home_d = snap.home_ned_m[2] if snap.home_ned_m is not None else 0.0
+        rel_alt = home_d - snap.pos_ned_m[2]
+        vn, ve, vd = snap.vel_ned_m_s
         yaw = euler_from_quat(snap.quat_wxyz)[2]
         i32 = (-(2**31), 2**31 - 1)
         return [
@@ -475,8 +475,8 @@ class TelemetryBuilder:
         if not snap.gps_ok:  # failure injected: a receiver without a fix (PX4 SITL's blocked GPS sends nothing)
             return [self._mav.gps_raw_int_encode(now_boot_ms * 1000, M.GPS_FIX_TYPE_NO_FIX, 0, 0, 0, 65535, 65535,
                                                  65535, 65535, 0)]
-        lat, lon, alt = snap.origin.to_global(snap.pos_ned)
-        vn, ve, _ = snap.vel_ned
+        lat, lon, alt = snap.origin.to_global(snap.pos_ned_m)
+        vn, ve, _ = snap.vel_ned_m_s
         i32 = (-(2**31), 2**31 - 1)
         cog = _i(math.degrees(math.atan2(ve, vn)) % 360.0 * 100.0, 0, 35999, 0) if math.hypot(vn, ve) > 0.1 else 65535
         return [self._mav.gps_raw_int_encode(
@@ -492,19 +492,19 @@ class TelemetryBuilder:
     def vfr_hud(self, snap: VehicleSnapshot, now_boot_ms: int = 0) -> list[Any]:
         if not snap.state_valid:
             return []
-        vn, ve, vd = snap.vel_ned
+        vn, ve, vd = snap.vel_ned_m_s
         ground = math.hypot(vn, ve)
         yaw = euler_from_quat(snap.quat_wxyz)[2]
         heading_deg = _i(math.degrees(yaw) % 360.0, 0, 359, 0) if math.isfinite(yaw) else 0
-        alt_msl = snap.origin.alt_amsl_m - snap.pos_ned[2]
+        alt_msl = snap.origin.alt_amsl_m - snap.pos_ned_m[2]
         throttle = _i(snap.throttle_pct, 0, 100, 0)
         return [self._mav.vfr_hud_encode(ground, ground, heading_deg, throttle, alt_msl, -vd)]
 
     def home_position(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
-        if snap.home_ned is None:
+        if snap.home_ned_m is None:
             return []
-        hn, he, hd = snap.home_ned
-        lat, lon, alt = snap.origin.to_global(snap.home_ned)
+        hn, he, hd = snap.home_ned_m
+        lat, lon, alt = snap.origin.to_global(snap.home_ned_m)
         half = 0.5 * snap.home_yaw_rad
         q = [math.cos(half), 0.0, 0.0, math.sin(half)]  # world-to-surface: flat ground, home heading
         # Approach vector end: the vertical path a multicopter climbs and descends on, in local NED.
@@ -545,7 +545,7 @@ class TelemetryBuilder:
     def actuator_output_status(self, snap: VehicleSnapshot, now_boot_ms: int) -> list[Any]:
         # Channels: 0-1 duct tilts alpha1, alpha3 (rad); 2-4 propeller speeds w1, w2 (tail), w3 (rad/s);
         # 5-7 arm joints q1..q3 (rad); 8 gripper (1 closed, 0 open).
-        values = [*snap.tilt_rad, *snap.speed_rad_s, *snap.joint_pos_rad, 1.0 if snap.gripper_closed else 0.0]
+        values = [*snap.duct_tilt_rad, *snap.prop_speed_rad_s, *snap.joint_pos_rad, 1.0 if snap.gripper_closed else 0.0]
         active = (1 << len(values)) - 1
         padded = values + [0.0] * (32 - len(values))
         return [self._mav.actuator_output_status_encode(int(now_boot_ms) * 1000, active, padded)]
@@ -556,7 +556,7 @@ class TelemetryBuilder:
         o = snap.orbit
         if o is None:
             return []
-        lat, lon, alt = snap.origin.to_global(o.centre_ned)
+        lat, lon, alt = snap.origin.to_global(o.centre_ned_m)
         i32 = (-(2**31), 2**31 - 1)
         return [self._mav.orbit_execution_status_encode(int(now_boot_ms) * 1000, o.signed_radius_m, M.MAV_FRAME_GLOBAL,
                                                         _i(lat * 1e7, *i32, 0), _i(lon * 1e7, *i32, 0), alt)]

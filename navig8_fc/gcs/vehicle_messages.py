@@ -119,7 +119,7 @@ class VehicleMessages:
                                            float(m.yaw), float(m.yaw_rate), yaw_now)
         if dec.target is None:
             return self.text.warning(dec.refusal)
-        why = self.volume().target_problem(dec.target.pos_ned, dec.target.vel_ned, self._home())
+        why = self.volume().target_problem(dec.target.pos_ned_m, dec.target.vel_ned_m_s, self._home())
         if why:
             if now_wall - self._volume_text_t < VOLUME_TEXT_PERIOD_S:
                 return []
@@ -192,10 +192,10 @@ class VehicleMessages:
             self._volume, self._volume_generation = OperatingVolume.from_params(reg), reg.generation
         return self._volume
 
-    def position_problem(self, pos_ned: tuple[float, float, float]) -> str:
+    def position_problem(self, pos_ned_m: tuple[float, float, float]) -> str:
         """Why a position target (DO_REPOSITION's) leaves the operating volume ('' when it does not; NaN: not
         given, the vehicle's own)."""
-        return self.volume().target_problem(pos_ned, (0.0, 0.0, 0.0), self._home())
+        return self.volume().target_problem(pos_ned_m, (0.0, 0.0, 0.0), self._home())
 
     def item_problem(self, item: MissionItem, mission_type: int) -> Problem | None:
         """Why an uploaded mission or rally item leaves the operating volume (None: it does not)."""
@@ -204,9 +204,9 @@ class VehicleMessages:
         return self.volume().item_problem(item, self.origin, self._home())
 
     def _home(self) -> tuple[float, float, float]:
-        home = self._state().home_ned
+        home = self._state().home_ned_m
         return tuple(home) if home is not None else (0.0, 0.0, 0.0)  # type: ignore[return-value]
 
     def _home_z(self) -> float:
-        home = self._state().home_ned
+        home = self._state().home_ned_m
         return home[2] if home is not None else 0.0

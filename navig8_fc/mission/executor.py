@@ -71,7 +71,7 @@ def _wrap(a: float) -> float:
     return (a + math.pi) % (2 * math.pi) - math.pi
 
 
-def item_position(it: MissionItem, origin: GeoOrigin, home_ned: Vec3, here: Vec3) -> Vec3:
+def item_position(it: MissionItem, origin: GeoOrigin, home_ned_m: Vec3, here: Vec3) -> Vec3:
     """An item's position in local NED (m): LOCAL_NED as is; a global frame around the origin, x = y = 0 meaning
     `here`, the altitude above home (RELATIVE_ALT frames) or AMSL."""
     if it.frame == Frame.LOCAL_NED:
@@ -81,7 +81,7 @@ def item_position(it: MissionItem, origin: GeoOrigin, home_ned: Vec3, here: Vec3
     else:
         n, e = origin.to_ned_xy(it.x * 1e-7, it.y * 1e-7)
     if it.frame in RELATIVE_ALT_FRAMES:
-        d = home_ned[2] - it.z
+        d = home_ned_m[2] - it.z
     else:
         d = origin.alt_amsl_m - it.z
     return n, e, d
@@ -90,24 +90,24 @@ def item_position(it: MissionItem, origin: GeoOrigin, home_ned: Vec3, here: Vec3
 _AT_POSITION = (Cmd.NAV_WAYPOINT, Cmd.NAV_LOITER_TIME, Cmd.NAV_LOITER_UNLIM)
 
 
-def planned_path(plan: Plan, origin: GeoOrigin, home_ned: Vec3) -> list[Vec3]:
+def planned_path(plan: Plan, origin: GeoOrigin, home_ned_m: Vec3) -> list[Vec3]:
     """The positions a plan flies through in item order, starting at home (for display: the executor's targets
     without its timing, DO_JUMP loops shown once): takeoff climbs where the vehicle is, waypoints and loiters go to
     their position, a landing descends at its x/y, return to launch ends at home."""
-    here = home_ned
+    here = home_ned_m
     path = [here]
     for it in plan.items:
         cmd = it.command
         if cmd == Cmd.NAV_TAKEOFF:
-            here = (here[0], here[1], item_position(it, origin, home_ned, here)[2])
+            here = (here[0], here[1], item_position(it, origin, home_ned_m, here)[2])
         elif cmd in _AT_POSITION:
-            here = item_position(it, origin, home_ned, here)
+            here = item_position(it, origin, home_ned_m, here)
         elif cmd == Cmd.NAV_LAND:
-            p = item_position(it, origin, home_ned, here)
+            p = item_position(it, origin, home_ned_m, here)
             path.append((p[0], p[1], here[2]))
-            here = (p[0], p[1], home_ned[2])
+            here = (p[0], p[1], home_ned_m[2])
         elif cmd == Cmd.NAV_RETURN_TO_LAUNCH:
-            here = home_ned
+            here = home_ned_m
         else:
             continue
         path.append(here)
@@ -115,17 +115,17 @@ def planned_path(plan: Plan, origin: GeoOrigin, home_ned: Vec3) -> list[Vec3]:
 
 
 class MissionExecutor:
-    def __init__(self, plan: Plan, origin: GeoOrigin, home_ned: Vec3, start_sp: Setpoint,
+    def __init__(self, plan: Plan, origin: GeoOrigin, home_ned_m: Vec3, start_sp: Setpoint,
                  config: ExecConfig | None = None, reached_count: int = 0,
                  rally: Callable[[], tuple[RallyPoint, ...]] | None = None) -> None:
         self._plan = plan
         self._rally = rally  # the rally points in force, read when a return starts
-        self._dest = Destination(-1, home_ned)  # where the last return went
+        self._dest = Destination(-1, home_ned_m)  # where the last return went
         self._origin = origin
-        self._home = home_ned
+        self._home = home_ned_m
         self._cfg = config or ExecConfig()
         self._idx = plan.current if 0 <= plan.current < len(plan.items) else 0
-        self._pos: Vec3 = start_sp.pos_ned  # the position setpoint
+        self._pos: Vec3 = start_sp.pos_ned_m  # the position setpoint
         self._pitch = start_sp.pitch_rad
         self._yaw = start_sp.yaw_rad
         self._speed = 0.0  # 0: step the setpoint to the target
@@ -178,7 +178,7 @@ class MissionExecutor:
             self._pos = tuple(p + di * step / dist for p, di in zip(self._pos, d, strict=True))  # type: ignore[assignment]
 
     # --- the step ----------------------------------------------------------------------------------------
-    def step(self, t_s: float, pos_ned: Vec3, yaw_rad: float, dt: float) -> ExecStep:
+    def step(self, t_s: float, pos_ned_m: Vec3, yaw_rad: float, dt: float) -> ExecStep:
         actions: list[tuple[str, object]] = []
         events: list[str] = []
         land = False
@@ -190,8 +190,8 @@ class MissionExecutor:
                 break
             it = self._plan.items[self._idx]
             if not self._entered:
-                self._enter(it, t_s, pos_ned, events)
-            done, land_now = self._run(it, t_s, pos_ned, yaw_rad, dt, actions)
+                self._enter(it, t_s, pos_ned_m, events)
+            done, land_now = self._run(it, t_s, pos_ned_m, yaw_rad, dt, actions)
             if not done:
                 break
             self._complete(events)
@@ -237,7 +237,7 @@ class MissionExecutor:
             self._target = (p[0], p[1], self._pos[2])
         elif cmd == Cmd.NAV_RETURN_TO_LAUNCH:
             dest = self._dest = return_destination(here, self._home, self._rally() if self._rally else ())
-            self._target = (self._pos[0], self._pos[1], min(self._pos[2], dest.pos_ned[2] - self._cfg.rtl_alt_m))
+            self._target = (self._pos[0], self._pos[1], min(self._pos[2], dest.pos_ned_m[2] - self._cfg.rtl_alt_m))
             events.append("Mission: returning to launch" if dest.is_home else
                           f"Mission: returning to rally point {dest.seq}")
         elif cmd == Cmd.CONDITION_YAW:
@@ -279,7 +279,7 @@ class MissionExecutor:
                 self._move(self._target, dt)
                 if self._pos == self._target and abs(here[2] - self._target[2]) < cfg.takeoff_tol_m:
                     self._phase = 1
-                    dest = self._dest.pos_ned
+                    dest = self._dest.pos_ned_m
                     self._target = (dest[0], dest[1], self._target[2])
                 return False, False
             self._move(self._target, dt)

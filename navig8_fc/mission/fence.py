@@ -54,12 +54,12 @@ class Fence:
     def has_zones(self) -> bool:
         return bool(self.circles or self.polygons or self.exclusion_circles or self.exclusion_polygons)
 
-    def breach(self, pos_ned: Vec3, home_ned: Vec3, radius_m: float, alt_max_m: float) -> str | None:
-        """Why pos_ned is outside the fence (None: inside). Zones on the wrong side of home are not enforced."""
-        n, e, d = pos_ned
-        hn, he = home_ned[0], home_ned[1]
-        if alt_max_m > 0.0 and home_ned[2] - d > alt_max_m:
-            return f"{home_ned[2] - d:.1f} m above home (max {alt_max_m:g} m)"
+    def breach(self, pos_ned_m: Vec3, home_ned_m: Vec3, radius_m: float, alt_max_m: float) -> str | None:
+        """Why pos_ned_m is outside the fence (None: inside). Zones on the wrong side of home are not enforced."""
+        n, e, d = pos_ned_m
+        hn, he = home_ned_m[0], home_ned_m[1]
+        if alt_max_m > 0.0 and home_ned_m[2] - d > alt_max_m:
+            return f"{home_ned_m[2] - d:.1f} m above home (max {alt_max_m:g} m)"
         if radius_m > 0.0 and math.hypot(n - hn, e - he) > radius_m:
             return f"{math.hypot(n - hn, e - he):.1f} m from home (max {radius_m:g} m)"
         for (cn, ce), r in self.circles:
@@ -76,9 +76,9 @@ class Fence:
                 return "inside the exclusion polygon"
         return None
 
-    def zones_not_enforced(self, home_ned: Vec3) -> int:
+    def zones_not_enforced(self, home_ned_m: Vec3) -> int:
         """How many zones are on the wrong side of home (for the operator's notice)."""
-        hn, he = home_ned[0], home_ned[1]
+        hn, he = home_ned_m[0], home_ned_m[1]
         return (sum(math.hypot(hn - cn, he - ce) > r for (cn, ce), r in self.circles)
                 + sum(not _inside(p, hn, he) for p in self.polygons)
                 + sum(math.hypot(hn - cn, he - ce) < r for (cn, ce), r in self.exclusion_circles)

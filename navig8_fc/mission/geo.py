@@ -20,9 +20,9 @@ class GeoOrigin:
     lon_deg: float = -114.1339
     alt_amsl_m: float = 1100.0
 
-    def to_global(self, pos_ned: Sequence[float]) -> tuple[float, float, float]:
+    def to_global(self, pos_ned_m: Sequence[float]) -> tuple[float, float, float]:
         """(lat deg, lon deg, alt AMSL m) of a NED point, flat earth (module docstring)."""
-        n, e, d = pos_ned
+        n, e, d = pos_ned_m
         lat = self.lat_deg + math.degrees(n / EARTH_RADIUS_M)
         lon = self.lon_deg + math.degrees(e / (EARTH_RADIUS_M * math.cos(math.radians(self.lat_deg))))
         return lat, lon, self.alt_amsl_m - d

@@ -25,19 +25,19 @@ MIN_GAIN_M = 2.0  # PX4 MIN_DIST_THRESHOLD: a rally point must be this much clos
 
 class RallyPoint(NamedTuple):
     seq: int  # the item's index in the rally plan
-    pos_ned: Vec3
+    pos_ned_m: Vec3
 
 
 class Destination(NamedTuple):
     seq: int  # the rally point's item index; -1: home
-    pos_ned: Vec3
+    pos_ned_m: Vec3
 
     @property
     def is_home(self) -> bool:
         return self.seq < 0
 
 
-def rally_positions(plan: Plan | None, origin: GeoOrigin, home_ned: Vec3) -> tuple[RallyPoint, ...]:
+def rally_positions(plan: Plan | None, origin: GeoOrigin, home_ned_m: Vec3) -> tuple[RallyPoint, ...]:
     """The plan's usable rally points in local NED (module docstring)."""
     if plan is None:
         return ()
@@ -46,7 +46,7 @@ def rally_positions(plan: Plan | None, origin: GeoOrigin, home_ned: Vec3) -> tup
         if it.command != Cmd.NAV_RALLY_POINT or it.frame not in GLOBAL_FRAMES or (it.x == 0 and it.y == 0):
             continue
         n, e = origin.to_ned_xy(it.x * 1e-7, it.y * 1e-7)
-        d = home_ned[2] - it.z if it.frame in RELATIVE_ALT_FRAMES else origin.alt_amsl_m - it.z
+        d = home_ned_m[2] - it.z if it.frame in RELATIVE_ALT_FRAMES else origin.alt_amsl_m - it.z
         if math.isfinite(n) and math.isfinite(e) and math.isfinite(d):
             out.append(RallyPoint(seq, (n, e, d)))
     return tuple(out)
@@ -56,14 +56,14 @@ def _horizontal(a: Vec3, b: Vec3) -> float:
     return math.hypot(a[0] - b[0], a[1] - b[1])
 
 
-def return_destination(here: Vec3, home_ned: Vec3, points: tuple[RallyPoint, ...]) -> Destination:
+def return_destination(here: Vec3, home_ned_m: Vec3, points: tuple[RallyPoint, ...]) -> Destination:
     """Where Return goes from `here`: home or the closest usable rally point (RTL_TYPE 0, module docstring)."""
-    best = Destination(-1, home_ned)
-    best_d = _horizontal(here, home_ned)
+    best = Destination(-1, home_ned_m)
+    best_d = _horizontal(here, home_ned_m)
     for p in points:
-        if _horizontal(home_ned, p.pos_ned) <= HOME_EXCLUSION_M:
+        if _horizontal(home_ned_m, p.pos_ned_m) <= HOME_EXCLUSION_M:
             continue
-        d = _horizontal(here, p.pos_ned)
+        d = _horizontal(here, p.pos_ned_m)
         if d + MIN_GAIN_M < best_d:
-            best, best_d = Destination(p.seq, p.pos_ned), d
+            best, best_d = Destination(p.seq, p.pos_ned_m), d
     return best

@@ -47,57 +47,57 @@ class OperatingVolume:
         return OperatingVolume(float(values["VOL_DIST_MAX"]), float(values["VOL_ALT_MAX"]),
                                float(values["VOL_ALT_MIN"]), float(values["VOL_SPEED_MAX"]))
 
-    def distance_problem(self, pos_ned: Vec3, home_ned: Vec3) -> str:
+    def distance_problem(self, pos_ned_m: Vec3, home_ned_m: Vec3) -> str:
         """Why a position is too far from home horizontally ('' when it is not; NaN x or y: not given)."""
-        dist = math.hypot(pos_ned[0] - home_ned[0], pos_ned[1] - home_ned[1])
+        dist = math.hypot(pos_ned_m[0] - home_ned_m[0], pos_ned_m[1] - home_ned_m[1])
         if math.isnan(dist) or dist <= self.max_distance_m:
             return ""
         return f"{_metres(dist)} from home, beyond VOL_DIST_MAX {self.max_distance_m:g} m"
 
-    def altitude_problem(self, down_m: float, home_ned: Vec3) -> str:
+    def altitude_problem(self, down_m: float, home_ned_m: Vec3) -> str:
         """Why a NED down coordinate is out of the altitude band ('' when it is not; NaN: not given)."""
-        above = home_ned[2] - down_m
+        above = home_ned_m[2] - down_m
         if math.isnan(above) or self.min_altitude_m <= above <= self.max_altitude_m:
             return ""
         bound = (f"above VOL_ALT_MAX {self.max_altitude_m:g} m" if above > self.max_altitude_m
                  else f"below VOL_ALT_MIN {self.min_altitude_m:g} m")
         return f"{_metres(above)} above home, {bound}"
 
-    def speed_problem(self, vel_ned: Vec3) -> str:
+    def speed_problem(self, vel_ned_m_s: Vec3) -> str:
         """Why a velocity is too fast ('' when it is not; NaN components: not given)."""
-        speed = math.sqrt(sum(v * v for v in vel_ned if not math.isnan(v)))
+        speed = math.sqrt(sum(v * v for v in vel_ned_m_s if not math.isnan(v)))
         if speed <= self.max_speed_m_s:
             return ""
         return f"speed {speed:.3g} m/s beyond VOL_SPEED_MAX {self.max_speed_m_s:g} m/s"
 
-    def orbit_problem(self, centre_ned: Vec3, radius_m: float, home_ned: Vec3) -> str:
+    def orbit_problem(self, centre_ned_m: Vec3, radius_m: float, home_ned_m: Vec3) -> str:
         """Why a circle (DO_ORBIT's) leaves the volume ('' when it does not): its farthest point from home, its
         altitude."""
-        d = math.hypot(centre_ned[0] - home_ned[0], centre_ned[1] - home_ned[1])
+        d = math.hypot(centre_ned_m[0] - home_ned_m[0], centre_ned_m[1] - home_ned_m[1])
         if d + radius_m > self.max_distance_m:
             return (f"circle reaches {_metres(d + radius_m)} from home (centre {_metres(d)}, radius {radius_m:g} m), "
                     f"beyond VOL_DIST_MAX {self.max_distance_m:g} m")
-        return self.altitude_problem(centre_ned[2], home_ned)
+        return self.altitude_problem(centre_ned_m[2], home_ned_m)
 
-    def target_problem(self, pos_ned: Vec3, vel_ned: Vec3, home_ned: Vec3) -> str:
+    def target_problem(self, pos_ned_m: Vec3, vel_ned_m_s: Vec3, home_ned_m: Vec3) -> str:
         """Why an offboard target leaves the volume ('' when it does not)."""
-        return (self.distance_problem(pos_ned, home_ned) or self.altitude_problem(pos_ned[2], home_ned)
-                or self.speed_problem(vel_ned))
+        return (self.distance_problem(pos_ned_m, home_ned_m) or self.altitude_problem(pos_ned_m[2], home_ned_m)
+                or self.speed_problem(vel_ned_m_s))
 
-    def item_problem(self, item: MissionItem, origin: GeoOrigin, home_ned: Vec3) -> Problem | None:
+    def item_problem(self, item: MissionItem, origin: GeoOrigin, home_ned_m: Vec3) -> Problem | None:
         """Why a mission or rally item's position leaves the volume (None when it does not, or has no position):
         INVALID_PARAM5_X for the distance, INVALID_PARAM7 for the altitude."""
         cmd = item.command
         if cmd not in _FULL_POSITION | _ALTITUDE_ONLY | _HORIZONTAL_ONLY:
             return None
-        pos = item_position(item, origin, home_ned, (math.nan, math.nan, math.nan))  # x = y = 0: here, unchecked
+        pos = item_position(item, origin, home_ned_m, (math.nan, math.nan, math.nan))  # x = y = 0: here, unchecked
         name = Cmd(cmd).name
         if cmd not in _ALTITUDE_ONLY and not (item.frame in GLOBAL_FRAMES and item.x == 0 and item.y == 0):
-            why = self.distance_problem(pos, home_ned)
+            why = self.distance_problem(pos, home_ned_m)
             if why:
                 return Problem(Result.INVALID_PARAM5_X, f"{name}: {why}")
         if cmd not in _HORIZONTAL_ONLY:
-            why = self.altitude_problem(pos[2], home_ned)
+            why = self.altitude_problem(pos[2], home_ned_m)
             if why:
                 return Problem(Result.INVALID_PARAM7, f"{name}: {why}")
         return None

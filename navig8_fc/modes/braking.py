@@ -41,15 +41,15 @@ def braking_distance_m(v_m_s: float, a_m_s2: float, acc_max_m_s2: float, jerk_ma
 
 
 
-def stopping_point(x: float, y: float, vel_ned: Vec3, accel_ned: Vec3, acc_max_m_s2: float, jerk_max_m_s3: float,
-                   lag_s: float) -> tuple[float, float]:
+def stopping_point(x: float, y: float, vel_ned_m_s: Vec3, accel_ned_m_s2: Vec3, acc_max_m_s2: float,
+                   jerk_max_m_s3: float, lag_s: float) -> tuple[float, float]:
     """Where the horizontal motion from (x, y) comes to rest under the position reference's braking limits
     (braking_distance_m); holding any nearer point flies past it and back."""
-    vx, vy = vel_ned[0], vel_ned[1]
+    vx, vy = vel_ned_m_s[0], vel_ned_m_s[1]
     v = math.hypot(vx, vy)
     if not v > 0.0:  # also NaN
         return x, y
     ux, uy = vx / v, vy / v
-    a_along = accel_ned[0] * ux + accel_ned[1] * uy
+    a_along = accel_ned_m_s2[0] * ux + accel_ned_m_s2[1] * uy
     d = braking_distance_m(v, a_along if math.isfinite(a_along) else 0.0, acc_max_m_s2, jerk_max_m_s3, lag_s)
     return x + ux * d, y + uy * d

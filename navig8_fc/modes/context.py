@@ -55,7 +55,7 @@ class ModeContext:
         out = self.last_output
         if out is not None and out.engaged:
             return out.setpoint
-        x, y, z = inp.pos_ned
+        x, y, z = inp.pos_ned_m
         return Setpoint((x, y, z), 0.0, inp.yaw_rad)
 
 
@@ -81,7 +81,7 @@ class Step(NamedTuple):
 
 def idle(inp: ModeInputs) -> Setpoint:
     """The setpoint reported while the controller is idle: where the vehicle is."""
-    return Setpoint(inp.pos_ned, 0.0, inp.yaw_rad)
+    return Setpoint(inp.pos_ned_m, 0.0, inp.yaw_rad)
 
 
 def exec_config(cfg: ModeConfig) -> ExecConfig:

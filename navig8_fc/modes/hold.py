@@ -34,11 +34,11 @@ class Hold:
         self._brake_acc_m_s2, self._brake_jerk_m_s3, self._brake_lag_s = acc_m_s2, jerk_m_s3, lag_s
 
     def enter(self, inp: ModeInputs) -> None:
-        x, y, z = inp.pos_ned
+        x, y, z = inp.pos_ned_m
         self.on_ground = self._ctx.detector.landed
         if not self.on_ground:
-            x, y = stopping_point(x, y, inp.vel_ned, inp.accel_ned, self._brake_acc_m_s2, self._brake_jerk_m_s3,
-                                  self._brake_lag_s)
+            x, y = stopping_point(x, y, inp.vel_ned_m_s, inp.accel_ned_m_s2, self._brake_acc_m_s2,
+                                  self._brake_jerk_m_s3, self._brake_lag_s)
         self.setpoint = Setpoint((x, y, z), self._ctx.current_pitch(), inp.yaw_rad)
         if self._reposition is not None:
             self.apply_reposition()
@@ -48,10 +48,10 @@ class Hold:
         self.on_ground = on_ground
         self.setpoint = sp
 
-    def reposition_to(self, pos_ned: Vec3, yaw_rad: float) -> None:
-        """DO_REPOSITION: hold at pos_ned (NaN components: the held point's), yaw_rad (NaN: keep), applied at the
+    def reposition_to(self, pos_ned_m: Vec3, yaw_rad: float) -> None:
+        """DO_REPOSITION: hold at pos_ned_m (NaN components: the held point's), yaw_rad (NaN: keep), applied at the
         next entry or by apply_reposition."""
-        self._reposition = (pos_ned, yaw_rad)
+        self._reposition = (pos_ned_m, yaw_rad)
 
     def drop_reposition(self) -> None:
         self._reposition = None
@@ -60,7 +60,7 @@ class Hold:
         assert self.setpoint is not None and self._reposition is not None
         (n, e, d), yaw = self._reposition
         self._reposition = None
-        x, y, z = self.setpoint.pos_ned
+        x, y, z = self.setpoint.pos_ned_m
         pos = (x if math.isnan(n) else n, y if math.isnan(e) else e, z if math.isnan(d) else d)
         self.setpoint = Setpoint(pos, self.setpoint.pitch_rad, self.setpoint.yaw_rad if math.isnan(yaw) else yaw)
         self.on_ground = False

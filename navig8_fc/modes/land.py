@@ -26,7 +26,7 @@ class Land:
         self._land_xy = xy
 
     def enter(self, inp: ModeInputs, home_z: float) -> None:
-        x, y, z = inp.pos_ned
+        x, y, z = inp.pos_ned_m
         if self._land_xy is not None:
             x, y = self._land_xy
             self._land_xy = None
@@ -45,7 +45,8 @@ class Land:
                 ctx.tasks.complete("land", "return")
                 return Step(idle(inp), False)
             self._ramp_z = approach(self._ramp_z, self._target_z, ctx.config.land_descent_rate_m_s * dt)
-            return Step(Setpoint((self._sp.pos_ned[0], self._sp.pos_ned[1], self._ramp_z), 0.0, self._sp.yaw_rad), True)
+            n, e, _ = self._sp.pos_ned_m
+            return Step(Setpoint((n, e, self._ramp_z), 0.0, self._sp.yaw_rad), True)
         if inp.t_s - self.touchdown_t_s >= ctx.config.land_disarm_delay_s:
             ctx.events.append("Disarmed after landing")
             return Step(idle(inp), False, None, Transition(FlightMode.READY))
@@ -56,6 +57,6 @@ class Land:
         something: the descending setpoint is LAND_CONTACT_LAG_M below the vehicle. Without that last condition a
         slow hover anywhere below home height (home on a roof) was taken for touchdown."""
         home = self._ctx.home
-        z = inp.pos_ned[2]
+        z = inp.pos_ned_m[2]
         return (home is not None and abs(home[2] - z) < self._ctx.config.land_contact_height_m
                 and self._ramp_z > z + LAND_CONTACT_LAG_M and self._ctx.detector.slow(inp))

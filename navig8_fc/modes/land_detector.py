@@ -37,7 +37,7 @@ class LandDetector:
 
     def slow(self, inp: ModeInputs) -> bool:
         """Below the landed speeds (vertical and horizontal)."""
-        vx, vy, vz = inp.vel_ned
+        vx, vy, vz = inp.vel_ned_m_s
         return abs(vz) < self._max_vz and math.hypot(vx, vy) < self._max_vxy
 
     def candidate(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
@@ -46,7 +46,7 @@ class LandDetector:
         thrust_ratio = inp.thrust_ratio
         if _isfinite(thrust_ratio):
             return thrust_ratio < self._max_thrust_ratio
-        return home_z_ned_m is not None and (home_z_ned_m - inp.pos_ned[2]) < self._max_height
+        return home_z_ned_m is not None and (home_z_ned_m - inp.pos_ned_m[2]) < self._max_height
 
     def step(self, inp: ModeInputs, home_z_ned_m: float | None) -> bool:
         if self.candidate(inp, home_z_ned_m):

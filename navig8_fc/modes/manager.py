@@ -94,7 +94,7 @@ class ModeReadout:
         return self._sw.mode
 
     @property
-    def entry_pending(self) -> bool:  # a mode's entry runs at the next step: it alone reads ModeInputs.accel_ned
+    def entry_pending(self) -> bool:  # a mode's entry runs at the next step: it alone reads ModeInputs.accel_ned_m_s2
         return self._sw.entry_pending
 
     @property
@@ -110,7 +110,7 @@ class ModeReadout:
         return self._detector.landed
 
     @property
-    def home_ned(self) -> Vec3 | None:
+    def home_ned_m(self) -> Vec3 | None:
         return self._ctx.home
 
     @property
@@ -198,7 +198,7 @@ class ModeManager(ModeReadout):
                 return Verdict(False, f"Arming denied: {check.reason}")
         inp = self._sw.last
         self._sw.armed = True
-        self._ctx.home = inp.pos_ned
+        self._ctx.home = inp.pos_ned_m
         self._sw.home_yaw_rad = inp.yaw_rad
         # Armed in Mission: the mission starts. A forced arm in the air must not leave the controller idle: hold
         # where the vehicle is.
@@ -326,18 +326,19 @@ class ModeManager(ModeReadout):
         (0.5 = hold altitude). Position mode flies them; centred sticks hold."""
         self._sw.position.set_sticks(x, y, z, r)
 
-    def reposition(self, pos_ned: Vec3, yaw_rad: float = math.nan) -> Verdict:
-        """DO_REPOSITION (MAVSDK goto_location, QGC Go to / Pause): Hold at pos_ned (NaN: here), yaw_rad (NaN: keep)."""
+    def reposition(self, pos_ned_m: Vec3, yaw_rad: float = math.nan) -> Verdict:
+        """DO_REPOSITION (MAVSDK goto_location, QGC Go to / Pause): Hold at pos_ned_m (NaN: here), yaw_rad (NaN:
+        keep)."""
         if not self._sw.armed or self._detector.landed:
             return Verdict(False, "Reposition denied: not flying")
-        self._sw.hold.reposition_to(pos_ned, yaw_rad)
+        self._sw.hold.reposition_to(pos_ned_m, yaw_rad)
         if self._sw.mode is FlightMode.HOLD and not self._sw.entry_pending:
             self._sw.hold.apply_reposition()
         else:
             self._sw.switch(FlightMode.HOLD)
         here = self._sw.here()
         self._tasks.start("reposition", here, tuple(h if math.isnan(p) else p  # type: ignore[arg-type]
-                                                    for p, h in zip(pos_ned, here, strict=True)))
+                                                    for p, h in zip(pos_ned_m, here, strict=True)))
         return Verdict(True)
 
     def orbit(self, req: OrbitRequest, problem: Callable[[OrbitPlan], str] | None = None) -> Verdict:

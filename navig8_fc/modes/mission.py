@@ -77,7 +77,7 @@ class Mission:
         start = ctx.start_setpoint(inp)
         assert self.plan is not None
         if self._exec is None or self._exec.finished:
-            self._exec = MissionExecutor(self.plan, self.origin, ctx.home or inp.pos_ned, start,
+            self._exec = MissionExecutor(self.plan, self.origin, ctx.home or inp.pos_ned_m, start,
                                          exec_config(ctx.config), self._reached_count, ctx.rally_points)
             ctx.events.append(f"Mission started at item {self._exec.progress.current}")
         else:
@@ -115,7 +115,7 @@ class Mission:
         ex = self._exec
         assert ex is not None
         ctx = self._ctx
-        st = ex.step(inp.t_s, inp.pos_ned, inp.yaw_rad, dt)
+        st = ex.step(inp.t_s, inp.pos_ned_m, inp.yaw_rad, dt)
         self._reached_count = ex.reached_count
         self.progress = ex.progress
         self._actions += st.actions
@@ -123,7 +123,7 @@ class Mission:
         if st.land:
             ctx.events.append("Mission: landing")
             return Step(st.setpoint, True, None,
-                        Transition(FlightMode.LAND, land_xy=(st.setpoint.pos_ned[0], st.setpoint.pos_ned[1])))
+                        Transition(FlightMode.LAND, land_xy=(st.setpoint.pos_ned_m[0], st.setpoint.pos_ned_m[1])))
         if ex.finished:
             return Step(st.setpoint, True, None,
                         Transition(FlightMode.HOLD, hold_at=st.setpoint, on_ground=ctx.detector.landed))

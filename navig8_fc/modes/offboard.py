@@ -71,10 +71,10 @@ class Offboard:
 
     def enter(self, inp: ModeInputs) -> None:
         out = self._ctx.last_output
-        x, y, z = inp.pos_ned
-        self._ref = (Setpoint(out.setpoint.pos_ned, out.setpoint.pitch_rad, out.setpoint.yaw_rad)
+        x, y, z = inp.pos_ned_m
+        self._ref = (Setpoint(out.setpoint.pos_ned_m, out.setpoint.pitch_rad, out.setpoint.yaw_rad)
                      if out is not None and out.engaged else Setpoint((x, y, z), 0.0, inp.yaw_rad))
-        self._vel = list(inp.vel_ned)
+        self._vel = list(inp.vel_ned_m_s)
 
     def update(self, inp: ModeInputs, dt: float) -> Step:
         ctx = self._ctx
@@ -82,7 +82,7 @@ class Offboard:
             return Step(ctx.last_output.setpoint if ctx.last_output else idle(inp), True, None,
                         Transition(FlightMode.HOLD))
         sp = self._fly(self.target, inp, dt)
-        if ctx.detector.landed and sp.pos_ned[2] > inp.pos_ned[2] - ctx.config.offboard_liftoff_m:
+        if ctx.detector.landed and sp.pos_ned_m[2] > inp.pos_ned_m[2] - ctx.config.offboard_liftoff_m:
             return Step(idle(inp), False)  # on the ground and not asked to climb: idle, as PX4's takeoff state
         return Step(sp, True)
 
@@ -93,12 +93,12 @@ class Offboard:
         acc = list(attitude_acceleration(tgt, self._ctx.config.hover_thrust, lim.gravity_m_s2))
         axes = [i for i in range(3) if math.isnan(pos[i]) and math.isnan(vel[i]) and math.isfinite(acc[i])]
         if not axes:
-            self._vel = list(inp.vel_ned)
+            self._vel = list(inp.vel_ned_m_s)
             return vel
         a = [acc[i] for i in axes]
         _clip_norm(a, lim.acc_max_m_s2)
         for i, ai in zip(axes, a, strict=True):
-            v0 = inp.vel_ned[i]
+            v0 = inp.vel_ned_m_s[i]
             v = self._vel[i] + (ai - self._vel[i] / DRAG_TAU_S) * dt
             self._vel[i] = min(v0 + VEL_LEAD_M_S, max(v0 - VEL_LEAD_M_S, v))
         if self._ctx.detector.landed:
@@ -114,13 +114,13 @@ class Offboard:
         """The streamed target -> this step's setpoint (OffboardTarget's docstring). The reference (self._ref)
         integrates velocity-only axes and yaw rate; the flown setpoint adds the velocity feed-forward."""
         ref = self._ref
-        pos = tgt.pos_ned
-        vel = self._accelerated(tgt, pos, tgt.vel_ned, inp, dt)
+        pos = tgt.pos_ned_m
+        vel = self._accelerated(tgt, pos, tgt.vel_ned_m_s, inp, dt)
         v_int = tuple(0.0 if math.isnan(v) or not math.isnan(p) else v for p, v in zip(pos, vel, strict=True))
-        moved = integrate_led(ref.pos_ned, v_int, inp.pos_ned, dt, self._ctx.config.manual_lead_m)  # type: ignore[arg-type]
+        moved = integrate_led(ref.pos_ned_m, v_int, inp.pos_ned_m, dt, self._ctx.config.manual_lead_m)  # type: ignore[arg-type]
         ref_pos = tuple(m if math.isnan(p) else p for p, m in zip(pos, moved, strict=True))
         if self._ctx.detector.landed:  # the reference does not sink into the ground under an idle vehicle
-            ref_pos = (ref_pos[0], ref_pos[1], min(ref_pos[2], inp.pos_ned[2]))
+            ref_pos = (ref_pos[0], ref_pos[1], min(ref_pos[2], inp.pos_ned_m[2]))
         if not math.isnan(tgt.yaw_rad):
             yaw = tgt.yaw_rad
         elif not math.isnan(tgt.yaw_rate_rad_s):

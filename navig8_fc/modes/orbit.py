@@ -52,7 +52,7 @@ class OrbitRequest:
     speed_m_s: float = _NAN  # tangential, >= 0
     yaw_behaviour: int = YAW_UNCHANGED  # ORBIT_YAW_BEHAVIOUR 0..4; 5: unchanged
     sweep_rad: float = _NAN  # the angle to fly, then Hold; 0: forever
-    centre_ne: tuple[float, float] = (_NAN, _NAN)  # both given, or the centre is kept / the vehicle's position
+    centre_ne_m: tuple[float, float] = (_NAN, _NAN)  # both given, or the centre is kept / the vehicle's position
     alt_down_m: float = _NAN  # the orbit's altitude as NED down
 
 
@@ -61,7 +61,7 @@ class OrbitPlan:
     """The orbit flown (ORBIT_EXECUTION_STATUS reports it): its centre (NED, z = the orbit's altitude), radius,
     speed (limited), direction, heading behaviour, the angle to fly (0: forever) and the heading when commanded."""
 
-    centre_ned: Vec3
+    centre_ned_m: Vec3
     radius_m: float
     speed_m_s: float
     clockwise: bool
@@ -108,8 +108,8 @@ def resolve(req: OrbitRequest, flown: OrbitPlan | None, here: Vec3, yaw_rad: flo
     yaw = req.yaw_behaviour if req.yaw_behaviour != YAW_UNCHANGED else (flown.yaw_behaviour if flown
                                                                         else YAW_TO_CENTRE)
     sweep = req.sweep_rad if math.isfinite(req.sweep_rad) else (flown.sweep_rad if flown else 0.0)
-    old = flown.centre_ned if flown else here
-    n, e = req.centre_ne if all(map(math.isfinite, req.centre_ne)) else old[:2]
+    old = flown.centre_ned_m if flown else here
+    n, e = req.centre_ne_m if all(map(math.isfinite, req.centre_ne_m)) else old[:2]
     d = req.alt_down_m if math.isfinite(req.alt_down_m) else old[2]
     note = (f"Orbit: {asked:.2f} m/s limited to {speed:.2f} m/s at radius {radius:g} m (OL_VEL_MAX, OL_ACC_REF)"
             if asked - speed > 0.01 else "")
@@ -127,12 +127,12 @@ def reference_response(omega_rad_s: float, limits: ReferenceLimits) -> complex:
     return kv * kp / (s * s + kv * s + kv * kp)
 
 
-def orbit_yaw(behaviour: int, centre_ned: Vec3, pos_ned: Vec3, clockwise: bool, initial_rad: float,
+def orbit_yaw(behaviour: int, centre_ned_m: Vec3, pos_ned_m: Vec3, clockwise: bool, initial_rad: float,
               current_rad: float) -> float:
     """The heading per ORBIT_YAW_BEHAVIOUR from the vehicle's position (PX4's _generate_circle_yaw_setpoints): the
     front to the centre, along the circle in the direction flown, the heading when commanded, or (uncontrolled, RC:
     the caller's) the current one."""
-    dn, de = pos_ned[0] - centre_ned[0], pos_ned[1] - centre_ned[1]
+    dn, de = pos_ned_m[0] - centre_ned_m[0], pos_ned_m[1] - centre_ned_m[1]
     if behaviour == YAW_INITIAL:
         return initial_rad
     if math.hypot(dn, de) < 1e-6 or behaviour not in (YAW_TO_CENTRE, YAW_TANGENT):
@@ -143,10 +143,10 @@ def orbit_yaw(behaviour: int, centre_ned: Vec3, pos_ned: Vec3, clockwise: bool, 
     return math.atan2(s * dn, -s * de)
 
 
-def on_circle(plan: OrbitPlan, pos_ned: Vec3) -> bool:
-    c = plan.centre_ned
-    return (abs(math.hypot(pos_ned[0] - c[0], pos_ned[1] - c[1]) - plan.radius_m) < ON_CIRCLE_M
-            and abs(pos_ned[2] - c[2]) < ON_CIRCLE_ALT_M)
+def on_circle(plan: OrbitPlan, pos_ned_m: Vec3) -> bool:
+    c = plan.centre_ned_m
+    return (abs(math.hypot(pos_ned_m[0] - c[0], pos_ned_m[1] - c[1]) - plan.radius_m) < ON_CIRCLE_M
+            and abs(pos_ned_m[2] - c[2]) < ON_CIRCLE_ALT_M)
 
 
 class Orbit:
@@ -167,7 +167,7 @@ class Orbit:
         start = self._ctx.start_setpoint(inp)
         self._pitch, self._yaw = start.pitch_rad, start.yaw_rad
         self.circling = False
-        c, p = plan.centre_ned, inp.pos_ned
+        c, p = plan.centre_ned_m, inp.pos_ned_m
         dn, de = p[0] - c[0], p[1] - c[1]
         d = math.hypot(dn, de)
         un, ue = (dn / d, de / d) if d > 1e-6 else (1.0, 0.0)
@@ -178,7 +178,7 @@ class Orbit:
     def _start_circle(self, inp: ModeInputs) -> None:
         plan = self.plan
         assert plan is not None
-        c, p, v = plan.centre_ned, inp.pos_ned, inp.vel_ned
+        c, p, v = plan.centre_ned_m, inp.pos_ned_m, inp.vel_ned_m_s
         self._theta = math.atan2(p[1] - c[1], p[0] - c[0])
         tangential = -math.sin(self._theta) * v[0] + math.cos(self._theta) * v[1]  # along the clockwise tangent
         self._speed = max(-plan.speed_m_s, min(plan.speed_m_s, tangential))
@@ -191,11 +191,11 @@ class Orbit:
         plan = self.plan
         assert plan is not None
         if not self.circling:
-            if not on_circle(plan, inp.pos_ned):
-                self._yaw = orbit_yaw(YAW_TO_CENTRE, plan.centre_ned, inp.pos_ned, plan.clockwise, 0.0, self._yaw)
+            if not on_circle(plan, inp.pos_ned_m):
+                self._yaw = orbit_yaw(YAW_TO_CENTRE, plan.centre_ned_m, inp.pos_ned_m, plan.clockwise, 0.0, self._yaw)
                 return Step(Setpoint(self._approach_to, self._pitch, self._yaw), True)
             self._start_circle(inp)
-        r, c = plan.radius_m, plan.centre_ned
+        r, c = plan.radius_m, plan.centre_ned_m
         self._speed = approach(self._speed, plan.signed_speed_m_s, SPEED_RAMP_SHARE * self.limits.acc_max_m_s2 * dt)
         omega = self._speed / r
         self._theta = wrap_pi(self._theta + omega * dt)
@@ -207,7 +207,7 @@ class Orbit:
             self._yaw = wrap_pi(self._yaw + (0.0 if abs(stick) < cfg.manual_deadband else stick)
                                 * cfg.manual_yaw_rate_rad_s * dt)
         else:
-            self._yaw = orbit_yaw(plan.yaw_behaviour, c, inp.pos_ned, plan.clockwise, plan.initial_yaw_rad, self._yaw)
+            self._yaw = orbit_yaw(plan.yaw_behaviour, c, inp.pos_ned_m, plan.clockwise, plan.initial_yaw_rad, self._yaw)
         sp = Setpoint((c[0] + z.real, c[1] + z.imag, c[2]), self._pitch, self._yaw)
         if plan.sweep_rad > 0.0 and self._swept >= plan.sweep_rad:
             self._ctx.events.append(f"Orbit: {plan.sweep_rad:.2f} rad flown: holding")

@@ -31,7 +31,7 @@ class Position:
         self.sticks = (clip(x, -1.0), clip(y, -1.0), clip(z, 0.0) if math.isfinite(z) else 0.5, clip(r, -1.0))
 
     def enter(self, inp: ModeInputs) -> None:
-        x, y, z = inp.pos_ned
+        x, y, z = inp.pos_ned_m
         self.setpoint = Setpoint((x, y, z), self._ctx.current_pitch(), inp.yaw_rad)
 
     def update(self, inp: ModeInputs, dt: float) -> Step:
@@ -44,6 +44,6 @@ class Position:
         c, s_ = math.cos(yaw), math.sin(yaw)
         v = cfg.manual_speed_m_s
         vn, ve, vd = (c * x - s_ * y) * v, (s_ * x + c * y) * v, climb_rate_down(self.sticks[2], cfg)
-        self.setpoint = Setpoint(integrate_led(sp.pos_ned, (vn, ve, vd), inp.pos_ned, dt, cfg.manual_lead_m),
+        self.setpoint = Setpoint(integrate_led(sp.pos_ned_m, (vn, ve, vd), inp.pos_ned_m, dt, cfg.manual_lead_m),
                                  sp.pitch_rad, yaw)
         return Step(self.setpoint, True)

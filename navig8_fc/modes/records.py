@@ -126,8 +126,8 @@ class OffboardTarget:
       velocity, within the reference's limits (navig8_fc.modes.offboard.attitude_acceleration); without a thrust the
       altitude holds and the tilt gives the level flight's horizontal acceleration."""
 
-    pos_ned: Vec3 = (math.nan, math.nan, math.nan)
-    vel_ned: Vec3 = (math.nan, math.nan, math.nan)
+    pos_ned_m: Vec3 = (math.nan, math.nan, math.nan)
+    vel_ned_m_s: Vec3 = (math.nan, math.nan, math.nan)
     yaw_rad: float = math.nan
     yaw_rate_rad_s: float = math.nan
     pitch_rad: float = math.nan
@@ -137,7 +137,7 @@ class OffboardTarget:
     @staticmethod
     def of(sp: Setpoint) -> OffboardTarget:
         """A plain position setpoint as a target (position, pitch and yaw given)."""
-        return OffboardTarget(sp.pos_ned, yaw_rad=sp.yaw_rad, pitch_rad=sp.pitch_rad)
+        return OffboardTarget(sp.pos_ned_m, yaw_rad=sp.yaw_rad, pitch_rad=sp.pitch_rad)
 
     @property
     def attitude_given(self) -> bool:
@@ -145,11 +145,11 @@ class OffboardTarget:
 
     def problem(self) -> str:
         """Why this target cannot be flown ('' when it can): no part given, or an infinite value."""
-        values = (*self.pos_ned, *self.vel_ned, self.yaw_rad, self.yaw_rate_rad_s, self.pitch_rad, self.roll_rad,
+        values = (*self.pos_ned_m, *self.vel_ned_m_s, self.yaw_rad, self.yaw_rate_rad_s, self.pitch_rad, self.roll_rad,
                   *self.thrust_body)
         if any(math.isinf(v) for v in values):
             return "Offboard target must be finite (NaN = not given)"
-        if all(math.isnan(v) for v in (*self.pos_ned, *self.vel_ned, self.pitch_rad)) and not self.attitude_given:
+        if all(math.isnan(v) for v in (*self.pos_ned_m, *self.vel_ned_m_s, self.pitch_rad)) and not self.attitude_given:
             return "Offboard target has no position, velocity or attitude"
         return ""
 
@@ -159,15 +159,15 @@ class ModeInputs(NamedTuple):
     control step, where a frozen dataclass's __init__ costs ~1 us."""
 
     t_s: float
-    pos_ned: Vec3
-    vel_ned: Vec3
+    pos_ned_m: Vec3
+    vel_ned_m_s: Vec3
     yaw_rad: float
     thrust_ratio: float = math.nan  # total thrust / weight (commanded or measured); NaN = unknown
     sensors_ok: bool = True  # every sensor the controller needs is alive and fresh
     estimator_ready: bool = True  # the adaptive law / estimator has a usable estimate
     # the acceleration the vehicle is being driven with (the command shaper's reference, NED, m/s^2): where Hold
     # stops depends on it (a vehicle still speeding up stops further on)
-    accel_ned: Vec3 = (0.0, 0.0, 0.0)
+    accel_ned_m_s2: Vec3 = (0.0, 0.0, 0.0)
 
 
 class ModeOutput(NamedTuple):
@@ -184,7 +184,7 @@ class ModeOutput(NamedTuple):
     landed_state: int  # MAV_LANDED_STATE
     system_status: int  # MAV_STATE
     landed: bool  # land detector
-    home_ned: Vec3 | None
+    home_ned_m: Vec3 | None
     home_yaw_rad: float
     mission_time_s: float | None  # None outside MISSION
     events: tuple[str, ...] = ()  # for STATUSTEXT (INFO)
@@ -195,13 +195,13 @@ class ModeOutput(NamedTuple):
 
 def sanitised(inp: ModeInputs, last: ModeInputs | None) -> ModeInputs:
     """A sample with NaN/Inf state must not become a setpoint: reuse the last good state, flag sensors."""
-    pos, vel = inp.pos_ned, inp.vel_ned
+    pos, vel = inp.pos_ned_m, inp.vel_ned_m_s
     # One NaN or Inf term makes the sum NaN or Inf, so a finite sum means every term is finite (the common
     # case, one check); a non-finite sum is either a bad sample or finite terms that overflowed: look closer.
     total = pos[0] + pos[1] + pos[2] + vel[0] + vel[1] + vel[2] + inp.yaw_rad + inp.t_s
     if total - total == 0.0 or all(map(math.isfinite, (*pos, *vel, inp.yaw_rad, inp.t_s))):
         return inp
-    pos = last.pos_ned if last is not None else (0.0, 0.0, 0.0)
+    pos = last.pos_ned_m if last is not None else (0.0, 0.0, 0.0)
     yaw = last.yaw_rad if last is not None else 0.0
     t = inp.t_s if math.isfinite(inp.t_s) else (last.t_s if last is not None else 0.0)
     return ModeInputs(t, pos, (0.0, 0.0, 0.0), yaw, inp.thrust_ratio, False, inp.estimator_ready)

@@ -25,18 +25,18 @@ class Return:
         """`origin`: the uploaded plan's geodetic origin."""
         ctx = self._ctx
         start = ctx.start_setpoint(inp)
-        self._exec = MissionExecutor(_RTL_PLAN, origin, ctx.home or inp.pos_ned,
-                                     Setpoint(start.pos_ned, 0.0, start.yaw_rad), exec_config(ctx.config),
+        self._exec = MissionExecutor(_RTL_PLAN, origin, ctx.home or inp.pos_ned_m,
+                                     Setpoint(start.pos_ned_m, 0.0, start.yaw_rad), exec_config(ctx.config),
                                      rally=ctx.rally_points)
 
     def update(self, inp: ModeInputs, dt: float) -> Step:
         ex = self._exec
         assert ex is not None
-        st = ex.step(inp.t_s, inp.pos_ned, inp.yaw_rad, dt)
+        st = ex.step(inp.t_s, inp.pos_ned_m, inp.yaw_rad, dt)
         if st.land:
             dest = ex.destination
             self._ctx.events.append("Return: landing at home" if dest.is_home else
                                     f"Return: landing at rally point {dest.seq}")
             return Step(st.setpoint, True, None,
-                        Transition(FlightMode.LAND, land_xy=(st.setpoint.pos_ned[0], st.setpoint.pos_ned[1])))
+                        Transition(FlightMode.LAND, land_xy=(st.setpoint.pos_ned_m[0], st.setpoint.pos_ned_m[1])))
         return Step(st.setpoint, True)

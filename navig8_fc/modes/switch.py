@@ -78,14 +78,14 @@ class ModeSwitch:
         """MAV_CMD_DO_ORBIT (or Orbit chosen as a mode): resolved against the orbit being flown (navig8_fc.modes.orbit),
         checked by `problem` (the operating volume: '' when it passes), then flown from the next step."""
         last = self.last
-        here, yaw = (last.pos_ned, last.yaw_rad) if last is not None else ((0.0, 0.0, 0.0), 0.0)
+        here, yaw = (last.pos_ned_m, last.yaw_rad) if last is not None else ((0.0, 0.0, 0.0), 0.0)
         flown = self.orbit.plan if self.mode is FlightMode.ORBIT else None
         plan, refusal, note = resolve(req, flown, here, yaw, self.orbit.limits)
         if plan is None or (problem is not None and (refusal := problem(plan))):
             return Verdict(False, f"Orbit refused: {refusal}" if plan is not None else refusal)
         self.orbit.plan = plan
         self.switch(FlightMode.ORBIT)  # (again): approach or circle from where the vehicle is
-        c = plan.centre_ned
+        c = plan.centre_ned_m
         self.ctx.events.append(f"Orbit: centre N {c[0]:.1f} E {c[1]:.1f} D {c[2]:.1f} m, r {plan.signed_radius_m:g} m")
         if note:
             self.ctx.events.append(note)
@@ -96,17 +96,17 @@ class ModeSwitch:
         self.switch(FlightMode.READY)
 
     def here(self) -> Vec3:
-        return self.last.pos_ned if self.last is not None else (0.0, 0.0, 0.0)
+        return self.last.pos_ned_m if self.last is not None else (0.0, 0.0, 0.0)
 
     def return_destination(self) -> Vec3:
         """Where a return started now goes: home or the closest rally point (navig8_fc.mission.rally)."""
         here = self.here()
-        return return_destination(here, self.ctx.home or here, self.ctx.rally_points()).pos_ned
+        return return_destination(here, self.ctx.home or here, self.ctx.rally_points()).pos_ned_m
 
     def home_z(self) -> float:
         if self.ctx.home is not None:
             return self.ctx.home[2]
-        return self.last.pos_ned[2] if self.last is not None else 0.0
+        return self.last.pos_ned_m[2] if self.last is not None else 0.0
 
     def step(self, inp: ModeInputs, faulted: bool) -> ModeOutput:
         """One control tick: home and the land detector, the mode's entry if pending, its update; `faulted`: a
@@ -125,9 +125,9 @@ class ModeSwitch:
         if home is None:
             script = self.mission.script
             if script is not None and script.starts_armed_in_air:
-                home = (inp.pos_ned[0], inp.pos_ned[1], ctx.config.air_start_home_z_ned_m)
+                home = (inp.pos_ned_m[0], inp.pos_ned_m[1], ctx.config.air_start_home_z_ned_m)
             else:
-                home = inp.pos_ned
+                home = inp.pos_ned_m
             ctx.home = home
             self.home_yaw_rad = inp.yaw_rad
         landed = self.detector.step(inp, home[2])

@@ -23,7 +23,7 @@ class Takeoff:
         self._target_z = home_z - self.alt_m
 
     def enter(self, inp: ModeInputs, home_z: float) -> None:
-        x, y, z = inp.pos_ned
+        x, y, z = inp.pos_ned_m
         self._sp = Setpoint((x, y, z), 0.0, inp.yaw_rad)
         self._ramp_z = z
         self._target_z = home_z - self.alt_m
@@ -32,8 +32,8 @@ class Takeoff:
         assert self._sp is not None
         cfg = self._ctx.config
         self._ramp_z = approach(self._ramp_z, self._target_z, cfg.takeoff_climb_rate_m_s * dt)
-        sp = Setpoint((self._sp.pos_ned[0], self._sp.pos_ned[1], self._ramp_z), 0.0, self._sp.yaw_rad)
-        if self._ramp_z == self._target_z and abs(inp.pos_ned[2] - self._target_z) < cfg.takeoff_reached_tol_m:
+        sp = Setpoint((self._sp.pos_ned_m[0], self._sp.pos_ned_m[1], self._ramp_z), 0.0, self._sp.yaw_rad)
+        if self._ramp_z == self._target_z and abs(inp.pos_ned_m[2] - self._target_z) < cfg.takeoff_reached_tol_m:
             self._ctx.tasks.complete("takeoff")
             self._ctx.events.append(f"Takeoff complete: holding at {self.alt_m:.1f} m")
             return Step(sp, True, None, Transition(FlightMode.HOLD, hold_at=sp))

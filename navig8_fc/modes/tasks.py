@@ -91,9 +91,9 @@ class TaskTracker:
         if mode not in _OWN_MODES[tk.kind] or not armed:
             self.end(TASK_FAILED, f"mode changed to {mode.label}")
             return
-        d = math.dist(inp.pos_ned, self._to)
+        d = math.dist(inp.pos_ned_m, self._to)
         if tk.kind == "reposition" and d < self._cfg.reposition_reached_tol_m and math.hypot(
-                *inp.vel_ned) < self._cfg.reposition_reached_speed_m_s:
+                *inp.vel_ned_m_s) < self._cfg.reposition_reached_speed_m_s:
             self.end(TASK_DONE)
             return
         d0 = math.dist(self._from, self._to)

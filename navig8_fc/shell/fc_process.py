@@ -301,7 +301,7 @@ class FlightControllerProcess:
             self.log_stability(stab)
         if self.mission_view is not None:  # /foxglove/mission follows the uploaded plan
             m = self.gcs_service.mission
-            self.mission_view.show(m.generation, m.plan, self.gcs_service.origin, lambda: self.stack.state().home_ned)
+            self.mission_view.show(m.generation, m.plan, self.gcs_service.origin, lambda: self.stack.state().home_ned_m)
 
     def log_stability(self, stab: StabilityStatus) -> None:
         self.log.stability(stab)

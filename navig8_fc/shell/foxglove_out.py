@@ -145,7 +145,7 @@ class FoxgloveOutput:
         if self._take("/foxglove/scene", t_ns):
             sp = setpoint
             self._emit("/foxglove/scene", t_ns, lambda: v.scene_update(
-                t_ns, speed_rad_s, object_mass_kg, None if sp is None else sp.pos_ned,
+                t_ns, speed_rad_s, object_mass_kg, None if sp is None else sp.pos_ned_m,
                 0.0 if sp is None else sp.pitch_rad, 0.0 if sp is None else sp.yaw_rad), wall_ns)
         if self._take("/foxglove/pose", t_ns):
             self._emit("/foxglove/pose", t_ns, lambda: v.pose_in_frame(t_ns, truth.pos_ned_m, truth.quat_wxyz),
@@ -179,8 +179,8 @@ class MissionView:
         fox.set_mission(self._script_waypoints)
 
     def show(self, generation: int, plan: Callable[[], Plan], origin: GeoOrigin,
-             home_ned: Callable[[], Sequence[float] | None]) -> None:
-        """The plan of `generation` (`plan` and `home_ned` are asked only when it is new)."""
+             home_ned_m: Callable[[], Sequence[float] | None]) -> None:
+        """The plan of `generation` (`plan` and `home_ned_m` are asked only when it is new)."""
         if generation == self._generation:
             return
         self._generation = generation
@@ -188,7 +188,7 @@ class MissionView:
         if not items.items:
             self._fox.set_mission(self._script_waypoints)
             return
-        path = planned_path(items, origin, home_ned() or (0.0, 0.0, 0.0))
+        path = planned_path(items, origin, home_ned_m() or (0.0, 0.0, 0.0))
         self._fox.set_mission(viz.waypoint_poses([(p, 0.0, 0.0) for p in path]))
 
 
@@ -201,8 +201,8 @@ def script_waypoints(script: Any) -> list[tuple[Sequence[float], Sequence[float]
     pts = []
     for t in times:
         sp = script.setpoint_at(t)
-        if not pts or pts[-1] != (sp.pos_ned, sp.pitch_rad, sp.yaw_rad):
-            pts.append((sp.pos_ned, sp.pitch_rad, sp.yaw_rad))
+        if not pts or pts[-1] != (sp.pos_ned_m, sp.pitch_rad, sp.yaw_rad):
+            pts.append((sp.pos_ned_m, sp.pitch_rad, sp.yaw_rad))
     return viz.waypoint_poses(pts)
 
 

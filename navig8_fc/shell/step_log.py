@@ -19,7 +19,7 @@ from navig8_fc.mavlink.seam import TruthFloats
 from navig8_fc.shell.foxglove_out import FoxgloveOutput
 from navig8_fc.viz import VehiclePose
 
-SetpointKey = tuple[Any, float, float]  # pos_ned, pitch_rad, yaw_rad
+SetpointKey = tuple[Any, float, float]  # pos_ned_m, pitch_rad, yaw_rad
 
 
 class StepLog:
@@ -54,7 +54,7 @@ class StepLog:
             lg.log("/fc/status", t_ns, st, publish_ns=publish_ns)
         else:
             lg.log_json("/fc/status", t_ns, status_json, publish_ns=publish_ns)
-        self._setpoint(t_ns, (sp.pos_ned, sp.pitch_rad, sp.yaw_rad), publish_ns)
+        self._setpoint(t_ns, (sp.pos_ned_m, sp.pitch_rad, sp.yaw_rad), publish_ns)
         lg.log("/fc/command", t_ns, command, publish_ns=publish_ns)
         self._t_prev = t_ns
 
@@ -67,7 +67,7 @@ class StepLog:
         self._sp, self._sp_t = sp, t_ns
 
     def _log_setpoint(self, t_ns: int, sp: SetpointKey, publish_ns: int | None) -> None:
-        self.logger.log("/fc/setpoint", t_ns, {"pos_ned": sp[0], "pitch_rad": sp[1], "yaw_rad": sp[2]},
+        self.logger.log("/fc/setpoint", t_ns, {"pos_ned_m": sp[0], "pitch_rad": sp[1], "yaw_rad": sp[2]},
                         publish_ns=publish_ns)
 
     def finish(self, publish_ns: int | None = None) -> None:

@@ -394,13 +394,13 @@ def external_pair(tmp: Path, speed: float = 1.0, scenario: str = "ground") -> It
                 p.wait(timeout=10)
 
 
-def sensors_at_rest(t_sim_us: int, pos_ned: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Any:
+def sensors_at_rest(t_sim_us: int, pos_ned_m: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> Any:
     """A resting vehicle's sensor values at sim time t_sim_us, as seam.bundle_records reads them (a bridge's bundle
     without a plant)."""
     from types import SimpleNamespace
 
     return SimpleNamespace(time_us=t_sim_us, gyro_frd_rad_s=(0.0, 0.0, 0.0), accel_frd_m_s2=(0.0, 0.0, -9.80665),
-                           pos_ned_m=pos_ned, vel_ned_m_s=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
+                           pos_ned_m=pos_ned_m, vel_ned_m_s=(0.0, 0.0, 0.0), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
                            duct_tilt_rad=(0.0, 0.0), prop_speed_rad_s=(0.0, 0.0, 0.0), joint_pos_rad=(0.0, 0.0, 0.0),
                            joint_rate_rad_s=(0.0, 0.0, 0.0), gripper_closed=False, updated=1)
 

@@ -82,7 +82,7 @@ def pos_rms_until(log: Path, t_end_s: float) -> float:
     tr, sp = run["/truth"], run["/fc/setpoint"]
     t = tr.t - tr.t[0]
     keep = t < t_end_s
-    pos, sp_pos = tr.field("pos_ned_m", 3)[keep], sp.field("pos_ned", 3)
+    pos, sp_pos = tr.field("pos_ned_m", 3)[keep], sp.field("pos_ned_m", 3)
     at = tr.t[keep]
     err = pos - np.column_stack([np.interp(at, sp.t, sp_pos[:, k]) for k in range(3)])
     return float(np.sqrt(np.mean(np.sum(err * err, axis=1))))

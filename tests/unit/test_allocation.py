@@ -186,8 +186,8 @@ def _indi_pair(q):
 
 
 def _step(indi, inp, acc0, v):
-    o, st = indi.step(IndiInputs(DT * acc0[:3], inp.specific_force_frd, inp.tilt_rad, inp.speed_rad_s, tuple(v),
-                                 inp.gc, inp.gi_hat))
+    o, st = indi.step(IndiInputs(DT * acc0[:3], inp.specific_force_frd_m_s2, inp.duct_tilt_rad, inp.prop_speed_rad_s,
+                                 tuple(v), inp.gc, inp.gi_hat))
     return np.array(vm.actuators_to_u(o.tilt_cmd_rad[0], o.tilt_cmd_rad[1], *o.speed_cmd_rad_s)), st
 
 

@@ -512,7 +512,7 @@ def test_cli_log_prints_the_bound_of_a_tiny_mcap(tmp_path: Path, capsys: pytest.
             t_ns = int(round(t * 1e9))
             lg.log("/truth", t_ns, {"joint_pos_rad": list(q), "joint_rate_rad_s": list(qd), "object_mass_kg": 2.0,
                                     "euler_rad": [0.0, 0.0, 0.0]})
-            lg.log("/fc/setpoint", t_ns, {"pos_ned": [0.0, 0.0, -2.0], "pitch_rad": 0.0, "yaw_rad": 0.0})
+            lg.log("/fc/setpoint", t_ns, {"pos_ned_m": [0.0, 0.0, -2.0], "pitch_rad": 0.0, "yaw_rad": 0.0})
     assert au.main(["--log", str(path), "--json"]) == 0
     rep = json.loads(capsys.readouterr().out)
     ref = au.bound_from_log(_log(motion), au.with_tail_thrust(VehicleConfig.load(), 60.0), actuator=ACT)

@@ -208,10 +208,10 @@ def test_hold_entered_at_speed_stops_ahead_without_turning_back(v0: float, a0: f
     _outs, t = fly(mm, body, t, 1.5)  # still climbing: Hold is a mode change
     assert mm.set_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER).ok
     here = tuple(body.pos)
-    out = mm.step(ModeInputs(t, here, (0.0, v0, 0.0), 0.0, 1.0, accel_ned=(0.0, a0, 0.0)))
+    out = mm.step(ModeInputs(t, here, (0.0, v0, 0.0), 0.0, 1.0, accel_ned_m_s2=(0.0, a0, 0.0)))
     assert out.flight_mode is FlightMode.HOLD
-    ahead_m = out.setpoint.pos_ned[1] - here[1]
-    assert out.setpoint.pos_ned[0] == pytest.approx(here[0]) and out.setpoint.pos_ned[2] == pytest.approx(here[2])
+    ahead_m = out.setpoint.pos_ned_m[1] - here[1]
+    assert out.setpoint.pos_ned_m[0] == pytest.approx(here[0]) and out.setpoint.pos_ned_m[2] == pytest.approx(here[2])
     ys = _reference_from(v0, a0, ahead_m)
     assert ys.max() - ys[-1] < 0.05 and abs(ys[-1] - ahead_m) < 0.02, (ys.max(), ys[-1], ahead_m)
     entry = _reference_from(v0, a0, 0.0)  # the entry point as the hold target

@@ -78,8 +78,8 @@ def test_indi_filters_and_increment(cfg: VehicleConfig, scale: float) -> None:
                          (a1, a3), (w1, w2, w3), tuple(scale * rng.normal(size=5)), st.gc, gi)
         u_meas = [math.cos(a1) * w1**2, math.sin(a1) * w1**2, math.cos(a3) * w3**2, math.sin(a3) * w3**2,
                   math.copysign(w2**2, w2)]
-        acc_f = [*diff.step(gyro_lpf.step(inp.gyro_frd)),
-                 *acc_lpf.step((inp.specific_force_frd[0], inp.specific_force_frd[2]))]
+        acc_f = [*diff.step(gyro_lpf.step(inp.gyro_frd_rad_s)),
+                 *acc_lpf.step((inp.specific_force_frd_m_s2[0], inp.specific_force_frd_m_s2[2]))]
         u0 = u0_lpf.step(u_meas)
         if i % 50 == 7:
             got_acc, got_u0 = indi.measure(inp)

@@ -243,7 +243,7 @@ def test_offboard_setpoint_loss_holds_after_fs_offb_tout(vehicle) -> None:
     stack, feed = _hovering_in_hold(vehicle)
     here = stack.state().setpoint
     assert not stack.command(SetMode(1, px4_custom_mode(6, 0))).ok  # no stream yet
-    assert stack.command(OffboardSetpoint(Setpoint(here.pos_ned, 0.0, here.yaw_rad))).ok
+    assert stack.command(OffboardSetpoint(Setpoint(here.pos_ned_m, 0.0, here.yaw_rad))).ok
     assert not stack.command(OffboardSetpoint(Setpoint((math.nan, 0.0, 0.0), 0.0, 0.0))).ok
     assert stack.command(SetMode(1, px4_custom_mode(6, 0))).ok
     feed.run(1)
@@ -285,7 +285,7 @@ def test_fence_breach_radius_altitude_and_uploaded_circle(vehicle) -> None:
     from navig8_fc.mission.plan import Cmd, Frame, MissionItem, Plan
 
     stack, feed = _hovering_in_hold(vehicle)
-    home = stack.state().home_ned
+    home = stack.state().home_ned_m
     stack.registry.set("FS_FENCE_ACT", 2)
     stack.registry.set("FENCE_ALT_MAX", 0.5)
     feed.z -= 1.0  # 1 m above home (armed where it hovered)

@@ -103,8 +103,8 @@ class SimVehicle:
             armed=m.armed, base_mode=m.base_mode, custom_mode=m.custom_mode,
             system_status=self.out.system_status if self.out else 1,
             landed_state=self.out.landed_state if self.out else 0,
-            pos_ned=tuple(self.pos), vel_ned=tuple(self.vel), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
-            rates_frd=(0.0, 0.0, 0.0), home_ned=m.home_ned, home_yaw_rad=m.home_yaw_rad,
+            pos_ned_m=tuple(self.pos), vel_ned_m_s=tuple(self.vel), quat_wxyz=(1.0, 0.0, 0.0, 0.0),
+            gyro_frd_rad_s=(0.0, 0.0, 0.0), home_ned_m=m.home_ned_m, home_yaw_rad=m.home_yaw_rad,
             sensors=sensor_bits(imu_ok=True, pose_ok=True, actuators_ok=True, estimator_ok=True, battery_ok=True,
                                 prearm_ok=m.prearm_check().ok),
         )  # fmt: skip
@@ -114,7 +114,7 @@ class SimVehicle:
         for event in self.out.events:  # the shell turns mode events into STATUSTEXT(INFO)
             self.events_out += self.text.info(event)
         if self.out.engaged:
-            err = [self.out.setpoint.pos_ned[i] - self.pos[i] for i in range(3)]
+            err = [self.out.setpoint.pos_ned_m[i] - self.pos[i] for i in range(3)]
             self.vel = [max(-1.5, min(1.5, 2.0 * e)) for e in err]
             self.thrust = 1.0
         else:

@@ -94,14 +94,14 @@ def snapshot(**kw: Any) -> VehicleSnapshot:
         custom_mode=FlightMode.HOLD.custom_mode,
         system_status=M.MAV_STATE_ACTIVE,
         landed_state=M.MAV_LANDED_STATE_IN_AIR,
-        pos_ned=(10.0, -5.0, -2.0),
-        vel_ned=(1.0, 2.0, -0.5),
+        pos_ned_m=(10.0, -5.0, -2.0),
+        vel_ned_m_s=(1.0, 2.0, -0.5),
         quat_wxyz=(math.cos(yaw / 2), 0.0, 0.0, math.sin(yaw / 2)),
-        rates_frd=(0.01, -0.02, 0.03),
-        home_ned=(0.0, 0.0, 0.0),
+        gyro_frd_rad_s=(0.01, -0.02, 0.03),
+        home_ned_m=(0.0, 0.0, 0.0),
         home_yaw_rad=math.radians(90.0),
-        tilt_rad=(0.1, -0.1),
-        speed_rad_s=(600.0, -50.0, 610.0),
+        duct_tilt_rad=(0.1, -0.1),
+        prop_speed_rad_s=(600.0, -50.0, 610.0),
         joint_pos_rad=(0.3, 0.2, 0.1),
         gripper_closed=True,
         sensors=sensor_bits(imu_ok=True, pose_ok=True, actuators_ok=True, estimator_ok=True, battery_ok=True,
@@ -145,7 +145,7 @@ def test_no_state_streams_before_the_first_sensor_data(mavs) -> None:
 def test_messages_pack_with_hostile_values(mavs) -> None:
     tb = TelemetryBuilder(mavs[0], 1, 1)
     nan = math.nan
-    snap = snapshot(pos_ned=(nan, 1e12, -1e12), vel_ned=(1e9, nan, -1e9), quat_wxyz=(nan, 0.0, 0.0, 0.0),
+    snap = snapshot(pos_ned_m=(nan, 1e12, -1e12), vel_ned_m_s=(1e9, nan, -1e9), quat_wxyz=(nan, 0.0, 0.0, 0.0),
                     throttle_pct=nan, load_permille=5000, battery=battery_initial(soc=0.0))
     for msg_id in sorted(tb.supported_ids):
         roundtrip(tb.build(msg_id, snap, 2**40), mavs)
@@ -186,7 +186,7 @@ def test_autopilot_version(mavs) -> None:
 def test_global_position_flat_earth(mavs) -> None:
     origin = GeoOrigin(51.0789, -114.1339, 1100.0)
     tb = TelemetryBuilder(mavs[0], 1, 1)
-    (gp,) = roundtrip(tb.global_position_int(snapshot(origin=origin, home_ned=(0.0, 0.0, -0.5)), 1000), mavs)
+    (gp,) = roundtrip(tb.global_position_int(snapshot(origin=origin, home_ned_m=(0.0, 0.0, -0.5)), 1000), mavs)
     lat = 51.0789 + math.degrees(10.0 / EARTH_RADIUS_M)
     lon = -114.1339 + math.degrees(-5.0 / (EARTH_RADIUS_M * math.cos(math.radians(51.0789))))
     assert gp.lat == round(lat * 1e7) and gp.lon == round(lon * 1e7)
@@ -207,13 +207,13 @@ def test_heading_and_euler() -> None:
 
 def test_home_position(mavs) -> None:
     tb = TelemetryBuilder(mavs[0], 1, 1, approach_height_m=2.5)
-    (hp,) = roundtrip(tb.home_position(snapshot(home_ned=(1.0, 2.0, 0.0)), 5000), mavs)
+    (hp,) = roundtrip(tb.home_position(snapshot(home_ned_m=(1.0, 2.0, 0.0)), 5000), mavs)
     assert (hp.x, hp.y, hp.z) == (1.0, 2.0, 0.0)
     assert hp.altitude == 1_100_000
     assert hp.q == pytest.approx([math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4)])
     assert (hp.approach_x, hp.approach_y, hp.approach_z) == (1.0, 2.0, -2.5)
     assert hp.time_usec == 5_000_000
-    assert tb.home_position(snapshot(home_ned=None), 0) == []
+    assert tb.home_position(snapshot(home_ned_m=None), 0) == []
 
 
 def test_sys_status_battery_and_hud(mavs) -> None:
@@ -286,7 +286,7 @@ def test_battery_discharges_and_sags() -> None:
 def test_gps_raw_int_and_origin_follow_the_origin(mavs) -> None:
     origin = GeoOrigin(47.0, 8.0, 500.0)
     tb = TelemetryBuilder(mavs[0], 1, 1)
-    snap = snapshot(pos_ned=(10.0, -5.0, -2.0), vel_ned=(0.0, 1.0, 0.0), origin=origin)
+    snap = snapshot(pos_ned_m=(10.0, -5.0, -2.0), vel_ned_m_s=(0.0, 1.0, 0.0), origin=origin)
     (gps,) = roundtrip(tb.build(M.MAVLINK_MSG_ID_GPS_RAW_INT, snap, 1000), mavs)
     lat, lon, alt = origin.to_global((10.0, -5.0, -2.0))
     assert (gps.lat, gps.lon, gps.alt) == (round(lat * 1e7), round(lon * 1e7), round(alt * 1000))
@@ -303,7 +303,7 @@ def test_highres_imu_is_off_until_asked_and_carries_the_imu_sample(mavs) -> None
     assert sched.interval_us(M.MAVLINK_MSG_ID_HIGHRES_IMU) == -1
     assert sched.set_interval(M.MAVLINK_MSG_ID_HIGHRES_IMU, 20_000)
     tb = TelemetryBuilder(mavs[0], 1, 1)
-    snap = snapshot(accel_frd=(0.5, -0.25, -9.75))
+    snap = snapshot(accel_frd_m_s2=(0.5, -0.25, -9.75))
     (imu,) = roundtrip(tb.build(M.MAVLINK_MSG_ID_HIGHRES_IMU, snap, 1234), mavs)
     assert (imu.xacc, imu.yacc, imu.zacc) == (0.5, -0.25, -9.75)
     assert (imu.xgyro, imu.ygyro, imu.zgyro) == pytest.approx((0.01, -0.02, 0.03))

@@ -31,7 +31,8 @@ def _model(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _inputs(gyro, f_xz, u0, v, gc, gi_hat):
     a1, a3, w1, w2, w3 = vm.u_to_actuators(u0)
     return IndiInputs(
-        gyro_frd=gyro, specific_force_frd=(f_xz[0], 0.0, f_xz[1]), tilt_rad=(a1, a3), speed_rad_s=(w1, w2, w3),
+        gyro_frd_rad_s=gyro, specific_force_frd_m_s2=(f_xz[0], 0.0, f_xz[1]), duct_tilt_rad=(a1, a3),
+        prop_speed_rad_s=(w1, w2, w3),
         accel_cmd=tuple(v), gc=gc, gi_hat=gi_hat,
     )
 
@@ -125,12 +126,12 @@ def test_outer_loop_hover_and_roll_nulls_lateral_force() -> None:
     # Lateral error at 45 deg pitch and 30 deg yaw: the commanded attitude makes body-y force zero.
     sp = Setpoint((1.0, 2.0, -2.0), math.radians(45), math.radians(30))
     st = outer_loop_step(OL, sp, (0, 0, -2), (0, 0, 0), level, (0, 0, 0))
-    f_body_at_cmd = rot.rotate_ned_to_body(st.att_cmd_quat, st.specific_force_cmd_ned)
+    f_body_at_cmd = rot.rotate_ned_to_body(st.att_cmd_quat, st.specific_force_cmd_ned_m_s2)
     assert abs(f_body_at_cmd[1]) < 1e-9
     assert f_body_at_cmd[2] < 0  # thrust up
     r, p, y = rot.quat_to_euler(st.att_cmd_quat)
     assert p == pytest.approx(math.radians(45)) and y == pytest.approx(math.radians(30))
-    assert math.sqrt(sum(a * a for a in st.accel_cmd_ned)) <= OL.acc_max_m_s2 + 1e-12
+    assert math.sqrt(sum(a * a for a in st.accel_cmd_ned_m_s2)) <= OL.acc_max_m_s2 + 1e-12
 
 
 def _clip(v: np.ndarray, limit: float) -> np.ndarray:
@@ -150,11 +151,11 @@ def test_outer_loop_against_scipy_rotations() -> None:
         quat /= np.linalg.norm(quat)
         pos, vel, gyro = rng.uniform(-5, 5, 3), rng.uniform(-3, 3, 3), rng.normal(size=3)
         st = outer_loop_step(OL, sp, pos, vel, quat, gyro)
-        a_cmd = _clip(OL.vel_k * (_clip(OL.pos_k * (np.array(sp.pos_ned) - pos), OL.vel_max_m_s) - vel),
+        a_cmd = _clip(OL.vel_k * (_clip(OL.pos_k * (np.array(sp.pos_ned_m) - pos), OL.vel_max_m_s) - vel),
                       OL.acc_max_m_s2)
         f_cmd = a_cmd - g
-        np.testing.assert_allclose(st.accel_cmd_ned, a_cmd, atol=1e-12)
-        np.testing.assert_allclose(st.specific_force_cmd_ned, f_cmd, atol=1e-12)
+        np.testing.assert_allclose(st.accel_cmd_ned_m_s2, a_cmd, atol=1e-12)
+        np.testing.assert_allclose(st.specific_force_cmd_ned_m_s2, f_cmd, atol=1e-12)
         cmd = Rotation.from_quat(np.roll(st.att_cmd_quat, -1))  # scipy: [x, y, z, w]
         np.testing.assert_allclose(cmd.as_euler("ZYX")[[1, 0]], [sp.pitch_rad, sp.yaw_rad], atol=1e-9)
         assert cmd.as_euler("ZYX")[2] == pytest.approx(st.roll_cmd_rad, abs=1e-9)
@@ -163,5 +164,5 @@ def test_outer_loop_against_scipy_rotations() -> None:
         meas = Rotation.from_quat(np.roll(quat, -1))
         f_body = meas.inv().apply(f_cmd)
         w_cmd = _clip(OL.att_k * (meas.inv() * cmd).as_rotvec(), OL.rate_max_rad_s)
-        np.testing.assert_allclose(st.rate_cmd_frd, w_cmd, atol=1e-9)
+        np.testing.assert_allclose(st.rate_cmd_frd_rad_s, w_cmd, atol=1e-9)
         np.testing.assert_allclose(st.accel_cmd, [*(OL.rate_k * (w_cmd - gyro)), f_body[0], f_body[2]], atol=1e-9)

@@ -234,3 +234,15 @@ def test_navig8_log_repair_rewrites_a_log_cut_in_the_middle_of_a_chunk(tmp_path:
     assert {p for topic, p, _t in got if topic == "/mavlink/gcs/in"} == {"127.0.0.1:9"}
     assert read_metadata(tmp_path / "fixed.mcap")["run"] == {"scenario": "hover"}
     assert log_main(["repair", str(tmp_path / "nope.mcap")]) == 1
+
+
+def test_a_setpoint_logged_under_the_old_key_loads_under_pos_ned_m(tmp_path: Path) -> None:
+    """/fc/setpoint's position was "pos_ned" before it had its unit: navig8_tools.logdata reads both."""
+    from navig8_tools.logdata import load_run
+
+    for i, key in enumerate(("pos_ned", "pos_ned_m")):
+        p = tmp_path / f"sp{i}.mcap"
+        with McapLogger(p) as lg:
+            lg.log("/fc/setpoint", 0, {key: [1.0, 2.0, -3.0], "pitch_rad": 0.0, "yaw_rad": 0.5})
+        sp = load_run(p)["/fc/setpoint"]
+        np.testing.assert_array_equal(sp.field("pos_ned_m", 3), [[1.0, 2.0, -3.0]])

@@ -57,9 +57,9 @@ def test_plan_flown_from_arming_to_disarm_at_home() -> None:
     q = math.radians(20)
     assert actions == [("gripper", "release"), ("joints", (q, q, q)), ("joints", (q, q, q))]
     sps = [o.setpoint for o in outs if o.flight_mode is FlightMode.MISSION and o.engaged]
-    assert any(sp.pos_ned == pytest.approx((1.0, 0.0, -2.0)) and sp.yaw_rad == pytest.approx(math.pi / 2)
+    assert any(sp.pos_ned_m == pytest.approx((1.0, 0.0, -2.0)) and sp.yaw_rad == pytest.approx(math.pi / 2)
                for sp in sps)  # the local waypoint, yaw 90 deg
-    assert any(sp.pos_ned == pytest.approx((0.0, 1.0, -2.5), abs=0.01) for sp in sps)  # E 1 m (degE7: ~1 cm)
+    assert any(sp.pos_ned_m == pytest.approx((0.0, 1.0, -2.5), abs=0.01) for sp in sps)  # E 1 m (degE7: ~1 cm)
     assert any(sp.pitch_rad == pytest.approx(math.radians(30)) for sp in sps)
     modes = [o.flight_mode for o in outs]
     assert FlightMode.LAND in modes and not outs[-1].armed and outs[-1].flight_mode is FlightMode.READY
@@ -123,7 +123,7 @@ def test_return_mode_climbs_flies_home_lands_and_disarms() -> None:
     modes = [o.flight_mode for o in outs]
     i_home = modes.index(FlightMode.LAND)
     assert modes[0] is FlightMode.RTL and outs[0].custom_mode == 0x05040000
-    zs = [o.setpoint.pos_ned[2] for o in outs[:i_home]]
+    zs = [o.setpoint.pos_ned_m[2] for o in outs[:i_home]]
     assert min(zs) == pytest.approx(-ModeConfig().rtl_alt_m)  # climbed to the return altitude first
     assert not outs[-1].armed and math.hypot(body.pos[0], body.pos[1]) < 0.25 and body.pos[2] == 0.0
 
@@ -151,7 +151,7 @@ def test_reposition_denied_on_the_ground_and_nan_keeps_coordinates() -> None:
     mm, body, t = flying()
     assert mm.reposition((math.nan, 1.0, math.nan), math.nan).ok
     outs, t = fly(mm, body, t, 3.0)
-    assert outs[-1].flight_mode is FlightMode.HOLD and outs[-1].setpoint.pos_ned == pytest.approx((0.0, 1.0, -1.5))
+    assert outs[-1].flight_mode is FlightMode.HOLD and outs[-1].setpoint.pos_ned_m == pytest.approx((0.0, 1.0, -1.5))
 
 
 def test_position_mode_sticks_move_the_setpoint_and_centred_sticks_hold() -> None:
@@ -168,7 +168,7 @@ def test_position_mode_sticks_move_the_setpoint_and_centred_sticks_hold() -> Non
     assert body.pos == pytest.approx(held, abs=0.01)
     mm.manual_input(0.0, 0.0, 1.0, 0.0)  # full throttle: climb 0.5 m/s
     outs, t = fly(mm, body, t, 1.0)
-    assert outs[-1].setpoint.pos_ned[2] == pytest.approx(held[2] - 0.5, abs=0.02)  # the body lags (v / 2 m)
+    assert outs[-1].setpoint.pos_ned_m[2] == pytest.approx(held[2] - 0.5, abs=0.02)  # the body lags (v / 2 m)
 
 
 def test_planned_path_for_display() -> None:
@@ -194,7 +194,7 @@ def _fly_exec(plan: Plan, seconds: float, start=(0.0, 0.0, -2.0)):
     pos, yaw, out = start, 0.0, []
     for k in range(int(round(seconds / DT))):
         st = ex.step(k * DT, pos, yaw, DT)
-        pos, yaw = st.setpoint.pos_ned, st.setpoint.yaw_rad
+        pos, yaw = st.setpoint.pos_ned_m, st.setpoint.yaw_rad
         out.append(st)
         if st.land:
             break
@@ -212,7 +212,7 @@ def test_change_speed_delay_yaw_loiter_unlim_and_land_items() -> None:
         MissionItem(Frame.LOCAL_NED, Cmd.NAV_LAND, 1, 0, 0, 0, math.nan, 20000, 10000, 0),  # 5: land at N 2, E 1
     ))
     ex, out = _fly_exec(plan, 20.0)
-    xs = [s.setpoint.pos_ned[0] for s in out]
+    xs = [s.setpoint.pos_ned_m[0] for s in out]
     steps = [b - a for a, b in zip(xs, xs[1:], strict=False) if b != a]
     assert max(steps) == pytest.approx(0.5 * DT)  # DO_CHANGE_SPEED: the setpoint moves at 0.5 m/s
     assert [seq for _, seq in ex.progress.reached_log] == [0, 1, 2, 3, 4, 5]  # in order, NAV_LAND at the hand-over
@@ -221,7 +221,7 @@ def test_change_speed_delay_yaw_loiter_unlim_and_land_items() -> None:
     # the waypoint took 2 m / 0.5 m/s = 4 s; the delay 1.5 s more before the yaw was commanded
     i_yaw = next(i for i, y in enumerate(yaws) if y != 0.0)
     assert i_yaw * DT == pytest.approx(4.0 + 1.5, abs=0.05)
-    assert out[-1].land and out[-1].setpoint.pos_ned[:2] == pytest.approx((2.0, 1.0))  # NAV_LAND hands over there
+    assert out[-1].land and out[-1].setpoint.pos_ned_m[:2] == pytest.approx((2.0, 1.0))  # NAV_LAND hands over there
     # NAV_LOITER_UNLIM never completes.
     loiter = Plan(0, (MissionItem(Frame.LOCAL_NED, Cmd.NAV_LOITER_UNLIM, 1, 0, 0, 0, math.nan, 0, 0, -2.0),))
     ex, out = _fly_exec(loiter, 30.0)

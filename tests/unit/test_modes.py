@@ -46,7 +46,7 @@ class PointMass:
             self.vel = [0.0, 0.0, 0.0] if self.pos[2] >= GROUND_Z else [0.0, 0.0, 9.81 * DT + self.vel[2]]
             self.thrust_ratio = 0.0
         else:
-            err = [sp.pos_ned[i] - self.pos[i] for i in range(3)]
+            err = [sp.pos_ned_m[i] - self.pos[i] for i in range(3)]
             self.vel = [max(-self.speed, min(self.speed, 2.0 * e)) for e in err]
             self.thrust_ratio = 1.0
         self.pos = [self.pos[i] + self.vel[i] * DT for i in range(3)]
@@ -176,7 +176,7 @@ def test_arm_sets_home_and_base_mode() -> None:
     assert out.landed and out.landed_state == MavLandedState.ON_GROUND
     assert out.system_status == MavState.STANDBY
     assert out.base_mode == MavModeFlag.CUSTOM_MODE_ENABLED and not out.armed
-    assert out.home_ned == (1.0, 2.0, 0.0)  # a home before arming, so GCSs can show one
+    assert out.home_ned_m == (1.0, 2.0, 0.0)  # a home before arming, so GCSs can show one
     assert mm.prearm_check().ok
     assert mm.arm() == (True, "")
     out = mm.step(body.inputs(0.01))
@@ -227,12 +227,12 @@ def test_takeoff_climbs_then_holds() -> None:
     assert modes[0] is FlightMode.TAKEOFF and modes[-1] is FlightMode.HOLD
     assert outs[0].landed_state == MavLandedState.TAKEOFF
     # The setpoint ramps (no 2 m step) at the configured climb rate.
-    zs = [o.setpoint.pos_ned[2] for o in outs if o.flight_mode is FlightMode.TAKEOFF]
+    zs = [o.setpoint.pos_ned_m[2] for o in outs if o.flight_mode is FlightMode.TAKEOFF]
     assert max(abs(b - a) for a, b in zip(zs, zs[1:], strict=False)) <= ModeConfig().takeoff_climb_rate_m_s * DT + 1e-12
     i_hold = modes.index(FlightMode.HOLD)
     assert abs(body_z[i_hold] - (-2.0)) < 0.2  # within tolerance when the switch happened
     assert abs(body_z[i_hold - 1] - (-2.0)) >= 0.2 or zs[-1] != -2.0  # and not before
-    assert outs[-1].setpoint.pos_ned[2] == pytest.approx(-2.0)
+    assert outs[-1].setpoint.pos_ned_m[2] == pytest.approx(-2.0)
     assert outs[-1].landed_state == MavLandedState.IN_AIR
     assert outs[-1].custom_mode == 0x03040000
     assert any("Takeoff complete" in e for o in outs for e in o.events)
@@ -253,7 +253,7 @@ def test_land_descends_then_disarms_after_touchdown_plus_delay() -> None:
     assert not outs[i_landed].engaged  # motors idle at touchdown
     assert "Disarmed after landing" in outs[i_disarm].events
     assert outs[-1].flight_mode is FlightMode.READY and outs[-1].landed_state == MavLandedState.ON_GROUND
-    descent = [o.setpoint.pos_ned[2] for o in outs[:i_landed] if o.engaged]
+    descent = [o.setpoint.pos_ned_m[2] for o in outs[:i_landed] if o.engaged]
     assert all(b - a <= ModeConfig().land_descent_rate_m_s * DT + 1e-12 for a, b in zip(descent, descent[1:],
                                                                                          strict=False))
 
@@ -349,7 +349,7 @@ def test_hold_in_air_keeps_position_where_entered() -> None:
     assert mm.set_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER).ok
     out = mm.step(body.inputs(t))
     assert out.flight_mode is FlightMode.HOLD and out.engaged
-    assert out.setpoint.pos_ned[2] == pytest.approx(z_now)
+    assert out.setpoint.pos_ned_m[2] == pytest.approx(z_now)
 
 
 # --- scripted missions -------------------------------------------------------------------------------------
@@ -372,7 +372,7 @@ def test_air_start_script_follows_setpoints_on_sim_time() -> None:
         assert o.setpoint == script.setpoint_at(o.t_s)  # mission clock == sim time: same as the in-process run
         assert o.mission_time_s == o.t_s
     assert outs[0].custom_mode == 0x04040000
-    assert outs[0].home_ned == (0.0, 0.0, 0.0)  # start position projected to the ground
+    assert outs[0].home_ned_m == (0.0, 0.0, 0.0)  # start position projected to the ground
     assert outs[0].landed_state == MavLandedState.IN_AIR
 
 
@@ -394,7 +394,7 @@ def test_mission_pause_and_resume() -> None:
     assert mm.set_mode(Px4MainMode.AUTO, Px4AutoSubMode.LOITER).ok
     outs, t = fly(mm, body, t, 1.0)
     assert all(o.flight_mode is FlightMode.HOLD for o in outs)
-    assert all(o.setpoint.pos_ned[1] == 0.0 for o in outs)  # the t >= 1 s step did not happen in Hold
+    assert all(o.setpoint.pos_ned_m[1] == 0.0 for o in outs)  # the t >= 1 s step did not happen in Hold
     assert mm.set_mode(Px4MainMode.AUTO, Px4AutoSubMode.MISSION).ok
     out = mm.step(body.inputs(t))
     assert out.flight_mode is FlightMode.MISSION
@@ -423,7 +423,7 @@ def test_nan_state_never_becomes_a_setpoint() -> None:
     mm.takeoff(2.0)
     _, t = fly(mm, body, t, 6.0)
     out = mm.step(ModeInputs(t, (math.nan, 0.0, -2.0), (0.0, 0.0, 0.0), math.nan, 1.0))
-    assert all(math.isfinite(v) for v in (*out.setpoint.pos_ned, out.setpoint.yaw_rad))
+    assert all(math.isfinite(v) for v in (*out.setpoint.pos_ned_m, out.setpoint.yaw_rad))
     assert out.system_status == MavState.CRITICAL
 
 
@@ -466,7 +466,7 @@ def test_every_non_finite_state_value_is_caught(where: int, bad: float) -> None:
     values[where] = bad
     out = mm.step(ModeInputs(values[7], tuple(values[0:3]), tuple(values[3:6]), values[6], 1.0))
     assert out.system_status == MavState.CRITICAL
-    assert all(math.isfinite(v) for v in (*out.setpoint.pos_ned, out.setpoint.yaw_rad, out.t_s))
+    assert all(math.isfinite(v) for v in (*out.setpoint.pos_ned_m, out.setpoint.yaw_rad, out.t_s))
     assert out.t_s == (good.t_s if where == 7 else t + DT)  # a bad time reuses the last good one
 
 
@@ -474,7 +474,7 @@ def test_huge_finite_state_is_not_mistaken_for_a_bad_sample() -> None:
     # The terms' sum overflows to Inf, yet every value is finite: the sample is used as it is.
     mm = ModeManager()
     out = mm.step(ModeInputs(0.0, (1e308, 1e308, 0.0), (1e308, 0.0, 0.0), 0.0, 0.0))
-    assert out.system_status == MavState.STANDBY and out.setpoint.pos_ned == (1e308, 1e308, 0.0)
+    assert out.system_status == MavState.STANDBY and out.setpoint.pos_ned_m == (1e308, 1e308, 0.0)
     mm.arm(force=True)
     out = mm.step(ModeInputs(0.01, (1e308, 1e308, 0.0), (1e308, 0.0, 0.0), 0.0, 0.0))
     assert out.system_status == MavState.ACTIVE
@@ -484,8 +484,8 @@ def test_time_going_back_does_not_move_a_ramp() -> None:
     mm, body, t = armed_on_ground()
     mm.takeoff(2.0)
     outs, t = fly(mm, body, t, 0.5)
-    z = outs[-1].setpoint.pos_ned[2]
+    z = outs[-1].setpoint.pos_ned_m[2]
     out = mm.step(body.inputs(t - 0.2))  # dt < 0 counts as 0
-    assert out.flight_mode is FlightMode.TAKEOFF and out.setpoint.pos_ned[2] == z
+    assert out.flight_mode is FlightMode.TAKEOFF and out.setpoint.pos_ned_m[2] == z
     out = mm.step(body.inputs(t - 0.2 + DT))
-    assert out.setpoint.pos_ned[2] == pytest.approx(z - ModeConfig().takeoff_climb_rate_m_s * DT)
+    assert out.setpoint.pos_ned_m[2] == pytest.approx(z - ModeConfig().takeoff_climb_rate_m_s * DT)

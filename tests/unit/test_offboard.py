@@ -44,13 +44,13 @@ def _pt(mask: int, frame: int = ob.MAV_FRAME_LOCAL_NED, yaw_now: float = 0.0) ->
 
 def test_type_mask_bits_select_position_velocity_yaw_and_yaw_rate() -> None:
     d = _pt(ALL_BUT["pos"] & ~ob.PT_YAW)  # position + yaw
-    assert d.target.pos_ned == (1.0, 2.0, -3.0) and all(map(math.isnan, d.target.vel_ned))
+    assert d.target.pos_ned_m == (1.0, 2.0, -3.0) and all(map(math.isnan, d.target.vel_ned_m_s))
     assert d.target.yaw_rad == 0.7 and math.isnan(d.target.yaw_rate_rad_s) and not d.ignored
     d = _pt(ALL_BUT["vel"] & ~ob.PT_YAW_RATE)  # velocity + yaw rate (MAVSDK set_velocity_ned with a yaw rate)
-    assert all(map(math.isnan, d.target.pos_ned)) and d.target.vel_ned == (0.1, 0.2, 0.3)
+    assert all(map(math.isnan, d.target.pos_ned_m)) and d.target.vel_ned_m_s == (0.1, 0.2, 0.3)
     assert math.isnan(d.target.yaw_rad) and d.target.yaw_rate_rad_s == 0.4
     d = _pt(ALL_BUT["posvel"] | ob.PT_Y | ob.PT_VY)  # per axis: y has neither
-    assert d.target.pos_ned[0] == 1.0 and math.isnan(d.target.pos_ned[1]) and math.isnan(d.target.vel_ned[1])
+    assert d.target.pos_ned_m[0] == 1.0 and math.isnan(d.target.pos_ned_m[1]) and math.isnan(d.target.vel_ned_m_s[1])
 
 
 def test_acceleration_is_named_once_force_and_empty_targets_are_refused() -> None:
@@ -65,8 +65,8 @@ def test_acceleration_is_named_once_force_and_empty_targets_are_refused() -> Non
 
 def test_body_ned_velocity_is_rotated_by_the_heading_and_position_ignored() -> None:
     d = _pt(ALL_BUT["posvel"], ob.MAV_FRAME_BODY_NED, yaw_now=math.pi / 2)  # facing east: forward = east
-    assert all(map(math.isnan, d.target.pos_ned))
-    assert d.target.vel_ned == pytest.approx((-0.2, 0.1, 0.3))  # 0.1 forward -> east, 0.2 right -> south
+    assert all(map(math.isnan, d.target.pos_ned_m))
+    assert d.target.vel_ned_m_s == pytest.approx((-0.2, 0.1, 0.3))  # 0.1 forward -> east, 0.2 right -> south
 
 
 def test_attitude_target_is_read_as_px4_reads_it_for_a_multicopter() -> None:
@@ -76,7 +76,7 @@ def test_attitude_target_is_read_as_px4_reads_it_for_a_multicopter() -> None:
     d = ob.attitude_target(ob.AT_RATES, q, 0.7, (0, 0, 0))
     t = d.target
     assert (t.roll_rad, t.pitch_rad, t.yaw_rad) == pytest.approx(tuple(map(math.radians, (-20, 45, 30))))
-    assert t.thrust_body == (0.0, 0.0, -0.7) and all(map(math.isnan, t.pos_ned)) and not d.ignored
+    assert t.thrust_body == (0.0, 0.0, -0.7) and all(map(math.isnan, t.pos_ned_m)) and not d.ignored
     d = ob.attitude_target(ob.AT_RATES | ob.AT_THRUST_BODY_SET, q, 0.0, (0, 0, 0), (-0.3, 0.0, -0.3))
     assert d.target.thrust_body == (-0.3, 0.0, -0.3)
     assert "no thrust_body" in ob.attitude_target(ob.AT_RATES | ob.AT_THRUST_BODY_SET, q, 0.5, (0, 0, 0)).refusal
@@ -137,7 +137,7 @@ def _offboard(target: OffboardTarget):
 
 def test_velocity_target_is_tracked_with_the_feed_forward_and_without_lag() -> None:
     v = (0.4, -0.3, 0.0)
-    mm, body, t = _offboard(OffboardTarget(vel_ned=v))
+    mm, body, t = _offboard(OffboardTarget(vel_ned_m_s=v))
     start = list(body.pos)
     outs, t = fly(mm, body, t, 3.0)
     assert body.vel == pytest.approx(list(v), abs=1e-3)
@@ -147,15 +147,15 @@ def test_velocity_target_is_tracked_with_the_feed_forward_and_without_lag() -> N
 
 
 def test_velocity_reference_cannot_wind_up_while_the_vehicle_is_held_back() -> None:
-    mm, body, t = _offboard(OffboardTarget(vel_ned=(1.0, 0.0, 0.0)))
+    mm, body, t = _offboard(OffboardTarget(vel_ned_m_s=(1.0, 0.0, 0.0)))
     lead = mm.config.manual_lead_m
     for k in range(300):  # the vehicle is stuck (e.g. a wall): 3 s of 1 m/s demand
         out = mm.step(body.inputs(t + k * 0.01))
-    assert out.setpoint.pos_ned[0] - body.pos[0] <= lead + 1.0 / KP_BODY + 1e-9
+    assert out.setpoint.pos_ned_m[0] - body.pos[0] <= lead + 1.0 / KP_BODY + 1e-9
 
 
 def test_position_with_velocity_feed_forward_and_yaw_rate() -> None:
-    mm, body, t = _offboard(OffboardTarget(yaw_rate_rad_s=0.5, vel_ned=(0.0, 0.0, 0.0)))
+    mm, body, t = _offboard(OffboardTarget(yaw_rate_rad_s=0.5, vel_ned_m_s=(0.0, 0.0, 0.0)))
     yaw0 = mm.last_output.setpoint.yaw_rad if mm.last_output else 0.0
     outs, t = fly(mm, body, t, 1.0)
     assert outs[-1].setpoint.yaw_rad == pytest.approx(yaw0 + 0.5, abs=0.02)
@@ -190,7 +190,7 @@ def test_attitude_target_climbs_rolls_sideways_and_holds_pitch_and_yaw() -> None
     assert body.pos[1] < y1 - 0.5 and body.vel[1] < -0.9
     # the reference's velocity is bounded: the setpoint never runs more than the lead plus v_max / K_p ahead
     lead = mm.config.manual_lead_m + 2.0 / KP_BODY
-    assert all(abs(o.setpoint.pos_ned[1] - body.pos[1]) <= lead + 0.1 for o in outs[-50:])
+    assert all(abs(o.setpoint.pos_ned_m[1] - body.pos[1]) <= lead + 0.1 for o in outs[-50:])
 
 
 # --- the GcsService path -----------------------------------------------------------------------------------
@@ -200,7 +200,7 @@ def test_messages_reach_the_stack_and_refusals_and_ignored_parts_are_said() -> N
     assert rig.command(API, 400, 1, 21196).result == 0  # forced arm on the bench
     c = rig.client
     rig.send(c.set_position_target_local_ned_encode(0, 1, 1, 1, ALL_BUT["vel"], 0, 0, 0, 0.3, 0, 0, 0, 0, 0, 0, 0), GCS)
-    assert rig.stack.state().offboard_target.vel_ned == (pytest.approx(0.3), 0.0, 0.0)
+    assert rig.stack.state().offboard_target.vel_ned_m_s == (pytest.approx(0.3), 0.0, 0.0)
     assert not rig.outbox.pop("STATUSTEXT")
     accel = ALL_BUT["vel"] & ~ob.PT_AX
     for _ in range(3):  # named once, not per message
@@ -224,13 +224,13 @@ def test_offboard_on_the_ground_idles_until_a_target_above_asks_to_climb() -> No
     body = PointMass()
     mm.step(body.inputs(0.0))
     mm.arm()
-    mm.offboard_setpoint(OffboardTarget(pos_ned=(0.0, 0.0, 0.0), yaw_rad=0.0))
+    mm.offboard_setpoint(OffboardTarget(pos_ned_m=(0.0, 0.0, 0.0), yaw_rad=0.0))
     assert mm.set_mode(Px4MainMode.OFFBOARD, 0).ok
     outs, t = fly(mm, body, DT, 1.0)
     assert not outs[-1].engaged and outs[-1].flight_mode is FlightMode.OFFBOARD and outs[-1].armed
-    mm.offboard_setpoint(OffboardTarget(pos_ned=(0.0, 0.0, -2.0), yaw_rad=3.0))
+    mm.offboard_setpoint(OffboardTarget(pos_ned_m=(0.0, 0.0, -2.0), yaw_rad=3.0))
     outs, t = fly(mm, body, t, 4.0)
     assert outs[-1].engaged and body.pos[2] == pytest.approx(-2.0, abs=0.1)
-    mm.offboard_setpoint(OffboardTarget(pos_ned=(0.0, 0.0, 0.3), yaw_rad=0.0))  # back down, into the ground
+    mm.offboard_setpoint(OffboardTarget(pos_ned_m=(0.0, 0.0, 0.3), yaw_rad=0.0))  # back down, into the ground
     outs, t = fly(mm, body, t, 5.0)
     assert body.pos[2] == pytest.approx(0.0, abs=0.01) and not outs[-1].engaged

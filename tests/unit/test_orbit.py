@@ -54,15 +54,15 @@ def test_a_first_orbit_takes_px4s_defaults_and_a_second_keeps_what_it_leaves_out
     # PX4's activate(): 1 m, 1 m/s, clockwise, facing the centre; the centre where the vehicle is, its altitude
     assert (plan.radius_m, plan.speed_m_s, plan.clockwise, plan.yaw_behaviour, plan.sweep_rad) == (
         1.0, 1.0, True, YAW_TO_CENTRE, 0.0)
-    assert plan.centre_ned == HERE and plan.initial_yaw_rad == 0.7
+    assert plan.centre_ned_m == HERE and plan.initial_yaw_rad == 0.7
     flown, _, _ = resolve(OrbitRequest(-10.0, 1.5, YAW_TANGENT, 2.0, (20.0, 5.0), -8.0), None, HERE, 0.0, LIMITS)
     assert flown is not None and not flown.clockwise and flown.signed_radius_m == -10.0
-    assert flown.signed_speed_m_s == -1.5 and flown.centre_ned == (20.0, 5.0, -8.0)
+    assert flown.signed_speed_m_s == -1.5 and flown.centre_ned_m == (20.0, 5.0, -8.0)
     again, _, _ = resolve(OrbitRequest(), flown, HERE, 0.3, LIMITS)  # all NaN while orbiting: the orbit flown
-    assert again is not None and (again.centre_ned, again.signed_radius_m, again.speed_m_s, again.yaw_behaviour,
+    assert again is not None and (again.centre_ned_m, again.signed_radius_m, again.speed_m_s, again.yaw_behaviour,
                                   again.sweep_rad) == ((20.0, 5.0, -8.0), -10.0, 1.5, YAW_TANGENT, 2.0)
-    moved, _, _ = resolve(OrbitRequest(speed_m_s=0.5, centre_ne=(NAN, 9.0)), flown, HERE, 0.3, LIMITS)
-    assert moved is not None and moved.centre_ned == flown.centre_ned and moved.speed_m_s == 0.5  # half a centre
+    moved, _, _ = resolve(OrbitRequest(speed_m_s=0.5, centre_ne_m=(NAN, 9.0)), flown, HERE, 0.3, LIMITS)
+    assert moved is not None and moved.centre_ned_m == flown.centre_ned_m and moved.speed_m_s == 0.5  # half a centre
 
 
 def test_radius_outside_one_metre_to_orb_rad_max_and_bad_values_are_refused() -> None:
@@ -127,7 +127,7 @@ def _shaped_flight(mm: ModeManager, pos, seconds: float, t0: float):
             st[SH.INIT] = 2.0
         entries = out.entries
         sp = out.setpoint
-        shape_reference(shc, st, outer_loop.OSP.pack(pos=sp.pos_ned, pitch=sp.pitch_rad, yaw=sp.yaw_rad), p, v, quat,
+        shape_reference(shc, st, outer_loop.OSP.pack(pos=sp.pos_ned_m, pitch=sp.pitch_rad, yaw=sp.yaw_rad), p, v, quat,
                         sp_out, ff)
         p, v = sp_out[0:3].copy(), ff[outer_loop.OFF.VEL.sl].copy()
         outs.append(out)
@@ -190,7 +190,7 @@ def test_an_angle_to_fly_ends_in_hold_and_orbit_can_be_chosen_as_a_mode() -> Non
     out = mm2.step(body.inputs(t2))
     plan = mm2.orbit_plan
     assert out.flight_mode is FlightMode.ORBIT and plan is not None and plan.radius_m == 1.0
-    assert plan.centre_ned == pytest.approx(tuple(body.pos), abs=1e-4)  # where it was at the command
+    assert plan.centre_ned_m == pytest.approx(tuple(body.pos), abs=1e-4)  # where it was at the command
     assert mm2.set_mode(4, 3).ok and mm2.step(body.inputs(t2 + DT)).flight_mode is FlightMode.HOLD  # Hold leaves it
     assert mm2.orbit_plan is None
 
@@ -206,7 +206,7 @@ def test_orbit_is_refused_on_the_ground_and_outside_the_volume() -> None:
         (991.0, 0.0, -5.0), 10.0, home)
     assert "above VOL_ALT_MAX" in vol.orbit_problem((0.0, 0.0, -130.0), 10.0, home)
     mm2, body, t = flying()
-    v = mm2.orbit(OrbitRequest(10.0, centre_ne=(995.0, 0.0)), lambda p: vol.orbit_problem(p.centre_ned, p.radius_m,
+    v = mm2.orbit(OrbitRequest(10.0, centre_ne_m=(995.0, 0.0)), lambda p: vol.orbit_problem(p.centre_ned_m, p.radius_m,
                                                                                              home))
     assert not v.ok and v.reason.startswith("Orbit refused: circle reaches 1005 m")
     assert mm2.step(body.inputs(t)).flight_mode is FlightMode.HOLD
@@ -258,6 +258,6 @@ def test_orbit_execution_status_reports_the_orbit_as_px4_does() -> None:
     assert builder.build(builder_id := mavlink2.MAVLINK_MSG_ID_ORBIT_EXECUTION_STATUS, snap, 1000) == []
     plan = OrbitPlan((32.7, -43.7, -10.0), 10.0, 1.99, False, 0, 0.0, 0.0)
     (m,) = builder.build(builder_id, replace(snap, orbit=plan), 1000)
-    lat, lon, alt = origin.to_global(plan.centre_ned)
+    lat, lon, alt = origin.to_global(plan.centre_ned_m)
     assert m.radius == -10.0 and m.frame == mavlink2.MAV_FRAME_GLOBAL and m.time_usec == 1_000_000
     assert (m.x, m.y) == (round(lat * 1e7), round(lon * 1e7)) and m.z == pytest.approx(498.0)

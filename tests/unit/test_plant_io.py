@@ -178,7 +178,7 @@ def test_paper_setpoints_match_the_enu_text():
                 e, n, u = st.get("e_m", e), st.get("n_m", n), st.get("u_m", u)
                 pitch, yaw = st.get("pitch_deg", pitch), st.get("yaw_deg", yaw)
         sp = scn.script.setpoint_at(t)
-        np.testing.assert_allclose(sp.pos_ned, (n, e, -u), err_msg=str(t))
+        np.testing.assert_allclose(sp.pos_ned_m, (n, e, -u), err_msg=str(t))
         assert sp.pitch_rad == pytest.approx(math.radians(pitch))
         assert sp.yaw_rad == pytest.approx(math.radians(90.0 - yaw))
     tr = Plant(VehicleConfig.load(), PlantParams.load(), scn, np.random.default_rng(0)).truth()

@@ -108,9 +108,9 @@ def test_example_rally_points_in_local_ned_by_hand() -> None:
                                        _rp(Frame.GLOBAL_INT, 473977420, 85455940, 490.0))), origin, home)
     assert [p.seq for p in pts] == [0, 1, 3]  # null island (0, 0) skipped, as PX4
     # point 0: dlat -0.0001643 deg -> -18.27 m; dlon -0.0003315 deg -> -24.95 m; 0 m above home -> home's z
-    assert pts[0].pos_ned == pytest.approx((-18.27, -24.95, -0.5), abs=0.01)
-    assert pts[1].pos_ned == pytest.approx((120.83, -27.07, -0.5), abs=0.01)  # +0.0010866 deg, -0.0003596 deg
-    assert pts[2].pos_ned == pytest.approx((0.0, 0.0, -2.0), abs=1e-6)  # the origin, 490 m AMSL = 2 m above it
+    assert pts[0].pos_ned_m == pytest.approx((-18.27, -24.95, -0.5), abs=0.01)
+    assert pts[1].pos_ned_m == pytest.approx((120.83, -27.07, -0.5), abs=0.01)  # +0.0010866 deg, -0.0003596 deg
+    assert pts[2].pos_ned_m == pytest.approx((0.0, 0.0, -2.0), abs=1e-6)  # the origin, 490 m AMSL = 2 m above it
 
 
 def test_return_destination_is_px4s_rtl_type_0_rule() -> None:
@@ -120,7 +120,7 @@ def test_return_destination_is_px4s_rtl_type_0_rule() -> None:
     assert return_destination((20.0, 0.0, -3.0), home, pts).seq == 0  # home 20 m, A 10 m
     assert return_destination((0.0, -30.0, -3.0), home, pts).seq == 1  # home 30 m, B 20 m, A 42.4 m
     d = return_destination((3.0, 4.0, -3.0), home, pts)  # home 5 m; C also 5 m but only 10 m from home: not used
-    assert d.is_home and d.pos_ned == home
+    assert d.is_home and d.pos_ned_m == home
     assert return_destination((16.5, 0.0, -3.0), home, pts).seq == 0  # A 13.5 + 2 < home 16.5
     assert return_destination((15.5, 0.0, -3.0), home, pts).is_home  # A 14.5 m: closer, not by 2 m
     assert return_destination((29.0, -1.0, -30.0), home, pts).seq == 0  # horizontal distances: the height is not
@@ -146,7 +146,7 @@ def test_return_mode_flies_to_the_closest_rally_point_and_lands_there() -> None:
     events = [e for o in outs for e in o.events]
     assert "Return: landing at rally point 0" in events
     i_land = [o.flight_mode for o in outs].index(FlightMode.LAND)
-    assert min(o.setpoint.pos_ned[2] for o in outs[:i_land]) == pytest.approx(-2.5)  # RTL_RETURN_ALT above it
+    assert min(o.setpoint.pos_ned_m[2] for o in outs[:i_land]) == pytest.approx(-2.5)  # RTL_RETURN_ALT above it
     assert not outs[-1].armed and body.pos == pytest.approx([12.0, 0.0, 0.0], abs=0.25)
     assert mm.task is not None and mm.task.kind == "return" and mm.task.state == 1  # DONE at touchdown
 
