@@ -1,6 +1,7 @@
 """navig8-sim's log on a second process (tools/log_writer.py) writes the same file as the inline log: every message
-(topic, log and publish time, bytes) and every channel's schema equal, so the summary read from it is equal too; a log that cannot be written
-is refused before the flight, as the inline log refuses it."""
+(topic, log and publish time, bytes) and every channel's schema equal, so the summary read from it is equal too; a
+log that cannot be written is refused before the flight, as the inline log refuses it; a writer that fails mid-run
+is reported after the flight."""
 
 from __future__ import annotations
 
