@@ -397,7 +397,6 @@ class AdaptiveLaw:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
                         pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass,
                         pitch_y=math.nan if dmom is None else dmom - dhd)  # CKF_MOM_LPF: Delta M_f - Delta h'
-
         else:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
         return self._estimated(r, base, j13, lower, upper, du, da, window_sat)
