@@ -33,6 +33,10 @@ OPEN_TIMEOUT_S = 60.0  # the writer opens the log (and the viewer's meshes) befo
 JOIN_TIMEOUT_S = 120.0  # the writer drains its backlog (at most one batch and the pipe's buffer) well inside this
 
 
+class LogWriterError(RuntimeError):
+    """The log could not be opened, or its writer failed (the log is then incomplete)."""
+
+
 class StepRecorder(Protocol):
     """What the writer process feeds: tools.sim.TickLog (record, then finish) and the logger it writes to."""
 
@@ -89,9 +93,9 @@ def _serve(make_recorder: Callable[[], StepRecorder], conn: Any, other_end: Any,
     other_end.close()  # the loop's end, inherited through fork: closed, so the loop's close ends recv_bytes here
     try:
         recorder = make_recorder()
-    except Exception as exc:  # the log cannot open: the loop hears why before it flies
+    except Exception as exc:  # the log cannot open: the loop hears why before it flies (and says it; no traceback)
         status.send(f"{type(exc).__name__}: {exc}")
-        raise
+        raise SystemExit(1) from exc
     status.send(None)
     try:
         while True:
@@ -133,7 +137,7 @@ class ProcessTickLog:
             self._proc.join(5.0)
             if self._proc.is_alive():
                 self._proc.terminate()
-            raise RuntimeError(f"the log cannot be written: {error}")
+            raise LogWriterError(f"the log cannot be written: {error}")
 
     def tick(self, t_ns: int, s: FcSensors, res: StepResult) -> None:
         item = _encode(t_ns, self._plant.truth_state(), res, s)
@@ -159,10 +163,10 @@ class ProcessTickLog:
         if self._proc.is_alive():
             self._proc.terminate()
             self._proc.join(5.0)
-            raise RuntimeError(f"the log writer did not finish within {JOIN_TIMEOUT_S:.0f} s; the log is incomplete")
+            raise LogWriterError(f"the log writer did not finish within {JOIN_TIMEOUT_S:.0f} s; the log is incomplete")
         if self._proc.exitcode != 0 or self._broken is not None:
             reason = self._status.recv() if self._status.poll(0) else self._broken
-            raise RuntimeError(f"the log writer failed (exit code {self._proc.exitcode}: {reason}); "
+            raise LogWriterError(f"the log writer failed (exit code {self._proc.exitcode}: {reason}); "
                                "the log is incomplete")
 
 
@@ -172,4 +176,4 @@ def process_writer_available() -> bool:
     return "fork" in mp.get_all_start_methods() and not mp.current_process().daemon
 
 
-__all__ = ["ProcessTickLog", "StepRecorder", "process_writer_available", "BATCH_BYTES"]
+__all__ = ["LogWriterError", "ProcessTickLog", "StepRecorder", "process_writer_available", "BATCH_BYTES"]

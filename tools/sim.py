@@ -38,7 +38,7 @@ from navig8_fc.shell.foxglove_out import FoxgloveOutput, script_waypoints
 from navig8_fc.shell.mcap_log import McapLogger
 from navig8_fc.shell.step_log import StepLog
 from navig8_fc.viz import VehicleViz, packaged_uav_size_m
-from navig8_tools.log_writer import ProcessTickLog, process_writer_available
+from navig8_tools.log_writer import LogWriterError, ProcessTickLog, process_writer_available
 from navig8_tools.logdata import load_run
 from navig8_tools.summary import summarize
 from sim_bridge.messages import ActuatorCommand as PlantCommand
@@ -235,8 +235,12 @@ def main(argv: list[str] | None = None) -> int:
         overrides = read_overrides(args.params, args.set)
     except (OSError, ValueError) as exc:
         ap.error(str(exc))
-    res = run(args.scenario, args.controller, args.seed, args.duration, args.log, overrides,
-              progress=True, world=parse_world_items(args.world), log_writer=args.log_writer)
+    try:
+        res = run(args.scenario, args.controller, args.seed, args.duration, args.log, overrides,
+                  progress=True, world=parse_world_items(args.world), log_writer=args.log_writer)
+    except (LogWriterError, OSError) as exc:  # the log's path, a full disk: the reason, not a traceback
+        print(f"navig8-sim: {exc}", file=sys.stderr)
+        return 1
     text = json.dumps(res.summary, indent=2, allow_nan=True)
     print(text)
     if args.summary:

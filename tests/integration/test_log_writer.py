@@ -13,7 +13,7 @@ from mcap.reader import make_reader
 
 from navig8_fc.flight import FlightStack
 from navig8_fc.params.registry import ParamRegistry
-from navig8_tools.log_writer import ProcessTickLog
+from navig8_tools.log_writer import LogWriterError, ProcessTickLog
 from navig8_tools.sim import fly, run
 from sim_bridge.plant import Plant
 from sim_bridge.world import load_world
@@ -53,7 +53,7 @@ def test_the_process_writer_writes_the_inline_log(tmp_path: Path) -> None:
 def test_a_log_that_cannot_open_is_refused_before_the_flight(tmp_path: Path) -> None:
     blocker = tmp_path / "a_file"
     blocker.write_text("not a directory")
-    with pytest.raises(RuntimeError, match="the log cannot be written"):
+    with pytest.raises(LogWriterError, match="the log cannot be written"):
         run("paper", "proposed", 1, DURATION_S, blocker / "run.mcap", log_writer="process")
     with pytest.raises(OSError):
         run("paper", "proposed", 1, DURATION_S, blocker / "run.mcap", log_writer="inline")
@@ -87,5 +87,16 @@ def test_a_writer_that_fails_mid_run_is_reported_after_the_flight() -> None:
     n_steps = 400  # several batches: the sends after the failure find the pipe closed
     fly(plant, stack, n_steps, hook.tick)
     assert plant.truth_floats().time_us >= n_steps * 10_000  # the vehicle flew to the end
-    with pytest.raises(RuntimeError, match="No space left on device"):
+    with pytest.raises(LogWriterError, match="No space left on device"):
         hook.finish()
+
+
+def test_navig8_sim_says_why_a_log_cannot_be_written(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from navig8_tools.sim import main
+
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a directory")
+    for writer in ("process", "inline"):
+        assert main(["--duration", "0.5", "--log", str(blocker / "run.mcap"), "--log-writer", writer]) == 1
+        err = capsys.readouterr().err
+        assert err.startswith("navig8-sim: ") and "a_file" in err and "Traceback" not in err, err
