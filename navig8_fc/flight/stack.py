@@ -102,7 +102,7 @@ def throttle_pct(vehicle: VehicleConfig, speed_rad_s: tuple[float, float, float]
 def configure_modes(modes: ModeManager, outer: OuterLoopConfig, values: Mapping[str, float]) -> None:
     """What the modes need of the outer loop and the parameters: the position gain (offboard velocity feed-forward),
     the braking limits (where Hold stops), what the reference can fly (Orbit, attitude targets), the take-off and
-    return heights and the hover thrust."""
+    return heights, the hover thrust and the ceiling of velocity-driven references."""
     modes.set_position_gain(outer.pos_k)
     if outer.jerk_max_m_s3 > 0.0:  # the shaped reference brakes at OL_ACC_REF with its jerk limit, its jerk
         # stage answering 1 / K_j late
@@ -111,7 +111,7 @@ def configure_modes(modes: ModeManager, outer: OuterLoopConfig, values: Mapping[
         modes.set_braking(outer.acc_max_m_s2, math.inf)
     modes.set_reference_limits(ReferenceLimits.of_outer_loop(outer, float(values["ORB_RAD_MAX"])))
     modes.set_mode_params(float(values["MIS_TAKEOFF_ALT"]), float(values["RTL_RETURN_ALT"]),
-                          float(values["MPC_THR_HOVER"]))
+                          float(values["MPC_THR_HOVER"]), float(values["VOL_ALT_MAX"]))
 
 
 class FlightStack:

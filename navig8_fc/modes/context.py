@@ -102,6 +102,14 @@ def integrate_led(sp: Vec3, vel: Vec3, pos: Vec3, dt: float, lead_m: float) -> V
                  for s, v, p in zip(sp, vel, pos, strict=True))
 
 
+def below_ceiling(pos_ned_m: Vec3, ctx: ModeContext) -> Vec3:
+    """pos_ned_m no higher than the ceiling (ModeConfig.max_height_m above home; no home yet: the NED origin's
+    height, where the vehicle starts), for references a velocity drives."""
+    home_z = ctx.home[2] if ctx.home is not None else 0.0
+    top_z = home_z - ctx.config.max_height_m
+    return pos_ned_m if pos_ned_m[2] >= top_z else (pos_ned_m[0], pos_ned_m[1], top_z)
+
+
 def approach(value: float, target: float, max_step: float) -> float:
     """Move `value` toward `target` by at most `max_step`; lands exactly on the target."""
     if abs(target - value) <= max_step:

@@ -307,12 +307,15 @@ class ModeManager(ModeReadout):
         """An uploaded rally plan (empty: cleared): every return chooses among its points (mission.rally)."""
         self._ctx.rally, self._ctx.rally_origin = (plan if plan.items else None), origin
 
-    def set_mode_params(self, takeoff_alt_m: float, rtl_alt_m: float, hover_thrust: float = 0.5) -> None:
-        """MIS_TAKEOFF_ALT, RTL_RETURN_ALT and MPC_THR_HOVER, live: the next takeoff / return / attitude target."""
+    def set_mode_params(self, takeoff_alt_m: float, rtl_alt_m: float, hover_thrust: float = 0.5,
+                        max_height_m: float = math.inf) -> None:
+        """MIS_TAKEOFF_ALT, RTL_RETURN_ALT, MPC_THR_HOVER and VOL_ALT_MAX, live: the next takeoff / return /
+        attitude target, the ceiling of velocity-driven references from the next step."""
         cfg = self._cfg
-        if (cfg.takeoff_default_alt_m, cfg.rtl_alt_m, cfg.hover_thrust) != (takeoff_alt_m, rtl_alt_m, hover_thrust):
+        new = (takeoff_alt_m, rtl_alt_m, hover_thrust, max_height_m)
+        if (cfg.takeoff_default_alt_m, cfg.rtl_alt_m, cfg.hover_thrust, cfg.max_height_m) != new:
             self._cfg = self._ctx.config = replace(cfg, takeoff_default_alt_m=takeoff_alt_m, rtl_alt_m=rtl_alt_m,
-                                                   hover_thrust=hover_thrust)
+                                                   hover_thrust=hover_thrust, max_height_m=max_height_m)
 
     def offboard_setpoint(self, sp: Setpoint | OffboardTarget | None) -> None:
         """The latest streamed offboard target (a Setpoint: position, pitch, yaw; None: the stream is lost, the

@@ -7,7 +7,8 @@ the acceleration that thrust would give (`attitude_acceleration`), limited to th
 with a multicopter's drag (DRAG_TAU_S) into a velocity kept within VEL_LEAD_M_S of the vehicle's and OL_VEL_MAX, and
 flown as a velocity; the body rolls to
 make its sideways part (the outer loop's roll nulls the body-y force), pitches and yaws as commanded (docs/gcs.md,
-"Offboard"). On the ground it idles until the target is offboard_liftoff_m above the vehicle (PX4's takeoff state
+"Offboard"). Velocity-driven references stop at the ceiling, VOL_ALT_MAX above home (as PX4's LNDMC_ALT_MAX). On the
+ground it idles until the target is offboard_liftoff_m above the vehicle (PX4's takeoff state
 machine keeps the motors at idle while landed and no climb is asked). A stream lost between the stack's check and
 the step: Hold.
 """
@@ -18,7 +19,7 @@ import math
 
 from navig8_fc.core.outer_loop import Setpoint
 from navig8_fc.core.rotation import euler_to_quat, rotate_body_to_ned
-from navig8_fc.modes.context import ModeContext, Step, Transition, idle, integrate_led, wrap_pi
+from navig8_fc.modes.context import ModeContext, Step, Transition, below_ceiling, idle, integrate_led, wrap_pi
 from navig8_fc.modes.px4 import FlightMode
 from navig8_fc.modes.records import ModeInputs, OffboardTarget, ReferenceLimits, Vec3
 
@@ -121,6 +122,10 @@ class Offboard:
         ref_pos = tuple(m if math.isnan(p) else p for p, m in zip(pos, moved, strict=True))
         if self._ctx.detector.landed:  # the reference does not sink into the ground under an idle vehicle
             ref_pos = (ref_pos[0], ref_pos[1], min(ref_pos[2], inp.pos_ned_m[2]))
+        capped = below_ceiling(ref_pos, self._ctx)  # type: ignore[arg-type]
+        if capped is not ref_pos:  # at the ceiling (VOL_ALT_MAX): an attitude target's climb stops there too
+            ref_pos = capped
+            self._vel[2] = max(self._vel[2], 0.0)
         if not math.isnan(tgt.yaw_rad):
             yaw = tgt.yaw_rad
         elif not math.isnan(tgt.yaw_rate_rad_s):
@@ -133,4 +138,4 @@ class Offboard:
         if k <= 0.0 or all(math.isnan(v) for v in vel):
             return self._ref
         ff = tuple(r if math.isnan(v) else r + v / k for r, v in zip(ref_pos, vel, strict=True))
-        return Setpoint(ff, pitch, yaw)  # type: ignore[arg-type]
+        return Setpoint(below_ceiling(ff, self._ctx), pitch, yaw)  # type: ignore[arg-type]

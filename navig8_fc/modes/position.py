@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 from navig8_fc.core.outer_loop import Setpoint
-from navig8_fc.modes.context import ModeContext, Step, climb_rate_down, integrate_led, wrap_pi
+from navig8_fc.modes.context import ModeContext, Step, below_ceiling, climb_rate_down, integrate_led, wrap_pi
 from navig8_fc.modes.records import ModeInputs
 
 CENTRED = (0.0, 0.0, 0.5, 0.0)  # x forward, y right, z throttle 0..1, r yaw
@@ -44,6 +44,6 @@ class Position:
         c, s_ = math.cos(yaw), math.sin(yaw)
         v = cfg.manual_speed_m_s
         vn, ve, vd = (c * x - s_ * y) * v, (s_ * x + c * y) * v, climb_rate_down(self.sticks[2], cfg)
-        self.setpoint = Setpoint(integrate_led(sp.pos_ned_m, (vn, ve, vd), inp.pos_ned_m, dt, cfg.manual_lead_m),
-                                 sp.pitch_rad, yaw)
+        moved = integrate_led(sp.pos_ned_m, (vn, ve, vd), inp.pos_ned_m, dt, cfg.manual_lead_m)
+        self.setpoint = Setpoint(below_ceiling(moved, self._ctx), sp.pitch_rad, yaw)
         return Step(self.setpoint, True)

@@ -57,6 +57,9 @@ class ModeConfig:
     # an attitude target's normalised thrust that holds the altitude level (MPC_THR_HOVER; PX4 SITL 0.5): thrust t
     # pushes g t / hover_thrust along the commanded attitude's body -z (navig8_fc.modes.offboard)
     hover_thrust: float = 0.5
+    # Velocity-driven references (Position mode's sticks, offboard velocity and attitude targets) stop this high above
+    # home: VOL_ALT_MAX, as PX4 holds LNDMC_ALT_MAX as a hard ceiling (targets above it are refused on arrival)
+    max_height_m: float = math.inf
 
     def __post_init__(self) -> None:
         positive = (

@@ -234,3 +234,34 @@ def test_offboard_on_the_ground_idles_until_a_target_above_asks_to_climb() -> No
     mm.offboard_setpoint(OffboardTarget(pos_ned_m=(0.0, 0.0, 0.3), yaw_rad=0.0))  # back down, into the ground
     outs, t = fly(mm, body, t, 5.0)
     assert body.pos[2] == pytest.approx(0.0, abs=0.01) and not outs[-1].engaged
+
+
+# --- the ceiling (VOL_ALT_MAX) ---------------------------------------------------------------------------------
+CEILING_M = 3.0  # above home (home: where the point mass armed, on the ground at z = 0)
+
+
+@pytest.mark.parametrize("target", [OffboardTarget(vel_ned_m_s=(0.0, 0.0, -1.0)), _att(0, 0, 0, 0.8)],
+                         ids=["velocity", "attitude"])
+def test_a_climbing_target_stops_at_the_ceiling(target: OffboardTarget) -> None:
+    """A velocity or an attitude target that keeps climbing: the setpoint stops VOL_ALT_MAX above home and the vehicle
+    holds there (PX4's LNDMC_ALT_MAX); a descent afterwards starts at once (no wound-up climb to unwind)."""
+    mm, body, t = _offboard(target)
+    mm.set_mode_params(mm.config.takeoff_default_alt_m, mm.config.rtl_alt_m, mm.config.hover_thrust, CEILING_M)
+    home_z = mm.home_ned_m[2]
+    outs, t = fly(mm, body, t, 12.0)  # 1 m/s (or the attitude's acceleration) for long enough to pass it twice
+    assert min(o.setpoint.pos_ned_m[2] for o in outs) >= home_z - CEILING_M - 1e-9
+    assert body.pos[2] == pytest.approx(home_z - CEILING_M, abs=0.02) and abs(body.vel[2]) < 0.02
+    mm.offboard_setpoint(OffboardTarget(vel_ned_m_s=(0.0, 0.0, 0.5)))
+    z0 = body.pos[2]
+    outs, t = fly(mm, body, t, 1.0)
+    assert body.pos[2] > z0 + 0.3  # down within the second
+
+
+def test_position_mode_climbs_to_the_ceiling_and_no_further() -> None:
+    mm, body, t = flying()
+    mm.set_mode_params(mm.config.takeoff_default_alt_m, mm.config.rtl_alt_m, mm.config.hover_thrust, CEILING_M)
+    assert mm.set_mode(Px4MainMode.POSCTL, 0).ok
+    mm.manual_input(0.0, 0.0, 1.0, 0.0)  # full throttle: climb 0.5 m/s
+    outs, t = fly(mm, body, t, 10.0)
+    assert min(o.setpoint.pos_ned_m[2] for o in outs) >= mm.home_ned_m[2] - CEILING_M - 1e-9
+    assert body.pos[2] == pytest.approx(mm.home_ned_m[2] - CEILING_M, abs=0.02)
