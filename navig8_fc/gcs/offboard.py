@@ -5,8 +5,9 @@ Read as PX4's mavlink_receiver does (handle_message_set_position_target_local_ne
 handle_message_set_attitude_target and fill_thrust; docs/gcs.md "Offboard"): every ignore bit of type_mask makes that
 component NaN (not given); a target with no position, velocity or attitude is refused ("invalid"), as is an
 acceleration flagged as a force (FORCE_SET). What this vehicle's FlightStack cannot fly is named, not flown:
-- acceleration (afx..afz) of a position target: the setpoint interface carries position (+ velocity feed-forward),
-  pitch and yaw, so an acceleration is ignored (PX4 feeds it forward); the rest of the target is flown;
+- acceleration (afx..afz): flown on the axes with neither a position nor a velocity (integrated into the reference,
+  as PX4 flies an acceleration setpoint); beside a position or velocity on its axis it is named and ignored (PX4
+  feeds it forward; the setpoint interface carries position, velocity feed-forward, pitch and yaw);
 - SET_ATTITUDE_TARGET: the quaternion is the attitude and `thrust` the normalised collective thrust [0, 1] along its
   body -z, as PX4 reads them for a multicopter (MAV_TYPE_TRICOPTER: thrust_body = (0, 0, -thrust)); with
   THRUST_BODY_SET (bit 5) `thrust_body` is the thrust vector in body axes, as given. The mode flies the acceleration
@@ -58,25 +59,36 @@ def position_target(kind: str, mask: int, frame: int, pos_ned_m: Vec3, vel: Vec3
     for BODY_NED (velocities in the heading frame, position ignored, as PX4), vel/acc/yaw as sent."""
     pos = _given(mask, (PT_X, PT_Y, PT_Z), pos_ned_m)
     v = _given(mask, (PT_VX, PT_VY, PT_VZ), vel)
+    a = _given(mask, (PT_AX, PT_AY, PT_AZ), acc)
     has_acc = (mask & PT_ACCEL) != PT_ACCEL
     if frame == MAV_FRAME_BODY_NED:
         pos = NAN3
-        if not all(math.isnan(c) for c in v):
-            fwd, right = (0.0 if math.isnan(c) else c for c in v[:2])
-            c, s = math.cos(yaw_now_rad), math.sin(yaw_now_rad)
-            v = (c * fwd - s * right, s * fwd + c * right, 0.0 if math.isnan(v[2]) else v[2])
+        v, a = _heading_to_ned(v, yaw_now_rad), _heading_to_ned(a, yaw_now_rad)
     if has_acc and mask & PT_FORCE_SET:
         return Decoded(None, f"{kind}: force targets are not supported (type_mask {mask})")
+    # an acceleration is flown where neither a position nor a velocity is given on its axis (integrated, as PX4's
+    # acceleration setpoint); beside them it would be a feed-forward, which the setpoint cannot carry: named
+    a_flown = tuple(c if math.isnan(p) and math.isnan(w) else math.nan for p, w, c in zip(pos, v, a, strict=True))
     target = OffboardTarget(pos, v, math.nan if mask & PT_YAW else float(yaw_rad),
-                            math.nan if mask & PT_YAW_RATE else float(yaw_rate_rad_s))
-    if all(math.isnan(c) for c in (*pos, *v)):
-        why = "only an acceleration" if has_acc else "no position or velocity"
-        return Decoded(None, f"{kind} invalid: {why} (type_mask {mask}); position and velocity are flown")
+                            math.nan if mask & PT_YAW_RATE else float(yaw_rate_rad_s),
+                            acc_ned_m_s2=a_flown)  # type: ignore[arg-type]
+    if all(math.isnan(c) for c in (*pos, *v, *a_flown)):
+        return Decoded(None, f"{kind} invalid: no position, velocity or acceleration (type_mask {mask})")
     problem = target.problem()
     if problem:
         return Decoded(None, f"{kind}: {problem}")
-    ignored = "Offboard: acceleration ignored (flies pos+vel)" if has_acc else ""  # one STATUSTEXT chunk
+    fed_forward = any(not math.isnan(c) and math.isnan(f) for c, f in zip(a, a_flown, strict=True))
+    ignored = "Offboard: acceleration ignored beside pos/vel" if fed_forward else ""  # one STATUSTEXT chunk
     return Decoded(target, ignored=ignored)
+
+
+def _heading_to_ned(v: Vec3, yaw_rad: float) -> Vec3:
+    """BODY_NED: forward/right in the heading frame to north/east (PX4), down as given; nothing given: nothing."""
+    if all(math.isnan(c) for c in v):
+        return v
+    fwd, right = (0.0 if math.isnan(c) else c for c in v[:2])
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    return c * fwd - s * right, s * fwd + c * right, 0.0 if math.isnan(v[2]) else v[2]
 
 
 def attitude_target(mask: int, q_wxyz: tuple[float, float, float, float], thrust: float, body_rates: Vec3,

@@ -5,7 +5,7 @@ axes and yaw rate; the flown setpoint adds the velocity feed-forward v / OL_POS_
 target (SET_ATTITUDE_TARGET, read as PX4 reads it) is a multicopter's collective thrust along its attitude: it becomes
 the acceleration that thrust would give (`attitude_acceleration`), limited to the reference's acceleration, integrated
 with a multicopter's drag (DRAG_TAU_S) into a velocity kept within VEL_LEAD_M_S of the vehicle's and OL_VEL_MAX, and
-flown as a velocity; the body rolls to
+flown as a velocity (an acceleration target the same way, as given, without the drag); the body rolls to
 make its sideways part (the outer loop's roll nulls the body-y force), pitches and yaws as commanded (docs/gcs.md,
 "Offboard"). Velocity-driven references stop at the ceiling, VOL_ALT_MAX above home (as PX4's LNDMC_ALT_MAX). On the
 ground it idles until the target is offboard_liftoff_m above the vehicle (PX4's takeoff state
@@ -88,10 +88,14 @@ class Offboard:
         return Step(sp, True)
 
     def _accelerated(self, tgt: OffboardTarget, pos: Vec3, vel: Vec3, inp: ModeInputs, dt: float) -> Vec3:
-        """`vel` with the attitude target's acceleration integrated on the axes that have neither a position nor a
-        velocity (module docstring)."""
+        """`vel` with the attitude's acceleration, or an acceleration target's, integrated on the axes that have
+        neither a position nor a velocity (module docstring)."""
         lim = self.limits
-        acc = list(attitude_acceleration(tgt, self._ctx.config.hover_thrust, lim.gravity_m_s2))
+        if tgt.attitude_given:  # a multicopter's acceleration, slowed by its drag
+            acc = list(attitude_acceleration(tgt, self._ctx.config.hover_thrust, lim.gravity_m_s2))
+            drag_tau_s = DRAG_TAU_S
+        else:  # an acceleration target: integrated as given
+            acc, drag_tau_s = list(tgt.acc_ned_m_s2), math.inf
         axes = [i for i in range(3) if math.isnan(pos[i]) and math.isnan(vel[i]) and math.isfinite(acc[i])]
         if not axes:
             self._vel = list(inp.vel_ned_m_s)
@@ -100,7 +104,7 @@ class Offboard:
         _clip_norm(a, lim.acc_max_m_s2)
         for i, ai in zip(axes, a, strict=True):
             v0 = inp.vel_ned_m_s[i]
-            v = self._vel[i] + (ai - self._vel[i] / DRAG_TAU_S) * dt
+            v = self._vel[i] + (ai - self._vel[i] / drag_tau_s) * dt
             self._vel[i] = min(v0 + VEL_LEAD_M_S, max(v0 - VEL_LEAD_M_S, v))
         if self._ctx.detector.landed:
             self._vel[2] = min(self._vel[2], 0.0)  # not into the ground

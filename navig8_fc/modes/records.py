@@ -127,7 +127,9 @@ class OffboardTarget:
       (`thrust_body`; a multicopter's collective thrust t is (0, 0, -t)): the acceleration a multicopter at that
       attitude and thrust has, g R(q) thrust_body / hover_thrust + g down, flown on every axis without a position or
       velocity, within the reference's limits (navig8_fc.modes.offboard.attitude_acceleration); without a thrust the
-      altitude holds and the tilt gives the level flight's horizontal acceleration."""
+      altitude holds and the tilt gives the level flight's horizontal acceleration;
+    - an acceleration (NED) on an axis with neither position nor velocity: integrated into the reference's velocity
+      (no drag: a zero acceleration keeps the speed), within the same limits."""
 
     pos_ned_m: Vec3 = (math.nan, math.nan, math.nan)
     vel_ned_m_s: Vec3 = (math.nan, math.nan, math.nan)
@@ -136,6 +138,7 @@ class OffboardTarget:
     pitch_rad: float = math.nan
     roll_rad: float = math.nan
     thrust_body: Vec3 = (math.nan, math.nan, math.nan)  # normalised (hover: hover_thrust along -z), body FRD
+    acc_ned_m_s2: Vec3 = (math.nan, math.nan, math.nan)  # flown on axes with neither position nor velocity
 
     @staticmethod
     def of(sp: Setpoint) -> OffboardTarget:
@@ -149,11 +152,12 @@ class OffboardTarget:
     def problem(self) -> str:
         """Why this target cannot be flown ('' when it can): no part given, or an infinite value."""
         values = (*self.pos_ned_m, *self.vel_ned_m_s, self.yaw_rad, self.yaw_rate_rad_s, self.pitch_rad, self.roll_rad,
-                  *self.thrust_body)
+                  *self.thrust_body, *self.acc_ned_m_s2)
         if any(math.isinf(v) for v in values):
             return "Offboard target must be finite (NaN = not given)"
-        if all(math.isnan(v) for v in (*self.pos_ned_m, *self.vel_ned_m_s, self.pitch_rad)) and not self.attitude_given:
-            return "Offboard target has no position, velocity or attitude"
+        if (all(math.isnan(v) for v in (*self.pos_ned_m, *self.vel_ned_m_s, *self.acc_ned_m_s2, self.pitch_rad))
+                and not self.attitude_given):
+            return "Offboard target has no position, velocity, acceleration or attitude"
         return ""
 
 

@@ -53,12 +53,17 @@ def test_type_mask_bits_select_position_velocity_yaw_and_yaw_rate() -> None:
     assert d.target.pos_ned_m[0] == 1.0 and math.isnan(d.target.pos_ned_m[1]) and math.isnan(d.target.vel_ned_m_s[1])
 
 
-def test_acceleration_is_named_once_force_and_empty_targets_are_refused() -> None:
-    d = _pt(ALL_BUT["pos"] & ~ob.PT_AZ)
+def test_acceleration_is_flown_alone_named_beside_pos_vel_and_force_and_empty_targets_are_refused() -> None:
+    d = _pt(ALL_BUT["pos"] & ~ob.PT_AZ)  # beside a position on its axis: a feed-forward the setpoint cannot carry
     assert d.target is not None and "acceleration ignored" in d.ignored
+    assert all(map(math.isnan, d.target.acc_ned_m_s2))
     assert "force" in _pt(ALL_BUT["pos"] & ~ob.PT_AZ | ob.PT_FORCE_SET).refusal
     assert "invalid" in _pt(_POS | _VEL | ob.PT_ACCEL | _YAWS).refusal
-    assert "only an acceleration" in _pt(_POS | _VEL | _YAWS).refusal
+    alone = ob.position_target("SPT", _POS | _VEL | _YAWS, 1, (0, 0, 0), (0, 0, 0), (0.5, -0.2, 0.1), 0, 0, 0)
+    assert alone.target is not None and not alone.ignored and alone.target.acc_ned_m_s2 == (0.5, -0.2, 0.1)
+    body = ob.position_target("SPT", _POS | _VEL | _YAWS, ob.MAV_FRAME_BODY_NED, (0, 0, 0), (0, 0, 0), (1.0, 0, 0),
+                              0, 0, math.pi / 2)  # forward while facing east
+    assert body.target.acc_ned_m_s2 == pytest.approx((0.0, 1.0, 0.0), abs=1e-12)
     bad = ob.position_target("SPT", ALL_BUT["vel"], 1, (0, 0, 0), (math.inf, 0, 0), (0, 0, 0), 0, 0, 0)
     assert bad.target is None and "finite" in bad.refusal
 
@@ -265,3 +270,16 @@ def test_position_mode_climbs_to_the_ceiling_and_no_further() -> None:
     outs, t = fly(mm, body, t, 10.0)
     assert min(o.setpoint.pos_ned_m[2] for o in outs) >= mm.home_ned_m[2] - CEILING_M - 1e-9
     assert body.pos[2] == pytest.approx(mm.home_ned_m[2] - CEILING_M, abs=0.02)
+
+
+def test_acceleration_target_is_integrated_and_a_zero_acceleration_keeps_the_speed() -> None:
+    """MAVSDK's set_acceleration_ned: 0.5 m/s^2 east for 2 s reaches 1 m/s (v = a t), then zero acceleration holds
+    1 m/s (no drag: that is the attitude target's multicopter); the altitude holds (no z given)."""
+    acc = OffboardTarget(acc_ned_m_s2=(math.nan, 0.5, math.nan))
+    mm, body, t = _offboard(acc)
+    z0 = body.pos[2]
+    outs, t = fly(mm, body, t, 2.0)
+    assert body.vel[1] == pytest.approx(1.0, abs=0.06) and body.pos[2] == pytest.approx(z0, abs=0.02)
+    mm.offboard_setpoint(OffboardTarget(acc_ned_m_s2=(math.nan, 0.0, math.nan)))
+    outs, t = fly(mm, body, t, 1.0)
+    assert body.vel[1] == pytest.approx(1.0, abs=0.06)
