@@ -6,11 +6,11 @@ files' messages are identical, so are the summaries read from them (tests/integr
 
 What crosses the process boundary is cheap to make: the FC's status as the JSON its /fc/status record is (the bulk
 of a step's log, serialised once, by the function the inline log uses), the plant's truth as the bytes of its state
-vectors (Plant.truth_state), the other records as their dataclass dictionaries in marshal's encoding (CPython's
-fastest for plain floats, tuples and dicts; a record marshal cannot encode, a numpy scalar or an enum, goes as a
-pickle). Batches of ~256 KB go down a pipe; the writer rebuilds the records and logs them (docs/results.md,
-"Speed": what each side costs a step). Campaign workers log inline (their pool already uses both cores; a
-daemonic worker may not fork), and so does any run where `fork` is unavailable.
+vectors (Plant.truth_state), the other records as their dataclass dictionaries, pickled (marshal is no faster here,
+~3 us a step either way, and writes a numpy scalar, or any buffer, as bytes). Batches of ~256 KB (a marshalled list
+of the steps' bytes) go down a pipe; the writer rebuilds the records and logs them (docs/results.md, "Speed": what
+each side costs a step). Campaign workers log inline (their pool already uses both cores; a daemonic worker may not
+fork), and so does any run where `fork` is unavailable.
 """
 
 from __future__ import annotations
@@ -64,7 +64,7 @@ def _frozen(cls: type, fields: dict[str, Any]) -> Any:
     return obj
 
 
-Item = tuple[bytes | tuple[str, bytes], bytes]  # one step: its records (marshal, else pickle), the status's JSON
+Item = tuple[bytes, bytes]  # one step: its records (pickled), the status's JSON
 
 
 def _encode(t_ns: int, truth_state: Any, res: StepResult, sensors: FcSensors) -> Item:
@@ -72,19 +72,14 @@ def _encode(t_ns: int, truth_state: Any, res: StepResult, sensors: FcSensors) ->
     texts = [(n.severity, n.statustext) for n in res.notices if n.statustext]
     rec = (t_ns, truth_state, sensors.__dict__, (st.q_est_rad, st.gi_hat, st.gc_uam, st.ref_frd_m),
            res.command.__dict__, res.setpoint.__dict__, texts)
-    head: bytes | tuple[str, bytes]
-    try:
-        head = marshal.dumps(rec)
-    except ValueError:  # a type marshal does not take (numpy scalar, enum): the slower, general encoding
-        head = ("pickle", pickle.dumps(rec, protocol=pickle.HIGHEST_PROTOCOL))
+    # pickle, not marshal: as fast here, and marshal writes any buffer, a numpy scalar among them, as bytes
     # the status as the inline log serialises it (its JSON is most of the step's log: ~3 kB, ~5 us with orjson)
-    return head, dumps_json(st)
+    return pickle.dumps(rec, protocol=pickle.HIGHEST_PROTOCOL), dumps_json(st)
 
 
 def _decode(item: Item) -> tuple[Any, ...]:
     head, status_json = item
-    t_ns, truth_state, sd, eig_in, cd, spd, texts = (
-        marshal.loads(head) if type(head) is bytes else pickle.loads(head[1]))
+    t_ns, truth_state, sd, eig_in, cd, spd, texts = pickle.loads(head)
     return (t_ns, truth_floats_of_state(truth_state), _frozen(FcSensors, sd), StatusForLog(*eig_in),
             _frozen(ActuatorCommand, cd), _frozen(Setpoint, spd), texts, status_json)
 
@@ -142,8 +137,7 @@ class ProcessTickLog:
     def tick(self, t_ns: int, s: FcSensors, res: StepResult) -> None:
         item = _encode(t_ns, self._plant.truth_state(), res, s)
         self._parts.append(item)
-        head = item[0]
-        self._n_bytes += len(item[1]) + (len(head) if type(head) is bytes else len(head[1]))
+        self._n_bytes += len(item[0]) + len(item[1])
         if self._n_bytes >= BATCH_BYTES:
             self._flush()
 

@@ -100,3 +100,37 @@ def test_navig8_sim_says_why_a_log_cannot_be_written(tmp_path: Path, capsys: pyt
         assert main(["--duration", "0.5", "--log", str(blocker / "run.mcap"), "--log-writer", writer]) == 1
         err = capsys.readouterr().err
         assert err.startswith("navig8-sim: ") and "a_file" in err and "Traceback" not in err, err
+
+
+class _Keeps:
+    """A recorder that writes what it was handed (in the writer process) to a file the test reads back."""
+
+    def __init__(self, path: Path) -> None:
+        self.path, self.got = path, []
+
+    def record(self, t_ns, truth, sensors, status, command, setpoint, statustexts, status_json=None) -> None:
+        self.got.append((t_ns, type(setpoint.pitch_rad).__name__, float(setpoint.pitch_rad), status_json is not None))
+
+    def close(self) -> None:
+        self.path.write_text(repr(self.got))
+
+
+def test_a_numpy_scalar_in_a_record_reaches_the_writer_as_itself(tmp_path: Path) -> None:
+    """A numpy scalar in a record reaches the writer as the same numpy scalar (marshal would have made it bytes)."""
+    w = load_world("paper", None)
+    plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(1))
+    stack = FlightStack(w.fc_vehicle, ParamRegistry.from_defaults(), w.scenario.script)
+    out = tmp_path / "got.txt"
+    hook = ProcessTickLog(plant, lambda: _Keeps(out))
+    seen: list[int] = []
+
+    def with_numpy(t_ns: int, s, res) -> None:
+        sp = res.setpoint
+        hook.tick(t_ns, s, res._replace(setpoint=type(sp)(sp.pos_ned_m, np.float64(0.25), sp.yaw_rad)))
+        seen.append(t_ns)
+
+    fly(plant, stack, 20, with_numpy)
+    hook.finish()
+    got = eval(out.read_text())  # noqa: S307 - the test's own repr of tuples of numbers and names
+    assert [g[0] for g in got] == seen
+    assert all(g[1] == "float64" and g[2] == 0.25 and g[3] for g in got)
