@@ -263,6 +263,8 @@ class AdaptiveLaw:
         # the moment-space pitch row (CKF_R_PITCH; the KF only) and its prior while an object is held (CKF_CZ_SIG)
         self._pitch_row = ckf.pitch_r_nm2 > 0.0 and isinstance(self._kf, ConstrainedKalmanFilter)
         self._com_sigma = ckf.com_sigma_m if self._pitch_row else 0.0
+        self._ixz_sigma = ckf.ixz_sigma_kgm2 if isinstance(self._kf, ConstrainedKalmanFilter) else 0.0  # CKF_IXZ_SIG
+        self._nuisance = self._pitch_row or self._ixz_sigma > 0.0  # a grasp / release moves a nuisance's prior
         # after a grasp or a release the pitch row waits PITCH_EVENT_HOLD_TAU filter time constants: the object's
         # weight moment steps in the commanded pitch moment with no pitch acceleration to match, and the low-passed
         # command carries the step's tail (exp(-1) of it after one constant, exp(-3) = 5 % after three)
@@ -373,13 +375,8 @@ class AdaptiveLaw:
                 narrow_mass_prior(kf, self._m_var_open)
         if self._grip_reset and gripper_closed is not None:
             self._on_gripper(bool(gripper_closed), t_s, base, lower, upper)
-        if self._pitch_row and gripper_closed is not None and gripper_closed != self._held_prev:
-            if self._held_prev and not gripper_closed:  # a release
-                self._pitch_hold_until_s = t_s + self._pitch_event_hold_s
-            self._held_prev = bool(gripper_closed)
-            if self._com_sigma > 0.0:  # the pitch row's nuisance CoM error, and at a grasp I_yy's variance at least
-                # (half the box's width)^2, the object's inertia being unknown within the box
-                kf.object_held(self._held_prev, self._com_sigma, (0.5 * (upper[1] - lower[1])) ** 2)
+        if self._nuisance and gripper_closed is not None and gripper_closed != self._held_prev:
+            self._held_changed(bool(gripper_closed), t_s, (0.5 * (upper[1] - lower[1])) ** 2)
         correct = self._gate(ready, window_sat, t_s)
         self._j_prev = (j11, j22, j33)
         rho_x, rho_z = inertia_ratios(j11, j13, j33)
@@ -400,6 +397,18 @@ class AdaptiveLaw:
         else:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
         return self._estimated(r, base, j13, lower, upper, du, da, window_sat)
+
+    def _held_changed(self, held: bool, t_s: float, iyy_var_min: float) -> None:
+        """A grasp or a release: the pitch row waits after a release; the pitch row's nuisance CoM error (CKF_CZ_SIG; at
+        a grasp I_yy's variance at least iyy_var_min, the object's inertia being unknown within the box) and the roll
+        and yaw rows' nuisance I_xz error (CKF_IXZ_SIG) are given their priors while held, zero otherwise."""
+        if self._held_prev and not held:  # a release
+            self._pitch_hold_until_s = t_s + self._pitch_event_hold_s
+        self._held_prev = held
+        if self._com_sigma > 0.0:
+            self._kf.object_held(held, self._com_sigma, iyy_var_min)
+        if self._ixz_sigma > 0.0:
+            self._kf.ixz_held(held, self._ixz_sigma)
 
     def _moment_increment(self, gc_inv: np.ndarray, u: np.ndarray, ready: bool) -> float | None:
         """CKF_MOM_LPF: low-pass the pitch moment G_C[M, :] U with this tick's G_C (the U filters' weight and start),

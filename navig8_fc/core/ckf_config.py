@@ -39,7 +39,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
     "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
     "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
-    "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG", "CKF_MOM_LPF", "CKF_M_SIG_OPEN",
+    "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG", "CKF_MOM_LPF", "CKF_M_SIG_OPEN", "CKF_IXZ_SIG",
 )
 
 
@@ -144,6 +144,9 @@ class CkfConfig:
     # CKF_M_SIG_OPEN: the prior sigma of the mass (kg) when the estimator starts with the gripper reporting open, and
     # after a release (with grip_reset): no object is held, the mass is the UAM's (AdaptiveLaw); 0: P0's
     mass_sigma_open_kg: float = 0.0
+    # CKF_IXZ_SIG: while an object is held, the prior sigma (kg m^2) of the modelled I_xz's error in the roll and yaw
+    # rows, a nuisance state updated with x (kf_nuisance; AdaptiveLaw); 0: none, the model's I_xz taken as exact
+    ixz_sigma_kgm2: float = 0.0
 
     def __post_init__(self) -> None:
         lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
@@ -181,7 +184,7 @@ class CkfConfig:
         object.__setattr__(self, "u_delivered", bool(self.u_delivered))
         object.__setattr__(self, "moment_lpf", bool(self.moment_lpf))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2", "pitch_r_nm2",
-                     "com_sigma_m", "grip_sigma_w", "mass_sigma_open_kg"):
+                     "com_sigma_m", "grip_sigma_w", "mass_sigma_open_kg", "ixz_sigma_kgm2"):
             v = float(getattr(self, name))
             if not (v >= 0.0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
@@ -250,4 +253,5 @@ class CkfConfig:
             grip_sigma_w=float(values["CKF_GRIP_SIG"]),
             moment_lpf=bool(int(values["CKF_MOM_LPF"])),
             mass_sigma_open_kg=float(values["CKF_M_SIG_OPEN"]),
+            ixz_sigma_kgm2=float(values["CKF_IXZ_SIG"]),
         )

@@ -15,6 +15,8 @@ x = [I_hat_xx, I_hat_yy, I_hat_zz, m_hat] (kg m^2, kg m^2, kg m^2, kg).
   be unobservable), written with a generic 5x5 G_C,UAM^-1 instead of the paper's symmetry-reduced rows.
 - Constraint, Eq. 21: I_UAM / K_max <= x <= I_UAM / K_min component-wise (Eq. 20: 0.5 <= K <= 1). The box
   moves with the arm pose; the caller (adaptive_law.py) supplies it every step.
+- Nuisance states (kf_nuisance.py), each with a prior while an object is held: the pitch row's CoM-height error
+  (CKF_CZ_SIG, kf_correct_pitch) and the roll and yaw rows' I_xz error (CKF_IXZ_SIG, a fifth state of kf_correct).
 
 Constrained filter (estimate projection, Simon 2010; notes 5)
 --------------------------------------------------------------
@@ -44,10 +46,12 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from navig8_fc.core import box_qp, ckf_config, linalg
+from navig8_fc.core import box_qp, ckf_config, kf_nuisance, linalg
 from navig8_fc.core.box_qp import ProjectionResult
 from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig
 from navig8_fc.core.jit import njit_cached
+from navig8_fc.core.kf_nuisance import NZ_COV, NZ_SIZE, NZ_VAR, NZ_X, augment, ixz_column, unaugment
+from navig8_fc.core.kf_nuisance import mul as _mul
 from navig8_fc.core.layout import layout
 
 __all__ = [
@@ -82,18 +86,6 @@ def _regressor(gc_inv, da, rho_x, rho_z, h):
 
 
 @njit(cache=True)
-def _mul(a, b, out):
-    """out = a @ b (plain loops: the summation order of every product here is fixed; b may be a transposed
-    view)."""
-    for i in range(a.shape[0]):
-        for j in range(b.shape[1]):
-            acc = 0.0
-            for k in range(a.shape[1]):
-                acc += a[i, k] * b[k, j]
-            out[i, j] = acc
-
-
-@njit(cache=True)
 def kf_predict(x, p, q_diag, dt, id0, id1, id2):
     """Eq. 22: x- = x + dt [I_dot_11, I_dot_22, I_dot_33, 0]; P- = P + diag(Q). In place."""
     x[0] += dt * id0
@@ -103,9 +95,9 @@ def kf_predict(x, p, q_diag, dt, id0, id1, id2):
         p[i, i] += q_diag[i]
 
 
-@njit_cached(box_qp, linalg)
+@njit_cached(box_qp, linalg, kf_nuisance)
 def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r=0.0, nz=None, hm=None,
-               pitch_y=math.nan):
+               pitch_y=math.nan, nx=None):
     """Measurement update z = Delta U = H(Delta Acc_m) x + nu (Eq. 24): K = P H^T S^-1, S = H P H^T + R
     (a solve, no inverse), x += K (z - H x), P = (I - K H) P (I - K H)^T + K R K^T (Joseph form: PSD under
     rounding), symmetrised. x (4,), p (4, 4) in place; innovation (5,) written.
@@ -124,31 +116,45 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pit
     hm (5,): added to H's mass column, the rows' linearised dependence on m beyond Eq. 24's force rows (the modelled
     object's I_xz in the roll and yaw rows, CKF_IXZ_MOD 2; the caller adds hm m_hat to du, so the innovation is the
     one without it). None: Eq. 24's H. pitch_y: the pitch row's moment increment when given (CKF_MOM_LPF; nan:
-    G_C[M, :] Delta U)."""
-    h = np.empty((5, 4))
+    G_C[M, :] Delta U). nx (NZ_SIZE,): the roll and yaw rows' I_xz nuisance (CKF_IXZ_SIG, kf_nuisance); with a
+    variance > 0 it is a fifth state of this update (H's fifth column kf_nuisance.ixz_column, never masked; its
+    covariance with the pitch nuisance taken as zero)."""
+    na = 4
+    if nx is not None:
+        if nx[NZ_VAR] > 0.0:
+            na = 5
+    h = np.zeros((5, na))
     _regressor(gc_inv, da, rho_x, rho_z, h)
     if hm is not None:
         for i in range(5):
             h[i, 3] += hm[i]
-    pht = np.empty((4, 5))
-    _mul(p, h.T, pht)
+    xa = x
+    pa = p
+    if nx is not None:
+        if na == 5:
+            ixz_column(gc_inv, da, h, 4)
+            xa = np.empty(5)
+            pa = np.empty((5, 5))
+            augment(x, p, nx, xa, pa)
+    pht = np.empty((na, 5))
+    _mul(pa, h.T, pht)
     for i in range(5):
         acc = 0.0
-        for k in range(4):
-            acc += h[i, k] * x[k]
+        for k in range(na):
+            acc += h[i, k] * xa[k]
         innovation[i] = du[i] - acc
     # [S | P H^T^T] -> [. | K^T] by Gaussian elimination (S K^T = H P).
-    aug = np.empty((5, 9))
+    aug = np.empty((5, 5 + na))
     _mul(h, pht, aug[:, :5])
     for i in range(5):
         aug[i, i] += r_diag[i]
-        for j in range(4):
+        for j in range(na):
             aug[i, 5 + j] = pht[j, i]
     if not box_qp.gauss_solve_inplace(aug, 5):
         x[:] = np.nan
         p[:, :] = np.nan
         return False
-    gain = aug[:, 5:].T  # K (4x5), a view
+    gain = aug[:, 5:].T  # K (na x 5), a view
     m1 = mask[1]
     if pitch_r != 0.0:
         m1 = 0.0  # I_yy: the pitch-moment row below (pitch_r > 0), or held (< 0)
@@ -156,118 +162,39 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pit
         mi = m1 if i == 1 else mask[i]
         for k in range(5):
             gain[i, k] *= mi
-    for i in range(4):
+    for i in range(na):
         acc = 0.0
         for k in range(5):
             acc += gain[i, k] * innovation[k]
-        x[i] += acc
-    ikh = np.empty((4, 4))
+        xa[i] += acc
+    ikh = np.empty((na, na))
     _mul(gain, h, ikh)
-    for i in range(4):
-        for j in range(4):
+    for i in range(na):
+        for j in range(na):
             ikh[i, j] = (1.0 if i == j else 0.0) - ikh[i, j]
-    t1 = np.empty((4, 4))
-    _mul(ikh, p, t1)
-    pn = np.empty((4, 4))
+    t1 = np.empty((na, na))
+    _mul(ikh, pa, t1)
+    pn = np.empty((na, na))
     _mul(t1, ikh.T, pn)
-    gr = np.empty((4, 5))
-    for i in range(4):
+    gr = np.empty((na, 5))
+    for i in range(na):
         for k in range(5):
             gr[i, k] = gain[i, k] * r_diag[k]
-    krk = np.empty((4, 4))
+    krk = np.empty((na, na))
     _mul(gr, gain.T, krk)
-    for i in range(4):
-        for j in range(4):
+    for i in range(na):
+        for j in range(na):
             pn[i, j] += krk[i, j]
-    for i in range(4):
-        for j in range(4):
-            p[i, j] = 0.5 * (pn[i, j] + pn[j, i])
+    for i in range(na):
+        for j in range(na):
+            pa[i, j] = 0.5 * (pn[i, j] + pn[j, i])
+    if nx is not None:
+        if na == 5:
+            unaugment(xa, pa, x, p, nx)
     if nz is not None:  # cov(x, c) <- (I - K H) cov(x, c): c is not measured by this update
-        c = np.empty(4)
-        for i in range(4):
-            acc = 0.0
-            for j in range(4):
-                acc += ikh[i, j] * nz[NZ_COV + j]
-            c[i] = acc
-        for i in range(4):
-            nz[NZ_COV + i] = c[i]
+        kf_nuisance.cov_transform(ikh, nz)
     if pitch_r > 0.0 and mask[1] != 0.0:
-        return kf_correct_pitch(x, p, pitch_r, gc_inv, du, da[1], nz, pitch_y)
-    return True
-
-
-# The pitch row's nuisance state (kf_correct_pitch): its value (m), variance (m^2) and covariance with x (4,)
-NZ_X = 0
-NZ_VAR = 1
-NZ_COV = 2
-NZ_SIZE = 6
-
-
-@njit_cached(linalg)
-def kf_correct_pitch(x, p, pitch_r, gc_inv, du, dq_dot, nz=None, pitch_y=math.nan):
-    """The pitch row of Eq. 24 in moment space: y = G_C[M, :] Delta U = I_yy Delta Q-dot + c Delta F_x + nu,
-    nu ~ (0, pitch_r) (G_C = (G_C^-1)^-1, the moments about the point the caller's G_C refers to; G_I's pitch row is
-    [0, I_yy, 0, 0, 0]; Delta F_x = G_C[F_x, :] Delta U). c (m) is the error of that point's height against the true
-    CoM's (M_true = M_ref - (c_true - c_ref) x F), a nuisance state in nz (value, variance, covariance with x) that the
-    caller gives a prior while an object is held (its CoM follows the mass estimate, which converges last) and zero
-    otherwise; with nz None or its variance 0 the row is I_yy Delta Q-dot alone. A scalar update of I_yy and c (the
-    other states held, Schmidt; Joseph form keeps the covariance exact). Why not in Delta U space with the others:
-    there the pitch column G_C^-1[:, M] Delta Q-dot spreads over all five rows, so the force rows' errors (the
-    accelerometer noise the INDI feeds back as force commands, the mass still converging) are read as pitch
-    information through the diagonal R; in moment space the pitch row has I_yy alone.
-    pitch_y, when not nan, is y itself (CKF_MOM_LPF: the increment of the low-passed moment, AdaptiveLaw).
-    Returns False (x, P unchanged) when G_C^-1 is singular."""
-    gc = np.empty((5, 5))
-    if not linalg.inv_gauss_jordan(gc_inv, gc):
-        return False
-    y = 0.0
-    fx = 0.0
-    for j in range(5):
-        y += gc[1, j] * du[j]
-        fx += gc[3, j] * du[j]
-    if pitch_y == pitch_y:
-        y = pitch_y
-    # the augmented state [x, c] (5,), its covariance pa, the measurement row h = [0, dq_dot, 0, 0, fx]
-    pa = np.zeros((5, 5))
-    for i in range(4):
-        for j in range(4):
-            pa[i, j] = p[i, j]
-    xc = 0.0
-    if nz is not None:
-        xc = nz[NZ_X]
-        pa[4, 4] = nz[NZ_VAR]
-        for i in range(4):
-            pa[i, 4] = nz[NZ_COV + i]
-            pa[4, i] = nz[NZ_COV + i]
-    h = np.zeros(5)
-    h[1] = dq_dot
-    h[4] = fx
-    pht = np.zeros(5)
-    for i in range(5):
-        pht[i] = pa[i, 1] * dq_dot + pa[i, 4] * fx
-    s = dq_dot * pht[1] + fx * pht[4] + pitch_r
-    g = np.zeros(5)
-    g[1] = pht[1] / s
-    g[4] = pht[4] / s
-    e = y - dq_dot * x[1] - fx * xc
-    x[1] += g[1] * e
-    # Joseph form: Pa = (I - g h) Pa (I - g h)^T + g r g^T
-    a = np.empty((5, 5))
-    for i in range(5):
-        for j in range(5):
-            a[i, j] = (1.0 if i == j else 0.0) - g[i] * h[j]
-    t1 = np.empty((5, 5))
-    _mul(a, pa, t1)
-    pn = np.empty((5, 5))
-    _mul(t1, a.T, pn)
-    for i in range(4):
-        for j in range(4):
-            p[i, j] = 0.5 * (pn[i, j] + pn[j, i]) + g[i] * pitch_r * g[j]
-    if nz is not None:
-        nz[NZ_X] = xc + g[4] * e
-        nz[NZ_VAR] = pn[4, 4] + g[4] * pitch_r * g[4]
-        for i in range(4):
-            nz[NZ_COV + i] = 0.5 * (pn[i, 4] + pn[4, i]) + g[i] * pitch_r * g[4]
+        return kf_nuisance.kf_correct_pitch(x, p, pitch_r, gc_inv, du, da[1], nz, pitch_y, nx)
     return True
 
 
@@ -349,9 +276,10 @@ def excitation_mask(da, exc_rot, exc_lin, mask):
     return n + int(mask[3])
 
 
-@njit_cached(box_qp, linalg, ckf_config)
+@njit_cached(box_qp, linalg, ckf_config, kf_nuisance)
 def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc_rot, exc_lin, gc_inv, du, da,
-            rho_x, rho_z, constrained, identity, lo, hi, out, pitch_r=0.0, nz=None, hm=None, pitch_y=math.nan):
+            rho_x, rho_z, constrained, identity, lo, hi, out, pitch_r=0.0, nz=None, hm=None, pitch_y=math.nan,
+            nx=None):
     """predict (if do_predict), correct (if do_correct and some state passes the excitation gate; the others
     held), project (if constrained) on x, p in place; results into out (STEP_OUT). Returns the PROJ_* code."""
     if do_predict:
@@ -360,7 +288,7 @@ def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc
     innovation = out[SO_INNOV:SO_INNOV + N_MEAS]
     n_exc = excitation_mask(da, exc_rot, exc_lin, mask) if do_correct else 0
     if n_exc > 0:
-        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r, nz, hm, pitch_y)
+        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r, nz, hm, pitch_y, nx)
         out[SO_CORRECTED] = 1.0
     else:
         mask[:] = 0.0
@@ -422,6 +350,7 @@ class ConstrainedKalmanFilter:
         self._exc_rot, self._exc_lin = config.exc_rot_rad_s2, config.exc_lin_m_s2
         self._pitch_r = config.pitch_r_nm2
         self._nz = np.zeros(NZ_SIZE)  # the pitch row's nuisance state (kf_correct_pitch): zero until an object is held
+        self._nx = np.zeros(NZ_SIZE)  # the roll and yaw rows' I_xz nuisance (kf_nuisance): zero until an object is held
         self._x = np.zeros(N_STATE)
         self._p = np.diag(config.p0_scale * self._q)
         self._out = STEP_OUT.zeros()
@@ -449,6 +378,7 @@ class ConstrainedKalmanFilter:
         self._x = x
         self._p = np.diag(self.config.p0_scale * self._q) if p0 is None else np.array(p0, dtype=float)
         self._nz[:] = 0.0
+        self._nx[:] = 0.0
         self._initialised = True
         self.n_updates = 0
         self.n_projection_fallbacks = 0
@@ -464,6 +394,7 @@ class ConstrainedKalmanFilter:
             self._x[:] = x
         self._p[:, :] = np.diag(self.config.p0_scale * self._q)
         self._nz[NZ_COV:] = 0.0
+        self._nx[NZ_COV:] = 0.0
 
     def raise_variance(self, var_min: Sequence[float]) -> None:
         """P's diagonal raised to at least var_min (4,) (a prior wider than P0 after a known change of the truth)."""
@@ -491,6 +422,20 @@ class ConstrainedKalmanFilter:
         if held:
             self._nz[NZ_VAR] = com_sigma_m * com_sigma_m
             self._p[1, 1] = max(self._p[1, 1], iyy_var_min)
+
+    def ixz_held(self, held: bool, ixz_sigma_kgm2: float) -> None:
+        """The roll and yaw rows' prior on a grasp (held) or a release: while an object is held, the error of the
+        modelled I_xz is a nuisance state of prior N(0, ixz_sigma_kgm2^2) (kf_nuisance, kf_correct's nx); with none
+        held it is zero, with zero variance (the UAM's I_xz is known)."""
+        self._require_initialised()
+        self._nx[:] = 0.0
+        if held:
+            self._nx[NZ_VAR] = ixz_sigma_kgm2 * ixz_sigma_kgm2
+
+    @property
+    def ixz_offset_kgm2(self) -> float:
+        """The I_xz nuisance estimate (kg m^2): the true I_xz minus the modelled one (0: none held)."""
+        return float(self._nx[NZ_X])
 
     @property
     def pitch_com_offset_m(self) -> float:
@@ -538,7 +483,7 @@ class ConstrainedKalmanFilter:
         innovation = np.empty(N_MEAS)
         kf_correct(self._x, self._p, self._r, np.ascontiguousarray(gc_uam_inv, dtype=float),
                    np.asarray(delta_u, dtype=float), np.asarray(delta_acc, dtype=float), float(rho_x),
-                   float(rho_z), _ONES4, innovation, self._pitch_r, self._nz)
+                   float(rho_z), _ONES4, innovation, self._pitch_r, self._nz, None, math.nan, self._nx)
         self.n_updates += 1
         return innovation
 
@@ -583,7 +528,7 @@ class ConstrainedKalmanFilter:
         code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, bool(correct),
                        self._exc_rot, self._exc_lin, gc_uam_inv, delta_u, delta_acc, rho_x, rho_z, self._constrained,
                        self._identity_weight, lower, upper, self._out,
-                       self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz, h_mass, pitch_y)
+                       self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz, h_mass, pitch_y, self._nx)
         self._account(code, lower, upper)
         o = self._out.tolist()
         corrected = o[SO_CORRECTED] != 0.0

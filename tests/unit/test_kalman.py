@@ -72,7 +72,7 @@ def _param_values(**overrides: float) -> dict[str, float]:
         "CKF_GRIP_RST": 0, "CKF_PRED_DJ": 0, "CKF_GC_REF": 0,
         "CKF_LMS_MU1": 0.003, "CKF_LMS_MU2": 0.05, "CKF_LMS_MU3": 0.003, "CKF_LMS_MU4": 0.001,
         "CKF_R_PITCH": 0.0, "CKF_CZ_SIG": 0.0, "CKF_LPF_SEED": 0, "CKF_IXZ_MOD": 0, "CKF_GRIP_SIG": 0.0,
-        "CKF_MOM_LPF": 0, "CKF_M_SIG_OPEN": 0.0,
+        "CKF_MOM_LPF": 0, "CKF_M_SIG_OPEN": 0.0, "CKF_IXZ_SIG": 0.0,
     }
     v.update(overrides)
     return v
@@ -464,3 +464,72 @@ def test_lower_variance_caps_the_diagonal_and_keeps_the_correlations() -> None:
     corr = lambda m: m / np.sqrt(np.outer(np.diag(m), np.diag(m)))  # noqa: E731
     np.testing.assert_allclose(corr(q), corr(p), rtol=1e-12)
     assert np.array_equal(q, q.T) and np.all(np.linalg.eigvalsh(q) > 0.0)
+
+
+def test_the_ixz_nuisance_is_a_fifth_state_of_the_update(pose: Pose) -> None:
+    """While held (ixz_held, CKF_IXZ_SIG) the update is the textbook KF on [x, d], d the I_xz error with H's fifth
+    column G_C^-1 [Delta R-dot, 0, Delta P-dot, 0, 0], over 5 consecutive updates (x, P and d to 1e-9 relative); with
+    the prior's sigma 0, or after a release, it is the 4-state update bit for bit."""
+    rng = np.random.default_rng(3)
+    sigma = 0.02
+    for trial in range(10):
+        c = CkfConfig(r_diag=tuple(rng.uniform(1e4, 5e4, 5)))
+        r = np.diag(c.r_diag)
+        gci = pose.gci if trial % 2 == 0 else rng.normal(size=(5, 5))
+        x0 = pose.base * rng.uniform(0.8, 1.2, 4)
+        p0 = _random_p(rng)
+        kf, plain = ConstrainedKalmanFilter(c), ConstrainedKalmanFilter(c)
+        kf.initialise(x0, p0=p0)
+        plain.initialise(x0, p0=p0)
+        kf.ixz_held(True, sigma)
+        xa = np.append(x0, 0.0)
+        pa = np.zeros((5, 5))
+        pa[:4, :4] = p0
+        pa[4, 4] = sigma**2
+        for _ in range(5):
+            a = rng.normal(size=5)
+            z = rng.normal(size=5) * 1e3
+            h = np.column_stack([measurement_matrix(gci, a, 0.0, 0.0), gci[:, 0] * a[2] + gci[:, 2] * a[0]])
+            s = h @ pa @ h.T + r
+            k = pa @ h.T @ np.linalg.inv(s)
+            xa = xa + k @ (z - h @ xa)
+            pa = pa - k @ s @ k.T
+            kf.correct(z, a, gci, 0.0, 0.0)
+            np.testing.assert_allclose(kf.x, xa[:4], rtol=1e-9)
+            np.testing.assert_allclose(kf.ixz_offset_kgm2, xa[4], rtol=1e-9, atol=1e-12)
+            np.testing.assert_allclose(kf.p, pa[:4, :4], rtol=1e-9, atol=1e-12 * np.abs(pa).max())
+        kf.ixz_held(False, sigma)  # a release: no object, no nuisance; from here the 4-state update bit for bit
+        assert kf.ixz_offset_kgm2 == 0.0
+        plain.initialise(kf.x, p0=kf.p)
+        for _ in range(3):
+            a, z = rng.normal(size=5), rng.normal(size=5) * 1e3
+            kf.correct(z, a, gci, 0.0, 0.0)
+            plain.correct(z, a, gci, 0.0, 0.0)
+            assert np.array_equal(kf.x, plain.x) and np.array_equal(kf.p, plain.p)
+
+
+@pytest.mark.parametrize("ixz_sigma", [0.0, 0.05])
+def test_the_ixz_nuisance_removes_the_bias_of_a_wrong_product_of_inertia(ixz_sigma: float) -> None:
+    """The roll and yaw rows with the modelled I_xz 0.03 kg m^2 off (the object's at a wrong mass estimate) and the
+    yaw excitation following the roll's (correlation 0.8, as the doublets couple them): without the nuisance I_zz
+    absorbs d Delta P-dot; with it (ixz_held, prior sigma 0.05 kg m^2) I_zz and d converge to the truth. G_C = I."""
+    rng = np.random.default_rng(5)
+    x_true = np.array([0.7, 0.9, 1.1, 8.0])
+    d_true = 0.03
+    cfg = CkfConfig(mode=CkfMode.UNCONSTRAINED, q_diag=(0.0,) * 4, r_diag=(1e-4,) * 5, p0_scale=0.0,
+                    ixz_sigma_kgm2=ixz_sigma)
+    kf = ConstrainedKalmanFilter(cfg)
+    kf.initialise([0.5, 0.6, 0.9, 8.0], p0=np.diag([1.0, 1.0, 1.0, 1.0]))
+    kf.ixz_held(True, ixz_sigma)
+    eye = np.eye(5)
+    for _ in range(400):
+        da = rng.standard_normal(5) * 0.3
+        da[2] = 0.8 * da[0] + 0.6 * 0.3 * rng.standard_normal()  # R-dot follows P-dot
+        du = np.array([x_true[0] * da[0] + d_true * da[2], x_true[1] * da[1], x_true[2] * da[2] + d_true * da[0],
+                       x_true[3] * da[3], x_true[3] * da[4]]) + 0.01 * rng.standard_normal(5)
+        kf.correct(du, da, eye, 0.0, 0.0)
+    rel_err = abs(kf.x[2] - x_true[2]) / x_true[2]
+    if ixz_sigma > 0.0:
+        assert rel_err < 0.01 and abs(kf.ixz_offset_kgm2 - d_true) < 0.005, (kf.x, kf.ixz_offset_kgm2)
+    else:
+        assert rel_err > 0.02 and kf.ixz_offset_kgm2 == 0.0, kf.x
