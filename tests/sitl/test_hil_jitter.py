@@ -8,9 +8,12 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import pytest
 from sitl_helpers import LossyUdpProxy, fly_from_gcs, mcap_metadata, sitl
 
 from navig8_fc.shell.mcap_log import read_mcap
+
+pytestmark = pytest.mark.realtime  # on the wall clock: run alone, after the parallel SITL lane (make test)
 
 
 def test_realtime_fc_rides_out_jitter_drops_and_reordering(tmp_path: Path) -> None:
