@@ -91,10 +91,11 @@ class Bridge:
     def time_usec(self) -> int:
         return seam.time_usec_from_sim_us(self.plant.t_us)
 
-    def _bundle(self) -> bytes:
+    def _bundle(self, cmd_time_usec: int = 0) -> bytes:
+        """cmd_time_usec: the stamp the answer the plant just flew echoed (0 before the first)."""
         # the plain-float views of sense() and truth(): the same samples and bytes, no numpy views to convert back
         plant = self.plant
-        return seam.encode_bundle(self.link.mav, self.step, plant.sense_wire(), plant.truth_floats())
+        return seam.encode_bundle(self.link.mav, self.step, plant.sense_wire(), plant.truth_floats(), cmd_time_usec)
 
     def rtf(self, now: float) -> float:
         if self._wall_start is None or now <= self._wall_start:
@@ -240,7 +241,8 @@ class Bridge:
             plant.step_us(cmd, dt_us)
             self.step += 1
             c.steps += 1
-            data = encode_bundle(mav, self.step, plant.sense_wire(), plant.truth_floats())  # self._bundle()
+            data = encode_bundle(mav, self.step, plant.sense_wire(), plant.truth_floats(),
+                                 ans.time_usec)  # self._bundle(ans.time_usec)
             if paced:
                 self._pace()
             now = perf_counter()
@@ -291,7 +293,7 @@ class Bridge:
             plant.step_us(ActuatorCommand(ans.tilt_rad, ans.speed_rad_s, arm.joint_targets_rad), self.dt_us)
             self.step += 1
             c.steps += 1
-            self.link.send(self._bundle())
+            self.link.send(self._bundle(ans.time_usec))  # the FC learns which of its answers was flown
             c.bundles_sent += 1
 
     def summary_line(self) -> str:

@@ -122,6 +122,9 @@ class FcSensors:
     joint_pos_rad: tuple[float, float, float]
     joint_rate_rad_s: tuple[float, float, float]
     gripper_closed: bool = False  # the gripper's reported state (NAVIG8_ARM_STATE); CKF_GRIP_RST forgets on it
+    # the time of the sample whose command drove the actuators up to this one (the link's echo,
+    # NAVIG8_ACTUATOR_STATE.cmd_time_usec); None: the command of the last tick (lockstep, in process)
+    cmd_applied_t_s: float | None = None
 
 
 @dataclass(frozen=True)
@@ -346,7 +349,11 @@ class FlightControllerCore:
         outer: OuterLoopStatus | None = None
         indi_status: IndiStatus | None = None
         if engaged:
+            if s.cmd_applied_t_s is not None:  # a link that reports which command the actuators flew
+                self._indi.fly_applied(s.cmd_applied_t_s)
             cmd, outer, indi_status, ff_status = self._fly(io, sf_x, sf_z, gc_inv, gi_hat, ff_q, ff_status)
+            if s.cmd_applied_t_s is not None:
+                self._indi.remember_command(s.t_s)
         else:
             cmd = self._idle(s, sf_x, sf_z, gc, gi_hat)
         ft = tuple(fo.tolist())

@@ -79,6 +79,9 @@ _ST_ACT_CMD, _ST_ACT_OK = ST.ACT_CMD.sl, int(ST.ACT_OK)
 _IC_U0_GAIN, _IC_ACT_AD, _IC_ACT_BD = int(IC.U0_GAIN), IC.ACT_AD.sl, IC.ACT_BD.sl
 
 U0_MEASURED, U0_MODEL = 0, 1  # INDI_U0_SRC
+# Commands remembered for a link that reports which one the actuators flew (Indi.fly_applied): 160 ms at 100 Hz,
+# over any link delay that still flies
+CMD_HISTORY = 16
 
 # Axis groups of Delta Acc = [Pdot, Qdot, Rdot, a_x, a_z], scaled back in this order on saturation.
 SATURATION_ORDER: tuple[tuple[int, ...], ...] = ((3,), (2,), (0, 1, 4))
@@ -192,6 +195,28 @@ class IndiController:
         self._innov = (0.0, 0.0)
         self._u0_trusted = True
         self._u0_ok_ticks = 0
+        # the commands of the last ticks by their sample's time (us), for a link that reports which one was flown
+        self._cmd_hist = np.zeros((CMD_HISTORY, 5))
+        self._cmd_hist_t_us = [-1] * CMD_HISTORY
+        self._cmd_hist_next = 0
+
+    def fly_applied(self, applied_t_s: float) -> None:
+        """Before the tick: the actuator model (the model-based U0 and ACT_ID) advances on the command the link says
+        the actuators flew up to this sample (the answer to the sample at applied_t_s), not on the last tick's. Over
+        a real-time link the answer reaches the actuators one or more periods late, and a model fed the last command
+        reads that delay as actuator lag. A command no longer remembered (or never sent): the last tick's."""
+        try:
+            row = self._cmd_hist_t_us.index(round(applied_t_s * 1e6))
+        except ValueError:
+            return
+        self._st[_ST_ACT_CMD] = self._cmd_hist[row]
+
+    def remember_command(self, t_s: float) -> None:
+        """After the tick: its command, under its sample's time (fly_applied finds it when the link reports it)."""
+        i = self._cmd_hist_next
+        self._cmd_hist[i] = self._st[_ST_ACT_CMD]
+        self._cmd_hist_t_us[i] = round(t_s * 1e6)
+        self._cmd_hist_next = (i + 1) % CMD_HISTORY
 
     def reset(self) -> None:
         self._st[:] = 0.0

@@ -184,6 +184,8 @@ class StepBundle(NamedTuple):
     gripper_closed: bool
     # NAVIG8_TRUTH (for logs only; never for control), None if absent
     truth: TruthFloats | None = None
+    # NAVIG8_ACTUATOR_STATE.cmd_time_usec: the stamp whose answer drove the actuators up to this sample (0: unknown)
+    cmd_time_usec: int = 0
 
     @property
     def t_us(self) -> int:
@@ -211,6 +213,9 @@ class StepBundle(NamedTuple):
             joint_pos_rad=self.joint_pos_rad,
             joint_rate_rad_s=self.joint_rate_rad_s,
             gripper_closed=self.gripper_closed,
+            # a stamp older than this sample's: the command's age on the link; else unknown (the last one flown)
+            cmd_applied_t_s=(sim_us_from_time_usec(self.cmd_time_usec) * 1e-6
+                             if 0 < self.cmd_time_usec < self.time_usec else None),
         )
 
 
@@ -277,10 +282,11 @@ def _odometry_consts() -> tuple[int, int]:
     return int(d.MAV_FRAME_LOCAL_NED), int(d.MAV_ESTIMATOR_TYPE_MOCAP)
 
 
-def bundle_records(step: int, sensors: Any, truth: Any) -> list[Record]:
+def bundle_records(step: int, sensors: Any, truth: Any, cmd_time_usec: int = 0) -> list[Record]:
     """The messages of step `step` in datagram order, from the plant's SensorBundle and Truth (or anything with
     their attributes: Plant.sense_wire / truth_floats give them as plain float lists, the bridge's fast path);
-    truth None: no NAVIG8_TRUTH."""
+    truth None: no NAVIG8_TRUTH. cmd_time_usec: the stamp the answer that drove the actuators over the step just
+    ended echoed (NAVIG8_ACTUATOR_STATE.cmd_time_usec; 0: none)."""
     frame_ned, mocap = _odometry_consts()
     tu = int(sensors.time_us) + 1  # time_usec_from_sim_us
     g = _f(sensors.gyro_frd_rad_s)
@@ -295,7 +301,8 @@ def bundle_records(step: int, sensors: Any, truth: Any) -> list[Record]:
             g[0], g[1], g[2],
             _COV_UNKNOWN, _COV_UNKNOWN, 0, mocap, 0,
         )),
-        ("NAVIG8_ACTUATOR_STATE", (tu, step, _f(sensors.duct_tilt_rad), _f(sensors.prop_speed_rad_s))),
+        ("NAVIG8_ACTUATOR_STATE", (tu, step, _f(sensors.duct_tilt_rad), _f(sensors.prop_speed_rad_s),
+                                   int(cmd_time_usec))),
         ("NAVIG8_ARM_STATE", (
             tu, step, _f(sensors.joint_pos_rad), _f(sensors.joint_rate_rad_s), 1 if sensors.gripper_closed else 0,
         )),
@@ -325,9 +332,9 @@ def truth_message_record(step: int, truth: Any) -> Record:
     )
 
 
-def encode_bundle(enc: Encoder, step: int, sensors: Any, truth: Any) -> bytes:
+def encode_bundle(enc: Encoder, step: int, sensors: Any, truth: Any, cmd_time_usec: int = 0) -> bytes:
     """The step datagram for `step`: the frames of bundle_records(...) back to back, one sequence number each."""
-    return enc.frames(bundle_records(step, sensors, truth))
+    return enc.frames(bundle_records(step, sensors, truth, cmd_time_usec))
 
 
 _BUNDLE_PARTS = frozenset(("ODOMETRY", "NAVIG8_ACTUATOR_STATE", "NAVIG8_ARM_STATE", "NAVIG8_TRUTH"))
@@ -360,7 +367,7 @@ class BundleAssembler:
         self._pos = at("ODOMETRY", "x", "y", "z")
         self._vel = at("ODOMETRY", "vx", "vy", "vz")
         self._quat = specs["ODOMETRY"].index["q"]
-        self._act = at("NAVIG8_ACTUATOR_STATE", "step", "duct_tilt", "prop_speed")
+        self._act = at("NAVIG8_ACTUATOR_STATE", "step", "duct_tilt", "prop_speed", "cmd_time_usec")
         self._arm = at("NAVIG8_ARM_STATE", "joint_pos", "joint_rate", "gripper_closed")
 
     def clear(self) -> None:
@@ -395,12 +402,12 @@ class BundleAssembler:
         parts["HIL_SENSOR"] = msg
         self.completed = parts
         o = odom.values
-        step, tilt, speed = self._act(act.values)
+        step, tilt, speed, cmd_tu = self._act(act.values)
         jp, jr, grip = self._arm(arm.values)
         return StepBundle(int(step), int(tu), self._gyro(h), self._accel(h),
                           (updated & HIL_SENSOR_ACCEL_GYRO) == HIL_SENSOR_ACCEL_GYRO, self._pos(o), self._vel(o),
                           o[self._quat], tilt, speed, jp, jr, bool(grip),
-                          truth_floats_of_message(truth.fields) if truth is not None else None)
+                          truth_floats_of_message(truth.fields) if truth is not None else None, int(cmd_tu))
 
 
 def decode_bundle(msgs: Iterable[Message]) -> StepBundle | None:

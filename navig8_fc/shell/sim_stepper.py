@@ -20,6 +20,8 @@ from navig8_fc.shell.fc_log import StepRecord
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.sim_peer import BundlePeer, Lockstep, Px4Peer, Realtime
 
+ANSWERS_REMEMBERED = 32  # real time: the answers the bridge's echo is looked up in (0.32 s at 100 Hz, > the FC's 16)
+
 _GRIPPER_CODES = {None: seam.GRIPPER_NONE, "grab": seam.GRIPPER_GRAB, "release": seam.GRIPPER_RELEASE}
 
 
@@ -38,6 +40,9 @@ class SimStepper:
         self.n_tick_errors = 0  # exceptions in the control tick (contained: last command held, land requested)
         self._last_cmd: tuple[Any, bool] | None = None  # (command, armed) of the last good tick
         self._last_answer: bytes | None = None  # the frame answering the last step (re-sent on duplicates)
+        # real time: the FC's clock at the ticks that answered the last bundles, by the bundle's stamp (the bridge
+        # echoes the stamp of the answer it flew; the controller knows its commands by its own clock)
+        self._answered_clock_us: dict[int, int] = {}
         self.pending_tick: StepRecord | None = None  # the last step's log record, written after its answer
         self.sim_status: Any = None
         self.sim_done = False
@@ -96,7 +101,8 @@ class SimStepper:
         self.last_step_time_us = t_us
         sensors = b.fc_sensors()
         if clock_us is not None:  # real time: the control step runs on the FC's clock (realtime.py)
-            sensors = replace(sensors, t_s=clock_us * 1e-6)
+            sensors = replace(sensors, t_s=clock_us * 1e-6, cmd_applied_t_s=self._flown_at(b.cmd_time_usec, t_us,
+                                                                                           clock_us))
         try:
             res = self.stack.step(sensors, b.imu_fresh, t_us if clock_us is None else clock_us)
         except Exception as e:  # noqa: BLE001 - contained: the vehicle keeps an answer, the operator is told
@@ -117,6 +123,16 @@ class SimStepper:
             self._log_event(note)  # a loaded host overruns too: /fc/event and stderr, not a STATUSTEXT
         if self._log_active():
             self.pending_tick = StepRecord(t_us, b.truth, res.status, cmd, res.setpoint, inp.wire, out, sensors)
+
+    def _flown_at(self, cmd_time_usec: int, t_us: int, clock_us: int) -> float | None:
+        """Real time: the FC's time (s) of the tick whose answer the bridge says it flew up to this bundle (None:
+        not one of the last ANSWERS_REMEMBERED); this bundle's tick is remembered under its stamp."""
+        answered = self._answered_clock_us
+        flown = answered.get(cmd_time_usec)
+        answered[t_us] = clock_us
+        if len(answered) > ANSWERS_REMEMBERED:
+            del answered[next(iter(answered))]  # the oldest (dicts keep insertion order)
+        return None if flown is None else flown * 1e-6
 
     def _tick_failed(self, e: Exception, t_us: int) -> None:
         """The tick raised: answer the step with the last good command (the bridge must not stall), ask the stack to

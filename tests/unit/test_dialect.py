@@ -23,7 +23,7 @@ ROOT = Path(__file__).resolve().parents[2]
 # name, type or order, and then the bridge and an older FC no longer understand each other: a change here
 # must be deliberate (add a new message instead of editing one).
 WIRE_IDENTITY = {
-    "NAVIG8_ACTUATOR_STATE": (61000, 177, 32),
+    "NAVIG8_ACTUATOR_STATE": (61000, 177, 40),  # 32 + the extension cmd_time_usec (CRC extra unchanged)
     "NAVIG8_ARM_STATE": (61001, 224, 37),
     "NAVIG8_TRUTH": (61002, 55, 208),
     "NAVIG8_ARM_CMD": (61010, 111, 22),
@@ -84,7 +84,23 @@ def test_units_are_declared_on_si_fields(d) -> None:
     units = _cls(d, "NAVIG8_TRUTH").fieldunits_by_name
     assert units["reaction_force"] == "N" and units["pos_ned"] == "m" and units["time_usec"] == "us"
     assert _cls(d, "NAVIG8_ACTUATOR_STATE").fieldunits_by_name == {"time_usec": "us", "duct_tilt": "rad",
-                                                                   "prop_speed": "rad/s"}
+                                                                   "prop_speed": "rad/s", "cmd_time_usec": "us"}
+
+
+def test_actuator_state_extension_is_compatible_both_ways(d) -> None:
+    """cmd_time_usec is a MAVLink 2 extension: a sender that predates it (its 32-byte payload) decodes with 0, and
+    a reader that predates it reads the base fields of the 40-byte frame unchanged (same CRC extra, base first)."""
+    tilt, speed = (0.25, -0.125), (600.0, -50.0, 610.0)
+    enc = codec.Encoder(codec.seam_codec(), 1, 25)
+    stamp = 0x0102_0304_0506_0708  # no zero byte: the whole extension goes out
+    new = enc.frame("NAVIG8_ACTUATOR_STATE", (10001, 1, tilt, speed, stamp))
+    old = enc.frame("NAVIG8_ACTUATOR_STATE", (10001, 1, tilt, speed, 0))
+    assert new[1] == 40 and old[1] == 32  # payload lengths: MAVLink 2 drops the all-zero extension
+    (m_new,), (m_old,) = (codec.seam_codec().parse(f, codec.ParseCounters()) for f in (new, old))
+    assert m_new.fields["cmd_time_usec"] == stamp and m_old.fields["cmd_time_usec"] == 0
+    assert new[10:42] == old[10:42]  # the base payload (after the 10-byte header) is byte for byte the old one
+    assert {k: v for k, v in m_new.fields.items() if k != "cmd_time_usec"} == \
+        {k: v for k, v in m_old.fields.items() if k != "cmd_time_usec"}
 
 
 def test_common_is_included_and_mavlink2(d) -> None:
@@ -111,7 +127,8 @@ def test_messages_roundtrip_with_float32_precision(d) -> None:
 
     tu = 123_456_789_012
     cases = {
-        "NAVIG8_ACTUATOR_STATE": dict(time_usec=tu, step=4_000_000_000, duct_tilt=r(2), prop_speed=r(3)),
+        "NAVIG8_ACTUATOR_STATE": dict(time_usec=tu, step=4_000_000_000, duct_tilt=r(2), prop_speed=r(3),
+                                      cmd_time_usec=tu - 20_000),
         "NAVIG8_ARM_STATE": dict(time_usec=tu, step=7, joint_pos=r(3), joint_rate=r(3), gripper_closed=1),
         "NAVIG8_TRUTH": dict(time_usec=tu, step=8, pos_ned=r(3), vel_ned=r(3), quat=r(4), rate_frd=r(3),
                              accel_frd=r(3), actuators=r(5), joint_pos=r(3), joint_rate=r(3), joint_accel=r(3),

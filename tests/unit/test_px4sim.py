@@ -91,7 +91,7 @@ def test_measured_actuator_and_arm_states_are_used_when_they_come_with_the_step(
     c = codec.Codec(PX4_SIM_MESSAGES)
     asm = Px4SimAssembler(GeoOrigin(), ActuatorModel(120.0, 0.8, 0.01, (0.0,) * 5))
     enc = codec.Encoder(c, 1, 25)
-    extra = enc.frame("NAVIG8_ACTUATOR_STATE", (10001, 1, (0.2, -0.1), (600.0, 5.0, 610.0)))
+    extra = enc.frame("NAVIG8_ACTUATOR_STATE", (10001, 1, (0.2, -0.1), (600.0, 5.0, 610.0), 0))
     extra += enc.frame("NAVIG8_ARM_STATE", (10001, 1, (0.5, 0.1, 0.0), (0.0, 0.0, 0.0), 1))
     got = [b for m in c.parse(_frames(10001, (0, 0, -1), extra=extra), codec.ParseCounters())
            if (b := asm.add(m)) is not None]

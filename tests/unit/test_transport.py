@@ -167,13 +167,13 @@ def test_serial_device_that_does_not_exist_is_a_clear_error() -> None:
 
 def test_link_budget_against_the_line_rate() -> None:
     """The bundle's worst case by hand: five frames of 12 B overhead + 13 B signature + full payloads (common.xml /
-    navig8.xml sizes: ODOMETRY 233, ACTUATOR_STATE 32, ARM_STATE 37, TRUTH 208, HIL_SENSOR 65)."""
+    navig8.xml sizes: ODOMETRY 233, ACTUATOR_STATE 40 with its extension, ARM_STATE 37, TRUTH 208, HIL_SENSOR 65)."""
     c = codec.seam_codec()
     b = link_budget(c, parse_connection("serial:/dev/x:921600"), 100.0)
-    assert b.bundle_bytes == 5 * (12 + 13) + 233 + 32 + 37 + 208 + 65 == 700
+    assert b.bundle_bytes == 5 * (12 + 13) + 233 + 40 + 37 + 208 + 65 == 708
     assert b.capacity_bytes_s == pytest.approx(0.9 * 92160)
-    assert "70.0 kB/s" in b.line()
-    with pytest.raises(ValueError, match="does not fit.*at most 118 Hz"):
+    assert "70.8 kB/s" in b.line()
+    with pytest.raises(ValueError, match="does not fit.*at most 117 Hz"):
         link_budget(c, parse_connection("serial:/dev/x:921600"), 200.0)
     with pytest.raises(ValueError, match="does not fit"):
         link_budget(c, parse_connection("serial:/dev/x:57600"), 100.0)

@@ -184,3 +184,58 @@ def test_restart_takes_the_running_mean_of_the_measurements() -> None:
                                      (0.0, 0.0, 0.0, 0.0, -9.81), gc, gi, gc_inv))
         want = vm.actuators_to_u(*np.mean(meas, axis=0))
         np.testing.assert_allclose(st.u0_filtered, want, rtol=1e-9)
+
+
+def _identify_behind_a_delay(extra_delay_ticks: int, echo: bool, bandwidth_scale: float = 1.0,
+                             n: int = 900) -> tuple[float, float]:
+    """ACT_ID (from ACT_WN 120 rad/s) on the simulator's actuators (true omega_n 120 rad/s x bandwidth_scale) over a
+    link that delivers each command `extra_delay_ticks` periods late (a real-time link: docs/hil.md); echo: the FC
+    is told which command the actuators flew (NAVIG8_ACTUATOR_STATE.cmd_time_usec), as the bridge tells it. Open
+    loop, a demand stepping every 0.1 s (the transients identify omega_n). Returns the identified (tilt, speed)
+    omega_n."""
+    w = load_world("hover", {"actuator_bandwidth_scale": bandwidth_scale})
+    plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(3))
+    gc, gi = _gc_gi(np.zeros(3))
+    gc_inv = np.linalg.inv(gc)
+    indi = IndiController(IndiConfig(DT, LPF_TAU, ActuatorLimits.from_vehicle(CFG), u0_src=U0_MODEL, u0_tau_s=0.2,
+                                     act_wn_rad_s=120.0, act_zeta=1.0, act_identify=True))
+    rng = np.random.default_rng(1)
+    v = np.zeros(5)
+    in_flight: list[tuple[float, PlantCommand]] = []  # (the sample it answers, the command), oldest first
+    flown_t_s = None
+    for k in range(n):
+        t_s = k * DT
+        sb = plant.sense()
+        if k % 10 == 0:
+            v = rng.normal(0.0, [3.0, 3.0, 1.0, 1.5, 1.5]) - np.array([0.0, 0.0, 0.0, 0.0, 9.81])
+        if echo and flown_t_s is not None:
+            indi.fly_applied(flown_t_s)
+        tilt, speed = tuple(sb.duct_tilt_rad.tolist()), tuple(sb.prop_speed_rad_s.tolist())
+        out, st = indi.step(IndiInputs((0.0, 0.0, 0.0), (0.0, 0.0, -9.81), tilt, speed, tuple(v), gc, gi, gc_inv))
+        indi.remember_command(t_s)
+        in_flight.append((t_s, PlantCommand(tilt_rad=out.tilt_cmd_rad, speed_rad_s=out.speed_cmd_rad_s)))
+        flown_t_s, cmd = in_flight[0] if len(in_flight) > extra_delay_ticks else in_flight[-1]
+        if len(in_flight) > extra_delay_ticks:
+            in_flight.pop(0)
+        plant.step(cmd, DT)
+    return st.act_wn_rad_s
+
+
+@pytest.mark.parametrize(("extra_delay_ticks", "bandwidth_scale"), [(1, 1.0), (2, 1.0), (1, 0.6)])
+def test_identification_flies_the_command_the_link_reports(extra_delay_ticks: int, bandwidth_scale: float) -> None:
+    """Over a link that delivers commands late, the identification fed the last tick's command reads the delay as
+    a slower actuator (omega_n well below the truth: 77 and 58 rad/s for a true 120 behind 1 and 2 periods); fed
+    the command the link reports flown it finds the truth: exactly where it starts at the truth, and within two
+    side steps of the bank (x 1.16^2) where it starts elsewhere (a true 0.6 x 120 = 72 rad/s: the noisy tilts'
+    estimate wanders one step either side, 77 or 90 rad/s)."""
+    true_wn = 120.0 * bandwidth_scale
+    blind = _identify_behind_a_delay(extra_delay_ticks, echo=False, bandwidth_scale=bandwidth_scale)
+    told = _identify_behind_a_delay(extra_delay_ticks, echo=True, bandwidth_scale=bandwidth_scale)
+    assert max(blind) < true_wn / 1.16, blind
+    side = 1.16 if bandwidth_scale == 1.0 else 1.16**2
+    assert all(true_wn / side <= w <= true_wn * side for w in told), told
+
+
+def test_identification_without_delay_is_the_same_with_and_without_the_echo() -> None:
+    """Lockstep (no extra delay): the command the link reports is the last tick's, so the echo changes nothing."""
+    assert _identify_behind_a_delay(0, echo=True) == _identify_behind_a_delay(0, echo=False)
