@@ -409,14 +409,14 @@ class AdaptiveLaw:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
                         pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass,
                         pitch_y=math.nan if dmom is None else dmom - dhd,  # CKF_MOM_LPF: Delta M_f - Delta h'
-                        com_dm=self._com_slope(t_s, inertia_rate, object_com_dm))
+                        com_dm=self.pitch_mass_slope(t_s, inertia_rate, object_com_dm))
         else:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
         self._mass_hat = r.x_hat[3]
         return estimated_status(r, base, j13, lower, upper, du, da, window_sat,
                                 (kf.n_updates, kf.n_projection_fallbacks, self._n_sat_skips, self._n_forgets))
 
-    def _com_slope(self, t_s: float, inertia_rate: np.ndarray, slope: tuple[float, float]) -> tuple[float, float]:
+    def pitch_mass_slope(self, t_s: float, inertia_rate: np.ndarray, slope: tuple[float, float]) -> tuple[float, float]:
         """CKF_CZ_DM: the pitch row's reference-point slope in the mass, while the arm has been at rest through the
         window and PITCH_EVENT_HOLD_TAU filter constants before it (ARM_REST_IYY_DOT); else none (the mass held in that
         row). Before the estimator's first tick the arm's motion is not known: the rest counts from it."""

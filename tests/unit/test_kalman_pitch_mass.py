@@ -138,11 +138,11 @@ def test_the_mass_column_waits_for_the_arm_at_rest() -> None:
     slope = (0.02, 0.1)
     still, moving = np.zeros((3, 3)), np.zeros((3, 3))
     moving[1, 1] = 1.5 * ARM_REST_IYY_DOT
-    assert law._com_slope(1.0, still, slope) == (0.0, 0.0)  # the first tick: the rest counts from here
-    assert law._com_slope(1.0 + wait_s - 0.01, still, slope) == (0.0, 0.0)
-    assert law._com_slope(1.0 + wait_s + 1e-9, still, slope) == slope
-    assert law._com_slope(5.0, moving, slope) == (0.0, 0.0)
-    assert law._com_slope(5.0 + wait_s - 0.01, still, slope) == (0.0, 0.0)
-    assert law._com_slope(5.0 + wait_s + 1e-9, still, slope) == slope
+    assert law.pitch_mass_slope(1.0, still, slope) == (0.0, 0.0)  # the first tick: the rest counts from here
+    assert law.pitch_mass_slope(1.0 + wait_s - 0.01, still, slope) == (0.0, 0.0)
+    assert law.pitch_mass_slope(1.0 + wait_s + 1e-9, still, slope) == slope
+    assert law.pitch_mass_slope(5.0, moving, slope) == (0.0, 0.0)
+    assert law.pitch_mass_slope(5.0 + wait_s - 0.01, still, slope) == (0.0, 0.0)
+    assert law.pitch_mass_slope(5.0 + wait_s + 1e-9, still, slope) == slope
     off = AdaptiveLaw(AdaptiveLawConfig(CkfConfig(pitch_r_nm2=0.01)))
-    assert off._com_slope(100.0, still, slope) == (0.0, 0.0)  # CKF_CZ_DM 0: never
+    assert off.pitch_mass_slope(100.0, still, slope) == (0.0, 0.0)  # CKF_CZ_DM 0: never
