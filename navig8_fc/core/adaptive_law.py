@@ -57,6 +57,7 @@ from numba import njit
 from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig, CkfMode
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.kalman import ConstrainedKalmanFilter, KfStepResult, inertia_ratios
+from navig8_fc.core.kf_nuisance import ixz_mass_column, known_ixz  # the roll and yaw rows' I_xz (CKF_IXZ_MOD)
 from navig8_fc.core.layout import layout
 from navig8_fc.core.linalg import inv_gauss_jordan
 from navig8_fc.core.lms import LmsEstimator
@@ -220,10 +221,17 @@ class AdaptiveLawStatus:
 
 
 PITCH_EVENT_HOLD_TAU = 3.0  # the moment-space pitch row's wait after a gripper event, in CKF_LPF_TAU
+# CKF_CZ_DM's mass column only with the arm at rest: |I_yy-dot| of the arm's model below this (kg m^2/s) through the
+# window and PITCH_EVENT_HOLD_TAU filter constants before it (and since the estimator's start). With the arm held the
+# joint observer's noise gives at most 0.0033 (q1 60 deg); the paper scenario's arm moves at up to 0.45, and after it
+# moved the pitch row carries the trim's move as the CoM shifted (0.69 N m RMS per window while it moves, against the
+# row's sigma 0.1, docs/model.md "Estimator" item 13), which the mass column would read as mass
+ARM_REST_IYY_DOT = 0.01
 _ZERO4 = (0.0,) * N_STATE
 _ZERO5 = (0.0,) * N_MEAS
 _ONES4 = (1.0,) * N_STATE
 _FALSE4 = (False,) * N_STATE
+_NO_SLOPE = (0.0, 0.0)
 
 
 class AdaptiveLaw:
@@ -264,11 +272,15 @@ class AdaptiveLaw:
         self._pitch_row = ckf.pitch_r_nm2 > 0.0 and isinstance(self._kf, ConstrainedKalmanFilter)
         self._com_sigma = ckf.com_sigma_m if self._pitch_row else 0.0
         self._ixz_sigma = ckf.ixz_sigma_kgm2 if isinstance(self._kf, ConstrainedKalmanFilter) else 0.0  # CKF_IXZ_SIG
+        self._cz_dm = ckf.com_mass_slope and self._pitch_row  # CKF_CZ_DM: the pitch row's mass column
         self._nuisance = self._pitch_row or self._ixz_sigma > 0.0  # a grasp / release moves a nuisance's prior
         # after a grasp or a release the pitch row waits PITCH_EVENT_HOLD_TAU filter time constants: the object's
         # weight moment steps in the commanded pitch moment with no pitch acceleration to match, and the low-passed
         # command carries the step's tail (exp(-1) of it after one constant, exp(-3) = 5 % after three)
         self._pitch_event_hold_s = PITCH_EVENT_HOLD_TAU * ckf.lpf_tau_s
+        # the arm at rest this long before the mass column: as after a gripper event, the low-passed command carries the
+        # trim's move as the arm shifted the CoM (exp(-3) = 5 % of it after three constants), then the window itself
+        self._rest_s = self._pitch_event_hold_s + ckf.inc_window * ckf.dt_s
         self._inv_dt = 1.0 / ckf.dt_s
         # CKF_MOM_LPF: the pitch row's low-passed moment [value, value at the window's start] and G_C's scratch
         self._mom_lpf = ckf.moment_lpf and self._pitch_row
@@ -302,6 +314,7 @@ class AdaptiveLaw:
         self._pitch_hold_until_s = -math.inf
         self._k_before_grasp: tuple[float, ...] | None = None
         self._hold_until_s = -math.inf
+        self._arm_moved_s: float | None = None  # the last tick the arm moved (|I_yy-dot| >= ARM_REST_IYY_DOT)
         self._n_forgets = 0
         self._mom = [0.0, 0.0]
         self._kf.reset()  # re-initialised at the next start
@@ -327,7 +340,7 @@ class AdaptiveLaw:
         m: float, inertia_rate: np.ndarray, arm_hdc: float = 0.0, indi_saturated: bool = False,
         u_cmd: np.ndarray | None = None, gripper_closed: bool | None = None,
         object_inertia_rate: tuple[float, float, float] | None = None, object_ixz: float = 0.0,
-        object_ixz_dm: float = 0.0,
+        object_ixz_dm: float = 0.0, object_com_dm: tuple[float, float] = (0.0, 0.0),
     ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
         """step() on float64 arrays (u_meas, acc_m (5,), gc_inv (5, 5) C-contiguous, inertia and inertia_rate
         (3, 3)), m a float; also returns G_hat_I row-major as a tuple (the same floats). The controller's tick.
@@ -338,6 +351,8 @@ class AdaptiveLaw:
         at the gripper (moving with the arm), added to Eq. 22's drift with CKF_PRED_DJ (None: no object).
         object_ixz: that object's share of the composite I_xz (kg m^2; 0: none held), for CKF_IXZ_MOD.
         object_ixz_dm: its slope in the object's mass (m^2; 0: none held), for CKF_IXZ_MOD 2.
+        object_com_dm: the slope (m/kg) of the moment rows' reference point (the estimated CoM) in the object's mass,
+        (x, z) (zeros: it does not follow the mass estimate), for CKF_CZ_DM.
 
         Bookkeeping on plain floats (the vectors have 4-5 components: numpy's per-call overhead would
         dominate); the values equal those of vehicle.estimate_bounds / estimated_gi / k_from_estimate exactly
@@ -393,10 +408,23 @@ class AdaptiveLaw:
         if self._pitch_row or h_mass is not None:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
                         pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass,
-                        pitch_y=math.nan if dmom is None else dmom - dhd)  # CKF_MOM_LPF: Delta M_f - Delta h'
+                        pitch_y=math.nan if dmom is None else dmom - dhd,  # CKF_MOM_LPF: Delta M_f - Delta h'
+                        com_dm=self.pitch_mass_slope(t_s, inertia_rate, object_com_dm))
         else:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
-        return self._estimated(r, base, j13, lower, upper, du, da, window_sat)
+        self._mass_hat = r.x_hat[3]
+        return estimated_status(r, base, j13, lower, upper, du, da, window_sat,
+                                (kf.n_updates, kf.n_projection_fallbacks, self._n_sat_skips, self._n_forgets))
+
+    def pitch_mass_slope(self, t_s: float, inertia_rate: np.ndarray, slope: tuple[float, float]) -> tuple[float, float]:
+        """CKF_CZ_DM: the pitch row's reference-point slope in the mass, while the arm has been at rest through the
+        window and PITCH_EVENT_HOLD_TAU filter constants before it (ARM_REST_IYY_DOT); else none (the mass held in that
+        row). Before the estimator's first tick the arm's motion is not known: the rest counts from it."""
+        if not self._cz_dm:
+            return _NO_SLOPE
+        if self._arm_moved_s is None or abs(inertia_rate.item(4)) >= ARM_REST_IYY_DOT:
+            self._arm_moved_s = t_s
+        return slope if t_s - self._arm_moved_s >= self._rest_s else _NO_SLOPE
 
     def _held_changed(self, held: bool, t_s: float, iyy_var_min: float) -> None:
         """A grasp or a release: the pitch row waits after a release; the pitch row's nuisance CoM error (CKF_CZ_SIG; at
@@ -460,39 +488,6 @@ class AdaptiveLaw:
             self._n_sat_skips += 1
         return correct
 
-    def _estimated(
-        self, r: KfStepResult, base: tuple[float, float, float, float], j13: float, lower: tuple[float, ...],
-        upper: tuple[float, ...], du: tuple[float, ...], da: tuple[float, ...], window_sat: bool,
-    ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
-        """G_hat_I (Eq. 4) from the estimator's step r, and the status."""
-        j11, j22, j33, m = base
-        kf = self._kf
-        x = r.x_hat
-        x0, x1, x2, x3 = x
-        self._mass_hat = x3
-        g, gl = _gi_hat_flat(j11, j13, j33, x)
-        return g, gl, AdaptiveLawStatus(
-            running=True,
-            x_hat=x,
-            x_unconstrained=r.x_unconstrained,
-            k=(j11 / x0, j22 / x1, j33 / x2, m / x3),  # k_from_estimate
-            lower=lower,
-            upper=upper,
-            active_lower=(x0 <= lower[0], x1 <= lower[1], x2 <= lower[2], x3 <= lower[3]),
-            active_upper=(x0 >= upper[0], x1 >= upper[1], x2 >= upper[2], x3 >= upper[3]),
-            innovation=r.innovation,
-            p_diag=r.p_diag,
-            n_updates=kf.n_updates,
-            n_projection_fallbacks=kf.n_projection_fallbacks,
-            delta_u=du,
-            delta_acc=da,
-            corrected=r.corrected,
-            excited=r.excited,
-            saturated=window_sat,
-            n_saturation_skips=self._n_sat_skips,
-            n_forgets=self._n_forgets,
-        )
-
     def _on_gripper(self, closed: bool, t_s: float, base: tuple[float, ...], lower: tuple[float, ...],
                     upper: tuple[float, ...]) -> None:
         """CKF_GRIP_RST: forget on a grasp (P0) or a release (back to the estimate before the grasp, K = 1 when the
@@ -523,6 +518,40 @@ class AdaptiveLaw:
         self._n_forgets += 1
 
 
+def estimated_status(
+    r: KfStepResult, base: tuple[float, float, float, float], j13: float, lower: tuple[float, ...],
+    upper: tuple[float, ...], du: tuple[float, ...], da: tuple[float, ...], window_sat: bool,
+    counts: tuple[int, int, int, int],
+) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
+    """G_hat_I (Eq. 4) from the estimator's step r, and the law's status; counts: the estimator's updates and projection
+    fallbacks, the law's saturation skips and forgets."""
+    j11, j22, j33, m = base
+    x = r.x_hat
+    x0, x1, x2, x3 = x
+    g, gl = _gi_hat_flat(j11, j13, j33, x)
+    return g, gl, AdaptiveLawStatus(
+        running=True,
+        x_hat=x,
+        x_unconstrained=r.x_unconstrained,
+        k=(j11 / x0, j22 / x1, j33 / x2, m / x3),  # k_from_estimate
+        lower=lower,
+        upper=upper,
+        active_lower=(x0 <= lower[0], x1 <= lower[1], x2 <= lower[2], x3 <= lower[3]),
+        active_upper=(x0 >= upper[0], x1 >= upper[1], x2 >= upper[2], x3 >= upper[3]),
+        innovation=r.innovation,
+        p_diag=r.p_diag,
+        n_updates=counts[0],
+        n_projection_fallbacks=counts[1],
+        delta_u=du,
+        delta_acc=da,
+        corrected=r.corrected,
+        excited=r.excited,
+        saturated=window_sat,
+        n_saturation_skips=counts[2],
+        n_forgets=counts[3],
+    )
+
+
 def eq22_drift(
     j_diag: tuple[float, float, float], inertia_rate: np.ndarray,
     object_inertia_rate: tuple[float, float, float] | None, j_prev: tuple[float, float, float] | None, inv_dt: float,
@@ -551,29 +580,6 @@ def narrow_mass_prior(kf: ConstrainedKalmanFilter | LmsEstimator, var_kg2: float
     only (K4 <= 1), so such moves stay as a mass above the UAM's (docs/model.md, "Estimator" item 14)."""
     if var_kg2 > 0.0 and isinstance(kf, ConstrainedKalmanFilter):
         kf.lower_variance((0.0, 0.0, 0.0, var_kg2))
-
-
-def known_ixz(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], ixz: float) -> np.ndarray:
-    """CKF_IXZ_MOD: z = Delta U - G_C^-1 [I_xz Delta R-dot, 0, I_xz Delta P-dot, 0, 0] with the modelled I_xz, so that
-    the roll and yaw rows of Eq. 24 carry I_xx Delta P-dot and I_zz Delta R-dot alone (the caller passes
-    rho_x = rho_z = 0). Eq. 24 writes I_xz as I_zz J13 / J33 (roll row) and I_xx J13 / J11 (yaw row): exact with no
-    object, but a held object off the body's axis moves I_xz by -m (x z) about the CoM, not in proportion to I_xx or
-    I_zz (at q1 60 deg with 0.5 kg: I_xz -0.357 kg m^2 against Eq. 24's -0.304 / -0.306)."""
-    a1, a3 = da[0], da[2]
-    return du - gc_inv[:, 0] * (ixz * a3) - gc_inv[:, 2] * (ixz * a1)
-
-
-def ixz_mass_column(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], dixz_dm: float,
-                     m_hat: float) -> tuple[np.ndarray, np.ndarray]:
-    """CKF_IXZ_MOD 2: the modelled object's I_xz taken out by known_ixz is that of the estimated mass, so the roll and
-    yaw rows of Eq. 24 depend on m too: Delta U = H x + G_C^-1 [D Delta R-dot, 0, D Delta P-dot, 0, 0] (m - m_hat)
-    to first order, D = dI_xz/dm (an extended KF's linearisation at m_hat). Returns (du + h m_hat, h), h the mass
-    column's addition: the innovation is unchanged, and the gain now knows that a window read while m_hat was still
-    off carries I_xx, I_zz information conditional on m, so a later mass correction moves them through P's
-    cross-covariance (measured: with the product of inertia from m_hat alone, K3 held at q1 60 deg read 0.58-0.60
-    in a batch fit against 0.52 true with 1 kg, 0.53-0.55 with the true I_xz; docs/model.md, "Estimator" item 11)."""
-    h = dixz_dm * (gc_inv[:, 0] * da[2] + gc_inv[:, 2] * da[0])
-    return du + h * m_hat, h
 
 
 def _gi_hat_flat(j11: float, j13: float, j33: float, x: Sequence[float]) -> tuple[np.ndarray, tuple[float, ...]]:

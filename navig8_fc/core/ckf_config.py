@@ -39,7 +39,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_INC_N", "CKF_EXC_ROT", "CKF_EXC_LIN", "CKF_SAT_GATE", "CKF_U_SRC", "CKF_ACC_REF",
     "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
     "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
-    "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG", "CKF_MOM_LPF", "CKF_M_SIG_OPEN", "CKF_IXZ_SIG",
+    "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG", "CKF_MOM_LPF", "CKF_M_SIG_OPEN", "CKF_IXZ_SIG", "CKF_CZ_DM",
 )
 
 
@@ -147,6 +147,10 @@ class CkfConfig:
     # CKF_IXZ_SIG: while an object is held, the prior sigma (kg m^2) of the modelled I_xz's error in the roll and yaw
     # rows, a nuisance state updated with x (kf_nuisance; AdaptiveLaw); 0: none, the model's I_xz taken as exact
     ixz_sigma_kgm2: float = 0.0
+    # CKF_CZ_DM: with pitch_r_nm2 > 0, the pitch row's reference point (the estimated CoM, CKF_GC_REF) follows the mass
+    # estimate, and its slope in m enters that row as a mass column (kf_nuisance.kf_correct_pitch's com_dm_x, com_dm_z):
+    # the row's CoM error is c_z' (m - m_hat) plus the nuisance (CKF_CZ_SIG), and the row corrects m too
+    com_mass_slope: bool = False
 
     def __post_init__(self) -> None:
         lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
@@ -183,6 +187,7 @@ class CkfConfig:
         object.__setattr__(self, "ixz_mass_jacobian", bool(self.ixz_mass_jacobian))
         object.__setattr__(self, "u_delivered", bool(self.u_delivered))
         object.__setattr__(self, "moment_lpf", bool(self.moment_lpf))
+        object.__setattr__(self, "com_mass_slope", bool(self.com_mass_slope))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2", "pitch_r_nm2",
                      "com_sigma_m", "grip_sigma_w", "mass_sigma_open_kg", "ixz_sigma_kgm2"):
             v = float(getattr(self, name))
@@ -254,4 +259,5 @@ class CkfConfig:
             moment_lpf=bool(int(values["CKF_MOM_LPF"])),
             mass_sigma_open_kg=float(values["CKF_M_SIG_OPEN"]),
             ixz_sigma_kgm2=float(values["CKF_IXZ_SIG"]),
+            com_mass_slope=bool(int(values["CKF_CZ_DM"])),
         )

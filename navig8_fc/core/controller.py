@@ -67,6 +67,8 @@ from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig, ghat_ginv_e
 _UO_MASS, _UO_SINGULAR = int(UO.MASS), int(UO.SINGULAR)
 _UO_CEX, _UO_CEZ = int(UO.CEX), int(UO.CEZ)
 _UO_OBJ_RATE, _UO_OBJ_IXZ, _UO_OBJ_IXZ_DM = int(UO.OBJ_RATE), int(UO.OBJ_IXZ), int(UO.OBJ_IXZ_DM)
+_UO_CE_DM = int(UO.CE_DM)
+_NO_SLOPE = (0.0, 0.0)  # the law's reference point does not follow the mass estimate (CKF_CZ_DM's slope)
 # The tick's input vector (front_end.TIN): the sensors, then pos_ned, vel_ned, quat_wxyz and the setpoint
 # (the outer loops' inputs, packed only when engaged). struct packs float64 exactly as np.array(..., dtype=float)
 # converts, into a persistent array (no per-tick allocation).
@@ -332,7 +334,8 @@ class FlightControllerCore:
             s.t_s, u_meas, acc_law, gc_law_inv, inertia, mass, rate, fo.item(_FO_ARM_HDC), self._indi_saturated,
             self._u_cmd if self._u_cmd_ok else None, s.gripper_closed, tuple(ul[_UO_OBJ_RATE:_UO_OBJ_RATE + 3]),
             ul[_UO_OBJ_IXZ] if s.gripper_closed else 0.0,  # the object's I_xz only while one is held, as its CoM
-            ul[_UO_OBJ_IXZ_DM] if s.gripper_closed else 0.0)
+            ul[_UO_OBJ_IXZ_DM] if s.gripper_closed else 0.0,
+            (ul[_UO_CE_DM], ul[_UO_CE_DM + 1]) if s.gripper_closed and self.config.ckf.gc_at_com else _NO_SLOPE)
         if self._flown_gain is not None:  # the INDI, the status and the eigenvalue monitor fly K_flown, not K_hat
             gi_hat, gi_flat = k_xi.flown_gi_hat(gi_flat, adapt_status.k, *self._flown_gain)
         ref: tuple[float, float, float] | None = None

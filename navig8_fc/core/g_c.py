@@ -40,7 +40,8 @@ UO = layout("UO", mass=1, cx=1, cz=1, arm_ax=1, arm_az=1,
             obj_rate=3,  # diagonal of d/dt of that composite's inertia minus J's I-dot: the estimated object's share
             singular=1,  # 1.0 when G_C could not be inverted (the caller then falls back to numpy)
             obj_ixz=1,  # that composite's I_xz (about its CoM) minus J13: the estimated object's share
-            obj_ixz_dm=1)  # d obj_ixz / d(object mass) at the estimated mass (CKF_IXZ_MOD 2)
+            obj_ixz_dm=1,  # d obj_ixz / d(object mass) at the estimated mass (CKF_IXZ_MOD 2)
+            ce_dm=2)  # d(cex, cez) / d(object mass) at the estimated mass, m/kg (CKF_CZ_DM)
 
 _N_BODY_ACC = 15  # sum m x, m z, m xd, m zd, m xdd, m zdd; J11 J22 J33 J13 about O; their rates; h' about O
 
@@ -202,6 +203,9 @@ def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv,
     # -mu dx dz, mu = m mo / (m + mo) the reduced mass, d the object's offset from the UAM's CoM; its slope in mo is
     # -dx dz m^2 / (m + mo)^2, defined at mo = 0 too (right after a grasp the mass estimate is still the UAM's)
     uo[UO.OBJ_IXZ_DM] = -(mp[MP.OBJ_X] - cx) * (mp[MP.OBJ_Z] - cz) * (m / m_tot) ** 2
+    # the reference point's slope: d/dmo (m c + mo r_obj) / (m + mo) = m (r_obj - c) / (m + mo)^2
+    uo[UO.CE_DM] = m * (mp[MP.OBJ_X] - cx) / (m_tot * m_tot)
+    uo[UO.CE_DM + 1] = m * (mp[MP.OBJ_Z] - cz) / (m_tot * m_tot)
     gc_about(f, m0, cx, cz, gc)
     uo[UO.SINGULAR] = 0.0 if inv_gauss_jordan(gc, gc_inv) else 1.0
 

@@ -97,7 +97,7 @@ def kf_predict(x, p, q_diag, dt, id0, id1, id2):
 
 @njit_cached(box_qp, linalg, kf_nuisance)
 def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r=0.0, nz=None, hm=None,
-               pitch_y=math.nan, nx=None):
+               pitch_y=math.nan, nx=None, com_dm_x=0.0, com_dm_z=0.0):
     """Measurement update z = Delta U = H(Delta Acc_m) x + nu (Eq. 24): K = P H^T S^-1, S = H P H^T + R
     (a solve, no inverse), x += K (z - H x), P = (I - K H) P (I - K H)^T + K R K^T (Joseph form: PSD under
     rounding), symmetrised. x (4,), p (4, 4) in place; innovation (5,) written.
@@ -118,7 +118,8 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pit
     one without it). None: Eq. 24's H. pitch_y: the pitch row's moment increment when given (CKF_MOM_LPF; nan:
     G_C[M, :] Delta U). nx (NZ_SIZE,): the roll and yaw rows' I_xz nuisance (CKF_IXZ_SIG, kf_nuisance); with a
     variance > 0 it is a fifth state of this update (H's fifth column kf_nuisance.ixz_column, never masked; its
-    covariance with the pitch nuisance taken as zero)."""
+    covariance with the pitch nuisance taken as zero). com_dm_x, com_dm_z: the pitch row's mass column (CKF_CZ_DM,
+    kf_correct_pitch)."""
     na = 4
     if nx is not None:
         if nx[NZ_VAR] > 0.0:
@@ -194,7 +195,7 @@ def kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pit
     if nz is not None:  # cov(x, c) <- (I - K H) cov(x, c): c is not measured by this update
         kf_nuisance.cov_transform(ikh, nz)
     if pitch_r > 0.0 and mask[1] != 0.0:
-        return kf_nuisance.kf_correct_pitch(x, p, pitch_r, gc_inv, du, da[1], nz, pitch_y, nx)
+        return kf_nuisance.kf_correct_pitch(x, p, pitch_r, gc_inv, du, da[1], nz, pitch_y, nx, com_dm_x, com_dm_z)
     return True
 
 
@@ -279,7 +280,7 @@ def excitation_mask(da, exc_rot, exc_lin, mask):
 @njit_cached(box_qp, linalg, ckf_config, kf_nuisance)
 def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc_rot, exc_lin, gc_inv, du, da,
             rho_x, rho_z, constrained, identity, lo, hi, out, pitch_r=0.0, nz=None, hm=None, pitch_y=math.nan,
-            nx=None):
+            nx=None, com_dm_x=0.0, com_dm_z=0.0):
     """predict (if do_predict), correct (if do_correct and some state passes the excitation gate; the others
     held), project (if constrained) on x, p in place; results into out (STEP_OUT). Returns the PROJ_* code."""
     if do_predict:
@@ -288,7 +289,8 @@ def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc
     innovation = out[SO_INNOV:SO_INNOV + N_MEAS]
     n_exc = excitation_mask(da, exc_rot, exc_lin, mask) if do_correct else 0
     if n_exc > 0:
-        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r, nz, hm, pitch_y, nx)
+        kf_correct(x, p, r_diag, gc_inv, du, da, rho_x, rho_z, mask, innovation, pitch_r, nz, hm, pitch_y, nx, com_dm_x,
+                   com_dm_z)
         out[SO_CORRECTED] = 1.0
     else:
         mask[:] = 0.0
@@ -509,6 +511,7 @@ class ConstrainedKalmanFilter:
         pitch: bool = True,
         h_mass: np.ndarray | None = None,
         pitch_y: float = math.nan,
+        com_dm: tuple[float, float] = (0.0, 0.0),
     ) -> KfStepResult:
         """predict (skipped when inertia_rate_diag is None, e.g. on the first tick: x0 already describes the
         current pose), correct (when `correct`; only the states that pass the excitation gate of the config),
@@ -519,7 +522,8 @@ class ConstrainedKalmanFilter:
         corrections that ran. pitch False: with the moment-space pitch row (CKF_R_PITCH > 0), I_yy is not corrected
         this step (held, as the gate holds a state). h_mass (5,) float64: added to H's mass column (kf_correct's hm),
         delta_u then carrying h_mass m_hat. pitch_y: the pitch row's moment increment (kf_correct_pitch; nan: from
-        delta_u).
+        delta_u). com_dm: (dc_x/dm, dc_z/dm) (m/kg), the slope of the pitch row's reference point in the mass estimate
+        (CKF_CZ_DM, kf_correct_pitch; zeros: none).
         """
         if not self._initialised:
             raise RuntimeError("ConstrainedKalmanFilter.step before initialise()")
@@ -528,7 +532,8 @@ class ConstrainedKalmanFilter:
         code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, bool(correct),
                        self._exc_rot, self._exc_lin, gc_uam_inv, delta_u, delta_acc, rho_x, rho_z, self._constrained,
                        self._identity_weight, lower, upper, self._out,
-                       self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz, h_mass, pitch_y, self._nx)
+                       self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz, h_mass, pitch_y, self._nx,
+                       com_dm[0], com_dm[1])
         self._account(code, lower, upper)
         o = self._out.tolist()
         corrected = o[SO_CORRECTED] != 0.0
