@@ -227,9 +227,7 @@ class FlightControllerCore:
     _u_cmd_ok = False  # _u_cmd holds U of the last actuator command (the adaptive law's CKF_U_SRC = 1)
 
     def __init__(self, vehicle: VehicleConfig, config: ControllerConfig) -> None:
-        self.vehicle = vehicle
-        self.config = config
-        self._model = UamModel(vehicle)
+        self.vehicle, self.config, self._model = vehicle, config, UamModel(vehicle)
         self._indi = IndiController(config.indi)
         self._adapt = AdaptiveLaw(AdaptiveLawConfig(config.ckf, config.k_min, config.k_max, config.arm_wrench))
         self._obs_gain = config.dt_s / (JOINT_OBS_TAU_S + config.dt_s)
@@ -353,10 +351,8 @@ class FlightControllerCore:
         indi_status: IndiStatus | None = None
         if engaged:
             if s.cmd_applied_t_s is not None:  # a link that reports which command the actuators flew
-                self._indi.fly_applied(s.cmd_applied_t_s)
+                self._indi.fly_applied(s.cmd_applied_t_s, s.t_s)
             cmd, outer, indi_status, ff_status = self._fly(io, sf_x, sf_z, gc_inv, gi_hat, ff_q, ff_status)
-            if s.cmd_applied_t_s is not None:
-                self._indi.remember_command(s.t_s)
         else:
             cmd = self._idle(s, sf_x, sf_z, gc, gi_hat)
         ft = tuple(fo.tolist())

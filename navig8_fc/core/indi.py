@@ -199,24 +199,28 @@ class IndiController:
         self._cmd_hist = np.zeros((CMD_HISTORY, 5))
         self._cmd_hist_t_us = [-1] * CMD_HISTORY
         self._cmd_hist_next = 0
+        self._cmd_record_t_us = -1  # this tick's time when fly_applied announced it (-1: no link's report)
 
-    def fly_applied(self, applied_t_s: float) -> None:
-        """Before the tick: the actuator model (the model-based U0 and ACT_ID) advances on the command the link says
-        the actuators flew up to this sample (the answer to the sample at applied_t_s), not on the last tick's. Over
-        a real-time link the answer reaches the actuators one or more periods late, and a model fed the last command
-        reads that delay as actuator lag. A command no longer remembered (or never sent): the last tick's."""
+    def fly_applied(self, applied_t_s: float, t_s: float) -> None:
+        """Before the tick at t_s: the actuator model (the model-based U0 and ACT_ID) advances on the command the link
+        says the actuators flew up to this sample (the answer to the sample at applied_t_s), not on the last tick's.
+        Over a real-time link the answer reaches the actuators one or more periods late, and a model fed the last
+        command reads that delay as actuator lag. A command no longer remembered (or never sent): the last tick's.
+        This tick's command is remembered under t_s."""
+        self._cmd_record_t_us = round(t_s * 1e6)
         try:
             row = self._cmd_hist_t_us.index(round(applied_t_s * 1e6))
         except ValueError:
             return
         self._st[_ST_ACT_CMD] = self._cmd_hist[row]
 
-    def remember_command(self, t_s: float) -> None:
-        """After the tick: its command, under its sample's time (fly_applied finds it when the link reports it)."""
+    def _remember_command(self) -> None:
+        """After a tick fly_applied announced: its command, under its sample's time."""
         i = self._cmd_hist_next
         self._cmd_hist[i] = self._st[_ST_ACT_CMD]
-        self._cmd_hist_t_us[i] = round(t_s * 1e6)
+        self._cmd_hist_t_us[i] = self._cmd_record_t_us
         self._cmd_hist_next = (i + 1) % CMD_HISTORY
+        self._cmd_record_t_us = -1
 
     def reset(self) -> None:
         self._st[:] = 0.0
@@ -257,6 +261,8 @@ class IndiController:
         st = self._st
         st[_ST_ACT_CMD] = out[_IO_ACT]  # what the actuators fly until the next tick: the model's input
         st[_ST_ACT_OK] = 1.0
+        if self._cmd_record_t_us >= 0:
+            self._remember_command()
         o = tuple(out.tolist())
         s0, s1, s2 = scales = o[_IO_SCALE]
         act = o[_IO_ACT]

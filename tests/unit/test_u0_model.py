@@ -209,10 +209,9 @@ def _identify_behind_a_delay(extra_delay_ticks: int, echo: bool, bandwidth_scale
         if k % 10 == 0:
             v = rng.normal(0.0, [3.0, 3.0, 1.0, 1.5, 1.5]) - np.array([0.0, 0.0, 0.0, 0.0, 9.81])
         if echo and flown_t_s is not None:
-            indi.fly_applied(flown_t_s)
+            indi.fly_applied(flown_t_s, t_s)
         tilt, speed = tuple(sb.duct_tilt_rad.tolist()), tuple(sb.prop_speed_rad_s.tolist())
         out, st = indi.step(IndiInputs((0.0, 0.0, 0.0), (0.0, 0.0, -9.81), tilt, speed, tuple(v), gc, gi, gc_inv))
-        indi.remember_command(t_s)
         in_flight.append((t_s, PlantCommand(tilt_rad=out.tilt_cmd_rad, speed_rad_s=out.speed_cmd_rad_s)))
         flown_t_s, cmd = in_flight[0] if len(in_flight) > extra_delay_ticks else in_flight[-1]
         if len(in_flight) > extra_delay_ticks:
