@@ -61,6 +61,7 @@ from navig8_fc.core.outer_loop import (
     shape_reference,
     shaper_config_array,
 )
+from navig8_fc.core.records import frozen_record
 from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig, ghat_ginv_eig_record
 
 # Slots of the front-end kernel's outputs the tick reads (module constants: no enum lookups per tick).
@@ -107,6 +108,7 @@ PARAMS_USED = (
 )
 
 
+@frozen_record
 @dataclass(frozen=True)
 class FcSensors:
     """One sensor bundle as the flight controller sees it (body FRD, NED, SI)."""
@@ -124,6 +126,7 @@ class FcSensors:
     gripper_closed: bool = False  # the gripper's reported state (NAVIG8_ARM_STATE); CKF_GRIP_RST forgets on it
 
 
+@frozen_record
 @dataclass(frozen=True)
 class ActuatorCommand:
     tilt_rad: tuple[float, float]
@@ -177,6 +180,7 @@ class ControllerConfig:
         )
 
 
+@frozen_record
 @dataclass(frozen=True)
 class FeedForwardStatus:
     """The model-based feed-forwards' checks against what is measured (docs/model.md, "Feed-forward that cannot
@@ -195,6 +199,7 @@ class FeedForwardStatus:
     shaping_ff_scale: float = 1.0
 
 
+@frozen_record
 @dataclass(frozen=True)
 class ControllerStatus:
     t_s: float
