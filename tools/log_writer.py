@@ -6,12 +6,13 @@ files' messages are identical, so are the summaries read from them (tests/integr
 
 What crosses the process boundary is only what the writer cannot rebuild, in forms cheap to make (StepEncoder):
 the FC's status as the JSON its /fc/status record is (the bulk of a step's log, serialised once, by the function the
-inline log uses), the plant's truth as the bytes of its state vectors (Plant.truth_state), the estimated pose the 3D
-view draws, the command, the setpoint only when the flight stack hands a new one, pickled. The eigenvalues' inputs
-(q_est, G_hat_I, G_C,UAM) the writer reads back from the status's JSON. Batches of ~256 KB (a marshalled list of the
-steps' bytes) go down a pipe with a 1 MB buffer; the writer rebuilds the records and logs them (docs/results.md,
-"Speed": what each side costs a step). Campaign workers log inline (their pool already uses both cores; a daemonic
-worker may not fork), and so does any run where `fork` is unavailable.
+inline log uses), the plant's truth as the bytes of its state vectors (Plant.truth_state), the eigenvalues' inputs,
+the estimated pose the 3D view draws, the command, the setpoint only when the flight stack hands a new one, pickled
+(reading the eigenvalues' inputs back from the status's JSON instead saved the loop nothing measurable and cost the
+writer a parse). Batches of ~256 KB (a marshalled list of the steps' bytes) go down a pipe with a 1 MB buffer; the
+writer rebuilds the records and logs them (docs/results.md, "Speed": what each side costs a step). Campaign workers
+log inline (their pool already uses both cores; a daemonic worker may not fork), and so does any run where `fork` is
+unavailable.
 """
 
 from __future__ import annotations
@@ -21,8 +22,6 @@ import multiprocessing as mp
 import pickle
 from collections.abc import Callable
 from typing import Any, NamedTuple, Protocol
-
-import orjson
 
 from navig8_fc.core.controller import ActuatorCommand, FcSensors
 from navig8_fc.core.outer_loop import Setpoint
@@ -78,39 +77,27 @@ def _frozen(cls: type, fields: dict[str, Any]) -> Any:
 
 
 Item = tuple[bytes, bytes]  # one step: its records (pickled), the status's JSON
-# The status's JSON opens with its scalar and flat fields (ControllerStatus's order: t_s ... gi_hat, gc_uam), then
-# the nested records from "outer" on: the eigenvalues' inputs are read back from that head rather than sent twice
-_HEAD_END = b',"outer":'
-
-
-def _status_head(status_json: bytes) -> int:
-    """Where the status JSON's head (its fields before "outer") ends, or -1 when it holds a non-finite number (JSON
-    null: the float itself is not in the JSON) or has no such head."""
-    end = status_json.find(_HEAD_END)
-    return end if end > 0 and status_json.find(b"null", 0, end) < 0 else -1
 
 
 class StepEncoder:
     """The loop's side: one step as an Item. What crosses is what the writer cannot rebuild: the status as the JSON
     its /fc/status record is (serialised once, by the function the inline log uses: ~3 kB, the bulk of the step),
-    the truth as the bytes of the plant's state vectors, the estimated pose the 3D view draws, the command, the
-    setpoint when it is a new one (the flight stack hands the same object back while it holds), the STATUSTEXTs;
-    the eigenvalues' inputs only when the status's JSON cannot give them back (a non-finite value)."""
+    the truth as the bytes of the plant's state vectors, the eigenvalues' inputs, the estimated pose the 3D view
+    draws, the command, the setpoint when it is a new one (the flight stack hands the same object back while it
+    holds), the STATUSTEXTs."""
 
     def __init__(self) -> None:
         self._setpoint: Any = None
 
     def encode(self, t_ns: int, truth_state: Any, res: StepResult, sensors: FcSensors) -> Item:
         st, sp = res.status, res.setpoint
-        status_json = dumps_json(st)
-        eig_in = None if _status_head(status_json) > 0 else (st.q_est_rad, st.gi_hat, st.gc_uam)
         new_sp = None if sp is self._setpoint else sp.__dict__
         self._setpoint = sp
         texts = [(n.severity, n.statustext) for n in res.notices if n.statustext]
-        rec = (t_ns, truth_state, (sensors.pos_ned_m, sensors.quat_wxyz, sensors.duct_tilt_rad), eig_in,
-               st.ref_frd_m, res.command.__dict__, new_sp, texts)
+        rec = (t_ns, truth_state, (sensors.pos_ned_m, sensors.quat_wxyz, sensors.duct_tilt_rad),
+               (st.q_est_rad, st.gi_hat, st.gc_uam, st.ref_frd_m), res.command.__dict__, new_sp, texts)
         # pickle, not marshal: as fast here, and marshal writes any buffer, a numpy scalar among them, as bytes
-        return pickle.dumps(rec, protocol=pickle.HIGHEST_PROTOCOL), status_json
+        return pickle.dumps(rec, protocol=pickle.HIGHEST_PROTOCOL), dumps_json(st)
 
 
 class StepDecoder:
@@ -121,13 +108,10 @@ class StepDecoder:
 
     def decode(self, item: Item) -> tuple[Any, ...]:
         head, status_json = item
-        t_ns, truth_state, pose, eig_in, ref_frd_m, cd, spd, texts = pickle.loads(head)
-        if eig_in is None:
-            h = orjson.loads(status_json[:_status_head(status_json)] + b"}")
-            eig_in = (h["q_est_rad"], h["gi_hat"], h["gc_uam"])
+        t_ns, truth_state, pose, eig_in, cd, spd, texts = pickle.loads(head)
         if spd is not None:
             self._setpoint = _frozen(Setpoint, spd)
-        return (t_ns, truth_floats_of_state(truth_state), SensorsForLog(*pose), StatusForLog(*eig_in, ref_frd_m),
+        return (t_ns, truth_floats_of_state(truth_state), SensorsForLog(*pose), StatusForLog(*eig_in),
                 _frozen(ActuatorCommand, cd), self._setpoint, texts, status_json)
 
 

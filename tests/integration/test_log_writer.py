@@ -152,8 +152,8 @@ class _KeepsEigInputs:
 
 
 def test_the_eigenvalues_inputs_reach_the_writer_bit_for_bit_non_finite_ones_too(tmp_path: Path) -> None:
-    """The writer reads q_est, G_hat_I and G_C,UAM back from the status's JSON; a step whose values are not all
-    finite (JSON null) sends them as floats: either way the writer gets the loop's floats exactly."""
+    """q_est, G_hat_I and G_C,UAM reach the writer as the loop's floats exactly, non-finite ones too (the /fc/status
+    JSON writes those as null: the eigenvalues are not computed from it)."""
     w = load_world("paper", None)
     plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(1))
     stack = FlightStack(w.fc_vehicle, ParamRegistry.from_defaults(), w.scenario.script)
