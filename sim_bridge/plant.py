@@ -83,9 +83,9 @@ _D_FLOATS = itemgetter(D.ACC.sl, D.WDOT.sl, int(D.MASS), D.COM.sl,
 
 
 def _fill(record: _R, **fields: Any) -> _R:
-    """Set the fields of a plain record class (WireSensors, TruthFloats: attributes, no __init__)."""
-    for name, value in fields.items():
-        setattr(record, name, value)
+    """Set the fields of a plain record class (WireSensors, TruthFloats: attributes, no __init__, no slots), in one
+    update of its instance dict (a setattr a field cost ~1.5 us a TruthFloats)."""
+    record.__dict__.update(fields)
     return record
 
 

@@ -38,6 +38,7 @@ from navig8_fc.shell.foxglove_out import FoxgloveOutput, script_waypoints
 from navig8_fc.shell.mcap_log import McapLogger
 from navig8_fc.shell.step_log import StepLog
 from navig8_fc.viz import VehicleViz, packaged_uav_size_m
+from navig8_tools.blas_threads import one_blas_thread
 from navig8_tools.log_writer import LogWriterError, ProcessTickLog, process_writer_available
 from navig8_tools.logdata import load_run
 from navig8_tools.summary import summarize
@@ -58,25 +59,24 @@ class RunResult:
 
 def _floats(v: Any) -> tuple[float, ...]:
     # .tolist() gives Python floats: numpy scalars would slow every plain-float operation in the FC ~3x
-    if type(v) is list:  # WireSensors: already Python floats
-        return tuple(v)
     return tuple(v.tolist()) if hasattr(v, "tolist") else tuple(float(x) for x in v)
 
 
 def sensors_to_fc(sb: Any) -> FcSensors:
     """The plant's SensorBundle or WireSensors (the same sample as plain floats) as the FC's input (what the bridge
     seam delivers over MAVLink)."""
+    f = tuple if type(sb.gyro_frd_rad_s) is list else _floats  # WireSensors: lists of Python floats already
     return FcSensors(
         t_s=sb.time_us * 1e-6,
-        gyro_frd_rad_s=_floats(sb.gyro_frd_rad_s),
-        accel_frd_m_s2=_floats(sb.accel_frd_m_s2),
-        pos_ned_m=_floats(sb.pos_ned_m),
-        vel_ned_m_s=_floats(sb.vel_ned_m_s),
-        quat_wxyz=_floats(sb.quat_wxyz),
-        duct_tilt_rad=_floats(sb.duct_tilt_rad),
-        prop_speed_rad_s=_floats(sb.prop_speed_rad_s),
-        joint_pos_rad=_floats(sb.joint_pos_rad),
-        joint_rate_rad_s=_floats(sb.joint_rate_rad_s),
+        gyro_frd_rad_s=f(sb.gyro_frd_rad_s),
+        accel_frd_m_s2=f(sb.accel_frd_m_s2),
+        pos_ned_m=f(sb.pos_ned_m),
+        vel_ned_m_s=f(sb.vel_ned_m_s),
+        quat_wxyz=f(sb.quat_wxyz),
+        duct_tilt_rad=f(sb.duct_tilt_rad),
+        prop_speed_rad_s=f(sb.prop_speed_rad_s),
+        joint_pos_rad=f(sb.joint_pos_rad),
+        joint_rate_rad_s=f(sb.joint_rate_rad_s),
         gripper_closed=bool(sb.gripper_closed),
     )
 
@@ -168,39 +168,40 @@ def run(
     w = load_world(scenario, world)
     vehicle, sc = w.fc_vehicle, w.scenario  # the FC's constants (model errors, if any, live here)
     duration = sc.duration_s if duration_s is None else float(duration_s)
-    rng = np.random.default_rng(seed)
-    plant = Plant(w.vehicle, w.plant, sc, rng)
-    stack = FlightStack(vehicle, reg, sc.script)
-    cfg = stack.core.config
-    warm_up_kernels(vehicle, cfg)  # numba's cache loads now, not inside the timed loop
+    with one_blas_thread():  # OpenBLAS's threads only cost here, and spin on into the flight (blas_threads)
+        rng = np.random.default_rng(seed)
+        plant = Plant(w.vehicle, w.plant, sc, rng)
+        stack = FlightStack(vehicle, reg, sc.script)
+        cfg = stack.core.config
+        warm_up_kernels(vehicle, cfg)  # numba's cache loads now, not inside the timed loop
 
-    def open_log() -> TickLog:  # in the writer process with log_writer "process"
-        logger = McapLogger(log_path)
-        logger.metadata("run", {"scenario": sc.name, "controller": controller, "seed": seed,
-                                "duration_s": duration, "world": dict(world or {})})
-        logger.metadata("params", reg.as_dict())
-        fox = FoxgloveOutput(VehicleViz(vehicle, packaged_uav_size_m()), logger, None, "navig8-sim")
-        fox.set_mission(script_waypoints(sc.script))
-        # the eigenvalues with the TRUE vehicle's G (w.vehicle: model errors live in the FC's constants)
-        return TickLog(StepLog(logger, fox, vm.UamModel(w.vehicle)), plant, stack.lambda_min, stack.lambda_crit)
+        def open_log() -> TickLog:  # in the writer process with log_writer "process"
+            logger = McapLogger(log_path)
+            logger.metadata("run", {"scenario": sc.name, "controller": controller, "seed": seed,
+                                    "duration_s": duration, "world": dict(world or {})})
+            logger.metadata("params", reg.as_dict())
+            fox = FoxgloveOutput(VehicleViz(vehicle, packaged_uav_size_m()), logger, None, "navig8-sim")
+            fox.set_mission(script_waypoints(sc.script))
+            # the eigenvalues with the TRUE vehicle's G (w.vehicle: model errors live in the FC's constants)
+            return TickLog(StepLog(logger, fox, vm.UamModel(w.vehicle)), plant, stack.lambda_min, stack.lambda_crit)
 
-    if log_writer not in LOG_WRITERS:
-        raise ValueError(f"log_writer {log_writer!r}: one of {', '.join(LOG_WRITERS)}")
-    hook: TickLog | ProcessTickLog | None = None
-    if log_path and log_writer == "process" and process_writer_available():
-        hook = ProcessTickLog(plant, open_log)
-    elif log_path:
-        hook = open_log()
-    n_steps = int(round(duration / cfg.dt_s))
-    wall0 = time.perf_counter()
-    try:
-        fly(plant, stack, n_steps, hook.tick if hook else None, tick_times_s, progress)
-    finally:
-        if isinstance(hook, TickLog):
-            hook.close()
-        elif hook is not None:
-            hook.finish()
-    wall = time.perf_counter() - wall0
+        if log_writer not in LOG_WRITERS:
+            raise ValueError(f"log_writer {log_writer!r}: one of {', '.join(LOG_WRITERS)}")
+        hook: TickLog | ProcessTickLog | None = None
+        if log_path and log_writer == "process" and process_writer_available():
+            hook = ProcessTickLog(plant, open_log)
+        elif log_path:
+            hook = open_log()
+        n_steps = int(round(duration / cfg.dt_s))
+        wall0 = time.perf_counter()
+        try:
+            fly(plant, stack, n_steps, hook.tick if hook else None, tick_times_s, progress)
+        finally:
+            if isinstance(hook, TickLog):
+                hook.close()
+            elif hook is not None:
+                hook.finish()
+        wall = time.perf_counter() - wall0
     if progress:
         print(file=sys.stderr)
     summary: dict[str, Any] = {"sim_time_s": n_steps * cfg.dt_s, "wall_time_s": wall,

@@ -61,6 +61,7 @@ from navig8_fc.core.outer_loop import (
     shape_reference,
     shaper_config_array,
 )
+from navig8_fc.core.records import frozen_record
 from navig8_fc.core.vehicle import N_LINKS, UamModel, VehicleConfig, ghat_ginv_eig_record
 
 # Slots of the front-end kernel's outputs the tick reads (module constants: no enum lookups per tick).
@@ -109,6 +110,7 @@ PARAMS_USED = (
 )
 
 
+@frozen_record
 @dataclass(frozen=True)
 class FcSensors:
     """One sensor bundle as the flight controller sees it (body FRD, NED, SI)."""
@@ -129,6 +131,7 @@ class FcSensors:
     cmd_applied_t_s: float | None = None
 
 
+@frozen_record
 @dataclass(frozen=True)
 class ActuatorCommand:
     tilt_rad: tuple[float, float]
@@ -182,6 +185,7 @@ class ControllerConfig:
         )
 
 
+@frozen_record
 @dataclass(frozen=True)
 class FeedForwardStatus:
     """The model-based feed-forwards' checks against what is measured (docs/model.md, "Feed-forward that cannot
@@ -200,6 +204,7 @@ class FeedForwardStatus:
     shaping_ff_scale: float = 1.0
 
 
+@frozen_record
 @dataclass(frozen=True)
 class ControllerStatus:
     t_s: float

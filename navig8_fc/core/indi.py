@@ -47,6 +47,7 @@ from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.g_c import actuators_to_u, u_to_actuators
 from navig8_fc.core.jit import njit_cached
 from navig8_fc.core.layout import layout
+from navig8_fc.core.records import frozen_record
 from navig8_fc.core.vehicle import VehicleConfig
 
 # INDI (IndiController owns these vectors): filter state, configuration and the output of indi_step
@@ -140,6 +141,7 @@ class IndiInputs:
     gc_inv: np.ndarray | None = None  # G_C,UAM^-1 if the caller already has it (saves a solve per tick)
 
 
+@frozen_record
 @dataclass(frozen=True)
 class IndiOutput:
     tilt_cmd_rad: tuple[float, float]
@@ -147,6 +149,7 @@ class IndiOutput:
     u_cmd: tuple[float, ...]
 
 
+@frozen_record
 @dataclass(frozen=True)
 class IndiStatus:
     acc_filtered: tuple[float, ...]  # [Pdot, Qdot, Rdot, a_x, a_z] after the LPF

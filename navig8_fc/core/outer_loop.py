@@ -30,6 +30,7 @@ from navig8_fc.core import arm_preview, rotation
 from navig8_fc.core.arm_preview import servo_model_accel
 from navig8_fc.core.jit import njit_cached
 from navig8_fc.core.layout import layout
+from navig8_fc.core.records import frozen_record
 from navig8_fc.core.rotation import (
     attitude_error_rotvec_kernel,
     euler_to_quat_kernel,
@@ -98,6 +99,7 @@ class Setpoint:
     yaw_rad: float = 0.0
 
 
+@frozen_record
 @dataclass(frozen=True)
 class OuterLoopStatus:
     accel_cmd_ned_m_s2: tuple[float, float, float]

@@ -5,6 +5,7 @@ is reported after the flight."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -134,3 +135,41 @@ def test_a_numpy_scalar_in_a_record_reaches_the_writer_as_itself(tmp_path: Path)
     got = eval(out.read_text())  # noqa: S307 - the test's own repr of tuples of numbers and names
     assert [g[0] for g in got] == seen
     assert all(g[1] == "float64" and g[2] == 0.25 and g[3] for g in got)
+
+
+class _KeepsEigInputs:
+    """A recorder that writes the eigenvalues' inputs it was handed (in the writer process) to a file."""
+
+    def __init__(self, path: Path) -> None:
+        self.path, self.got = path, []
+
+    def record(self, t_ns, truth, sensors, status, command, setpoint, statustexts, status_json=None) -> None:
+        self.got.append(repr((tuple(status.q_est_rad), tuple(status.gi_hat), tuple(status.gc_uam),
+                              status.ref_frd_m)))
+
+    def close(self) -> None:
+        self.path.write_text("\n".join(self.got))
+
+
+def test_the_eigenvalues_inputs_reach_the_writer_bit_for_bit_non_finite_ones_too(tmp_path: Path) -> None:
+    """q_est, G_hat_I and G_C,UAM reach the writer as the loop's floats exactly, non-finite ones too (the /fc/status
+    JSON writes those as null: the eigenvalues are not computed from it)."""
+    w = load_world("paper", None)
+    plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(1))
+    stack = FlightStack(w.fc_vehicle, ParamRegistry.from_defaults(), w.scenario.script)
+    out = tmp_path / "got.txt"
+    hook = ProcessTickLog(plant, lambda: _KeepsEigInputs(out))
+    sent: list[str] = []
+
+    def some_non_finite(t_ns: int, s, res) -> None:
+        st = res.status
+        if len(sent) % 3 == 1:
+            st = replace(st, gi_hat=(float("nan"), float("inf"), *st.gi_hat[2:]))
+        elif len(sent) % 3 == 2:
+            st = replace(st, q_est_rad=(float("-inf"), *st.q_est_rad[1:]))
+        sent.append(repr((tuple(st.q_est_rad), tuple(st.gi_hat), tuple(st.gc_uam), st.ref_frd_m)))
+        hook.tick(t_ns, s, res._replace(status=st))
+
+    fly(plant, stack, 30, some_non_finite)
+    hook.finish()
+    assert out.read_text().split("\n") == sent
