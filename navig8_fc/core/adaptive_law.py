@@ -61,6 +61,7 @@ from navig8_fc.core.kf_nuisance import ixz_mass_column, known_ixz  # the roll an
 from navig8_fc.core.layout import layout
 from navig8_fc.core.linalg import inv_gauss_jordan
 from navig8_fc.core.lms import LmsEstimator
+from navig8_fc.core.records import frozen_record
 
 __all__ = [
     "AdaptiveLaw",
@@ -195,6 +196,7 @@ class AdaptiveLawInputs:
     gripper_closed: bool | None = None  # the gripper's reported state (CKF_GRIP_RST); None: not known
 
 
+@frozen_record  # built every step: its fields straight into the instance dict (core/records.py)
 @dataclass(frozen=True)
 class AdaptiveLawStatus:
     """What the adaptive law did this step (tuples of floats/bools so it logs as plain JSON)."""
