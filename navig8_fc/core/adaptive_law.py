@@ -57,7 +57,7 @@ from numba import njit
 from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig, CkfMode
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.kalman import ConstrainedKalmanFilter, KfStepResult, inertia_ratios
-from navig8_fc.core.kf_nuisance import ixz_mass_column, known_ixz  # the roll and yaw rows' I_xz (CKF_IXZ_MOD)
+from navig8_fc.core.kf_nuisance import ixz_mass_column, known_ixz, refer_moment  # I_xz (CKF_IXZ_MOD), CKF_MOM_MREF
 from navig8_fc.core.layout import layout
 from navig8_fc.core.linalg import inv_gauss_jordan
 from navig8_fc.core.lms import LmsEstimator
@@ -284,7 +284,8 @@ class AdaptiveLaw:
         self._inv_dt = 1.0 / ckf.dt_s
         # CKF_MOM_LPF: the pitch row's low-passed moment [value, value at the window's start] and G_C's scratch
         self._mom_lpf = ckf.moment_lpf and self._pitch_row
-        self._mom = [0.0, 0.0]
+        self._mom_reref = ckf.moment_reref and self._mom_lpf  # with [F_x, F_z] low-passed (CKF_MOM_MREF)
+        self._mom = [0.0] * 4
         self._gc = np.empty((5, 5))
         self._j_prev = (0.0, 0.0, 0.0)  # J's diagonal at the previous tick (CKF_PRED_DJ; set before it is read)
         # Constants of the tick, looked up once: the config is frozen.
@@ -316,7 +317,7 @@ class AdaptiveLaw:
         self._hold_until_s = -math.inf
         self._arm_moved_s: float | None = None  # the last tick the arm moved (|I_yy-dot| >= ARM_REST_IYY_DOT)
         self._n_forgets = 0
-        self._mom = [0.0, 0.0]
+        self._mom, self._mom_obj_kg = [0.0] * 4, 0.0  # and the last tick's reference point's object mass (kg)
         self._kf.reset()  # re-initialised at the next start
 
     @property
@@ -375,7 +376,7 @@ class AdaptiveLaw:
         inc = self._inc.tolist()
         du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
         ready, window_sat = inc[LO_READY] != 0.0, inc[LO_SAT] != 0.0
-        dmom = self._moment_increment(gc_inv, u_meas, ready) if self._mom_lpf else None
+        dmom = self._moment_increment(gc_inv, u_meas, ready, m, object_com_dm) if self._mom_lpf else None
         if not started:
             return self._not_started(base, j13, lower, upper, du, da, window_sat)
         kf = self._kf
@@ -438,21 +439,24 @@ class AdaptiveLaw:
         if self._ixz_sigma > 0.0:
             self._kf.ixz_held(held, self._ixz_sigma)
 
-    def _moment_increment(self, gc_inv: np.ndarray, u: np.ndarray, ready: bool) -> float | None:
-        """CKF_MOM_LPF: low-pass the pitch moment G_C[M, :] U with this tick's G_C (the U filters' weight and start),
-        and return its increment over the window that closed (None between windows, or with G_C^-1 singular). The
-        pitch row's G_C[M, :] Delta U_f leaves out (Delta G_C) U_f: as the arm moves the CoM, the hover trim moves to
-        hold the moment about it at zero, which G_C[M, :] Delta U_f reads as a pitch moment (measured on the paper
-        scenario without its object: 0.69 N m RMS per window against 0.05 of I_yy Delta Q-dot)."""
+    def _moment_increment(self, gc_inv: np.ndarray, u: np.ndarray, ready: bool, m: float,
+                          com_dm: tuple[float, float]) -> float | None:
+        """CKF_MOM_LPF: low-pass the pitch moment G_C[M, :] U with this tick's G_C (the U filters' weight and start);
+        its increment over the window that closed (None between windows, or with G_C^-1 singular). G_C[M, :] Delta U_f
+        leaves out (Delta G_C) U_f, the trim's move as the arm moves the CoM (docs/model.md, Estimator item 13).
+        CKF_MOM_MREF: the reference point's move with m_hat (com_dm (m/kg) x the object mass's change) re-refers it."""
         if not inv_gauss_jordan(gc_inv, self._gc):
             return None
-        mom = float(self._gc[1] @ u)
-        n_seen = self._st.item(LS_NSEEN)
-        st = self._mom
+        gc, st, n_seen = self._gc, self._mom, self._st.item(LS_NSEEN)
+        mom = float(gc[1] @ u)
+        a = 1.0 if n_seen <= 1.0 else max(self._alpha, 1.0 / n_seen) if self._mean_start else self._alpha
+        if self._mom_reref:
+            m_obj = max(self._mass_hat - m, 0.0) if self._mass_hat is not None else 0.0  # as the controller's
+            dm, self._mom_obj_kg = m_obj - self._mom_obj_kg, m_obj
+            refer_moment(st, float(gc[3] @ u), float(gc[4] @ u), a, com_dm[0] * dm, com_dm[1] * dm)
         if n_seen <= 1.0:
             st[0] = st[1] = mom
             return None
-        a = max(self._alpha, 1.0 / n_seen) if self._mean_start else self._alpha
         st[0] += a * (mom - st[0])
         if not ready:
             return None
