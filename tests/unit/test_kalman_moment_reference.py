@@ -4,6 +4,8 @@ about it computed from the moment about O and the forces (M_c = M_O - (c_z F_x -
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
@@ -57,3 +59,44 @@ def _lpf(x: np.ndarray, alpha: float) -> float:
     for v in x[1:]:
         y += alpha * (v - y)
     return float(y)
+
+
+@pytest.mark.parametrize("move", [False, True])
+def test_the_low_passed_moment_only_while_the_arm_moves(move: bool) -> None:
+    """CKF_MOM_MOVE: the pitch row reads the low-passed moment (a finite pitch_y) while the arm moves or has not
+    rested for PITCH_EVENT_HOLD_TAU filter constants and a window (AdaptiveLaw.arm_rested), G_C[M, :] Delta U (nan)
+    at rest; without it the low-passed moment throughout."""
+    from navig8_fc.core.adaptive_law import ARM_REST_IYY_DOT, PITCH_EVENT_HOLD_TAU, AdaptiveLaw, AdaptiveLawConfig
+    from navig8_fc.core.ckf_config import CkfConfig
+
+    ckf = CkfConfig(pitch_r_nm2=0.01, moment_lpf=True, moment_arm_moving=move, inc_window=25, lpf_tau_s=0.7,
+                    dt_s=0.01, start_delay_s=0.0)
+    law = AdaptiveLaw(AdaptiveLawConfig(ckf))
+    seen: list[tuple[float, float]] = []
+    step = law.kf.step
+    t = [0.0]
+
+    def spy(*a, **kw):  # the pitch row's y as the law passes it
+        seen.append((t[0], kw["pitch_y"]))
+        return step(*a, **kw)
+
+    law.kf.step = spy
+    gc_inv = np.ascontiguousarray(np.linalg.inv(np.diag([2.0, 2.0, 2.0, 0.1, 0.1])))
+    inertia = np.diag([0.4, 0.6, 0.3])
+    rng = np.random.default_rng(0)
+    wait_s = PITCH_EVENT_HOLD_TAU * 0.7 + 0.25
+    for k in range(800):
+        t[0] = 0.01 * k
+        rate = np.zeros((3, 3))
+        if 2.0 <= t[0] < 3.0:
+            rate[1, 1] = 2.0 * ARM_REST_IYY_DOT  # the arm moves for 1 s
+        law.step_arrays(t[0], rng.normal(0.0, 1.0, 5), rng.normal(0.0, 0.1, 5), gc_inv, inertia, 6.5, rate)
+    moving = [y for ts, y in seen if ts < wait_s or 2.0 <= ts < 3.0 + wait_s - 0.011]
+    resting = [y for ts, y in seen if wait_s + 0.011 < ts < 2.0 or ts > 3.0 + wait_s + 0.011]
+    corrected = [y for y in moving if not math.isnan(y)]
+    assert len(corrected) > 5  # windows closed while the arm moved read the low-passed moment
+    rest_read = [y for y in resting if not math.isnan(y)]
+    if move:
+        assert not rest_read
+    else:
+        assert len(rest_read) > 5
