@@ -57,7 +57,7 @@ from numba import njit
 from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig, CkfMode
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.kalman import ConstrainedKalmanFilter, KfStepResult, inertia_ratios
-from navig8_fc.core.kf_nuisance import ixz_mass_column, known_ixz  # the roll and yaw rows' I_xz (CKF_IXZ_MOD)
+from navig8_fc.core.kf_nuisance import ixz_mass_column, known_ixz, refer_moment  # I_xz (CKF_IXZ_MOD), CKF_MOM_MREF
 from navig8_fc.core.layout import layout
 from navig8_fc.core.linalg import inv_gauss_jordan
 from navig8_fc.core.lms import LmsEstimator
@@ -286,7 +286,8 @@ class AdaptiveLaw:
         self._inv_dt = 1.0 / ckf.dt_s
         # CKF_MOM_LPF: the pitch row's low-passed moment [value, value at the window's start] and G_C's scratch
         self._mom_lpf = ckf.moment_lpf and self._pitch_row
-        self._mom = [0.0, 0.0]
+        self._mom_reref, self._mom_move = ckf.moment_reref and self._mom_lpf, ckf.moment_arm_moving and self._mom_lpf
+        self._mom = [0.0] * 4
         self._gc = np.empty((5, 5))
         self._j_prev = (0.0, 0.0, 0.0)  # J's diagonal at the previous tick (CKF_PRED_DJ; set before it is read)
         # Constants of the tick, looked up once: the config is frozen.
@@ -318,7 +319,7 @@ class AdaptiveLaw:
         self._hold_until_s = -math.inf
         self._arm_moved_s: float | None = None  # the last tick the arm moved (|I_yy-dot| >= ARM_REST_IYY_DOT)
         self._n_forgets = 0
-        self._mom = [0.0, 0.0]
+        self._mom, self._mom_obj_kg = [0.0] * 4, 0.0  # and the last tick's reference point's object mass (kg)
         self._kf.reset()  # re-initialised at the next start
 
     @property
@@ -377,7 +378,7 @@ class AdaptiveLaw:
         inc = self._inc.tolist()
         du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
         ready, window_sat = inc[LO_READY] != 0.0, inc[LO_SAT] != 0.0
-        dmom = self._moment_increment(gc_inv, u_meas, ready) if self._mom_lpf else None
+        dmom = self._moment_increment(gc_inv, u_meas, ready, m, object_com_dm) if self._mom_lpf else None
         if not started:
             return self._not_started(base, j13, lower, upper, du, da, window_sat)
         kf = self._kf
@@ -397,8 +398,7 @@ class AdaptiveLaw:
         correct = self._gate(ready, window_sat, t_s)
         self._j_prev = (j11, j22, j33)
         rho_x, rho_z = inertia_ratios(j11, j13, j33)
-        du_kf = self._du
-        dhd = inc[LO_DH]
+        du_kf, dhd = self._du, inc[LO_DH]
         if self.config.arm_wrench and dhd != 0.0:
             du_kf = self._du - gc_inv[:, 1] * dhd  # z = Delta U - G_C^-1 [0, Delta h', 0, 0, 0]
         h_mass = None
@@ -410,7 +410,8 @@ class AdaptiveLaw:
         if self._pitch_row or h_mass is not None:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
                         pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass,
-                        pitch_y=math.nan if dmom is None else dmom - dhd,  # CKF_MOM_LPF: Delta M_f - Delta h'
+                        pitch_y=math.nan if (self._mom_move and self.arm_rested(t_s, inertia_rate)) or dmom is None
+                        else dmom - dhd,  # CKF_MOM_LPF: Delta M_f - Delta h' (CKF_MOM_MOVE: while the arm moves)
                         com_dm=self.pitch_mass_slope(t_s, inertia_rate, object_com_dm))
         else:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
@@ -419,14 +420,16 @@ class AdaptiveLaw:
                                 (kf.n_updates, kf.n_projection_fallbacks, self._n_sat_skips, self._n_forgets))
 
     def pitch_mass_slope(self, t_s: float, inertia_rate: np.ndarray, slope: tuple[float, float]) -> tuple[float, float]:
-        """CKF_CZ_DM: the pitch row's reference-point slope in the mass, while the arm has been at rest through the
-        window and PITCH_EVENT_HOLD_TAU filter constants before it (ARM_REST_IYY_DOT); else none (the mass held in that
-        row). Before the estimator's first tick the arm's motion is not known: the rest counts from it."""
-        if not self._cz_dm:
-            return _NO_SLOPE
+        """CKF_CZ_DM: the pitch row's reference-point slope in the mass while the arm has rested (arm_rested); else
+        none (the mass held in that row)."""
+        return slope if self._cz_dm and self.arm_rested(t_s, inertia_rate) else _NO_SLOPE
+
+    def arm_rested(self, t_s: float, inertia_rate: np.ndarray) -> bool:
+        """The arm at rest (the model's |I_yy-dot| < ARM_REST_IYY_DOT) through the window and PITCH_EVENT_HOLD_TAU
+        filter constants before it, counted from the estimator's first tick (before it the motion is not known)."""
         if self._arm_moved_s is None or abs(inertia_rate.item(4)) >= ARM_REST_IYY_DOT:
             self._arm_moved_s = t_s
-        return slope if t_s - self._arm_moved_s >= self._rest_s else _NO_SLOPE
+        return t_s - self._arm_moved_s >= self._rest_s
 
     def _held_changed(self, held: bool, t_s: float, iyy_var_min: float) -> None:
         """A grasp or a release: the pitch row waits after a release; the pitch row's nuisance CoM error (CKF_CZ_SIG; at
@@ -440,21 +443,23 @@ class AdaptiveLaw:
         if self._ixz_sigma > 0.0:
             self._kf.ixz_held(held, self._ixz_sigma)
 
-    def _moment_increment(self, gc_inv: np.ndarray, u: np.ndarray, ready: bool) -> float | None:
-        """CKF_MOM_LPF: low-pass the pitch moment G_C[M, :] U with this tick's G_C (the U filters' weight and start),
-        and return its increment over the window that closed (None between windows, or with G_C^-1 singular). The
-        pitch row's G_C[M, :] Delta U_f leaves out (Delta G_C) U_f: as the arm moves the CoM, the hover trim moves to
-        hold the moment about it at zero, which G_C[M, :] Delta U_f reads as a pitch moment (measured on the paper
-        scenario without its object: 0.69 N m RMS per window against 0.05 of I_yy Delta Q-dot)."""
+    def _moment_increment(self, gc_inv: np.ndarray, u: np.ndarray, ready: bool, m: float,
+                          com_dm: tuple[float, float]) -> float | None:
+        """CKF_MOM_LPF: the increment over the window that closed (None between windows or with G_C^-1 singular) of the
+        low-passed G_C[M, :] U with each tick's G_C, (Delta G_C) U_f included (docs/model.md, Estimator items 13, 17).
+        CKF_MOM_MREF: the reference point's move with m_hat (com_dm (m/kg) x the object mass's change) re-refers it."""
         if not inv_gauss_jordan(gc_inv, self._gc):
             return None
-        mom = float(self._gc[1] @ u)
-        n_seen = self._st.item(LS_NSEEN)
-        st = self._mom
+        gc, st, n_seen = self._gc, self._mom, self._st.item(LS_NSEEN)
+        mom = float(gc[1] @ u)
+        a = 1.0 if n_seen <= 1.0 else max(self._alpha, 1.0 / n_seen) if self._mean_start else self._alpha
+        if self._mom_reref:
+            m_obj = max(self._mass_hat - m, 0.0) if self._mass_hat is not None else 0.0  # as the controller's
+            dm, self._mom_obj_kg = m_obj - self._mom_obj_kg, m_obj
+            refer_moment(st, float(gc[3] @ u), float(gc[4] @ u), a, com_dm[0] * dm, com_dm[1] * dm)
         if n_seen <= 1.0:
             st[0] = st[1] = mom
             return None
-        a = max(self._alpha, 1.0 / n_seen) if self._mean_start else self._alpha
         st[0] += a * (mom - st[0])
         if not ready:
             return None
@@ -577,9 +582,7 @@ def eq22_drift(
 
 def narrow_mass_prior(kf: ConstrainedKalmanFilter | LmsEstimator, var_kg2: float) -> None:
     """CKF_M_SIG_OPEN (var_kg2 = its square; 0: nothing): with no object held the mass is the UAM's, which the model
-    knows (K4 = 1, Eq. 4). With P0's sigma (0.39 kg at the defaults) one force-row window, its reading put 5-15 % off
-    by the accelerometer's noise, moved K4 by 0.05-0.07 before any grasp, and the Eq. 21 box clips the mass from below
-    only (K4 <= 1), so such moves stay as a mass above the UAM's (docs/model.md, "Estimator" item 14)."""
+    knows (K4 = 1, Eq. 4); one force-row window moved K4 by 0.05-0.07 with P0's sigma (docs/model.md, Estimator 14)."""
     if var_kg2 > 0.0 and isinstance(kf, ConstrainedKalmanFilter):
         kf.lower_variance((0.0, 0.0, 0.0, var_kg2))
 

@@ -40,6 +40,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
     "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
     "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG", "CKF_MOM_LPF", "CKF_M_SIG_OPEN", "CKF_IXZ_SIG", "CKF_CZ_DM",
+    "CKF_MOM_MREF", "CKF_MOM_MOVE",
 )
 
 
@@ -151,6 +152,12 @@ class CkfConfig:
     # estimate, and its slope in m enters that row as a mass column (kf_nuisance.kf_correct_pitch's com_dm_x, com_dm_z):
     # the row's CoM error is c_z' (m - m_hat) plus the nuisance (CKF_CZ_SIG), and the row corrects m too
     com_mass_slope: bool = False
+    # CKF_MOM_MREF: with moment_lpf, when the reference point moves with the mass estimate (the estimated CoM has a
+    # point object of m_hat - m at the gripper) the low-passed moment is re-referred to it (kf_nuisance.refer_moment)
+    moment_reref: bool = False
+    # CKF_MOM_MOVE: with moment_lpf, the low-passed moment only while the arm moves or has not rested for the pitch
+    # row's event wait and a window (AdaptiveLaw.arm_rested); at rest, G_C[M, :] Delta U as with moment_lpf off
+    moment_arm_moving: bool = False
 
     def __post_init__(self) -> None:
         lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
@@ -188,6 +195,8 @@ class CkfConfig:
         object.__setattr__(self, "u_delivered", bool(self.u_delivered))
         object.__setattr__(self, "moment_lpf", bool(self.moment_lpf))
         object.__setattr__(self, "com_mass_slope", bool(self.com_mass_slope))
+        object.__setattr__(self, "moment_reref", bool(self.moment_reref))
+        object.__setattr__(self, "moment_arm_moving", bool(self.moment_arm_moving))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2", "pitch_r_nm2",
                      "com_sigma_m", "grip_sigma_w", "mass_sigma_open_kg", "ixz_sigma_kgm2"):
             v = float(getattr(self, name))
@@ -218,7 +227,8 @@ class CkfConfig:
         if int(values["CKF_U_SRC"]) not in (0, 1, 2):
             raise ValueError(f"CKF_U_SRC must be 0, 1 or 2, got {values['CKF_U_SRC']}")
         for flag in ("CKF_SAT_GATE", "CKF_ACC_REF", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
-                     "CKF_LPF_SEED", "CKF_MOM_LPF"):
+                     "CKF_LPF_SEED", "CKF_MOM_LPF", "CKF_MOM_MREF",
+                     "CKF_MOM_MOVE"):
             if int(values[flag]) not in (0, 1):
                 raise ValueError(f"{flag} must be 0 or 1, got {values[flag]}")
         if int(values["CKF_IXZ_MOD"]) not in (0, 1, 2):
@@ -260,4 +270,6 @@ class CkfConfig:
             mass_sigma_open_kg=float(values["CKF_M_SIG_OPEN"]),
             ixz_sigma_kgm2=float(values["CKF_IXZ_SIG"]),
             com_mass_slope=bool(int(values["CKF_CZ_DM"])),
+            moment_reref=bool(int(values["CKF_MOM_MREF"])),
+            moment_arm_moving=bool(int(values["CKF_MOM_MOVE"])),
         )

@@ -205,3 +205,16 @@ def ixz_mass_column(du: np.ndarray, gc_inv: np.ndarray, da: Sequence[float], dix
     in a batch fit against 0.52 true with 1 kg, 0.53-0.55 with the true I_xz; docs/model.md, "Estimator" item 11)."""
     h = dixz_dm * (gc_inv[:, 0] * da[2] + gc_inv[:, 2] * da[0])
     return du + h * m_hat, h
+
+
+def refer_moment(mom: list[float], f_x: float, f_z: float, alpha: float, dc_x: float, dc_z: float) -> None:
+    """CKF_MOM_MREF: the low-passed pitch moment mom = [M_f, M_f at the window's start, F_x,f, F_z,f] (N m, N)
+    re-referred to a reference point moved by (dc_x, dc_z) (m, body x and z) since the last tick, then the forces
+    low-passed (weight alpha) with this tick's F_x, F_z. About the moved point the moment is M - (dc_z F_x - dc_x F_z)
+    (the y row of M - dc x F); the filter being linear, its state and the window's start move by the same of the
+    low-passed forces, so only the pitch moment that happened enters the window's increment (Eq. 24's pitch row)."""
+    shift = dc_x * mom[3] - dc_z * mom[2]
+    mom[0] += shift
+    mom[1] += shift
+    mom[2] += alpha * (f_x - mom[2])
+    mom[3] += alpha * (f_z - mom[3])

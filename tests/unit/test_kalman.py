@@ -72,7 +72,8 @@ def _param_values(**overrides: float) -> dict[str, float]:
         "CKF_GRIP_RST": 0, "CKF_PRED_DJ": 0, "CKF_GC_REF": 0,
         "CKF_LMS_MU1": 0.003, "CKF_LMS_MU2": 0.05, "CKF_LMS_MU3": 0.003, "CKF_LMS_MU4": 0.001,
         "CKF_R_PITCH": 0.0, "CKF_CZ_SIG": 0.0, "CKF_LPF_SEED": 0, "CKF_IXZ_MOD": 0, "CKF_GRIP_SIG": 0.0,
-        "CKF_MOM_LPF": 0, "CKF_M_SIG_OPEN": 0.0, "CKF_IXZ_SIG": 0.0, "CKF_CZ_DM": 0,
+        "CKF_MOM_LPF": 0, "CKF_M_SIG_OPEN": 0.0, "CKF_IXZ_SIG": 0.0, "CKF_CZ_DM": 0, "CKF_MOM_MREF": 0,
+        "CKF_MOM_MOVE": 0,
     }
     v.update(overrides)
     return v
