@@ -56,7 +56,7 @@ from numba import njit
 
 from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig, CkfMode
 from navig8_fc.core.filters import lpf_alpha
-from navig8_fc.core.kalman import ConstrainedKalmanFilter, KfStepResult, inertia_ratios
+from navig8_fc.core.kalman import ConstrainedKalmanFilter, KfStepResult, eq22_drift, inertia_ratios
 from navig8_fc.core.kf_nuisance import ixz_mass_column, known_ixz, refer_moment  # I_xz (CKF_IXZ_MOD), CKF_MOM_MREF
 from navig8_fc.core.layout import layout
 from navig8_fc.core.linalg import inv_gauss_jordan
@@ -557,27 +557,6 @@ def estimated_status(
         n_saturation_skips=counts[2],
         n_forgets=counts[3],
     )
-
-
-def eq22_drift(
-    j_diag: tuple[float, float, float], inertia_rate: np.ndarray,
-    object_inertia_rate: tuple[float, float, float] | None, j_prev: tuple[float, float, float] | None, inv_dt: float,
-) -> tuple[float, float, float]:
-    """Eq. 22's drift [I_dot_11, I_dot_22, I_dot_33]: the model's I-dot (j_prev None), or (CKF_PRED_DJ) the tick's
-    change of J's diagonal from j_prev plus the estimated object's I-dot."""
-    # CKF_PRED_DJ: the drift is the tick's own change of J plus the estimated object's I-dot (it moves with the
-    # arm), so that x follows the model exactly where it is right. The model's I-dot of J from the measured joint
-    # rates integrates to less or more than J's change, because J is evaluated at the joint observer's q, which
-    # also moves by its correction toward the measured q: each 40 deg arm reversal of the paper scenario moved K3
-    # by -0.05 (K3 0.74 at 23 s with no object); and it leaves out the held object, whose inertia changes most
-    # with the arm's pose. The object's share is its rate at the estimated mass (a change of the mass estimate
-    # itself moves no inertia).
-    if j_prev is not None:
-        j11, j22, j33 = j_diag
-        ob = object_inertia_rate or (0.0, 0.0, 0.0)
-        return ((j11 - j_prev[0]) * inv_dt + ob[0], (j22 - j_prev[1]) * inv_dt + ob[1],
-                (j33 - j_prev[2]) * inv_dt + ob[2])
-    return (inertia_rate.item(0), inertia_rate.item(4), inertia_rate.item(8))
 
 
 def narrow_mass_prior(kf: ConstrainedKalmanFilter | LmsEstimator, var_kg2: float) -> None:
