@@ -116,13 +116,19 @@ class _Keeps:
         self.path.write_text(repr(self.got))
 
 
-def test_a_numpy_scalar_in_a_record_reaches_the_writer_as_itself(tmp_path: Path) -> None:
-    """A numpy scalar in a record reaches the writer as the same numpy scalar (marshal would have made it bytes)."""
+def _paper_rig(tmp_path: Path, recorder: type) -> tuple[Plant, FlightStack, Path, ProcessTickLog]:
+    """The paper scenario's plant and flight stack (seed 1, the defaults) and a forked writer feeding `recorder`,
+    which writes what it was handed to the returned path."""
     w = load_world("paper", None)
     plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(1))
     stack = FlightStack(w.fc_vehicle, ParamRegistry.from_defaults(), w.scenario.script)
     out = tmp_path / "got.txt"
-    hook = ProcessTickLog(plant, lambda: _Keeps(out))
+    return plant, stack, out, ProcessTickLog(plant, lambda: recorder(out))
+
+
+def test_a_numpy_scalar_in_a_record_reaches_the_writer_as_itself(tmp_path: Path) -> None:
+    """A numpy scalar in a record reaches the writer as the same numpy scalar (marshal would have made it bytes)."""
+    plant, stack, out, hook = _paper_rig(tmp_path, _Keeps)
     seen: list[int] = []
 
     def with_numpy(t_ns: int, s, res) -> None:
@@ -154,11 +160,7 @@ class _KeepsEigInputs:
 def test_the_eigenvalues_inputs_reach_the_writer_bit_for_bit_non_finite_ones_too(tmp_path: Path) -> None:
     """q_est, G_hat_I and G_C,UAM reach the writer as the loop's floats exactly, non-finite ones too (the /fc/status
     JSON writes those as null: the eigenvalues are not computed from it)."""
-    w = load_world("paper", None)
-    plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(1))
-    stack = FlightStack(w.fc_vehicle, ParamRegistry.from_defaults(), w.scenario.script)
-    out = tmp_path / "got.txt"
-    hook = ProcessTickLog(plant, lambda: _KeepsEigInputs(out))
+    plant, stack, out, hook = _paper_rig(tmp_path, _KeepsEigInputs)
     sent: list[str] = []
 
     def some_non_finite(t_ns: int, s, res) -> None:
