@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import ActuatorCommand, ControllerStatus, FcSensors, warm_up_kernels
@@ -38,7 +39,6 @@ from navig8_fc.shell.foxglove_out import FoxgloveOutput, script_waypoints
 from navig8_fc.shell.mcap_log import McapLogger
 from navig8_fc.shell.step_log import StepLog
 from navig8_fc.viz import VehicleViz, packaged_uav_size_m
-from navig8_tools.blas_threads import one_blas_thread
 from navig8_tools.log_writer import LogWriterError, ProcessTickLog, process_writer_available
 from navig8_tools.logdata import load_run
 from navig8_tools.summary import summarize
@@ -168,7 +168,10 @@ def run(
     w = load_world(scenario, world)
     vehicle, sc = w.fc_vehicle, w.scenario  # the FC's constants (model errors, if any, live here)
     duration = sc.duration_s if duration_s is None else float(duration_s)
-    with one_blas_thread():  # OpenBLAS's threads only cost here, and spin on into the flight (blas_threads)
+    # One BLAS thread while the run flies: at <= 10 x 10 OpenBLAS's threads only cost, and after the set-up's ~90
+    # expm (its LU solve goes parallel at any size) they spin ~0.1 s into the flight on the writer's core
+    # (docs/results.md, "Speed"); threadpoolctl sets every BLAS in the process and gives the counts back after.
+    with threadpool_limits(limits=1, user_api="blas"):
         rng = np.random.default_rng(seed)
         plant = Plant(w.vehicle, w.plant, sc, rng)
         stack = FlightStack(vehicle, reg, sc.script)
