@@ -91,18 +91,17 @@ def cov_transform(a, nz):
 
 
 @njit(cache=True)
-def _pitch_augment(p, nz, pa):
-    """pa (5, 5) <- the covariance of [x, c] from p (4, 4) and the pitch nuisance nz (zero when None); returns c."""
-    for i in range(4):
-        for j in range(4):
-            pa[i, j] = p[i, j]
+def _pitch_augment(x, p, nz, pa):
+    """pa (5, 5) <- the covariance of [x, c] from p (4, 4) and the pitch nuisance nz (augment; c and its row zero
+    when nz is None); returns c."""
     if nz is None:
+        for i in range(4):
+            for j in range(4):
+                pa[i, j] = p[i, j]
         return 0.0
-    pa[4, 4] = nz[NZ_VAR]
-    for i in range(4):
-        pa[i, 4] = nz[NZ_COV + i]
-        pa[4, i] = nz[NZ_COV + i]
-    return nz[NZ_X]
+    xa = np.empty(5)
+    augment(x, p, nz, xa, pa)
+    return xa[4]
 
 
 @njit_cached(linalg)
@@ -141,7 +140,7 @@ def kf_correct_pitch(x, p, pitch_r, gc_inv, du, dq_dot, nz=None, pitch_y=math.na
         y = pitch_y
     # the augmented state [x, c] (5,), its covariance pa, the measurement row h = [0, dq_dot, 0, hm, fx]
     pa = np.zeros((5, 5))
-    xc = _pitch_augment(p, nz, pa)
+    xc = _pitch_augment(x, p, nz, pa)
     h = np.zeros(5)
     h[1] = dq_dot
     h[3] = hm
