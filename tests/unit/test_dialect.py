@@ -394,3 +394,17 @@ def test_cache_dir_is_never_a_directory_someone_else_owns_or_shares(tmp_path: Pa
     assert dialect.cache_dir() != link
     monkeypatch.setenv("NAVIG8_CACHE_DIR", str(planted))  # ours after all, but world-writable: tightened, then used
     assert dialect.cache_dir() == planted and os.stat(planted).st_mode & 0o777 == 0o700
+
+
+@pytest.mark.parametrize(("cmd_time_usec", "want_t_s"), [(40_001, 0.04), (30_001, 0.03), (0, None), (50_001, None),
+                                                          (90_001, None)])
+def test_the_flown_commands_stamp_reaches_the_fc_only_when_older_than_the_sample(
+        plant: Plant, cmd_time_usec: int, want_t_s: float | None) -> None:
+    """NAVIG8_ACTUATOR_STATE.cmd_time_usec through the wire to the FC's sensors: an earlier sample's stamp is that
+    sample's time (the command the actuators flew); none (0), the sample's own stamp or a later one (a bridge's bug,
+    a forged frame) is unknown: the FC then flies its last command, as in lockstep."""
+    sb, tr = plant.sense(), plant.truth()
+    data = seam.encode_bundle(codec.Encoder(codec.seam_codec(), 1, 25), 5, sb, tr, cmd_time_usec)
+    b = seam.decode_bundle(codec.seam_codec().parse(data, codec.ParseCounters()))
+    assert b is not None and b.time_usec == 50_001 and b.cmd_time_usec == cmd_time_usec
+    assert b.fc_sensors().cmd_applied_t_s == want_t_s
