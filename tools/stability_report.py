@@ -267,6 +267,7 @@ def _margin_report(inp: Inputs, cfg: VehicleConfig, kb: k_xi.KBoundsResult, lam_
     ratio = guaranteed / lam_crit if lam_crit > 0.0 else math.inf
     at_g = st.step_metrics(guaranteed, *p) if guaranteed > 0.0 else None
     return {
+        "realtime_link": _realtime_link_report(inp, guaranteed),
         "lambda_crit": lam_crit,
         "lambda_min": inp.lambda_min,
         "guaranteed_min_eigenvalue": guaranteed,
@@ -277,6 +278,22 @@ def _margin_report(inp: Inputs, cfg: VehicleConfig, kb: k_xi.KBoundsResult, lam_
         "step_at_guaranteed": _step_dict(at_g) if at_g is not None else None,
         "registry_verdict": verdict,
     }
+
+
+def _realtime_link_report(inp: Inputs, guaranteed: float) -> dict[str, Any]:
+    """The loop over a real-time link, whose answer to the sample at t_k flies from t_k+2 (docs/hil.md): the sampled
+    loop's lambda_crit with one more tick of delay (sampled_loop_matrix's link_delay_ticks), the actuator model told
+    which command flew (the bridge's echo) and blind, and the guaranteed eigenvalue's margin against it. The registry's
+    rule is stated for the lockstep loop (one tick); this is what the same configuration has left over a link."""
+    src = "model" if inp.u0_src == 1 else "measured"
+    args = (inp.wn_rad_s, inp.zeta, 1.0 / inp.ts_s, inp.tl_s)
+    told = {ch: sampled_lambda_crit(*args, ch, None, None, src, inp.u0_tau_s, link_delay_ticks=1) for ch in CHANNELS}
+    blind = {ch: sampled_lambda_crit(*args, ch, None, None, src, inp.u0_tau_s, link_delay_ticks=1, model_told=False)
+             for ch in CHANNELS}
+    worst = max(told.values())
+    ratio = guaranteed / worst
+    return {"sampled_lambda_crit": told, "sampled_lambda_crit_blind": blind, "margin": _finite_or_none(ratio),
+            "meets_margin": ratio >= inp.lam_margin}
 
 
 def lmi_report(inp: Inputs, cfg: VehicleConfig, acc_ref: int, bisection_steps: int = 3) -> dict[str, Any]:

@@ -147,11 +147,28 @@ def _margin_lines(r: dict[str, Any]) -> list[str]:
         f"  margin = guaranteed / lambda_crit = {ratio} (the full sweep's minimum gives {full}); "
         f"required >= {m['required_margin']:g}: {'yes' if m['meets_margin'] else 'NO'}",
         f"  step at the guaranteed min eigenvalue: overshoot / 2 % settling {_os(m['step_at_guaranteed'])}",
+        *_realtime_link_lines(m),
     ]
     if "configuration" in r:
         out.append("  registry: a PARAM_SET to this configuration is "
                    + ("accepted" if verdict is None else f"refused: {verdict}"))
     return out
+
+
+def _realtime_link_lines(m: dict[str, Any]) -> list[str]:
+    rt = m.get("realtime_link")
+    if rt is None:
+        return []
+    told, blind = rt["sampled_lambda_crit"], rt["sampled_lambda_crit_blind"]
+    ratio = "inf" if rt["margin"] is None else f"{rt['margin']:.3f}"
+    return [
+        "  over a real-time link (the answer flown one tick later, docs/hil.md): sampled loop lambda_crit "
+        f"rot. {told['rotational']:.4f}, force {told['force']:.4f}",
+        f"    (the actuator model not told which command flew: rot. {blind['rotational']:.4f}, "
+        f"force {blind['force']:.4f})",
+        f"    margin = guaranteed / {max(told.values()):.4f} = {ratio}; required >= {m['required_margin']:g}: "
+        f"{'yes' if rt['meets_margin'] else 'NO'} (the registry's rule is stated for the lockstep loop)",
+    ]
 
 
 def _model_u0_lines(r: dict[str, Any]) -> list[str]:

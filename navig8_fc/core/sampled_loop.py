@@ -40,6 +40,8 @@ def sampled_loop_matrix(
     plant_zeta: float | None = None,
     u0_source: str = "model",
     u0_tau_s: float = math.inf,
+    link_delay_ticks: int = 0,
+    model_told: bool = True,
 ) -> np.ndarray:
     """The one-tick state-transition matrix of one decoupled mode of the FC's sampled INDI loop (v = 0).
 
@@ -51,6 +53,11 @@ def sampled_loop_matrix(
     actuator model run on the last command with the position corrected toward the measurement by
     alpha(u0_tau_s) (indi.actuator_estimate), through the same low-pass; u = U0 + (v - Acc_f)/lam (Eq. 5-6).
     State [p, r, p_hat, r_hat, u_prev, U0_f, f] with f = the force filter's output or the gyro filter's lag e.
+
+    link_delay_ticks d: the command answered to the sample at t_k is flown from t_k+1+d (a real-time link answers a
+    period late, docs/hil.md); the d commands in flight follow as states, oldest first, and u_prev is the one flown.
+    model_told: the actuator model advances on the command flown (the bridge's echo, IndiController.fly_applied);
+    else on the FC's own last command (a link that does not say which it flew).
     """
     if channel not in CHANNELS:
         raise ValueError(f"channel must be one of {CHANNELS}, got {channel!r}")
@@ -58,6 +65,9 @@ def sampled_loop_matrix(
         raise ValueError(f"u0_source must be 'model' or 'measured', got {u0_source!r}")
     if not (rate_hz > 0.0 and math.isfinite(rate_hz) and tl > 0.0 and lam != 0.0):
         raise ValueError(f"need rate_hz > 0, tl > 0, lam != 0; got {rate_hz}, {tl}, {lam}")
+    if link_delay_ticks < 0 or int(link_delay_ticks) != link_delay_ticks:
+        raise ValueError(f"link_delay_ticks must be an integer >= 0, got {link_delay_ticks}")
+    d_link = int(link_delay_ticks)
     dt = 1.0 / rate_hz
     m_p = _zoh_actuator(plant_wn if plant_wn is not None else wn, plant_zeta if plant_zeta is not None else zeta, dt)
     m_m = _zoh_actuator(wn, zeta, dt)
@@ -66,9 +76,11 @@ def sampled_loop_matrix(
     rotational = channel == "rotational"
 
     def tick(x: np.ndarray) -> np.ndarray:
-        p, r, ph, rh, u_prev, u0f, f = x
+        p, r, ph, rh, u_prev, u0f, f = x[:7]
+        in_flight = list(x[7:])  # the commands answered, not yet flown: oldest first
+        u_model = u_prev if model_told or not in_flight else in_flight[-1]
         p, r, dw = m_p[:3] @ np.array([p, r, 0.0, u_prev])
-        ph, rh = m_m[:2] @ np.array([ph, rh, 0.0, u_prev])
+        ph, rh = m_m[:2] @ np.array([ph, rh, 0.0, u_model])
         ph = ph + g * (p - ph)
         src = ph if u0_source == "model" else p
         u0f = u0f + alpha * (src - u0f)
@@ -79,9 +91,10 @@ def sampled_loop_matrix(
             f = f + alpha * (p - f)
             acc = f
         u = u0f - acc / lam
-        return np.array([p, r, ph, rh, u, u0f, f])
+        queue = [*in_flight, u]
+        return np.array([p, r, ph, rh, queue[0], u0f, f, *queue[1:]])
 
-    return np.column_stack([tick(e) for e in np.eye(7)])
+    return np.column_stack([tick(e) for e in np.eye(7 + d_link)])
 
 
 def sampled_lambda_crit(
@@ -96,11 +109,14 @@ def sampled_lambda_crit(
     u0_tau_s: float = math.inf,
     lam_lo: float = 1e-4,
     n_scan: int = 200,
+    link_delay_ticks: int = 0,
+    model_told: bool = True,
 ) -> float:
     """lambda_crit of the sampled loop (sampled_loop_matrix): where its spectral radius reaches 1, from lam = 1 down."""
 
     def f(lam: float) -> float:
-        m = sampled_loop_matrix(lam, wn, zeta, rate_hz, tl, channel, plant_wn, plant_zeta, u0_source, u0_tau_s)
+        m = sampled_loop_matrix(lam, wn, zeta, rate_hz, tl, channel, plant_wn, plant_zeta, u0_source, u0_tau_s,
+                                link_delay_ticks, model_told)
         return float(np.max(np.abs(np.linalg.eigvals(m)))) - 1.0
 
     if f(1.0) >= 0.0:

@@ -178,6 +178,49 @@ def test_sampled_force_mode_against_scipy_zero_order_hold() -> None:
     assert sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "force") == pytest.approx(lam_z, abs=1e-8)
 
 
+@pytest.mark.parametrize("extra_ticks", [1, 2])
+def test_a_link_delay_of_whole_ticks_against_scipy_zero_order_hold(extra_ticks: int) -> None:
+    """A command flown extra_ticks later (a real-time link): the force mode with measured U0 is
+    lam (1 - L_d A_d z^-d) + L_d A_d z^-d = 0, i.e. lam den z^d + (1 - lam) num = 0 over the open loop L_d A_d (scipy's
+    ZOH discretisation, as above); the tick recursion with link_delay_ticks has the same lambda_crit, and so has the
+    model-based U0 told which command flew (the model right)."""
+    wn, zeta, ts, tl = FLOWN
+    num_a, den_a, _ = signal.cont2discrete(([wn**2], [1.0, 2 * zeta * wn, wn**2]), ts, method="zoh")
+    num_a = np.trim_zeros(np.ravel(num_a), "f")
+    alpha = 1.0 - math.exp(-ts / tl)
+    open_num = np.polymul([alpha, 0.0], num_a)
+    open_den = np.polymul(np.polymul([1.0, alpha - 1.0], den_a), np.r_[1.0, np.zeros(extra_ticks)])  # z^d
+
+    def rho(lam: float) -> float:
+        return float(np.max(np.abs(np.roots(np.polyadd(lam * open_den, (1.0 - lam) * open_num))))) - 1.0
+
+    lam_z = optimize.brentq(rho, 0.05, 0.9, xtol=1e-12)
+    one_tick = sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "force", u0_source="measured")
+    got = sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "force", u0_source="measured",
+                                           link_delay_ticks=extra_ticks)
+    assert got == pytest.approx(lam_z, abs=1e-8)
+    assert got > one_tick  # more delay, less of the K box is stable
+    told = sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, "force", link_delay_ticks=extra_ticks)
+    assert told == pytest.approx(lam_z, abs=1e-8)
+
+
+def test_an_actuator_model_not_told_which_command_flew_loses_stability_higher() -> None:
+    """Over a link one tick late, the model-based U0 advanced on the FC's own last command (not the one flown) is a
+    wrong U0 every tick: its lambda_crit is above the told model's in both modes (docs/hil.md: 0.40 against 0.31,
+    above the defaults' guaranteed eigenvalue 0.39); with no link delay the two are the same loop."""
+    wn, zeta, ts, tl = FLOWN
+    for ch in sampled_loop.CHANNELS:
+        told = sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, ch, None, None, "model", 0.2,
+                                                link_delay_ticks=1)
+        blind = sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, ch, None, None, "model", 0.2,
+                                                 link_delay_ticks=1, model_told=False)
+        assert blind > 1.2 * told
+        assert sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, ch, model_told=False) == pytest.approx(
+            sampled_loop.sampled_lambda_crit(wn, zeta, 1.0 / ts, tl, ch), abs=1e-12)
+    with pytest.raises(ValueError, match="link_delay_ticks"):
+        sampled_loop.sampled_loop_matrix(0.5, wn, zeta, 1.0 / ts, tl, link_delay_ticks=-1)
+
+
 @pytest.mark.parametrize("loop", [PAPER, FLOWN, (120.0, 1.0, 0.02, 0.02), (120.0, 1.0, 0.01, 0.005)])
 def test_the_pade_lambda_crit_is_at_or_above_the_sampled_loops(loop: tuple[float, ...]) -> None:
     """The continuous analysis (a whole sample of delay, Pade) is the conservative one for the lockstep loop: the
@@ -344,5 +387,10 @@ def test_report_json_for_the_flown_configuration(capsys: pytest.CaptureFixture[s
     rows = {row["plant_wn_factor"]: row for row in r["model_u0"]["mismatch"]}
     assert set(rows) >= {0.6, 1.0, 1.4} and rows[1.0]["model_u0"] == pytest.approx(r["lambda_crit"], abs=1e-9)
     assert max(row["model_u0"] for row in rows.values()) < 1.05 * r["lambda_crit"]
+    rt = m["realtime_link"]  # a real-time link's extra tick: the defaults keep less than the rule's margin
+    assert rt["sampled_lambda_crit"]["rotational"] == pytest.approx(0.3137, abs=1e-4)
+    assert rt["sampled_lambda_crit_blind"]["rotational"] > m["guaranteed_min_eigenvalue"]  # unstable at the worst
+    assert rt["margin"] == pytest.approx(m["guaranteed_min_eigenvalue"] / 0.3137, rel=1e-3) and not rt["meets_margin"]
     text = render_text(r)
     assert "paper Sec. 3 (reference)" in text and "a PARAM_SET to this configuration is accepted" in text
+    assert "over a real-time link" in text and "required >= 1.5: NO" in text
