@@ -73,7 +73,8 @@ def test_the_estimator_options_are_the_documented_ones() -> None:
     assert ident == {"CKF_GRIP_RST": 1, "CKF_PRED_DJ": 1, "CKF_R_PITCH": pytest.approx(0.01),
                      "CKF_CZ_SIG": pytest.approx(0.03), "CKF_LPF_SEED": 1, "CKF_U_SRC": 2, "CKF_IXZ_MOD": 2,
                      "CKF_GRIP_SIG": pytest.approx(1.0), "CKF_M_SIG_OPEN": pytest.approx(0.2),
-                     "CKF_IXZ_SIG": pytest.approx(0.1), "CKF_CZ_DM": 1, "CKF_START_DLY": pytest.approx(0.75)}
+                     "CKF_IXZ_SIG": pytest.approx(0.1), "CKF_CZ_DM": 1, "CKF_START_DLY": pytest.approx(0.75),
+                     "CKF_MOM_LPF": 1, "CKF_MOM_MREF": 1, "CKF_MOM_MOVE": 1, "INDI_LAM_REF": pytest.approx(0.4)}
 
 
 def test_the_documented_table_agrees_with_the_parameter_file() -> None:
