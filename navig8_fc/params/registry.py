@@ -467,8 +467,8 @@ class ParamRegistry:
         if "INDI_K_MAX" in values and float(values["INDI_K_MAX"]) < float(self._values["INDI_K_MIN"]):
             order = sorted(values, key=lambda n: (n != "INDI_K_MIN", n))
         # The rules are checked one parameter at a time, so a set valid as a whole can pass through an invalid
-        # intermediate in the sorted order (from the defaults INDI_LAM_REF 0.5 / INDI_KFL_MIN 0.4, the paper's 1 / 0:
-        # INDI_KFL_MIN 0 first flies [0.25, 0.5], which the stability margin refuses). Refused entries are tried
+        # intermediate in the sorted order (from the defaults INDI_LAM_REF 0.4 / INDI_KFL_MIN 0.4, the paper's 1 / 0:
+        # INDI_KFL_MIN 0 first flies [0.2, 0.4], which the stability margin refuses). Refused entries are tried
         # again after the others while a pass makes progress; what is still refused then is reported.
         last: dict[str, SetResult] = {}
         pending = order

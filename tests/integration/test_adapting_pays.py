@@ -5,9 +5,9 @@ paper_wrong_model: the paper's scenario flown by a controller that believes the 
 estimate (INDI_LAM_REF 1, INDI_KFL_MIN 0: the paper's reading, the previous defaults), `proposed` (the constrained
 adaptive law) flies with >= 20 % less attitude RMS than `fixed` (K = 1, the controller's own model); with the paper's
 group-scaling allocation the same comparison stays below 20 %: the test can fail, and it tells the two apart (10
-seeds: docs/results.md, "Estimator"). At the defaults' flown gain (INDI_LAM_REF 0.5, INDI_KFL_MIN 0.4) both
-controllers fly the same lambda*, and adapting is compared with fixed at that gain (K = 1 flown as 0.5): there it
-gains little (1.9 % on this seed; docs/results.md "Adapting with a flown gain": a constant at the floor is within 2 %),
+seeds: docs/results.md, "Estimator"). At the defaults' flown gain (INDI_LAM_REF 0.4, INDI_KFL_MIN 0.4) both
+controllers fly 0.4 on the rotational axes (fixed: K = 1 flown as 0.4; the defaults whatever K_hat) and differ on the
+mass axis only: there the two fly alike (within 0.001 % on this seed; docs/results.md "Adapting with a flown gain"),
 and the defaults beat the controller's own model flown as K = 1 by far more than 20 %. The first 12.5 s hold the 1 kg
 and 2 kg arm reversals, the object's arrival and the east/north position steps.
 """
@@ -55,5 +55,6 @@ def test_with_group_scaling_adapting_gains_less(summaries) -> None:
 def test_at_the_defaults_flown_gain_adapting_is_no_worse_than_fixed(summaries) -> None:
     p = summaries[("defaults", "proposed")]
     assert p["lost_control"] is False and p["bound_violations"] == 0
-    assert _gain(summaries, "defaults") > 0.0, _gain(summaries, "defaults")  # the same lambda*: 1.9 %
+    # the same rotational gain (0.4), the mass axis adapted or not: no worse than 0.5 % (-0.0003 % on this seed)
+    assert _gain(summaries, "defaults") > -0.005, _gain(summaries, "defaults")
     assert _gain(summaries, "defaults", against="best") >= GAIN_MIN, _gain(summaries, "defaults", against="best")

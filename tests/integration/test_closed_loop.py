@@ -15,7 +15,7 @@ from navig8_tools.sim import main as sim_main
 from navig8_tools.sim import run
 
 # the flown eigenvalue's floor: the registry's guaranteed minimum of G_hat G^-1 over the flown K box (the defaults'
-# INDI_LAM_REF 0.5, INDI_KFL_MIN 0.4: [0.4, 1]) and the workspace, 0.386 on navig8-stability's full sweep, rounded down
+# INDI_LAM_REF 0.4, INDI_KFL_MIN 0.4: [0.4, 1]) and the workspace, 0.386 on navig8-stability's full sweep, rounded down
 # (the paper scenario flies 0.396-0.399)
 EIG_FLOOR = 0.38
 

@@ -37,7 +37,7 @@ def test_fc_hovers_on_px4_simulator_messages_alone(tmp_path: Path) -> None:
             # more delay than the private seam, and no actuator feedback. The defaults' 0.02 s INDI filter does not
             # hold that loop (the roll oscillates between the duct speed limits; docs/hil.md, "PX4 simulator
             # messages"); the paper's 0.1 s filter does, set as a ground station would, with the INDI flying the
-            # estimate K_hat (INDI_LAM_REF 1, then INDI_KFL_MIN 0): with the defaults' flown gain (lambda* 0.5, the
+            # estimate K_hat (INDI_LAM_REF 1, then INDI_KFL_MIN 0): with a flown gain (lambda* 0.5, the
             # higher loop gain) and the 0.1 s filter the vehicle reaches no Hold after takeoff over this link.
             gcs = gcs_client(run.gcs_port)
             try:

@@ -18,7 +18,7 @@ from navig8_tools.mission import fly, plan_from_scenario, read_plan, write_wpl
 from navig8_tools.summary import summarize
 
 # the flown eigenvalue's floor: the registry's guaranteed minimum of G_hat G^-1 over the defaults' flown K box
-# ([0.4, 1]: INDI_LAM_REF 0.5, INDI_KFL_MIN 0.4) and the workspace, 0.386 on the full sweep, rounded down (0.399 here)
+# ([0.4, 1]: INDI_LAM_REF 0.4, INDI_KFL_MIN 0.4) and the workspace, 0.386 on the full sweep, rounded down (0.399 here)
 EIG_FLOOR = 0.38
 
 def test_paper_plan_flown_by_navig8_mission_meets_the_paper_criteria(tmp_path: Path) -> None:

@@ -25,7 +25,7 @@ ROBUST = (
 )
 CHECKS_ON = (("ACT_ID", 1), ("ARM_SERVO_ID", 1), ("OL_FF", 1))
 # the flown loop gain (lambda*, the flown floor): one row of the table
-FLOWN_GAIN = (("INDI_LAM_REF", 0.5, 1.0), ("INDI_KFL_MIN", 0.4, 0.0))
+FLOWN_GAIN = (("INDI_LAM_REF", 0.4, 1.0), ("INDI_KFL_MIN", 0.4, 0.0))
 
 
 def test_the_defaults_are_the_documented_robust_configuration() -> None:
@@ -74,7 +74,7 @@ def test_the_estimator_options_are_the_documented_ones() -> None:
                      "CKF_CZ_SIG": pytest.approx(0.03), "CKF_LPF_SEED": 1, "CKF_U_SRC": 2, "CKF_IXZ_MOD": 2,
                      "CKF_GRIP_SIG": pytest.approx(1.0), "CKF_M_SIG_OPEN": pytest.approx(0.2),
                      "CKF_IXZ_SIG": pytest.approx(0.1), "CKF_CZ_DM": 1, "CKF_START_DLY": pytest.approx(0.75),
-                     "CKF_MOM_LPF": 1, "CKF_MOM_MREF": 1, "CKF_MOM_MOVE": 1, "INDI_LAM_REF": pytest.approx(0.4)}
+                     "CKF_MOM_LPF": 1, "CKF_MOM_MREF": 1, "CKF_MOM_MOVE": 1}
 
 
 def test_the_documented_table_agrees_with_the_parameter_file() -> None:

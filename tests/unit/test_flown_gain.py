@@ -93,9 +93,9 @@ def test_defaults_fly_k_hat_bit_for_bit() -> None:
 
 
 def test_the_stability_floor_analyses_the_flown_box() -> None:
-    reg = ParamRegistry.from_defaults()  # the defaults fly lambda* 0.5 with the floor 0.4: the flown box [0.4, 1]
+    reg = ParamRegistry.from_defaults()  # the defaults fly lambda* 0.4 with the floor 0.4: the flown box [0.4, 1]
     assert flown_k_bounds(reg.as_dict()) == (pytest.approx(0.4), pytest.approx(1.0))
-    res = reg.set("INDI_KFL_MIN", 0.0)  # the paper's order reversed: K_hat at 0.5 flies 0.25, below lambda_crit 0.244
+    res = reg.set("INDI_KFL_MIN", 0.0)  # the paper's order reversed: K_hat at 0.5 flies 0.2, below lambda_crit 0.244
     assert not res.accepted and "stability floor" in (res.reason or "")
     assert reg.set("INDI_LAM_REF", 1.0).accepted  # lambda* 1 first (paper.parm's order) ...
     assert reg.set("INDI_KFL_MIN", 0.0).accepted  # ... then no floor: K_hat's own box

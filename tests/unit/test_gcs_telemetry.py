@@ -311,7 +311,7 @@ def test_highres_imu_is_off_until_asked_and_carries_the_imu_sample(mavs) -> None
 
 
 def test_eig_margin_is_bounded_over_the_box_of_the_k_flown() -> None:
-    """EIG_MARGIN sweeps the K the INDI flies: at the defaults' flown gain (lambda* 0.5, floor 0.4) the box is
+    """EIG_MARGIN sweeps the K the INDI flies: at the defaults' flown gain (lambda* 0.4, floor 0.4) the box is
     [0.4, 1], wider than the estimate's [0.5, 1]; flying K_hat (INDI_LAM_REF 1, INDI_KFL_MIN 0) it is the Eq. 20 box."""
     from navig8_fc.params.registry import ParamRegistry
     from navig8_fc.shell.telemetry_service import TelemetrySettings

@@ -276,7 +276,7 @@ def _preset_registry() -> ParamRegistry:
 
 def test_the_flown_configuration_is_accepted_and_nearby_settings_are_judged() -> None:
     """The real floor (workspace sweep): the defaults' 0.02 s filter with the model-based U0 and the flown gain
-    (lambda* 0.5, floor 0.4: the flown box [0.4, 1]) pass at 1.60x; the settings docs/stability.md lists as refused are
+    (lambda* 0.4, floor 0.4: the flown box [0.4, 1]) pass at 1.60x; the settings docs/stability.md lists as refused are
     refused, the ones it lists as accepted are accepted. The flown gain uses most of the headroom: the faster rate,
     lighter actuator damping and shorter filter that K_hat's own box (the paper's INDI_LAM_REF 1) accepts at 2.00x are
     refused now, and accepted again with lambda* 1."""
