@@ -37,11 +37,14 @@ test: $(STAMP)
 	# lockstep pair keeps about one core busy and the real-time tests little, so two modules side by side take
 	# 4.7 min instead of 7.8 (docs/results.md, "Test suite time"); --dist loadfile keeps a module's shared pair in
 	# one worker. tests/conftest.py warms numba's cache once before xdist starts its workers. Exit 5 fails.
+	# The slow and real-time lanes collect only tests/sitl and tests/clients, where every slow test lives (their
+	# conftests add the marker; tests/conftest.py fails the fast lane on a slow test elsewhere): with
+	# PYTHONDONTWRITEBYTECODE (CI) every worker rewrites the asserts of every module it collects, ~10 s a worker.
 	$(PY) -m pytest -q -m 'not slow' -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: fast lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
-	$(PY) -m pytest -q -m 'slow and not clients_all and not realtime' -n 2 --dist loadfile; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
+	$(PY) -m pytest -q -m 'slow and not clients_all and not realtime' -n 2 --dist loadfile tests/sitl tests/clients; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
 	# The real-time tests (the FC on its own clock, the bridge free-running) alone: beside a second worker their
 	# wall-clock loop is starved and the hover leaves its band (docs/hil.md).
-	$(PY) -m pytest -q -m 'realtime' -p no:xdist; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: real-time lane collected no tests' >&2; fi; exit $$rc
+	$(PY) -m pytest -q -m 'realtime' -p no:xdist tests/sitl tests/clients; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: real-time lane collected no tests' >&2; fi; exit $$rc
 
 # MAVSDK-Python's own examples, all of them (tests/clients; make test runs the quick ones), both identities: about 10 min on 2 workers.
 test-clients: $(STAMP)
