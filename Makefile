@@ -49,7 +49,8 @@ test: $(STAMP)
 	$(PY) -m pytest -q -m 'not slow' -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: fast lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
 	$(PY) -m pytest -q -m 'slow and not clients_all and not realtime' -n 3 --dist loadfile tests/sitl tests/clients; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
 	# The real-time tests (the FC on its own clock, the bridge free-running) alone: beside a second worker their
-	# wall-clock loop is starved and the hover leaves its band (docs/hil.md).
+	# wall-clock loop is starved and the hover leaves its band (docs/hil.md). With them the MAVFTP flood test, whose
+	# p99 control-step spacing is a wall-clock figure.
 	$(PY) -m pytest -q -m 'realtime' -p no:xdist tests/sitl tests/clients; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: real-time lane collected no tests' >&2; fi; exit $$rc
 
 # MAVSDK-Python's own examples, all of them (tests/clients; make test runs the quick ones), both identities: about 10 min on 2 workers.
