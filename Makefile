@@ -16,7 +16,9 @@ $(STAMP): $(PY) pyproject.toml
 	$(PY) -m pip install -q --no-compile -e '.[test]'
 	# MAVProxy for the SITL interoperability test, installed lean (its GUI deps are not needed).
 	$(PY) -m pip install -q --no-compile --no-deps 'MAVProxy==1.8.75'
-	$(PY) -m compileall -q -j 0 $$($(PY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])') >/dev/null || true
+	# The packages' own test folders (a third of the files) are never imported here: not compiled.
+	$(PY) -m compileall -q -j 0 -x '/tests/' $$($(PY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])') \
+		>/dev/null || true
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -33,15 +35,23 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(VENV)/bin/ruff check navig8_fc sim_bridge tools tests
-	# Fast lane (unit, integration) on both cores; then the SITL lane (real processes), also on two workers: a
-	# lockstep pair keeps about one core busy and the real-time tests little, so two modules side by side take
-	# 4.7 min instead of 7.8 (docs/results.md, "Test suite time"); --dist loadfile keeps a module's shared pair in
-	# one worker. tests/conftest.py warms numba's cache once before xdist starts its workers. Exit 5 fails.
+	# Our own modules byte-compiled once (only the changed ones): with PYTHONDONTWRITEBYTECODE (CI) every SITL process
+	# would compile them again at import (~0.15 s of CPU each, a few hundred processes).
+	$(PY) -m compileall -q -j 0 navig8_fc sim_bridge tools params tests/sitl tests/clients/*.py >/dev/null || true
+	# Fast lane (unit, integration) on both cores; then the SITL lane (real processes) on three workers: a lockstep
+	# pair at 1x and its test client keep about two thirds of a core busy (the lane on two workers used 1.3 of the
+	# 2 cores), so a third worker fills the cores (docs/results.md, "Test suite time"); --dist loadfile keeps a
+	# module's shared pair in one worker. tests/conftest.py warms numba's cache once before xdist starts its workers
+	# and starts the longest modules first. The slow and real-time lanes collect only tests/sitl and tests/clients,
+	# where every slow test lives (their conftests add the marker; tests/conftest.py fails the fast lane on a slow
+	# test elsewhere): with PYTHONDONTWRITEBYTECODE every worker rewrites the asserts of every module it collects
+	# (~10 s a worker for the whole tree). Exit 5 fails.
 	$(PY) -m pytest -q -m 'not slow' -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: fast lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
-	$(PY) -m pytest -q -m 'slow and not clients_all and not realtime' -n 2 --dist loadfile; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
+	$(PY) -m pytest -q -m 'slow and not clients_all and not realtime' -n 3 --dist loadfile tests/sitl tests/clients; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
 	# The real-time tests (the FC on its own clock, the bridge free-running) alone: beside a second worker their
-	# wall-clock loop is starved and the hover leaves its band (docs/hil.md).
-	$(PY) -m pytest -q -m 'realtime' -p no:xdist; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: real-time lane collected no tests' >&2; fi; exit $$rc
+	# wall-clock loop is starved and the hover leaves its band (docs/hil.md). With them the MAVFTP flood test, whose
+	# p99 control-step spacing is a wall-clock figure.
+	$(PY) -m pytest -q -m 'realtime' -p no:xdist tests/sitl tests/clients; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: real-time lane collected no tests' >&2; fi; exit $$rc
 
 # MAVSDK-Python's own examples, all of them (tests/clients; make test runs the quick ones), both identities: about 10 min on 2 workers.
 test-clients: $(STAMP)

@@ -11,10 +11,18 @@ cached; workers and SITL child processes then load the kernels from the cache.
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import pytest
 
 WARM_S = pytest.StashKey[float]()  # how long the warm-up took, for the report header
+_HERE = Path(__file__).resolve().parent
+_SLOW_DIRS = (_HERE / "sitl", _HERE / "clients")  # where the slow tests live (their conftests mark them)
+# The SITL lane's longest modules (the most minutes, summed over their tests, measured with --durations=0), started
+# first: `--dist loadfile` hands the modules out in collection order, so a long module collected last (alphabetically)
+# would leave the other worker idle at the end.
+LONGEST_FIRST = ("clients/test_mavsdk_examples.py", "sitl/test_sitl_paper.py", "sitl/test_sitl_paper_plan.py",
+                 "sitl/test_sitl_tcp_links.py", "sitl/test_sitl_link_health.py", "sitl/test_sitl_robustness.py")
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -32,3 +40,17 @@ def pytest_configure(config: pytest.Config) -> None:
 def pytest_report_header(config: pytest.Config) -> str | None:
     warm = config.stash.get(WARM_S, None)
     return None if warm is None else f"navig8: numba kernels warmed in {warm:.1f} s (tests/conftest.py)"
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Fail on a slow, real-time or client test outside tests/sitl and tests/clients: `make test` collects its slow
+    and real-time lanes from those two folders only. Then start the SITL lane's longest modules first (a stable
+    sort: every module's tests keep their order)."""
+    marks = ("slow", "realtime", "clients_all")
+    stray = [it.nodeid for it in items if not any(d in Path(str(it.fspath)).resolve().parents for d in _SLOW_DIRS)
+             and any(it.get_closest_marker(m) is not None for m in marks)]
+    if stray:
+        raise pytest.UsageError(f"{', '.join(marks)} tests belong in tests/sitl or tests/clients (make test collects "
+                                f"its slow lanes there): {', '.join(stray)}")
+    rank = {(_HERE / rel).resolve(): i for i, rel in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda it: rank.get(Path(str(it.fspath)).resolve(), len(rank)))
