@@ -288,8 +288,10 @@ def _realtime_link_report(inp: Inputs, guaranteed: float) -> dict[str, Any]:
     src = "model" if inp.u0_src == 1 else "measured"
     args = (inp.wn_rad_s, inp.zeta, 1.0 / inp.ts_s, inp.tl_s)
     told = {ch: sampled_lambda_crit(*args, ch, None, None, src, inp.u0_tau_s, link_delay_ticks=1) for ch in CHANNELS}
-    blind = {ch: sampled_lambda_crit(*args, ch, None, None, src, inp.u0_tau_s, link_delay_ticks=1, model_told=False)
-             for ch in CHANNELS}
+    # the measured U0 reads no actuator model: told or not, the same loop
+    blind = told if src == "measured" else {
+        ch: sampled_lambda_crit(*args, ch, None, None, src, inp.u0_tau_s, link_delay_ticks=1, model_told=False)
+        for ch in CHANNELS}
     worst = max(told.values())
     ratio = guaranteed / worst
     return {"sampled_lambda_crit": told, "sampled_lambda_crit_blind": blind, "margin": _finite_or_none(ratio),

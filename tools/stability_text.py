@@ -156,9 +156,7 @@ def _margin_lines(r: dict[str, Any]) -> list[str]:
 
 
 def _realtime_link_lines(m: dict[str, Any]) -> list[str]:
-    rt = m.get("realtime_link")
-    if rt is None:
-        return []
+    rt = m["realtime_link"]
     told, blind = rt["sampled_lambda_crit"], rt["sampled_lambda_crit_blind"]
     ratio = "inf" if rt["margin"] is None else f"{rt['margin']:.3f}"
     return [
