@@ -112,16 +112,37 @@ def sampled_lambda_crit(
     link_delay_ticks: int = 0,
     model_told: bool = True,
 ) -> float:
-    """lambda_crit of the sampled loop (sampled_loop_matrix): where its spectral radius reaches 1, from lam = 1 down."""
+    """lambda_crit of the sampled loop (sampled_loop_matrix): where its spectral radius reaches 1, from lam = 1 down.
+
+    The matrix is affine in 1/lam (lam enters only through u = U0 - Acc/lam, Eq. 6): built twice, at lam = 1 and 1/2,
+    as A + B/lam, so each point of the scan is one eigenvalue problem (the registry's floor over a delayed link)."""
+    args = (wn, zeta, rate_hz, tl, channel, plant_wn, plant_zeta, u0_source, u0_tau_s, link_delay_ticks, model_told)
+    m_1 = sampled_loop_matrix(1.0, *args)
+    m_b = sampled_loop_matrix(0.5, *args) - m_1  # B: the step from 1/lam = 1 to 2
+    m_a = m_1 - m_b
 
     def f(lam: float) -> float:
-        m = sampled_loop_matrix(lam, wn, zeta, rate_hz, tl, channel, plant_wn, plant_zeta, u0_source, u0_tau_s,
-                                link_delay_ticks, model_told)
-        return float(np.max(np.abs(np.linalg.eigvals(m)))) - 1.0
+        return float(np.max(np.abs(np.linalg.eigvals(m_a + m_b / lam)))) - 1.0
 
     if f(1.0) >= 0.0:
         raise ValueError("the sampled loop is not stable at lam = 1")
     return edge_from_nominal(f, lam_lo, n_scan, 0.0, xtol=1e-10)
+
+
+def link_lambda_crit(
+    wn: float,
+    zeta: float,
+    rate_hz: float,
+    tl: float,
+    u0_source: str,
+    u0_tau_s: float,
+    link_delay_ticks: int,
+    model_told: bool = True,
+) -> float:
+    """lambda_crit of the loop flown over a link whose answers fly link_delay_ticks ticks later than in lockstep: the
+    larger of the rotational and force modes' sampled_lambda_crit (the guaranteed eigenvalue bounds both)."""
+    return max(sampled_lambda_crit(wn, zeta, rate_hz, tl, ch, None, None, u0_source, u0_tau_s,
+                                   link_delay_ticks=link_delay_ticks, model_told=model_told) for ch in CHANNELS)
 
 
 # --------------------------------------------------------------------------------------

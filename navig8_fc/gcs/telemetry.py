@@ -44,10 +44,12 @@ measurement. The actual min eigenvalue of G_hat G^-1 needs the true G, which onl
 is in the logs); an "as estimated" variant (G from the estimated object) was not chosen because it would
 report the estimator's own belief back as a margin.
 LAM_CRIT: lambda_crit of H(s) for the configuration in force (ACT_WN, ACT_ZETA, 1/INDI_RATE_HZ, INDI_LPF_TAU;
-Eq. 9-13). LAM_MARGIN: the stated margin the parameter checks enforce, the smallest eigenvalue of G_hat G^-1
-guaranteed over the K box and the workspace divided by LAM_CRIT (a change that takes it below INDI_LAM_MARGIN is
-refused; docs/stability.md "The flown configuration"). Both change only with those parameters: the registry's
-stability floor of the values in force, NaN while it is being computed (a worker, after a reset or at start).
+Eq. 9-13), or, when the FC runs in real time and the sim link flies its answers later than lockstep would, of the
+sampled loop with that delay (measured; docs/stability.md "Over a real-time link"). LAM_MARGIN: the stated margin
+the parameter checks enforce, the smallest eigenvalue of G_hat G^-1 guaranteed over the K box and the workspace
+divided by LAM_CRIT (a change that takes it below INDI_LAM_MARGIN is refused; docs/stability.md "The flown
+configuration"). Both change only with those parameters and the link's delay: the registry's stability floor of the
+values in force, LAM_MARGIN NaN while it is being computed (a worker, after a reset, at start, when the delay moved).
 
 Frames and units: GLOBAL_POSITION_INT converts NED to WGS-84 with PX4's flat-earth (equirectangular)
 projection around `GeoOrigin`, Earth radius 6 371 000 m: lat = lat0 + n/R, lon = lon0 + e/(R cos lat0),

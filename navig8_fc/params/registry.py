@@ -12,7 +12,8 @@ Rules checked on every set (each refusal carries a human-readable reason):
 - the stability floor (DESIGN §5): a K bound (or an actuator/sampling/filter parameter) that would
   let an eigenvalue of G_hat G^-1 fall below the critical eigenvalue of H(s) (Eq. 9-13) anywhere in
   the workspace is refused, and so is one that leaves the guaranteed smallest eigenvalue less than
-  INDI_LAM_MARGIN times lambda_crit (the stated margin, docs/stability.md "The flown configuration");
+  INDI_LAM_MARGIN times lambda_crit (the stated margin, docs/stability.md "The flown configuration"), lambda_crit
+  being the loop's over the sim link as the shell measured it (`set_link`: lockstep unless told otherwise);
 - `not_armed: true` in the YAML: the parameter changes the loop itself (rate, filters, actuator model,
   estimator mode) and is refused while armed (`set(..., armed=True)`).
 
@@ -48,6 +49,34 @@ FLOOR_INPUTS = ("INDI_K_MIN", "INDI_K_MAX", "ACT_WN", "ACT_ZETA", "INDI_RATE_HZ"
                 "INDI_KFL_MIN")
 # The flown-gain parameters (INDI_LAM_REF, INDI_KFL_MIN) when a caller's values lack them: the paper's K_hat flown
 FLOWN_GAIN_DEFAULTS = {"INDI_LAM_REF": 1.0, "INDI_KFL_MIN": 0.0}
+# The sim link's timing, beside the parameters in the values a floor is computed for (not parameters: measured by the
+# FC's shell, `ParamRegistry.set_link`): how many ticks later than in lockstep the answers fly, and whether the FC's
+# actuator model is told which answer flew (docs/stability.md, "Over a real-time link"). Absent: lockstep.
+LINK_DELAY_KEY, LINK_TOLD_KEY = "link_delay_ticks", "link_model_told"
+# What the loop over a delayed link depends on besides FLOOR_INPUTS (its U0: lockstep's Pade H(s) does not read it)
+LINK_FLOOR_INPUTS = ("INDI_U0_SRC", "INDI_U0_TAU")
+LINK_U0_DEFAULTS = {"INDI_U0_SRC": 0, "INDI_U0_TAU": 0.2}
+
+
+@dataclass(frozen=True)
+class LinkTiming:
+    """The sim link as the loop flies it: answers flown `delay_ticks` ticks later than in lockstep (0: lockstep), the
+    actuator model told which answer flew (the bridge's cmd_time_usec echo) or not."""
+
+    delay_ticks: int = 0
+    model_told: bool = True
+
+    def __post_init__(self) -> None:
+        if self.delay_ticks < 0 or int(self.delay_ticks) != self.delay_ticks:
+            raise ValueError(f"delay_ticks must be an integer >= 0, got {self.delay_ticks}")
+
+
+LOCKSTEP = LinkTiming()
+
+
+def link_of(values: Mapping[str, Any]) -> LinkTiming:
+    """The link timing carried in a floor's values (lockstep when absent)."""
+    return LinkTiming(int(values.get(LINK_DELAY_KEY, 0)), bool(values.get(LINK_TOLD_KEY, True)))
 FLOOR_CACHE_SIZE = 256
 
 
@@ -120,6 +149,8 @@ class StabilityStatus:
     margin: float  # min_eigenvalue / lambda_crit
     required_margin: float  # INDI_LAM_MARGIN
     lambda_min: float  # INDI_LAMBDA_MIN (the performance target, Sec. 3.2)
+    link_delay_ticks: int = 0  # the sim link's delay the floor is computed for (LinkTiming; 0: lockstep)
+    link_model_told: bool = True
 
     @property
     def meets_margin(self) -> bool:
@@ -163,12 +194,22 @@ class WorkspaceStabilityCheck:
             vehicle = VehicleConfig.load(self._vehicle_path)
             self._workspace[path] = (vehicle, k_xi.workspace_xi(vehicle))
         cfg, xi = self._workspace[path]
-        lam_crit = stability.lambda_crit(
-            float(values["ACT_WN"]),
-            float(values["ACT_ZETA"]),
-            1.0 / float(values["INDI_RATE_HZ"]),
-            float(values["INDI_LPF_TAU"]),
-        )
+        link = link_of(values)
+        if link.delay_ticks == 0:  # lockstep: H(s) with the one-sample Pade delay, its conservative model
+            lam_crit = stability.lambda_crit(
+                float(values["ACT_WN"]),
+                float(values["ACT_ZETA"]),
+                1.0 / float(values["INDI_RATE_HZ"]),
+                float(values["INDI_LPF_TAU"]),
+            )
+        else:  # the answers fly later: the sampled loop with the commands in flight as states (exact, discrete)
+            from navig8_fc.core.sampled_loop import link_lambda_crit
+
+            u0 = {n: values.get(n, LINK_U0_DEFAULTS[n]) for n in LINK_FLOOR_INPUTS}
+            lam_crit = link_lambda_crit(
+                float(values["ACT_WN"]), float(values["ACT_ZETA"]), float(values["INDI_RATE_HZ"]),
+                float(values["INDI_LPF_TAU"]), "model" if int(u0["INDI_U0_SRC"]) == 1 else "measured",
+                float(u0["INDI_U0_TAU"]), link.delay_ticks, link.model_told)
         k_min, k_max = flown_k_bounds(values)  # the K the INDI flies (INDI_LAM_REF, INDI_KFL_MIN), not K_hat's box
         min_eig = k_xi.min_eigenvalue_of_xi(xi, k_min, k_max)
         lam_up = stability.lambda_upper(
@@ -198,8 +239,13 @@ def run_floor(check: StabilityCheck, values: Mapping[str, float | int]) -> Stabi
 
 
 def floor_key(values: Mapping[str, float | int]) -> tuple[float, ...]:
-    """The values the stability floor depends on, as a cache key."""
-    return tuple(float(values[n] if n in values else FLOWN_GAIN_DEFAULTS[n]) for n in FLOOR_INPUTS)
+    """The values the stability floor depends on, as a cache key (the link's timing and, over a delayed link, U0)."""
+    key = tuple(float(values[n] if n in values else FLOWN_GAIN_DEFAULTS[n]) for n in FLOOR_INPUTS)
+    link = link_of(values)
+    if link.delay_ticks == 0:
+        return key
+    u0 = tuple(float(values.get(n, LINK_U0_DEFAULTS[n])) for n in LINK_FLOOR_INPUTS)
+    return (*key, float(link.delay_ticks), float(link.model_told), *u0)
 
 
 def flown_k_bounds(values: Mapping[str, float | int]) -> tuple[float, float]:
@@ -270,6 +316,7 @@ class ParamRegistry:
         self._stability_check = stability_check
         self._generation = 0
         self._floors: dict[tuple[float, ...], StabilityFloor] = {}  # floor_key -> result (insertion = age)
+        self._link = LOCKSTEP  # the sim link's timing the floor in force and the margin rule are computed for
 
     # --- construction -------------------------------------------------------------------------
     @staticmethod
@@ -361,15 +408,38 @@ class ParamRegistry:
             return f"{name}: {v:g} outside [{d.min:g}, {d.max:g}] {d.units}".rstrip()
         if armed and d.not_armed and cv != self._values[name]:
             return f"{name}: cannot be changed while armed (it changes the control loop)"
-        candidate = dict(self._values)
+        candidate = self.floor_values()
         candidate[name] = cv
         return candidate
+
+    # --- the sim link's timing -------------------------------------------------------------------
+    @property
+    def link(self) -> LinkTiming:
+        return self._link
+
+    def set_link(self, link: LinkTiming) -> None:
+        """The sim link's timing as the shell measured it: from now on the floor in force (LAM_CRIT, LAM_MARGIN)
+        and the margin rule are those of the loop flown over it (not computed until a caller computes it:
+        floor_in_force is None meanwhile, as after a reset)."""
+        self._link = link
+
+    def floor_values(self) -> dict[str, Any]:
+        """The values in force with the link's timing: what the floor in force is computed for (run_floor)."""
+        values: dict[str, Any] = dict(self._values)
+        if self._link.delay_ticks > 0:
+            values[LINK_DELAY_KEY] = self._link.delay_ticks
+            values[LINK_TOLD_KEY] = self._link.model_told
+        return values
+
+    def _needs_floor(self, name: str) -> bool:
+        """A change to `name` is checked against the stability floor (over a delayed link U0's parameters too)."""
+        return name in STABILITY_PARAMS or (self._link.delay_ticks > 0 and name in LINK_FLOOR_INPUTS)
 
     # --- stability floor (cached; computable off the caller's thread) ----------------------------
     def floor_needed(self, name: str, value: float, armed: bool = False) -> dict[str, float | int] | None:
         """The candidate values whose floor a set of `name` to `value` would compute now (not cached), else
         None (no floor needed, cached, or refused earlier by a cheap rule)."""
-        if name not in STABILITY_PARAMS or self._stability_check is None:
+        if not self._needs_floor(name) or self._stability_check is None:
             return None
         candidate = self._candidate(name, value, armed)
         if isinstance(candidate, str) or floor_key(candidate) in self._floors:
@@ -396,7 +466,7 @@ class ParamRegistry:
         computed yet: after a reset to defaults or at start, until a caller computes it, e.g. on a worker)."""
         if self._stability_check is None:
             return None
-        return self._floors.get(floor_key(self._values))
+        return self._floors.get(floor_key(self.floor_values()))
 
     def stability_status(self) -> StabilityStatus | None:
         """lambda_crit, the guaranteed smallest eigenvalue and their ratio for the values in force (None: the
@@ -406,7 +476,8 @@ class ParamRegistry:
             return None
         return StabilityStatus(floor.lambda_crit, floor.min_eigenvalue, floor.margin,
                                float(self._values.get("INDI_LAM_MARGIN", 1.0)),
-                               float(self._values.get("INDI_LAMBDA_MIN", math.nan)))
+                               float(self._values.get("INDI_LAMBDA_MIN", math.nan)),
+                               self._link.delay_ticks, self._link.model_told)
 
     def _floor(self, values: Mapping[str, float | int]) -> StabilityFloor:
         key = floor_key(values)
@@ -419,7 +490,7 @@ class ParamRegistry:
     def _cross_check(self, name: str, c: Mapping[str, float | int]) -> str | None:
         if "INDI_K_MIN" in c and "INDI_K_MAX" in c and c["INDI_K_MIN"] > c["INDI_K_MAX"]:
             return f"{name}: needs INDI_K_MIN <= INDI_K_MAX ({c['INDI_K_MIN']:g} > {c['INDI_K_MAX']:g})"
-        if name in STABILITY_PARAMS and self._stability_check is not None:
+        if self._needs_floor(name) and self._stability_check is not None:
             floor = self._floor(c)
             if not floor.min_eigenvalue > floor.lambda_crit:
                 return (

@@ -35,7 +35,7 @@ class FloorWorker:
         answered in a configuration's own time (~20 ms)."""
         self._start()
         assert self._pool is not None
-        self._pool.submit(run_floor, self._registry.stability_check, self._registry.as_dict())
+        self._pool.submit(run_floor, self._registry.stability_check, self._registry.floor_values())
 
     def _start(self) -> None:
         try:
@@ -157,7 +157,7 @@ class ParamSets:
             return
         if reg.floor_in_force() is not None:
             return
-        values = reg.as_dict()
+        values = reg.floor_values()  # the values in force with the sim link's timing
         if self._floor is not None and not self._floor.failed:
             self._floor.submit(values, now_wall)
         else:

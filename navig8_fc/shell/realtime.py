@@ -168,3 +168,35 @@ class RealtimeClock:
 
 
 __all__ = ["TIMING_LOCKSTEP", "TIMING_REALTIME", "RealtimeClock", "RealtimeStats"]
+
+
+LINK_DELAY_BLOCK = 256  # answers per estimate (2.6 s at 100 Hz): the delay the floor is computed for moves at most once
+# a block, so a link at the edge between two delays does not recompute the floor (nor announce it) every tick
+LINK_DELAY_QUANTILE = 0.95  # the delay 95 % of a block's answers met: an answer late now and then is jitter
+
+
+class LinkDelayMeter:
+    """How many ticks later than in lockstep the simulator flies the FC's answers (docs/hil.md, "The link's delay and
+    the actuator model"), from the answer it says it flew up to each bundle (NAVIG8_ACTUATOR_STATE.cmd_time_usec,
+    mapped to the FC's tick that answered it): in lockstep the answer of the tick before flies, so a tick's delay is
+    the ticks between the two less one. Per block of LINK_DELAY_BLOCK answers, the delay LINK_DELAY_QUANTILE of them
+    met; `delay_ticks` is None until a block is full (a simulator that does not echo never fills one)."""
+
+    def __init__(self) -> None:
+        self._counts: dict[int, int] = {}
+        self._n = 0
+        self.delay_ticks: int | None = None
+
+    def add(self, answered_clock_us: int, clock_us: int, period_us: float) -> None:
+        """One bundle: the FC's clock at the tick whose answer flew up to it, and at the tick now."""
+        d = max(0, int(round((clock_us - answered_clock_us) / period_us)) - 1)
+        self._counts[d] = self._counts.get(d, 0) + 1
+        self._n += 1
+        if self._n >= LINK_DELAY_BLOCK:
+            need, seen = LINK_DELAY_QUANTILE * self._n, 0
+            for delay in sorted(self._counts):
+                seen += self._counts[delay]
+                if seen >= need:
+                    self.delay_ticks = delay
+                    break
+            self._counts, self._n = {}, 0

@@ -18,6 +18,7 @@ from navig8_fc.links.sim_guard import SimGuard, SimInput
 from navig8_fc.mavlink import seam
 from navig8_fc.shell.fc_log import StepRecord
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
+from navig8_fc.shell.realtime import LinkDelayMeter
 from navig8_fc.shell.sim_peer import BundlePeer, Lockstep, Px4Peer, Realtime
 
 ANSWERS_REMEMBERED = 32  # real time: the answers the bridge's echo is looked up in (0.32 s at 100 Hz, > the FC's 16)
@@ -43,6 +44,7 @@ class SimStepper:
         # real time: the FC's clock at the ticks that answered the last bundles, by the bundle's stamp (the bridge
         # echoes the stamp of the answer it flew; the controller knows its commands by its own clock)
         self._answered_clock_us: dict[int, int] = {}
+        self.link_delay = LinkDelayMeter()  # real time: how late the answers fly (the stability floor's link)
         self.pending_tick: StepRecord | None = None  # the last step's log record, written after its answer
         self.sim_status: Any = None
         self.sim_done = False
@@ -129,6 +131,8 @@ class SimStepper:
         not one of the last ANSWERS_REMEMBERED); this bundle's tick is remembered under its stamp."""
         answered = self._answered_clock_us
         flown = answered.get(cmd_time_usec)
+        if flown is not None:
+            self.link_delay.add(flown, clock_us, self.stack.core.config.dt_s * 1e6)
         answered[t_us] = clock_us
         if len(answered) > ANSWERS_REMEMBERED:
             del answered[next(iter(answered))]  # the oldest (dicts keep insertion order)

@@ -80,11 +80,12 @@ class Telemetry:
         s = v.sensors
         st = v.status
         cfg = self.settings
+        stab = self._registry.stability_status()
+        # the floor's lambda_crit: the loop flown (over a late sim link, that link's); lockstep's H(s) while computing
+        lam_crit = stab.lambda_crit if stab is not None else v.lambda_crit
         if st is not None and now_wall - self._eig_t > self.EIG_MARGIN_PERIOD_S:
             self._eig_t = now_wall
-            self._eig_margin = eig_margin_lower_bound(self._vehicle, st.q_est_rad, cfg.k_min, cfg.k_max,
-                                                      v.lambda_crit)
-        stab = self._registry.stability_status()
+            self._eig_margin = eig_margin_lower_bound(self._vehicle, st.q_est_rad, cfg.k_min, cfg.k_max, lam_crit)
         zero3 = (0.0, 0.0, 0.0)
         ok = v.sensors_ok
         return VehicleSnapshot(
@@ -113,7 +114,7 @@ class Telemetry:
             ckf_x_hat=st.adapt.x_hat if st else (math.nan,) * 4,  # type: ignore[arg-type]
             ckf_k=st.adapt.k if st else (math.nan,) * 4,  # type: ignore[arg-type]
             eig_margin=self._eig_margin,
-            lam_crit=v.lambda_crit,
+            lam_crit=lam_crit,
             lam_margin=stab.margin if stab is not None else math.nan,
             time_unix_usec=time.time_ns() // 1000,
             throttle_pct=throttle_pct(self._vehicle, s.prop_speed_rad_s) if s else 0.0,

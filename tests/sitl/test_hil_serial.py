@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from sitl_helpers import fly_realtime
 
+from navig8_fc.core.sampled_loop import link_lambda_crit
 from navig8_fc.shell.mcap_log import read_mcap
 from navig8_tools.nullmodem import NullModem
 
@@ -37,3 +38,13 @@ def test_realtime_fc_flies_over_a_921600_baud_serial_line(tmp_path: Path) -> Non
     indi = [st["indi"] for _, _, st in read_mcap(log, ["/fc/status"]) if st.get("indi")]
     assert len(indi) > 500 and all(i["u0_model_trusted"] for i in indi), len(indi)
     assert all(120.0 / 1.17 < wn < 120.0 * 1.17 for i in indi for wn in i["act_wn_rad_s"])
+    # the FC measured that delay (its own clock at the tick the echoed answer came from) and its stability floor
+    # followed: /fc/stability (LAM_CRIT, LAM_MARGIN) of the loop one tick late, below the required margin, said once
+    stab = [r for _, _, r in read_mcap(log, ["/fc/stability"])]
+    assert stab[0]["link_delay_ticks"] == 0 and stab[-1]["link_delay_ticks"] == 1, stab
+    late = link_lambda_crit(120.0, 1.0, 100.0, 0.02, "model", 0.2, 1)  # the defaults' loop, the model told
+    assert stab[-1]["lambda_crit"] == pytest.approx(late, rel=1e-6)  # the parameters are float32
+    assert stab[-1]["margin"] == pytest.approx(stab[0]["min_eigenvalue"] / late, rel=1e-6)
+    assert not stab[-1]["meets_margin"] and stab[-1]["margin"] < 1.5
+    texts = [r["text"] for _, _, r in read_mcap(log, ["/fc/statustext"])]
+    assert sum("over this link < INDI_LAM_MARGIN 1.5" in t for t in texts) == 1, texts
