@@ -24,7 +24,7 @@ from navig8_fc.mavlink import codec
 from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mavlink.px4sim import PX4_SIM_MESSAGES
 from navig8_fc.mission.geo import origin_from_params
-from navig8_fc.params.registry import LinkTiming, ParamRegistry, StabilityStatus
+from navig8_fc.params.registry import ParamRegistry, StabilityStatus
 from navig8_fc.shell.fc_log import FcLog, StepRecord
 from navig8_fc.shell.fc_options import FcOptions, build_arg_parser, options_from_args
 from navig8_fc.shell.fc_state import FcState
@@ -47,6 +47,15 @@ FLOOR_READY_WAIT_S = 10.0  # at most this long at start for the stability-floor 
 EXIT_USAGE = 2  # bad arguments, or a port in use
 CONTROLLERS = ("fixed", "unconstrained", "proposed", "pinned", "lms")  # by CKF_MODE (the run's metadata)
 _PORT_OPTIONS = {"sim": "--sim-port", "gcs": "--gcs-bind-port", "api": "--api-bind-port"}
+
+
+def link_margin_warning(stab: StabilityStatus) -> str | None:
+    """The warning when the floor in force over a late sim link leaves less than INDI_LAM_MARGIN (docs/stability.md,
+    "Over a real-time link"); None otherwise."""
+    if stab.link_delay_ticks == 0 or stab.meets_margin:
+        return None
+    return (f"Stability margin {stab.margin:.2f} over this link < INDI_LAM_MARGIN {stab.required_margin:g} "
+            f"(lambda_crit {stab.lambda_crit:.3f})")
 
 
 class FlightControllerProcess:
@@ -295,31 +304,17 @@ class FlightControllerProcess:
         for change in self.gcs_service.poll(now):  # PARAM_SETs that waited for their stability floor
             self.log_param_change(change)
         self.signing.checkpoint(now)  # the signed streams' timestamps beside the key (replays after a restart)
-        self._follow_link()
+        if self.steps is not None:
+            self.steps.follow_link(self.registry)
         stab = self.gcs_service.stability
         if stab is not None and stab != self._stability_logged:
             self._stability_logged = stab
-            self.log_stability(stab)
-            if stab.link_delay_ticks > 0 and not stab.meets_margin:
-                self.statustext(f"Stability margin {stab.margin:.2f} over this link < INDI_LAM_MARGIN "
-                                f"{stab.required_margin:g} (lambda_crit {stab.lambda_crit:.3f})", 4)
+            self.log.stability(stab)
+            if (text := link_margin_warning(stab)) is not None:
+                self.statustext(text, 4)  # MAV_SEVERITY_WARNING
         if self.mission_view is not None:  # /foxglove/mission follows the uploaded plan
             m = self.gcs_service.mission
             self.mission_view.show(m.generation, m.plan, self.gcs_service.origin, lambda: self.stack.state().home_ned_m)
-
-    def _follow_link(self) -> None:
-        """Real time: the stability floor (LAM_CRIT, LAM_MARGIN, the margin rule) follows how late the sim link flies
-        the answers, as measured (realtime.LinkDelayMeter); lockstep's floor until a block of answers is measured."""
-        steps = self.steps
-        delay = steps.link_delay.delay_ticks if steps is not None else None
-        if delay is None or delay == self.registry.link.delay_ticks:
-            return
-        self.registry.set_link(LinkTiming(delay, True))
-        self.statustext(f"Sim link: answers fly {delay} tick{'s' if delay != 1 else ''} later than in lockstep; "
-                        "LAM_MARGIN and the margin rule are now that loop's", 6)
-
-    def log_stability(self, stab: StabilityStatus) -> None:
-        self.log.stability(stab)
 
     def log_event(self, text: str) -> None:
         print(f"navig8-fc: {text}", file=sys.stderr)

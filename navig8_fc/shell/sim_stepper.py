@@ -16,6 +16,7 @@ from navig8_fc.flight import ArmRequest, FlightStack, Notice
 from navig8_fc.links.mavlink_link import UdpLink
 from navig8_fc.links.sim_guard import SimGuard, SimInput
 from navig8_fc.mavlink import seam
+from navig8_fc.params.registry import LinkTiming, ParamRegistry
 from navig8_fc.shell.fc_log import StepRecord
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.realtime import LinkDelayMeter
@@ -125,6 +126,16 @@ class SimStepper:
             self._log_event(note)  # a loaded host overruns too: /fc/event and stderr, not a STATUSTEXT
         if self._log_active():
             self.pending_tick = StepRecord(t_us, b.truth, res.status, cmd, res.setpoint, inp.wire, out, sensors)
+
+    def follow_link(self, registry: ParamRegistry) -> None:
+        """Real time: the stability floor (LAM_CRIT, LAM_MARGIN, the margin rule) follows how late the simulator flies
+        the answers, as measured (realtime.LinkDelayMeter); lockstep's floor until a block of answers is measured."""
+        delay = self.link_delay.delay_ticks
+        if delay is None or delay == registry.link.delay_ticks:
+            return
+        registry.set_link(LinkTiming(delay, True))
+        self._statustext(f"Sim link: answers fly {delay} tick{'s' if delay != 1 else ''} later than in lockstep; "
+                         "LAM_MARGIN and the margin rule are now that loop's", 6)
 
     def _flown_at(self, cmd_time_usec: int, t_us: int, clock_us: int) -> float | None:
         """Real time: the FC's time (s) of the tick whose answer the bridge says it flew up to this bundle (None:
