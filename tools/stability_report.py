@@ -284,7 +284,8 @@ def _realtime_link_report(inp: Inputs, guaranteed: float) -> dict[str, Any]:
     """The loop over a real-time link, whose answer to the sample at t_k flies from t_k+2 (docs/hil.md): the sampled
     loop's lambda_crit with one more tick of delay (sampled_loop_matrix's link_delay_ticks), the actuator model told
     which command flew (the bridge's echo) and blind, and the guaranteed eigenvalue's margin against it. The registry's
-    rule is stated for the lockstep loop (one tick); this is what the same configuration has left over a link."""
+    floor in force follows a real-time FC's measured link (docs/stability.md, "Over a real-time link"); this is what the
+    configuration has left over a link one tick late."""
     src = "model" if inp.u0_src == 1 else "measured"
     args = (inp.wn_rad_s, inp.zeta, 1.0 / inp.ts_s, inp.tl_s)
     told = {ch: sampled_lambda_crit(*args, ch, None, None, src, inp.u0_tau_s, link_delay_ticks=1) for ch in CHANNELS}
