@@ -29,6 +29,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from navig8_fc.params.registry import LinkTiming
+
 TIMING_LOCKSTEP, TIMING_REALTIME = 0, 1
 REPORT_PERIOD_S = 1.0
 BEHIND_RESYNC_PERIODS = 5  # a loop this many periods late (a stall) restarts the schedule instead of bursting
@@ -173,30 +175,40 @@ __all__ = ["TIMING_LOCKSTEP", "TIMING_REALTIME", "RealtimeClock", "RealtimeStats
 LINK_DELAY_BLOCK = 256  # answers per estimate (2.6 s at 100 Hz): the delay the floor is computed for moves at most once
 # a block, so a link at the edge between two delays does not recompute the floor (nor announce it) every tick
 LINK_DELAY_QUANTILE = 0.95  # the delay 95 % of a block's answers met: an answer late now and then is jitter
+# A simulator that never says which answer it flew (PX4's messages: no NAVIG8_ACTUATOR_STATE) leaves the delay unknown
+# and the FC's actuator model untold: in real time the loop is then taken one tick late and blind, the usual worst
+# (docs/hil.md: the defaults' margin 0.97 there)
+UNECHOED_LINK = LinkTiming(1, False)
 
 
 class LinkDelayMeter:
     """How many ticks later than in lockstep the simulator flies the FC's answers (docs/hil.md, "The link's delay and
     the actuator model"), from the answer it says it flew up to each bundle (NAVIG8_ACTUATOR_STATE.cmd_time_usec,
     mapped to the FC's tick that answered it): in lockstep the answer of the tick before flies, so a tick's delay is
-    the ticks between the two less one. Per block of LINK_DELAY_BLOCK answers, the delay LINK_DELAY_QUANTILE of them
-    met; `delay_ticks` is None until a block is full (a simulator that does not echo never fills one)."""
+    the ticks between the two less one. Per block of LINK_DELAY_BLOCK bundles, the delay LINK_DELAY_QUANTILE of the
+    echoed answers met, the actuator model told; a block with fewer than half its answers echoed gives UNECHOED_LINK.
+    `link` is None until a block is full."""
 
     def __init__(self) -> None:
         self._counts: dict[int, int] = {}
         self._n = 0
-        self.delay_ticks: int | None = None
+        self.link: LinkTiming | None = None
 
-    def add(self, answered_clock_us: int, clock_us: int, period_us: float) -> None:
-        """One bundle: the FC's clock at the tick whose answer flew up to it, and at the tick now."""
-        d = max(0, int(round((clock_us - answered_clock_us) / period_us)) - 1)
+    def add(self, answered_clock_us: int | None, clock_us: int, period_us: float) -> None:
+        """One bundle: the FC's clock at the tick whose answer flew up to it (None: the simulator did not say, or not
+        one of the answers remembered) and at the tick now."""
+        d = -1 if answered_clock_us is None else max(0, int(round((clock_us - answered_clock_us) / period_us)) - 1)
         self._counts[d] = self._counts.get(d, 0) + 1
         self._n += 1
-        if self._n >= LINK_DELAY_BLOCK:
-            need, seen = LINK_DELAY_QUANTILE * self._n, 0
-            for delay in sorted(self._counts):
+        if self._n < LINK_DELAY_BLOCK:
+            return
+        echoed = self._n - self._counts.get(-1, 0)
+        need, seen = LINK_DELAY_QUANTILE * echoed, 0
+        self.link = UNECHOED_LINK
+        if echoed >= self._n / 2:  # a lost echo now and then (the answer not remembered) is not a silent simulator
+            for delay in sorted(k for k in self._counts if k >= 0):
                 seen += self._counts[delay]
                 if seen >= need:
-                    self.delay_ticks = delay
+                    self.link = LinkTiming(delay, True)
                     break
-            self._counts, self._n = {}, 0
+        self._counts, self._n = {}, 0

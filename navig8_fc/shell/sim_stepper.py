@@ -16,7 +16,7 @@ from navig8_fc.flight import ArmRequest, FlightStack, Notice
 from navig8_fc.links.mavlink_link import UdpLink
 from navig8_fc.links.sim_guard import SimGuard, SimInput
 from navig8_fc.mavlink import seam
-from navig8_fc.params.registry import LinkTiming, ParamRegistry
+from navig8_fc.params.registry import ParamRegistry
 from navig8_fc.shell.fc_log import StepRecord
 from navig8_fc.shell.loop_watchdog import LoopWatchdog
 from navig8_fc.shell.realtime import LinkDelayMeter
@@ -130,20 +130,21 @@ class SimStepper:
     def follow_link(self, registry: ParamRegistry) -> None:
         """Real time: the stability floor (LAM_CRIT, LAM_MARGIN, the margin rule) follows how late the simulator flies
         the answers, as measured (realtime.LinkDelayMeter); lockstep's floor until a block of answers is measured."""
-        delay = self.link_delay.delay_ticks
-        if delay is None or delay == registry.link.delay_ticks:
+        link = self.link_delay.link
+        if link is None or link == registry.link:
             return
-        registry.set_link(LinkTiming(delay, True))
-        self._statustext(f"Sim link: answers fly {delay} tick{'s' if delay != 1 else ''} later than in lockstep; "
-                         "LAM_MARGIN and the margin rule are now that loop's", 6)
+        registry.set_link(link)
+        d = link.delay_ticks
+        how = (f"answers fly {d} tick{'s' if d != 1 else ''} later than in lockstep" if link.model_told else
+               "does not say which answer it flew: taken as one tick late, the actuator model blind")
+        self._statustext(f"Sim link {how}; LAM_MARGIN and the margin rule are now that loop's", 6)
 
     def _flown_at(self, cmd_time_usec: int, t_us: int, clock_us: int) -> float | None:
         """Real time: the FC's time (s) of the tick whose answer the bridge says it flew up to this bundle (None:
         not one of the last ANSWERS_REMEMBERED); this bundle's tick is remembered under its stamp."""
         answered = self._answered_clock_us
         flown = answered.get(cmd_time_usec)
-        if flown is not None:
-            self.link_delay.add(flown, clock_us, self.stack.core.config.dt_s * 1e6)
+        self.link_delay.add(flown, clock_us, self.stack.core.config.dt_s * 1e6)
         answered[t_us] = clock_us
         if len(answered) > ANSWERS_REMEMBERED:
             del answered[next(iter(answered))]  # the oldest (dicts keep insertion order)

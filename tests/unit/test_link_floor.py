@@ -17,7 +17,7 @@ from scipy import optimize, signal
 
 from navig8_fc.core import sampled_loop
 from navig8_fc.params.registry import LINK_FLOOR_INPUTS, LOCKSTEP, LinkTiming, ParamRegistry
-from navig8_fc.shell.realtime import LINK_DELAY_BLOCK, LinkDelayMeter
+from navig8_fc.shell.realtime import LINK_DELAY_BLOCK, UNECHOED_LINK, LinkDelayMeter
 
 PERIOD_US = 10_000.0  # 100 Hz
 
@@ -31,41 +31,55 @@ def _registry(link: LinkTiming = LOCKSTEP) -> ParamRegistry:
 
 
 # --- the meter -------------------------------------------------------------------------------------------------
-def _feed(meter: LinkDelayMeter, delays: list[int]) -> None:
+def _feed(meter: LinkDelayMeter, delays: list[int | None]) -> None:
     clock = 1_000_000
     for d in delays:
         clock += int(PERIOD_US)
-        meter.add(clock - int((d + 1) * PERIOD_US), clock, PERIOD_US)  # the answer of d + 1 ticks ago flew
+        # the answer of d + 1 ticks ago flew (None: the simulator did not say)
+        meter.add(None if d is None else clock - int((d + 1) * PERIOD_US), clock, PERIOD_US)
+
+
+def _delay(meter: LinkDelayMeter) -> int | None:
+    return None if meter.link is None else meter.link.delay_ticks
 
 
 def test_the_meter_reads_lockstep_as_no_delay_and_a_late_line_as_one_tick() -> None:
     m = LinkDelayMeter()
     _feed(m, [0] * (LINK_DELAY_BLOCK - 1))
-    assert m.delay_ticks is None  # a block not yet full: the floor stays lockstep's
+    assert m.link is None  # a block not yet full: the floor stays lockstep's
     _feed(m, [0])
-    assert m.delay_ticks == 0
+    assert m.link == LinkTiming(0, True)
     _feed(m, [1] * LINK_DELAY_BLOCK)
-    assert m.delay_ticks == 1
+    assert m.link == LinkTiming(1, True)
 
 
 def test_the_meter_takes_the_delay_95_percent_of_a_block_met() -> None:
     m = LinkDelayMeter()
     n_late = int(0.02 * LINK_DELAY_BLOCK)  # the serial line: 1-3 % a period later still (docs/hil.md)
     _feed(m, [1] * (LINK_DELAY_BLOCK - n_late) + [2] * n_late)
-    assert m.delay_ticks == 1
+    assert _delay(m) == 1
     n_late = int(0.10 * LINK_DELAY_BLOCK)
     _feed(m, [1] * (LINK_DELAY_BLOCK - n_late) + [2] * n_late)
-    assert m.delay_ticks == 2
+    assert _delay(m) == 2
     # the next block decides again: the link got quicker
     _feed(m, [0] * LINK_DELAY_BLOCK)
-    assert m.delay_ticks == 0
+    assert _delay(m) == 0
+
+
+def test_a_simulator_that_never_says_which_answer_flew_is_taken_one_tick_late_and_blind() -> None:
+    m = LinkDelayMeter()
+    _feed(m, [None] * LINK_DELAY_BLOCK)
+    assert m.link == UNECHOED_LINK == LinkTiming(1, False)
+    # a few answers not remembered among echoed ones are not a silent simulator: measured from the echoed ones
+    _feed(m, [None] * 20 + [0] * (LINK_DELAY_BLOCK - 20))
+    assert m.link == LinkTiming(0, True)
 
 
 def test_an_answer_stamped_by_the_tick_itself_counts_as_no_delay() -> None:
     m = LinkDelayMeter()
     for _ in range(LINK_DELAY_BLOCK):
         m.add(5_000_000, 5_000_000, PERIOD_US)  # cannot happen on a real link; never a negative delay
-    assert m.delay_ticks == 0
+    assert _delay(m) == 0
 
 
 # --- the registry's floor over the link --------------------------------------------------------------------------
