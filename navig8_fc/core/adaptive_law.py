@@ -289,6 +289,8 @@ class AdaptiveLaw:
         self._mom_reref, self._mom_move = ckf.moment_reref and self._mom_lpf, ckf.moment_arm_moving and self._mom_lpf
         self._mom = [0.0] * 4
         self._gc = np.empty((5, 5))
+        # CKF_CZ_FOLLOW: the pitch row's CoM nuisance follows the reference point's moves with the mass estimate
+        self._cz_follow = ckf.com_follows_reference and self._mom_reref and self._com_sigma > 0.0
         self._j_prev = (0.0, 0.0, 0.0)  # J's diagonal at the previous tick (CKF_PRED_DJ; set before it is read)
         # Constants of the tick, looked up once: the config is frozen.
         self._adaptive = ckf.adaptive
@@ -320,6 +322,7 @@ class AdaptiveLaw:
         self._arm_moved_s: float | None = None  # the last tick the arm moved (|I_yy-dot| >= ARM_REST_IYY_DOT)
         self._n_forgets = 0
         self._mom, self._mom_obj_kg = [0.0] * 4, 0.0  # and the last tick's reference point's object mass (kg)
+        self._ref_dz = 0.0  # the reference point's move down (m) with the mass estimate this tick (CKF_MOM_MREF)
         self._kf.reset()  # re-initialised at the next start
 
     @property
@@ -408,11 +411,13 @@ class AdaptiveLaw:
             if self._ixz_dm and object_ixz_dm != 0.0:
                 du_kf, h_mass = ixz_mass_column(du_kf, gc_inv, da, object_ixz_dm, kf.x.item(3))
         if self._pitch_row or h_mass is not None:
+            pitch_y = math.nan if (self._mom_move and self.arm_rested(t_s, inertia_rate)) or dmom is None \
+                else dmom - dhd  # CKF_MOM_LPF: Delta M_f - Delta h' (CKF_MOM_MOVE: while the arm moves)
+            com_dm = self.pitch_mass_slope(t_s, inertia_rate, object_com_dm)
+            if self._cz_follow and com_dm == _NO_SLOPE and self._ref_dz != 0.0:
+                kf.move_pitch_reference(self._ref_dz)  # CKF_CZ_FOLLOW: no mass column, the nuisance is the whole error
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
-                        pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass,
-                        pitch_y=math.nan if (self._mom_move and self.arm_rested(t_s, inertia_rate)) or dmom is None
-                        else dmom - dhd,  # CKF_MOM_LPF: Delta M_f - Delta h' (CKF_MOM_MOVE: while the arm moves)
-                        com_dm=self.pitch_mass_slope(t_s, inertia_rate, object_com_dm))
+                        pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass, pitch_y=pitch_y, com_dm=com_dm)
         else:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
         self._mass_hat = r.x_hat[3]
@@ -448,6 +453,7 @@ class AdaptiveLaw:
         """CKF_MOM_LPF: the increment over the window that closed (None between windows or with G_C^-1 singular) of the
         low-passed G_C[M, :] U with each tick's G_C, (Delta G_C) U_f included (docs/model.md, Estimator items 13, 17).
         CKF_MOM_MREF: the reference point's move with m_hat (com_dm (m/kg) x the object mass's change) re-refers it."""
+        self._ref_dz = 0.0
         if not inv_gauss_jordan(gc_inv, self._gc):
             return None
         gc, st, n_seen = self._gc, self._mom, self._st.item(LS_NSEEN)
@@ -457,6 +463,7 @@ class AdaptiveLaw:
             m_obj = max(self._mass_hat - m, 0.0) if self._mass_hat is not None else 0.0  # as the controller's
             dm, self._mom_obj_kg = m_obj - self._mom_obj_kg, m_obj
             refer_moment(st, float(gc[3] @ u), float(gc[4] @ u), a, com_dm[0] * dm, com_dm[1] * dm)
+            self._ref_dz = com_dm[1] * dm  # the point's move down this tick (CKF_CZ_FOLLOW)
         if n_seen <= 1.0:
             st[0] = st[1] = mom
             return None

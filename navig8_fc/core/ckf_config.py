@@ -40,7 +40,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
     "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
     "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG", "CKF_MOM_LPF", "CKF_M_SIG_OPEN", "CKF_IXZ_SIG", "CKF_CZ_DM",
-    "CKF_MOM_MREF", "CKF_MOM_MOVE",
+    "CKF_MOM_MREF", "CKF_MOM_MOVE", "CKF_PROJ_IYY", "CKF_CZ_FOLLOW",
 )
 
 
@@ -158,6 +158,14 @@ class CkfConfig:
     # CKF_MOM_MOVE: with moment_lpf, the low-passed moment only while the arm moves or has not rested for the pitch
     # row's event wait and a window (AdaptiveLaw.arm_rested); at rest, G_C[M, :] Delta U as with moment_lpf off
     moment_arm_moving: bool = False
+    # CKF_PROJ_IYY: with pitch_r_nm2 > 0, the Eq. 21 projection weighs I_yy apart from the other states (its
+    # covariances with them left out of W = P^-1): I_yy is clipped to its own bounds and a projection of the Delta U
+    # rows' states does not move it (kalman.kf_step)
+    iyy_projected_apart: bool = False
+    # CKF_CZ_FOLLOW: with com_sigma_m > 0 and moment_reref, while the pitch row has no mass column (com_mass_slope off,
+    # or the arm not at rest) its CoM nuisance moves with the reference point when the mass estimate moves it
+    # (ConstrainedKalmanFilter.move_pitch_reference; AdaptiveLaw)
+    com_follows_reference: bool = False
 
     def __post_init__(self) -> None:
         lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
@@ -197,6 +205,8 @@ class CkfConfig:
         object.__setattr__(self, "com_mass_slope", bool(self.com_mass_slope))
         object.__setattr__(self, "moment_reref", bool(self.moment_reref))
         object.__setattr__(self, "moment_arm_moving", bool(self.moment_arm_moving))
+        object.__setattr__(self, "iyy_projected_apart", bool(self.iyy_projected_apart))
+        object.__setattr__(self, "com_follows_reference", bool(self.com_follows_reference))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2", "pitch_r_nm2",
                      "com_sigma_m", "grip_sigma_w", "mass_sigma_open_kg", "ixz_sigma_kgm2"):
             v = float(getattr(self, name))
@@ -228,7 +238,7 @@ class CkfConfig:
             raise ValueError(f"CKF_U_SRC must be 0, 1 or 2, got {values['CKF_U_SRC']}")
         for flag in ("CKF_SAT_GATE", "CKF_ACC_REF", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
                      "CKF_LPF_SEED", "CKF_MOM_LPF", "CKF_MOM_MREF",
-                     "CKF_MOM_MOVE"):
+                     "CKF_MOM_MOVE", "CKF_PROJ_IYY", "CKF_CZ_FOLLOW"):
             if int(values[flag]) not in (0, 1):
                 raise ValueError(f"{flag} must be 0 or 1, got {values[flag]}")
         if int(values["CKF_IXZ_MOD"]) not in (0, 1, 2):
@@ -272,4 +282,6 @@ class CkfConfig:
             com_mass_slope=bool(int(values["CKF_CZ_DM"])),
             moment_reref=bool(int(values["CKF_MOM_MREF"])),
             moment_arm_moving=bool(int(values["CKF_MOM_MOVE"])),
+            iyy_projected_apart=bool(int(values["CKF_PROJ_IYY"])),
+            com_follows_reference=bool(int(values["CKF_CZ_FOLLOW"])),
         )

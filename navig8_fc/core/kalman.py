@@ -302,9 +302,11 @@ def excitation_mask(da, exc_rot, exc_lin, mask):
 @njit_cached(box_qp, linalg, ckf_config, kf_nuisance)
 def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc_rot, exc_lin, gc_inv, du, da,
             rho_x, rho_z, constrained, identity, lo, hi, out, pitch_r=0.0, nz=None, hm=None, pitch_y=math.nan,
-            nx=None, com_dm_x=0.0, com_dm_z=0.0):
+            nx=None, com_dm_x=0.0, com_dm_z=0.0, apart=-1):
     """predict (if do_predict), correct (if do_correct and some state passes the excitation gate; the others
-    held), project (if constrained) on x, p in place; results into out (STEP_OUT). Returns the PROJ_* code."""
+    held), project (if constrained) on x, p in place; results into out (STEP_OUT). Returns the PROJ_* code.
+    apart >= 0 (CKF_PROJ_IYY: I_yy, 1): that state's covariances with the others are left out of the projection's
+    weight (project_apart)."""
     if do_predict:
         kf_predict(x, p, q_diag, dt, id0, id1, id2)
     mask = out[SO_EXCITED:SO_EXCITED + N_STATE]
@@ -320,11 +322,30 @@ def kf_step(x, p, q_diag, r_diag, dt, do_predict, id0, id1, id2, do_correct, exc
         out[SO_CORRECTED] = 0.0
     for i in range(N_STATE):
         out[SO_X_UNC + i] = x[i]
-    code = kf_project(x, p, identity, lo, hi) if constrained else PROJ_INSIDE
+    code = PROJ_INSIDE
+    if constrained:
+        code = kf_project(x, p, identity, lo, hi) if apart < 0 else project_apart(x, p, identity, lo, hi, apart)
     for i in range(N_STATE):
         out[SO_X_HAT + i] = x[i]
         out[SO_P_DIAG + i] = p[i, i]
     return code
+
+
+@njit_cached(box_qp, linalg)
+def project_apart(x, p, identity, lo, hi, apart):
+    """kf_project (Eq. 21) with the state `apart`'s covariances with the others zeroed in the weight's P (P itself not
+    touched): W = P^-1 is then block-diagonal, that state is clipped to its own bounds and the others are projected
+    among themselves. Why for I_yy with the moment-space pitch row (CKF_PROJ_IYY): the Delta U rows do not correct
+    I_yy (Schmidt, kf_correct) but leave it correlated with the mass through its prediction in their innovation, and
+    their pitch component carries the trim's move as the arm shifts the CoM (docs/model.md, "Estimator" item 13), which
+    can take the mass out of its box by 3 sigma in one window; W = P^-1 then moved I_yy by P_ym / P_mm of that
+    violation (0.03 kg m^2, K2 -0.06, back at the next window), inertia information the pitch row never gave."""
+    pw = p.copy()
+    for j in range(x.shape[0]):
+        if j != apart:
+            pw[apart, j] = 0.0
+            pw[j, apart] = 0.0
+    return kf_project(x, pw, identity, lo, hi)
 
 
 def measurement_matrix(
@@ -373,6 +394,8 @@ class ConstrainedKalmanFilter:
         self._identity_weight = config.projection_weight == "identity"
         self._exc_rot, self._exc_lin = config.exc_rot_rad_s2, config.exc_lin_m_s2
         self._pitch_r = config.pitch_r_nm2
+        # CKF_PROJ_IYY: I_yy (state 1) projected apart, with the moment-space pitch row only (its sole corrector)
+        self._apart = 1 if config.iyy_projected_apart and config.pitch_r_nm2 > 0.0 else -1
         self._nz = np.zeros(NZ_SIZE)  # the pitch row's nuisance state (kf_correct_pitch): zero until an object is held
         self._nx = np.zeros(NZ_SIZE)  # the roll and yaw rows' I_xz nuisance (kf_nuisance): zero until an object is held
         self._x = np.zeros(N_STATE)
@@ -455,6 +478,14 @@ class ConstrainedKalmanFilter:
         self._nx[:] = 0.0
         if held:
             self._nx[NZ_VAR] = ixz_sigma_kgm2 * ixz_sigma_kgm2
+
+    def move_pitch_reference(self, dz_m: float) -> None:
+        """CKF_CZ_FOLLOW: the pitch row's reference point moved down by dz_m (m, body z) with the mass estimate while
+        that row's CoM error is its nuisance alone (no mass column): the nuisance, the true CoM's height less the
+        point's (kf_correct_pitch), moves by -dz_m, a known shift (its variance and covariances unchanged). Nothing
+        while no object is held (the nuisance is zero then)."""
+        if self._nz[NZ_VAR] > 0.0:
+            self._nz[NZ_X] -= dz_m
 
     @property
     def ixz_offset_kgm2(self) -> float:
@@ -555,7 +586,7 @@ class ConstrainedKalmanFilter:
                        self._exc_rot, self._exc_lin, gc_uam_inv, delta_u, delta_acc, rho_x, rho_z, self._constrained,
                        self._identity_weight, lower, upper, self._out,
                        self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz, h_mass, pitch_y, self._nx,
-                       com_dm[0], com_dm[1])
+                       com_dm[0], com_dm[1], self._apart)
         self._account(code, lower, upper)
         o = self._out.tolist()
         corrected = o[SO_CORRECTED] != 0.0

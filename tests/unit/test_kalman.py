@@ -17,7 +17,9 @@ from navig8_fc.core.ckf_config import CKF_PARAM_NAMES, CkfConfig, CkfMode
 from navig8_fc.core.kalman import (
     ConstrainedKalmanFilter,
     inertia_ratios,
+    kf_project,
     measurement_matrix,
+    project_apart,
 )
 
 
@@ -73,7 +75,7 @@ def _param_values(**overrides: float) -> dict[str, float]:
         "CKF_LMS_MU1": 0.003, "CKF_LMS_MU2": 0.05, "CKF_LMS_MU3": 0.003, "CKF_LMS_MU4": 0.001,
         "CKF_R_PITCH": 0.0, "CKF_CZ_SIG": 0.0, "CKF_LPF_SEED": 0, "CKF_IXZ_MOD": 0, "CKF_GRIP_SIG": 0.0,
         "CKF_MOM_LPF": 0, "CKF_M_SIG_OPEN": 0.0, "CKF_IXZ_SIG": 0.0, "CKF_CZ_DM": 0, "CKF_MOM_MREF": 0,
-        "CKF_MOM_MOVE": 0,
+        "CKF_MOM_MOVE": 0, "CKF_PROJ_IYY": 0, "CKF_CZ_FOLLOW": 0,
     }
     v.update(overrides)
     return v
@@ -534,3 +536,35 @@ def test_the_ixz_nuisance_removes_the_bias_of_a_wrong_product_of_inertia(ixz_sig
         assert rel_err < 0.01 and abs(kf.ixz_offset_kgm2 - d_true) < 0.005, (kf.x, kf.ixz_offset_kgm2)
     else:
         assert rel_err > 0.02 and kf.ixz_offset_kgm2 == 0.0, kf.x
+
+
+def test_iyy_projected_apart_is_not_moved_by_the_mass_leaving_its_box() -> None:
+    """CKF_PROJ_IYY (kalman.project_apart): with I_yy correlated with the mass, W = P^-1 moves I_yy when the mass is
+    returned to its box (the conditional shift P_ym / P_mm of the violation); projected apart it stays, and the mass
+    goes to its bound either way."""
+    p = np.diag([0.01, 0.06, 0.04, 0.04])
+    p[1, 3] = p[3, 1] = 0.3 * np.sqrt(0.06 * 0.04)
+    lo, hi = (0.3, 0.5, 0.3, 6.5), (0.8, 1.2, 0.6, 13.0)
+    x_joint, x_apart = np.array([0.4, 0.6, 0.35, 5.8]), np.array([0.4, 0.6, 0.35, 5.8])
+    kf_project(x_joint, p, False, lo, hi)
+    project_apart(x_apart, p, False, lo, hi, 1)
+    assert x_joint[3] == pytest.approx(6.5) and x_apart[3] == pytest.approx(6.5)
+    assert x_joint[1] == pytest.approx(0.6 + p[1, 3] / p[3, 3] * 0.7)  # 0.6 + 0.86 x 0.7
+    assert x_apart[1] == 0.6
+    x_out = np.array([0.4, 1.5, 0.35, 7.0])  # I_yy itself outside: clipped to its own bound, the mass untouched
+    project_apart(x_out, p, False, lo, hi, 1)
+    assert x_out[1] == pytest.approx(1.2) and x_out[3] == 7.0
+
+
+def test_the_pitch_nuisance_follows_the_reference_point_only_while_held() -> None:
+    """CKF_CZ_FOLLOW (ConstrainedKalmanFilter.move_pitch_reference): the nuisance is the true CoM's height less the
+    reference point's, so a point moved down by dz moves it by -dz; with no object held it stays zero."""
+    kf = ConstrainedKalmanFilter(CkfConfig(pitch_r_nm2=0.01, com_sigma_m=0.03))
+    kf.initialise((0.38, 0.57, 0.30, 6.5))
+    kf.move_pitch_reference(0.01)
+    assert kf.pitch_com_offset_m == 0.0
+    kf.object_held(True, 0.03, 0.0)
+    p_before = kf.p
+    kf.move_pitch_reference(0.01)
+    assert kf.pitch_com_offset_m == pytest.approx(-0.01)
+    np.testing.assert_array_equal(kf.p, p_before)
