@@ -411,11 +411,7 @@ class AdaptiveLaw:
             if self._ixz_dm and object_ixz_dm != 0.0:
                 du_kf, h_mass = ixz_mass_column(du_kf, gc_inv, da, object_ixz_dm, kf.x.item(3))
         if self._pitch_row or h_mass is not None:
-            pitch_y = math.nan if (self._mom_move and self.arm_rested(t_s, inertia_rate)) or dmom is None \
-                else dmom - dhd  # CKF_MOM_LPF: Delta M_f - Delta h' (CKF_MOM_MOVE: while the arm moves)
-            com_dm = self.pitch_mass_slope(t_s, inertia_rate, object_com_dm)
-            if self._cz_follow and com_dm == _NO_SLOPE and self._ref_dz != 0.0:
-                kf.move_pitch_reference(self._ref_dz)  # CKF_CZ_FOLLOW: no mass column, the nuisance is the whole error
+            pitch_y, com_dm = self._pitch_inputs(t_s, inertia_rate, dmom, dhd, object_com_dm)
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
                         pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass, pitch_y=pitch_y, com_dm=com_dm)
         else:
@@ -423,6 +419,16 @@ class AdaptiveLaw:
         self._mass_hat = r.x_hat[3]
         return estimated_status(r, base, j13, lower, upper, du, da, window_sat,
                                 (kf.n_updates, kf.n_projection_fallbacks, self._n_sat_skips, self._n_forgets))
+
+    def _pitch_inputs(self, t_s: float, inertia_rate: np.ndarray, dmom: float | None, dhd: float,
+                      object_com_dm: tuple[float, float]) -> tuple[float, tuple[float, float]]:
+        """The pitch row's moment increment (NaN: unread) and its point's slope in the mass (CKF_CZ_FOLLOW: below)."""
+        pitch_y = math.nan if (self._mom_move and self.arm_rested(t_s, inertia_rate)) or dmom is None \
+            else dmom - dhd  # CKF_MOM_LPF: Delta M_f - Delta h' (CKF_MOM_MOVE: while the arm moves)
+        com_dm = self.pitch_mass_slope(t_s, inertia_rate, object_com_dm)
+        if self._cz_follow and com_dm == _NO_SLOPE and self._ref_dz != 0.0:
+            self._kf.move_pitch_reference(self._ref_dz)  # no mass column: the nuisance is the whole error
+        return pitch_y, com_dm
 
     def pitch_mass_slope(self, t_s: float, inertia_rate: np.ndarray, slope: tuple[float, float]) -> tuple[float, float]:
         """CKF_CZ_DM: the pitch row's reference-point slope in the mass while the arm has rested (arm_rested); else
