@@ -55,7 +55,7 @@ FLOWN_GAIN_DEFAULTS = {"INDI_LAM_REF": 1.0, "INDI_KFL_MIN": 0.0}
 LINK_DELAY_KEY, LINK_TOLD_KEY = "link_delay_ticks", "link_model_told"
 # What the loop over a delayed link depends on besides FLOOR_INPUTS (its U0: lockstep's Pade H(s) does not read it)
 LINK_FLOOR_INPUTS = ("INDI_U0_SRC", "INDI_U0_TAU")
-LINK_U0_DEFAULTS = {"INDI_U0_SRC": 0, "INDI_U0_TAU": 0.2}
+LINK_U0_DEFAULTS = {"INDI_U0_SRC": 0, "INDI_U0_TAU": 0.2}  # when a caller's values lack them: the paper's measured U0
 
 
 @dataclass(frozen=True)
@@ -238,10 +238,11 @@ def run_floor(check: StabilityCheck, values: Mapping[str, float | int]) -> Stabi
         return StabilityFloor(math.inf, -math.inf)
 
 
-def floor_key(values: Mapping[str, float | int]) -> tuple[float, ...]:
-    """The values the stability floor depends on, as a cache key (the link's timing and, over a delayed link, U0)."""
+def floor_key(values: Mapping[str, Any], link: LinkTiming | None = None) -> tuple[float, ...]:
+    """The values the stability floor depends on, as a cache key (the link's timing and, over a delayed link, U0);
+    `link`: the timing when `values` do not carry it (the registry's values in force)."""
     key = tuple(float(values[n] if n in values else FLOWN_GAIN_DEFAULTS[n]) for n in FLOOR_INPUTS)
-    link = link_of(values)
+    link = link_of(values) if link is None else link
     if link.delay_ticks == 0:
         return key
     u0 = tuple(float(values.get(n, LINK_U0_DEFAULTS[n])) for n in LINK_FLOOR_INPUTS)
@@ -466,7 +467,7 @@ class ParamRegistry:
         computed yet: after a reset to defaults or at start, until a caller computes it, e.g. on a worker)."""
         if self._stability_check is None:
             return None
-        return self._floors.get(floor_key(self.floor_values()))
+        return self._floors.get(floor_key(self._values, self._link))
 
     def stability_status(self) -> StabilityStatus | None:
         """lambda_crit, the guaranteed smallest eigenvalue and their ratio for the values in force (None: the
