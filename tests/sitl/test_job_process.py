@@ -38,6 +38,20 @@ def test_jobs_run_in_a_child_in_order_and_their_errors_come_back() -> None:
         jobs.shutdown()
 
 
+def test_the_childs_blas_runs_on_one_thread() -> None:
+    """The floors' matrices are tens wide: OpenBLAS's threads would only wait for a core on a busy machine."""
+    import numpy as np
+    from threadpoolctl import threadpool_info
+
+    jobs = JobProcess()
+    try:
+        assert jobs.submit(np.zeros, 1).result(WAIT_S).shape == (1,)  # numpy (and its BLAS) loaded in the child
+        blas = [lib for lib in jobs.submit(threadpool_info).result(WAIT_S) if lib["user_api"] == "blas"]
+        assert blas and all(lib["num_threads"] == 1 for lib in blas), blas
+    finally:
+        jobs.shutdown()
+
+
 def test_a_killed_child_fails_the_pending_and_later_jobs_and_shutdown_ends_it() -> None:
     jobs = JobProcess()
     pid = jobs.submit(os.getpid).result(WAIT_S)
