@@ -82,9 +82,12 @@ async def _session(address: str, grpc_port: int) -> dict:
         out["offboard_d"] = await _wait_at(drone, target, 20.0)
         await drone.offboard.stop()
         # goto_location (DO_REPOSITION), altitude AMSL.
-        lat, lon, alt = ORIGIN.to_global((home[0] - 1.0, home[1] + 0.5, home[2] - 3.0))
+        # 4.5 m from home: Return's flight home then lasts a few heartbeats (from 1.1 m away it had switched to its
+        # landing, Land, before the first HEARTBEAT MAVSDK read on a loaded machine).
+        goto = (home[0] - 4.0, home[1] + 2.0, home[2] - 3.0)
+        lat, lon, alt = ORIGIN.to_global(goto)
         await drone.action.goto_location(lat, lon, alt, 0.0)
-        out["goto_d"] = await _wait_at(drone, (home[0] - 1.0, home[1] + 0.5, home[2] - 3.0), 25.0)
+        out["goto_d"] = await _wait_at(drone, goto, 25.0)
         # Return to launch: climb (already above 2.5 m), home, land, disarm.
         await drone.action.return_to_launch()
         async for fm in drone.telemetry.flight_mode():
