@@ -29,8 +29,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from threadpoolctl import threadpool_limits
-
+from navig8_fc.blas import limit_to_one_thread
 from navig8_fc.links.mavlink_link import PortInUseError
 from navig8_fc.links.transport import parse_connection
 from sim_bridge.bridge_options import BASE_BRIDGE_PORT, BridgeOptions
@@ -150,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = build_arg_parser()
     args = ap.parse_args(argv)
     _check_args(ap, args)
-    threadpool_limits(limits=1, user_api="blas")  # small matrices only: OpenBLAS's threads cost (as navig8-fc)
+    limit_to_one_thread()  # navig8_fc/blas.py: why
     if args.write_fc_vehicle:
         return _write_fc_vehicle(ap, args)
     signal.signal(signal.SIGINT, _raise_shutdown)

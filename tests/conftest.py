@@ -16,13 +16,15 @@ from pathlib import Path
 
 import pytest
 
+from navig8_fc.blas import ONE_THREAD_ENV  # no numpy: the environment is set before numpy loads
+
 # One BLAS thread in every test process and every process a test starts (they inherit the environment), set before
 # anything loads numpy: the matrices here are tens wide, and on two busy cores OpenBLAS's threads turn each small LAPACK
 # call (the actuator models' ~40 expm of every controller built) into a scheduler wait. The fast lane on a loaded
 # machine: 3 min 50 s against 6 min 01 s (docs/results.md, "Test suite time"). navig8-fc and navig8-bridge set it
 # themselves.
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+for _var, _value in ONE_THREAD_ENV.items():
+    os.environ.setdefault(_var, _value)
 
 WARM_S = pytest.StashKey[float]()  # how long the warm-up took, for the report header
 _HERE = Path(__file__).resolve().parent

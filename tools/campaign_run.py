@@ -26,6 +26,7 @@ from typing import Any
 
 import yaml
 
+from navig8_fc.blas import ONE_THREAD_ENV
 from navig8_tools.campaign_spec import Row, sitl_argv
 
 # Scalar summary keys of navig8_tools.summary.summarize kept per run (settle is folded to two counts).
@@ -39,9 +40,8 @@ MISSION_METRICS = ("mission_items", "mission_reached", "mission_complete", "miss
 AUTHORITY_COLUMNS = ("authority_bound_deg", "authority_trim_feasible", "authority_worst_t_s")
 # Thread counts of a worker process: the ones Dask's nanny gives its workers (distributed.nanny.pre-spawn-environ).
 # A run's linear algebra is on matrices of 3x3 to 12x12, where OpenBLAS's second thread only spins: in one process
-# it burns the idle core, in a pool of one process per core it takes the
-# other worker's core.
-WORKER_ENV = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+# it burns the idle core, in a pool of one process per core it takes the other worker's core (navig8_fc/blas.py).
+WORKER_ENV = ONE_THREAD_ENV
 # Dask configuration of the LocalCluster's workers (docs/campaigns.md: the same for a cluster's workers).
 DASK_WORKER_CONFIG = {"distributed.worker.profile.enabled": False,
                       "distributed.admin.system-monitor.gil.enabled": False}

@@ -13,8 +13,7 @@ import sys
 import time
 from typing import Any
 
-from threadpoolctl import threadpool_limits
-
+from navig8_fc.blas import limit_to_one_thread
 from navig8_fc.core import vehicle as vm
 from navig8_fc.core.controller import warm_up_kernels
 from navig8_fc.flight import FlightStack, Notice, load_flight_script
@@ -369,9 +368,7 @@ def _no_peer(_msg: Any, _addr: tuple[str, int]) -> bool:
 def main(argv: list[str] | None = None) -> int:
     ap = build_arg_parser()
     args = ap.parse_args(argv)
-    # One BLAS thread for the process's life: its matrices are at most tens wide, and on a busy machine (a GCS, a
-    # second SITL) OpenBLAS's threads turn each small LAPACK call into a scheduler wait (docs/results.md, "Speed").
-    threadpool_limits(limits=1, user_api="blas")
+    limit_to_one_thread()  # navig8_fc/blas.py: why
     for text in (args.sim_link, args.gcs_link, args.api_link):
         if text:
             try:

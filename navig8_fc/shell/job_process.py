@@ -131,10 +131,10 @@ def serve(inp: IO[bytes], out: IO[bytes]) -> None:
 
 
 if __name__ == "__main__":
-    # One BLAS thread, as the FC's own (fc_process.main), set before a job's module loads numpy: the floors'
-    # matrices are tens wide, where OpenBLAS's threads only wait for a core.
-    for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[_var] = "1"
+    # One BLAS thread, as the FC's own, set before a job's module loads numpy (navig8_fc/blas.py: why)
+    from navig8_fc.blas import ONE_THREAD_ENV
+
+    os.environ.update(ONE_THREAD_ENV)
     results = os.fdopen(os.dup(1), "wb")  # the result pipe; fd 1 itself to /dev/null, so a job's print cannot
     devnull = os.open(os.devnull, os.O_WRONLY)  # corrupt the frames
     os.dup2(devnull, 1)
