@@ -4,7 +4,8 @@ The bridge is the time master (DESIGN §4). Each step k it sends ONE datagram wi
 time_usec = round(k * dt * 1e6) + 1 (ODOMETRY, NAVIG8_ACTUATOR_STATE, NAVIG8_ARM_STATE, NAVIG8_TRUTH, HIL_SENSOR
 last) and waits for the FC's single HIL_ACTUATOR_CONTROLS echoing that stamp; it then holds that command for dt
 (zero-order hold), steps the plant and sends step k + 1. Step 0 is re-sent until the FC answers (the plant waits at
-t = 0); a missing answer is re-sent every --step-timeout and ends the run after --stall-abort (BridgeStalled);
+t = 0); a missing answer is re-sent every 0.1 s on UDP (a lost datagram), reported as a stall every --step-timeout
+and ends the run after --stall-abort (BridgeStalled);
 --speed paces the steps on the wall clock; --free-run steps on the wall clock whatever the FC does. The socket,
 pairing and datagrams are the link's (sim_bridge/fc_link.py). A thin I/O loop: no controller code.
 """
@@ -28,6 +29,7 @@ from sim_bridge.scenario import Scenario
 from sim_bridge.world import load_world
 
 STARTUP_RESEND_S = 0.1  # re-send step 0 this often until the FC answers
+LOSS_RESEND_S = 0.1  # on UDP: an unanswered bundle is re-sent this often (a lost datagram costs 0.1 s, not a stall)
 STREAM_STARTUP_RESEND_S = 1.0  # on TCP/serial: re-sent bundles queue in the stream, and the FC answers every one
 STATUS_PERIOD_S = 1.0  # NAVIG8_SIM_STATUS period (wall)
 REANCHOR_LAG_S = 0.5  # paced runs that fall this far behind (a stall) restart pacing instead of bursting
@@ -117,11 +119,13 @@ class Bridge:
     # ---- waiting for an answer ----------------------------------------------------------------------
     def _wait_answer(self, data: bytes, first_sent: float, resend_every_s: float, startup: bool
                      ) -> seam.ActuatorControls:
-        """Re-send `data` every resend_every_s until the matching answer arrives; raise BridgeStalled past the
-        limit."""
-        link = self.link
+        """Re-send `data` every resend_every_s until the matching answer arrives. Past startup a stall is counted
+        and reported every --step-timeout (the re-sends between are a lost datagram's recovery, not a stall), and
+        BridgeStalled raised past --stall-abort."""
+        link, o = self.link, self.opts
         next_resend = first_sent + resend_every_s
         next_reminder = first_sent + REMINDER_S
+        next_stall = first_sent + o.step_timeout_s
         while True:
             now = time.perf_counter()
             if now >= self._status_due:
@@ -138,15 +142,14 @@ class Bridge:
             waited = now - first_sent
             if startup:
                 next_reminder = self._still_waiting(waited, now, next_reminder)
-            else:
+            elif now >= next_stall:
                 self._stalled(waited, now)
+                # the next stall never reaches past the abort deadline by more than one step timeout
+                next_stall = min(now + o.step_timeout_s, max(first_sent + o.stall_abort_s, now + 1e-3))
             link.send(data)
             self.counters.bundles_sent += 1
             self.counters.resends += 1
-            next_resend = now + resend_every_s
-            if not startup:
-                # the next timeout never reaches past the abort deadline by more than one step timeout
-                next_resend = min(next_resend, max(first_sent + self.opts.stall_abort_s, now + 1e-3))
+            next_resend = now + resend_every_s if startup else min(now + resend_every_s, next_stall)
 
     def _still_waiting(self, waited: float, now: float, next_reminder: float) -> float:
         """No answer to step 0 yet: give up past --startup-timeout, remind on stderr every REMINDER_S; the next
@@ -231,7 +234,9 @@ class Bridge:
         o, c, dt_us = self.opts, self.counters, self.dt_us
         plant, link, arm = self.plant, self.link, self.arm
         mav, sock = link.mav, link.sock
-        until_done, n_steps, paced, step_timeout_s = o.until_done, self.n_steps, o.speed > 0, o.step_timeout_s
+        until_done, n_steps, paced = o.until_done, self.n_steps, o.speed > 0
+        # a datagram link loses datagrams: re-send soon; a stream (TCP, serial) delivers, so wait a step timeout
+        resend_s = o.step_timeout_s if isinstance(sock, StreamTransport) else min(LOSS_RESEND_S, o.step_timeout_s)
         encode_bundle, perf_counter = seam.encode_bundle, time.perf_counter
         while not (until_done and self.step >= n_steps):
             # zero-order hold of the answer for one control period
@@ -253,9 +258,9 @@ class Bridge:
             c.bundles_sent += 1
             if now >= self._status_due:
                 self._send_status(now)
-            ans = link.receive(min(step_timeout_s, self._status_due - now), self.time_usec)
+            ans = link.receive(min(resend_s, self._status_due - now), self.time_usec)
             if ans is None:  # slow answer or status due: the careful path (status, re-sends, stall abort)
-                ans = self._wait_answer(data, now, step_timeout_s, startup=False)
+                ans = self._wait_answer(data, now, resend_s, startup=False)
                 self.state = seam.SIM_STATE_RUNNING
 
     def _finish(self) -> None:

@@ -218,6 +218,8 @@ def test_stall_is_reported_and_aborts() -> None:
         t0 = time.monotonic()
         resent = fc.recv_bundle(2.0)
         assert resent is not None and resent.time_usec == b.time_usec
+        while (again := fc.recv_bundle(1.0)) is not None:  # re-sent every 0.1 s until the abort (statuses collected)
+            assert again.time_usec == b.time_usec
         rc = proc.wait(timeout=10)
         elapsed = time.monotonic() - t0
         err = proc.stderr.read()
@@ -227,6 +229,26 @@ def test_stall_is_reported_and_aborts() -> None:
     assert "re-sending" in err
     assert "navig8-fc stalled" in err
     assert any(s.state == seam.SIM_STATE_STALLED for s in fc.statuses)
+
+
+def test_a_lost_bundle_is_sent_again_without_a_stall() -> None:
+    """A bundle the FC never got (a datagram lost) comes again long before the step timeout: no stall counted."""
+    trim = _trim("hover")
+    with bridge_process("--scenario", "hover", "--speed", "0", "--until-done", "--duration", "0.05",
+                        "--step-timeout", "60") as (proc, fc):
+        answered: set[int] = set()
+        ignored = False
+        while len(answered) < 6:
+            b = fc.recv_bundle(10.0)  # far below the 60 s step timeout: only a re-send can bring step 2 again
+            assert b is not None, (sorted(answered), "the unanswered bundle was not sent again")
+            if b.step == 2 and not ignored:
+                ignored = True  # not answered: as if it had never arrived
+                continue
+            fc.answer(b, trim)
+            answered.add(b.step)
+        assert proc.wait(timeout=10) == 0
+        err = proc.stderr.read()
+    assert "stalls 0," in err and "resends 0," not in err, err
 
 
 def test_sigterm_while_waiting_for_fc() -> None:

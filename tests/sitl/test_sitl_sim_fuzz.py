@@ -66,6 +66,15 @@ def _forged_bundles(sysid: int, seed: int, n: int, mutate=None) -> list[bytes]:
     return out
 
 
+def _kernel_drops(port: int) -> int:
+    """Datagrams the kernel dropped for the UDP socket bound to `port` (a full receive buffer: /proc/net/udp)."""
+    for line in Path("/proc/net/udp").read_text().splitlines()[1:]:
+        f = line.split()
+        if int(f[1].rsplit(":", 1)[1], 16) == port:
+            return int(f[-1])
+    raise AssertionError(f"no UDP socket on port {port}")
+
+
 def _attack(sim: tuple[str, int], bridge: tuple[str, int], sysid: int) -> dict[str, int]:
     socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(17)]
     sent = {"heartbeats": 0, "forged": 0, "fragments": 0, "to_bridge": 0}
@@ -122,7 +131,8 @@ def test_forged_sim_traffic_neither_crashes_nor_steers_the_vehicle(tmp_path: Pat
         assert wait_heartbeat(gcs, 60.0).get_srcSystem() == sysid
         lp = wait_for(gcs, "LOCAL_POSITION_NED", 10.0)
         assert lp is not None and abs(lp.z + 2.0) < 0.2, lp
-        sent = _attack(("127.0.0.1", 4561 + 2 * INSTANCE), ("127.0.0.1", 4560 + 2 * INSTANCE), sysid)
+        sim_port, bridge_port = 4561 + 2 * INSTANCE, 4560 + 2 * INSTANCE
+        sent = _attack(("127.0.0.1", sim_port), ("127.0.0.1", bridge_port), sysid)
         # a second FC on the same instance: a clear error, and the first keeps flying
         second = subprocess.run([sys.executable, "-m", "navig8_fc.shell.fc_process", "--instance", str(INSTANCE),
                                  "--defaults", "--state-dir", str(tmp_path / "state2")], stdin=subprocess.DEVNULL,
@@ -132,6 +142,8 @@ def test_forged_sim_traffic_neither_crashes_nor_steers_the_vehicle(tmp_path: Pat
         assert proc.poll() is None, "the forged done (or anything else) ended the run early"
         lp = wait_for(gcs, "LOCAL_POSITION_NED", 10.0)
         assert lp is not None and abs(lp.z + 2.0) < 0.2, lp
+        # a flood overruns a receive buffer (net.core.rmem_max caps SO_RCVBUF): what the kernel dropped nobody counts
+        fc_drops, bridge_drops = _kernel_drops(sim_port), _kernel_drops(bridge_port)
         out, err = proc.communicate(timeout=120)
     finally:
         gcs.close()
@@ -142,14 +154,18 @@ def test_forged_sim_traffic_neither_crashes_nor_steers_the_vehicle(tmp_path: Pat
     assert summary["max_pos_error_m"] < HOVER_BOUND_M, summary  # from the log's truth: the plant never moved
     bridge_line = next(ln for ln in err.splitlines() if ln.startswith("navig8-bridge: 1000 steps"))
     counts = dict(kv.rsplit(" ", 1) for kv in bridge_line.split("; ", 1)[1].split(", "))
-    assert counts["stalls"] == "0" and counts["sessions"] == "1", bridge_line  # never stalled, never re-paired
-    assert int(counts["wrong_sender"]) >= sent["to_bridge"] and counts["pair_refused"] == "1", bridge_line
+    # never stalled (a dropped bundle is re-sent within 0.1 s), never re-paired
+    assert counts["stalls"] == "0" and counts["sessions"] == "1", bridge_line
+    assert int(counts["wrong_sender"]) + bridge_drops >= sent["to_bridge"], (bridge_line, bridge_drops)
+    assert int(counts["wrong_sender"]) > 0 and counts["pair_refused"] == "1", bridge_line
     log = Path(summary["log"])
     guard = read_metadata(log)["fc_stats"]["sim_guard"]
     assert guard["sessions"] == 1 and guard["tick_errors"] == 0 and guard["log_errors"] == 0, guard
-    # counted (a burst can overrun the socket's buffer: the kernel drops some before anyone reads them)
-    assert guard["wrong_sender"] >= (sent["forged"] + sent["heartbeats"] // 2) // 2, guard
-    assert guard["pair_refused"] >= sent["heartbeats"] // 4 and guard["malformed"] >= sent["fragments"] // 4, guard
+    # every kind counted; what was sent is counted or was dropped by the kernel before anyone read it
+    assert min(guard["wrong_sender"], guard["pair_refused"], guard["malformed"]) > 0, guard
+    assert guard["wrong_sender"] + fc_drops >= sent["forged"] + sent["heartbeats"] // 2, (guard, fc_drops)
+    assert guard["pair_refused"] + fc_drops >= sent["heartbeats"] // 2, (guard, fc_drops)
+    assert guard["malformed"] + fc_drops >= sent["fragments"] // 2, (guard, fc_drops)
     assert guard["invalid"] == 0 and guard["out_of_order"] == 0, guard  # the paired bridge itself sent no bad step
     texts = [d["text"] for _t, _n, d in read_mcap(log, topics=["/fc/statustext"])]
     for part in ("Sim link paired", "Sim link: dropped", "Sim link: pairing refused", "Sim link: partial bundle"):
