@@ -87,6 +87,55 @@ class NullModem:
         self.close()
 
 
+class NullModemProcess:
+    """A NullModem in a process of its own (`navig8-nullmodem`), as a line is to the programs at its ends: its relay
+    never waits for the caller's interpreter (a test client's garbage collection or MAVLink parsing held the relay
+    threads of an in-process NullModem for tens of ms: the line went silent and a real-time hover swayed). Same
+    `paths`, `bytes` (known once closed) and `elapsed_s()`."""
+
+    def __init__(self, baud: int = 921600, timeout_s: float = 30.0) -> None:
+        import subprocess
+
+        self.baud = baud
+        self.bytes = [0, 0]
+        self.started = time.monotonic()
+        self._proc = subprocess.Popen([sys.executable, "-m", "navig8_tools.nullmodem", "--baud", str(baud)],
+                                      stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                      text=True)
+        r, _, _ = select.select([self._proc.stdout], [], [], timeout_s)
+        line = self._proc.stdout.readline() if r else ""
+        if " <-> " not in line:
+            self._proc.kill()
+            self._proc.wait(timeout=10)
+            raise RuntimeError(f"navig8-nullmodem did not start within {timeout_s:g} s: {line!r}")
+        p1, rest = line.split(" <-> ", 1)
+        self.paths = (p1, rest.split(" ", 1)[0])
+        self._ended: float | None = None
+
+    def elapsed_s(self) -> float:
+        return (self._ended or time.monotonic()) - self.started
+
+    def close(self) -> None:
+        if self._proc.poll() is None:
+            self._proc.send_signal(signal.SIGTERM)
+        try:
+            _, err = self._proc.communicate(timeout=10)
+        except Exception:
+            self._proc.kill()
+            _, err = self._proc.communicate(timeout=10)
+        self._ended = self._ended or time.monotonic()
+        for ln in err.splitlines():
+            if ln.startswith("relayed "):  # "relayed N B one way, M B back"
+                f = ln.split()
+                self.bytes = [int(f[1]), int(f[5])]
+
+    def __enter__(self) -> NullModemProcess:
+        return self
+
+    def __exit__(self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None) -> None:
+        self.close()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="navig8-nullmodem", description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
