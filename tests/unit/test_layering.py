@@ -417,3 +417,15 @@ def test_checker_catches_private_reads(tmp_path: Path) -> None:
     assert [e for _, e in _private_reads(p)] == [
         "from sim_bridge._kernels import _servo_accel", "from sim_bridge import _kernels", "other._z",
         "getattr(other, '_w')", "ly._svec_maps"]
+
+
+def test_the_bridge_loads_no_flight_controller() -> None:
+    """navig8-bridge reads scenario scripts (navig8_fc.flight.script) but never loads the flight stack or the
+    controller core behind it (with scipy.optimize: ~0.6 s of CPU every bridge start)."""
+    import subprocess
+
+    code = ("import sys, sim_bridge.bridge; print(sorted(m for m in ('navig8_fc.flight.stack', "
+            "'navig8_fc.core.controller', 'scipy.optimize') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == "[]", out.stdout
