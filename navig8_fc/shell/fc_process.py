@@ -56,7 +56,7 @@ def link_margin_warning(stab: StabilityStatus) -> str | None:
     if stab.link_delay_ticks == 0 or stab.meets_margin:
         return None
     return (f"Stability margin {stab.margin:.2f} over this link < INDI_LAM_MARGIN {stab.required_margin:g} "
-            f"(lambda_crit {stab.lambda_crit:.3f})")
+            f"(lambda_crit {stab.lambda_crit:.3f}); one tick late: params/presets/realtime_link.parm")
 
 
 class FlightControllerProcess:

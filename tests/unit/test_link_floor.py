@@ -147,6 +147,22 @@ def test_over_a_late_link_the_margin_rule_judges_the_loop_flown() -> None:
     assert status is not None and status.margin == pytest.approx(1.53, abs=0.01) and status.meets_margin
 
 
+def test_the_real_time_link_preset_restores_the_margin_over_a_late_link() -> None:
+    """params/presets/realtime_link.parm (the preset the FC's warning names) loads whole over a line one tick late and
+    meets INDI_LAM_MARGIN there; the defaults do not."""
+    from pathlib import Path
+
+    from navig8_fc.params.store import read_parm_file
+
+    values = read_parm_file(Path(__file__).resolve().parents[2] / "params" / "presets" / "realtime_link.parm")
+    reg = _registry(LinkTiming(1, True))
+    before = reg.stability_status()
+    assert before is not None and not before.meets_margin
+    assert values and all(reg.set(k, v).accepted for k, v in values.items())
+    status = reg.stability_status()
+    assert status is not None and status.meets_margin and status.margin >= 1.5, status
+
+
 def test_over_a_late_link_u0s_parameters_need_the_floor() -> None:
     """Lockstep's H(s) does not read U0; the loop over a late link does, so its parameters go through the floor."""
     lock, late = _registry(), _registry(LinkTiming(1, True))
