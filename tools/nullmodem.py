@@ -14,6 +14,7 @@ import argparse
 import os
 import select
 import signal
+import subprocess
 import sys
 import threading
 import time
@@ -94,8 +95,6 @@ class NullModemProcess:
     `paths`, `bytes` (known once closed) and `elapsed_s()`."""
 
     def __init__(self, baud: int = 921600, timeout_s: float = 30.0) -> None:
-        import subprocess
-
         self.baud = baud
         self.bytes = [0, 0]
         self.started = time.monotonic()
@@ -120,7 +119,7 @@ class NullModemProcess:
             self._proc.send_signal(signal.SIGTERM)
         try:
             _, err = self._proc.communicate(timeout=10)
-        except Exception:
+        except subprocess.TimeoutExpired:
             self._proc.kill()
             _, err = self._proc.communicate(timeout=10)
         self._ended = self._ended or time.monotonic()

@@ -564,3 +564,29 @@ class RawPeer:
 # the rare configurations with a finite upper edge need the full sweep, seconds on a loaded 2-core machine running
 # two SITL pairs), so its PARAM_VALUE is waited for this long (docs/security.md).
 PARAM_SET_WAIT_S = 20.0
+
+
+def kernel_udp_row(port: int) -> list[str] | None:
+    """The /proc/net/udp row of the UDP socket bound to `port`, or None."""
+    for table in ("/proc/net/udp", "/proc/net/udp6"):
+        try:
+            lines = Path(table).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            fields = line.split()
+            if int(fields[1].rsplit(":", 1)[1], 16) == port:
+                return fields
+    return None
+
+
+def kernel_udp_drops(port: int) -> int | None:
+    """Datagrams the kernel dropped for the UDP socket bound to `port` (its receive buffer overflowed), or None."""
+    row = kernel_udp_row(port)
+    return None if row is None else int(row[-1])
+
+
+def kernel_udp_rx_queue(port: int) -> int | None:
+    """Bytes waiting in that socket's receive queue (tx_queue:rx_queue, hex), or None."""
+    row = kernel_udp_row(port)
+    return None if row is None else int(row[4].split(":")[1], 16)

@@ -9,38 +9,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import gcs_client, kernel_udp_drops, kernel_udp_rx_queue, sitl, wait_for, wait_heartbeat
 
 from navig8_fc.shell.mcap_log import read_mcap, read_metadata
 from navig8_tools.logdata import load_run
 
 N_GARBAGE = 10_000
-
-
-def _kernel_udp_row(port: int) -> list[str] | None:
-    """The /proc/net/udp row of the UDP socket bound to `port`, or None."""
-    for table in ("/proc/net/udp", "/proc/net/udp6"):
-        try:
-            lines = Path(table).read_text().splitlines()[1:]
-        except OSError:
-            continue
-        for line in lines:
-            fields = line.split()
-            if int(fields[1].rsplit(":", 1)[1], 16) == port:
-                return fields
-    return None
-
-
-def _kernel_udp_drops(port: int) -> int | None:
-    """Datagrams the kernel dropped for the UDP socket bound to `port` (its receive buffer overflowed), or None."""
-    row = _kernel_udp_row(port)
-    return None if row is None else int(row[-1])
-
-
-def _kernel_udp_rx_queue(port: int) -> int | None:
-    """Bytes waiting in that socket's receive queue (tx_queue:rx_queue, hex), or None."""
-    row = _kernel_udp_row(port)
-    return None if row is None else int(row[4].split(":")[1], 16)
 
 
 def _assert_held_hover(log: Path, min_samples: int) -> None:
@@ -84,9 +58,9 @@ def test_ten_thousand_malformed_datagrams_leave_the_vehicle_holding(tmp_path: Pa
             assert run.fc.poll() is None, "navig8-fc died"
             # The FC has read its socket dry (the kernel's receive queue for it is empty) before we count.
             deadline = time.monotonic() + 10.0
-            while _kernel_udp_rx_queue(run.gcs_bind_port) not in (0, None) and time.monotonic() < deadline:
+            while kernel_udp_rx_queue(run.gcs_bind_port) not in (0, None) and time.monotonic() < deadline:
                 time.sleep(0.05)
-            kernel_drops = _kernel_udp_drops(run.gcs_bind_port)
+            kernel_drops = kernel_udp_drops(run.gcs_bind_port)
             # The whole 6 s flight is flown (the bridge ends it), the flood in its first seconds.
             assert run.bridge is not None
             run.bridge.wait(timeout=60.0)

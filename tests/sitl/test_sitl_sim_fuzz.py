@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from sitl_helpers import free_udp_ports, gcs_client, wait_for, wait_heartbeat
+from sitl_helpers import free_udp_ports, gcs_client, kernel_udp_drops, wait_for, wait_heartbeat
 
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.links.sim_guard import pairing_heartbeat
@@ -64,15 +64,6 @@ def _forged_bundles(sysid: int, seed: int, n: int, mutate=None) -> list[bytes]:
         out.append(seam.encode_bundle(enc, k, sw, plant.truth_floats()))
         plant.step_us(cmd, 10_000)
     return out
-
-
-def _kernel_drops(port: int) -> int:
-    """Datagrams the kernel dropped for the UDP socket bound to `port` (a full receive buffer: /proc/net/udp)."""
-    for line in Path("/proc/net/udp").read_text().splitlines()[1:]:
-        f = line.split()
-        if int(f[1].rsplit(":", 1)[1], 16) == port:
-            return int(f[-1])
-    raise AssertionError(f"no UDP socket on port {port}")
 
 
 def _attack(sim: tuple[str, int], bridge: tuple[str, int], sysid: int) -> dict[str, int]:
@@ -143,7 +134,8 @@ def test_forged_sim_traffic_neither_crashes_nor_steers_the_vehicle(tmp_path: Pat
         lp = wait_for(gcs, "LOCAL_POSITION_NED", 10.0)
         assert lp is not None and abs(lp.z + 2.0) < 0.2, lp
         # a flood overruns a receive buffer (net.core.rmem_max caps SO_RCVBUF): what the kernel dropped nobody counts
-        fc_drops, bridge_drops = _kernel_drops(sim_port), _kernel_drops(bridge_port)
+        fc_drops, bridge_drops = kernel_udp_drops(sim_port), kernel_udp_drops(bridge_port)
+        assert fc_drops is not None and bridge_drops is not None, "no socket on the sim ports"
         out, err = proc.communicate(timeout=120)
     finally:
         gcs.close()
