@@ -11,10 +11,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from navig8_fc.core.vehicle import VehicleConfig, effectiveness_pair, mass_properties, reference_transform
+if TYPE_CHECKING:
+    from navig8_fc.core.vehicle import VehicleConfig
 
 # Paper Fig. 7 poses (deg): arm stretched forward and curled, both holding a 2 kg object.
 POSE_STRETCHED_DEG: tuple[float, float, float] = (80.0, 10.0, 10.0)
@@ -37,6 +39,10 @@ def xi_batch(cfg: VehicleConfig, poses_rad: np.ndarray, object_masses_kg: np.nda
     reference: the point whose acceleration the INDI force rows feed back. "com" (the true composite CoM):
     Eq. 14 as printed. "o" (the paper's specific force at O, INDI_ACC_REF = 0): the loop flies T(O - c) G, so
     G_hat G_flown^-1 = K Xi T^-1 (vehicle.reference_transform; T^-1 = 2 I - T)."""
+    # here, not at the top: vehicle loads numba and the model's kernels (~0.3 s of CPU), which the stability floor's
+    # eigenvalues over a Xi already computed (min_eigenvalue_of_xi, the FC's floor worker) do not need
+    from navig8_fc.core.vehicle import effectiveness_pair, mass_properties, reference_transform
+
     if reference not in REFERENCES:
         raise ValueError(f"reference must be one of {REFERENCES}, got {reference!r}")
     poses = np.atleast_2d(np.asarray(poses_rad, dtype=float))

@@ -30,7 +30,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from importlib.resources import files
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import yaml
@@ -160,20 +160,32 @@ class StabilityStatus:
 StabilityCheck = Callable[[Mapping[str, float | int]], StabilityFloor]
 
 
+class WorkspaceCache(Protocol):
+    """Where the workspace Xi of a vehicle file may be kept between processes (the FC's: shell/xi_cache.py, on
+    disk). It must pickle: the check travels to the floor worker with it."""
+
+    def load(self, vehicle_path: str | None) -> np.ndarray | None: ...
+
+    def store(self, vehicle_path: str | None, xi: np.ndarray) -> None: ...
+
+
 class WorkspaceStabilityCheck:
     """λ_crit of H(s) for the actuator/sampling/filter parameters vs the smallest eigenvalue of K·Ξ
     over the arm workspace and object masses (navig8_fc.core.stability).
 
     Results are kept per process for the vehicle file and the floor inputs (the sweep is a pure function of
-    them), so registries of one process (the FC's, a test's) compute each configuration once."""
+    them), so registries of one process (the FC's, a test's) compute each configuration once. `workspace_cache`
+    keeps the workspace Xi between processes too: every FC start's floor worker then skips computing it (and
+    loading numba for it)."""
 
     _memo: dict[tuple[Any, tuple[float, ...]], StabilityFloor] = {}
-    # the vehicle and its workspace Xi (k_xi.workspace_xi: ~0.1 s, independent of every floor input) per vehicle file,
-    # so a new configuration costs only its eigenvalues (~15 ms): a PARAM_SET is answered at once
-    _workspace: dict[str | None, tuple[Any, np.ndarray]] = {}
+    # the workspace Xi (k_xi.workspace_xi: ~0.1 s, independent of every floor input) per vehicle file, so a new
+    # configuration costs only its eigenvalues (~15 ms): a PARAM_SET is answered at once
+    _workspace: dict[str | None, np.ndarray] = {}
 
-    def __init__(self, vehicle_path: str | Path | None = None) -> None:
+    def __init__(self, vehicle_path: str | Path | None = None, workspace_cache: WorkspaceCache | None = None) -> None:
         self._vehicle_path = vehicle_path
+        self._workspace_cache = workspace_cache
 
     def __call__(self, values: Mapping[str, float | int]) -> StabilityFloor:
         key = (None if self._vehicle_path is None else str(self._vehicle_path), floor_key(values))
@@ -187,13 +199,8 @@ class WorkspaceStabilityCheck:
 
     def _compute(self, values: Mapping[str, float | int]) -> StabilityFloor:
         from navig8_fc.core import k_xi, stability
-        from navig8_fc.core.vehicle import VehicleConfig
 
-        path = None if self._vehicle_path is None else str(self._vehicle_path)
-        if path not in self._workspace:
-            vehicle = VehicleConfig.load(self._vehicle_path)
-            self._workspace[path] = (vehicle, k_xi.workspace_xi(vehicle))
-        cfg, xi = self._workspace[path]
+        xi = self._workspace_xi()
         link = link_of(values)
         if link.delay_ticks == 0:  # lockstep: H(s) with the one-sample Pade delay, its conservative model
             lam_crit = stability.lambda_crit(
@@ -218,8 +225,26 @@ class WorkspaceStabilityCheck:
         )
         max_eig = -math.inf
         if math.isfinite(lam_up):  # rare (lightly damped, long delay): the slow side needs the full sweep
-            max_eig = k_xi.k_bounds_analysis(cfg, k_min, k_max).max_eigenvalue
+            from navig8_fc.core.vehicle import VehicleConfig
+
+            max_eig = k_xi.k_bounds_analysis(VehicleConfig.load(self._vehicle_path), k_min, k_max).max_eigenvalue
         return StabilityFloor(lam_crit, min_eig, lam_up, max_eig)
+
+    def _workspace_xi(self) -> np.ndarray:
+        """The vehicle's workspace Xi: this process's, else the cache's, else computed (and given to the cache)."""
+        path = None if self._vehicle_path is None else str(self._vehicle_path)
+        xi = self._workspace.get(path)
+        if xi is None and self._workspace_cache is not None:
+            xi = self._workspace_cache.load(path)
+        if xi is None:
+            from navig8_fc.core import k_xi
+            from navig8_fc.core.vehicle import VehicleConfig  # numba's kernels: only when Xi is computed here
+
+            xi = k_xi.workspace_xi(VehicleConfig.load(self._vehicle_path))
+            if self._workspace_cache is not None:
+                self._workspace_cache.store(path, xi)
+        self._workspace[path] = xi
+        return xi
 
 
 def _flag(raw: Mapping[str, Any], key: str) -> bool:

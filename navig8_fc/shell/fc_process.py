@@ -25,7 +25,7 @@ from navig8_fc.mavlink import codec
 from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mavlink.px4sim import PX4_SIM_MESSAGES
 from navig8_fc.mission.geo import origin_from_params
-from navig8_fc.params.registry import ParamRegistry, StabilityStatus
+from navig8_fc.params.registry import ParamRegistry, StabilityStatus, WorkspaceStabilityCheck
 from navig8_fc.shell.fc_log import FcLog, StepRecord
 from navig8_fc.shell.fc_options import FcOptions, build_arg_parser, options_from_args
 from navig8_fc.shell.fc_state import FcState
@@ -39,6 +39,7 @@ from navig8_fc.shell.origin_gate import DEFAULT_ALLOWED_ORIGINS
 from navig8_fc.shell.sim_peer import Px4Peer, sim_peer_for, timing_from_params
 from navig8_fc.shell.sim_stepper import SimStepper
 from navig8_fc.shell.telemetry_service import MAV_AUTOPILOT_GENERIC, MAV_AUTOPILOT_PX4
+from navig8_fc.shell.xi_cache import XiDiskCache
 from navig8_fc.viz import VehicleViz, packaged_uav_size_m
 
 FC_COMPID = 1
@@ -67,7 +68,9 @@ class FlightControllerProcess:
         self.opts = opts
         self.d = dialect_mod.load()
         self.vehicle = vm.VehicleConfig.load(opts.vehicle_path)
-        self.registry = ParamRegistry.from_defaults()
+        # the floor worker reads the workspace Xi from disk when an earlier start left it (shell/xi_cache.py)
+        self.registry = ParamRegistry.from_defaults(
+            stability_check=WorkspaceStabilityCheck(workspace_cache=XiDiskCache.default()))
         self._stop = False
         self.model = vm.UamModel(self.vehicle)
         self.mission_view: MissionView | None = None
