@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable
 
@@ -51,7 +50,10 @@ def test_the_errors_are_scipys() -> None:
             fn(lambda x: x, -1.0, 1.0, rtol=1e-17)
 
 
-LOOPS = list(itertools.product((40.0, 120.0, 500.0), (0.1, 0.7, 1.0), (0.0025, 0.01, 0.05), (0.0, 0.005, 0.1)))
+# (wn, zeta, ts, tl): the paper's loop, the notes' cases, a fast and a slow actuator, no low-pass, and a lightly
+# damped one with a long delay (a finite λ_upper)
+LOOPS = [(120.0, 1.0, 0.01, 0.1), (60.0, 0.7, 0.005, 0.05), (120.0, 1.0, 0.02, 0.1), (500.0, 0.7, 0.0025, 0.005),
+         (40.0, 1.0, 0.01, 0.0), (120.0, 0.4, 0.05, 0.1), (500.0, 0.1, 0.05, 0.005)]
 
 
 def _model_u0_edge(wn: float, zeta: float, ts: float, tl: float) -> float:
