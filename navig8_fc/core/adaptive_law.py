@@ -56,6 +56,7 @@ from numba import njit
 
 from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig, CkfMode
 from navig8_fc.core.filters import lpf_alpha
+from navig8_fc.core.force_balance import ForceBalanceMass
 from navig8_fc.core.kalman import ConstrainedKalmanFilter, KfStepResult, eq22_drift, inertia_ratios
 from navig8_fc.core.kf_nuisance import ixz_mass_column, known_ixz, refer_moment  # I_xz (CKF_IXZ_MOD), CKF_MOM_MREF
 from navig8_fc.core.layout import layout
@@ -275,6 +276,8 @@ class AdaptiveLaw:
         self._com_sigma = ckf.com_sigma_m if self._pitch_row else 0.0
         self._ixz_sigma = ckf.ixz_sigma_kgm2 if isinstance(self._kf, ConstrainedKalmanFilter) else 0.0  # CKF_IXZ_SIG
         self._cz_dm = ckf.com_mass_slope and self._pitch_row  # CKF_CZ_DM: the pitch row's mass column
+        self._fbm = ForceBalanceMass(self._alpha, ckf.mass_balance_sigma_kg) if ckf.mass_balance_sigma_kg > 0.0 and \
+            isinstance(self._kf, ConstrainedKalmanFilter) else None  # CKF_M_ABS_SIG: the held mass, force balance
         self._nuisance = self._pitch_row or self._ixz_sigma > 0.0  # a grasp / release moves a nuisance's prior
         # after a grasp or a release the pitch row waits PITCH_EVENT_HOLD_TAU filter time constants: the object's
         # weight moment steps in the commanded pitch moment with no pitch acceleration to match, and the low-passed
@@ -324,6 +327,8 @@ class AdaptiveLaw:
         self._mom, self._mom_obj_kg = [0.0] * 4, 0.0  # and the last tick's reference point's object mass (kg)
         self._ref_dz = 0.0  # the reference point's move down (m) with the mass estimate this tick (CKF_MOM_MREF)
         self._kf.reset()  # re-initialised at the next start
+        if self._fbm is not None:
+            self._fbm.reset()
 
     @property
     def mass_estimate_kg(self) -> float | None:
@@ -399,6 +404,8 @@ class AdaptiveLaw:
         if self._nuisance and gripper_closed is not None and gripper_closed != self._held_prev:
             self._held_changed(bool(gripper_closed), t_s, (0.5 * (upper[1] - lower[1])) ** 2)
         correct = self._gate(ready, window_sat, t_s)
+        if self._fbm is not None and inv_gauss_jordan(gc_inv, self._gc):  # CKF_M_ABS_SIG
+            self._fbm.tick(self._gc, u_meas, acc_m, correct, gripper_closed, m, kf)
         self._j_prev = (j11, j22, j33)
         rho_x, rho_z = inertia_ratios(j11, j13, j33)
         du_kf, dhd = self._du, inc[LO_DH]

@@ -40,7 +40,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
     "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
     "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG", "CKF_MOM_LPF", "CKF_M_SIG_OPEN", "CKF_IXZ_SIG", "CKF_CZ_DM",
-    "CKF_MOM_MREF", "CKF_MOM_MOVE", "CKF_PROJ_IYY", "CKF_CZ_FOLLOW",
+    "CKF_MOM_MREF", "CKF_MOM_MOVE", "CKF_PROJ_IYY", "CKF_CZ_FOLLOW", "CKF_M_ABS_SIG",
 )
 
 
@@ -166,6 +166,9 @@ class CkfConfig:
     # or the arm not at rest) its CoM nuisance moves with the reference point when the mass estimate moves it
     # (ConstrainedKalmanFilter.move_pitch_reference; AdaptiveLaw)
     com_follows_reference: bool = False
+    # CKF_M_ABS_SIG: while the gripper reports closed, the mass is also measured from the force balance F = m f,
+    # calibrated on the UAM's mass while it reports open (force_balance), with this sigma (kg) per window; 0: off
+    mass_balance_sigma_kg: float = 0.0
 
     def __post_init__(self) -> None:
         lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
@@ -208,7 +211,7 @@ class CkfConfig:
         object.__setattr__(self, "iyy_projected_apart", bool(self.iyy_projected_apart))
         object.__setattr__(self, "com_follows_reference", bool(self.com_follows_reference))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2", "pitch_r_nm2",
-                     "com_sigma_m", "grip_sigma_w", "mass_sigma_open_kg", "ixz_sigma_kgm2"):
+                     "com_sigma_m", "grip_sigma_w", "mass_sigma_open_kg", "ixz_sigma_kgm2", "mass_balance_sigma_kg"):
             v = float(getattr(self, name))
             if not (v >= 0.0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
@@ -284,4 +287,5 @@ class CkfConfig:
             moment_arm_moving=bool(int(values["CKF_MOM_MOVE"])),
             iyy_projected_apart=bool(int(values["CKF_PROJ_IYY"])),
             com_follows_reference=bool(int(values["CKF_CZ_FOLLOW"])),
+            mass_balance_sigma_kg=float(values["CKF_M_ABS_SIG"]),
         )

@@ -49,6 +49,7 @@ from numba import njit
 from navig8_fc.core import box_qp, ckf_config, kf_nuisance, linalg
 from navig8_fc.core.box_qp import ProjectionResult
 from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig
+from navig8_fc.core.force_balance import correct_mass
 from navig8_fc.core.jit import njit_cached
 from navig8_fc.core.kf_nuisance import NZ_COV, NZ_SIZE, NZ_VAR, NZ_X, augment, ixz_column, unaugment
 from navig8_fc.core.kf_nuisance import mul as _mul
@@ -442,6 +443,10 @@ class ConstrainedKalmanFilter:
         self._p[:, :] = np.diag(self.config.p0_scale * self._q)
         self._nz[NZ_COV:] = 0.0
         self._nx[NZ_COV:] = 0.0
+
+    def correct_mass(self, z_kg: float, r_kg2: float) -> None:
+        """A direct measurement of the mass, z = m + v, var v = r_kg2 (force_balance.correct_mass)."""
+        correct_mass(self._x, self._p, self._nz, self._nx, z_kg, r_kg2)
 
     def raise_variance(self, var_min: Sequence[float]) -> None:
         """P's diagonal raised to at least var_min (4,) (a prior wider than P0 after a known change of the truth)."""
