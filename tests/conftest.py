@@ -3,17 +3,21 @@
 numba compiles every kernel on its first call and keeps the result in its disk cache (`cache=True`). On a
 fresh clone that first compilation takes tens of seconds; done inside a test it would land in whichever test
 happens to run first, and with pytest-xdist in every worker at once. `pytest_configure` runs once in the
-controlling process (before xdist starts its workers, and in a plain run before collection), flies a short
-in-process hover through the public `navig8-sim` entry point so every FC and plant kernel is compiled and
-cached; workers and SITL child processes then load the kernels from the cache. numba compiles on one core: a second
-process (tests/warm_tail_kernels.py) compiles the kernels the hover reaches last on the other core meanwhile.
+controlling process (before xdist starts its workers, and in a plain run before collection) and starts
+tests/warm_kernels.py, which flies a short in-process hover through the public `navig8-sim` entry point so every FC
+and plant kernel is compiled and cached (with the kernels the hover reaches last compiled beside it, on the other
+core). A plain run waits for it there; xdist workers start and collect meanwhile (~11 s of CPU each, on the core
+the warm-up leaves idle in its last ~20 s) and wait for it before their first test. Workers and SITL child processes
+then load the kernels from the cache.
 """
 
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -29,8 +33,10 @@ from navig8_fc.blas import ONE_THREAD_ENV  # no numpy: the environment is set be
 for _var, _value in ONE_THREAD_ENV.items():
     os.environ.setdefault(_var, _value)
 
-WARM_S = pytest.StashKey[float]()  # how long the warm-up took, for the report header
-WARM_TAIL_RC = pytest.StashKey[int]()  # the second warm-up process's exit code (non-zero: it only cost time)
+WARM = pytest.StashKey[tuple[subprocess.Popen, Path]]()  # the warm-up process and the file it writes when done
+WARM_TOOK = pytest.StashKey[list[str]]()  # what the warm-up wrote: its seconds and its tail's exit code
+WARM_DONE_ENV = "NAVIG8_TEST_WARM_DONE"  # the workers (and only they) inherit it from the controller
+WARM_WAIT_S = 900.0  # a worker waits this long at most, then runs its tests (they compile what they need)
 _HERE = Path(__file__).resolve().parent
 _SLOW_DIRS = (_HERE / "sitl", _HERE / "clients")  # where the slow tests live (their conftests mark them)
 # The SITL lane's longest modules (the most minutes, summed over their tests, measured with --durations=0), started
@@ -41,32 +47,55 @@ LONGEST_FIRST = ("clients/test_mavsdk_examples.py", "sitl/test_sitl_paper.py", "
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    if hasattr(config, "workerinput"):  # an xdist worker: the controller has warmed the cache already
+    if hasattr(config, "workerinput"):  # an xdist worker: it waits for the controller's warm-up after collecting
         return
     if config.option.collectonly:
         return
-    from navig8_tools.sim import run
+    done = Path(tempfile.mkdtemp(prefix="navig8-warm-")) / "done"
+    proc = subprocess.Popen([sys.executable, str(_HERE / "warm_kernels.py"), str(done)], stdin=subprocess.DEVNULL)
+    config.stash[WARM] = (proc, done)
+    if config.getoption("numprocesses", None) and config.getoption("dist", "no") != "no":
+        os.environ[WARM_DONE_ENV] = str(done)  # set before xdist starts its workers: they inherit it
+    elif proc.wait() != 0:  # a plain run: every test after it
+        raise pytest.UsageError("tests/warm_kernels.py failed: the warm-up hover did not fly (its output above)")
 
-    t0 = time.perf_counter()
-    # On a fresh clone the hover compiles for ~70 s on one core while the other idles; its last ~20 s (the
-    # eigenvalue record's and the plant step's kernels) compile beside it in a second process and are loaded from
-    # the cache when the hover reaches them (docs/results.md, "Test suite time"). Whatever that process does not
-    # reach, or if it fails, the hover compiles itself: it can cost time, never a kernel.
-    tail = subprocess.Popen([sys.executable, str(_HERE / "warm_tail_kernels.py")], stdin=subprocess.DEVNULL)
-    try:
-        run("hover", duration_s=0.05, log_path=None)
-    finally:
-        config.stash[WARM_TAIL_RC] = tail.wait()
-    config.stash[WARM_S] = time.perf_counter() - t0
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """An xdist worker's first test waits for the warm-up (a kernel compiled in two workers at once costs both)."""
+    done = os.environ.get(WARM_DONE_ENV)
+    if done is None or not hasattr(session.config, "workerinput"):
+        return
+    deadline = time.monotonic() + WARM_WAIT_S
+    while not os.path.exists(done) and time.monotonic() < deadline:
+        time.sleep(0.05)
 
 
 def pytest_report_header(config: pytest.Config) -> str | None:
-    warm = config.stash.get(WARM_S, None)
-    if warm is None:
+    if WARM not in config.stash:
         return None
-    rc = config.stash.get(WARM_TAIL_RC, 0)
-    tail = "" if rc == 0 else f"; tests/warm_tail_kernels.py exited {rc}: the hover compiled its kernels itself"
-    return f"navig8: numba kernels warmed in {warm:.1f} s (tests/conftest.py{tail})"
+    proc, _ = config.stash[WARM]
+    how = "done" if proc.poll() is not None else "under way; the workers wait for it after collecting"
+    return f"navig8: numba kernels warmed by tests/warm_kernels.py ({how})"
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """A warm-up that failed fails the run (its hover did not fly); its time is kept for the summary."""
+    if WARM not in session.config.stash:
+        return
+    proc, done = session.config.stash[WARM]
+    rc = proc.wait()
+    os.environ.pop(WARM_DONE_ENV, None)
+    session.config.stash[WARM_TOOK] = done.read_text().split() if done.exists() else ["?", "?"]
+    shutil.rmtree(done.parent, ignore_errors=True)
+    if rc != 0:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter, config: pytest.Config) -> None:
+    took = config.stash.get(WARM_TOOK, None)
+    if took is not None:
+        tail = "" if took[1] == "0" else f"; its tail process exited {took[1]}: the hover compiled those kernels"
+        terminalreporter.write_line(f"navig8: numba kernels warmed in {took[0]} s (tests/warm_kernels.py{tail})")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
