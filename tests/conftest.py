@@ -13,6 +13,8 @@ then load the kernels from the cache.
 
 from __future__ import annotations
 
+import fcntl
+import json
 import os
 import shutil
 import subprocess
@@ -110,3 +112,27 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
                                 f"its slow lanes there): {', '.join(stray)}")
     rank = {(_HERE / rel).resolve(): i for i, rel in enumerate(LONGEST_FIRST)}
     items.sort(key=lambda it: rank.get(Path(str(it.fspath)).resolve(), len(rank)))
+
+
+@pytest.fixture(scope="session")
+def paper_reference(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, Path]:
+    """The paper scenario flown in-process with the defaults, seed 1, logged: (its summary, its log). Four modules
+    check this same flight (two in each lane); it is deterministic, so it is flown once a run: under xdist the
+    first worker to ask flies it, holding a lock in the run's shared temporary directory, and the others read its
+    summary (JSON, floats round-trip exactly) and its log."""
+    from navig8_tools.sim import run
+
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the workers' temporary directories are its children
+    d = root / "paper_reference"
+    d.mkdir(exist_ok=True)
+    summary, log = d / "summary.json", d / "ref.mcap"
+    with open(d / "lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if not summary.exists():
+            s = run("paper", "proposed", seed=1, log_path=log).summary
+            tmp = d / "summary.json.tmp"
+            tmp.write_text(json.dumps(s))
+            tmp.replace(summary)
+        return json.loads(summary.read_text()), log

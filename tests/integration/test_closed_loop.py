@@ -21,9 +21,8 @@ EIG_FLOOR = 0.38
 
 
 @pytest.fixture(scope="module")
-def paper_proposed(tmp_path_factory) -> tuple[dict, Path]:
-    log = tmp_path_factory.mktemp("paper") / "proposed.mcap"
-    return run("paper", "proposed", seed=1, log_path=log).summary, log
+def paper_proposed(paper_reference) -> tuple[dict, Path]:
+    return paper_reference  # the defaults' paper flight, seed 1, logged (tests/conftest.py: flown once a run)
 
 
 def test_proposed_flies_the_paper_scenario(paper_proposed) -> None:

@@ -21,7 +21,8 @@ from navig8_tools.summary import summarize
 # ([0.4, 1]: INDI_LAM_REF 0.4, INDI_KFL_MIN 0.4) and the workspace, 0.386 on the full sweep, rounded down (0.399 here)
 EIG_FLOOR = 0.38
 
-def test_paper_plan_flown_by_navig8_mission_meets_the_paper_criteria(tmp_path: Path) -> None:
+def test_paper_plan_flown_by_navig8_mission_meets_the_paper_criteria(tmp_path: Path,
+                                                                    paper_reference: tuple[dict, Path]) -> None:
     plan_file = tmp_path / "paper.waypoints"
     plan_file.write_text(write_wpl(plan_from_scenario("paper")))
     items = read_plan(plan_file).mission
@@ -47,7 +48,7 @@ def test_paper_plan_flown_by_navig8_mission_meets_the_paper_criteria(tmp_path: P
     # rounding). Differences: the plan starts when its upload completes (~0.04 s of sim time after the start, so
     # every step and arm command comes that much later relative to the 6 s mass event), the arm's initial 2 s
     # ramp is 0.25 s joint-target steps, and the run lasts 32 s (holding after the plan ends) instead of 30 s.
-    ref = run_reference(tmp_path)
+    ref, ref_log = paper_reference  # run("paper", "proposed", seed=1) logged, flown once a run (tests/conftest.py)
     # The eigenvalues follow the estimate, which moves with the windowed estimator (CKF_INC_N = 25): a start 0.04 s
     # later shifts its windows against the arm's reversals (measured 0.504-0.545 against 0.507). The largest
     # position error is the altitude sag after the yaw step flown at 45 deg pitch with the arm reversing, which
@@ -59,7 +60,7 @@ def test_paper_plan_flown_by_navig8_mission_meets_the_paper_criteria(tmp_path: P
     for key, rel in (("min_eigenvalue", 0.1), ("max_eigenvalue", 0.05), ("max_att_error_deg", 0.1),
                      ("peak_reaction_force_n", 0.05), ("peak_reaction_torque_nm", 0.1)):
         assert s[key] == pytest.approx(ref[key], rel=rel), key
-    before, before_ref = pos_rms_until(run.log, YAW_STEP_S), pos_rms_until(tmp_path / "ref.mcap", YAW_STEP_S)
+    before, before_ref = pos_rms_until(run.log, YAW_STEP_S), pos_rms_until(ref_log, YAW_STEP_S)
     assert before == pytest.approx(before_ref, rel=0.1), (before, before_ref)
     # Settling: the first four steps within 0.3 s of the scripted run's. The yaw step's window runs to the end of
     # the log (32 s here, 30 s there): where the yaw error crosses 5 deg again after 30 s (with the arm resting in
@@ -87,8 +88,3 @@ def pos_rms_until(log: Path, t_end_s: float) -> float:
     err = pos - np.column_stack([np.interp(at, sp.t, sp_pos[:, k]) for k in range(3)])
     return float(np.sqrt(np.mean(np.sum(err * err, axis=1))))
 
-
-def run_reference(tmp_path: Path) -> dict:
-    from navig8_tools.sim import run
-
-    return run("paper", "proposed", seed=1, log_path=tmp_path / "ref.mcap").summary
