@@ -5,9 +5,9 @@ fresh clone that first compilation takes tens of seconds; done inside a test it 
 happens to run first, and with pytest-xdist in every worker at once. `pytest_configure` runs once in the
 controlling process (before xdist starts its workers, and in a plain run before collection) and starts
 tests/warm_kernels.py, which flies a short in-process hover through the public `navig8-sim` entry point so every FC
-and plant kernel is compiled and cached (with the kernels the hover reaches last compiled beside it, on the other
-core). A plain run waits for it there; xdist workers start and collect meanwhile (~11 s of CPU each, on the core
-the warm-up leaves idle in its last ~20 s) and wait for it before their first test. Workers and SITL child processes
+and plant kernel is compiled and cached (with the kernels the hover reaches after its longest one compiled beside
+it, on the other core). A plain run waits for it there; xdist workers start and collect meanwhile (on the core the
+warm-up leaves idle) and wait for it before their first test. Workers and SITL child processes
 then load the kernels from the cache.
 """
 

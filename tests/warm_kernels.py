@@ -3,12 +3,12 @@
 `python tests/warm_kernels.py DONE_FILE` flies a short in-process hover through the public `navig8-sim` entry point,
 which reaches every FC and plant kernel, then writes DONE_FILE (`<seconds> <tail exit code>`; written whatever
 happened, so that nobody waiting for it waits for nothing). On a fresh clone the hover compiles for ~70 s on one
-core. Its last ~20 s are the eigenvalue record's kernel (g_c.ghat_ginv_eigs_truth, with ghat_ginv_eigs inside:
-warm_up_kernels's last call) and the plant's step and sensor kernels (integrator.advance, sensors.sense: the first
-plant.step of the flight); `python tests/warm_kernels.py --tail` compiles those in a second process beside it, so
-the hover loads them from the cache when it reaches them. The tail calls them the way the hover does (the same
-argument types: the same cache entries); a kernel it does not reach the hover compiles as before, so a stale split
-costs time, never coverage.
+core, 27 s of it kalman.kf_step, which its first engaged tick reaches after ~10 s. What it reaches after that, the
+INDI's, the outer loop's, the command shaper's and the arm preview's kernels (~20 s) and the plant's step and sensor
+kernels (integrator.advance, sensors.sense: the first plant.step of the flight, ~6 s), `python tests/warm_kernels.py
+--tail` compiles in a second process beside it, so the hover loads them from the cache when it reaches them. The
+tail calls them the way the hover does (the same argument types: the same cache entries); a kernel it does not reach
+the hover compiles as before, so a stale split costs time, never coverage.
 """
 
 from __future__ import annotations
@@ -17,19 +17,6 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-
-
-def warm_eigenvalue_record(scenario: str = "hover") -> None:
-    """ghat_ginv_eig_record as warm_up_kernels calls it (G_C,UAM given as the controller's status carries it)."""
-    import numpy as np
-
-    from navig8_fc.core.vehicle import UamModel, ghat_ginv_eig_record
-    from sim_bridge.world import load_world
-
-    w = load_world(scenario)
-    gi = np.eye(5).ravel().tolist()
-    ghat_ginv_eig_record(UamModel(w.fc_vehicle), (0.0, 0.0, 0.0), gi, (0.0, 0.0, 0.05), w.fc_vehicle.uav_inertia_array,
-                         w.fc_vehicle.uam_mass_kg, 0.4, 0.1, gi)
 
 
 def warm_plant_step(scenario: str = "hover") -> None:
@@ -43,6 +30,52 @@ def warm_plant_step(scenario: str = "hover") -> None:
     plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(1))
     plant.step(plant.trim_command(), 0.01)
     plant.sense_wire()
+
+
+def warm_inner_loops(scenario: str = "hover") -> None:
+    """The INDI's, the outer loop's, the command shaper's and the arm preview's kernels, called as the hover's ticks
+    and warm_up_kernels call them (the controller's config as navig8_tools.sim.run builds it): the hover reaches
+    them only after kalman.kf_step, its longest kernel, so here they compile while it does."""
+    import numpy as np
+
+    from navig8_fc.core.arm_preview import arm_preview_step, hold_plan, preview_supervise
+    from navig8_fc.core.indi import IndiController, IndiInputs
+    from navig8_fc.core.outer_loop import (
+        OFF,
+        OSP,
+        SH,
+        Setpoint,
+        outer_loop_config_array,
+        outer_loop_step,
+        shape_reference,
+        shaper_config_array,
+    )
+    from navig8_fc.core.vehicle import UamModel
+    from navig8_fc.flight import FlightStack
+    from navig8_fc.params.registry import ParamRegistry
+    from navig8_tools.sim import CONTROLLERS
+    from sim_bridge.world import load_world
+
+    w = load_world(scenario)
+    reg = ParamRegistry.from_defaults()
+    reg.set("CKF_MODE", CONTROLLERS["proposed"])
+    cfg = FlightStack(w.fc_vehicle, reg, w.scenario.script).core.config
+    gyro, sf, tilt, speed = (0.01, -0.02, 0.005), (0.1, 0.0, -9.81), (0.1, 0.1), (600.0, 50.0, 600.0)
+    gc = np.eye(5)
+    indi = IndiController(cfg.indi)
+    indi.measure(IndiInputs(gyro, sf, tilt, speed, (0.0,) * 5, gc, np.eye(5)))  # the disengaged tick's
+    # the shaper and the outer loop in the order the engaged tick calls them, then the INDI step (twice: the second
+    # runs the actuator model's bank on the command the first flew)
+    shape_reference(shaper_config_array(cfg.outer, cfg.dt_s), SH.zeros(), OSP.zeros(), np.zeros(3), np.zeros(3),
+                    np.array((1.0, 0.0, 0.0, 0.0)), OSP.zeros(), OFF.zeros())
+    outer_loop_step(outer_loop_config_array(cfg.outer), Setpoint((0.0, 0.0, -2.0), 0.0, 0.0), (0.0, 0.0, -2.0),
+                    (0.0, 0.0, 0.0), (1.0, 0.0, 0.0, 0.0), gyro, OFF.zeros())
+    for _ in range(2):
+        indi.step(IndiInputs(gyro, sf, tilt, speed, (0.0,) * 5, gc, np.eye(5), np.eye(5)))
+    arm_preview_step(hold_plan((0.1, 0.0, -0.1)), 0.0, cfg.dt_s, 0.05, np.zeros(3), np.zeros(3), 1e-3, 42.0, 4.0, 0.0,
+                     UamModel(w.fc_vehicle).geometry, np.zeros(10), np.zeros(9))
+    pv = cfg.indi.arm_preview
+    preview_supervise(pv.supervisor_state(), pv.supervisor_config(), 0.1, np.zeros(3), np.zeros(10), cfg.dt_s)
 
 
 def warm_all(done: Path) -> None:
@@ -66,9 +99,11 @@ def warm_all(done: Path) -> None:
 
 if __name__ == "__main__":
     if sys.argv[1:] == ["--tail"]:
-        # the eigenvalue record first: the plant's constructor compiles integrator.evaluate, which the hover reaches
-        # in its first second (compiling it here as well would only duplicate it)
-        warm_eigenvalue_record()
+        # in the order the hover reaches them after kf_step; the plant last: its constructor compiles
+        # integrator.evaluate, which the hover reaches in its first seconds (by then it is in the cache). The
+        # eigenvalue record (~12 s, warm_up_kernels's last call) is left to the hover: here it would end after the
+        # hover reached it, and both would compile it.
+        warm_inner_loops()
         warm_plant_step()
     else:
         warm_all(Path(sys.argv[1]))
