@@ -386,7 +386,8 @@ class AdaptiveLaw:
         inc = self._inc.tolist()
         du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
         ready, window_sat = inc[LO_READY] != 0.0, inc[LO_SAT] != 0.0
-        dmom = self._moment_increment(gc_inv, u_meas, ready, m, object_com_dm) if self._mom_lpf else None
+        gc_ok = (self._mom_lpf or self._fbm is not None) and inv_gauss_jordan(gc_inv, self._gc)  # G_C, once a tick
+        dmom = self._moment_increment(gc_ok, u_meas, ready, m, object_com_dm) if self._mom_lpf else None
         if not started:
             return self._not_started(base, j13, lower, upper, du, da, window_sat)
         kf = self._kf
@@ -404,7 +405,7 @@ class AdaptiveLaw:
         if self._nuisance and gripper_closed is not None and gripper_closed != self._held_prev:
             self._held_changed(bool(gripper_closed), t_s, (0.5 * (upper[1] - lower[1])) ** 2)
         correct = self._gate(ready, window_sat, t_s)
-        if self._fbm is not None and inv_gauss_jordan(gc_inv, self._gc):  # CKF_M_ABS_SIG
+        if self._fbm is not None and gc_ok:  # CKF_M_ABS_SIG
             self._fbm.tick(self._gc, u_meas, acc_m, correct, gripper_closed, m, kf)
         self._j_prev = (j11, j22, j33)
         rho_x, rho_z = inertia_ratios(j11, j13, j33)
@@ -461,13 +462,14 @@ class AdaptiveLaw:
         if self._ixz_sigma > 0.0:
             self._kf.ixz_held(held, self._ixz_sigma)
 
-    def _moment_increment(self, gc_inv: np.ndarray, u: np.ndarray, ready: bool, m: float,
+    def _moment_increment(self, gc_ok: bool, u: np.ndarray, ready: bool, m: float,
                           com_dm: tuple[float, float]) -> float | None:
-        """CKF_MOM_LPF: the increment over the window that closed (None between windows or with G_C^-1 singular) of the
+        """CKF_MOM_LPF: the increment over the window that closed (None between windows or with G_C^-1 singular,
+        gc_ok False; else self._gc holds this tick's G_C) of the
         low-passed G_C[M, :] U with each tick's G_C, (Delta G_C) U_f included (docs/model.md, Estimator items 13, 17).
         CKF_MOM_MREF: the reference point's move with m_hat (com_dm (m/kg) x the object mass's change) re-refers it."""
         self._ref_dz = 0.0
-        if not inv_gauss_jordan(gc_inv, self._gc):
+        if not gc_ok:
             return None
         gc, st, n_seen = self._gc, self._mom, self._st.item(LS_NSEEN)
         mom = float(gc[1] @ u)

@@ -34,7 +34,8 @@ class ForceBalanceMass:
     """Low-passes the force balance's two sides with the law's own filter (alpha, running-mean start) and keeps the
     open-gripper calibration. Plain floats: 4 components per tick."""
 
-    def __init__(self, alpha: float, sigma_kg: float = 0.1) -> None:
+    def __init__(self, alpha: float, sigma_kg: float) -> None:
+        """alpha: the law's low-pass weight; sigma_kg: the measurement's sigma per correction (CKF_M_ABS_SIG)."""
         self._alpha = alpha
         self._r_kg2 = sigma_kg * sigma_kg
         self.reset()

@@ -81,7 +81,7 @@ def test_the_measured_mass_is_the_held_mass_whatever_the_thrust_models_scale() -
     (m_UAM / (s m_UAM) = 1 / s) turns s m_held into m_held. A constant f (after the running mean, the low-passes
     of F and f are then exactly proportional)."""
     alpha = 1.0 - math.exp(-0.01 / 0.7)
-    fbm = ForceBalanceMass(alpha)
+    fbm = ForceBalanceMass(alpha, 0.1)
     m_uam, m_held, s = 6.5, 7.0, 1.1
     f = (0.3, -9.81)
     for _ in range(200):
@@ -98,7 +98,7 @@ def test_through_noisy_motion_the_measured_mass_is_within_its_noise() -> None:
     """The same with f moving and noisy per tick (F follows f exactly): the low-passed ratio is within 1 % of the
     held mass (each low-pass averages ~140 ticks of 0.5-1 m/s^2 noise on 9.8)."""
     rng = np.random.default_rng(3)
-    fbm = ForceBalanceMass(1.0 - math.exp(-0.01 / 0.7))
+    fbm = ForceBalanceMass(1.0 - math.exp(-0.01 / 0.7), 0.1)
     _fly(fbm, 6.5, 0.9, 300, rng)
     for _ in range(20):
         fbm.calibrate(6.5)
@@ -107,7 +107,7 @@ def test_through_noisy_motion_the_measured_mass_is_within_its_noise() -> None:
 
 
 def test_in_free_fall_there_is_no_balance_to_read() -> None:
-    fbm = ForceBalanceMass(0.1)
+    fbm = ForceBalanceMass(0.1, 0.1)
     fbm.update(0.0, 0.0, 0.0, 0.0)
     assert math.isnan(fbm.ratio_kg())
     for _ in range(20):
