@@ -57,6 +57,7 @@ from numba import njit
 from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig, CkfMode
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.force_balance import ForceBalanceMass
+from navig8_fc.core.gyroscopic import GyroscopicIncrement, gyroscopic_moment
 from navig8_fc.core.kalman import ConstrainedKalmanFilter, KfStepResult, eq22_drift, inertia_ratios
 from navig8_fc.core.kf_nuisance import ixz_mass_column, known_ixz, refer_moment  # I_xz (CKF_IXZ_MOD), CKF_MOM_MREF
 from navig8_fc.core.layout import layout
@@ -278,6 +279,8 @@ class AdaptiveLaw:
         self._cz_dm = ckf.com_mass_slope and self._pitch_row  # CKF_CZ_DM: the pitch row's mass column
         self._fbm = ForceBalanceMass(self._alpha, ckf.mass_balance_sigma_kg) if ckf.mass_balance_sigma_kg > 0.0 and \
             isinstance(self._kf, ConstrainedKalmanFilter) else None  # CKF_M_ABS_SIG: the held mass, force balance
+        # CKF_GYRO: Euler's velocity term out of the moment rows (gyroscopic)
+        self._gyro = GyroscopicIncrement(self._alpha, ckf.lpf_mean_start) if ckf.gyroscopic else None
         self._nuisance = self._pitch_row or self._ixz_sigma > 0.0  # a grasp / release moves a nuisance's prior
         # after a grasp or a release the pitch row waits PITCH_EVENT_HOLD_TAU filter time constants: the object's
         # weight moment steps in the commanded pitch moment with no pitch acceleration to match, and the low-passed
@@ -329,6 +332,8 @@ class AdaptiveLaw:
         self._kf.reset()  # re-initialised at the next start
         if self._fbm is not None:
             self._fbm.reset()
+        if self._gyro is not None:
+            self._gyro.reset()
 
     @property
     def mass_estimate_kg(self) -> float | None:
@@ -352,6 +357,7 @@ class AdaptiveLaw:
         u_cmd: np.ndarray | None = None, gripper_closed: bool | None = None,
         object_inertia_rate: tuple[float, float, float] | None = None, object_ixz: float = 0.0,
         object_ixz_dm: float = 0.0, object_com_dm: tuple[float, float] = (0.0, 0.0),
+        rate_frd_rad_s: tuple[float, float, float] | None = None,
     ) -> tuple[np.ndarray, tuple[float, ...], AdaptiveLawStatus]:
         """step() on float64 arrays (u_meas, acc_m (5,), gc_inv (5, 5) C-contiguous, inertia and inertia_rate
         (3, 3)), m a float; also returns G_hat_I row-major as a tuple (the same floats). The controller's tick.
@@ -364,6 +370,7 @@ class AdaptiveLaw:
         object_ixz_dm: its slope in the object's mass (m^2; 0: none held), for CKF_IXZ_MOD 2.
         object_com_dm: the slope (m/kg) of the moment rows' reference point (the estimated CoM) in the object's mass,
         (x, z) (zeros: it does not follow the mass estimate), for CKF_CZ_DM.
+        rate_frd_rad_s: the body rates (rad/s), for CKF_GYRO's gyroscopic moment (None: not taken out).
 
         Bookkeeping on plain floats (the vectors have 4-5 components: numpy's per-call overhead would
         dominate); the values equal those of vehicle.estimate_bounds / estimated_gi / k_from_estimate exactly
@@ -388,6 +395,10 @@ class AdaptiveLaw:
         ready, window_sat = inc[LO_READY] != 0.0, inc[LO_SAT] != 0.0
         gc_ok = (self._mom_lpf or self._fbm is not None) and inv_gauss_jordan(gc_inv, self._gc)  # G_C, once a tick
         dmom = self._moment_increment(gc_ok, u_meas, ready, m, object_com_dm) if self._mom_lpf else None
+        dgyro = None
+        if self._gyro is not None and rate_frd_rad_s is not None:  # CKF_GYRO, with the inertia held this tick
+            ix, iy, iz = (self._kf.x.item(0), self._kf.x.item(1), self._kf.x.item(2)) if self._running else base[:3]
+            dgyro = self._gyro.tick(gyroscopic_moment(*rate_frd_rad_s, ix, iy, iz, j13 + object_ixz), ready)
         if not started:
             return self._not_started(base, j13, lower, upper, du, da, window_sat)
         kf = self._kf
@@ -412,6 +423,8 @@ class AdaptiveLaw:
         du_kf, dhd = self._du, inc[LO_DH]
         if self.config.arm_wrench and dhd != 0.0:
             du_kf = self._du - gc_inv[:, 1] * dhd  # z = Delta U - G_C^-1 [0, Delta h', 0, 0, 0]
+        if dgyro is not None:  # z = Delta U - G_C^-1 [Delta (w x I w), 0, 0]
+            du_kf = du_kf - gc_inv[:, 0] * dgyro[0] - gc_inv[:, 1] * dgyro[1] - gc_inv[:, 2] * dgyro[2]
         h_mass = None
         if self._ixz_model:
             du_kf = known_ixz(du_kf, gc_inv, da, j13 + object_ixz)
@@ -420,6 +433,8 @@ class AdaptiveLaw:
                 du_kf, h_mass = ixz_mass_column(du_kf, gc_inv, da, object_ixz_dm, kf.x.item(3))
         if self._pitch_row or h_mass is not None:
             pitch_y, com_dm = self._pitch_inputs(t_s, inertia_rate, dmom, dhd, object_com_dm)
+            if dgyro is not None:
+                pitch_y -= dgyro[1]  # the moment-space pitch row likewise (NaN stays NaN: unread)
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
                         pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass, pitch_y=pitch_y, com_dm=com_dm)
         else:

@@ -338,7 +338,8 @@ class FlightControllerCore:
             self._u_cmd if self._u_cmd_ok else None, s.gripper_closed, tuple(ul[_UO_OBJ_RATE:_UO_OBJ_RATE + 3]),
             ul[_UO_OBJ_IXZ] if s.gripper_closed else 0.0,  # the object's I_xz only while one is held, as its CoM
             ul[_UO_OBJ_IXZ_DM] if s.gripper_closed else 0.0,
-            (ul[_UO_CE_DM], ul[_UO_CE_DM + 1]) if s.gripper_closed and self.config.ckf.gc_at_com else _NO_SLOPE)
+            (ul[_UO_CE_DM], ul[_UO_CE_DM + 1]) if s.gripper_closed and self.config.ckf.gc_at_com else _NO_SLOPE,
+            s.gyro_frd_rad_s)
         if self._flown_gain is not None:  # the INDI, the status and the eigenvalue monitor fly K_flown, not K_hat
             gi_hat, gi_flat = k_xi.flown_gi_hat(gi_flat, adapt_status.k, *self._flown_gain)
         ref: tuple[float, float, float] | None = None

@@ -114,3 +114,35 @@ def test_in_free_fall_there_is_no_balance_to_read() -> None:
         fbm.calibrate(6.5)  # ignored: nothing to calibrate on
     fbm.update(0.0, -65.0, 0.0, -10.0)
     assert math.isnan(fbm.measured_mass_kg())
+
+
+class _Recorder:
+    def __init__(self) -> None:
+        self.z: list[float] = []
+
+    def correct_mass(self, z_kg: float, r_kg2: float) -> None:
+        self.z.append(z_kg)
+
+
+def test_a_grasp_restarts_the_low_passes() -> None:
+    """Through tick(): after the gripper closes, the first window's measurement reads the held mass alone (the
+    low-passes restart at the event), not a mix weighted exp(-t / tau) toward the UAM's. G_C's force rows are
+    identity on U's last two entries, so the model force is U[3:]."""
+    alpha = 1.0 - math.exp(-0.01 / 0.7)
+    fbm, kf = ForceBalanceMass(alpha, 0.1), _Recorder()
+    gc = np.eye(5)
+    f = (0.3, -9.81)
+    m_uam, m_held = 6.5, 7.0
+
+    def tick(m: float, correct: bool, closed: bool) -> None:
+        u = np.array([0.0, 0.0, 0.0, m * f[0], m * f[1]])
+        acc = np.array([0.0, 0.0, 0.0, *f])
+        fbm.tick(gc, u, acc, correct, closed, m_uam, kf)
+
+    for k in range(500):
+        tick(m_uam, k % 25 == 0, False)  # open: 20 calibration windows
+    tick(m_held, False, True)  # the grasp: the object's weight from this tick on
+    for _ in range(69):  # one filter constant's hold
+        tick(m_held, False, True)
+    tick(m_held, True, True)
+    assert kf.z == [pytest.approx(m_held, rel=1e-12)]
