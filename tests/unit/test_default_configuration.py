@@ -75,7 +75,7 @@ def test_the_estimator_options_are_the_documented_ones() -> None:
     assert int(reg["CKF_GYRO"]) == 0  # Eq. 24 as the paper writes it (the defaults fly K = 0.4 whatever K_hat)
     ident = read_parm_file(ROOT / "params" / "presets" / "identification.parm")
     assert ident == {"CKF_GRIP_RST": 1, "CKF_PRED_DJ": 1, "CKF_R_PITCH": pytest.approx(0.01),
-                     "CKF_CZ_SIG": pytest.approx(0.01), "CKF_LPF_SEED": 1, "CKF_U_SRC": 2, "CKF_IXZ_MOD": 2,
+                     "CKF_CZ_SIG": pytest.approx(0.005), "CKF_LPF_SEED": 1, "CKF_U_SRC": 2, "CKF_IXZ_MOD": 2,
                      "CKF_GRIP_SIG": pytest.approx(1.0), "CKF_M_SIG_OPEN": pytest.approx(0.2),
                      "CKF_IXZ_SIG": pytest.approx(0.1), "CKF_CZ_DM": 1, "CKF_START_DLY": pytest.approx(0.75),
                      "CKF_MOM_LPF": 1, "CKF_MOM_MREF": 1, "CKF_MOM_MOVE": 1, "CKF_CZ_FOLLOW": 1, "CKF_PROJ_IYY": 1,
