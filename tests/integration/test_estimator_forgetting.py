@@ -103,8 +103,8 @@ def test_the_pitch_row_identifies_the_held_object_and_returns_after_the_release(
     # is within 0.05 in 52 of 60 flights against 41: docs/results.md), before the grasp 0.014 / 0.048 / 0.018 (0.077 /
     # 0.098 / 0.060). The flights where it must fail below stay above 0.1.
     # with the force balance's mass (CKF_M_ABS_SIG) and its CoM prior (CKF_CZ_SIG 0.01) held 0.032 / 0.026 / 0.012, with
-    # the gyroscopic moment (CKF_GYRO), the force balance's restart at the grasp and the CoM prior at 5 mm 0.028 / 0.013 /
-    # 0.011
+    # the gyroscopic moment (CKF_GYRO), the force balance's restart at the grasp and the CoM prior at 5 mm 0.028 /
+    # 0.013 / 0.011
     before, held, after = _k2(IDENT, seed)
     assert held <= 0.05, held
     assert before <= 0.1 and after <= 0.09, (before, after)
