@@ -166,4 +166,4 @@ class PlantParams:
             text = (files("navig8_params") / "plant.yaml").read_text()
         else:
             text = Path(path).read_text()
-        return PlantParams.from_dict(yaml.safe_load(text))
+        return PlantParams.from_dict(yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)))
