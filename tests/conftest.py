@@ -125,17 +125,23 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 @pytest.fixture(scope="session")
-def paper_reference(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, Path]:
+def run_shared_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The run's temporary directory, the same for every xdist worker: what a run flies once lives there."""
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the workers' temporary directories are its children
+    return root
+
+
+@pytest.fixture(scope="session")
+def paper_reference(run_shared_dir: Path) -> tuple[dict, Path]:
     """The paper scenario flown in-process with the defaults, seed 1, logged: (its summary, its log). Four modules
     check this same flight (two in each lane); it is deterministic, so it is flown once a run: under xdist the
     first worker to ask flies it, holding a lock in the run's shared temporary directory, and the others read its
     summary (JSON, floats round-trip exactly) and its log."""
     from navig8_tools.sim import run
 
-    root = tmp_path_factory.getbasetemp()
-    if os.environ.get("PYTEST_XDIST_WORKER"):
-        root = root.parent  # the workers' temporary directories are its children
-    d = root / "paper_reference"
+    d = run_shared_dir / "paper_reference"
     d.mkdir(exist_ok=True)
     summary, log = d / "summary.json", d / "ref.mcap"
     with open(d / "lock", "w") as lock:

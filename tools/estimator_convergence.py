@@ -32,6 +32,16 @@ from sim_bridge.world import load_world, parse_world_items
 K_NAMES = ("K1", "K2", "K3", "K4")
 
 
+def registry_with(overrides: dict[str, float]) -> ParamRegistry:
+    """The defaults with `overrides` set in their order (each checked by the registry; a refused one raises)."""
+    reg = ParamRegistry.from_defaults()
+    for name, value in overrides.items():
+        res = reg.set(name, value)
+        if not res.accepted:
+            raise ValueError(res.reason)
+    return reg
+
+
 def k_trace(overrides: dict[str, float], duration_s: float, seed: int = 1,
             scenario: str | Path = "ident", world: dict[str, float] | None = None,
             truth_box: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -39,12 +49,16 @@ def k_trace(overrides: dict[str, float], duration_s: float, seed: int = 1,
     controller is CKF_MODE's, the proposed one by default) in the world `world` (sim_bridge.world overrides).
     truth_box: the (k_min, k_max) the truth is clipped to (None: the run's own INDI_K_MIN, INDI_K_MAX; a test of a
     narrowed box passes the default box, so that a pinned estimate is not compared with a truth pinned alike)."""
-    reg = ParamRegistry.from_defaults()
-    for name, value in overrides.items():
-        res = reg.set(name, value)
-        if not res.accepted:
-            raise ValueError(res.reason)
+    reg = registry_with(overrides)
     box = truth_box if truth_box is not None else (reg["INDI_K_MIN"], reg["INDI_K_MAX"])
+    t, k, k_true, _ = k_trace_unclipped(reg, duration_s, seed, scenario, world)
+    return t, k, np.clip(k_true, *box)
+
+
+def k_trace_unclipped(reg: ParamRegistry, duration_s: float, seed: int = 1, scenario: str | Path = "ident",
+                      world: dict[str, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """k_trace's flight with the registry `reg`: (t, implied K, K_true unclipped, the controller's dt_s). The flight
+    does not depend on its length: a shorter one is a longer one's first int(round(duration_s / dt_s)) + 1 ticks."""
     w = load_world(scenario, world)
     plant = Plant(w.vehicle, w.plant, w.scenario, np.random.default_rng(seed))
     stack = FlightStack(w.fc_vehicle, reg, w.scenario.script)
@@ -55,13 +69,13 @@ def k_trace(overrides: dict[str, float], duration_s: float, seed: int = 1,
     def trace(_t_ns: int, s: FcSensors, res: StepResult) -> None:
         st, tr = res.status, plant.truth()
         j, i_true = st.inertia_uam_diag, np.asarray(tr.inertia_com_kgm2)
-        k_true = np.array([j[0] / i_true[0, 0], j[1] / i_true[1, 1], j[2] / i_true[2, 2], st.mass_uam_kg / tr.mass_kg])
         ts.append(s.t_s)
         ks.append(np.array(st.adapt.k))
-        kts.append(np.clip(k_true, *box))
+        kts.append(np.array([j[0] / i_true[0, 0], j[1] / i_true[1, 1], j[2] / i_true[2, 2],
+                             st.mass_uam_kg / tr.mass_kg]))
 
     fly(plant, stack, int(round(duration_s / cfg.dt_s)), trace)
-    return np.array(ts), np.array(ks), np.array(kts)
+    return np.array(ts), np.array(ks), np.array(kts), cfg.dt_s
 
 
 def within_for_good_from_s(t: np.ndarray, err: np.ndarray, tol: float) -> float:

@@ -28,9 +28,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from shared_trace import k_trace
 
 from navig8_fc.params.store import read_overrides
-from navig8_tools.estimator_convergence import k_trace, window_max_error
+from navig8_tools.estimator_convergence import window_max_error
 
 PRESETS = Path(__file__).resolve().parents[2] / "params" / "presets"
 IDENT = read_overrides([str(PRESETS / "identification.parm")], [])
