@@ -77,10 +77,17 @@ def _package(path: Path) -> str:
     return ".".join(path.relative_to(ROOT).with_suffix("").parts[:-1]) if path.is_relative_to(ROOT) else ""
 
 
+@functools.cache
+def _parsed(path: Path, text: str) -> ast.Module:
+    """A file's syntax tree, parsed once a process for its text (the walks below read trees, never change them):
+    the reach walks from every module parse the modules they share again and again."""
+    return ast.parse(text, filename=str(path))
+
+
 def _imported(path: Path, pkg: str | None = None, names: bool = True) -> list[str]:
     """Every module an import statement in `path` names (relative imports resolved against `pkg`, by default the
     package the file sits in); with `names`, also pkg.name for each `from pkg import name` (it may be a module)."""
-    tree = ast.parse(path.read_text(), filename=str(path))
+    tree = _parsed(path, path.read_text())
     pkg = _package(path) if pkg is None else pkg
     out = []
     for node in ast.walk(tree):
@@ -101,7 +108,7 @@ def _imported(path: Path, pkg: str | None = None, names: bool = True) -> list[st
 def _io_calls(path: Path) -> list[tuple[int, str]]:
     """(line, call) of every print/open/input and every file read or write by call (FILE_METHODS, FILE_FUNCTIONS)."""
     out = []
-    for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
+    for node in ast.walk(_parsed(path, path.read_text())):
         if not isinstance(node, ast.Call):
             continue
         fn = node.func
@@ -320,7 +327,7 @@ def _own(node: ast.expr) -> bool:
 
 def _private_reads(path: Path, pkg: str | None = None) -> list[tuple[int, str]]:
     """(line, expression) of every read of another object's private member in `path` (module docstring above)."""
-    tree = ast.parse(path.read_text(), filename=str(path))
+    tree = _parsed(path, path.read_text())
     pkg = _package(path) if pkg is None else pkg
     libraries = {(a.asname or a.name).split(".")[0] for node in ast.walk(tree) if isinstance(node, ast.Import)
                  for a in node.names if (top := a.name.split(".")[0]) not in FIRST_PARTY and top not in TEST_MODULES}
