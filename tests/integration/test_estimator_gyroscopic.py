@@ -12,9 +12,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from shared_trace import k_trace  # the preset's flights are test_estimator_identification's _held_60 (flown once)
 
 from navig8_fc.params.store import read_overrides
-from navig8_tools.estimator_convergence import k_trace
 
 PRESETS = Path(__file__).resolve().parents[2] / "params" / "presets"
 IDENT = read_overrides([str(PRESETS / "identification.parm")], [])
