@@ -15,7 +15,9 @@ from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
 pytestmark = pytest.mark.slow
 
 N_SETS = 21  # the first after boot and twenty more, each a configuration whose floor is not computed yet
-ANSWER_BOUND_S = 0.5  # 5x the 100 ms figure (a shared 2-core machine); the floor used to take 1-6 s the first time
+# every answer, the first included: 40-68 ms on a quiet host, 0.31-0.53 s beside the SITL lane's other workers on two
+# loaded cores; what it guards, a floor worker not warm at boot, answered the first in 1.5 s quiet, 2.6-6 s loaded
+ANSWER_BOUND_S = 1.0
 
 
 def test_the_first_stability_checked_param_set_after_boot_is_answered_at_once(tmp_path: Path) -> None:
