@@ -4,10 +4,12 @@ direction by its transmission time at 921600 baud (8N1); a pty is not a UART (no
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
-from sitl_helpers import fly_realtime
+from sitl_helpers import fly_realtime, wait_for
 
 from navig8_fc.core.sampled_loop import link_lambda_crit
 from navig8_fc.shell.mcap_log import read_mcap
@@ -21,11 +23,36 @@ pytestmark = pytest.mark.realtime  # on the wall clock: run alone, after the par
 # Without it the identified bandwidth fell to 77 rad/s, the model's supervision flew the measured U0 and the hover
 # swayed by up to 0.66 / 0.73 m: this bound (UDP's and TCP's) failed in 4 of 10 runs.
 SERIAL_HOVER_TOL_M = 0.3
+# What the FC's warning names for a loop one tick late (params/presets/realtime_link.parm): the flown K's floor that
+# restores INDI_LAM_MARGIN there. With the defaults' floor (margin 1.24) the hover over this line held 0.3 m on a quiet
+# host but not beside other work: at load ~4 on two cores one flight of two was lost (19.5 m away), and in CI one left
+# the band by 2.0 m; with this floor 4 of 4 held 0.17 m / 0.025 m at that load (docs/hil.md, "The link's delay").
+LINK_FLOOR = 0.49
+MARGIN_WAIT_S = 30.0  # the link's delay is measured over a block of 256 answers (2.6 s), its floor on a worker
+
+
+def _stream_value(gcs: Any, name: str, cond: Callable[[float], bool], timeout_s: float) -> float:
+    m = wait_for(gcs, "NAMED_VALUE_FLOAT", timeout_s, lambda m: m.name == name and cond(m.value))
+    assert m is not None, f"no {name} as awaited within {timeout_s} s"
+    return float(m.value)
+
+
+def _load_the_link_preset(gcs: Any) -> None:
+    """The operator's answer to the FC's warning: the streamed margin falls below INDI_LAM_MARGIN once the link is
+    measured one tick late; the preset's floor is set over MAVLink and the margin streamed is the required one."""
+    from pymavlink.dialects.v20 import common as m2
+
+    _stream_value(gcs, "LAM_MARGIN", lambda v: v < 1.5, MARGIN_WAIT_S)
+    gcs.mav.param_set_send(gcs.target_system, 1, b"INDI_KFL_MIN", LINK_FLOOR, m2.MAV_PARAM_TYPE_REAL32)
+    echo = wait_for(gcs, "PARAM_VALUE", 10.0, lambda m: m.param_id == "INDI_KFL_MIN")
+    assert echo is not None and echo.param_value == pytest.approx(LINK_FLOOR), echo
+    _stream_value(gcs, "LAM_MARGIN", lambda v: v >= 1.5, 10.0)
 
 
 def test_realtime_fc_flies_over_a_921600_baud_serial_line(tmp_path: Path) -> None:
     with NullModemProcess(921600) as line:
-        log = fly_realtime(tmp_path, "serial", line.paths, SERIAL_HOVER_TOL_M, SERIAL_HOVER_TOL_M)
+        log = fly_realtime(tmp_path, "serial", line.paths, SERIAL_HOVER_TOL_M, SERIAL_HOVER_TOL_M,
+                           before_flight=_load_the_link_preset)
     wall_s = line.elapsed_s()  # the line closed: its byte counts known
     # what crossed the line each way fits it (~92 kB/s at 921600 8N1): the bridge's budget held
     assert 0 < line.bytes[0] / wall_s < 92160 and 0 < line.bytes[1] / wall_s < 92160, (line.bytes, wall_s)
@@ -39,12 +66,17 @@ def test_realtime_fc_flies_over_a_921600_baud_serial_line(tmp_path: Path) -> Non
     assert len(indi) > 500 and all(i["u0_model_trusted"] for i in indi), len(indi)
     assert all(120.0 / 1.17 < wn < 120.0 * 1.17 for i in indi for wn in i["act_wn_rad_s"])
     # the FC measured that delay (its own clock at the tick the echoed answer came from) and its stability floor
-    # followed: /fc/stability (LAM_CRIT, LAM_MARGIN) of the loop one tick late, below the required margin, said once
+    # followed: /fc/stability (LAM_CRIT, LAM_MARGIN) of the loop one tick late, below the required margin at the
+    # defaults, said once; after the preset's floor, that loop's margin is the required one
     stab = [r for _, _, r in read_mcap(log, ["/fc/stability"])]
     assert stab[0]["link_delay_ticks"] == 0 and stab[-1]["link_delay_ticks"] == 1, stab
     late = link_lambda_crit(120.0, 1.0, 100.0, 0.02, "model", 0.2, 1)  # the defaults' loop, the model told
-    assert stab[-1]["lambda_crit"] == pytest.approx(late, rel=1e-6)  # the parameters are float32
-    assert stab[-1]["margin"] == pytest.approx(stab[0]["min_eigenvalue"] / late, rel=1e-6)
-    assert not stab[-1]["meets_margin"] and stab[-1]["margin"] < 1.5
+    below = [r for r in stab if r["link_delay_ticks"] == 1 and not r["meets_margin"]]
+    assert below and below[0]["lambda_crit"] == pytest.approx(late, rel=1e-6)  # the parameters are float32
+    assert below[0]["margin"] == pytest.approx(below[0]["min_eigenvalue"] / late, rel=1e-6)
+    assert below[0]["margin"] < 1.5
+    assert stab[-1]["meets_margin"] and stab[-1]["lambda_crit"] == pytest.approx(late, rel=1e-6)
+    assert stab[-1]["margin"] == pytest.approx(stab[-1]["min_eigenvalue"] / late, rel=1e-6)
+    assert stab[-1]["margin"] >= 1.5
     texts = [r["text"] for _, _, r in read_mcap(log, ["/fc/statustext"])]
     assert sum("over this link < INDI_LAM_MARGIN 1.5" in t for t in texts) == 1, texts
