@@ -57,7 +57,7 @@ from numba import njit
 from navig8_fc.core.ckf_config import N_MEAS, N_STATE, CkfConfig, CkfMode
 from navig8_fc.core.filters import lpf_alpha
 from navig8_fc.core.force_balance import ForceBalanceMass
-from navig8_fc.core.gyroscopic import GyroscopicIncrement, gyroscopic_moment
+from navig8_fc.core.gyroscopic import gyroscopic_moment
 from navig8_fc.core.kalman import ConstrainedKalmanFilter, KfStepResult, eq22_drift, inertia_ratios
 from navig8_fc.core.kf_nuisance import ixz_mass_column, known_ixz, refer_moment  # I_xz (CKF_IXZ_MOD), CKF_MOM_MREF
 from navig8_fc.core.layout import layout
@@ -96,10 +96,10 @@ class AdaptiveLawConfig:
         object.__setattr__(self, "k_max", k_max)
 
 
-# Filter state of lpf_increments: the low-passed U0, Acc_m and arm h' (arm_hdc), their values at the start of the
-# current increment window, the steps counted in it and whether the INDI saturated in it.
+# Filter state of lpf_increments: the low-passed U0, Acc_m, arm h' (arm_hdc) and gyroscopic moment (CKF_GYRO), their
+# values at the start of the current increment window, the steps counted in it and whether the INDI saturated in it.
 LAW_STATE = layout("LAW_STATE", u_f=N_MEAS, acc_f=N_MEAS, hd_f=1, u_w=N_MEAS, acc_w=N_MEAS, hd_w=1, count=1,
-                   sat=1, sat_hold=1, started=1, n_seen=1)
+                   sat=1, sat_hold=1, started=1, n_seen=1, gy_f=3, gy_w=3)
 LS_UF = LAW_STATE.U_F  # low-passed U0
 LS_AF = LAW_STATE.ACC_F  # low-passed Acc_m
 LS_HF = LAW_STATE.HD_F  # low-passed arm h'
@@ -111,18 +111,22 @@ LS_SAT = LAW_STATE.SAT  # 1.0 when a step of the window reported INDI saturation
 LS_HOLD = LAW_STATE.SAT_HOLD  # steps left in which the filters still carry a saturated step (sat_hold_steps)
 LS_STARTED = LAW_STATE.STARTED  # 1.0 after the first sample
 LS_NSEEN = LAW_STATE.N_SEEN  # samples filtered so far (the running-mean start, mean_start)
+LS_GF = LAW_STATE.GY_F  # low-passed w x (I w) (N m, body FRD)
+LS_GW = LAW_STATE.GY_W
 # Its output: the increments fed to the KF (Eq. 23), and whether a window closed this step
-LAW_OUT = layout("LAW_OUT", delta_u=N_MEAS, delta_acc=N_MEAS, delta_hd=1, ready=1, saturated=1)
+LAW_OUT = layout("LAW_OUT", delta_u=N_MEAS, delta_acc=N_MEAS, delta_hd=1, ready=1, saturated=1, delta_gyro=3)
 LO_DU = LAW_OUT.DELTA_U
 LO_DA = LAW_OUT.DELTA_ACC
 LO_DH = LAW_OUT.DELTA_HD
 LO_READY = LAW_OUT.READY  # 1.0: a window closed, the increments are its own (0.0: they are zeros)
 LO_SAT = LAW_OUT.SATURATED  # 1.0: the INDI saturated during the window that closed
+LO_DG = LAW_OUT.DELTA_GYRO
 
 
 @njit(cache=True)
-def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, sat_hold_steps, out, mean_start=0.0):
-    """The first-order low-passes of U0, Acc_m and h' (y += alpha (x - y); the first sample sets y) and their
+def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, gyro, sat, sat_hold_steps, out, mean_start=0.0):
+    """The first-order low-passes of U0, Acc_m, h' and the gyroscopic moment w x (I w) (gyro, (3,); zeros when
+    CKF_GYRO is off) (y += alpha (x - y); the first sample sets y) and their
     increments over windows of n_window steps, y[k] - y[k - n_window], every n_window-th step (ready = 1), zeros in
     between and on the first sample. sat (0/1, the INDI's saturation flag) is or-ed over the window, and a saturated
     step keeps flagging the following sat_hold_steps steps (the low-passed signals still carry it). With
@@ -139,6 +143,9 @@ def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, sat_hold_steps,
             st[LS_AW + i] = acc_m[i]
         st[LS_HF] = hdc
         st[LS_HW] = hdc
+        for i in range(3):
+            st[LS_GF + i] = gyro[i]
+            st[LS_GW + i] = gyro[i]
         st[LS_COUNT] = 0.0
         st[LS_SAT] = 0.0
         st[LS_HOLD] = 0.0
@@ -157,6 +164,9 @@ def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, sat_hold_steps,
         st[LS_AF + i] = y + alpha * (acc_m[i] - y)
     y = st[LS_HF]
     st[LS_HF] = y + alpha * (hdc - y)
+    for i in range(3):
+        y = st[LS_GF + i]
+        st[LS_GF + i] = y + alpha * (gyro[i] - y)
     st[LS_COUNT] += 1.0
     if sat != 0.0:
         st[LS_SAT] = 1.0
@@ -175,6 +185,9 @@ def lpf_increments(st, alpha, n_window, u_meas, acc_m, hdc, sat, sat_hold_steps,
         st[LS_AW + i] = st[LS_AF + i]
     out[LO_DH] = st[LS_HF] - st[LS_HW]
     st[LS_HW] = st[LS_HF]
+    for i in range(3):
+        out[LO_DG + i] = st[LS_GF + i] - st[LS_GW + i]
+        st[LS_GW + i] = st[LS_GF + i]
     out[LO_READY] = 1.0
     out[LO_SAT] = st[LS_SAT]
     st[LS_COUNT] = 0.0
@@ -279,8 +292,9 @@ class AdaptiveLaw:
         self._cz_dm = ckf.com_mass_slope and self._pitch_row  # CKF_CZ_DM: the pitch row's mass column
         self._fbm = ForceBalanceMass(self._alpha, ckf.mass_balance_sigma_kg) if ckf.mass_balance_sigma_kg > 0.0 and \
             isinstance(self._kf, ConstrainedKalmanFilter) else None  # CKF_M_ABS_SIG: the held mass, force balance
-        # CKF_GYRO: Euler's velocity term out of the moment rows (gyroscopic)
-        self._gyro = GyroscopicIncrement(self._alpha, ckf.lpf_mean_start) if ckf.gyroscopic else None
+        # CKF_GYRO: Euler's velocity term out of the moment rows (gyroscopic; lpf_increments filters it, zeros when off)
+        self._gyro = ckf.gyroscopic
+        self._gyro_m = np.zeros(3)
         self._nuisance = self._pitch_row or self._ixz_sigma > 0.0  # a grasp / release moves a nuisance's prior
         # after a grasp or a release the pitch row waits PITCH_EVENT_HOLD_TAU filter time constants: the object's
         # weight moment steps in the commanded pitch moment with no pitch acceleration to match, and the low-passed
@@ -332,8 +346,6 @@ class AdaptiveLaw:
         self._kf.reset()  # re-initialised at the next start
         if self._fbm is not None:
             self._fbm.reset()
-        if self._gyro is not None:
-            self._gyro.reset()
 
     @property
     def mass_estimate_kg(self) -> float | None:
@@ -388,17 +400,19 @@ class AdaptiveLaw:
         started = self._adaptive and (t_s - self._t0) >= self._start_delay_tol
         if u_cmd is not None and self._u_from_cmd:
             u_meas = u_cmd
-        lpf_increments(self._st, self._alpha, self._n_window, u_meas, acc_m, float(arm_hdc),
+        gyro = self._gyro and rate_frd_rad_s is not None
+        if gyro:  # CKF_GYRO, with the inertia held this tick
+            ix, iy, iz = (self._kf.x.item(0), self._kf.x.item(1), self._kf.x.item(2)) if self._running else base[:3]
+            gm = self._gyro_m
+            gm[0], gm[1], gm[2] = gyroscopic_moment(*rate_frd_rad_s, ix, iy, iz, j13 + object_ixz)
+        lpf_increments(self._st, self._alpha, self._n_window, u_meas, acc_m, float(arm_hdc), self._gyro_m,
                        1.0 if indi_saturated else 0.0, self._sat_hold, self._inc, self._mean_start)
         inc = self._inc.tolist()
         du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
         ready, window_sat = inc[LO_READY] != 0.0, inc[LO_SAT] != 0.0
+        dgyro = (inc[LO_DG], inc[LO_DG + 1], inc[LO_DG + 2]) if gyro and ready else None
         gc_ok = (self._mom_lpf or self._fbm is not None) and inv_gauss_jordan(gc_inv, self._gc)  # G_C, once a tick
         dmom = self._moment_increment(gc_ok, u_meas, ready, m, object_com_dm) if self._mom_lpf else None
-        dgyro = None
-        if self._gyro is not None and rate_frd_rad_s is not None:  # CKF_GYRO, with the inertia held this tick
-            ix, iy, iz = (self._kf.x.item(0), self._kf.x.item(1), self._kf.x.item(2)) if self._running else base[:3]
-            dgyro = self._gyro.tick(gyroscopic_moment(*rate_frd_rad_s, ix, iy, iz, j13 + object_ixz), ready)
         if not started:
             return self._not_started(base, j13, lower, upper, du, da, window_sat)
         kf = self._kf

@@ -117,8 +117,9 @@ def test_increments_kernel_python_path(pose: Pose) -> None:
         out_c, out_p = LAW_OUT.zeros(), LAW_OUT.zeros()
         for k, (u, acc) in enumerate(_excitation(pose, pose.base, 10)):
             sat = 1.0 if k == 4 else 0.0
-            lpf_increments(st_c, 0.0142, n_window, u, acc, 0.1 * k, sat, 2.0, out_c)
-            lpf_increments.py_func(st_p, 0.0142, n_window, u, acc, 0.1 * k, sat, 2.0, out_p)
+            gyro = acc[:3] * 0.5
+            lpf_increments(st_c, 0.0142, n_window, u, acc, 0.1 * k, gyro, sat, 2.0, out_c)
+            lpf_increments.py_func(st_p, 0.0142, n_window, u, acc, 0.1 * k, gyro, sat, 2.0, out_p)
             assert np.array_equal(st_c, st_p) and np.array_equal(out_c, out_p)
     views = LAW_OUT.views(out_c)
     assert views.delta_u.shape == (5,) and views.delta_acc.shape == (5,)

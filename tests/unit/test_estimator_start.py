@@ -23,6 +23,8 @@ from navig8_fc.core.ckf_config import CkfConfig, CkfMode
 from navig8_fc.core.kalman import ConstrainedKalmanFilter, measurement_matrix
 from navig8_fc.core.vehicle import actuators_to_u
 
+Z3 = np.zeros(3)  # no gyroscopic moment (CKF_GYRO off)
+
 
 def test_the_running_mean_start_is_the_mean_then_the_low_pass() -> None:
     rng = np.random.default_rng(3)
@@ -30,16 +32,16 @@ def test_the_running_mean_start_is_the_mean_then_the_low_pass() -> None:
     st, st0, out = LAW_STATE.zeros(), LAW_STATE.zeros(), LAW_OUT.zeros()
     xs = rng.normal(size=(200, 5))
     for k, x in enumerate(xs):
-        lpf_increments(st, alpha, 25.0, x, -x, 0.0, 0.0, 0.0, out, 1.0)
-        lpf_increments(st0, alpha, 25.0, x, -x, 0.0, 0.0, 0.0, out, 0.0)
+        lpf_increments(st, alpha, 25.0, x, -x, 0.0, Z3, 0.0, 0.0, out, 1.0)
+        lpf_increments(st0, alpha, 25.0, x, -x, 0.0, Z3, 0.0, 0.0, out, 0.0)
         if k + 1 <= 1.0 / alpha:  # the mean of the samples so far
             np.testing.assert_allclose(st[LS_UF:LS_UF + 5], xs[:k + 1].mean(axis=0), atol=1e-12)
             np.testing.assert_allclose(st[LS_AF:LS_AF + 5], -xs[:k + 1].mean(axis=0), atol=1e-12)
     # then the plain low-pass: from the same state both give the same next value
     st0[:] = st
     x = rng.normal(size=5)
-    lpf_increments(st, alpha, 25.0, x, x, 0.0, 0.0, 0.0, out, 1.0)
-    lpf_increments(st0, alpha, 25.0, x, x, 0.0, 0.0, 0.0, out, 0.0)
+    lpf_increments(st, alpha, 25.0, x, x, 0.0, Z3, 0.0, 0.0, out, 1.0)
+    lpf_increments(st0, alpha, 25.0, x, x, 0.0, Z3, 0.0, 0.0, out, 0.0)
     np.testing.assert_array_equal(st, st0)
 
 
