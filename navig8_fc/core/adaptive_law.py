@@ -334,8 +334,7 @@ class AdaptiveLaw:
         self._t0: float | None = None
         self._running = False
         self._mass_hat: float | None = None
-        self._grip_prev: bool | None = None
-        self._held_prev: bool | None = None
+        self._gripper_prev: bool | None = None  # the gripper's state at the last started tick that knew it
         self._pitch_hold_until_s = -math.inf
         self._k_before_grasp: tuple[float, ...] | None = None
         self._hold_until_s = -math.inf
@@ -425,10 +424,16 @@ class AdaptiveLaw:
             self._running = True
             if gripper_closed is False:
                 narrow_mass_prior(kf, self._m_var_open)
-        if self._grip_reset and gripper_closed is not None:
-            self._on_gripper(bool(gripper_closed), t_s, base, lower, upper)
-        if self._nuisance and gripper_closed is not None and gripper_closed != self._held_prev:
-            self._held_changed(bool(gripper_closed), t_s, (0.5 * (upper[1] - lower[1])) ** 2)
+        if gripper_closed is not None:  # a grasp or a release, detected here once for all that follow it
+            closed, prev = bool(gripper_closed), self._gripper_prev
+            self._gripper_prev = closed
+            if prev is not None and closed != prev:
+                if self._grip_reset:
+                    self._on_gripper(closed, t_s, base, lower, upper)
+                if self._fbm is not None:
+                    self._fbm.restart()
+            if self._nuisance and closed != prev:  # the first known state too: it sets the nuisances' priors
+                self._held_changed(closed, prev, t_s, (0.5 * (upper[1] - lower[1])) ** 2)
         correct = self._gate(ready, window_sat, t_s)
         if self._fbm is not None and gc_ok:  # CKF_M_ABS_SIG
             self._fbm.tick(self._gc, u_meas, acc_m, correct, gripper_closed, m, kf)
@@ -479,13 +484,12 @@ class AdaptiveLaw:
             self._arm_moved_s = t_s
         return t_s - self._arm_moved_s >= self._rest_s
 
-    def _held_changed(self, held: bool, t_s: float, iyy_var_min: float) -> None:
+    def _held_changed(self, held: bool, held_before: bool | None, t_s: float, iyy_var_min: float) -> None:
         """A grasp or a release: the pitch row waits after a release; the pitch row's nuisance CoM error (CKF_CZ_SIG; at
         a grasp I_yy's variance at least iyy_var_min, the object's inertia being unknown within the box) and the roll
         and yaw rows' nuisance I_xz error (CKF_IXZ_SIG) are given their priors while held, zero otherwise."""
-        if self._held_prev and not held:  # a release
+        if held_before and not held:  # a release
             self._pitch_hold_until_s = t_s + self._pitch_event_hold_s
-        self._held_prev = held
         if self._com_sigma > 0.0:
             self._kf.object_held(held, self._com_sigma, iyy_var_min)
         if self._ixz_sigma > 0.0:
@@ -548,11 +552,9 @@ class AdaptiveLaw:
 
     def _on_gripper(self, closed: bool, t_s: float, base: tuple[float, ...], lower: tuple[float, ...],
                     upper: tuple[float, ...]) -> None:
-        """CKF_GRIP_RST: forget on a grasp (P0) or a release (back to the estimate before the grasp, K = 1 when the
-        flight started holding the object, and P0); then hold the corrections for the low-pass's time constant."""
-        prev, self._grip_prev = self._grip_prev, closed
-        if prev is None or prev == closed:
-            return
+        """CKF_GRIP_RST, at a grasp (closed) or a release: forget on a grasp (P0) or a release (back to the estimate
+        before the grasp, K = 1 when the flight started holding the object, and P0); then hold the corrections for the
+        low-pass's time constant."""
         kf = self._kf
         x = kf.x
         if closed:

@@ -44,9 +44,6 @@ class ForceBalanceMass:
              m_uam_kg: float, kf: MassCorrectable) -> None:
         """The law's tick (AdaptiveLaw): the two sides low-passed (G_C (5, 5), U and Acc_m (5,)); at a correction,
         the calibration with the gripper open, the mass's scalar update of kf with it closed (unknown: neither)."""
-        if closed is not None and self._closed_prev is not None and closed != self._closed_prev:
-            self._n = 0.0  # a grasp or release: the low-passes restart, so no window mixes the two masses
-        self._closed_prev = closed
         self.update(float(gc[3] @ u), float(gc[4] @ u), acc_m.item(3), acc_m.item(4))
         if not correct or closed is None:
             return
@@ -62,7 +59,11 @@ class ForceBalanceMass:
         self._fx = self._fz = self._ax = self._az = 0.0
         self._k = math.nan  # m_UAM / (F.f / f.f) with the gripper open
         self._n_cal = 0.0
-        self._closed_prev: bool | None = None
+
+    def restart(self) -> None:
+        """A grasp or a release (the law detects it): the low-passes restart from the next sample, so no window mixes
+        the two masses; the open-gripper calibration is kept."""
+        self._n = 0.0
 
     def update(self, force_x_n: float, force_z_n: float, acc_x_m_s2: float, acc_z_m_s2: float) -> None:
         """One tick: the model's propulsive force (body x, z; N) and the specific force of the estimated CoM

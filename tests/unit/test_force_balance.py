@@ -124,10 +124,12 @@ class _Recorder:
         self.z.append(z_kg)
 
 
-def test_a_grasp_restarts_the_low_passes() -> None:
-    """Through tick(): after the gripper closes, the first window's measurement reads the held mass alone (the
-    low-passes restart at the event), not a mix weighted exp(-t / tau) toward the UAM's. G_C's force rows are
-    identity on U's last two entries, so the model force is U[3:]."""
+@pytest.mark.parametrize("restart", [True, False])
+def test_a_grasp_restarts_the_low_passes(restart: bool) -> None:
+    """Through tick(): after the gripper closes and the law calls restart(), the first window's measurement reads the
+    held mass alone, not a mix weighted exp(-t / tau) toward the UAM's (without the restart: e^-1 of the step still
+    missing, 6.5 + 0.5 (1 - (1 - alpha)^71) kg). G_C's force rows are identity on U's last two entries, so the model
+    force is U[3:]."""
     alpha = 1.0 - math.exp(-0.01 / 0.7)
     fbm, kf = ForceBalanceMass(alpha, 0.1), _Recorder()
     gc = np.eye(5)
@@ -141,8 +143,11 @@ def test_a_grasp_restarts_the_low_passes() -> None:
 
     for k in range(500):
         tick(m_uam, k % 25 == 0, False)  # open: 20 calibration windows
-    tick(m_held, False, True)  # the grasp: the object's weight from this tick on
+    if restart:
+        fbm.restart()  # the grasp, as the law detects it
+    tick(m_held, False, True)  # the object's weight from this tick on
     for _ in range(69):  # one filter constant's hold
         tick(m_held, False, True)
     tick(m_held, True, True)
-    assert kf.z == [pytest.approx(m_held, rel=1e-12)]
+    want = m_held if restart else m_uam + (m_held - m_uam) * (1.0 - (1.0 - alpha) ** 71)  # 71 held samples
+    assert kf.z == [pytest.approx(want, rel=1e-12)]
