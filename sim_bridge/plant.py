@@ -43,9 +43,9 @@ from operator import itemgetter
 from typing import Any, TypeVar
 
 import numpy as np
-import scipy.linalg
 
 from navig8_fc.core import rotation
+from navig8_fc.core.actuator_model import actuator_discretisation
 from navig8_fc.core.rotation import euler_to_quat, quat_to_euler
 from navig8_fc.core.vehicle import VehicleConfig, hover_trim, propulsion_per_input, u_to_actuators
 from navig8_fc.mavlink.seam import TruthFloats
@@ -130,15 +130,10 @@ def quat_to_dcm(q: np.ndarray) -> np.ndarray:
 
 
 def _actuator_discretisation(dyn: ActuatorDynamics, tau_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Phi, Gamma of y'' = wn^2 (u - y) - 2 zeta wn y' over tau with u held: exp([[A, B], [0, 0]] tau)."""
-    wn, z = dyn.omega_n_rad_s, dyn.zeta
-    m = np.zeros((3, 3))
-    m[0, 1] = 1.0
-    m[1, 0] = -wn * wn
-    m[1, 1] = -2.0 * z * wn
-    m[1, 2] = wn * wn
-    e = scipy.linalg.expm(m * tau_s)
-    return e[:2, :2], e[:2, 2]
+    """Phi (2, 2), Gamma (2,) of y'' = wn^2 (u - y) - 2 zeta wn y' over tau with u held: the FC's actuator model's
+    own exact discretisation (one copy), as the plant's integrator takes it."""
+    ad, bd = actuator_discretisation(dyn.omega_n_rad_s, dyn.zeta, tau_s)
+    return ad.reshape(2, 2), bd
 
 
 def duct_input_scale(efficiency: tuple[float, float]) -> np.ndarray:
