@@ -24,9 +24,10 @@ def actuator_discretisation(wn_rad_s: float, zeta: float, dt_s: float) -> tuple[
     """(Ad as [a00, a01, a10, a11], Bd as [b0, b1]) of the second-order lag y'' = wn^2 (u - y) - 2 zeta wn y' under a
     zero-order-hold command: Ad = exp(A dt) in closed form (a 2x2 matrix with eigenvalues s +- d, s = -zeta wn dt,
     d^2 = (wn dt)^2 (zeta^2 - 1): exp(M) = e^s (c I + g (M - s I)), c = cosh d or cos |d|, g = sinh(d) / d or
-    sin|d| / |d|), and Bd = A^-1 (Ad - I) B with B = [0, wn^2] (A is invertible for wn > 0), which is [1 - a00, -a10]. Closed form rather than
-    scipy.linalg.expm: the same numbers to ~1e-15 (tests/unit/test_actuator_model.py checks them against scipy) without
-    scipy.linalg's import (~0.2 s of CPU at every FC and bridge start)."""
+    sin|d| / |d|), and Bd = A^-1 (Ad - I) B with B = [0, wn^2] (A is invertible for wn > 0), which is
+    [1 - a00, -a10]. Closed form rather than scipy.linalg.expm: the same numbers within 1e-12
+    (tests/unit/test_actuator_discretisation.py checks them against scipy) without scipy.linalg's import (~0.25 s of
+    CPU at every FC and bridge start)."""
     if not (wn_rad_s > 0.0 and zeta > 0.0 and dt_s > 0.0):
         raise ValueError(f"actuator model needs wn, zeta, dt > 0, got {wn_rad_s}, {zeta}, {dt_s}")
     w = wn_rad_s * dt_s  # the dimensionless step
