@@ -8,6 +8,8 @@
     navig8-bench --lockstep       # navig8-sitl at --speed 0 (two processes, MAVLink over UDP, MCAP on):
                                   # real-time factor, median of --repeat runs (5), and its ratio to in-process
     navig8-bench --stability      # the K-bounds analysis and the workspace floor the registry checks: s per call
+    navig8-bench --startup        # the FC's and the bridge's imports in a fresh interpreter: CPU s (median of
+                                  # --repeat), beside numpy's alone
     navig8-bench --campaign       # navig8-campaign runs/min: one process, the local pool, a Dask LocalCluster
                                   # (--campaign-runs N, --campaign-rounds R: R rounds in turn, medians)
     navig8-bench --lockstep --foxglove  # also with navig8-sitl --foxglove 0 (server up, nobody connected),
@@ -431,6 +433,48 @@ def _campaign_section(args: argparse.Namespace) -> SectionResult:
     return SectionResult(metrics, lines)
 
 
+# ---------------------------------------------------------------------------------------------
+# --startup
+# ---------------------------------------------------------------------------------------------
+
+# What a process imports before its first step: the SITL lane starts ~75 FCs and ~69 bridges (docs/results.md, "Test
+# suite time"), so their imports are most of its CPU
+STARTUP_IMPORTS = (("fc", "navig8_fc.shell.fc_process"), ("bridge", "sim_bridge.bridge"))
+
+
+def _child_cpu_s(code: str) -> tuple[float, float]:
+    """(CPU s, wall s) of `python -c code` in a fresh interpreter (its user + system time, from wait4)."""
+    import os
+    import subprocess
+
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-c", code], stdin=subprocess.DEVNULL)
+    _, status, ru = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise RuntimeError(f"`python -c {code!r}` exited with {proc.returncode}")
+    return ru.ru_utime + ru.ru_stime, wall
+
+
+def _startup_section(args: argparse.Namespace) -> SectionResult:
+    """The FC's and the bridge's imports in a fresh interpreter (byte-compiled, numba's cache warm: what a SITL test's
+    start pays before its first step), and the interpreter with numpy alone for scale: CPU s, median of --repeat,
+    the processes alternated."""
+    cases = [("python_numpy", "import numpy")] + [(name, f"import {mod}") for name, mod in STARTUP_IMPORTS]
+    for _, code in cases:  # byte-compile and fill the OS's caches first
+        _child_cpu_s(code)
+    cpu: dict[str, list[float]] = {name: [] for name, _ in cases}
+    for _ in range(max(1, args.repeat)):
+        for name, code in cases:
+            cpu[name].append(_child_cpu_s(code)[0])
+    med = {name: float(np.median(v)) for name, v in cpu.items()}
+    metrics = {f"startup_{name}_cpu_s": v for name, v in med.items()}
+    lines = [f"startup: imports in a fresh interpreter, CPU s (median of {max(1, args.repeat)}): "
+             + ", ".join(f"{name} {v:.2f}" for name, v in med.items())]
+    return SectionResult(metrics, lines)
+
+
 SECTIONS: list[Section] = [
     Section("plant", "plant alone: us per physics step with sensors, real-time factor", _plant_section),
     Section("plant-accuracy", "plant integration error vs a 10x finer step", _plant_accuracy_section),
@@ -439,6 +483,7 @@ SECTIONS: list[Section] = [
     Section("lockstep", "two processes over MAVLink at --speed 0: real-time factor", _lockstep_section),
     Section("stability", "Section 3 K-bounds analysis and the workspace floor: seconds per call", _stability_section),
     Section("campaign", "navig8-campaign runs/min: single process, local pool, Dask LocalCluster", _campaign_section),
+    Section("startup", "the FC's and the bridge's imports in a fresh interpreter: CPU s", _startup_section),
 ]
 
 
