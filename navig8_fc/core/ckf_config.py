@@ -124,7 +124,7 @@ class CkfConfig:
     # CKF_CZ_SIG: with pitch_r_nm2 > 0, the prior sigma (m) of the held object's CoM-height error in the pitch row, and
     # at a grasp I_yy's variance raised to (half the box's width)^2 (AdaptiveLaw, kalman.kf_correct_pitch); 0: neither
     com_sigma_m: float = 0.0
-    # CKF_LPF_SEED: the law's low-passes start as the running mean of their samples (adaptive_law.lpf_increments),
+    # CKF_LPF_SEED: the law's low-passes start as the running mean of their samples (law_filters.lpf_increments),
     # not from the first sample alone; False: the first sample seeds them (the paper's first-order filter)
     lpf_mean_start: bool = False
     # CKF_IXZ_MOD: the product of inertia in the roll and yaw rows of Eq. 24 is the model's (J13, plus a point object

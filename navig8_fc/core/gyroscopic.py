@@ -6,7 +6,7 @@ I Delta w' but correlated with it: with the arm stretched (q1 60 deg, I_xz -0.2.
 -I_xz q r follows the yaw doublets, and a least-squares fit of the plant's own moments and accelerations (low-passed
 and windowed as the law does) gives I_zz 3 % low without it, exact with it (docs/model.md, "Estimator"). The term is
 low-passed and windowed as the law's U and Acc_m are (the same weight, the same running-mean start,
-the same windows: its channels of adaptive_law.lpf_increments), with the inertia the estimator holds at each tick,
+the same windows: its channels of law_filters.lpf_increments), with the inertia the estimator holds at each tick,
 and taken out of the measurement.
 """
 

@@ -16,17 +16,15 @@ from test_kalman import Pose  # the model quantities at a fixed arm pose (one he
 
 from navig8_fc.core import vehicle as veh
 from navig8_fc.core.adaptive_law import (
-    LAW_OUT,
-    LAW_STATE,
     AdaptiveLaw,
     AdaptiveLawConfig,
     AdaptiveLawInputs,
     AdaptiveLawStatus,
-    lpf_increments,
 )
 from navig8_fc.core.ckf_config import CkfConfig, CkfMode
 from navig8_fc.core.filters import LowPass1
 from navig8_fc.core.kalman import ConstrainedKalmanFilter
+from navig8_fc.core.law_filters import LAW_OUT, LAW_STATE, lpf_increments
 
 DT = 0.01
 

@@ -10,17 +10,10 @@ import numpy as np
 import pytest
 
 from navig8_fc.core.actuator_model import DeliveredU
-from navig8_fc.core.adaptive_law import (
-    LAW_OUT,
-    LAW_STATE,
-    LS_AF,
-    LS_UF,
-    ixz_mass_column,
-    known_ixz,
-    lpf_increments,
-)
+from navig8_fc.core.adaptive_law import ixz_mass_column, known_ixz
 from navig8_fc.core.ckf_config import CkfConfig, CkfMode
 from navig8_fc.core.kalman import ConstrainedKalmanFilter, measurement_matrix
+from navig8_fc.core.law_filters import LAW_OUT, LAW_STATE, LS_AF, LS_UF, lpf_increments
 from navig8_fc.core.vehicle import actuators_to_u
 
 Z3 = np.zeros(3)  # no gyroscopic moment (CKF_GYRO off)

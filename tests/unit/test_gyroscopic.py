@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from navig8_fc.core.adaptive_law import LAW_OUT, LAW_STATE, LO_READY, lpf_increments
 from navig8_fc.core.gyroscopic import gyroscopic_moment
+from navig8_fc.core.law_filters import LAW_OUT, LAW_STATE, LO_READY, lpf_increments
 
 
 def test_moment_is_the_cross_product() -> None:
