@@ -69,14 +69,21 @@ def test_realtime_fc_flies_over_a_921600_baud_serial_line(tmp_path: Path) -> Non
     # followed: /fc/stability (LAM_CRIT, LAM_MARGIN) of the loop one tick late, below the required margin at the
     # defaults, said once; after the preset's floor, that loop's margin is the required one
     stab = [r for _, _, r in read_mcap(log, ["/fc/stability"])]
-    assert stab[0]["link_delay_ticks"] == 0 and stab[-1]["link_delay_ticks"] == 1, stab
-    late = link_lambda_crit(120.0, 1.0, 100.0, 0.02, "model", 0.2, 1)  # the defaults' loop, the model told
-    below = [r for r in stab if r["link_delay_ticks"] == 1 and not r["meets_margin"]]
-    assert below and below[0]["lambda_crit"] == pytest.approx(late, rel=1e-6)  # the parameters are float32
-    assert below[0]["margin"] == pytest.approx(below[0]["min_eigenvalue"] / late, rel=1e-6)
-    assert below[0]["margin"] < 1.5
-    assert stab[-1]["meets_margin"] and stab[-1]["lambda_crit"] == pytest.approx(late, rel=1e-6)
-    assert stab[-1]["margin"] == pytest.approx(stab[-1]["min_eigenvalue"] / late, rel=1e-6)
-    assert stab[-1]["margin"] >= 1.5
+    assert stab[0]["link_delay_ticks"] == 0, stab
+    # the first late loop flown with the defaults' floor: the measured delay's lambda_crit (the model told)
+    below = next(r for r in stab if r["link_delay_ticks"] > 0)
+    crit = link_lambda_crit(120.0, 1.0, 100.0, 0.02, "model", 0.2, below["link_delay_ticks"])
+    assert not below["meets_margin"] and below["lambda_crit"] == pytest.approx(crit, rel=1e-6)  # float32 parameters
+    assert below["margin"] == pytest.approx(below["min_eigenvalue"] / crit, rel=1e-6)
+    assert below["margin"] < 1.5
+    # the loop one tick late with the preset's floor (the operator's PARAM_SET): the required margin
+    late = link_lambda_crit(120.0, 1.0, 100.0, 0.02, "model", 0.2, 1)
+    met = [r for r in stab if r["link_delay_ticks"] == 1][-1]
+    assert met["meets_margin"] and met["lambda_crit"] == pytest.approx(late, rel=1e-6)
+    assert met["margin"] == pytest.approx(met["min_eigenvalue"] / late, rel=1e-6)
+    assert met["margin"] >= 1.5
+    # said once per logged floor below the margin, never repeated while it stands (beside other work a block of the
+    # line's answers can read two ticks late: a new loop, its own record and warning, margin 1.30 with the preset)
     texts = [r["text"] for _, _, r in read_mcap(log, ["/fc/statustext"])]
-    assert sum("over this link < INDI_LAM_MARGIN 1.5" in t for t in texts) == 1, texts
+    n_below = sum(r["link_delay_ticks"] > 0 and not r["meets_margin"] for r in stab)
+    assert sum("over this link < INDI_LAM_MARGIN 1.5" in t for t in texts) == n_below, (texts, stab)
