@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import yaml
+from navig8_fc.yaml_text import safe_load
 
 
 @dataclass(frozen=True)
@@ -166,4 +166,4 @@ class PlantParams:
             text = (files("navig8_params") / "plant.yaml").read_text()
         else:
             text = Path(path).read_text()
-        return PlantParams.from_dict(yaml.load(text, Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader)))
+        return PlantParams.from_dict(safe_load(text))

@@ -25,10 +25,9 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.flight.script import read_scenario_file
+from navig8_fc.yaml_text import safe_load
 from sim_bridge.params import PlantParams
 from sim_bridge.scenario import Scenario
 
@@ -160,8 +159,7 @@ def _apply_one(docs: dict[str, Any], name: str, value: float) -> None:
 
 
 def _packaged_yaml(name: str) -> dict[str, Any]:
-    # libyaml's parser where PyYAML has it: the same documents for a tenth of the CPU (every bridge start, every flight)
-    return yaml.load((files("navig8_params") / name).read_text(), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    return safe_load((files("navig8_params") / name).read_text())
 
 
 def world_documents(scenario: str | Path, overrides: Mapping[str, float] | None = None) -> dict[str, Any]:

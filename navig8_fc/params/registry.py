@@ -34,7 +34,8 @@ from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
-import yaml
+
+from navig8_fc.yaml_text import safe_load
 
 MAX_NAME_LEN = 16  # MAVLink param_id is char[16]
 TYPES = ("REAL32", "INT32")
@@ -285,15 +286,10 @@ def flown_k_bounds(values: Mapping[str, float | int]) -> tuple[float, float]:
     return k_xi.flown_k_box(float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"]), lam, floor)
 
 
-# libyaml's parser where PyYAML has it: the same documents (the constructors are PyYAML's own) for a tenth of the CPU
-# (the 50 KB definitions took ~0.2 s in pure Python, paid at every FC start and by every registry a test builds)
-YAML_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-
-
 @functools.lru_cache(maxsize=8)  # ParamDefs are frozen and the tuple immutable: parsed once a process per text
 def load_definitions(text: str) -> tuple[ParamDef, ...]:
     """Parse and check the YAML definitions (names, types, ranges, defaults)."""
-    doc = yaml.load(text, Loader=YAML_LOADER)
+    doc = safe_load(text)  # libyaml (yaml_text)
     if not isinstance(doc, dict) or not isinstance(doc.get("params"), list):
         raise ParamDefinitionError("parameter file must have a top-level 'params' list")
     defs: list[ParamDef] = []

@@ -59,10 +59,10 @@ FILE_FUNCTIONS = {
 FILE_READS_LEFT = (
     "navig8_fc/core/vehicle.py:110: read_text()",
     "navig8_fc/core/vehicle.py:112: read_text()",
-    "navig8_fc/flight/script.py:192: read_text()",
-    "navig8_fc/flight/script.py:197: read_text()",
-    "navig8_fc/params/registry.py:260: read_text()",
-    "navig8_fc/params/registry.py:261: read_text()",
+    "navig8_fc/flight/script.py:206: read_text()",
+    "navig8_fc/flight/script.py:211: read_text()",
+    "navig8_fc/params/registry.py:354: read_text()",
+    "navig8_fc/params/registry.py:355: read_text()",
 )
 
 
