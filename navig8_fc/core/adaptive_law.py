@@ -194,6 +194,10 @@ class AdaptiveLaw:
         # CKF_M_SIG_OPEN: the mass variance (kg^2) with no object held, at the start and after a release (0: P0's)
         self._m_var_open = ckf.mass_sigma_open_kg ** 2 if isinstance(self._kf, ConstrainedKalmanFilter) else 0.0
         self._grip_sig = ckf.grip_sigma_w if isinstance(self._kf, ConstrainedKalmanFilter) else 0.0  # CKF_GRIP_SIG
+        # CKF_IYY_GRIP_W: I_yy's prior at a grasp. Its mean stays the estimate before the grasp, so its weight pulls the
+        # held estimate back there (docs/model.md, "Estimator" item 23): half a width by default, wide enough for a
+        # 1 kg object at q1 60 deg, narrow enough that the arm's motion after a grasp of nothing is not read as I_yy.
+        self._iyy_grasp_w = ckf.iyy_grasp_w
         self._event_hold_s = ckf.lpf_tau_s  # no correction this long after a grasp / release (the low-passes carry it)
         self._pred_dj = ckf.predict_from_dj
         # the moment-space pitch row (CKF_R_PITCH; the KF only) and its prior while an object is held (CKF_CZ_SIG)
@@ -344,7 +348,7 @@ class AdaptiveLaw:
                 if self._fbm is not None:
                     self._fbm.restart()
             if self._nuisance and closed != prev:  # the first known state too: it sets the nuisances' priors
-                self._held_changed(closed, prev, t_s, (0.5 * (upper[1] - lower[1])) ** 2)
+                self._held_changed(closed, prev, t_s, (self._iyy_grasp_w * (upper[1] - lower[1])) ** 2)
         correct = self._gate(ready, window_sat, t_s)
         if self._fbm is not None and gc_ok:  # CKF_M_ABS_SIG
             self._fbm.tick(self._gc, u_meas, acc_m, correct, gripper_closed, m, kf)

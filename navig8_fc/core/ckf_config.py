@@ -40,7 +40,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_K_PIN1", "CKF_K_PIN2", "CKF_K_PIN3", "CKF_K_PIN4", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
     "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
     "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG", "CKF_MOM_LPF", "CKF_M_SIG_OPEN", "CKF_IXZ_SIG", "CKF_CZ_DM",
-    "CKF_MOM_MREF", "CKF_MOM_MOVE", "CKF_PROJ_IYY", "CKF_CZ_FOLLOW", "CKF_M_ABS_SIG", "CKF_GYRO",
+    "CKF_MOM_MREF", "CKF_MOM_MOVE", "CKF_PROJ_IYY", "CKF_CZ_FOLLOW", "CKF_M_ABS_SIG", "CKF_GYRO", "CKF_IYY_GRIP_W",
 )
 
 
@@ -139,6 +139,9 @@ class CkfConfig:
     # CKF_GRIP_SIG: with grip_reset, at a grasp the prior sigma of I_xx and I_zz is at least this many widths of their
     # Eq. 21 box (J / K_min - J / K_max); 0: P0 alone (AdaptiveLaw._on_gripper)
     grip_sigma_w: float = 0.0
+    # CKF_IYY_GRIP_W: with the pitch row's CoM nuisance (com_sigma_m > 0), at a grasp the prior sigma of I_yy is at
+    # least this many widths of its Eq. 21 box (AdaptiveLaw._held_changed)
+    iyy_grasp_w: float = 0.5
     # CKF_MOM_LPF: the moment-space pitch row reads the increment of the low-passed pitch moment G_C[M, :] U (each
     # tick's G_C) less that of h', not G_C[M, :] Delta U (AdaptiveLaw)
     moment_lpf: bool = False
@@ -215,7 +218,8 @@ class CkfConfig:
         object.__setattr__(self, "com_follows_reference", bool(self.com_follows_reference))
         object.__setattr__(self, "gyroscopic", bool(self.gyroscopic))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2", "pitch_r_nm2",
-                     "com_sigma_m", "grip_sigma_w", "mass_sigma_open_kg", "ixz_sigma_kgm2", "mass_balance_sigma_kg"):
+                     "com_sigma_m", "grip_sigma_w", "iyy_grasp_w", "mass_sigma_open_kg", "ixz_sigma_kgm2",
+                     "mass_balance_sigma_kg"):
             v = float(getattr(self, name))
             if not (v >= 0.0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
@@ -283,6 +287,7 @@ class CkfConfig:
             ixz_model=bool(int(values["CKF_IXZ_MOD"])),
             ixz_mass_jacobian=int(values["CKF_IXZ_MOD"]) == 2,
             grip_sigma_w=float(values["CKF_GRIP_SIG"]),
+            iyy_grasp_w=float(values["CKF_IYY_GRIP_W"]),
             moment_lpf=bool(int(values["CKF_MOM_LPF"])),
             mass_sigma_open_kg=float(values["CKF_M_SIG_OPEN"]),
             ixz_sigma_kgm2=float(values["CKF_IXZ_SIG"]),
