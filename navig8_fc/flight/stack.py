@@ -81,6 +81,7 @@ from navig8_fc.params.registry import ParamRegistry
 SYSTEM_STATUS_CRITICAL = 5  # MAV_STATE_CRITICAL: a failsafe is in force (PX4 reports the same)
 ESTIMATOR_WARMUP_S = 0.5  # 5 time constants of the INDI feedback filter before arming is allowed
 _NO_ACCEL = (0.0, 0.0, 0.0)
+FAULT_LINK = "link"  # ModeManager fault name: the sim link leaves no stable loop (link_fault)
 TASK_FLIGHT, TASK_ARM = "flight", "arm"  # the two kinds of long-running command that can run side by side
 
 
@@ -166,7 +167,7 @@ class FlightStack:
         reg = self.registry
         if reg.generation == self._cfg_generation:
             return False
-        values = reg.as_dict()  # one snapshot types every component's settings
+        values = reg.flown_values()  # one snapshot types every component's settings (the automatic link floor in)
         cfg = ControllerConfig.from_params(values, self.vehicle)
         core = self._core
         if (core is None or cfg.indi != core.config.indi or cfg.ckf != core.config.ckf
@@ -253,6 +254,14 @@ class FlightStack:
         group has failed (sim s)."""
         notice = self._fs.sensor_data(bad_groups, bad_for_s)
         return () if notice is None else (notice,)
+
+    def link_fault(self, reason: str | None) -> None:
+        """The sim link's stability check (the shell's, navig8_fc/shell/fc_process.py): `reason` refuses arming (a
+        pre-arm failure; armed: MAV_STATE_CRITICAL, nothing else changes) until it is called with None."""
+        if reason is None:
+            self._modes.clear_fault(FAULT_LINK)
+        else:
+            self._modes.set_fault(FAULT_LINK, reason)
 
     def tick_failed(self, error: str, n_errors: int) -> tuple[Notice, ...]:
         """The control tick raised `error` (its n_errors-th time); the shell holds the last good command."""

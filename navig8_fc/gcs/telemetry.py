@@ -50,6 +50,8 @@ the parameter checks enforce, the smallest eigenvalue of G_hat G^-1 guaranteed o
 divided by LAM_CRIT (a change that takes it below INDI_LAM_MARGIN is refused; docs/stability.md "The flown
 configuration"). Both change only with those parameters and the link's delay: the registry's stability floor of the
 values in force, LAM_MARGIN NaN while it is being computed (a worker, after a reset, at start, when the delay moved).
+KFL_FLOWN: the floor on the rotational axes' flown K in force, INDI_KFL_MIN or, over a late link, the automatic link
+floor when that is higher (INDI_KFL_LINK; docs/stability.md "Over a real-time link"): the K the margin is computed at.
 
 Frames and units: GLOBAL_POSITION_INT converts NED to WGS-84 with PX4's flat-earth (equirectangular)
 projection around `GeoOrigin`, Earth radius 6 371 000 m: lat = lat0 + n/R, lon = lon0 + e/(R cos lat0),
@@ -224,6 +226,7 @@ class VehicleSnapshot:
     eig_margin: float = math.nan  # see module docstring
     lam_crit: float = math.nan  # lambda_crit of the configuration in force (module docstring)
     lam_margin: float = math.nan  # guaranteed min eigenvalue / lambda_crit (module docstring)
+    kfl_flown: float = math.nan  # the flown K's floor in force: INDI_KFL_MIN or the link floor (module docstring)
     time_unix_usec: int = 0  # given by the shell (0 = unknown)
     throttle_pct: float = 0.0
     orbit: OrbitPlan | None = None  # the orbit being flown (ORBIT_EXECUTION_STATUS)
@@ -568,10 +571,10 @@ class TelemetryBuilder:
             ("IXX_HAT", snap.ckf_x_hat[0]), ("IYY_HAT", snap.ckf_x_hat[1]), ("IZZ_HAT", snap.ckf_x_hat[2]),
             ("M_HAT", snap.ckf_x_hat[3]), ("K1", snap.ckf_k[0]), ("K2", snap.ckf_k[1]), ("K3", snap.ckf_k[2]),
             ("K4", snap.ckf_k[3]), ("EIG_MARGIN", snap.eig_margin), ("LAM_CRIT", snap.lam_crit),
-            ("LAM_MARGIN", snap.lam_margin),
+            ("LAM_MARGIN", snap.lam_margin), ("KFL_FLOWN", snap.kfl_flown),
         )  # fmt: skip
         return [self._mav.named_value_float_encode(now_boot_ms, n.encode("ascii"), float(v)) for n, v in names_values]
 
 
 STABILITY_VALUE_NAMES = ("IXX_HAT", "IYY_HAT", "IZZ_HAT", "M_HAT", "K1", "K2", "K3", "K4", "EIG_MARGIN", "LAM_CRIT",
-                         "LAM_MARGIN")
+                         "LAM_MARGIN", "KFL_FLOWN")

@@ -55,6 +55,10 @@ FLOWN_GAIN_DEFAULTS = {"INDI_LAM_REF": 1.0, "INDI_KFL_MIN": 0.0}
 # FC's shell, `ParamRegistry.set_link`): how many ticks later than in lockstep the answers fly, and whether the FC's
 # actuator model is told which answer flew (docs/stability.md, "Over a real-time link"). Absent: lockstep.
 LINK_DELAY_KEY, LINK_TOLD_KEY = "link_delay_ticks", "link_model_told"
+# The automatic link floor (INDI_KFL_LINK; navig8_fc/params/link_floor.py) beside them: a floor on the flown K of the
+# rotational axes the FC raised over a late link, flown as max(INDI_KFL_MIN, it) (absent or 0: none). Not a parameter:
+# INDI_KFL_MIN keeps the value a ground station set.
+LINK_KFL_KEY = "link_k_floor"
 # What the loop over a delayed link depends on besides FLOOR_INPUTS (its U0: lockstep's Pade H(s) does not read it)
 LINK_FLOOR_INPUTS = ("INDI_U0_SRC", "INDI_U0_TAU")
 LINK_U0_DEFAULTS = {"INDI_U0_SRC": 0, "INDI_U0_TAU": 0.2}  # when a caller's values lack them: the paper's measured U0
@@ -153,6 +157,7 @@ class StabilityStatus:
     lambda_min: float  # INDI_LAMBDA_MIN (the performance target, Sec. 3.2)
     link_delay_ticks: int = 0  # the sim link's delay the floor is computed for (LinkTiming; 0: lockstep)
     link_model_told: bool = True
+    link_k_floor: float = 0.0  # the automatic link floor on the flown K in force (INDI_KFL_LINK; 0: none)
 
     @property
     def meets_margin(self) -> bool:
@@ -181,6 +186,7 @@ class WorkspaceStabilityCheck:
     loading numba for it)."""
 
     _memo: dict[tuple[Any, tuple[float, ...]], StabilityFloor] = {}
+    _crit_memo: dict[tuple[Any, ...], float] = {}  # lambda_crit by what it depends on (_lambda_crit)
     # the workspace Xi (k_xi.workspace_xi: ~0.1 s, independent of every floor input) per vehicle file, so a new
     # configuration costs only its eigenvalues (~15 ms): a PARAM_SET is answered at once
     _workspace: dict[str | None, np.ndarray] = {}
@@ -203,22 +209,7 @@ class WorkspaceStabilityCheck:
         from navig8_fc.core import k_xi, stability
 
         xi = self._workspace_xi()
-        link = link_of(values)
-        if link.delay_ticks == 0:  # lockstep: H(s) with the one-sample Pade delay, its conservative model
-            lam_crit = stability.lambda_crit(
-                float(values["ACT_WN"]),
-                float(values["ACT_ZETA"]),
-                1.0 / float(values["INDI_RATE_HZ"]),
-                float(values["INDI_LPF_TAU"]),
-            )
-        else:  # the answers fly later: the sampled loop with the commands in flight as states (exact, discrete)
-            from navig8_fc.core.sampled_loop import link_lambda_crit
-
-            u0 = {n: values.get(n, LINK_U0_DEFAULTS[n]) for n in LINK_FLOOR_INPUTS}
-            lam_crit = link_lambda_crit(
-                float(values["ACT_WN"]), float(values["ACT_ZETA"]), float(values["INDI_RATE_HZ"]),
-                float(values["INDI_LPF_TAU"]), "model" if int(u0["INDI_U0_SRC"]) == 1 else "measured",
-                float(u0["INDI_U0_TAU"]), link.delay_ticks, link.model_told)
+        lam_crit = self._lambda_crit(values)
         k_min, k_max = flown_k_bounds(values)  # the K the INDI flies (INDI_LAM_REF, INDI_KFL_MIN), not K_hat's box
         min_eig = k_xi.min_eigenvalue_of_xi(xi, k_min, k_max)
         lam_up = stability.lambda_upper(
@@ -231,6 +222,31 @@ class WorkspaceStabilityCheck:
 
             max_eig = k_xi.k_bounds_analysis(VehicleConfig.load(self._vehicle_path), k_min, k_max).max_eigenvalue
         return StabilityFloor(lam_crit, min_eig, lam_up, max_eig)
+
+    @classmethod
+    def _lambda_crit(cls, values: Mapping[str, float | int]) -> float:
+        """lambda_crit of the loop for `values` (the link's when they carry one), kept per process by what it depends
+        on: the flown K's floor does not move it, so a search over that floor (link_floor.py) computes it once."""
+        link = link_of(values)
+        wn, zeta, rate, tl = (float(values[n]) for n in ("ACT_WN", "ACT_ZETA", "INDI_RATE_HZ", "INDI_LPF_TAU"))
+        u0 = tuple(float(values.get(n, LINK_U0_DEFAULTS[n])) for n in LINK_FLOOR_INPUTS) if link.delay_ticks else ()
+        key = (wn, zeta, rate, tl, link.delay_ticks, link.model_told, *u0)
+        hit = cls._crit_memo.get(key)
+        if hit is not None:
+            return hit
+        if link.delay_ticks == 0:  # lockstep: H(s) with the one-sample Pade delay, its conservative model
+            from navig8_fc.core import stability
+
+            lam_crit = stability.lambda_crit(wn, zeta, 1.0 / rate, tl)
+        else:  # the answers fly later: the sampled loop with the commands in flight as states (exact, discrete)
+            from navig8_fc.core.sampled_loop import link_lambda_crit
+
+            lam_crit = link_lambda_crit(wn, zeta, rate, tl, "model" if int(u0[0]) == 1 else "measured", u0[1],
+                                        link.delay_ticks, link.model_told)
+        if len(cls._crit_memo) >= FLOOR_CACHE_SIZE:
+            cls._crit_memo.pop(next(iter(cls._crit_memo)))
+        cls._crit_memo[key] = lam_crit
+        return lam_crit
 
     def _workspace_xi(self) -> np.ndarray:
         """The vehicle's workspace Xi: this process's, else the cache's, else computed (and given to the cache)."""
@@ -265,10 +281,15 @@ def run_floor(check: StabilityCheck, values: Mapping[str, float | int]) -> Stabi
         return StabilityFloor(math.inf, -math.inf)
 
 
-def floor_key(values: Mapping[str, Any], link: LinkTiming | None = None) -> tuple[float, ...]:
-    """The values the stability floor depends on, as a cache key (the link's timing and, over a delayed link, U0);
-    `link`: the timing when `values` do not carry it (the registry's values in force)."""
+def floor_key(values: Mapping[str, Any], link: LinkTiming | None = None,
+              link_k_floor: float | None = None) -> tuple[float, ...]:
+    """The values the stability floor depends on, as a cache key (the link's timing and, over a delayed link, U0; the
+    automatic link floor when one is in force); `link`, `link_k_floor`: the timing and the link floor when `values` do
+    not carry them (the registry's values in force)."""
     key = tuple(float(values[n] if n in values else FLOWN_GAIN_DEFAULTS[n]) for n in FLOOR_INPUTS)
+    kfl = float(values.get(LINK_KFL_KEY, 0.0)) if link_k_floor is None else float(link_k_floor)
+    if kfl > 0.0:
+        key = (*key, -1.0, kfl)  # -1: a separator no delay takes, so the two tails never read alike
     link = link_of(values) if link is None else link
     if link.delay_ticks == 0:
         return key
@@ -278,11 +299,13 @@ def floor_key(values: Mapping[str, Any], link: LinkTiming | None = None) -> tupl
 
 def flown_k_bounds(values: Mapping[str, float | int]) -> tuple[float, float]:
     """The box of the K the INDI flies (k_xi.flown_k_box): the Eq. 20 box [INDI_K_MIN, INDI_K_MAX] at the defaults
-    (INDI_LAM_REF 1, INDI_KFL_MIN 0), else widened to hold lambda* K_hat and the flown floor."""
+    (INDI_LAM_REF 1, INDI_KFL_MIN 0), else widened to hold lambda* K_hat and the flown floor (INDI_KFL_MIN, raised to
+    the automatic link floor when `values` carry one: LINK_KFL_KEY)."""
     from navig8_fc.core import k_xi
 
     lam = float(values.get("INDI_LAM_REF", FLOWN_GAIN_DEFAULTS["INDI_LAM_REF"]))
-    floor = float(values.get("INDI_KFL_MIN", FLOWN_GAIN_DEFAULTS["INDI_KFL_MIN"]))
+    floor = max(float(values.get("INDI_KFL_MIN", FLOWN_GAIN_DEFAULTS["INDI_KFL_MIN"])),
+                float(values.get(LINK_KFL_KEY, 0.0)))
     return k_xi.flown_k_box(float(values["INDI_K_MIN"]), float(values["INDI_K_MAX"]), lam, floor)
 
 
@@ -346,6 +369,7 @@ class ParamRegistry:
         self._generation = 0
         self._floors: dict[tuple[float, ...], StabilityFloor] = {}  # floor_key -> result (insertion = age)
         self._link = LOCKSTEP  # the sim link's timing the floor in force and the margin rule are computed for
+        self._link_k_floor = 0.0  # the automatic link floor on the flown K (set_link_k_floor; 0: none)
 
     # --- construction -------------------------------------------------------------------------
     @staticmethod
@@ -452,12 +476,40 @@ class ParamRegistry:
         floor_in_force is None meanwhile, as after a reset)."""
         self._link = link
 
+    @property
+    def link_k_floor(self) -> float:
+        """The automatic link floor on the flown K of the rotational axes in force (0: none; link_floor.py)."""
+        return self._link_k_floor
+
+    def set_link_k_floor(self, k_floor: float) -> None:
+        """Fly the rotational axes' K at least `k_floor` (0: no link floor) beside INDI_KFL_MIN, whose value stays
+        what a ground station set: the controller's configuration (`flown_values`), the floor in force and the
+        margin rule take max(INDI_KFL_MIN, k_floor) from now on. A change counts as a parameter change (generation),
+        so the flight stack applies it at its next step."""
+        k = float(k_floor)
+        if not (math.isfinite(k) and 0.0 <= k <= self._by_name["INDI_KFL_MIN"].max):
+            raise ValueError(f"link K floor must be in [0, {self._by_name['INDI_KFL_MIN'].max:g}], got {k_floor!r}")
+        if k != self._link_k_floor:
+            self._link_k_floor = k
+            self._generation += 1
+
+    def flown_values(self) -> dict[str, float | int]:
+        """The values the controller flies: the parameters in force, INDI_KFL_MIN raised to the automatic link floor
+        when that is higher (as_dict: the parameters as a ground station sees them)."""
+        values = dict(self._values)
+        if self._link_k_floor > float(values["INDI_KFL_MIN"]):
+            values["INDI_KFL_MIN"] = self._link_k_floor
+        return values
+
     def floor_values(self) -> dict[str, Any]:
-        """The values in force with the link's timing: what the floor in force is computed for (run_floor)."""
+        """The values in force with the link's timing and the automatic link floor: what the floor in force is computed
+        for (run_floor)."""
         values: dict[str, Any] = dict(self._values)
         if self._link.delay_ticks > 0:
             values[LINK_DELAY_KEY] = self._link.delay_ticks
             values[LINK_TOLD_KEY] = self._link.model_told
+        if self._link_k_floor > 0.0:
+            values[LINK_KFL_KEY] = self._link_k_floor
         return values
 
     def _needs_floor(self, name: str) -> bool:
@@ -495,7 +547,7 @@ class ParamRegistry:
         computed yet: after a reset to defaults or at start, until a caller computes it, e.g. on a worker)."""
         if self._stability_check is None:
             return None
-        return self._floors.get(floor_key(self._values, self._link))
+        return self._floors.get(floor_key(self._values, self._link, self._link_k_floor))
 
     def stability_status(self) -> StabilityStatus | None:
         """lambda_crit, the guaranteed smallest eigenvalue and their ratio for the values in force (None: the
@@ -506,7 +558,7 @@ class ParamRegistry:
         return StabilityStatus(floor.lambda_crit, floor.min_eigenvalue, floor.margin,
                                float(self._values.get("INDI_LAM_MARGIN", 1.0)),
                                float(self._values.get("INDI_LAMBDA_MIN", math.nan)),
-                               self._link.delay_ticks, self._link.model_told)
+                               self._link.delay_ticks, self._link.model_told, self._link_k_floor)
 
     def _floor(self, values: Mapping[str, float | int]) -> StabilityFloor:
         key = floor_key(values)

@@ -33,12 +33,14 @@ class TelemetrySettings:
 
     k_min: float  # the box of the K the INDI flies (registry.flown_k_bounds: INDI_K_MIN..MAX with INDI_LAM_REF and
     k_max: float  # INDI_KFL_MIN), which the eigenvalue margin is bounded over
+    k_flown_floor: float  # INDI_KFL_MIN, or the automatic link floor when higher (registry.flown_values)
     battery_low_pct: float  # FS_BAT_LOW_PCT: below it SYS_STATUS's battery is unhealthy (the low-battery failsafe)
     origin: GeoOrigin  # ORIGIN_*: the global origin of GLOBAL_POSITION_INT, HOME_POSITION, ...
 
     @staticmethod
     def from_params(values: Mapping[str, float]) -> TelemetrySettings:
-        return TelemetrySettings(*flown_k_bounds(values), float(values["FS_BAT_LOW_PCT"]), origin_from_params(values))
+        return TelemetrySettings(*flown_k_bounds(values), float(values["INDI_KFL_MIN"]),
+                                 float(values["FS_BAT_LOW_PCT"]), origin_from_params(values))
 
 
 class Telemetry:
@@ -64,14 +66,14 @@ class Telemetry:
         self._eig_margin = math.nan
         self._eig_t = -1e9
         self._settings_generation = -1  # the registry generation `settings` was typed from
-        self._settings = TelemetrySettings.from_params(registry.as_dict())
+        self._settings = TelemetrySettings.from_params(registry.flown_values())
 
     @property
     def settings(self) -> TelemetrySettings:
         """The parameters in force, typed again only after a change."""
         reg = self._registry
         if reg.generation != self._settings_generation:
-            self._settings = TelemetrySettings.from_params(reg.as_dict())
+            self._settings = TelemetrySettings.from_params(reg.flown_values())
             self._settings_generation = reg.generation
         return self._settings
 
@@ -116,6 +118,7 @@ class Telemetry:
             eig_margin=self._eig_margin,
             lam_crit=lam_crit,
             lam_margin=stab.margin if stab is not None else math.nan,
+            kfl_flown=cfg.k_flown_floor,
             time_unix_usec=time.time_ns() // 1000,
             throttle_pct=throttle_pct(self._vehicle, s.prop_speed_rad_s) if s else 0.0,
             orbit=v.orbit,
