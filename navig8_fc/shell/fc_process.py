@@ -25,6 +25,7 @@ from navig8_fc.mavlink import codec
 from navig8_fc.mavlink import dialect as dialect_mod
 from navig8_fc.mavlink.px4sim import PX4_SIM_MESSAGES
 from navig8_fc.mission.geo import origin_from_params
+from navig8_fc.params.link_floor import AUTO_PARAM, LinkFloor
 from navig8_fc.params.registry import ParamRegistry, StabilityStatus, WorkspaceStabilityCheck
 from navig8_fc.shell.fc_log import FcLog, StepRecord
 from navig8_fc.shell.fc_options import FcOptions, build_arg_parser, options_from_args
@@ -51,13 +52,50 @@ CONTROLLERS = ("fixed", "unconstrained", "proposed", "pinned", "lms")  # by CKF_
 _PORT_OPTIONS = {"sim": "--sim-port", "gcs": "--gcs-bind-port", "api": "--api-bind-port"}
 
 
-def link_margin_warning(stab: StabilityStatus) -> str | None:
+def link_margin_warning(stab: StabilityStatus, auto: bool = False) -> str | None:
     """The warning when the floor in force over a late sim link leaves less than INDI_LAM_MARGIN (docs/stability.md,
-    "Over a real-time link"); None otherwise."""
-    if stab.link_delay_ticks == 0 or stab.meets_margin:
+    "Over a real-time link") and the FC does not raise the flown K's floor itself (INDI_KFL_LINK 0; with it on,
+    link_floor_text says what it did); None otherwise."""
+    if stab.link_delay_ticks == 0 or stab.meets_margin or auto:
         return None
     return (f"Stability margin {stab.margin:.2f} over this link < INDI_LAM_MARGIN {stab.required_margin:g} "
-            f"(lambda_crit {stab.lambda_crit:.3f}); one tick late: params/presets/realtime_link.parm")
+            f"(lambda_crit {stab.lambda_crit:.3f}); INDI_KFL_LINK 1 raises the flown K floor to meet it")
+
+
+def link_floor_text(found: LinkFloor | None, before: float, after: float, k_param: float) -> tuple[int, str]:
+    """The STATUSTEXT (severity, text) for a change of the automatic link floor from `before` to `after` (0: none;
+    navig8_fc/params/link_floor.py); found: the search behind `after` (None: the floor went back to none because no
+    link floor is wanted: INDI_KFL_LINK 0 or no delay measured); k_param: INDI_KFL_MIN."""
+    was, now = max(k_param, before), max(k_param, after)
+    if found is None:
+        return 6, f"Link floor off: flown K floor {was:g} -> INDI_KFL_MIN {k_param:g}"
+    d = found.link.delay_ticks
+    late = f"Link {d} tick{'s' if d != 1 else ''} late" + ("" if found.link.model_told else ", actuator model blind")
+    if after < before:  # on the ground, the link quicker again
+        return 6, (f"{late}: flown K floor lowered {was:g} -> {now:g} (margin {found.margin:.2f} >= INDI_LAM_MARGIN "
+                   f"{found.required:g})")
+    why = (f"{late}: margin {found.margin_own:.2f} < INDI_LAM_MARGIN {found.required:g} at INDI_KFL_MIN "
+           f"{k_param:g}; flown K floor {was:g} -> {now:g}")
+    if found.meets:
+        return 5, f"{why} (margin {found.margin:.2f}, lambda_crit {found.lambda_crit:.3f})"
+    return 4, f"{why}, the K box's best: margin {found.margin:.2f} still < {found.required:g}"
+
+
+LINK_UNMEASURED = "sim link's delay not measured yet (its stability floor follows it)"
+
+
+def link_fault_reason(stab: StabilityStatus, auto: bool) -> str | None:
+    """A pre-arm failure when, with the automatic link floor on, even the floor flown over a late link leaves less than
+    INDI_LAM_MARGIN (no floor up to INDI_K_MIN meets it: the defaults two or more ticks late); None otherwise. As the
+    margin rule refuses such a configuration from a ground station, arming refuses it from the link: beside other work
+    the serial line's flights at two or three ticks late were lost at the K box's best floor (docs/hil.md, "The
+    link's delay"). In flight it is a warning (link_floor_text) and MAV_STATE_CRITICAL, not an action. INDI_KFL_LINK 0
+    (warn only) or a lower INDI_LAM_MARGIN accepts the smaller margin."""
+    if not auto or stab.link_delay_ticks == 0 or stab.meets_margin:
+        return None
+    d = stab.link_delay_ticks
+    return (f"stability margin {stab.margin:.2f} over this link ({d} tick{'s' if d != 1 else ''} late) < "
+            f"INDI_LAM_MARGIN {stab.required_margin:g} at the K box's best floor {stab.link_k_floor:g}")
 
 
 class FlightControllerProcess:
@@ -100,6 +138,7 @@ class FlightControllerProcess:
                                       background_params=True, signing=self.signing,
                                       logs=LogDirectory(opts.log_path.parent) if opts.log_path else None)
         self._stability_logged: StabilityStatus | None = None  # the last /fc/stability record
+        self._link_fault: str | None = None  # the sim link's pre-arm failure in force (None: none)
         self.gcs_links.guard(self.gcs_service.admits_peer, lambda: self.signing.active)  # docs/security.md
         state.restore(self.gcs_service, self.signing, opts.defaults, self.log_event)
         self.stack.reconfigure()
@@ -110,6 +149,12 @@ class FlightControllerProcess:
         self.guard.monotonic = self.timing.realtime or isinstance(self.peer, Px4Peer)  # PX4: its own IMU rate
         self.steps = SimStepper(self.sim, self.peer, self.timing, self.guard, self.stack, self.vehicle, self.watchdog,
                                 lambda: self.log.active, self.announce, self.statustext, self.log_event)
+        # Real time: no arming until the link's delay is measured and the floor it needs is in force (a block of
+        # answers, ~2.6 s, then the floor's search on the worker), so the link floor engages on the ground, not at
+        # takeoff (docs/stability.md, "Over a real-time link"). Lockstep measures nothing: no such check.
+        self._link_measured = not self.timing.realtime
+        if not self._link_measured:
+            self._set_link_fault(LINK_UNMEASURED)
         config = self.stack.core.config
         warm_up_kernels(self.vehicle, config)  # numba's cache loads before the first step, not in it
         if self.logger:
@@ -310,15 +355,54 @@ class FlightControllerProcess:
         self.signing.checkpoint(now)  # the signed streams' timestamps beside the key (replays after a restart)
         if self.steps is not None:
             self.steps.follow_link(self.registry)
+        self._link_floor_changes()
         stab = self.gcs_service.stability
         if stab is not None and stab != self._stability_logged:
             self._stability_logged = stab
             self.log.stability(stab)
-            if (text := link_margin_warning(stab)) is not None:
+            if (text := link_margin_warning(stab, self._auto_link_floor)) is not None:
                 self.statustext(text, 4)  # MAV_SEVERITY_WARNING
+        if stab is not None:
+            self._link_check(stab)
         if self.mission_view is not None:  # /foxglove/mission follows the uploaded plan
             m = self.gcs_service.mission
             self.mission_view.show(m.generation, m.plan, self.gcs_service.origin, lambda: self.stack.state().home_ned_m)
+
+    @property
+    def _auto_link_floor(self) -> bool:
+        return int(self.registry.get(AUTO_PARAM)) == 1
+
+    def _link_check(self, stab: StabilityStatus) -> None:
+        """The sim link's pre-arm check: in real time until the delay is measured and its floor is in force, then
+        link_fault_reason's (no guarantee left at the floor flown)."""
+        if not self._link_measured:
+            if self.steps is None or self.steps.link_delay.link != self.registry.link:  # None: not measured yet
+                return
+            self._link_measured = True  # measured, and the floor in force (`stab`, with any link floor) is its
+        if (fault := link_fault_reason(stab, self._auto_link_floor)) != self._link_fault:
+            self._set_link_fault(fault)
+            if fault is not None:
+                self.statustext(f"Arming refused: {fault}", 2)  # MAV_SEVERITY_CRITICAL
+
+    def _set_link_fault(self, fault: str | None) -> None:
+        self._link_fault = fault
+        self.stack.link_fault(fault)
+
+    def _link_floor_changes(self) -> None:
+        """The automatic link floor's changes (navig8_fc/params/link_floor.py): a STATUSTEXT each (what, why, the
+        numbers) and a /fc/link_floor record."""
+        for found, before, after in self.gcs_service.param_sets.take_link_floor_changes():
+            k_param = float(self.registry.get("INDI_KFL_MIN"))
+            severity, text = link_floor_text(found, before, after, k_param)
+            self.statustext(text, severity)
+            rec: dict[str, Any] = {"k_floor_before": before, "k_floor": after, "k_param": k_param,
+                                   "k_flown": max(k_param, after), "armed": self.stack.state().armed}
+            if found is not None:
+                rec.update(link_delay_ticks=found.link.delay_ticks, link_model_told=found.link.model_told,
+                           margin_own=found.margin_own, margin=found.margin, required_margin=found.required,
+                           lambda_crit=found.lambda_crit, min_eigenvalue=found.floor.min_eigenvalue,
+                           meets_margin=found.meets)
+            self.log.record("/fc/link_floor", rec)
 
     def log_event(self, text: str) -> None:
         print(f"navig8-fc: {text}", file=sys.stderr)

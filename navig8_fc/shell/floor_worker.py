@@ -1,9 +1,11 @@
 """PARAM_SETs off the control path (GcsService's): `ParamSets` limits them per source (PARAM_SET_RATE), queues those
-whose stability floor must be computed, and writes the parameter file on a worker thread; `FloorWorker` computes the
-floors off the control thread (docs/gcs.md, "Parameters"): a worker process (job_process.JobProcess), started and
-warm before the FC's loop (its start-up, ~0.3 s of CPU with the workspace's Xi on disk, ~1.4 s without, then takes
-nothing from the control loop and the simulator; a configuration's floor is ~20 ms); a thread when processes cannot
-be started, and inline (the caller) when the worker died."""
+whose stability floor must be computed, flies the automatic link floor (INDI_KFL_LINK; navig8_fc/params/
+link_floor.py: searched on the same worker, applied to the registry here, announced by the FC's process), and writes
+the parameter file on a worker thread; `FloorWorker` computes the floors off the control thread (docs/gcs.md,
+"Parameters"): a worker process (job_process.JobProcess), started and warm before the FC's loop (its start-up, ~0.3 s
+of CPU with the workspace's Xi on disk, ~1.4 s without, then takes nothing from the control loop and the simulator;
+a configuration's floor is ~20 ms, a link floor's search ~0.5 s); a thread when processes cannot be started, and
+inline (the caller) when the worker died."""
 
 from __future__ import annotations
 
@@ -14,7 +16,14 @@ from concurrent.futures import Executor, Future, ThreadPoolExecutor
 from typing import Any
 
 from navig8_fc.gcs.params import ParamProtocol
-from navig8_fc.params.registry import ParamRegistry, run_floor
+from navig8_fc.params.link_floor import (
+    LinkFloor,
+    governed_link_floor,
+    least_link_floor,
+    link_floor_key,
+    link_floor_values,
+)
+from navig8_fc.params.registry import LINK_KFL_KEY, ParamRegistry, run_floor
 from navig8_fc.shell.job_process import JobProcess
 from navig8_fc.shell.telemetry_service import Source
 
@@ -27,7 +36,7 @@ class FloorWorker:
         self._fallback = fallback  # a thread: no processes here still keeps the sweep off the loop
         self._pool: Executor | None = None
         self.failed = False  # the worker died: from now on floors are computed inline
-        self._job: tuple[dict[str, float | int], Future[Any]] | None = None
+        self._job: tuple[Callable[[Any], None], Future[Any]] | None = None
 
     def start(self) -> None:
         """Start the worker and compute the configuration in force once: its start-up (an interpreter, its imports,
@@ -44,23 +53,31 @@ class FloorWorker:
             self._pool = self._fallback
 
     def submit(self, values: dict[str, float | int], now_wall: float) -> None:
+        """The floor of `values`, stored in the registry's floor cache when done."""
+        self.submit_job(run_floor, values, lambda floor: self._registry.store_floor(values, floor))
+
+    def submit_job(self, fn: Callable[[Any, dict[str, Any]], Any], values: dict[str, Any],
+                   on_result: Callable[[Any], None]) -> None:
+        """fn(the registry's stability check, values) on the worker; its result to on_result when done."""
         if self._pool is None:
             self._start()
         assert self._pool is not None
-        self._job = (values, self._pool.submit(run_floor, self._registry.stability_check, values))
+        self._job = (on_result, self._pool.submit(fn, self._registry.stability_check, values))
 
     def done(self) -> bool:
-        """Store the worker's finished floor in the registry; False while one is still being computed."""
+        """Hand the worker's finished result on (a floor: into the registry); False while one is still computed."""
         if self._job is None:
             return True
-        values, job = self._job
+        on_result, job = self._job
         if not job.done():
             return False
         self._job = None
         try:
-            self._registry.store_floor(values, job.result())
+            result = job.result()
         except Exception:  # noqa: BLE001 - a dead worker: from now on floors are computed inline
             self.failed = True
+            return True
+        on_result(result)
         return True
 
     def close(self) -> None:
@@ -79,8 +96,14 @@ class ParamSets:
     `refusal_text` a rate-limited STATUSTEXT, `statustext` a save's failure."""
 
     def __init__(self, params: ParamProtocol, registry: ParamRegistry, background: bool, route: Route,
-                 refusal_text: Callable[[str], list[Any]], statustext: Callable[[str, int], None]) -> None:
+                 refusal_text: Callable[[str], list[Any]], statustext: Callable[[str, int], None],
+                 armed: Callable[[], bool] = lambda: False) -> None:
         self.params, self._registry = params, registry
+        self._armed = armed  # the automatic link floor only rises while armed (link_floor.governed_link_floor)
+        self._link_floors: dict[tuple[float, ...], LinkFloor] = {}  # link_floor_key -> the worker's search
+        # the link floor changes not yet announced: (the search behind the new floor, None when it was lowered to
+        # none; the floor before; the floor now), taken by the FC's process (take_link_floor_changes)
+        self._link_floor_changes: list[tuple[LinkFloor | None, float, float]] = []
         self._route, self._refusal_text, self._statustext = route, refusal_text, statustext
         self._pool = ThreadPoolExecutor(1, thread_name_prefix="navig8-params") if background else None
         self._queue: deque[tuple[Any, Source | None]] = deque()
@@ -114,10 +137,43 @@ class ParamSets:
         return []
 
     def poll(self, now_wall: float) -> None:
-        """Between control steps: the queue, the floor in force, a due save."""
+        """Between control steps: the queue, the automatic link floor, the floor in force, a due save."""
         self._run_queue(now_wall)
+        self._link_floor()
         self._floor_in_force(now_wall)
         self._save()
+
+    def _link_floor(self) -> None:
+        """The automatic link floor (INDI_KFL_LINK; navig8_fc/params/link_floor.py): searched on the worker for the
+        values in force and the measured link (before the floor in force, so a late link's margin is first logged
+        with the floor it flies), then flown as governed_link_floor says (armed: only up). The search's floor is
+        stored as the floor in force's, so LAM_MARGIN and /fc/stability follow without a second computation."""
+        reg = self._registry
+        if reg.stability_check is None or self._queue or not self._floor_job_done():
+            return
+        values = link_floor_values(reg)
+        found: LinkFloor | None = None
+        if values is not None:
+            key = link_floor_key(values)
+            found = self._link_floors.get(key)
+            if found is None:
+                if self._floor is not None and not self._floor.failed:
+                    self._floor.submit_job(least_link_floor, values, lambda r: self._link_floors.__setitem__(key, r))
+                    return
+                found = self._link_floors[key] = least_link_floor(reg.stability_check, values)
+        target = found.k_floor if found is not None else 0.0
+        current = reg.link_k_floor
+        new = governed_link_floor(current, target, self._armed())
+        if found is not None and new == found.k_floor:
+            reg.store_floor({**values, LINK_KFL_KEY: new} if new > 0.0 else values, found.floor)  # type: ignore[dict-item]
+        if new != current:
+            reg.set_link_k_floor(new)
+            self._link_floor_changes.append((found if new == target else None, current, new))
+
+    def take_link_floor_changes(self) -> list[tuple[LinkFloor | None, float, float]]:
+        """The link floor's changes since the last call (the search behind each, the floor before, after)."""
+        changes, self._link_floor_changes = self._link_floor_changes, []
+        return changes
 
     def wait_floor_in_force(self, timeout_s: float) -> bool:
         """Block until the stability floor of the values in force is computed (the worker started, imported and

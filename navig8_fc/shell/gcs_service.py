@@ -215,7 +215,7 @@ class GcsService:
         self._now = 0.0
         self._operator_reports: list[str] = []  # told at the first ground-station contact
         self.param_sets = ParamSets(self.params, registry, background_params, self._route, self._throttled_text,
-                                    self.statustext)  # PARAM_SETs off the control path
+                                    self.statustext, lambda: self._state().armed)  # PARAM_SETs off the control path
 
     @property
     def origin(self) -> GeoOrigin:
