@@ -276,6 +276,13 @@ class FlightControllerCore:
         self._shape_st[SH.INIT] = 0.0
         self._adapt.set_k_bounds(k_min, k_max)
 
+    def set_flown_floor(self, k_flown_min: float) -> None:
+        """A new floor on the rotational axes' flown K (IndiConfig.k_flown_min) from the next tick on; filters and
+        estimator keep their state (the automatic link floor raised in flight: navig8_fc/params/link_floor.py)."""
+        self.config = replace(self.config, indi=replace(self.config.indi, k_flown_min=float(k_flown_min)))
+        ind = self.config.indi
+        self._flown_gain = (ind.lam_ref, ind.k_flown_min) if ind.lam_ref != 1.0 or ind.k_flown_min > 0.0 else None
+
     def set_arm_plan(self, plan: np.ndarray | None) -> None:
         """The arm's commanded joint trajectory (arm_preview plan rows in sim time), which INDI_ARM_FF = 2 previews:
         the scenario's arm plan, or `arm_preview.hold_plan(target)` after an arm-joint command."""

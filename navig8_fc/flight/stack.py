@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
+from dataclasses import replace
 from typing import Any
 
 from navig8_fc.core import stability
@@ -126,6 +127,7 @@ class FlightStack:
         self._sensor_source = sensor_source  # named in the sensor-stale notices
         self._core: FlightControllerCore | None = None
         self._cfg_generation = -1
+        self._link_k_floor = 0.0  # the registry's link floor the core flies (reconfigure)
         self.lambda_crit = self.lambda_min = math.nan  # lambda_min: INDI_LAMBDA_MIN, the target beside lambda_crit
         # the arm's commanded trajectory the core's arm preview reads (INDI_ARM_FF = 2): the script's, then held
         # targets of arm-joint commands
@@ -170,7 +172,12 @@ class FlightStack:
         values = reg.flown_values()  # one snapshot types every component's settings (the automatic link floor in)
         cfg = ControllerConfig.from_params(values, self.vehicle)
         core = self._core
-        if (core is None or cfg.indi != core.config.indi or cfg.ckf != core.config.ckf
+        # the automatic link floor moved the flown K's floor alone: applied in place (it may rise in flight), never a
+        # new core (a new core's filters and estimator start afresh)
+        link_floor_only = (core is not None and reg.link_k_floor != self._link_k_floor
+                           and replace(cfg.indi, k_flown_min=core.config.indi.k_flown_min) == core.config.indi)
+        self._link_k_floor = reg.link_k_floor
+        if (core is None or (cfg.indi != core.config.indi and not link_floor_only) or cfg.ckf != core.config.ckf
                 or cfg.acc_ref != core.config.acc_ref or cfg.arm_wrench != core.config.arm_wrench):
             if core is None:  # what the feed-forward checks start from: the models' parameters
                 self._ff_notices = FeedforwardNotices.of(cfg)
@@ -180,6 +187,8 @@ class FlightStack:
             self._core.set_arm_plan(self._arm_plan)
         else:
             core.update_gains(cfg.outer, cfg.k_min, cfg.k_max)
+            if link_floor_only and cfg.indi != core.config.indi:
+                core.set_flown_floor(cfg.indi.k_flown_min)
         configure_modes(self._modes, cfg.outer, values)
         self._cfg_generation = reg.generation
         self._fs.configure(FailsafeSettings.from_params(values))  # typed once per change, not per step
