@@ -86,6 +86,7 @@ class FloorWorker:
         self._pool = None
 
 
+LINK_FLOORS_KEPT = 64  # link floor searches kept (per delay and configuration: a few in a flight)
 PARAM_QUEUE_MAX = 32  # PARAM_SETs waiting for a stability floor; more are refused (busy) at once
 
 Route = Callable[[str, Source | None, list[Any]], None]
@@ -158,17 +159,25 @@ class ParamSets:
             found = self._link_floors.get(key)
             if found is None:
                 if self._floor is not None and not self._floor.failed:
-                    self._floor.submit_job(least_link_floor, values, lambda r: self._link_floors.__setitem__(key, r))
+                    self._floor.submit_job(least_link_floor, values, lambda r: self._keep_link_floor(key, r))
                     return
-                found = self._link_floors[key] = least_link_floor(reg.stability_check, values)
+                found = self._keep_link_floor(key, least_link_floor(reg.stability_check, values))
         target = found.k_floor if found is not None else 0.0
         current = reg.link_k_floor
-        new = governed_link_floor(current, target, self._armed())
+        new = current if target == current else governed_link_floor(current, target, self._armed())
+        if new == current and (found is None or reg.floor_in_force() is not None):
+            return  # nothing to change (the common case: this runs between control steps)
         if found is not None and new == found.k_floor:
             reg.store_floor({**values, LINK_KFL_KEY: new} if new > 0.0 else values, found.floor)  # type: ignore[dict-item]
         if new != current:
             reg.set_link_k_floor(new)
             self._link_floor_changes.append((found if new == target else None, current, new))
+
+    def _keep_link_floor(self, key: tuple[float, ...], found: LinkFloor) -> LinkFloor:
+        self._link_floors[key] = found
+        while len(self._link_floors) > LINK_FLOORS_KEPT:
+            del self._link_floors[next(iter(self._link_floors))]  # the oldest
+        return found
 
     def take_link_floor_changes(self) -> list[tuple[LinkFloor | None, float, float]]:
         """The link floor's changes since the last call (the search behind each, the floor before, after)."""
