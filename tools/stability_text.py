@@ -165,7 +165,8 @@ def _realtime_link_lines(m: dict[str, Any]) -> list[str]:
         f"    (the actuator model not told which command flew: rot. {blind['rotational']:.4f}, "
         f"force {blind['force']:.4f})",
         f"    margin = guaranteed / {max(told.values()):.4f} = {ratio}; required >= {m['required_margin']:g}: "
-        f"{'yes' if rt['meets_margin'] else 'NO'} (a real-time FC measures its link's delay and judges that loop)",
+        f"{'yes' if rt['meets_margin'] else 'NO'} (a real-time FC measures its link's delay and judges that loop;",
+        "    with INDI_KFL_LINK 1 it raises the flown K's floor to the least that meets the margin: docs/stability.md)",
     ]
 
 

@@ -248,15 +248,12 @@ def mcap_metadata(log: Path, name: str) -> dict[str, str]:
 HOVER_TOL_Z_M, HOVER_TOL_XY_M = 0.3, 0.5
 
 
-def fly_from_gcs(run: SitlRun, tol_m: float = HOVER_TOL_Z_M, tol_xy_m: float = HOVER_TOL_XY_M,
-                 before_flight: Callable[[Any], None] | None = None) -> dict[str, float]:
+def fly_from_gcs(run: SitlRun, tol_m: float = HOVER_TOL_Z_M, tol_xy_m: float = HOVER_TOL_XY_M) -> dict[str, float]:
     """takeoff_hover_land from a GCS on the run's GCS port; the hover held within tol_m vertically and tol_xy_m
-    horizontally (asserted). before_flight(gcs): what the operator does first (disarmed, the FC's heartbeat seen)."""
+    horizontally (asserted)."""
     gcs = gcs_client(run.gcs_port)
     try:
         wait_heartbeat(gcs, 30.0)
-        if before_flight is not None:
-            before_flight(gcs)
         err = takeoff_hover_land(gcs)
     finally:
         gcs.close()
@@ -265,14 +262,14 @@ def fly_from_gcs(run: SitlRun, tol_m: float = HOVER_TOL_Z_M, tol_xy_m: float = H
 
 
 def fly_realtime(tmp: Path, link: str, serial_paths: tuple[str, str] | None = None, tol_m: float = HOVER_TOL_Z_M,
-                 tol_xy_m: float = HOVER_TOL_XY_M, before_flight: Callable[[Any], None] | None = None) -> Path:
+                 tol_xy_m: float = HOVER_TOL_XY_M) -> Path:
     """The FC with --timing realtime and the bridge --free-run at 1x over `link`: arm, take off to 2 m, hover
     within tol_m (0.3 m) vertically and tol_xy_m horizontally, land (asserted on the GCS link); then, from the FC's
     log, control ran on its own clock on fresh data only (no step on an out-of-order bundle) and from the bridge's
     output, the link budget was shown. Returns the FC's log."""
     with sitl(tmp, scenario="ground", speed=1.0, fc_args=["--timing", "realtime"], bridge_args=["--free-run"],
               link=link, serial_paths=serial_paths) as run:
-        fly_from_gcs(run, tol_m, tol_xy_m, before_flight)
+        fly_from_gcs(run, tol_m, tol_xy_m)
         run.stop()
         out = run.output("bridge")
     rt = mcap_metadata(run.log, "realtime_stats")
