@@ -213,7 +213,7 @@ def uam_model(q, qd, qdd, object_mass_kg, geo, f, m0, inertia, rate, gc, gc_inv,
 # G_C's input U and the actuators (Sec. 3)
 
 
-@njit(cache=True)
+@njit_cached()  # one compilation whatever constant `at` a kernel passes (jit.py)
 def actuators_to_u(alpha1, alpha3, w1, w2, w3, out, at):
     """U = [cos a1 w1^2, sin a1 w1^2, cos a3 w3^2, sin a3 w3^2, sign(w2) w2^2] (Sec. 3) into out[at:at + 5]."""
     out[at] = math.cos(alpha1) * w1 * w1

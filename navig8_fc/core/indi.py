@@ -532,7 +532,7 @@ def indi_step(st, ic, gyro, sf_x, sf_z, tilt1, tilt3, w1, w2, w3, accel_cmd, gc_
     indi_finish(ic, u0, du, u, out)
 
 
-@njit(cache=True)
+@njit_cached()  # one compilation whatever constant indices a kernel passes (jit.py)
 def _group_fraction(d, pred, i0, i1, i2):
     """How much of the group's Delta Acc the allocation delivers: <pred, d> / |d|^2 over the indices (i < 0:
     unused), clipped to [0, 1]; 1 when the group asks for nothing."""

@@ -7,6 +7,12 @@ adds a digest of the dependency modules to the cache key: the bytecode, constant
 kernel in them, their numeric module constants and the slots of their vector layouts (layout.Slots; numba
 freezes both into compiled code). Changing any of these recompiles the caller. No file is read (the core does no
 I/O): the digest comes from the loaded modules.
+
+A kernel called from another kernel is compiled for its arguments' types without their literal values: numba would
+otherwise compile a callee once per constant a caller passes (`gauss_solve_inplace(aug, 5)`, `dynamics(..., True)`
+and `(..., False)`: each a compilation of its own and of every kernel it calls), and machine code does not depend on
+it (LLVM still sees the constant where it inlines the call; without fastmath it keeps every float operation, so the
+results are the same bits).
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from types import CodeType, ModuleType
 from typing import Any
 
 from numba import njit
+from numba.core import types
 from numba.core.caching import FunctionCache
 from numba.core.dispatcher import Dispatcher
 
@@ -62,14 +69,26 @@ class _DependentCache(FunctionCache):
         return (*super()._index_key(sig, codegen), self._digest)
 
 
+def _unliteral_calls(disp: Dispatcher) -> None:
+    """Calls from other kernels type this kernel's arguments without their literal values (module docstring)."""
+    resolve = disp.get_call_template
+
+    def get_call_template(args: tuple[Any, ...], kws: dict[str, Any]) -> Any:
+        return resolve(tuple(types.unliteral(a) for a in args), {k: types.unliteral(v) for k, v in kws.items()})
+
+    disp.get_call_template = get_call_template
+
+
 def njit_cached(*depends_on: ModuleType) -> Callable[[Callable[..., Any]], Dispatcher]:
     """numba.njit(cache=True) for a kernel that calls the kernels of the modules `depends_on` (list the modules
-    of every kernel reached, directly or not)."""
+    of every kernel reached, directly or not); other kernels call it with their arguments' types, not their literal
+    values (module docstring)."""
     digest = hashlib.sha256("".join(module_digest(m) for m in depends_on).encode()).hexdigest()
 
     def decorate(fn: Callable[..., Any]) -> Dispatcher:
         disp = njit(cache=True)(fn)
         disp._cache = _DependentCache(fn, digest)  # replaces the FunctionCache enable_caching() installed
+        _unliteral_calls(disp)
         return disp
 
     return decorate

@@ -543,7 +543,7 @@ class ConstrainedKalmanFilter:
         innovation = np.empty(N_MEAS)
         kf_correct(self._x, self._p, self._r, np.ascontiguousarray(gc_uam_inv, dtype=float),
                    np.asarray(delta_u, dtype=float), np.asarray(delta_acc, dtype=float), float(rho_x),
-                   float(rho_z), _ONES4, innovation, self._pitch_r, self._nz, None, math.nan, self._nx)
+                   float(rho_z), _ONES4, innovation, self._pitch_r, self._nz, None, math.nan, self._nx, 0.0, 0.0)
         self.n_updates += 1
         return innovation
 
@@ -575,8 +575,8 @@ class ConstrainedKalmanFilter:
         current pose), correct (when `correct`; only the states that pass the excitation gate of the config),
         then project onto [lower, upper] if constrained, in one compiled call.
 
-        delta_u, delta_acc: float64 arrays (5,); gc_uam_inv (5, 5) float64; lower/upper: 4 floats each (a tuple
-        is the cheap form: the kernel is compiled for it), ignored unless constrained. n_updates counts the
+        delta_u, delta_acc: float64 arrays (5,); gc_uam_inv (5, 5) float64; lower/upper: 4 floats each, ignored
+        unless constrained. n_updates counts the
         corrections that ran. pitch False: with the moment-space pitch row (CKF_R_PITCH > 0), I_yy is not corrected
         this step (held, as the gate holds a state). h_mass (5,) float64: added to H's mass column (kf_correct's hm),
         delta_u then carrying h_mass m_hat. pitch_y: the pitch row's moment increment (kf_correct_pitch; nan: from
@@ -587,9 +587,10 @@ class ConstrainedKalmanFilter:
             raise RuntimeError("ConstrainedKalmanFilter.step before initialise()")
         do_predict = inertia_rate_diag is not None
         i0, i1, i2 = inertia_rate_diag if do_predict else _ZERO3  # type: ignore[misc]
+        # the box as arrays, as project() and box_qp's callers pass it: one compilation of the projection's kernels
         code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, bool(correct),
                        self._exc_rot, self._exc_lin, gc_uam_inv, delta_u, delta_acc, rho_x, rho_z, self._constrained,
-                       self._identity_weight, lower, upper, self._out,
+                       self._identity_weight, np.array(lower, dtype=float), np.array(upper, dtype=float), self._out,
                        self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz, h_mass, pitch_y, self._nx,
                        com_dm[0], com_dm[1], self._apart)
         self._account(code, lower, upper)

@@ -11,8 +11,10 @@ import math
 import numpy as np
 from numba import njit
 
+from navig8_fc.core.jit import njit_cached
 
-@njit(cache=True)
+
+@njit_cached()  # one compilation whatever constant n a kernel passes (jit.py)
 def pivot_rows(m, c, n):
     """Partial pivoting for column c of the n-row matrix m: swap the row (of c..n-1) with the largest |m[r, c]|
     into row c (all columns). False if that pivot is zero or not finite (m unchanged then)."""

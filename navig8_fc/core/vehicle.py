@@ -154,7 +154,8 @@ def model_geometry(cfg: VehicleConfig) -> np.ndarray:
 
 def arm_state(q: Sequence3, qd: Sequence3 | None, qdd: Sequence3 | None) -> tuple[np.ndarray, ...]:
     zero = np.zeros(N_LINKS)
-    return tuple(zero if v is None else np.asarray(v, dtype=float).reshape(N_LINKS) for v in (q, qd, qdd))
+    # copies: writable whatever the caller passed (a read-only array is another type, another compilation)
+    return tuple(zero if v is None else np.array(v, dtype=float).reshape(N_LINKS) for v in (q, qd, qdd))
 
 
 def _mass_props(cfg: VehicleConfig, q: Sequence3, qd: Sequence3 | None,
@@ -450,7 +451,7 @@ def ghat_ginv_eig_record(
     gc_uam = (model.evaluate(q_est_rad, (0.0, 0.0, 0.0)).gc if gc_uam_flat is None
               else np.array(gc_uam_flat, dtype=float).reshape(5, 5))
     gi_hat = np.array(gi_hat_flat, dtype=float).reshape(5, 5)
-    j = np.asarray(inertia_true, dtype=float)
+    j = np.array(inertia_true, dtype=float)  # writable: a read-only array is another type, another compilation
     m = float(mass_true_kg)
     # G_I,true @ (2 I - T(d)) in closed form inside the kernel (the matrix product cost ~5 us per logged tick):
     # G_I,true is blkdiag(J, m, m) and 2 I - T differs from I only at [3, 1] = -d_z and [4, 1] = d_x, so the

@@ -61,7 +61,8 @@ class _ReferenceTick:
         t.jpos[:], t.jrate[:] = s.joint_pos_rad, s.joint_rate_rad_s
         m = self.model
         front_end.fc_front(self.front_state, cfg.dt_s, self.obs_gain, 1.0 / cfg.dt_s, sens, float(m_obj_est),
-                           m.geometry, m.force_per_input, m.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
+                           m.geometry, m.force_per_input, m.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo,
+                           0.0, 0.0)
         f = front_end.FO.views(fo)
         mass = uo[g_c.UO.MASS]
         acc_m = f.acc_m.tolist()

@@ -128,7 +128,7 @@ def test_front_end_against_textbook_parts(cfg: VehicleConfig) -> None:
             mo = float(rng.uniform(0, 1)) * run
             inertia, rate, gc, gc_inv = np.empty((3, 3)), np.empty((3, 3)), np.empty((5, 5)), np.empty((5, 5))
             front_end.fc_front(fst, dt, g, 1.0 / dt, sens, mo, model.geometry, model.force_per_input,
-                       model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo)
+                       model.moment_o_per_input, inertia, rate, gc, gc_inv, uo, fo, 0.0, 0.0)
             q_meas, qd = t.jpos.tolist(), t.jrate.tolist()
             if q_est is None:
                 q_est = q_meas

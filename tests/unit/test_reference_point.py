@@ -48,7 +48,7 @@ def _front(model: UamModel, acc_ref: float, gyros, accel, tilt, speed, jpos, mo:
         t.gyro[:] = gyro
         bufs = np.empty((3, 3)), np.empty((3, 3)), np.empty((5, 5)), np.empty((5, 5))
         front_end.fc_front(fst, dt, 0.0, 1.0 / dt, sens, mo, model.geometry, model.force_per_input,
-                   model.moment_o_per_input, *bufs, uo, fo, acc_ref)
+                   model.moment_o_per_input, *bufs, uo, fo, acc_ref, 0.0)
     return fo[front_end.FO.ACC_M.sl].copy(), uo.copy()
 
 
