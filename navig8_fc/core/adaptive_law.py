@@ -195,8 +195,8 @@ class AdaptiveLaw:
         self._m_var_open = ckf.mass_sigma_open_kg ** 2 if isinstance(self._kf, ConstrainedKalmanFilter) else 0.0
         self._grip_sig = ckf.grip_sigma_w if isinstance(self._kf, ConstrainedKalmanFilter) else 0.0  # CKF_GRIP_SIG
         # CKF_IYY_GRIP_W: I_yy's prior at a grasp. Its mean stays the estimate before the grasp, so its weight pulls the
-        # held estimate back there (docs/model.md, "Estimator" item 23): half a width by default, wide enough for a
-        # 1 kg object at q1 60 deg, narrow enough that the arm's motion after a grasp of nothing is not read as I_yy.
+        # held estimate back there (docs/model.md, "Estimator" item 23): half a width by default; one width halved
+        # that pull but let the arm's motion after a grasp of nothing move K2 to 0.053.
         self._iyy_grasp_w = ckf.iyy_grasp_w
         self._event_hold_s = ckf.lpf_tau_s  # no correction this long after a grasp / release (the low-passes carry it)
         self._pred_dj = ckf.predict_from_dj
