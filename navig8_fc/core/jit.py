@@ -87,6 +87,8 @@ def njit_cached(*depends_on: ModuleType) -> Callable[[Callable[..., Any]], Dispa
 
     def decorate(fn: Callable[..., Any]) -> Dispatcher:
         disp = njit(cache=True)(fn)
+        if not isinstance(disp, Dispatcher):  # NUMBA_DISABLE_JIT=1: the plain function, for debugging
+            return disp
         disp._cache = _DependentCache(fn, digest)  # replaces the FunctionCache enable_caching() installed
         _unliteral_calls(disp)
         return disp

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -34,3 +35,13 @@ def test_callee_change_recompiles_the_cached_caller(tmp_path: Path) -> None:
     assert _run(tmp_path) == "202.0 0"  # recompiled with the new callee
     callee.write_text("from numba import njit\n\nK = 5.0\n\n@njit(cache=True)\ndef g(x):\n    return x + K\n")
     assert _run(tmp_path) == "12.0 0"  # a module constant numba froze into the code counts too
+
+
+def test_kernels_run_as_python_with_numba_disabled(tmp_path: Path) -> None:
+    """NUMBA_DISABLE_JIT=1 (stepping through a kernel in a debugger) leaves njit_cached's kernels plain functions."""
+    (tmp_path / "caller.py").write_text(CALLER)
+    (tmp_path / "callee.py").write_text("from numba import njit\n\n@njit(cache=True)\ndef g(x):\n    return x + 1.0\n")
+    code = "import caller; print(caller.f(1.0), hasattr(caller.f, 'stats'))"
+    out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, check=True,
+                         timeout=120, env={**os.environ, "NUMBA_DISABLE_JIT": "1"})
+    assert out.stdout.strip() == "4.0 False"
