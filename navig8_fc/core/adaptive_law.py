@@ -210,6 +210,11 @@ class AdaptiveLaw:
         # CKF_GYRO: Euler's velocity term out of the moment rows (gyroscopic; lpf_increments filters it, zeros when off)
         self._gyro = ckf.gyroscopic
         self._gyro_m = np.zeros(3)
+        # CKF_SYNC: last tick's U, specific force (Acc_m's force rows), gyroscopic moment and arm reaction (None: none
+        # yet), and this tick's half-tick-late values handed to the filters
+        self._sync = ckf.half_tick_sync
+        self._sync_prev: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
+        self._u_sync, self._acc_sync, self._gyro_sync = np.zeros(N_MEAS), np.zeros(N_MEAS), np.zeros(3)
         self._nuisance = self._pitch_row or self._ixz_sigma > 0.0  # a grasp / release moves a nuisance's prior
         # after a grasp or a release the pitch row waits PITCH_EVENT_HOLD_TAU filter time constants: the object's
         # weight moment steps in the commanded pitch moment with no pitch acceleration to match, and the low-passed
@@ -257,6 +262,7 @@ class AdaptiveLaw:
         self._n_forgets = 0
         self._mom, self._mom_obj_kg = [0.0] * 4, 0.0  # and the last tick's reference point's object mass (kg)
         self._ref_dz = 0.0  # the reference point's move down (m) with the mass estimate this tick (CKF_MOM_MREF)
+        self._sync_prev = None  # CKF_SYNC starts again
         self._kf.reset()  # re-initialised at the next start
         if self._fbm is not None:
             self._fbm.reset()
@@ -319,14 +325,17 @@ class AdaptiveLaw:
             ix, iy, iz = (self._kf.x.item(0), self._kf.x.item(1), self._kf.x.item(2)) if self._running else base[:3]
             gm = self._gyro_m
             gm[0], gm[1], gm[2] = gyroscopic_moment(*rate_frd_rad_s, ix, iy, iz, j13 + object_ixz)
-        lpf_increments(self._st, self._alpha, self._n_window, u_meas, acc_m, float(arm_hdc), self._gyro_m,
+        u_lpf, acc_lpf, gyro_lpf, hdc_lpf = u_meas, acc_m, self._gyro_m, float(arm_hdc)
+        if self._sync:
+            u_lpf, acc_lpf, gyro_lpf, hdc_lpf = self._half_tick(u_meas, acc_m, hdc_lpf)
+        lpf_increments(self._st, self._alpha, self._n_window, u_lpf, acc_lpf, hdc_lpf, gyro_lpf,
                        1.0 if indi_saturated else 0.0, self._sat_hold, self._inc, self._mean_start)
         inc = self._inc.tolist()
         du, da = tuple(inc[LO_DU:LO_DU + N_MEAS]), tuple(inc[LO_DA:LO_DA + N_MEAS])
         ready, window_sat = inc[LO_READY] != 0.0, inc[LO_SAT] != 0.0
         dgyro = (inc[LO_DG], inc[LO_DG + 1], inc[LO_DG + 2]) if gyro and ready else None
         gc_ok = (self._mom_lpf or self._fbm is not None) and inv_gauss_jordan(gc_inv, self._gc)  # G_C, once a tick
-        dmom = self._moment_increment(gc_ok, u_meas, ready, m, object_com_dm) if self._mom_lpf else None
+        dmom = self._moment_increment(gc_ok, u_lpf, ready, m, object_com_dm) if self._mom_lpf else None
         if not started:
             return self._not_started(base, j13, lower, upper, du, da, window_sat)
         kf = self._kf
@@ -376,6 +385,31 @@ class AdaptiveLaw:
         self._mass_hat = r.x_hat[3]
         return estimated_status(r, base, j13, lower, upper, du, da, window_sat,
                                 (kf.n_updates, kf.n_projection_fallbacks, self._n_sat_skips, self._n_forgets))
+
+    def _half_tick(self, u: np.ndarray, acc: np.ndarray,
+                   hdc: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+        """CKF_SYNC: the moment channels at the angular acceleration's instant. Acc_m's angular rows are the gyro's
+        finite difference (w_k - w_k-1) / dt, the acceleration half a tick before U_k's moment, so U, the gyroscopic
+        moment and the arm's reaction are averaged over this tick and the last (the same phase; gain cos(w dt / 2)
+        against the difference's sin(w dt / 2) / (w dt / 2)), and Acc_m's force rows, read at tick k as U is, with
+        them. The first tick averages with itself."""
+        prev = self._sync_prev
+        if prev is None:
+            prev = (u.copy(), acc.copy(), self._gyro_m.copy(), hdc)
+        u_prev, acc_prev, gyro_prev, hdc_prev = prev
+        us, accs, gs = self._u_sync, self._acc_sync, self._gyro_sync
+        np.add(u, u_prev, out=us)
+        us *= 0.5
+        np.add(self._gyro_m, gyro_prev, out=gs)
+        gs *= 0.5
+        accs[:] = acc
+        accs[3] = 0.5 * (acc[3] + acc_prev[3])  # the force rows (Acc_m is [P', Q', R', a_x, a_z])
+        accs[4] = 0.5 * (acc[4] + acc_prev[4])
+        u_prev[:] = u
+        acc_prev[:] = acc
+        gyro_prev[:] = self._gyro_m
+        self._sync_prev = (u_prev, acc_prev, gyro_prev, hdc)
+        return us, accs, gs, 0.5 * (hdc + hdc_prev)
 
     def _pitch_inputs(self, t_s: float, inertia_rate: np.ndarray, dmom: float | None, dhd: float,
                       object_com_dm: tuple[float, float]) -> tuple[float, tuple[float, float]]:

@@ -41,6 +41,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
     "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG", "CKF_MOM_LPF", "CKF_M_SIG_OPEN", "CKF_IXZ_SIG", "CKF_CZ_DM",
     "CKF_MOM_MREF", "CKF_MOM_MOVE", "CKF_PROJ_IYY", "CKF_CZ_FOLLOW", "CKF_M_ABS_SIG", "CKF_GYRO", "CKF_IYY_GRIP_W",
+    "CKF_SYNC",
 )
 
 
@@ -175,6 +176,9 @@ class CkfConfig:
     # CKF_GYRO: the windows' increment of the gyroscopic moment w x (I w) (Euler's velocity term, which Eq. 24 leaves
     # out) taken out of the measurement, with the estimated inertia (gyroscopic)
     gyroscopic: bool = False
+    # CKF_SYNC: the moment channels (U, the gyroscopic moment, the arm's reaction) and the specific force averaged
+    # over this tick and the last, half a tick late as the angular acceleration's finite difference is (AdaptiveLaw)
+    half_tick_sync: bool = False
 
     def __post_init__(self) -> None:
         lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
@@ -217,6 +221,7 @@ class CkfConfig:
         object.__setattr__(self, "iyy_projected_apart", bool(self.iyy_projected_apart))
         object.__setattr__(self, "com_follows_reference", bool(self.com_follows_reference))
         object.__setattr__(self, "gyroscopic", bool(self.gyroscopic))
+        object.__setattr__(self, "half_tick_sync", bool(self.half_tick_sync))
         for name in ("p0_scale", "lpf_tau_s", "start_delay_s", "exc_rot_rad_s2", "exc_lin_m_s2", "pitch_r_nm2",
                      "com_sigma_m", "grip_sigma_w", "iyy_grasp_w", "mass_sigma_open_kg", "ixz_sigma_kgm2",
                      "mass_balance_sigma_kg"):
@@ -249,7 +254,7 @@ class CkfConfig:
             raise ValueError(f"CKF_U_SRC must be 0, 1 or 2, got {values['CKF_U_SRC']}")
         for flag in ("CKF_SAT_GATE", "CKF_ACC_REF", "CKF_GRIP_RST", "CKF_PRED_DJ", "CKF_GC_REF",
                      "CKF_LPF_SEED", "CKF_MOM_LPF", "CKF_MOM_MREF",
-                     "CKF_MOM_MOVE", "CKF_PROJ_IYY", "CKF_CZ_FOLLOW", "CKF_GYRO"):
+                     "CKF_MOM_MOVE", "CKF_PROJ_IYY", "CKF_CZ_FOLLOW", "CKF_GYRO", "CKF_SYNC"):
             if int(values[flag]) not in (0, 1):
                 raise ValueError(f"{flag} must be 0 or 1, got {values[flag]}")
         if int(values["CKF_IXZ_MOD"]) not in (0, 1, 2):
@@ -298,4 +303,5 @@ class CkfConfig:
             com_follows_reference=bool(int(values["CKF_CZ_FOLLOW"])),
             mass_balance_sigma_kg=float(values["CKF_M_ABS_SIG"]),
             gyroscopic=bool(int(values["CKF_GYRO"])),
+            half_tick_sync=bool(int(values["CKF_SYNC"])),
         )

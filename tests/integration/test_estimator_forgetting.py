@@ -191,7 +191,8 @@ def test_with_the_narrower_roll_prior_the_first_roll_window_does_not_set_k1(seed
     scenario without its object up to 15 s. Facing east, its north step at 10 s is the flight's first roll manoeuvre.
     With the defaults' prior on I_xx (P0 = CKF_P0_SCALE Q_IXX: sigma 0.17 kg m^2, 40 % of it) the roll's first window
     set I_xx almost alone, that window's noise with it (K1 0.056 / 0.057 off, seeds 2 / 4); with the preset's (sigma
-    0.087), 0.027 / 0.027."""
+    0.087), 0.027 / 0.027. With the half-tick synchronisation (CKF_SYNC, in the preset): 0.024 / 0.027 against
+    0.050 / 0.059."""
     assert IDENT["CKF_Q_IXX"] == IDENT["CKF_Q_IZZ"] == 2.5e-6
     no_object = {"scenario.object.mass_kg": 0.0, "scenario.events.0.mass_kg": 0.0}
     errs = {}
@@ -199,4 +200,4 @@ def test_with_the_narrower_roll_prior_the_first_roll_window_does_not_set_k1(seed
         t, k, kt = k_trace({**IDENT, "CKF_Q_IXX": q, "CKF_Q_IZZ": q}, 15.0, seed, "paper", no_object, truth_box=BOX)
         errs[q] = float(window_max_error(t, np.abs(k - kt), 5.0, 15.0)[0])
     assert errs[2.5e-6] <= 0.035, errs
-    assert errs[1e-5] > 0.05, errs
+    assert errs[1e-5] > 0.045, errs

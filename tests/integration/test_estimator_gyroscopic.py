@@ -37,12 +37,14 @@ def _k3_bias_held(overrides: dict[str, float]) -> float:
 
 def test_with_the_gyroscopic_moment_k3_held_at_60_deg_is_unbiased() -> None:
     assert IDENT["CKF_GYRO"] == 1
-    # measured +0.012 / +0.002 (seeds 1 / 3); over seeds 1-4 +0.003, held-out seeds 11-20 (30 flights at q1 60 deg)
+    # measured +0.012 over seeds 1 and 3, and over seeds 11-30 (spread 0.010 a flight); +0.005 with no sensor noise,
+    # the rest the gyro's errors in variables (docs/model.md, "Estimator" items 22, 24)
     bias = _k3_bias_held(IDENT)
-    assert abs(bias) <= 0.012, bias
+    assert abs(bias) <= 0.015, bias
 
 
 def test_without_it_k3_held_at_60_deg_reads_high() -> None:
-    # measured +0.034 / +0.027; over seeds 1-4 +0.029, and positive in all 30 held-out flights at q1 60 deg
+    # measured +0.037 over seeds 1 and 3 (before CKF_SYNC, +0.029 over seeds 1-4 and positive in all 30 held-out
+    # flights at q1 60 deg)
     bias = _k3_bias_held({**IDENT, "CKF_GYRO": 0})
-    assert bias >= 0.02, bias
+    assert bias >= 0.025, bias

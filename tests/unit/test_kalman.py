@@ -76,7 +76,7 @@ def _param_values(**overrides: float) -> dict[str, float]:
         "CKF_R_PITCH": 0.0, "CKF_CZ_SIG": 0.0, "CKF_LPF_SEED": 0, "CKF_IXZ_MOD": 0, "CKF_GRIP_SIG": 0.0,
         "CKF_MOM_LPF": 0, "CKF_M_SIG_OPEN": 0.0, "CKF_IXZ_SIG": 0.0, "CKF_CZ_DM": 0, "CKF_MOM_MREF": 0,
         "CKF_MOM_MOVE": 0, "CKF_PROJ_IYY": 0, "CKF_CZ_FOLLOW": 0, "CKF_M_ABS_SIG": 0.0, "CKF_GYRO": 0,
-        "CKF_IYY_GRIP_W": 0.5,
+        "CKF_IYY_GRIP_W": 0.5, "CKF_SYNC": 0,
     }
     v.update(overrides)
     return v
