@@ -44,16 +44,18 @@ test: $(STAMP)
 	# Fast lane (unit, integration) on both cores; then the SITL lane (real processes) on four workers: a test spends
 	# most of its time waiting on flights and replies, and on three workers the lane used 1.5 of the 2 cores, so a
 	# fourth worker fills them (docs/results.md, "Test suite time"); --dist loadfile keeps a module's shared pair in
-	# one worker. tests/conftest.py warms numba's cache once a lane, on both cores, while xdist's workers start (they
-	# wait for it before their first test). The slow and real-time lanes collect only tests/sitl and tests/clients,
+	# one worker. tests/conftest.py warms numba's cache in the fast lane, on both cores, while xdist's workers start
+	# (they wait for it before their first test). The slow and real-time lanes collect only tests/sitl and tests/clients,
 	# where every slow test lives (their conftests add the marker; tests/conftest.py fails the fast lane on a slow
-	# test elsewhere): each worker imports every module it collects. Exit 5 fails.
+	# test elsewhere): each worker imports every module it collects. Exit 5 fails. The later lanes do not warm it again:
+	# the fast lane's warm-up compiled every kernel it reaches (a failed one fails that lane, and make stops there);
+	# NAVIG8_TEST_WARM_DONE names an existing file, and tests/conftest.py skips the warm-up (~7 s of a plain run's wall).
 	$(PY) -m pytest -q -m 'not slow' -n 2; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: fast lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
-	$(PY) -m pytest -q -m 'slow and not clients_all and not realtime' -n 4 --dist loadfile tests/sitl tests/clients; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
+	NAVIG8_TEST_WARM_DONE=$(STAMP) $(PY) -m pytest -q -m 'slow and not clients_all and not realtime' -n 4 --dist loadfile tests/sitl tests/clients; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: SITL lane collected no tests' >&2; fi; [ $$rc -eq 0 ] || exit $$rc
 	# The real-time tests (the FC on its own clock, the bridge free-running) alone: beside a second worker their
 	# wall-clock loop is starved and the hover leaves its band (docs/hil.md). With them the MAVFTP flood test, whose
 	# p99 control-step spacing is a wall-clock figure.
-	$(PY) -m pytest -q -m 'realtime' -p no:xdist tests/sitl tests/clients; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: real-time lane collected no tests' >&2; fi; exit $$rc
+	NAVIG8_TEST_WARM_DONE=$(STAMP) $(PY) -m pytest -q -m 'realtime' -p no:xdist tests/sitl tests/clients; rc=$$?; if [ $$rc -eq 5 ]; then echo 'make test: real-time lane collected no tests' >&2; fi; exit $$rc
 
 # MAVSDK-Python's own examples, all of them (tests/clients; make test runs the quick ones), both identities: about 10 min on 2 workers.
 test-clients: $(STAMP)

@@ -44,7 +44,7 @@ sys.dont_write_bytecode = False
 
 WARM = pytest.StashKey[tuple[subprocess.Popen, Path]]()  # the warm-up process and the file it writes when done
 WARM_TOOK = pytest.StashKey[list[str]]()  # what the warm-up wrote: its seconds and its tail's exit code
-WARM_DONE_ENV = "NAVIG8_TEST_WARM_DONE"  # the workers (and only they) inherit it from the controller
+WARM_DONE_ENV = "NAVIG8_TEST_WARM_DONE"  # the workers inherit it from the controller (make test sets it too)
 WARM_WAIT_S = 900.0  # a worker waits this long at most, then runs its tests (they compile what they need)
 _HERE = Path(__file__).resolve().parent
 _SLOW_DIRS = (_HERE / "sitl", _HERE / "clients")  # where the slow tests live (their conftests mark them)
@@ -61,7 +61,8 @@ def pytest_configure(config: pytest.Config) -> None:
     if config.option.collectonly:
         return
     outer = os.environ.get(WARM_DONE_ENV)
-    if outer is not None and os.path.exists(outer):  # a pytest a test started (test_hil_external): already warm
+    # a pytest a test started (test_hil_external), or make test's lanes after the fast one: already warm
+    if outer is not None and os.path.exists(outer):
         return
     done = Path(tempfile.mkdtemp(prefix="navig8-warm-")) / "done"
     proc = subprocess.Popen([sys.executable, str(_HERE / "warm_kernels.py"), str(done)], stdin=subprocess.DEVNULL)

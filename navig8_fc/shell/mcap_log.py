@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import re
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -294,6 +295,24 @@ def read_mcap(path: str | Path, topics: list[str] | None = None,
         yield topic, t_ns, data
 
 
+# An integer of 19 digits or more (2^63 has 19), which orjson reads as a float: JSON puts a number after a colon, a
+# comma, a bracket, a minus sign or white space (a float's digits after its point or its exponent do not match).
+_LONG_INTEGER = re.compile(rb"[:,\[\s-][0-9]{19}")
+
+
+def decode_json(data: bytes) -> Any:
+    """json.loads's objects, through orjson where it gives the same (0.6 of the CPU with the check below: a 30 s
+    flight's log is ~12,000 messages, 0.65 s of json.loads when its summary is read back). Both round floats
+    correctly and keep the keys' order; orjson reads an integer beyond 64 bits as a float, so a message that may hold
+    one goes to json.loads, as does whatever orjson refuses (NaN or Infinity tokens)."""
+    if not data[:1].isdigit() and _LONG_INTEGER.search(data) is None:
+        try:
+            return orjson.loads(data)
+        except orjson.JSONDecodeError:
+            pass
+    return json.loads(data)
+
+
 def read_mcap_records(path: str | Path, topics: list[str] | None = None,
                       skip_prefix: str | None = None) -> Iterator[tuple[str, int, int, Any]]:
     """Like read_mcap, with the publish time (the writer's wall clock, ns) as well."""
@@ -310,7 +329,7 @@ def read_mcap_records(path: str | Path, topics: list[str] | None = None,
             if skip_prefix is not None and channel.topic.startswith(skip_prefix):
                 continue
             if channel.message_encoding == "json":
-                yield channel.topic, msg.log_time, msg.publish_time, json.loads(msg.data)
+                yield channel.topic, msg.log_time, msg.publish_time, decode_json(msg.data)
             else:
                 yield channel.topic, msg.log_time, msg.publish_time, msg.data
 

@@ -4,6 +4,7 @@ replays alone through `navig8-sim` with the printed command."""
 
 from __future__ import annotations
 
+import copy
 import json
 import os
 import re
@@ -200,9 +201,30 @@ def test_a_sitl_campaign_with_a_plan_names_it_in_every_row_and_replay() -> None:
         Campaign.from_dict(dict(d, kind="inprocess"))
 
 
+_DRAWS: dict[tuple[int, int, str], tuple] = {}  # envelope.draw's results in this process (it is pure)
+
+
+@pytest.fixture
+def shared_draws(monkeypatch: pytest.MonkeyPatch) -> None:
+    """envelope.draw drawn once a process for its arguments: ten of the shipped campaigns draw the same 100 samples
+    of the same envelope (sample seed 0), each draw ~10 ms of servo simulation. draw is pure, bit for bit
+    (test_envelope.py); every caller gets its own copy."""
+    from navig8_tools import envelope
+
+    real = envelope.draw
+
+    def draw(sample_index: int, rng_seed: int, spec: envelope.EnvelopeSpec) -> tuple:
+        key = (int(sample_index), int(rng_seed), repr(spec))
+        if key not in _DRAWS:
+            _DRAWS[key] = real(sample_index, rng_seed, spec)
+        return copy.deepcopy(_DRAWS[key])
+
+    monkeypatch.setattr(envelope, "draw", draw)
+
+
 @pytest.mark.parametrize("path", sorted((Path(__file__).resolve().parents[2] / "params" / "campaigns").glob("*.yaml")),
                          ids=lambda p: p.stem)
-def test_every_shipped_campaign_loads_and_expands(path: Path) -> None:
+def test_every_shipped_campaign_loads_and_expands(path: Path, shared_draws: None) -> None:
     # the shipped files name presets and world keys by path: a renamed parameter or preset breaks them here
     c = Campaign.load(path)
     rows = expand(c)

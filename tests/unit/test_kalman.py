@@ -545,7 +545,8 @@ def test_iyy_projected_apart_is_not_moved_by_the_mass_leaving_its_box() -> None:
     goes to its bound either way."""
     p = np.diag([0.01, 0.06, 0.04, 0.04])
     p[1, 3] = p[3, 1] = 0.3 * np.sqrt(0.06 * 0.04)
-    lo, hi = (0.3, 0.5, 0.3, 6.5), (0.8, 1.2, 0.6, 13.0)
+    # arrays, as ConstrainedKalmanFilter passes them (tuples would compile the projection's kernels again, ~20 s)
+    lo, hi = np.array([0.3, 0.5, 0.3, 6.5]), np.array([0.8, 1.2, 0.6, 13.0])
     x_joint, x_apart = np.array([0.4, 0.6, 0.35, 5.8]), np.array([0.4, 0.6, 0.35, 5.8])
     kf_project(x_joint, p, False, lo, hi)
     project_apart(x_apart, p, False, lo, hi, 1)

@@ -87,8 +87,14 @@ def _parsed(path: Path, text: str) -> ast.Module:
 def _imported(path: Path, pkg: str | None = None, names: bool = True) -> list[str]:
     """Every module an import statement in `path` names (relative imports resolved against `pkg`, by default the
     package the file sits in); with `names`, also pkg.name for each `from pkg import name` (it may be a module)."""
-    tree = _parsed(path, path.read_text())
-    pkg = _package(path) if pkg is None else pkg
+    return list(_imported_in(path, path.read_text(), _package(path) if pkg is None else pkg, names))
+
+
+@functools.cache
+def _imported_in(path: Path, text: str, pkg: str, names: bool) -> tuple[str, ...]:
+    """_imported's walk, once a process for a file's text (the reach walks ask for the modules they share again and
+    again)."""
+    tree = _parsed(path, text)
     out = []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
@@ -102,7 +108,7 @@ def _imported(path: Path, pkg: str | None = None, names: bool = True) -> list[st
             out.append(mod)
             if names:
                 out += [f"{mod}.{a.name}" for a in node.names]
-    return out
+    return tuple(out)
 
 
 def _io_calls(path: Path) -> list[tuple[int, str]]:
@@ -327,8 +333,13 @@ def _own(node: ast.expr) -> bool:
 
 def _private_reads(path: Path, pkg: str | None = None) -> list[tuple[int, str]]:
     """(line, expression) of every read of another object's private member in `path` (module docstring above)."""
-    tree = _parsed(path, path.read_text())
-    pkg = _package(path) if pkg is None else pkg
+    return list(_private_reads_in(path, path.read_text(), _package(path) if pkg is None else pkg))
+
+
+@functools.cache
+def _private_reads_in(path: Path, text: str, pkg: str) -> tuple[tuple[int, str], ...]:
+    """_private_reads's walk, once a process for a file's text (two tests read the whole tree's)."""
+    tree = _parsed(path, text)
     libraries = {(a.asname or a.name).split(".")[0] for node in ast.walk(tree) if isinstance(node, ast.Import)
                  for a in node.names if (top := a.name.split(".")[0]) not in FIRST_PARTY and top not in TEST_MODULES}
     out = []
@@ -348,7 +359,7 @@ def _private_reads(path: Path, pkg: str | None = None) -> list[tuple[int, str]]:
               and len(node.args) >= 2 and isinstance(node.args[1], ast.Constant)
               and isinstance(node.args[1].value, str) and _is_private(node.args[1].value) and not _own(node.args[0])):
             out.append((node.lineno, f"{node.func.id}({ast.unparse(node.args[0])}, {node.args[1].value!r})"))
-    return sorted(out)
+    return tuple(sorted(out))
 
 
 # Reads of privates left to the work on navig8_fc/core and sim_bridge (it publishes what these need), each as

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from navig8_fc.shell.mcap_log import McapLogger, json_schema_for, read_mcap, read_metadata, to_jsonable
+from navig8_fc.shell.mcap_log import McapLogger, decode_json, json_schema_for, read_mcap, read_metadata, to_jsonable
 
 
 @dataclass(frozen=True)
@@ -246,3 +246,15 @@ def test_a_setpoint_logged_under_the_old_key_loads_under_pos_ned_m(tmp_path: Pat
             lg.log("/fc/setpoint", 0, {key: [1.0, 2.0, -3.0], "pitch_rad": 0.0, "yaw_rad": 0.5})
         sp = load_run(p)["/fc/setpoint"]
         np.testing.assert_array_equal(sp.field("pos_ned_m", 3), [[1.0, 2.0, -3.0]])
+
+
+@pytest.mark.parametrize("text", [
+    b'{"a":0.1,"b":[1e-320,5e-324,1.7976931348623157e308,-0.0],"c":0.00004855950094528755,"d":null,"e":"\\u00e9"}',
+    b'{"t":9223372036854775807,"u":-9223372036854775808}', b'{"big":18446744073709551616}',
+    b'[1, -123456789012345678901]',
+    b'{"a": NaN, "b": -Infinity}', b'[1e999]', b'{"a":1,"a":2}', b'"\\ud800"', b'12345678901234567890'])
+def test_the_readers_json_is_json_loads(text: bytes) -> None:
+    """The log reader decodes through orjson where it gives json.loads's objects; integers beyond 64 bits, NaN and
+    Infinity go to json.loads: the same types, the same float bits, the keys in the same order."""
+    got, want = decode_json(text), json.loads(text)
+    assert repr(got) == repr(want) and type(got) is type(want)
