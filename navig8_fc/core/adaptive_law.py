@@ -210,10 +210,11 @@ class AdaptiveLaw:
         # CKF_GYRO: Euler's velocity term out of the moment rows (gyroscopic; lpf_increments filters it, zeros when off)
         self._gyro = ckf.gyroscopic
         self._gyro_m = np.zeros(3)
-        # CKF_SYNC: last tick's U, specific force (Acc_m's force rows), gyroscopic moment and arm reaction (None: none
-        # yet), and this tick's half-tick-late values handed to the filters
+        # CKF_SYNC: last tick's U, Acc_m, gyroscopic moment and arm reaction (valid once _sync_started), and this
+        # tick's half-tick-late values handed to the filters
         self._sync = ckf.half_tick_sync
-        self._sync_prev: tuple[np.ndarray, np.ndarray, np.ndarray, float] | None = None
+        self._u_prev, self._acc_prev, self._gyro_prev = np.zeros(N_MEAS), np.zeros(N_MEAS), np.zeros(3)
+        self._hdc_prev = 0.0
         self._u_sync, self._acc_sync, self._gyro_sync = np.zeros(N_MEAS), np.zeros(N_MEAS), np.zeros(3)
         self._nuisance = self._pitch_row or self._ixz_sigma > 0.0  # a grasp / release moves a nuisance's prior
         # after a grasp or a release the pitch row waits PITCH_EVENT_HOLD_TAU filter time constants: the object's
@@ -262,7 +263,7 @@ class AdaptiveLaw:
         self._n_forgets = 0
         self._mom, self._mom_obj_kg = [0.0] * 4, 0.0  # and the last tick's reference point's object mass (kg)
         self._ref_dz = 0.0  # the reference point's move down (m) with the mass estimate this tick (CKF_MOM_MREF)
-        self._sync_prev = None  # CKF_SYNC starts again
+        self._sync_started = False  # CKF_SYNC starts again
         self._kf.reset()  # re-initialised at the next start
         if self._fbm is not None:
             self._fbm.reset()
@@ -393,23 +394,21 @@ class AdaptiveLaw:
         moment and the arm's reaction are averaged over this tick and the last (the same phase; gain cos(w dt / 2)
         against the difference's sin(w dt / 2) / (w dt / 2)), and Acc_m's force rows, read at tick k as U is, with
         them. The first tick averages with itself."""
-        prev = self._sync_prev
-        if prev is None:
-            prev = (u.copy(), acc.copy(), self._gyro_m.copy(), hdc)
-        u_prev, acc_prev, gyro_prev, hdc_prev = prev
+        u_prev, acc_prev, gyro_prev, gm = self._u_prev, self._acc_prev, self._gyro_prev, self._gyro_m
+        if not self._sync_started:
+            u_prev[:], acc_prev[:], gyro_prev[:], self._hdc_prev = u, acc, gm, hdc
+            self._sync_started = True
         us, accs, gs = self._u_sync, self._acc_sync, self._gyro_sync
         np.add(u, u_prev, out=us)
         us *= 0.5
-        np.add(self._gyro_m, gyro_prev, out=gs)
+        np.add(gm, gyro_prev, out=gs)
         gs *= 0.5
         accs[:] = acc
         accs[3] = 0.5 * (acc[3] + acc_prev[3])  # the force rows (Acc_m is [P', Q', R', a_x, a_z])
         accs[4] = 0.5 * (acc[4] + acc_prev[4])
-        u_prev[:] = u
-        acc_prev[:] = acc
-        gyro_prev[:] = self._gyro_m
-        self._sync_prev = (u_prev, acc_prev, gyro_prev, hdc)
-        return us, accs, gs, 0.5 * (hdc + hdc_prev)
+        hdc_half = 0.5 * (hdc + self._hdc_prev)
+        u_prev[:], acc_prev[:], gyro_prev[:], self._hdc_prev = u, acc, gm, hdc
+        return us, accs, gs, hdc_half
 
     def _pitch_inputs(self, t_s: float, inertia_rate: np.ndarray, dmom: float | None, dhd: float,
                       object_com_dm: tuple[float, float]) -> tuple[float, tuple[float, float]]:
