@@ -213,6 +213,7 @@ class AdaptiveLaw:
         # CKF_SYNC: last tick's U, Acc_m, gyroscopic moment and arm reaction (valid once _sync_started), and this
         # tick's half-tick-late values handed to the filters
         self._sync = ckf.half_tick_sync
+        self._r_move = ckf.r_move_scale != 1.0 and isinstance(self._kf, ConstrainedKalmanFilter)  # CKF_R_MOVE
         self._u_prev, self._acc_prev, self._gyro_prev = np.zeros(N_MEAS), np.zeros(N_MEAS), np.zeros(3)
         self._hdc_prev = 0.0
         self._u_sync, self._acc_sync, self._gyro_sync = np.zeros(N_MEAS), np.zeros(N_MEAS), np.zeros(3)
@@ -259,6 +260,7 @@ class AdaptiveLaw:
         self._pitch_hold_until_s = -math.inf
         self._k_before_grasp: tuple[float, ...] | None = None
         self._hold_until_s = -math.inf
+        self._arm_seen_moving_s = -math.inf  # CKF_R_MOVE: the last tick the arm was seen moving (arm_moving)
         self._arm_moved_s: float | None = None  # the last tick the arm moved (|I_yy-dot| >= ARM_REST_IYY_DOT)
         self._n_forgets = 0
         self._mom, self._mom_obj_kg = [0.0] * 4, 0.0  # and the last tick's reference point's object mass (kg)
@@ -375,12 +377,17 @@ class AdaptiveLaw:
             rho_x = rho_z = 0.0
             if self._ixz_dm and object_ixz_dm != 0.0:
                 du_kf, h_mass = ixz_mass_column(du_kf, gc_inv, da, object_ixz_dm, kf.x.item(3))
+        # CKF_R_MOVE: while the arm moves, the moments it makes that the rows do not model are measurement error
+        moving = self._r_move and self.arm_moving(t_s, inertia_rate)
         if self._pitch_row or h_mass is not None:
             pitch_y, com_dm = self._pitch_inputs(t_s, inertia_rate, dmom, dhd, object_com_dm)
             if dgyro is not None:
                 pitch_y -= dgyro[1]  # the moment-space pitch row likewise (NaN stays NaN: unread)
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
-                        pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass, pitch_y=pitch_y, com_dm=com_dm)
+                        pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass, pitch_y=pitch_y, com_dm=com_dm,
+                        arm_moving=moving)
+        elif moving:  # the KF alone (CKF_R_MOVE); the LMS has no R
+            r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct, arm_moving=True)
         else:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
         self._mass_hat = r.x_hat[3]
@@ -431,6 +438,14 @@ class AdaptiveLaw:
         if self._arm_moved_s is None or abs(inertia_rate.item(4)) >= ARM_REST_IYY_DOT:
             self._arm_moved_s = t_s
         return t_s - self._arm_moved_s >= self._rest_s
+
+    def arm_moving(self, t_s: float, inertia_rate: np.ndarray) -> bool:
+        """CKF_R_MOVE: the arm seen moving (the model's |I_yy-dot| >= ARM_REST_IYY_DOT) at this tick or within the pitch
+        row's event wait and a window before it. Unlike arm_rested, an arm not yet seen moving is at rest: the gate
+        raises the noise for motion the rows do not model, not for the estimator's start."""
+        if abs(inertia_rate.item(4)) >= ARM_REST_IYY_DOT:
+            self._arm_seen_moving_s = t_s
+        return t_s - self._arm_seen_moving_s < self._rest_s
 
     def _held_changed(self, held: bool, held_before: bool | None, t_s: float, iyy_var_min: float) -> None:
         """A grasp or a release: the pitch row waits after a release; the pitch row's nuisance CoM error (CKF_CZ_SIG; at

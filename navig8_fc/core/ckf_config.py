@@ -41,7 +41,7 @@ CKF_PARAM_NAMES: tuple[str, ...] = (
     "CKF_LMS_MU1", "CKF_LMS_MU2", "CKF_LMS_MU3", "CKF_LMS_MU4", "CKF_R_PITCH", "CKF_CZ_SIG",
     "CKF_LPF_SEED", "CKF_IXZ_MOD", "CKF_GRIP_SIG", "CKF_MOM_LPF", "CKF_M_SIG_OPEN", "CKF_IXZ_SIG", "CKF_CZ_DM",
     "CKF_MOM_MREF", "CKF_MOM_MOVE", "CKF_PROJ_IYY", "CKF_CZ_FOLLOW", "CKF_M_ABS_SIG", "CKF_GYRO", "CKF_IYY_GRIP_W",
-    "CKF_SYNC",
+    "CKF_SYNC", "CKF_R_MOVE",
 )
 
 
@@ -179,6 +179,9 @@ class CkfConfig:
     # CKF_SYNC: the moment channels (U, the gyroscopic moment, the arm's reaction) and the specific force averaged
     # over this tick and the last, half a tick late as the angular acceleration's finite difference is (AdaptiveLaw)
     half_tick_sync: bool = False
+    # CKF_R_MOVE: the filter's measurement noise variances (the Delta U rows' R and the pitch row's) times this while
+    # the arm moves or was seen moving within the pitch row's event wait and a window (AdaptiveLaw.arm_moving); 1: none
+    r_move_scale: float = 1.0
 
     def __post_init__(self) -> None:
         lms_mu = _floats(self.lms_mu, N_STATE, "lms_mu")
@@ -229,6 +232,10 @@ class CkfConfig:
             if not (v >= 0.0 and math.isfinite(v)):
                 raise ValueError(f"{name} must be finite and >= 0, got {v}")
             object.__setattr__(self, name, v)
+        r_move = float(self.r_move_scale)
+        if not (r_move >= 1.0 and math.isfinite(r_move)):
+            raise ValueError(f"r_move_scale must be finite and >= 1, got {r_move}")
+        object.__setattr__(self, "r_move_scale", r_move)
         dt = float(self.dt_s)
         if not (dt > 0.0 and math.isfinite(dt)):
             raise ValueError(f"dt_s must be finite and > 0, got {dt}")
@@ -304,4 +311,5 @@ class CkfConfig:
             mass_balance_sigma_kg=float(values["CKF_M_ABS_SIG"]),
             gyroscopic=bool(int(values["CKF_GYRO"])),
             half_tick_sync=bool(int(values["CKF_SYNC"])),
+            r_move_scale=float(values["CKF_R_MOVE"]),
         )

@@ -395,6 +395,9 @@ class ConstrainedKalmanFilter:
         self._identity_weight = config.projection_weight == "identity"
         self._exc_rot, self._exc_lin = config.exc_rot_rad_s2, config.exc_lin_m_s2
         self._pitch_r = config.pitch_r_nm2
+        # CKF_R_MOVE: the noise variances while the arm moves (step's arm_moving), scaled once here, not every tick
+        self._r_move = self._r * config.r_move_scale
+        self._pitch_r_move = config.pitch_r_nm2 * config.r_move_scale
         # CKF_PROJ_IYY: I_yy (state 1) projected apart, with the moment-space pitch row only (its sole corrector)
         self._apart = 1 if config.iyy_projected_apart and config.pitch_r_nm2 > 0.0 else -1
         self._nz = np.zeros(NZ_SIZE)  # the pitch row's nuisance state (kf_correct_pitch): zero until an object is held
@@ -570,6 +573,7 @@ class ConstrainedKalmanFilter:
         h_mass: np.ndarray | None = None,
         pitch_y: float = math.nan,
         com_dm: tuple[float, float] = (0.0, 0.0),
+        arm_moving: bool = False,
     ) -> KfStepResult:
         """predict (skipped when inertia_rate_diag is None, e.g. on the first tick: x0 already describes the
         current pose), correct (when `correct`; only the states that pass the excitation gate of the config),
@@ -581,17 +585,19 @@ class ConstrainedKalmanFilter:
         this step (held, as the gate holds a state). h_mass (5,) float64: added to H's mass column (kf_correct's hm),
         delta_u then carrying h_mass m_hat. pitch_y: the pitch row's moment increment (kf_correct_pitch; nan: from
         delta_u). com_dm: (dc_x/dm, dc_z/dm) (m/kg), the slope of the pitch row's reference point in the mass estimate
-        (CKF_CZ_DM, kf_correct_pitch; zeros: none).
+        (CKF_CZ_DM, kf_correct_pitch; zeros: none). arm_moving: the noise variances are CKF_R_MOVE times R (the Delta U
+        rows' and the pitch row's) this step.
         """
         if not self._initialised:
             raise RuntimeError("ConstrainedKalmanFilter.step before initialise()")
         do_predict = inertia_rate_diag is not None
         i0, i1, i2 = inertia_rate_diag if do_predict else _ZERO3  # type: ignore[misc]
         # the box as arrays, as project() and box_qp's callers pass it: one compilation of the projection's kernels
-        code = kf_step(self._x, self._p, self._q, self._r, self._dt, do_predict, i0, i1, i2, bool(correct),
+        r, pitch_r = (self._r_move, self._pitch_r_move) if arm_moving else (self._r, self._pitch_r)
+        code = kf_step(self._x, self._p, self._q, r, self._dt, do_predict, i0, i1, i2, bool(correct),
                        self._exc_rot, self._exc_lin, gc_uam_inv, delta_u, delta_acc, rho_x, rho_z, self._constrained,
                        self._identity_weight, np.array(lower, dtype=float), np.array(upper, dtype=float), self._out,
-                       self._pitch_r if pitch or self._pitch_r <= 0.0 else -1.0, self._nz, h_mass, pitch_y, self._nx,
+                       pitch_r if pitch or pitch_r <= 0.0 else -1.0, self._nz, h_mass, pitch_y, self._nx,
                        com_dm[0], com_dm[1], self._apart)
         self._account(code, lower, upper)
         o = self._out.tolist()

@@ -74,6 +74,7 @@ def test_the_estimator_options_are_the_documented_ones() -> None:
     assert reg["CKF_M_ABS_SIG"] == 0.0  # the force balance's mass needs the gripper's reports (item 21)
     assert int(reg["CKF_GYRO"]) == 0  # Eq. 24 as the paper writes it (the defaults fly K = 0.4 whatever K_hat)
     assert int(reg["CKF_SYNC"]) == 0  # item 24: neutral on the defaults' flight and estimate, measured
+    assert reg["CKF_R_MOVE"] == 1.0  # item 25: a measurement's gate; the defaults' estimator is Eq. 24's
     ident = read_parm_file(ROOT / "params" / "presets" / "identification.parm")
     assert ident == {"CKF_GRIP_RST": 1, "CKF_PRED_DJ": 1, "CKF_R_PITCH": pytest.approx(0.01),
                      "CKF_CZ_SIG": pytest.approx(0.005), "CKF_LPF_SEED": 1, "CKF_U_SRC": 2, "CKF_IXZ_MOD": 2,
@@ -81,7 +82,8 @@ def test_the_estimator_options_are_the_documented_ones() -> None:
                      "CKF_IXZ_SIG": pytest.approx(0.1), "CKF_CZ_DM": 1, "CKF_START_DLY": pytest.approx(0.75),
                      "CKF_MOM_LPF": 1, "CKF_MOM_MREF": 1, "CKF_MOM_MOVE": 1, "CKF_CZ_FOLLOW": 1, "CKF_PROJ_IYY": 1,
                      "CKF_Q_IXX": pytest.approx(2.5e-6), "CKF_Q_IZZ": pytest.approx(2.5e-6),
-                     "CKF_M_ABS_SIG": pytest.approx(0.1), "CKF_GYRO": 1, "CKF_SYNC": 1}
+                     "CKF_M_ABS_SIG": pytest.approx(0.1), "CKF_GYRO": 1, "CKF_SYNC": 1,
+                     "CKF_R_MOVE": pytest.approx(8.0)}
 
 
 def test_the_documented_table_agrees_with_the_parameter_file() -> None:

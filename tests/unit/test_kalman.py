@@ -76,7 +76,7 @@ def _param_values(**overrides: float) -> dict[str, float]:
         "CKF_R_PITCH": 0.0, "CKF_CZ_SIG": 0.0, "CKF_LPF_SEED": 0, "CKF_IXZ_MOD": 0, "CKF_GRIP_SIG": 0.0,
         "CKF_MOM_LPF": 0, "CKF_M_SIG_OPEN": 0.0, "CKF_IXZ_SIG": 0.0, "CKF_CZ_DM": 0, "CKF_MOM_MREF": 0,
         "CKF_MOM_MOVE": 0, "CKF_PROJ_IYY": 0, "CKF_CZ_FOLLOW": 0, "CKF_M_ABS_SIG": 0.0, "CKF_GYRO": 0,
-        "CKF_IYY_GRIP_W": 0.5, "CKF_SYNC": 0,
+        "CKF_IYY_GRIP_W": 0.5, "CKF_SYNC": 0, "CKF_R_MOVE": 1.0,
     }
     v.update(overrides)
     return v
@@ -570,3 +570,36 @@ def test_the_pitch_nuisance_follows_the_reference_point_only_while_held() -> Non
     kf.move_pitch_reference(0.01)
     assert kf.pitch_com_offset_m == pytest.approx(-0.01)
     np.testing.assert_array_equal(kf.p, p_before)
+
+
+def test_while_the_arm_moves_the_update_is_the_textbook_one_with_r_scaled(pose: Pose) -> None:
+    """CKF_R_MOVE: step(arm_moving=True) is the textbook update x + K (z - H x), K = P H^T (H P H^T + s R)^-1, with
+    the noise variances s times R (numpy here, to 1e-9); arm_moving=False the same with R; and a filter configured
+    with s R and s times the pitch row's variance, at rest, steps bit for bit as the scaled one while moving."""
+    rng = np.random.default_rng(7)
+    scale = 8.0
+    for trial in range(10):
+        r_diag = tuple(rng.uniform(1e4, 5e4, 5))
+        base = dict(r_diag=r_diag, mode=CkfMode.UNCONSTRAINED)
+        x0 = pose.base * rng.uniform(0.8, 1.2, 4)
+        p0 = _random_p(rng)
+        a = rng.normal(size=5)
+        z = rng.normal(size=5) * 1e3
+        h = measurement_matrix(pose.gci, a, pose.rho_x, pose.rho_z)
+        for moving, s in ((True, scale), (False, 1.0)):
+            kf = ConstrainedKalmanFilter(CkfConfig(**base, r_move_scale=scale))
+            kf.initialise(x0, p0=p0)
+            kf.step(z, a, pose.gci, pose.rho_x, pose.rho_z, None, pose.base * 0.5, pose.base * 2.0, arm_moving=moving)
+            k = p0 @ h.T @ np.linalg.inv(h @ p0 @ h.T + s * np.diag(r_diag))
+            np.testing.assert_allclose(kf.x, x0 + k @ (z - h @ x0), rtol=1e-9)
+        # the pitch row in moment space too: the scaled filter moving == a filter configured with the scaled variances
+        pitch = dict(mode=CkfMode.CONSTRAINED, pitch_r_nm2=0.01, com_sigma_m=0.0)
+        moving = ConstrainedKalmanFilter(CkfConfig(r_diag=r_diag, r_move_scale=scale, **pitch))
+        scaled = ConstrainedKalmanFilter(CkfConfig(r_diag=tuple(scale * v for v in r_diag),
+                                                   **{**pitch, "pitch_r_nm2": 0.01 * scale}))
+        for kf, mv in ((moving, True), (scaled, False)):
+            kf.initialise(x0, p0=p0)
+            kf.step(z, a, pose.gci, pose.rho_x, pose.rho_z, None, pose.base * 0.5, pose.base * 2.0, arm_moving=mv)
+        assert np.array_equal(moving.x, scaled.x) and np.array_equal(moving.p, scaled.p), trial
+    with pytest.raises(ValueError):
+        CkfConfig(r_move_scale=0.5)
