@@ -34,17 +34,22 @@ def _cmd(gcs: Any, command: int, *p: float) -> Any:
     return ack
 
 
-def _stream(gcs: Any, send: Any, seconds: float) -> list[Any]:
-    """Send a setpoint every 50 ms for `seconds` (wall) and collect LOCAL_POSITION_NED and ATTITUDE meanwhile."""
+def _stream(gcs: Any, send: Any, flight_s: float) -> list[Any]:
+    """Send a setpoint every 50 ms (wall) until the vehicle's clock (the messages' time_boot_ms) has run `flight_s`, and
+    collect LOCAL_POSITION_NED and ATTITUDE meanwhile. The vehicle's time, not the wall's: on a loaded host a lockstep
+    pair flies slower than its speed, and a wall-clock window then judges a shorter flight."""
     got: list[Any] = []
-    end = time.monotonic() + seconds
-    while time.monotonic() < end:
+    t0_ms: int | None = None
+    wall_limit = time.monotonic() + max(30.0, 4.0 * flight_s)
+    while t0_ms is None or got[-1].time_boot_ms - t0_ms < flight_s * 1000.0:
+        assert time.monotonic() < wall_limit, f"the vehicle's clock did not run {flight_s} s"
         send()
         t_next = time.monotonic() + 0.05
         while (left := t_next - time.monotonic()) > 0:
             m = gcs.recv_match(type=["LOCAL_POSITION_NED", "ATTITUDE"], blocking=True, timeout=left)
             if m is not None:
                 got.append(m)
+                t0_ms = m.time_boot_ms if t0_ms is None else t0_ms
     return got
 
 
@@ -72,9 +77,9 @@ def test_offboard_velocity_attitude_and_cancel(fc: FcTarget) -> None:
             def vel() -> None:
                 gcs.mav.set_position_target_local_ned_send(0, gcs.target_system, 1, M.MAV_FRAME_LOCAL_NED, VEL_ONLY,
                                                            0, 0, 0, 0.5, 0, 0, 0, 0, 0, 0, 0)
-            _stream(gcs, vel, 0.3)
+            _stream(gcs, vel, 0.6)
             assert _cmd(gcs, M.MAV_CMD_DO_SET_MODE, 1, 6, 0).result == M.MAV_RESULT_ACCEPTED  # OFFBOARD
-            seen = _stream(gcs, vel, 5.0)
+            seen = _stream(gcs, vel, 10.0)
             tail = _last(seen, "LOCAL_POSITION_NED", 20)  # the last 2 s (10 Hz)
             # The mean velocity is the commanded one; the lateral mode rings (+-0.5 m/s, ~1.2 s period) after the
             # step in speed, so single samples are not judged (docs/gcs.md "Offboard").
@@ -88,7 +93,7 @@ def test_offboard_velocity_attitude_and_cancel(fc: FcTarget) -> None:
 
             def att() -> None:
                 gcs.mav.set_attitude_target_send(0, gcs.target_system, 1, ob.AT_RATES, q, 0, 0, 0, 0.5)
-            seen = _stream(gcs, att, 5.0)
+            seen = _stream(gcs, att, 10.0)
             a = _last(seen, "ATTITUDE", 5)
             assert all(abs(m.pitch) < math.radians(3) and abs(m.yaw - 0.3) < 0.05 for m in a), a
             held = _last(seen, "LOCAL_POSITION_NED", 20)
