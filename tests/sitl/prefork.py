@@ -38,7 +38,6 @@ MODULES = ("navig8_fc.shell.fc_process", "sim_bridge.bridge")
 # The environment a module reads at import (numba, BLAS, pymavlink's dialect, Python's own): a child asked for with
 # values the server did not import under is started as an interpreter instead.
 _IMPORT_ENV_PREFIXES = ("NUMBA_", "OPENBLAS_", "OMP_", "MKL_", "MAVLINK", "PYTHON", "NAVIG8_")
-_IMPORT_ENV_IGNORED = ("PYTHONDONTWRITEBYTECODE",)  # only whether .pyc files are written: the forked child writes none
 _MAX_MSG = 1 << 20
 _READY_TIMEOUT_S = 120.0  # the server's imports and warm-up on a loaded machine (a fresh numba cache compiles)
 _REPLY_TIMEOUT_S = 30.0  # a fork's pid
@@ -181,7 +180,7 @@ def serve(ctl: socket.socket) -> None:
     signal.signal(signal.SIGCHLD, lambda *_: None)  # wakes the select through the wakeup fd
     children: dict[int, socket.socket] = {}
     import_env = {k: v for k, v in os.environ.items() if k.startswith(_IMPORT_ENV_PREFIXES)
-                  and k not in _IMPORT_ENV_IGNORED}
+                 }
     try:
         while True:
             ready, _, _ = select.select([ctl, rd], [], [], 5.0)
@@ -207,7 +206,7 @@ def serve(ctl: socket.socket) -> None:
             status = socket.socket(fileno=fds[3])
             req = json.loads(msg)
             env = {k: v for k, v in req["env"].items() if k.startswith(_IMPORT_ENV_PREFIXES)
-                   and k not in _IMPORT_ENV_IGNORED}
+                  }
             why = None
             if req["module"] not in MODULES:
                 why = f"not a module the server imported: {req['module']}"
@@ -276,12 +275,14 @@ class ForkedProcess:
     """A process the fork server started, as the SITL tests use a subprocess.Popen: pid, args, stdout (bytes),
     poll, wait, send_signal, terminate, kill, returncode (negative: the signal that ended it)."""
 
-    def __init__(self, args: list[str], pid: int, status: socket.socket, stdout: Any) -> None:
+    def __init__(self, args: list[str], pid: int, status: socket.socket, stdout: Any, stderr: Any = None,
+                 text: bool = False) -> None:
         self.args = args
         self.pid = pid
         self.stdout = stdout
         self.stdin = None
-        self.stderr = None
+        self.stderr = stderr
+        self.text_mode = text
         self.returncode: int | None = None
         self.cpu_s: float | None = None  # its CPU time (user + system; its own children's included), once ended
         self._status = status
@@ -310,6 +311,36 @@ class ForkedProcess:
         if self.returncode is None:
             raise subprocess.TimeoutExpired(self.args, timeout or 0.0)
         return self.returncode
+
+    def communicate(self, timeout: float | None = None) -> tuple[Any, Any]:
+        """What is left on stdout and stderr (None for one not piped), both read to their ends, then the exit awaited;
+        subprocess.TimeoutExpired when that has not all happened within timeout."""
+        deadline = None if timeout is None else time.monotonic() + timeout
+        files = [f for f in (self.stdout, self.stderr) if f is not None]
+        open_fds = {f.fileno() for f in files if not f.closed}
+        got: dict[int, list[bytes]] = {f.fileno(): [] for f in files}
+        while open_fds:
+            left = None if deadline is None else deadline - time.monotonic()
+            if left is not None and left <= 0:
+                raise subprocess.TimeoutExpired(self.args, timeout or 0.0)
+            ready, _, _ = select.select(list(open_fds), [], [], left)
+            for fd in ready:
+                data = os.read(fd, 65536)
+                if data:
+                    got[fd].append(data)
+                else:
+                    open_fds.discard(fd)
+        results: list[Any] = []
+        for f in (self.stdout, self.stderr):
+            if f is None:
+                results.append(None)
+                continue
+            data = b"".join(got[f.fileno()])
+            f.close()
+            # text as subprocess gives it: decoded, universal newlines
+            results.append(data.decode().replace("\r\n", "\n").replace("\r", "\n") if self.text_mode else data)
+        self.wait(None if deadline is None else max(0.0, deadline - time.monotonic()))
+        return results[0], results[1]
 
     def send_signal(self, sig: int) -> None:
         self.poll()
@@ -347,40 +378,54 @@ class ForkServer:
         return self._ready
 
     def start(self, module: str, argv: list[str], cwd: Path | str, stdout: int = subprocess.PIPE,
-              stderr: int = subprocess.STDOUT) -> ForkedProcess | None:
-        """`python -m module *argv` in cwd, forked (stdin /dev/null; stdout a pipe, or DEVNULL; stderr into stdout,
-        or DEVNULL), or None when the server will not fork it (the caller starts an interpreter)."""
+              stderr: int = subprocess.STDOUT, text: bool = False) -> ForkedProcess | None:
+        """`python -m module *argv` in cwd, forked, stdin /dev/null; stdout PIPE or DEVNULL, stderr PIPE, STDOUT or
+        DEVNULL, the pipes bytes or (text) str as subprocess.Popen gives them; None when the server will not fork
+        it (the caller starts an interpreter)."""
+        with self._lock:
+            if not self._wait_ready():
+                return None
         ours, theirs = socket.socketpair(socket.AF_UNIX, socket.SOCK_SEQPACKET)
-        devnull = os.open(os.devnull, os.O_RDWR)
-        rd = None
+        mine: list[int] = []  # our read ends
+        theirs_fds: list[int] = []  # what the child gets (closed here once sent)
         try:
-            if stdout == subprocess.PIPE:
-                rd, out = os.pipe()
-            else:
-                out = os.dup(devnull)
-            err = out if stderr == subprocess.STDOUT else devnull
+            devnull = os.open(os.devnull, os.O_RDWR)
+            theirs_fds.append(devnull)
+            ends = {}
+            for name, how in (("out", stdout), ("err", stderr)):
+                if how == subprocess.PIPE:
+                    rd, wr = os.pipe()
+                    mine.append(rd)
+                    ends[name] = (rd, wr)
+                    theirs_fds.append(wr)
+                elif how == subprocess.STDOUT and name == "err" and "out" in ends:
+                    ends[name] = (None, ends["out"][1])
+                else:
+                    ends[name] = (None, devnull)
             req = {"module": module, "argv": list(argv), "cwd": str(cwd), "env": dict(os.environ)}
             with self._lock:
-                try:
-                    socket.send_fds(self._ctl, [json.dumps(req).encode()], [devnull, out, err, theirs.fileno()])
-                except OSError:
-                    return None
-            if out != devnull:
-                os.close(out)
+                socket.send_fds(self._ctl, [json.dumps(req).encode()],
+                                [devnull, ends["out"][1], ends["err"][1], theirs.fileno()])
+            for fd in theirs_fds:
+                os.close(fd)
+            theirs_fds.clear()
             theirs.close()
             ready, _, _ = select.select([ours], [], [], _REPLY_TIMEOUT_S)
             reply = json.loads(ours.recv(_MAX_MSG) or b"{}") if ready else {}
             if "pid" not in reply:
-                ours.close()
-                if rd is not None:
-                    os.close(rd)
-                return None
-            reader = open(rd, "rb") if rd is not None else None  # noqa: SIM115 - closed by SitlRun.stop
-            return ForkedProcess([sys.executable, "-m", module, *argv], reply["pid"], ours, reader)
+                raise OSError(reply.get("error", "no pid from the fork server"))
+            mode = "r" if text else "rb"
+            files = [open(ends[n][0], mode) if ends[n][0] is not None else None  # noqa: SIM115 - the caller's
+                     for n in ("out", "err")]
+            mine.clear()
+            return ForkedProcess([sys.executable, "-m", module, *argv], reply["pid"], ours, files[0], files[1], text)
+        except OSError:
+            ours.close()
+            for fd in mine + theirs_fds:
+                os.close(fd)
+            return None
         finally:
-            os.close(devnull)
-            if theirs.fileno() != -1:
-                theirs.close()
+            theirs.close()
 
     def close(self) -> None:
         self._ctl.close()

@@ -60,19 +60,18 @@ def stop_fork_server() -> None:
         _server = None
 
 
-def start_process(module: str, args: list[str], cwd: Path, quiet: bool = False) -> Proc:
-    """`python -m module *args` in cwd, its stdout and stderr on one pipe (quiet: to /dev/null): forked from the
-    fork server (the FC and the bridge; tests/sitl/prefork.py), else an interpreter of its own."""
+def start_process(module: str, args: list[str], cwd: Path | str, stdout: int = subprocess.PIPE,
+                  stderr: int = subprocess.STDOUT, text: bool = False) -> Proc:
+    """`python -m module *args` in cwd, as subprocess.Popen(..., stdin=DEVNULL, stdout=, stderr=, text=) starts it:
+    forked from this process's fork server when it serves the module (the FC and the bridge; tests/sitl/prefork.py),
+    else an interpreter of its own."""
     start_fork_server()
     if _server is not None:
-        out = subprocess.DEVNULL if quiet else subprocess.PIPE
-        err = subprocess.DEVNULL if quiet else subprocess.STDOUT
-        p = _server.start(module, args, cwd, stdout=out, stderr=err)
+        p = _server.start(module, args, cwd, stdout=stdout, stderr=stderr, text=text)
         if p is not None:
             return p
-    return subprocess.Popen([sys.executable, "-m", module, *args], stdin=subprocess.DEVNULL,
-                            stdout=subprocess.DEVNULL if quiet else subprocess.PIPE,
-                            stderr=subprocess.DEVNULL if quiet else subprocess.STDOUT, cwd=cwd)
+    return subprocess.Popen([sys.executable, "-m", module, *args], stdin=subprocess.DEVNULL, stdout=stdout,
+                            stderr=stderr, text=text, cwd=cwd)
 
 
 def wait_ports_file(path: Path, proc: Proc, timeout_s: float = PORTS_FILE_TIMEOUT_S) -> dict[str, int]:
@@ -416,12 +415,13 @@ def external_pair(tmp: Path, speed: float = 1.0, scenario: str = "ground") -> It
     try:
         procs.append(start_process("sim_bridge.bridge", [
             "--scenario", scenario, "--speed", str(speed), "--link", "tcpin:127.0.0.1:0", "--ports-file",
-            str(br_ports)], tmp, quiet=True))
+            str(br_ports)], tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         bridge = wait_ports_file(br_ports, procs[0])["bridge"]
         procs.append(start_process("navig8_fc.shell.fc_process", [
             "--scenario", scenario, "--sim-link", f"tcp:127.0.0.1:{bridge}", "--gcs-link", "tcpin:127.0.0.1:0",
             "--api-port", str(api), "--api-bind-port", "0", "--state-dir", str(tmp / "ext-state"), "--log",
-            str(tmp / "ext.mcap"), "--ports-file", str(fc_ports)], tmp, quiet=True))
+            str(tmp / "ext.mcap"), "--ports-file", str(fc_ports)], tmp, stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL))
         gcs = wait_ports_file(fc_ports, procs[1])["gcs"]
         yield {"fc_gcs": f"tcp:127.0.0.1:{gcs}", "fc_api": f"udpin:127.0.0.1:{api}",
                "bridge": f"tcpin:127.0.0.1:{bridge}"}
