@@ -1,9 +1,10 @@
 """A fork server for the SITL tests: the FC's and the bridge's processes forked from one pre-imported, pre-warmed
-Python process instead of each started as a new interpreter (~2 s of CPU a start: the imports, numba's first dispatch
-and cache loads; the SITL lane starts ~145 of them).
+Python process instead of each started as a new interpreter: a pair costs ~0.6 s of CPU instead of ~2.3 s (the
+imports, numba's first dispatch and its cache loads, done once in the server; tests/sitl/pair_cpu.py), over a hundred
+starts in the SITL lane.
 
 A forked child is a process of its own, as `python -m MODULE ARGS` would be: it gets the test's argv, working
-directory, environment and stdin/stdout/stderr, runs the module as __main__ (`runpy`, as -m does), binds its own
+directory, environment and stdin/stdout/stderr, runs the module's code in a fresh __main__ (as -m does), binds its own
 sockets and exits with the module's exit code after Python's own shutdown steps (non-daemon threads joined, atexit
 handlers, streams flushed). The test holds it through `ForkedProcess`, the part of subprocess.Popen the tests use.
 
@@ -14,7 +15,8 @@ parallel. Otherwise, or on any failure of the server, `start` returns None and t
 
 Protocol (Unix SOCK_SEQPACKET, one message a datagram): a start is JSON {module, argv, cwd, env} on the control
 socket with four descriptors: the child's stdin, stdout, stderr and its status socket. The server answers on the
-status socket {"pid": n} (or {"error": text}) and, when the child has ended, {"status": its wait status}. The
+status socket {"pid": n} (or {"error": text}) and, when the child has ended, {"status": its wait status, "cpu_s":
+its CPU time}. The
 server ends when the control socket closes (the test process is gone), killing any child still running.
 """
 
@@ -179,8 +181,7 @@ def serve(ctl: socket.socket) -> None:
     signal.set_wakeup_fd(wr)
     signal.signal(signal.SIGCHLD, lambda *_: None)  # wakes the select through the wakeup fd
     children: dict[int, socket.socket] = {}
-    import_env = {k: v for k, v in os.environ.items() if k.startswith(_IMPORT_ENV_PREFIXES)
-                 }
+    import_env = {k: v for k, v in os.environ.items() if k.startswith(_IMPORT_ENV_PREFIXES)}
     try:
         while True:
             ready, _, _ = select.select([ctl, rd], [], [], 5.0)
@@ -205,8 +206,7 @@ def serve(ctl: socket.socket) -> None:
                 continue
             status = socket.socket(fileno=fds[3])
             req = json.loads(msg)
-            env = {k: v for k, v in req["env"].items() if k.startswith(_IMPORT_ENV_PREFIXES)
-                  }
+            env = {k: v for k, v in req["env"].items() if k.startswith(_IMPORT_ENV_PREFIXES)}
             why = None
             if req["module"] not in MODULES:
                 why = f"not a module the server imported: {req['module']}"

@@ -3,7 +3,9 @@
 The processes bind port 0 (a port the kernel picks, so no test races another for a port number) and report the
 ports they got in a --ports-file (`wait_ports_file`). The bridge starts first; the FC is given the bridge's port
 and announces itself, so the bridge learns the FC's address (it runs with --fc-port 0). Every wait is bounded;
-`SitlRun.stop()` (called by the context manager) always ends both processes.
+`SitlRun.stop()` (called by the context manager) always ends both processes. Each is forked from this test process's
+fork server (tests/sitl/prefork.py: imported and warmed once, so a start costs a fraction of a new interpreter's CPU);
+NAVIG8_TEST_PREFORK=0 starts every one as an interpreter of its own.
 """
 
 from __future__ import annotations
