@@ -34,6 +34,26 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
             item.add_marker(pytest.mark.skip(reason=f"needs the local pair: {why}"))
 
 
+@pytest.hookimpl(trylast=True)  # after tests/conftest.py's wait for numba's warm-up: the server loads its kernels
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """A run with SITL or client tests starts its fork server now (tests/sitl/prefork.py): it imports and warms
+    while the first test sets up, instead of in the first start."""
+    if session.config.getoption("--fc-gcs", default=None) is not None:
+        return
+    dirs = (_HERE, _HERE.parent / "clients")
+    if any(any(d in Path(str(it.fspath)).resolve().parents for d in dirs) for it in session.items):
+        from sitl_helpers import start_fork_server
+
+        start_fork_server()
+
+
+def pytest_unconfigure(config: pytest.Config) -> None:
+    import sys
+
+    if "sitl_helpers" in sys.modules:
+        sys.modules["sitl_helpers"].stop_fork_server()
+
+
 def pytest_addoption(parser: pytest.Parser) -> None:
     """Point the interop tests (tests/sitl/test_hil_interop.py) at an FC running elsewhere (docs/hil.md)."""
     g = parser.getgroup("hil", "interop tests against any FC, by connection string (docs/hil.md)")

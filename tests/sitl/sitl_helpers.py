@@ -3,11 +3,14 @@
 The processes bind port 0 (a port the kernel picks, so no test races another for a port number) and report the
 ports they got in a --ports-file (`wait_ports_file`). The bridge starts first; the FC is given the bridge's port
 and announces itself, so the bridge learns the FC's address (it runs with --fc-port 0). Every wait is bounded;
-`SitlRun.stop()` (called by the context manager) always ends both processes.
+`SitlRun.stop()` (called by the context manager) always ends both processes. Each is forked from this test process's
+fork server (tests/sitl/prefork.py: imported and warmed once, so a start costs a fraction of a new interpreter's CPU);
+NAVIG8_TEST_PREFORK=0 starts every one as an interpreter of its own.
 """
 
 from __future__ import annotations
 
+import atexit
 import json
 import math
 import os
@@ -24,12 +27,56 @@ from typing import Any
 
 os.environ.setdefault("MAVLINK20", "1")
 
+from prefork import ForkedProcess, ForkServer  # noqa: E402
 from pymavlink import mavutil  # noqa: E402
 
+Proc = subprocess.Popen | ForkedProcess
 PORTS_FILE_TIMEOUT_S = 60.0  # a first start may generate the dialect and compile numba kernels
 
 
-def wait_ports_file(path: Path, proc: subprocess.Popen, timeout_s: float = PORTS_FILE_TIMEOUT_S) -> dict[str, int]:
+_PREFORK_ENV = "NAVIG8_TEST_PREFORK"  # "0": every FC and bridge started as an interpreter of its own
+_server: ForkServer | None = None
+_server_failed = False
+
+
+def start_fork_server() -> None:
+    """Start this test process's fork server (tests/sitl/prefork.py) if not yet started; it imports and warms in the
+    background until the first start needs it."""
+    global _server, _server_failed
+    if _server is not None or _server_failed or os.environ.get(_PREFORK_ENV) == "0":
+        return
+    try:
+        _server = ForkServer()
+    except OSError as e:
+        print(f"sitl_helpers: no fork server ({e}): starting interpreters", file=sys.stderr)
+        _server_failed = True
+        return
+    atexit.register(stop_fork_server)
+
+
+def stop_fork_server() -> None:
+    """End the fork server and wait for it (so its children's CPU time is accounted to this process)."""
+    global _server
+    if _server is not None:
+        _server.close()
+        _server = None
+
+
+def start_process(module: str, args: list[str], cwd: Path | str, stdout: int = subprocess.PIPE,
+                  stderr: int = subprocess.STDOUT, text: bool = False) -> Proc:
+    """`python -m module *args` in cwd, as subprocess.Popen(..., stdin=DEVNULL, stdout=, stderr=, text=) starts it:
+    forked from this process's fork server when it serves the module (the FC and the bridge; tests/sitl/prefork.py),
+    else an interpreter of its own."""
+    start_fork_server()
+    if _server is not None:
+        p = _server.start(module, args, cwd, stdout=stdout, stderr=stderr, text=text)
+        if p is not None:
+            return p
+    return subprocess.Popen([sys.executable, "-m", module, *args], stdin=subprocess.DEVNULL, stdout=stdout,
+                            stderr=stderr, text=text, cwd=cwd)
+
+
+def wait_ports_file(path: Path, proc: Proc, timeout_s: float = PORTS_FILE_TIMEOUT_S) -> dict[str, int]:
     """The ports a child wrote to its --ports-file (written atomically after binding), waiting at most timeout_s;
     fails at once, with the child's output, if the child exits first."""
     deadline = time.monotonic() + timeout_s
@@ -60,8 +107,8 @@ def free_udp_ports(n: int) -> list[int]:
 
 @dataclass
 class SitlRun:
-    fc: subprocess.Popen
-    bridge: subprocess.Popen | None
+    fc: Proc
+    bridge: Proc | None
     gcs_port: int  # where the FC sends GCS traffic (the test's GCS listens here)
     api_port: int
     gcs_bind_port: int  # the FC's GCS socket
@@ -116,10 +163,8 @@ def sitl(tmp: Path, scenario: str = "ground", speed: float = 1.0, fc_args: list[
     try:
         if start_bridge:
             br_ports = tmp / f"{log_name}.bridge-ports.json"
-            br_cmd = [sys.executable, "-m", "sim_bridge.bridge", "--scenario", scenario, "--speed", str(speed),
-                      *br_link, "--ports-file", str(br_ports), *(bridge_args or [])]
-            br = subprocess.Popen(br_cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                  stderr=subprocess.STDOUT, cwd=tmp)
+            br = start_process("sim_bridge.bridge", ["--scenario", scenario, "--speed", str(speed), *br_link,
+                                                     "--ports-file", str(br_ports), *(bridge_args or [])], tmp)
             ports.update(wait_ports_file(br_ports, br))
         else:
             (ports["bridge"],) = free_udp_ports(1)  # nobody there: the FC waits for bundles
@@ -129,12 +174,10 @@ def sitl(tmp: Path, scenario: str = "ground", speed: float = 1.0, fc_args: list[
         if fc_link_args is not None:  # the FC's sim link as the caller says (a simulator of its own)
             fc_link = fc_link_args
         fc_ports = tmp / f"{log_name}.fc-ports.json"
-        fc_cmd = [sys.executable, "-m", "navig8_fc.shell.fc_process", "--scenario", scenario, *fc_link,
-                  "--gcs-port", str(gcs), "--gcs-bind-port", "0",
-                  "--api-port", str(api), "--api-bind-port", "0", "--log", str(log), "--state-dir", str(state),
-                  "--ports-file", str(fc_ports), *(fc_args or [])]
-        fc = subprocess.Popen(fc_cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                              cwd=tmp)
+        fc = start_process("navig8_fc.shell.fc_process", [
+            "--scenario", scenario, *fc_link, "--gcs-port", str(gcs), "--gcs-bind-port", "0", "--api-port", str(api),
+            "--api-bind-port", "0", "--log", str(log), "--state-dir", str(state), "--ports-file", str(fc_ports),
+            *(fc_args or [])], tmp)
         run = SitlRun(fc, br, gcs, api, 0, log, state, ports=ports)
     except BaseException:
         for p in (br, fc):
@@ -370,19 +413,17 @@ def external_pair(tmp: Path, speed: float = 1.0, scenario: str = "ground") -> It
     the suite at it (fc_gcs, fc_api, bridge); both processes are ended on exit."""
     (api,) = free_udp_ports(1)
     br_ports, fc_ports = tmp / "ext-bridge-ports.json", tmp / "ext-fc-ports.json"
-    procs: list[subprocess.Popen] = []
+    procs: list[Proc] = []
     try:
-        procs.append(subprocess.Popen(
-            [sys.executable, "-m", "sim_bridge.bridge", "--scenario", scenario, "--speed", str(speed), "--link",
-             "tcpin:127.0.0.1:0", "--ports-file", str(br_ports)],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tmp))
+        procs.append(start_process("sim_bridge.bridge", [
+            "--scenario", scenario, "--speed", str(speed), "--link", "tcpin:127.0.0.1:0", "--ports-file",
+            str(br_ports)], tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
         bridge = wait_ports_file(br_ports, procs[0])["bridge"]
-        procs.append(subprocess.Popen(
-            [sys.executable, "-m", "navig8_fc.shell.fc_process", "--scenario", scenario, "--sim-link",
-             f"tcp:127.0.0.1:{bridge}", "--gcs-link", "tcpin:127.0.0.1:0", "--api-port", str(api),
-             "--api-bind-port", "0", "--state-dir", str(tmp / "ext-state"), "--log", str(tmp / "ext.mcap"),
-             "--ports-file", str(fc_ports)],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=tmp))
+        procs.append(start_process("navig8_fc.shell.fc_process", [
+            "--scenario", scenario, "--sim-link", f"tcp:127.0.0.1:{bridge}", "--gcs-link", "tcpin:127.0.0.1:0",
+            "--api-port", str(api), "--api-bind-port", "0", "--state-dir", str(tmp / "ext-state"), "--log",
+            str(tmp / "ext.mcap"), "--ports-file", str(fc_ports)], tmp, stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL))
         gcs = wait_ports_file(fc_ports, procs[1])["gcs"]
         yield {"fc_gcs": f"tcp:127.0.0.1:{gcs}", "fc_api": f"udpin:127.0.0.1:{api}",
                "bridge": f"tcpin:127.0.0.1:{bridge}"}

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from sitl_helpers import wait_ports_file
+from sitl_helpers import Proc, start_process, wait_ports_file
 
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.links.sim_guard import pairing_heartbeat, session_key
@@ -87,15 +87,13 @@ class FakeFc:
 
 
 @contextmanager
-def bridge_process(*args: str) -> Iterator[tuple[subprocess.Popen, FakeFc]]:
+def bridge_process(*args: str) -> Iterator[tuple[Proc, FakeFc]]:
     fc = FakeFc()
     with tempfile.TemporaryDirectory(prefix="navig8-bridge-test-") as tmp:
         ports_file = Path(tmp) / "ports.json"
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "sim_bridge.bridge", "--bridge-port", "0", "--fc-port", "0", "--ports-file",
-             str(ports_file), *args],
-            cwd=ROOT, env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        )
+        proc = start_process("sim_bridge.bridge", ["--bridge-port", "0", "--fc-port", "0", "--ports-file",
+                                                   str(ports_file), *args], ROOT, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
         try:
             fc.bridge = ("127.0.0.1", wait_ports_file(ports_file, proc)["bridge"])
         except BaseException:

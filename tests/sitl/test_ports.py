@@ -4,20 +4,17 @@ share the first one's port and take its datagrams)."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
 import time
 from pathlib import Path
 
-from sitl_helpers import gcs_client, sitl, wait_heartbeat, wait_ports_file
+from sitl_helpers import Proc, gcs_client, sitl, start_process, wait_heartbeat, wait_ports_file
 
 from navig8_fc.shell.mcap_log import read_mcap
 
 
-def _fc(tmp: Path, *args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "navig8_fc.shell.fc_process", "--state-dir", str(tmp / "state"),
-                             "--defaults", *args], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True, cwd=tmp)
+def _fc(tmp: Path, *args: str) -> Proc:
+    return start_process("navig8_fc.shell.fc_process", ["--state-dir", str(tmp / "state"), "--defaults", *args], tmp,
+                         text=True)
 
 
 def test_two_fcs_cannot_share_a_port(tmp_path: Path) -> None:
@@ -73,10 +70,9 @@ def test_bridge_started_after_the_fc_finds_it(tmp_path: Path) -> None:
     bridge = None
     try:
         wait_ports_file(tmp_path / "fc.json", fc)  # the FC is up (its first announcement already went nowhere)
-        bridge = subprocess.Popen([sys.executable, "-m", "sim_bridge.bridge", "--scenario", "hover", "--speed", "0",
-                                   "--bridge-port", str(bridge_port), "--fc-port", "0", "--until-done", "--duration",
-                                   "1"], stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                  text=True, cwd=tmp_path)
+        bridge = start_process("sim_bridge.bridge", ["--scenario", "hover", "--speed", "0", "--bridge-port",
+                                                     str(bridge_port), "--fc-port", "0", "--until-done", "--duration",
+                                                     "1"], tmp_path, text=True)
         out, _ = bridge.communicate(timeout=120)
         assert bridge.returncode == 0, out
         assert "100 steps" in out, out

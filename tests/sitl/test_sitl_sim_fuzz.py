@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from sitl_helpers import free_udp_ports, gcs_client, kernel_udp_drops, wait_for, wait_heartbeat
+from sitl_helpers import free_udp_ports, gcs_client, kernel_udp_drops, start_process, wait_for, wait_heartbeat
 
 from navig8_fc.core.vehicle import VehicleConfig
 from navig8_fc.links.sim_guard import pairing_heartbeat
@@ -66,27 +66,39 @@ def _forged_bundles(sysid: int, seed: int, n: int, mutate=None) -> list[bytes]:
     return out
 
 
-def _attack(sim: tuple[str, int], bridge: tuple[str, int], sysid: int) -> dict[str, int]:
+def _forged_traffic(sysid: int) -> tuple[list[bytes], bytes, list[bytes]]:
+    """The forged datagrams for the FC's sim port and for the bridge, built before the flight: building them (2,000
+    plant steps and 1,500 answers in this process) inside the 10 s hover would leave the attack less of it."""
+    # forged steps: 1e6 at every stamp of the first 15 s (the next step of the run among them), NaN, Inf,
+    # and another vehicle's run replayed from t = 0
+    bad = [*_forged_bundles(sysid, 7, 1500, lambda sw: sw.pos_ned_m.__setitem__(2, 1e6)),
+           *_forged_bundles(sysid, 8, 100, lambda sw: sw.joint_pos_rad.__setitem__(0, math.nan)),
+           *_forged_bundles(sysid, 9, 100, lambda sw: sw.gyro_frd_rad_s.__setitem__(1, math.inf)),
+           *_forged_bundles(sysid, 10, 300)]
+    # the bridge: a pairing and full-throttle answers for every stamp of the first 15 s, from a stranger
+    fc_enc = codec.Encoder(codec.seam_codec(), sysid, dialect.COMPID_FC)
+    pairing = fc_enc.frame(*pairing_heartbeat(1234))
+    veh = VehicleConfig.load()
+    full = seam.ActuatorControls(0, (0.0, 0.0), (950.0, 0.0, 950.0), True)
+    answers = [seam.pack_actuator_controls(fc_enc, k * 10_000 + 1, full, veh, armed=True) for k in range(1500)]
+    return bad, pairing, answers
+
+
+def _attack(sim: tuple[str, int], bridge: tuple[str, int], sysid: int, bad: list[bytes], pairing: bytes,
+            answers: list[bytes]) -> dict[str, int]:
     socks = [socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(17)]
     sent = {"heartbeats": 0, "forged": 0, "fragments": 0, "to_bridge": 0}
     try:
         attacker = socks[16]
         br_enc = codec.Encoder(codec.seam_codec(), sysid, dialect.COMPID_BRIDGE)
         gcs_enc = codec.Encoder(codec.seam_codec(), 255, 190)
-        fc_enc = codec.Encoder(codec.seam_codec(), sysid, dialect.COMPID_FC)
         # 16 sockets: pair requests with the bridge's ids, and GCS heartbeats (the old 8-entry peer table)
         for _ in range(40):
             for s in socks[:16]:
                 s.sendto(br_enc.frame(*pairing_heartbeat(0)), sim)
                 s.sendto(gcs_enc.frame(*seam.announce_record()), sim)
                 sent["heartbeats"] += 2
-        # forged steps: 1e6 at every stamp of the first 15 s (the next step of the run among them), NaN, Inf,
-        # and another vehicle's run replayed from t = 0
-        bad = [*_forged_bundles(sysid, 7, 1500, lambda sw: sw.pos_ned_m.__setitem__(2, 1e6)),
-               *_forged_bundles(sysid, 8, 100, lambda sw: sw.joint_pos_rad.__setitem__(0, math.nan)),
-               *_forged_bundles(sysid, 9, 100, lambda sw: sw.gyro_frd_rad_s.__setitem__(1, math.inf)),
-               *_forged_bundles(sysid, 10, 300)]
-        for i, data in enumerate(bad):
+        for i, data in enumerate(bad):  # forged steps (_forged_traffic)
             attacker.sendto(data, sim)
             sent["forged"] += 1
             frames, _, _ = codec.split_frames(data)
@@ -101,11 +113,9 @@ def _attack(sim: tuple[str, int], bridge: tuple[str, int], sysid: int) -> dict[s
         for _ in range(3):
             attacker.sendto(br_enc.frame(*seam.encode_sim_status(done)), sim)
         # the bridge: full-throttle answers for every stamp of the first 15 s and a pairing, from a stranger
-        veh = VehicleConfig.load()
-        full = seam.ActuatorControls(0, (0.0, 0.0), (950.0, 0.0, 950.0), True)
-        attacker.sendto(fc_enc.frame(*pairing_heartbeat(1234)), bridge)
-        for k in range(1500):
-            attacker.sendto(seam.pack_actuator_controls(fc_enc, k * 10_000 + 1, full, veh, armed=True), bridge)
+        attacker.sendto(pairing, bridge)
+        for data in answers:
+            attacker.sendto(data, bridge)
             sent["to_bridge"] += 1
     finally:
         for s in socks:
@@ -116,6 +126,7 @@ def _attack(sim: tuple[str, int], bridge: tuple[str, int], sysid: int) -> dict[s
 def test_forged_sim_traffic_neither_crashes_nor_steers_the_vehicle(tmp_path: Path) -> None:
     (gcs_port,) = free_udp_ports(1)
     sysid = INSTANCE + 1
+    bad, pairing, answers = _forged_traffic(sysid)
     proc = _sitl(tmp_path, INSTANCE, "hover", gcs_port, "--until-done")
     gcs = gcs_client(gcs_port)
     try:
@@ -123,13 +134,20 @@ def test_forged_sim_traffic_neither_crashes_nor_steers_the_vehicle(tmp_path: Pat
         lp = wait_for(gcs, "LOCAL_POSITION_NED", 10.0)
         assert lp is not None and abs(lp.z + 2.0) < 0.2, lp
         sim_port, bridge_port = 4561 + 2 * INSTANCE, 4560 + 2 * INSTANCE
-        sent = _attack(("127.0.0.1", sim_port), ("127.0.0.1", bridge_port), sysid)
+        sent = _attack(("127.0.0.1", sim_port), ("127.0.0.1", bridge_port), sysid, bad, pairing,
+                       answers)
         # a second FC on the same instance: a clear error, and the first keeps flying
-        second = subprocess.run([sys.executable, "-m", "navig8_fc.shell.fc_process", "--instance", str(INSTANCE),
-                                 "--defaults", "--state-dir", str(tmp_path / "state2")], stdin=subprocess.DEVNULL,
-                                capture_output=True, text=True, timeout=120)
-        assert second.returncode == 2 and "is in use by another process" in second.stderr, second.stderr
-        assert "Traceback" not in second.stderr
+        second = start_process("navig8_fc.shell.fc_process", ["--instance", str(INSTANCE), "--defaults",
+                                                              "--state-dir", str(tmp_path / "state2")], tmp_path,
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        try:
+            _, second_err = second.communicate(timeout=120)
+        finally:
+            if second.poll() is None:
+                second.kill()
+                second.wait(timeout=10)
+        assert second.returncode == 2 and "is in use by another process" in second_err, second_err
+        assert "Traceback" not in second_err
         assert proc.poll() is None, "the forged done (or anything else) ended the run early"
         lp = wait_for(gcs, "LOCAL_POSITION_NED", 10.0)
         assert lp is not None and abs(lp.z + 2.0) < 0.2, lp

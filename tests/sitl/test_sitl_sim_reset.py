@@ -6,19 +6,15 @@ refused."""
 from __future__ import annotations
 
 import signal
-import subprocess
-import sys
 from pathlib import Path
 
-from sitl_helpers import gcs_client, sitl, wait_for, wait_heartbeat
+from sitl_helpers import Proc, gcs_client, sitl, start_process, wait_for, wait_heartbeat
 
 from navig8_fc.shell.mcap_log import read_mcap, read_metadata
 
 
-def _bridge(tmp: Path, *args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "sim_bridge.bridge", "--scenario", "hover", "--speed", "2", *args],
-                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            cwd=tmp)
+def _bridge(tmp: Path, *args: str) -> Proc:
+    return start_process("sim_bridge.bridge", ["--scenario", "hover", "--speed", "2", *args], tmp, text=True)
 
 
 def test_a_restarted_bridge_pairs_again_and_a_second_one_is_refused(tmp_path: Path) -> None:
