@@ -386,10 +386,8 @@ class AdaptiveLaw:
             r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct,
                         pitch=t_s >= self._pitch_hold_until_s, h_mass=h_mass, pitch_y=pitch_y, com_dm=com_dm,
                         arm_moving=moving)
-        elif moving:  # the KF alone (CKF_R_MOVE); the LMS has no R
-            r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct, arm_moving=True)
         else:
-            r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct)
+            r = kf.step(du_kf, self._da, gc_inv, rho_x, rho_z, idot, lower, upper, correct, arm_moving=moving)
         self._mass_hat = r.x_hat[3]
         return estimated_status(r, base, j13, lower, upper, du, da, window_sat,
                                 (kf.n_updates, kf.n_projection_fallbacks, self._n_sat_skips, self._n_forgets))

@@ -232,10 +232,12 @@ class LmsEstimator:
         lower: Sequence[float],
         upper: Sequence[float],
         correct: bool = True,
+        arm_moving: bool = False,
     ) -> KfStepResult:
         """Drift (skipped when inertia_rate_diag is None), one LMS step (when `correct`; the states that pass the
         excitation gate of the config), the clip onto [lower, upper], in one compiled call. Arguments as
-        ConstrainedKalmanFilter.step; n_updates counts the steps taken."""
+        ConstrainedKalmanFilter.step (arm_moving, CKF_R_MOVE's, has no noise to scale here: ignored); n_updates counts
+        the steps taken."""
         if not self._initialised:
             raise RuntimeError("LmsEstimator.step before initialise()")
         do_predict = inertia_rate_diag is not None
